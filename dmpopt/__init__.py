@@ -1,0 +1,61 @@
+r"""dmpopt: Dynamic Movement Primitives built on optimisation and real robot models.
+
+Symbols of the paper ([dmpopt-paper]: Schaal, Peters, Nakanishi, Ijspeert, "Learning Movement
+Primitives", ISRR 2003) and their names in the API:
+
+==============================  =====================================  =====================
+symbol                          meaning                                API name
+==============================  =====================================  =====================
+:math:`y, \dot y, \ddot y`      position, velocity, acceleration       ``positions`` ...
+:math:`z`                       scaled velocity state                  (state)
+:math:`g`                       goal / setpoint                        ``goal``, ``setpoint``
+:math:`y_0`                     start                                  ``start``
+:math:`\tau`                    time constant                          ``time_constant``
+:math:`\alpha_z, \beta_z`       transformation gains                   ``stiffness``, ``damping``
+:math:`\alpha_v, \beta_v`       discrete canonical gains (eq. 6)       ``phase_stiffness`` ...
+:math:`\alpha_g`                goal filter rate (eq. 10)              ``goal_rate``
+:math:`A, \alpha_r`             amplitude and its rate (eq. 11)        ``amplitude``, ``amplitude_rate``
+:math:`E_0, \alpha_E, k`        energy oscillator (eq. 13)             ``amplitude``, ``amplitude_rate``, ``frequency``
+:math:`w_i, c_i, h_i`           weights, centres, widths               ``weights``, ``centres``, ``widths``
+:math:`f`                       forcing term                           ``forcing_weights()``
+==============================  =====================================  =====================
+"""
+
+from .dmp import AffinePlan, DiscreteDMP, RhythmicDMP, similarity_transform
+from .exceptions import (
+    DmpoptError,
+    FileFormatError,
+    FittingFailed,
+    InfeasibleProblem,
+    InvalidInputError,
+    MissingDependency,
+    NoSolutionFound,
+    ShapeError,
+    SimulationDiverged,
+)
+from .fitting import fit_discrete, fit_to_accuracy, reproduction_error
+from .stepper import Stepper
+from .trajectory import Trajectory
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AffinePlan",
+    "DiscreteDMP",
+    "DmpoptError",
+    "FileFormatError",
+    "FittingFailed",
+    "InfeasibleProblem",
+    "InvalidInputError",
+    "MissingDependency",
+    "NoSolutionFound",
+    "RhythmicDMP",
+    "ShapeError",
+    "SimulationDiverged",
+    "Stepper",
+    "Trajectory",
+    "fit_discrete",
+    "fit_to_accuracy",
+    "reproduction_error",
+    "similarity_transform",
+]

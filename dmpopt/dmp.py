@@ -1,0 +1,554 @@
+r"""Discrete and rhythmic DMPs: immutable parameters and whole-plan rollouts.
+
+A DMP is a frozen value. ``with_goal``, ``with_time_constant``, ... return new objects.
+Rollouts use the affine structure of the plan: for a fixed time constant, step and
+canonical trajectory, positions, velocities and accelerations are linear in the initial
+transformation state, the goal and the weights. The response matrices are evaluated once
+from the symbolic rollout (:mod:`dmpopt.symbolic`) and cached, so a rollout of any number of
+DOFs is one matrix product.
+
+Goal generalisation of discrete DMPs (``goal_scaling``):
+
+``"paper"``
+    eq. (7) per DOF: the forcing term of DOF ``d`` is scaled by ``g_d - y0_d``. Weights are
+    stored per unit of that distance. A DOF whose demonstration starts and ends at the
+    same value has no defined weights: fitting raises an error.
+``"rotation"``
+    The forcing vector is mapped by the rotation and uniform scaling that carry the
+    demonstrated start-goal vector onto the new one. Since the transformation system is
+    linear and isotropic, the plan to a new goal is then exactly the reproduction of the
+    demonstration, rotated and scaled about the start. Needs a non-zero demonstrated
+    start-goal vector.
+``"translation"``
+    The forcing vector is used as learned: new start and goal translate the shape. Used
+    for closed movements whose start and goal coincide.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from . import basis, symbolic
+from .exceptions import InvalidInputError, ShapeError
+from .trajectory import Trajectory, as_finite_array
+
+GOAL_SCALINGS = ("paper", "rotation", "translation")
+
+
+def _positive(name: str, value) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value <= 0.0:
+        raise InvalidInputError(f"{name} must be a positive finite number, got {value!r}")
+    return value
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    array = np.array(array, dtype=float)
+    array.setflags(write=False)
+    return array
+
+
+def _vector(name: str, value, size: int, reference: str) -> np.ndarray:
+    array = np.atleast_1d(as_finite_array(name, value))
+    if array.shape == (1,) and size > 1:
+        array = np.full(size, array[0])
+    if array.shape != (size,):
+        raise ShapeError(f"{name} has shape {array.shape}, expected ({size},) to match {reference}")
+    return array
+
+
+def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Rotation times uniform scaling that maps vector ``source`` onto ``target``.
+
+    The rotation is the smallest one: it turns the plane spanned by the two vectors and
+    leaves its orthogonal complement alone. In one dimension it is a sign.
+    """
+    source_norm = np.linalg.norm(source)
+    target_norm = np.linalg.norm(target)
+    n = source.size
+    if target_norm == 0.0:
+        return np.zeros((n, n))
+    a, b = source / source_norm, target / target_norm
+    cosine = float(np.clip(a @ b, -1.0, 1.0))
+    if n == 1:
+        rotation = np.array([[np.sign(cosine)]])
+    elif cosine > -1.0 + 1e-12:
+        cross = np.outer(b, a) - np.outer(a, b)
+        rotation = np.eye(n) + cross + cross @ cross / (1.0 + cosine)
+    else:  # half turn in a plane that contains a
+        helper = np.eye(n)[np.argmin(np.abs(a))]
+        u = helper - (helper @ a) * a
+        u /= np.linalg.norm(u)
+        rotation = np.eye(n) - 2 * np.outer(a, a) - 2 * np.outer(u, u)
+    return target_norm / source_norm * rotation
+
+
+@lru_cache(maxsize=32)
+def _response(key: tuple) -> np.ndarray:
+    """Response matrices of one DOF, in time normalised by ``tau``.
+
+    Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
+    responses to each input (initial transformation states, goal, weights). Columns come
+    from one integration of the symbolic system in which input ``j`` is set to one for DOF ``j``.
+    """
+    (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
+    n_transformation = symbolic.n_transformation_states(form)
+    n_feat = symbolic.n_features(form, n_basis)
+    n_inputs = n_transformation + 1 + n_feat
+    unit = np.eye(n_inputs)
+    initial = np.concatenate([canonical0, unit[:n_transformation].ravel()])
+    goal = unit[n_transformation]
+    forcing_weights = unit[n_transformation + 1 :].T
+    signature = symbolic.Signature(form, n_inputs, n_basis, kernel)
+    parameters = [1.0, goal, target, forcing_weights, np.array(centres), np.array(widths),
+                  np.array(gains), np.zeros(n_inputs), 0.0]
+    _, positions, velocities, accelerations = symbolic.simulate(
+        signature, n_steps, initial, dt, parameters
+    )
+    response = np.stack([positions, velocities, accelerations])
+    response.setflags(write=False)
+    return response
+
+
+@dataclass(frozen=True, eq=False)
+class AffinePlan:
+    r"""A plan written as an affine function of the forcing weights.
+
+    For fixed start, goal, time constant and step, positions, velocities and
+    accelerations are exactly (for the discretisation used)
+
+    .. math:: Y_k = F_k + G_k W_f^T, \quad k \in \{0, 1, 2\}
+
+    with :math:`W_f` the forcing weights of shape (n_dofs, n_features) (see
+    ``forcing_weights()`` of each DMP: the weights mapped to the current goal).
+
+    Attributes
+    ----------
+    times : ndarray, shape (n_steps,)
+    free : ndarray, shape (3, n_steps, n_dofs)
+        Positions, velocities, accelerations with zero weights.
+    weight_response : ndarray, shape (3, n_steps, n_features)
+        Response of one DOF to each forcing weight (identical for every DOF).
+    """
+
+    times: np.ndarray
+    free: np.ndarray
+    weight_response: np.ndarray
+
+    def evaluate(self, forcing_weights: np.ndarray) -> np.ndarray:
+        """Positions, velocities, accelerations, shape (3, n_steps, n_dofs)."""
+        return self.free + self.weight_response @ np.asarray(forcing_weights).T
+
+    def trajectory(self, forcing_weights: np.ndarray) -> Trajectory:
+        """The plan for ``forcing_weights`` as a :class:`Trajectory`."""
+        positions, velocities, accelerations = self.evaluate(forcing_weights)
+        return Trajectory(self.times, positions, velocities, accelerations)
+
+
+@dataclass(frozen=True, eq=False)
+class _DmpCommon:
+    """Fields and behaviour shared by discrete and rhythmic DMPs."""
+
+    def _check_basis(self, n_basis: int):
+        centres = _vector("centres", self.centres, n_basis, f"{n_basis} basis functions")
+        widths = _vector("widths", self.widths, n_basis, f"{n_basis} basis functions")
+        if np.any(widths <= 0):
+            raise InvalidInputError("widths must all be positive")
+        object.__setattr__(self, "centres", _frozen(centres))
+        object.__setattr__(self, "widths", _frozen(widths))
+        object.__setattr__(self, "time_constant", _positive("time_constant", self.time_constant))
+        object.__setattr__(self, "stiffness", _positive("stiffness", self.stiffness))
+        if self.damping is None:
+            object.__setattr__(self, "damping", self.stiffness / 4.0)
+        object.__setattr__(self, "damping", _positive("damping", self.damping))
+
+    @property
+    def n_dofs(self) -> int:
+        """Number of DOFs sharing the canonical system."""
+        return self.weights.shape[0]
+
+    @property
+    def n_basis(self) -> int:
+        """Number of basis functions per DOF."""
+        return self.weights.shape[1]
+
+    @property
+    def signature(self) -> symbolic.Signature:
+        """Sizes and choices of the compiled system."""
+        return symbolic.Signature(self.form, self.n_dofs, self.n_basis, self.kernel)
+
+    def replace(self, **changes):
+        """Return a copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def with_time_constant(self, time_constant: float):
+        """Same movement, time scaled: ``tau -> time_constant`` (Section 3.3)."""
+        return self.replace(time_constant=time_constant)
+
+    def parameter_values(self) -> list:
+        """Numeric inputs of the symbolic functions, in :data:`symbolic.PARAMETER_NAMES` order."""
+        return [
+            self.time_constant,
+            self._goal_input(),
+            self._canonical_target(),
+            self.forcing_weights(),
+            np.asarray(self.centres),
+            np.asarray(self.widths),
+            np.asarray(self.gains),
+            np.zeros(self.n_dofs),
+            0.0,
+        ]
+
+    def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):
+        duration = _positive("duration", duration)
+        dt = _positive("dt", dt)
+        n_steps = int(round(duration / dt)) + 1
+        if n_steps < 3:
+            raise InvalidInputError(
+                f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
+            )
+        key = (
+            self.form,
+            self.kernel,
+            self.n_basis,
+            n_steps,
+            dt / self.time_constant,
+            float(self._canonical_target()),
+            tuple(canonical0),
+            tuple(self.centres),
+            tuple(self.widths),
+            tuple(self.gains),
+        )
+        times = np.arange(n_steps) * dt
+        return times, _response(key), self._response_inputs(start, start_velocity, canonical0)
+
+    def _affine(self, duration, dt, start, start_velocity, canonical0) -> AffinePlan:
+        times, response, inputs = self._response_and_inputs(
+            duration, dt, start, start_velocity, canonical0
+        )
+        scale = np.array([1.0, self.time_constant, self.time_constant**2])[:, None, None]
+        n_free = inputs.shape[0] - symbolic.n_features(self.form, self.n_basis)
+        return AffinePlan(
+            times=times,
+            free=response[:, :, :n_free] @ inputs[:n_free] / scale,
+            weight_response=response[:, :, n_free:] / scale,
+        )
+
+    def _rollout(self, duration, dt, start, start_velocity, canonical0) -> Trajectory:
+        times, response, inputs = self._response_and_inputs(
+            duration, dt, start, start_velocity, canonical0
+        )
+        tau = self.time_constant
+        return Trajectory(
+            times,
+            response[0] @ inputs,
+            response[1] @ inputs / tau,
+            response[2] @ inputs / tau**2,
+        )
+
+    def _initial_z(self, start_velocity, canonical0):
+        """``z`` such that the initial velocity is ``start_velocity``: ``tau yd = z + f``."""
+        z = self.time_constant * start_velocity
+        if self.form == "velocity" or self.form in symbolic.RHYTHMIC_FORMS:
+            feature = symbolic.feature_function(self.signature)(
+                canonical0, np.asarray(self.centres), np.asarray(self.widths)
+            ).full()[:, 0]
+            z = z - self.forcing_weights() @ feature
+        return z
+
+    def _response_inputs(self, start, start_velocity, canonical0) -> np.ndarray:
+        start = _vector("start", start, self.n_dofs, f"{self.n_dofs} DOFs")
+        velocity = _vector("start_velocity", start_velocity, self.n_dofs, f"{self.n_dofs} DOFs")
+        rows = [start, self._initial_z(velocity, canonical0)]
+        if self.form == "acceleration":
+            rows.append(start)  # r(0) = y(0), eq. (10)
+        rows.append(self._goal_input())
+        return np.vstack(rows + [self.forcing_weights().T])
+
+
+@dataclass(frozen=True, eq=False)
+class DiscreteDMP(_DmpCommon):
+    r"""A point-to-point DMP with several DOFs on one canonical system (Sections 3.2, 3.6).
+
+    Attributes
+    ----------
+    weights : ndarray, shape (n_dofs, n_basis)
+        :math:`w_i` of eq. (7), per DOF.
+    start, goal : ndarray, shape (n_dofs,)
+        :math:`y_0` and :math:`g`.
+    time_constant : float
+        :math:`\tau` [s].
+    centres, widths : ndarray, shape (n_basis,)
+        :math:`c_i, h_i` of the Gaussians on the normalised phase.
+    form : {"acceleration", "velocity"}
+        Eq. (10) (continuous accelerations, the default) or eqs. (5)-(7).
+    goal_scaling : {"rotation", "paper", "translation"}
+        How the forcing term follows a new start or goal (module docstring).
+    reference_displacement : ndarray, shape (n_dofs,), optional
+        Demonstrated ``goal - start``; needed by ``"rotation"``.
+    stiffness, damping : float
+        :math:`\alpha_z` and :math:`\beta_z` (default :math:`\alpha_z / 4`).
+    phase_stiffness, phase_damping : float
+        :math:`\alpha_v, \beta_v` of eq. (6).
+    goal_rate : float
+        :math:`\alpha_g` of eq. (10) (default :math:`\alpha_z / 2`).
+    """
+
+    weights: np.ndarray
+    start: np.ndarray
+    goal: np.ndarray
+    time_constant: float
+    centres: np.ndarray
+    widths: np.ndarray
+    form: str = "acceleration"
+    goal_scaling: str = "rotation"
+    reference_displacement: np.ndarray | None = None
+    stiffness: float = 25.0
+    damping: float | None = None
+    phase_stiffness: float = 25.0
+    phase_damping: float | None = None
+    goal_rate: float | None = None
+    kernel: str = dataclasses.field(default="gaussian", init=False)
+
+    def __post_init__(self):
+        if self.form not in symbolic.DISCRETE_FORMS:
+            raise InvalidInputError(
+                f"form must be one of {symbolic.DISCRETE_FORMS}, got {self.form!r}"
+            )
+        if self.goal_scaling not in GOAL_SCALINGS:
+            raise InvalidInputError(
+                f"goal_scaling must be one of {GOAL_SCALINGS}, got {self.goal_scaling!r}"
+            )
+        weights = np.atleast_2d(as_finite_array("weights", self.weights))
+        if weights.ndim != 2:
+            raise ShapeError(f"weights has shape {weights.shape}, expected (n_dofs, n_basis)")
+        n_dofs, n_basis = weights.shape
+        object.__setattr__(self, "weights", _frozen(weights))
+        self._check_basis(n_basis)
+        for name in ("start", "goal"):
+            value = _vector(name, getattr(self, name), n_dofs, f"weights {weights.shape}")
+            object.__setattr__(self, name, _frozen(value))
+        if self.goal_scaling == "rotation":
+            if self.reference_displacement is None:
+                raise InvalidInputError(
+                    "goal_scaling='rotation' needs reference_displacement (the demonstrated "
+                    "goal - start); pass it or use goal_scaling='translation'"
+                )
+            reference = _vector(
+                "reference_displacement", self.reference_displacement, n_dofs, "weights"
+            )
+            if not np.linalg.norm(reference) > 0.0:
+                raise InvalidInputError(
+                    "reference_displacement is zero, so no rotation is defined; use "
+                    "goal_scaling='translation' for movements that end where they start"
+                )
+            object.__setattr__(self, "reference_displacement", _frozen(reference))
+        for name, default in (("phase_damping", self.phase_stiffness / 4.0),
+                              ("goal_rate", self.stiffness / 2.0)):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, default)
+            object.__setattr__(self, name, _positive(name, getattr(self, name)))
+        object.__setattr__(self, "phase_stiffness", _positive("phase_stiffness", self.phase_stiffness))
+
+    @property
+    def gains(self) -> tuple:
+        """Constants in the order of :data:`symbolic.GAIN_NAMES`."""
+        values = (self.stiffness, self.damping, self.phase_stiffness, self.phase_damping)
+        return values + ((self.goal_rate,) if self.form == "acceleration" else ())
+
+    def _goal_input(self) -> np.ndarray:
+        return np.asarray(self.goal)
+
+    def _canonical_target(self) -> float:
+        return 1.0
+
+    def forcing_weights(self, start=None, goal=None) -> np.ndarray:
+        """Weights mapped to the current (or given) start and goal, shape (n_dofs, n_basis)."""
+        start = self.start if start is None else start
+        goal = self.goal if goal is None else goal
+        displacement = np.asarray(goal) - np.asarray(start)
+        if self.goal_scaling == "paper":
+            return displacement[:, None] * self.weights
+        if self.goal_scaling == "rotation":
+            return similarity_transform(self.reference_displacement, displacement) @ self.weights
+        return np.asarray(self.weights)
+
+    def with_goal(self, goal) -> DiscreteDMP:
+        """Same movement towards a new goal."""
+        return self.replace(goal=goal)
+
+    def with_start(self, start) -> DiscreteDMP:
+        """Same movement from a new start."""
+        return self.replace(start=start)
+
+    @property
+    def convergence_time(self) -> float:
+        """Time [s] at which the unforced system is 95 % of the way to its goal."""
+        gains = self.gains[:4] + ((self.goal_rate,) if self.form == "acceleration" else ())
+        return self.time_constant * basis.convergence_time(self.form, gains)
+
+    def rollout(self, duration: float | None = None, dt: float = 0.001, start_velocity=0.0):
+        """The whole plan from ``start`` at rest (or ``start_velocity``).
+
+        Parameters
+        ----------
+        duration : float, optional
+            Length of the plan [s]; defaults to :attr:`convergence_time`.
+        dt : float
+            Sample (and integration) step [s].
+        start_velocity : array_like, shape (n_dofs,)
+            Initial velocity.
+
+        Returns
+        -------
+        Trajectory
+            Samples at ``0, dt, ..., duration``.
+        """
+        duration = self.convergence_time if duration is None else duration
+        return self._rollout(duration, dt, self.start, start_velocity, (0.0, 0.0))
+
+    def affine_plan(self, duration=None, dt: float = 0.001, start_velocity=0.0) -> AffinePlan:
+        """The plan as an affine function of the forcing weights (see :class:`AffinePlan`).
+
+        ``self.rollout(...)`` equals ``self.affine_plan(...).trajectory(self.forcing_weights())``.
+        """
+        duration = self.convergence_time if duration is None else duration
+        return self._affine(duration, dt, self.start, start_velocity, (0.0, 0.0))
+
+    def stepper(self, dt: float = 0.001, start_velocity=0.0, compile: bool = False):
+        """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`)."""
+        from .stepper import Stepper
+
+        return Stepper(self, dt, self.start, start_velocity, compile=compile)
+
+
+@dataclass(frozen=True, eq=False)
+class RhythmicDMP(_DmpCommon):
+    r"""A periodic DMP with several DOFs on one oscillator (Sections 3.2, 3.6).
+
+    Attributes
+    ----------
+    weights : ndarray, shape (n_dofs, n_basis, 2)
+        The 2-vectors :math:`w_i` of eqs. (12) and (14), per DOF.
+    setpoint : ndarray, shape (n_dofs,)
+        :math:`g`, the centre of the oscillation.
+    time_constant : float
+        :math:`\tau`: the period is :math:`2\pi\tau` (``phase``) or :math:`2\pi\tau/k`
+        (``energy``).
+    centres, widths : ndarray, shape (n_basis,)
+        Basis on the oscillator's phase angle.
+    form : {"phase", "energy"}
+        Phase oscillator eqs. (11)-(12) or energy limit cycle eqs. (13)-(14).
+    amplitude : float
+        :math:`A` of eq. (11), or the amplitude of :math:`x` on the limit cycle of eq. (13)
+        (:math:`E_0 = (k A)^2 / 2`). The plan's oscillation scales with it.
+    kernel : {"von_mises", "paper"}
+        Periodic kernel :math:`\exp(h(\cos(\phi - c) - 1))` or eq. (12) as printed.
+    stiffness, damping : float
+        :math:`\alpha_z, \beta_z` of eq. (5).
+    amplitude_rate : float
+        :math:`\alpha_r` of eq. (11) (``phase``) or :math:`\alpha_E` of eq. (13) (``energy``).
+    frequency : float
+        :math:`k` of eq. (13) (``energy`` only).
+    """
+
+    weights: np.ndarray
+    setpoint: np.ndarray
+    time_constant: float
+    centres: np.ndarray
+    widths: np.ndarray
+    form: str = "phase"
+    amplitude: float = 1.0
+    kernel: str = "von_mises"
+    stiffness: float = 25.0
+    damping: float | None = None
+    amplitude_rate: float = 10.0
+    frequency: float = 1.0
+
+    def __post_init__(self):
+        if self.form not in symbolic.RHYTHMIC_FORMS:
+            raise InvalidInputError(
+                f"form must be one of {symbolic.RHYTHMIC_FORMS}, got {self.form!r}"
+            )
+        if self.kernel not in ("von_mises", "paper"):
+            raise InvalidInputError(f"kernel must be 'von_mises' or 'paper', got {self.kernel!r}")
+        weights = as_finite_array("weights", self.weights)
+        if weights.ndim == 2 and weights.shape[1] % 2 == 0:
+            weights = weights.reshape(weights.shape[0], -1, 2)
+        if weights.ndim != 3 or weights.shape[2] != 2:
+            raise ShapeError(f"weights has shape {weights.shape}, expected (n_dofs, n_basis, 2)")
+        object.__setattr__(self, "weights", _frozen(weights))
+        self._check_basis(weights.shape[1])
+        setpoint = _vector("setpoint", self.setpoint, weights.shape[0], f"weights {weights.shape}")
+        object.__setattr__(self, "setpoint", _frozen(setpoint))
+        for name in ("amplitude", "amplitude_rate", "frequency"):
+            object.__setattr__(self, name, _positive(name, getattr(self, name)))
+
+    @property
+    def gains(self) -> tuple:
+        """Constants in the order of :data:`symbolic.GAIN_NAMES`."""
+        if self.form == "phase":
+            return (self.stiffness, self.damping, self.amplitude_rate)
+        return (self.stiffness, self.damping, self.amplitude_rate, self.frequency)
+
+    @property
+    def period(self) -> float:
+        """Period of the oscillator [s]."""
+        scale = 1.0 if self.form == "phase" else 1.0 / self.frequency
+        return 2 * np.pi * self.time_constant * scale
+
+    def _goal_input(self) -> np.ndarray:
+        return np.asarray(self.setpoint)
+
+    def _canonical_target(self) -> float:
+        if self.form == "phase":
+            return self.amplitude
+        return 0.5 * (self.frequency * self.amplitude) ** 2
+
+    def canonical_state(self, phase: float = 0.0) -> tuple[float, float]:
+        """The oscillator's state on its limit cycle at ``phase`` [rad]."""
+        if self.form == "phase":
+            return (float(phase), self.amplitude)
+        # x = A cos(theta), v = A k sin(theta) gives atan2(v, x) = theta for k = 1
+        return (
+            self.amplitude * float(np.cos(phase)),
+            self.amplitude * self.frequency * float(np.sin(phase)),
+        )
+
+    def forcing_weights(self) -> np.ndarray:
+        """Weights flattened to (n_dofs, 2 n_basis), the layout of the features."""
+        return np.asarray(self.weights).reshape(self.n_dofs, -1)
+
+    def with_setpoint(self, setpoint) -> RhythmicDMP:
+        """Same oscillation around a new setpoint."""
+        return self.replace(setpoint=setpoint)
+
+    def with_amplitude(self, amplitude: float) -> RhythmicDMP:
+        """Same oscillation, scaled in space about the setpoint (Section 3.3)."""
+        return self.replace(amplitude=amplitude)
+
+    def rollout(self, duration=None, dt=0.001, start=None, start_velocity=0.0, phase=0.0):
+        """The plan from ``start`` (default: the setpoint) with the oscillator at ``phase``.
+
+        ``duration`` defaults to three periods. Returns a :class:`Trajectory`.
+        """
+        duration = 3 * self.period if duration is None else duration
+        start = self.setpoint if start is None else start
+        return self._rollout(duration, dt, start, start_velocity, self.canonical_state(phase))
+
+    def affine_plan(self, duration=None, dt=0.001, start=None, start_velocity=0.0, phase=0.0):
+        """The plan as an affine function of the flattened weights (see :class:`AffinePlan`)."""
+        duration = 3 * self.period if duration is None else duration
+        start = self.setpoint if start is None else start
+        return self._affine(duration, dt, start, start_velocity, self.canonical_state(phase))
+
+    def stepper(self, dt=0.001, start=None, start_velocity=0.0, phase=0.0, compile=False):
+        """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`)."""
+        from .stepper import Stepper
+
+        start = self.setpoint if start is None else start
+        return Stepper(self, dt, start, start_velocity, phase, compile)

@@ -1,0 +1,251 @@
+r"""Imitation learning: DMP weights from a demonstration (Section 3.4).
+
+Three regressions, all on the same features (:func:`dmpopt.symbolic.features`):
+
+``"position"`` (default)
+    The plan is affine in the weights (:class:`dmpopt.dmp.AffinePlan`), so the weights that
+    make the *rollout* closest to the demonstrated positions solve one regularised linear
+    least-squares problem; the last sample is held to the goal exactly. This fits what a
+    user sees, including the integration of the transformation system.
+``"least_squares"``
+    Global ridge regression of the forcing targets, eqs. (15)-(16).
+``"lwr"``
+    Locally weighted regression of the forcing targets, one local model per basis
+    function (the paper's choice): :math:`w_i = \sum_t \psi_i s_t f_t / \sum_t \psi_i s_t^2`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import basis, symbolic
+from ..dmp import DiscreteDMP, RhythmicDMP
+from ..exceptions import InvalidInputError
+from ..trajectory import Trajectory
+
+METHODS = ("position", "least_squares", "lwr")
+DEGENERATE_DISPLACEMENT = 1e-6
+"""Start-goal distances below this fraction of the demonstration's extent count as zero."""
+
+
+def _check_demo(demo) -> Trajectory:
+    if not isinstance(demo, Trajectory):
+        raise InvalidInputError(
+            f"demo must be a Trajectory, got {type(demo).__name__}; "
+            "build one with Trajectory.from_positions(times, positions)"
+        )
+    if not demo.is_uniform:
+        demo = demo.resampled(demo.n_steps)
+    return demo
+
+
+def _check_method(method: str) -> str:
+    if method not in METHODS:
+        raise InvalidInputError(f"method must be one of {METHODS}, got {method!r}")
+    return method
+
+
+def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, last_row=None):
+    """Solve ``min |A X - B|^2 + lambda |X|^2`` (optionally with ``a_last X = b_last``).
+
+    ``lambda`` is ``regularization`` times the mean diagonal of ``A^T A``, so that it is
+    independent of the units and the number of samples.
+    """
+    gram = features.T @ features
+    n = gram.shape[0]
+    lam = regularization * np.trace(gram) / n
+    rhs = features.T @ targets
+    if last_row is None:
+        return np.linalg.solve(gram + lam * np.eye(n), rhs)
+    row, value = last_row
+    kkt = np.zeros((n + 1, n + 1))
+    kkt[:n, :n] = gram + lam * np.eye(n)
+    kkt[:n, n] = row
+    kkt[n, :n] = row
+    solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))
+    return solution[:n]
+
+
+def _goal_scaling(demo: Trajectory, goal_scaling: str) -> str:
+    displacement = demo.positions[-1] - demo.positions[0]
+    extent = max(float(np.ptp(demo.positions, axis=0).max()), 1e-300)
+    if goal_scaling == "auto":
+        small = np.linalg.norm(displacement) <= DEGENERATE_DISPLACEMENT * extent
+        return "translation" if small else "rotation"
+    if goal_scaling == "paper":
+        small = np.abs(displacement) <= DEGENERATE_DISPLACEMENT * extent
+        if np.any(small):
+            dofs = np.nonzero(small)[0].tolist()
+            raise InvalidInputError(
+                f"goal_scaling='paper' divides by goal - start, which is zero for DOF(s) "
+                f"{dofs}; use goal_scaling='rotation' (or 'auto')"
+            )
+    return goal_scaling
+
+
+def fit_discrete(
+    demo: Trajectory,
+    n_basis: int = 30,
+    *,
+    form: str = "velocity",
+    method: str = "position",
+    goal_scaling: str = "auto",
+    regularization: float = 1e-9,
+    stiffness: float = 25.0,
+    phase_stiffness: float = 25.0,
+) -> DiscreteDMP:
+    """Fit a discrete DMP to a point-to-point demonstration (Section 3.4).
+
+    ``tau`` is chosen so that the unforced system is 95 % converged at the end of the
+    demonstration; start and goal are the first and last samples.
+
+    Parameters
+    ----------
+    demo : Trajectory
+        The demonstration, ``n_dofs`` DOFs (resampled to a uniform grid if needed).
+    n_basis : int
+        Basis functions per DOF.
+    form : {"velocity", "acceleration"}
+        Eq. (5) (follows demonstrations more closely: the forcing term acts on the
+        velocity) or eq. (10) (continuous acceleration from rest, for controllers).
+    method : {"position", "least_squares", "lwr"}
+        See the module docstring.
+    goal_scaling : {"auto", "rotation", "paper", "translation"}
+        ``"auto"`` picks ``"rotation"``, or ``"translation"`` when start and goal coincide.
+    regularization : float
+        Ridge weight relative to the mean diagonal of the normal equations.
+    stiffness, phase_stiffness : float
+        :math:`\\alpha_z` and :math:`\\alpha_v`.
+    """
+    demo = _check_demo(demo)
+    method = _check_method(method)
+    n_basis = basis.check_n_basis(n_basis)
+    scaling = _goal_scaling(demo, goal_scaling)
+    start, goal = demo.positions[0], demo.positions[-1]
+    template = DiscreteDMP(
+        weights=np.zeros((demo.n_dofs, n_basis)),
+        start=start,
+        goal=goal,
+        time_constant=1.0,
+        centres=np.zeros(n_basis),
+        widths=np.ones(n_basis),
+        form=form,
+        goal_scaling="translation",
+        stiffness=stiffness,
+        phase_stiffness=phase_stiffness,
+    )
+    centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
+    tau = demo.duration / basis.convergence_time(form, template.gains)
+    unit = template.replace(time_constant=tau, centres=centres, widths=widths)
+    dt = demo.duration / (demo.n_steps - 1)
+
+    if method == "position":
+        plan = unit.affine_plan(demo.duration, dt, start_velocity=demo.velocities[0])
+        response = plan.weight_response[0]
+        forcing = _ridge(
+            response,
+            demo.positions - plan.free[0],
+            regularization,
+            last_row=(response[-1], goal - plan.free[0][-1]),
+        ).T
+    else:
+        states = symbolic.simulate(
+            unit.signature, demo.n_steps, _initial_state(unit, demo), dt, unit.parameter_values()
+        )[0]
+        targets = forcing_targets(unit, demo, states)
+        regressors = _features(unit, states)
+        if method == "least_squares":
+            forcing = _ridge(regressors, targets, regularization).T
+        else:
+            forcing = _local_regression(unit, states, targets)
+
+    if scaling == "paper":
+        weights = forcing / (goal - start)[:, None]
+    else:
+        weights = forcing
+    reference = goal - start if scaling == "rotation" else None
+    return unit.replace(weights=weights, goal_scaling=scaling, reference_displacement=reference)
+
+
+def _initial_state(dmp, demo: Trajectory) -> np.ndarray:
+    start = demo.positions[0]
+    rows = [start, dmp.time_constant * demo.velocities[0]]
+    if dmp.form == "acceleration":
+        rows.append(start)
+    return np.concatenate([[0.0, 0.0], *rows])
+
+
+def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> np.ndarray:
+    r"""Forcing terms that make the DMP follow the demonstration, eqs. (15) and (16).
+
+    Acceleration form (16): :math:`f = \tau^2\ddot y - \alpha_z(\beta_z(r - y) - \tau\dot y)`
+    with the goal filter :math:`r(t)` from ``states``.
+    Velocity form (15): :math:`f = \tau \dot y - z` with
+    :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` integrated along the demonstration
+    (exactly, for positions linear between samples).
+    """
+    tau, alpha, beta = dmp.time_constant, dmp.stiffness, dmp.damping
+    y, yd, ydd = demo.positions, demo.velocities, demo.accelerations
+    if dmp.form == "acceleration":
+        r = states[:, 2 + 2 * dmp.n_dofs :]
+        return tau**2 * ydd - alpha * (beta * (r - y) - tau * yd)
+    decay = np.exp(-alpha * np.diff(demo.times) / tau)
+    z = np.empty_like(y)
+    z[0] = tau * yd[0]
+    drive = beta * (dmp.goal - 0.5 * (y[1:] + y[:-1]))
+    for k in range(len(decay)):
+        z[k + 1] = decay[k] * z[k] + (1.0 - decay[k]) * drive[k]
+    return tau * yd - z
+
+
+def _features(dmp, states: np.ndarray) -> np.ndarray:
+    """Regressors at every sample, shape (n_steps, n_features)."""
+    function = symbolic.feature_function(dmp.signature).map(states.shape[0])
+    return function(states[:, :2].T, dmp.centres, dmp.widths).full().T
+
+
+def _local_regression(dmp, states: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """One weighted least-squares model per basis function (LWR), (n_dofs, n_features)."""
+    if dmp.form not in symbolic.DISCRETE_FORMS:
+        raise InvalidInputError("lwr for rhythmic DMPs: use method='least_squares' or 'position'")
+    function = symbolic.activation_function(dmp.signature).map(states.shape[0])
+    activation = function(states[:, :2].T, dmp.centres, dmp.widths).full().T
+    scale = states[:, 1]
+    numerator = (activation * scale[:, None]).T @ targets
+    denominator = (activation * scale[:, None] ** 2).sum(axis=0)
+    return (numerator / np.maximum(denominator, 1e-300)[:, None]).T
+
+
+def reproduction_error(dmp, demo: Trajectory) -> float:
+    """Root-mean-square position error of the DMP's plan against ``demo``."""
+    dt = demo.duration / (demo.n_steps - 1)
+    if isinstance(dmp, DiscreteDMP):
+        plan = dmp.rollout(demo.duration, dt, start_velocity=demo.velocities[0])
+    else:
+        plan = dmp.rollout(demo.duration, dt, start=demo.positions[0])
+    return float(np.sqrt(np.mean((plan.positions - demo.positions) ** 2)))
+
+
+def fit_to_accuracy(
+    demo: Trajectory,
+    tolerance: float,
+    candidates=(5, 10, 15, 20, 30, 40, 60, 80, 100, 150, 200),
+    **options,
+) -> DiscreteDMP:
+    """Fit with the fewest basis functions whose reproduction RMSE is below ``tolerance``.
+
+    This is the automatic choice of the number of basis functions that LWPR gave the paper.
+    Raises :class:`InvalidInputError` if no candidate reaches the tolerance.
+    """
+    if not tolerance > 0:
+        raise InvalidInputError(f"tolerance must be positive, got {tolerance!r}")
+    errors = []
+    for n_basis in candidates:
+        dmp = fit_discrete(demo, n_basis, **options)
+        errors.append(reproduction_error(dmp, demo))
+        if errors[-1] <= tolerance:
+            return dmp
+    raise InvalidInputError(
+        f"no number of basis functions in {tuple(candidates)} reaches tolerance {tolerance}; "
+        f"the best RMSE was {min(errors):.3g}: raise the tolerance or add candidates"
+    )

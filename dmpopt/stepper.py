@@ -1,0 +1,144 @@
+"""Online integration of a DMP inside a control loop.
+
+The stepper is the real-time part of a DMP: it owns the state and the input buffers of
+the compiled step (:func:`dmpopt.symbolic.step_function`) and changes goal, setpoint,
+speed and amplitude between steps, adds coupling terms, and resets the phase.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import symbolic
+from .dmp import DiscreteDMP, RhythmicDMP, _positive, _vector
+from .exceptions import InvalidInputError
+
+_INPUT = {name: 2 + i for i, name in enumerate(symbolic.PARAMETER_NAMES)}
+
+
+class Stepper:
+    """Integrates a :class:`DiscreteDMP` or :class:`RhythmicDMP` one step at a time.
+
+    Parameters
+    ----------
+    dmp : DiscreteDMP or RhythmicDMP
+        The movement; its parameters are copied, later changes go through the setters.
+    dt : float
+        Step [s].
+    start, start_velocity : array_like, shape (n_dofs,)
+        Initial position and velocity.
+    phase : float
+        Initial oscillator phase [rad] (rhythmic DMPs).
+    compile : bool
+        Generate C code for the step and compile it (cached on disk; about five times
+        faster per step, a few seconds once per system). Needs a C compiler.
+
+    Examples
+    --------
+    >>> stepper = dmp.stepper(dt=0.001)                        # doctest: +SKIP
+    >>> for k in range(1000):                                  # doctest: +SKIP
+    ...     position, velocity, acceleration = stepper.step()
+    ...     if k == 500:
+    ...         stepper.set_goal(new_goal)
+    """
+
+    def __init__(self, dmp, dt: float, start, start_velocity=0.0, phase=0.0, compile=False):
+        self.dmp = dmp
+        self.dt = _positive("dt", dt)
+        step = symbolic.step_function(dmp.signature)
+        self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
+        self._function.set_inputs(np.zeros(dmp.signature.n_states), self.dt, *dmp.parameter_values())
+        self.time = 0.0
+        self._start = _vector("start", start, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
+        self._goal = np.array(dmp._goal_input(), dtype=float)
+        if isinstance(dmp, RhythmicDMP):
+            canonical = dmp.canonical_state(phase)
+        else:
+            canonical = (0.0, 0.0)
+        velocity = _vector("start_velocity", start_velocity, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
+        rows = [self._start, dmp._initial_z(velocity, canonical)]
+        if dmp.form == "acceleration":
+            rows.append(self._start)
+        self._state = self._function.inputs[0]
+        self._state[:] = np.concatenate([canonical, *rows])
+        initial = symbolic.output_function(dmp.signature)(self._state, *dmp.parameter_values())
+        self.position, self.velocity, self.acceleration = (o.full().ravel() for o in initial)
+
+    # -- inputs -------------------------------------------------------------------------
+    def _write(self, name: str, value) -> None:
+        self._function.inputs[_INPUT[name]][:] = np.ravel(value, order="F")
+
+    def set_goal(self, goal) -> None:
+        """New goal (discrete) or setpoint (rhythmic), effective from the next step."""
+        self._goal = _vector("goal", goal, self.dmp.n_dofs, f"{self.dmp.n_dofs} DOFs")
+        self._write("goal", self._goal)
+        if isinstance(self.dmp, DiscreteDMP):
+            self._write("forcing_weights", self.dmp.forcing_weights(self._start, self._goal))
+
+    set_setpoint = set_goal
+
+    def set_time_constant(self, time_constant: float) -> None:
+        """New ``tau``: the rest of the movement runs faster (smaller) or slower."""
+        self._write("time_constant", _positive("time_constant", time_constant))
+
+    def set_amplitude(self, amplitude: float) -> None:
+        """New oscillation amplitude (rhythmic DMPs); the oscillator converges to it."""
+        if not isinstance(self.dmp, RhythmicDMP):
+            raise InvalidInputError("set_amplitude applies to rhythmic DMPs; use set_goal")
+        amplitude = _positive("amplitude", amplitude)
+        self._write("canonical_target", self.dmp.replace(amplitude=amplitude)._canonical_target())
+
+    def reset_phase(self, phase: float) -> None:
+        """Jump the oscillator to ``phase`` [rad], keeping its amplitude (eq. (21))."""
+        if not isinstance(self.dmp, RhythmicDMP):
+            raise InvalidInputError("reset_phase applies to rhythmic DMPs")
+        first, second = self._state[0], self._state[1]
+        if self.dmp.form == "phase":
+            self._state[0] = phase
+        else:
+            amplitude = np.hypot(first, second / self.dmp.frequency)
+            self._state[0] = amplitude * np.cos(phase)
+            self._state[1] = amplitude * self.dmp.frequency * np.sin(phase)
+
+    # -- state --------------------------------------------------------------------------
+    @property
+    def phase(self) -> float:
+        """Normalised phase (discrete, 0 to 1) or oscillator angle [rad] (rhythmic)."""
+        if self.dmp.form == "energy":
+            return float(np.arctan2(self._state[1], self._state[0]))
+        return float(self._state[0])
+
+    @property
+    def state(self) -> np.ndarray:
+        """Copy of the full state: canonical, then transformation states."""
+        return self._state.copy()
+
+    def step(self, coupling=None, canonical_coupling: float = 0.0):
+        """Advance by ``dt``; return position, velocity and acceleration (copies).
+
+        Parameters
+        ----------
+        coupling : array_like, shape (n_dofs,), optional
+            Additive term on the transformation system (added to ``tau * zdot``).
+        canonical_coupling : float
+            Additive term on the canonical system (``tau * vdot`` or ``tau * phidot``).
+        """
+        if coupling is not None:
+            self._write("coupling", coupling)
+        self._function.inputs[_INPUT["canonical_coupling"]][0] = canonical_coupling
+        self._function.evaluate()
+        next_state, position, velocity, acceleration = self._function.outputs
+        if not np.isfinite(next_state).all():
+            raise InvalidInputError(
+                "the DMP state became non-finite; check the coupling terms and time constant"
+            )
+        self._state[:] = next_state
+        if coupling is not None:
+            self._write("coupling", 0.0)
+        self.time += self.dt
+        self.position, self.velocity, self.acceleration = (
+            position.copy(),
+            velocity.copy(),
+            acceleration.copy(),
+        )
+        return self.position, self.velocity, self.acceleration

@@ -1,0 +1,473 @@
+r"""The one CasADi definition of every DMP system, and the functions built from it.
+
+Every numeric result of dmpopt (rollouts, online steps, fitting matrices, gradients) is
+evaluated from the expressions in this module; nothing re-implements them in numpy.
+
+Four forms share one layout. The state of a system with ``D`` DOFs is the canonical state
+(two numbers, shared by all DOFs, Section 3.6) followed by the transformation states:
+
+================  ==========================  ===================================
+form              canonical state             transformation state
+================  ==========================  ===================================
+``velocity``      phase ``x``, ``v`` (eq. 6)  ``y``, ``z``                (eq. 5)
+``acceleration``  phase ``x``, ``v`` (eq. 6)  ``y``, ``z``, goal filter ``r`` (eq. 10)
+``phase``         ``phi``, amplitude ``r``    ``y``, ``z``     (eqs. 5, 11)
+``energy``        ``x``, ``v``     (eq. 13)   ``y``, ``z``     (eqs. 5, 13)
+================  ==========================  ===================================
+
+The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
+phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried
+by the ``forcing_weights`` matrix that the caller builds from the weights (see
+:mod:`dmpopt.dmp`). Time enters only as ``t / tau``: a step of ``dt`` with time constant
+``tau`` is exactly a step of ``dt / tau`` with time constant 1.
+
+Discretisation: classical Runge-Kutta 4 with inputs held over the step. Velocities and
+accelerations of the plan are the exact time derivatives of the continuous system at each
+sample (accelerations by automatic differentiation along the flow).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+DISCRETE_FORMS = ("velocity", "acceleration")
+RHYTHMIC_FORMS = ("phase", "energy")
+FORMS = DISCRETE_FORMS + RHYTHMIC_FORMS
+KERNELS = ("gaussian", "von_mises", "paper")
+
+GAIN_NAMES = {
+    "velocity": ("stiffness", "damping", "phase_stiffness", "phase_damping"),
+    "acceleration": (
+        "stiffness",
+        "damping",
+        "phase_stiffness",
+        "phase_damping",
+        "goal_rate",
+    ),
+    "phase": ("stiffness", "damping", "amplitude_rate"),
+    "energy": ("stiffness", "damping", "energy_rate", "frequency"),
+}
+
+
+def n_transformation_states(form: str) -> int:
+    """Transformation states per DOF: ``y, z`` and, in the acceleration form, ``r``."""
+    return 3 if form == "acceleration" else 2
+
+
+def n_features(form: str, n_basis: int) -> int:
+    """Weights per DOF: one per basis (discrete), a 2-vector per basis (rhythmic)."""
+    return n_basis if form in DISCRETE_FORMS else 2 * n_basis
+
+
+@dataclass(frozen=True)
+class Signature:
+    """The sizes and choices that fix one compiled system."""
+
+    form: str
+    n_dofs: int
+    n_basis: int
+    kernel: str
+
+    @property
+    def n_states(self) -> int:
+        """Length of the state vector."""
+        return 2 + n_transformation_states(self.form) * self.n_dofs
+
+    @property
+    def n_features(self) -> int:
+        """Length of the feature vector that multiplies the weights."""
+        return n_features(self.form, self.n_basis)
+
+
+# ---------------------------------------------------------------------------------------
+# The equations
+# ---------------------------------------------------------------------------------------
+
+
+def normalised_activations(log_psi):
+    """Normalise log-activations ``log psi_i`` to ``psi_i / sum_j psi_j`` without underflow."""
+    shifted = log_psi - ca.mmax(log_psi)
+    psi = ca.exp(shifted)
+    return psi / ca.sum1(psi)
+
+
+def basis_log_activations(kernel: str, phase, centres, widths):
+    r"""Logarithm of the basis activations ``psi_i`` at ``phase``.
+
+    ``gaussian``: :math:`-h_i (x - c_i)^2`, eq. (7) on the discrete phase.
+    ``von_mises``: :math:`h_i (\cos(\phi - c_i) - 1)`, periodic, smooth at :math:`2\pi`.
+    ``paper``: :math:`-h_i (\mathrm{mod}(\phi, 2\pi) - c_i)^2`, eqs. (12) and (14) as printed.
+    """
+    if kernel == "gaussian":
+        return -widths * (phase - centres) ** 2
+    if kernel == "von_mises":
+        return widths * (ca.cos(phase - centres) - 1.0)
+    if kernel == "paper":
+        wrapped = ca.fmod(ca.fmod(phase, 2 * np.pi) + 2 * np.pi, 2 * np.pi)
+        return -widths * (wrapped - centres) ** 2
+    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
+def features(form: str, kernel: str, canonical, centres, widths):
+    r"""The vector that the weights multiply to give the forcing term.
+
+    Discrete, eq. (7): :math:`\psi_i v / \sum_j \psi_j` on the normalised phase.
+    Phase oscillator, eq. (12): :math:`\psi_i(\phi) \tilde v / \sum_j \psi_j` with
+    :math:`\tilde v = [r\cos\phi, r\sin\phi]`.
+    Energy oscillator, eq. (14): :math:`\psi_i(\theta) \tilde v / \sum_j \psi_j` with
+    :math:`\theta = \mathrm{atan2}(v, x)` and :math:`\tilde v = [x, v]`.
+    """
+    first, second = canonical[0], canonical[1]
+    if form in DISCRETE_FORMS:
+        psi = normalised_activations(basis_log_activations(kernel, first, centres, widths))
+        return psi * second
+    if form == "phase":
+        psi = normalised_activations(basis_log_activations(kernel, first, centres, widths))
+        carrier = ca.vertcat(second * ca.cos(first), second * ca.sin(first))
+    else:
+        angle = ca.atan2(second, first)
+        psi = normalised_activations(basis_log_activations(kernel, angle, centres, widths))
+        carrier = ca.vertcat(first, second)
+    return ca.vec(carrier @ psi.T)  # [psi_1 v1, psi_1 v2, psi_2 v1, ...]
+
+
+def canonical_rhs(form: str, canonical, target, gains, coupling):
+    r"""Time derivative, times ``tau``, of the canonical state.
+
+    Discrete, eq. (6) normalised: :math:`\tau \dot v = \alpha_v(\beta_v (1 - x) - v) + C`,
+    :math:`\tau \dot x = v`.
+    Phase oscillator, eq. (11): :math:`\tau\dot\phi = 1 + C`,
+    :math:`\tau \dot r = \alpha_r (A - r)`, ``target`` = A.
+    Energy oscillator, eq. (13): :math:`\tau \dot x = v`,
+    :math:`\tau \dot v = -\alpha_E (E - E_0) v - k^2 x + C`, ``target`` = :math:`E_0`.
+    """
+    first, second = canonical[0], canonical[1]
+    if form in DISCRETE_FORMS:
+        phase_stiffness, phase_damping = gains[2], gains[3]
+        return ca.vertcat(second, phase_stiffness * (phase_damping * (1 - first) - second) + coupling)
+    if form == "phase":
+        amplitude_rate = gains[2]
+        return ca.vertcat(1 + coupling, amplitude_rate * (target - second))
+    energy_rate, frequency = gains[2], gains[3]
+    energy = 0.5 * (second**2 + frequency**2 * first**2)
+    return ca.vertcat(
+        second,
+        -energy_rate * (energy - target) * second - frequency**2 * first + coupling,
+    )
+
+
+def transformation_rhs(form: str, transformation, goal, forcing, gains, coupling):
+    r"""Time derivative, times ``tau``, of the transformation states of all DOFs.
+
+    Velocity form, eq. (5): :math:`\tau\dot z = \alpha_z(\beta_z(g - y) - z) + C`,
+    :math:`\tau \dot y = z + f`.
+    Acceleration form, eq. (10): :math:`\tau\dot z = \alpha_z(\beta_z(r - y) - z) + f + C`,
+    :math:`\tau\dot y = z`, :math:`\tau \dot r = \alpha_g (g - r)`.
+    Rhythmic forms use eq. (5) with ``goal`` the setpoint of the oscillation.
+    """
+    n = goal.shape[0]
+    stiffness, damping = gains[0], gains[1]
+    y, z = transformation[:n], transformation[n : 2 * n]
+    if form == "acceleration":
+        r = transformation[2 * n :]
+        goal_rate = gains[4]
+        return ca.vertcat(
+            z,
+            stiffness * (damping * (r - y) - z) + forcing + coupling,
+            goal_rate * (goal - r),
+        )
+    return ca.vertcat(z + forcing, stiffness * (damping * (goal - y) - z) + coupling)
+
+
+@dataclass(frozen=True)
+class Symbols:
+    """Symbolic inputs of one system, in the order of the compiled functions."""
+
+    state: ca.SX
+    dt: ca.SX
+    time_constant: ca.SX
+    goal: ca.SX
+    canonical_target: ca.SX
+    forcing_weights: ca.SX
+    centres: ca.SX
+    widths: ca.SX
+    gains: ca.SX
+    coupling: ca.SX
+    canonical_coupling: ca.SX
+
+    def parameters(self) -> list:
+        """Every input but the state and the step, in call order."""
+        return [
+            self.time_constant,
+            self.goal,
+            self.canonical_target,
+            self.forcing_weights,
+            self.centres,
+            self.widths,
+            self.gains,
+            self.coupling,
+            self.canonical_coupling,
+        ]
+
+
+PARAMETER_NAMES = [
+    "time_constant",
+    "goal",
+    "canonical_target",
+    "forcing_weights",
+    "centres",
+    "widths",
+    "gains",
+    "coupling",
+    "canonical_coupling",
+]
+
+
+def make_symbols(signature: Signature) -> Symbols:
+    """Fresh symbols sized for ``signature``."""
+    d, n = signature.n_dofs, signature.n_basis
+    return Symbols(
+        state=ca.SX.sym("state", signature.n_states),
+        dt=ca.SX.sym("dt"),
+        time_constant=ca.SX.sym("time_constant"),
+        goal=ca.SX.sym("goal", d),
+        canonical_target=ca.SX.sym("canonical_target"),
+        forcing_weights=ca.SX.sym("forcing_weights", d, signature.n_features),
+        centres=ca.SX.sym("centres", n),
+        widths=ca.SX.sym("widths", n),
+        gains=ca.SX.sym("gains", len(GAIN_NAMES[signature.form])),
+        coupling=ca.SX.sym("coupling", d),
+        canonical_coupling=ca.SX.sym("canonical_coupling"),
+    )
+
+
+def system_rhs(signature: Signature, s: Symbols, state):
+    """Time derivative of the whole state (canonical then transformation), eqs. (5)-(14)."""
+    form = signature.form
+    canonical, transformation = state[:2], state[2:]
+    phi = features(form, signature.kernel, canonical, s.centres, s.widths)
+    forcing = s.forcing_weights @ phi
+    canonical_rate = canonical_rhs(form, canonical, s.canonical_target, s.gains, s.canonical_coupling)
+    transformation_rate = transformation_rhs(
+        form, transformation, s.goal, forcing, s.gains, s.coupling
+    )
+    return ca.vertcat(canonical_rate, transformation_rate) / s.time_constant
+
+
+def plan_outputs(signature: Signature, s: Symbols):
+    """Position, velocity and acceleration of every DOF at the state ``s.state``.
+
+    The acceleration is the derivative of the velocity along the flow (inputs held).
+    """
+    d = signature.n_dofs
+    rate = system_rhs(signature, s, s.state)
+    velocity = rate[2 : 2 + d]
+    return s.state[2 : 2 + d], velocity, ca.jtimes(velocity, s.state, rate)
+
+
+# ---------------------------------------------------------------------------------------
+# Compiled functions (cached)
+# ---------------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=64)
+def step_function(signature: Signature) -> ca.Function:
+    """One RK4 step: ``(state, dt, *parameters) -> (next_state, y, yd, ydd)``.
+
+    ``y, yd, ydd`` are evaluated at ``next_state``.
+    """
+    s = make_symbols(signature)
+
+    def rate(x):
+        return system_rhs(signature, s, x)
+
+    k1 = rate(s.state)
+    k2 = rate(s.state + 0.5 * s.dt * k1)
+    k3 = rate(s.state + 0.5 * s.dt * k2)
+    k4 = rate(s.state + s.dt * k3)
+    next_state = s.state + s.dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    outputs = output_function(signature)(next_state, *s.parameters())
+    return ca.Function(
+        "dmp_step",
+        [s.state, s.dt, *s.parameters()],
+        [next_state, *outputs],
+        ["state", "dt", *PARAMETER_NAMES],
+        ["next_state", "position", "velocity", "acceleration"],
+        {"cse": True},
+    )
+
+
+@lru_cache(maxsize=64)
+def output_function(signature: Signature) -> ca.Function:
+    """``(state, *parameters) -> (y, yd, ydd)`` at one state."""
+    s = make_symbols(signature)
+    position, velocity, acceleration = plan_outputs(signature, s)
+    return ca.Function(
+        "dmp_outputs",
+        [s.state, *s.parameters()],
+        [position, velocity, acceleration],
+        ["state", *PARAMETER_NAMES],
+        ["position", "velocity", "acceleration"],
+    )
+
+
+@lru_cache(maxsize=64)
+def feature_function(signature: Signature) -> ca.Function:
+    """``(canonical_state, centres, widths) -> features`` (the regressors of imitation)."""
+    s = make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    phi = features(signature.form, signature.kernel, canonical, s.centres, s.widths)
+    return ca.Function("dmp_features", [canonical, s.centres, s.widths], [phi])
+
+
+@lru_cache(maxsize=64)
+def activation_function(signature: Signature) -> ca.Function:
+    """``(canonical_state, centres, widths) -> psi`` (unnormalised, for local regression)."""
+    s = make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    phase = canonical[0] if signature.form != "energy" else ca.atan2(canonical[1], canonical[0])
+    log_psi = basis_log_activations(signature.kernel, phase, s.centres, s.widths)
+    return ca.Function("dmp_activations", [canonical, s.centres, s.widths], [ca.exp(log_psi)])
+
+
+@lru_cache(maxsize=64)
+def rhs_function(signature: Signature) -> ca.Function:
+    """``(state, *parameters) -> dstate/dt`` (for tests and analysis)."""
+    s = make_symbols(signature)
+    return ca.Function("dmp_rhs", [s.state, *s.parameters()], [system_rhs(signature, s, s.state)])
+
+
+@lru_cache(maxsize=32)
+def rollout_function(signature: Signature, n_steps: int) -> ca.Function:
+    """Whole rollout in one call: ``(initial_state, dt, *parameters) -> (Y, Yd, Ydd, states)``.
+
+    Outputs are ``(n_dofs, n_steps)`` matrices, samples at ``k * dt`` for
+    ``k = 0 .. n_steps - 1``; ``states`` is ``(n_states, n_steps)``.
+    """
+    step = step_function(signature)
+    outputs = output_function(signature)
+    s = make_symbols(signature)
+    x0 = ca.MX.sym("initial_state", signature.n_states)
+    dt = ca.MX.sym("dt")
+    params = [ca.MX.sym(name, p.shape) for name, p in zip(PARAMETER_NAMES, s.parameters())]
+    y0, yd0, ydd0 = outputs(x0, *params)
+    if n_steps == 1:
+        return ca.Function("dmp_rollout", [x0, dt, *params], [y0, yd0, ydd0, x0])
+
+    accumulated = step.mapaccum("dmp_accumulate", n_steps - 1)
+    states, ys, yds, ydds = accumulated(x0, dt, *params)
+    return ca.Function(
+        "dmp_rollout",
+        [x0, dt, *params],
+        [
+            ca.horzcat(y0, ys),
+            ca.horzcat(yd0, yds),
+            ca.horzcat(ydd0, ydds),
+            ca.horzcat(x0, states),
+        ],
+        ["initial_state", "dt", *PARAMETER_NAMES],
+        ["positions", "velocities", "accelerations", "states"],
+    )
+
+
+class NumericFunction:
+    """Low-overhead repeated evaluation of a ``casadi.Function`` on numpy buffers.
+
+    Inputs and outputs live in preallocated float64 arrays (``inputs[i]``,
+    ``outputs[i]``, flattened column-major); ``evaluate()`` runs the function on them
+    in about a microsecond of call overhead, which the online stepper needs.
+    """
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self.inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
+        self.outputs = [np.zeros(function.nnz_out(i)) for i in range(function.n_out())]
+        self._buffer, self._evaluate = function.buffer()
+        for i, array in enumerate(self.inputs):
+            self._buffer.set_arg(i, memoryview(array))
+        for i, array in enumerate(self.outputs):
+            self._buffer.set_res(i, memoryview(array))
+
+    def set_inputs(self, *values) -> None:
+        """Copy ``values`` (in input order) into the input buffers."""
+        for array, value in zip(self.inputs, values):
+            array[:] = np.ravel(value, order="F")
+
+    def evaluate(self) -> None:
+        """Evaluate on the current input buffers, writing the output buffers."""
+        self._evaluate()
+
+
+def simulate(signature: Signature, n_steps: int, initial_state, dt: float, parameters: list):
+    """Integrate ``n_steps - 1`` RK4 steps from ``initial_state``.
+
+    Returns ``(states, positions, velocities, accelerations)`` with shapes
+    ``(n_steps, n_states)`` and ``(n_steps, n_dofs)``; samples at ``k * dt``.
+    """
+    d = signature.n_dofs
+    step = NumericFunction(step_function(signature))
+    outputs = output_function(signature)(initial_state, *parameters)
+    states = np.empty((n_steps, signature.n_states))
+    plan = np.empty((3, n_steps, d))
+    states[0] = initial_state
+    for i, value in enumerate(outputs):
+        plan[i, 0] = value.full().ravel()
+    step.set_inputs(initial_state, dt, *parameters)
+    state_in = step.inputs[0]
+    next_state, position, velocity, acceleration = step.outputs
+    for k in range(1, n_steps):
+        step.evaluate()
+        state_in[:] = next_state
+        states[k] = next_state
+        plan[0, k], plan[1, k], plan[2, k] = position, velocity, acceleration
+    return states, plan[0], plan[1], plan[2]
+
+
+def compiled(function: ca.Function) -> ca.Function:
+    """The same function generated as C and compiled with the system's C compiler.
+
+    The shared library is cached on disk (``$DMPOPT_CACHE`` or ``~/.cache/dmpopt``) under a
+    hash of the generated code, so each system compiles once per machine (a few seconds).
+    """
+    import hashlib
+    import os
+    import shutil
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from .exceptions import MissingDependency
+
+    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        raise MissingDependency(
+            "compiling a DMP needs a C compiler (cc or gcc on PATH, or $CC); "
+            "install one (e.g. apt-get install gcc) or use compile=False"
+        )
+    cache = Path(os.environ.get("DMPOPT_CACHE", Path.home() / ".cache" / "dmpopt"))
+    cache.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as scratch:
+        source = Path(scratch) / "dmp_function.c"
+        generator = ca.CodeGenerator(source.name, {"with_header": False})
+        generator.add(function)
+        current = os.getcwd()
+        try:
+            os.chdir(scratch)
+            generator.generate()
+        finally:
+            os.chdir(current)
+        code = source.read_bytes()
+        library = cache / f"{function.name()}_{hashlib.sha1(code).hexdigest()[:16]}.so"
+        if not library.exists():
+            partial = library.with_suffix(f".{os.getpid()}.tmp")
+            subprocess.run(
+                [compiler, "-O1", "-fPIC", "-shared", str(source), "-o", str(partial)],
+                check=True,
+                capture_output=True,
+            )
+            partial.replace(library)
+    return ca.external(function.name(), str(library))

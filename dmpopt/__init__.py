@@ -33,7 +33,9 @@ from .exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from .fitting import fit_discrete, fit_to_accuracy, reproduction_error
+from .fitting import fit_discrete, fit_rhythmic, fit_to_accuracy, reproduction_error
+from .io import load, save
+from .superposition import superpose
 from .stepper import Stepper
 from .trajectory import Trajectory
 
@@ -55,6 +57,10 @@ __all__ = [
     "Stepper",
     "Trajectory",
     "fit_discrete",
+    "fit_rhythmic",
+    "load",
+    "save",
+    "superpose",
     "fit_to_accuracy",
     "reproduction_error",
     "similarity_transform",

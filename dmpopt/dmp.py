@@ -284,8 +284,9 @@ class DiscreteDMP(_DmpCommon):
         :math:`\tau` [s].
     centres, widths : ndarray, shape (n_basis,)
         :math:`c_i, h_i` of the Gaussians on the normalised phase.
-    form : {"acceleration", "velocity"}
-        Eq. (10) (continuous accelerations, the default) or eqs. (5)-(7).
+    form : {"velocity", "acceleration"}
+        Eqs. (5)-(7) (the default) or eq. (10) (continuous accelerations from rest, for
+        inverse-dynamics control).
     goal_scaling : {"rotation", "paper", "translation"}
         How the forcing term follows a new start or goal (module docstring).
     reference_displacement : ndarray, shape (n_dofs,), optional
@@ -304,7 +305,7 @@ class DiscreteDMP(_DmpCommon):
     time_constant: float
     centres: np.ndarray
     widths: np.ndarray
-    form: str = "acceleration"
+    form: str = "velocity"
     goal_scaling: str = "rotation"
     reference_displacement: np.ndarray | None = None
     stiffness: float = 25.0

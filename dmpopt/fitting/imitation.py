@@ -62,8 +62,9 @@ def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, las
     kkt[:n, :n] = gram + lam * np.eye(n)
     kkt[:n, n] = row
     kkt[n, :n] = row
-    solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))
-    return solution[:n]
+    solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
+    # the KKT system is ill-conditioned: restore the equality to rounding precision
+    return solution + np.outer(row, value - row @ solution) / (row @ row)
 
 
 def _goal_scaling(demo: Trajectory, goal_scaling: str) -> str:
@@ -217,13 +218,13 @@ def _local_regression(dmp, states: np.ndarray, targets: np.ndarray) -> np.ndarra
 
 
 def reproduction_error(dmp, demo: Trajectory) -> float:
-    """Root-mean-square position error of the DMP's plan against ``demo``."""
+    """Root-mean-square Euclidean position error of the DMP's plan against ``demo``."""
     dt = demo.duration / (demo.n_steps - 1)
     if isinstance(dmp, DiscreteDMP):
         plan = dmp.rollout(demo.duration, dt, start_velocity=demo.velocities[0])
     else:
         plan = dmp.rollout(demo.duration, dt, start=demo.positions[0])
-    return float(np.sqrt(np.mean((plan.positions - demo.positions) ** 2)))
+    return float(np.sqrt(np.mean(np.sum((plan.positions - demo.positions) ** 2, axis=1))))
 
 
 def fit_to_accuracy(
@@ -249,3 +250,144 @@ def fit_to_accuracy(
         f"no number of basis functions in {tuple(candidates)} reaches tolerance {tolerance}; "
         f"the best RMSE was {min(errors):.3g}: raise the tolerance or add candidates"
     )
+
+
+def estimate_period(demo: Trajectory) -> float:
+    """Period of a periodic demonstration [s].
+
+    The spectrum's peak gives a first guess; the period is then the shift ``P`` that
+    minimises the mean squared difference between ``y(t)`` and ``y(t + P)``, found on a
+    fine grid and refined by a parabola. The demonstration must cover more than 1.3 cycles.
+    """
+    centred = demo.positions - demo.positions.mean(axis=0)
+    power = (np.abs(np.fft.rfft(centred, axis=0)) ** 2).sum(axis=1)
+    power[0] = 0.0
+    peak = int(np.argmax(power))
+    if peak < 1:
+        raise InvalidInputError("demo does not oscillate; pass period= explicitly")
+    guess = demo.duration * demo.n_steps / (demo.n_steps - 1) / peak
+    shifts = np.linspace(0.5 * guess, min(1.6 * guess, demo.duration / 1.3), 400)
+    if shifts[-1] <= shifts[0]:
+        raise InvalidInputError(
+            "demo covers too few cycles to estimate its period; pass period= explicitly"
+        )
+    mismatch = np.array([_self_mismatch(demo, shift) for shift in shifts])
+    k = int(np.clip(np.argmin(mismatch), 1, len(shifts) - 2))
+    left, centre, right = mismatch[k - 1 : k + 2]
+    curvature = left - 2 * centre + right
+    offset = 0.5 * (left - right) / curvature if curvature > 0 else 0.0
+    return float(shifts[k] + offset * (shifts[1] - shifts[0]))
+
+
+def _self_mismatch(demo: Trajectory, shift: float) -> float:
+    times = demo.times
+    inside = times + shift <= times[-1]
+    shifted = np.column_stack(
+        [np.interp(times[inside] + shift, times, column) for column in demo.positions.T]
+    )
+    return float(np.mean((shifted - demo.positions[inside]) ** 2))
+
+
+def fit_rhythmic(
+    demo: Trajectory,
+    n_basis: int = 15,
+    *,
+    period: float | None = None,
+    form: str = "phase",
+    method: str = "position",
+    kernel: str = "von_mises",
+    amplitude: float = 1.0,
+    regularization: float = 1e-9,
+    stiffness: float = 25.0,
+    warm_up_periods: int = 2,
+) -> RhythmicDMP:
+    """Fit a rhythmic DMP to a periodic demonstration (Section 3.4, rhythmic case).
+
+    The demonstration starts at oscillator phase 0 and should cover at least one period.
+    The setpoint is the demonstration's mean.
+
+    Parameters
+    ----------
+    demo : Trajectory
+        Periodic demonstration of ``n_dofs`` DOFs.
+    n_basis : int
+        Basis functions per DOF (each with a 2-vector of weights).
+    period : float, optional
+        Period [s]; estimated from the spectrum if omitted.
+    form : {"phase", "energy"}
+        Eqs. (11)-(12) or (13)-(14).
+    method : {"position", "least_squares"}
+        ``"position"`` fits the plan's limit cycle (after ``warm_up_periods`` periods of
+        integration from the demonstrated start) to the demonstration; ``"least_squares"``
+        regresses the forcing targets of eq. (15).
+    kernel : {"von_mises", "paper"}
+    amplitude : float
+        Amplitude the weights are learned at; scaling it later scales the movement.
+    """
+    demo = _check_demo(demo)
+    method = _check_method(method)
+    if method == "lwr":
+        raise InvalidInputError("method='lwr' fits discrete DMPs; use 'position' or 'least_squares'")
+    n_basis = basis.check_n_basis(n_basis)
+    period = estimate_period(demo) if period is None else period
+    if not (np.isfinite(period) and period > 0):
+        raise InvalidInputError(f"period must be a positive number of seconds, got {period!r}")
+    if demo.duration < 0.95 * period:
+        raise InvalidInputError(
+            f"demo lasts {demo.duration:.4g} s, less than one period ({period:.4g} s); "
+            "demonstrate at least one full cycle"
+        )
+    centres, widths = basis.rhythmic_basis(n_basis, kernel)
+    template = RhythmicDMP(
+        weights=np.zeros((demo.n_dofs, n_basis, 2)),
+        setpoint=demo.positions.mean(axis=0),
+        time_constant=1.0,
+        centres=centres,
+        widths=widths,
+        form=form,
+        amplitude=amplitude,
+        kernel=kernel,
+        stiffness=stiffness,
+    )
+    frequency = 1.0 if form == "phase" else template.frequency
+    unit = template.replace(time_constant=period * frequency / (2 * np.pi))
+    dt = demo.duration / (demo.n_steps - 1)
+    direction = 1.0 if form == "phase" else -frequency  # d(phase)/d(t / tau)
+
+    if method == "position":
+        n_warm = int(round(warm_up_periods * period / dt))
+        start_phase = -direction * n_warm * dt / unit.time_constant
+        plan = unit.affine_plan(
+            (n_warm + demo.n_steps - 1) * dt,
+            dt,
+            start=demo.positions[0],
+            start_velocity=demo.velocities[0],
+            phase=start_phase,
+        )
+        window = slice(n_warm, n_warm + demo.n_steps)
+        response = plan.weight_response[0][window]
+        forcing = _ridge(response, demo.positions - plan.free[0][window], regularization).T
+    else:
+        phases = direction * (demo.times - demo.times[0]) / unit.time_constant
+        canonical = np.array([unit.canonical_state(p) for p in phases])
+        regressors = symbolic.feature_function(unit.signature).map(demo.n_steps)(
+            canonical.T, unit.centres, unit.widths
+        ).full().T
+        targets = _periodic_velocity_targets(unit, demo)
+        forcing = _ridge(regressors, targets, regularization).T
+    return unit.replace(weights=forcing.reshape(demo.n_dofs, n_basis, 2))
+
+
+def _periodic_velocity_targets(dmp: RhythmicDMP, demo: Trajectory) -> np.ndarray:
+    """Eq. (15) on a periodic demonstration: the filter state ``z`` in its steady cycle."""
+    tau, alpha, beta = dmp.time_constant, dmp.stiffness, dmp.damping
+    y, yd = demo.positions, demo.velocities
+    decay = np.exp(-alpha * np.diff(demo.times) / tau)
+    drive = beta * (dmp.setpoint - 0.5 * (y[1:] + y[:-1]))
+    z = np.empty_like(y)
+    z[0] = tau * yd[0]
+    for _ in range(2):  # the second pass starts from the end of the first: periodic state
+        for k in range(len(decay)):
+            z[k + 1] = decay[k] * z[k] + (1.0 - decay[k]) * drive[k]
+        z[0] = z[-1]
+    return tau * yd - z

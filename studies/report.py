@@ -1,0 +1,46 @@
+"""One HTML page with every study's figures, the paper's claim and the measured numbers."""
+
+from __future__ import annotations
+
+import html
+import importlib
+import json
+from pathlib import Path
+
+
+def _claim(name: str) -> str:
+    module = importlib.import_module(f"studies.{name}")
+    return (module.__doc__ or "").strip()
+
+
+def write_report(out_dir, results: dict) -> Path:
+    """Write ``report.html`` in ``out_dir`` for the studies in ``results`` (name -> metrics)."""
+    out = Path(out_dir)
+    sections = []
+    for name, metrics in results.items():
+        figures = sorted((out / name).glob("*.png"))
+        images = "\n".join(
+            f'<figure><img src="{html.escape(f"{name}/{f.name}")}" alt="{html.escape(f.stem)}">'
+            f"<figcaption>{html.escape(f.stem)}</figcaption></figure>"
+            for f in figures
+        )
+        shown = {k: v for k, v in metrics.items() if k not in ("versions", "parameters")}
+        sections.append(
+            f'<section id="{html.escape(name)}"><h2>{html.escape(name)}</h2>'
+            f'<pre class="claim">{html.escape(_claim(name))}</pre>{images}'
+            f"<details open><summary>metrics</summary><pre>"
+            f"{html.escape(json.dumps(shown, indent=2))}</pre></details></section>"
+        )
+    page = (
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        "<title>dmpopt: Learning Movement Primitives, reproduced</title><style>"
+        "body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}"
+        "img{max-width:100%;border:1px solid #ddd}figure{margin:1em 0}"
+        "pre{background:#f6f6f6;padding:.6em;overflow-x:auto;white-space:pre-wrap}"
+        "</style></head><body><h1>dmpopt: the studies of \"Learning Movement Primitives\"</h1>"
+        + "".join(sections)
+        + "</body></html>\n"
+    )
+    path = out / "report.html"
+    path.write_text(page)
+    return path

@@ -1,0 +1,224 @@
+"""Properties of the DMP systems: invariances (Section 3.3), convergence, limit cycles."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from problems import random_discrete, random_rhythmic
+
+from dmpopt import DiscreteDMP, InvalidInputError, ShapeError, symbolic
+from dmpopt.basis import discrete_phase
+
+
+def test_canonical_phase_matches_closed_form():
+    """Eq. (6) normalised, critically damped: x(t) = 1 - (1 + s) exp(-s), s = alpha t / 2."""
+    times = np.linspace(0.0, 0.5, 11)
+    phase = discrete_phase((25.0, 6.25, 25.0, 6.25), tuple(times))
+    s = 25.0 * times / 2
+    np.testing.assert_allclose(phase, 1 - (1 + s) * np.exp(-s), atol=1e-12)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_rollout_equals_direct_integration(form):
+    """The affine rollout is the symbolic system integrated step by step."""
+    dmp = random_discrete(seed=3, n_dofs=3, form=form)
+    plan = dmp.rollout(0.6, 0.002)
+    rows = [dmp.start, np.zeros(3)] + ([dmp.start] if form == "acceleration" else [])
+    initial = np.concatenate([[0.0, 0.0], *rows])
+    _, y, yd, ydd = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.002,
+                                      dmp.parameter_values())
+    np.testing.assert_allclose(plan.positions, y, atol=1e-12)
+    np.testing.assert_allclose(plan.velocities, yd, atol=1e-10)
+    np.testing.assert_allclose(plan.accelerations, ydd, atol=1e-8)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_accelerations_are_derivatives_of_velocities(form):
+    dmp = random_discrete(seed=1, form=form)
+    plan = dmp.rollout(0.8, 0.0001)
+    numeric = np.gradient(plan.velocities, plan.times, axis=0)
+    scale = np.abs(plan.accelerations).max()
+    np.testing.assert_allclose(numeric[20:-5], plan.accelerations[20:-5], atol=5e-4 * scale)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_goal_scaling_from_zero_start_scales_plan(form):
+    """Start 0, goal c g: the plan is c times the plan to g (Section 3.3)."""
+    dmp = random_discrete(seed=2, form=form).replace(start=np.zeros(2))
+    c = 2.7
+    plan = dmp.rollout(0.6, 0.001).positions
+    scaled = dmp.with_goal(c * dmp.goal).rollout(0.6, 0.001).positions
+    np.testing.assert_allclose(scaled, c * plan, atol=1e-12 * np.abs(scaled).max())
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_time_constant_scaling_stretches_time_exactly(form):
+    """tau -> c tau with dt -> c dt gives the same positions at times scaled by c."""
+    dmp = random_discrete(seed=4, form=form)
+    c = 1.9
+    plan = dmp.rollout(0.5, 0.001)
+    slow = dmp.with_time_constant(c * dmp.time_constant).rollout(c * 0.5, c * 0.001)
+    np.testing.assert_allclose(slow.times, c * plan.times, rtol=1e-12)
+    np.testing.assert_allclose(slow.positions, plan.positions, atol=1e-12)
+    np.testing.assert_allclose(slow.velocities, plan.velocities / c, atol=1e-10)
+
+
+def test_time_constant_scaling_at_fixed_step_is_accurate():
+    dmp = random_discrete(seed=5)
+    plan = dmp.rollout(0.5, 0.0005)
+    slow = dmp.with_time_constant(2 * dmp.time_constant).rollout(1.0, 0.0005)
+    np.testing.assert_allclose(slow.positions[::2], plan.positions, atol=2e-6)
+
+
+def test_translation_translates_plan():
+    dmp = random_discrete(seed=6, n_dofs=3)
+    shift = np.array([0.3, -1.2, 2.0])
+    plan = dmp.rollout(0.6).positions
+    moved = dmp.replace(start=dmp.start + shift, goal=dmp.goal + shift).rollout(0.6).positions
+    np.testing.assert_allclose(moved, plan + shift, atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(angle=st.floats(-np.pi, np.pi), scale=st.floats(0.05, 20.0))
+def test_rotation_scaling_maps_plan(angle, scale):
+    """In rotation mode the plan to a rotated, scaled goal is the plan rotated and scaled."""
+    dmp = random_discrete(seed=7)
+    rotation = scale * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    plan = dmp.rollout(0.6).positions
+    goal = dmp.start + rotation @ (dmp.goal - dmp.start)
+    moved = dmp.with_goal(goal).rollout(0.6).positions
+    expected = dmp.start + (plan - dmp.start) @ rotation.T
+    np.testing.assert_allclose(moved, expected, atol=1e-9 * max(1.0, scale))
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    scale=st.floats(0.0, 500.0),
+    form=st.sampled_from(["velocity", "acceleration"]),
+)
+def test_converges_to_goal_for_bounded_weights(seed, scale, form):
+    dmp = random_discrete(seed=seed, form=form, scale=scale)
+    plan = dmp.rollout(8 * dmp.convergence_time, 0.002)
+    distance = np.linalg.norm(dmp.goal - dmp.start)
+    assert np.all(np.isfinite(plan.positions))
+    np.testing.assert_allclose(plan.positions[-1], dmp.goal, atol=1e-6 * max(distance, 1.0))
+    np.testing.assert_allclose(plan.velocities[-1], 0.0, atol=1e-5 * max(distance, 1.0))
+
+
+def test_paper_goal_scaling_vanishes_when_goal_equals_start():
+    """The paper's (g - y0) factor: no forcing term when start and goal coincide."""
+    dmp = random_discrete(seed=8, goal_scaling="paper", reference_displacement=None)
+    still = dmp.with_goal(dmp.start).rollout(0.6).positions
+    np.testing.assert_allclose(still, np.broadcast_to(dmp.start, still.shape), atol=1e-12)
+
+
+def test_rotation_mode_handles_opposite_goal():
+    """A goal on the other side of the start (sign flip) gives the half-turned plan."""
+    dmp = random_discrete(seed=9)
+    plan = dmp.rollout(0.6).positions
+    flipped = dmp.with_goal(2 * dmp.start - dmp.goal).rollout(0.6).positions
+    np.testing.assert_allclose(flipped, 2 * dmp.start - plan, atol=1e-9)
+
+
+@pytest.mark.parametrize("form, tolerance", [("phase", 1e-12), ("energy", 1e-7)])
+def test_amplitude_scales_oscillation(form, tolerance):
+    """Exact for the phase oscillator; for the energy oscillator up to the RK4 drift off
+    the limit cycle, whose correction rate depends on the energy (eq. 13)."""
+    dmp = random_rhythmic(seed=1, form=form, setpoint=np.zeros(2))
+    plan = dmp.rollout(2.0, 0.001).positions
+    scaled = dmp.with_amplitude(2.5).rollout(2.0, 0.001).positions
+    np.testing.assert_allclose(scaled, 2.5 * plan, atol=tolerance)
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_rhythmic_time_scaling_and_setpoint_translation(form):
+    dmp = random_rhythmic(seed=2, form=form)
+    plan = dmp.rollout(1.0, 0.001)
+    slow = dmp.with_time_constant(2 * dmp.time_constant).rollout(2.0, 0.002)
+    np.testing.assert_allclose(slow.positions, plan.positions, atol=1e-12)
+    moved = dmp.with_setpoint(dmp.setpoint + 1.5).rollout(1.0, 0.001)
+    np.testing.assert_allclose(moved.positions, plan.positions + 1.5, atol=1e-12)
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_limit_cycle_attracts_perturbed_state(form):
+    """From a perturbed oscillator and position, the plan converges to the same cycle."""
+    dmp = random_rhythmic(seed=3, form=form)
+    n = int(round(6 * dmp.period / 0.001)) + 1
+    canonical = np.array(dmp.canonical_state(0.0))
+    reference = np.concatenate([canonical, dmp.setpoint, np.zeros(2)])
+    perturbed = reference + np.concatenate([[0.6 * canonical[0], 0.3], [0.5, -0.4], [2.0, 1.0]])
+    if form == "phase":
+        perturbed[0] = reference[0]  # the phase itself has no restoring force
+    runs = [
+        symbolic.simulate(dmp.signature, n, x0, 0.001, dmp.parameter_values())
+        for x0 in (reference, perturbed)
+    ]
+    period_steps = int(round(dmp.period / 0.001))
+    last = slice(n - period_steps, n)
+    if form == "phase":
+        np.testing.assert_allclose(runs[1][1][last], runs[0][1][last], atol=1e-6)
+    else:  # the energy oscillator restores its amplitude, not its phase
+        for statistic in (np.min, np.max, np.mean):
+            np.testing.assert_allclose(
+                statistic(runs[1][1][last], axis=0), statistic(runs[0][1][last], axis=0),
+                atol=2e-3,
+            )
+        x, v = runs[1][0][-1, :2]
+        energy = 0.5 * (v**2 + dmp.frequency**2 * x**2)
+        assert abs(energy - 0.5 * dmp.amplitude**2) < 1e-6
+
+
+def test_rhythmic_plan_is_periodic():
+    dmp = random_rhythmic(seed=4)
+    step = 0.0005
+    plan = dmp.rollout(4 * dmp.period, step).positions
+    k = int(round(dmp.period / step))
+    # the period is 2 pi tau, not a multiple of the step: compare by interpolation
+    times = np.arange(len(plan)) * step
+    shifted = np.array([np.interp(times[-k // 2 :] - dmp.period, times, p) for p in plan.T]).T
+    np.testing.assert_allclose(shifted, plan[-k // 2 :], atol=1e-5)
+
+
+def test_affine_plan_matches_rollout():
+    dmp = random_discrete(seed=11, form="acceleration")
+    plan = dmp.affine_plan(0.5, 0.001)
+    trajectory = dmp.rollout(0.5, 0.001)
+    np.testing.assert_allclose(plan.evaluate(dmp.forcing_weights())[2], trajectory.accelerations,
+                               atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"time_constant": 0.0}, "time_constant must be a positive"),
+        ({"time_constant": -1.0}, "time_constant must be a positive"),
+        ({"goal": np.zeros(3)}, r"goal has shape \(3,\), expected \(2,\)"),
+        ({"weights": np.full((2, 20), np.nan)}, "weights contains 40 NaN"),
+        ({"form": "jerk"}, "form must be one of"),
+        ({"goal_scaling": "bogus"}, "goal_scaling must be one of"),
+        ({"reference_displacement": np.zeros(2)}, "reference_displacement is zero"),
+    ],
+)
+def test_bad_parameters_name_the_argument(changes, message):
+    dmp = random_discrete()
+    with pytest.raises((InvalidInputError, ShapeError), match=message):
+        dmp.replace(**changes)
+
+
+def test_bad_rollout_arguments():
+    dmp = random_discrete()
+    with pytest.raises(InvalidInputError, match="dt must be a positive"):
+        dmp.rollout(1.0, dt=0.0)
+    with pytest.raises(InvalidInputError, match="duration 0.001 is shorter than two steps"):
+        dmp.rollout(0.001, dt=0.001)
+    with pytest.raises(ShapeError, match="start_velocity has shape"):
+        dmp.rollout(1.0, start_velocity=np.zeros(5))
+
+
+def test_parameters_are_immutable():
+    dmp = random_discrete()
+    with pytest.raises(ValueError):
+        dmp.weights[0, 0] = 1.0
+    assert isinstance(dmp.with_goal(dmp.goal + 1), DiscreteDMP)

@@ -1,0 +1,112 @@
+"""Imitation learning (Section 3.4): targets, regressions, reproduction, bad input."""
+
+import numpy as np
+import pytest
+from problems import minimum_jerk_demo, periodic_demo
+
+from dmpopt import (
+    InvalidInputError,
+    Trajectory,
+    fit_discrete,
+    fit_rhythmic,
+    fit_to_accuracy,
+    reproduction_error,
+)
+from dmpopt.fitting import estimate_period
+
+
+@pytest.mark.parametrize(
+    "form, method, tolerance",
+    [
+        ("velocity", "position", 1e-4),
+        ("acceleration", "position", 2e-3),
+        ("velocity", "least_squares", 1e-3),
+        ("velocity", "lwr", 2e-2),
+        ("acceleration", "lwr", 5e-2),
+    ],
+)
+def test_reproduces_minimum_jerk(form, method, tolerance):
+    demo = minimum_jerk_demo()
+    dmp = fit_discrete(demo, 30, form=form, method=method)
+    amplitude = np.abs(demo.positions[-1] - demo.positions[0]).max()
+    assert reproduction_error(dmp, demo) < tolerance * amplitude
+
+
+def test_position_fit_hits_start_and_goal_exactly():
+    demo = minimum_jerk_demo(seed=2)
+    dt = demo.duration / (demo.n_steps - 1)
+    plan = fit_discrete(demo, 10).rollout(demo.duration, dt, demo.velocities[0])
+    np.testing.assert_allclose(plan.positions[0], demo.positions[0], atol=1e-12)
+    np.testing.assert_allclose(plan.positions[-1], demo.positions[-1], atol=1e-9)
+
+
+def test_reproduces_planar_figure_eight_stroke():
+    times = np.linspace(0, 2, 1001)
+    s = np.pi * (10 * (times / 2) ** 3 - 15 * (times / 2) ** 4 + 6 * (times / 2) ** 5)
+    demo = Trajectory.from_positions(times, np.c_[np.sin(2 * s), np.sin(s) + s / 3])
+    assert reproduction_error(fit_discrete(demo, 40), demo) < 1e-3
+
+
+def test_closed_movement_uses_translation_and_stays_finite():
+    times = np.linspace(0, 1, 500)
+    loop = np.c_[np.sin(2 * np.pi * times), 1 - np.cos(2 * np.pi * times)]
+    dmp = fit_discrete(Trajectory.from_positions(times, loop), 30)
+    assert dmp.goal_scaling == "translation"
+    moved = dmp.with_goal(dmp.goal + 1.0).rollout(8 * dmp.convergence_time)
+    assert np.all(np.isfinite(moved.positions))
+    np.testing.assert_allclose(moved.positions[-1], dmp.goal + 1.0, atol=1e-4)
+
+
+def test_paper_scaling_refuses_degenerate_axis():
+    times = np.linspace(0, 1, 300)
+    demo = Trajectory.from_positions(times, np.c_[times, np.sin(np.pi * times)])
+    with pytest.raises(InvalidInputError, match=r"zero for DOF\(s\) \[1\]; use goal_scaling='rotation'"):
+        fit_discrete(demo, 10, goal_scaling="paper")
+
+
+def test_fit_is_invariant_to_time_scaling_of_the_demo():
+    """A demo played c times slower gives the same weights and c times the tau."""
+    demo = minimum_jerk_demo(n_dofs=2)
+    slow = Trajectory.from_positions(3 * demo.times, demo.positions)
+    fast_dmp, slow_dmp = fit_discrete(demo, 20), fit_discrete(slow, 20)
+    np.testing.assert_allclose(slow_dmp.weights, fast_dmp.weights, rtol=1e-6, atol=1e-9)
+    assert slow_dmp.time_constant == pytest.approx(3 * fast_dmp.time_constant, rel=1e-12)
+
+
+def test_fit_to_accuracy_picks_fewest_bases():
+    demo = minimum_jerk_demo(n_dofs=1)
+    dmp = fit_to_accuracy(demo, tolerance=1e-4)
+    assert reproduction_error(dmp, demo) <= 1e-4
+    smaller = fit_discrete(demo, {5: 5, 10: 5, 15: 10, 20: 15}.get(dmp.n_basis, 5))
+    assert dmp.n_basis == 5 or reproduction_error(smaller, demo) > 1e-4
+    with pytest.raises(InvalidInputError, match="no number of basis functions"):
+        fit_to_accuracy(demo, tolerance=1e-30, candidates=(3,))
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+@pytest.mark.parametrize("method", ["position", "least_squares"])
+def test_rhythmic_reproduces_periodic_demo(form, method):
+    demo = periodic_demo()
+    dmp = fit_rhythmic(demo, 15, form=form, method=method)
+    assert dmp.period == pytest.approx(0.8, rel=1e-4)
+    assert reproduction_error(dmp, demo) < 1e-2
+
+
+def test_period_estimate():
+    assert estimate_period(periodic_demo(period=0.37, duration=1.5)) == pytest.approx(0.37, rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda d: fit_discrete(d, 0), "n_basis must be a positive integer, got 0"),
+        (lambda d: fit_discrete(d, 2.5), "n_basis must be a positive integer"),
+        (lambda d: fit_discrete(d.positions, 10), "demo must be a Trajectory"),
+        (lambda d: fit_discrete(d, 10, method="magic"), "method must be one of"),
+        (lambda d: fit_rhythmic(d, 10, period=-1.0), "period must be a positive"),
+        (lambda d: fit_rhythmic(d, 10, period=5.0), "less than one period"),
+    ],
+)
+def test_bad_input_names_the_argument(call, message):
+    with pytest.raises(InvalidInputError, match=message):
+        call(minimum_jerk_demo(n_dofs=1))

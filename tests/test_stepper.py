@@ -1,0 +1,86 @@
+"""Online stepping: equals the rollout, follows online changes, coupling, phase reset."""
+
+import numpy as np
+import pytest
+from problems import random_discrete, random_rhythmic
+
+from dmpopt import InvalidInputError
+
+
+def _run(stepper, n, **kwargs):
+    return np.array([stepper.position] + [stepper.step(**kwargs)[0] for _ in range(n)])
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_stepper_equals_rollout(form):
+    dmp = random_discrete(seed=1, form=form)
+    plan = dmp.rollout(0.5, 0.001)
+    np.testing.assert_allclose(_run(dmp.stepper(0.001), plan.n_steps - 1), plan.positions,
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_rhythmic_stepper_equals_rollout(form):
+    dmp = random_rhythmic(seed=2, form=form)
+    plan = dmp.rollout(1.0, 0.001)
+    np.testing.assert_allclose(_run(dmp.stepper(0.001), plan.n_steps - 1), plan.positions,
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_goal_change_mid_run_converges_to_new_goal(form):
+    dmp = random_discrete(seed=3, form=form)
+    stepper = dmp.stepper(0.001)
+    _run(stepper, 100)
+    new_goal = dmp.goal + np.array([1.0, -2.0])
+    stepper.set_goal(new_goal)
+    final = _run(stepper, 4000)[-1]
+    np.testing.assert_allclose(final, new_goal, atol=1e-6)
+
+
+def test_constant_coupling_shifts_equilibrium():
+    """tau zdot = alpha (beta (g - y) - z) + C settles at y = g + C / (alpha beta)."""
+    dmp = random_discrete(seed=4)
+    coupling = np.array([3.0, -5.0])
+    final = _run(dmp.stepper(0.001), 4000, coupling=coupling)[-1]
+    np.testing.assert_allclose(final, dmp.goal + coupling / (25.0 * 6.25), atol=1e-6)
+
+
+def test_faster_time_constant_finishes_sooner():
+    dmp = random_discrete(seed=5)
+    stepper = dmp.stepper(0.001)
+    stepper.set_time_constant(dmp.time_constant / 2)
+    half = _run(stepper, 1000)
+    np.testing.assert_allclose(half, dmp.rollout(2.0, 0.002).positions, atol=1e-12)
+
+
+def test_phase_reset_and_frequency_change():
+    dmp = random_rhythmic(seed=6)
+    stepper = dmp.stepper(0.001)
+    _run(stepper, 250)
+    stepper.reset_phase(0.25)
+    assert stepper.phase == 0.25
+    stepper.set_time_constant(dmp.time_constant / 2)
+    stepper.step()
+    assert stepper.phase == pytest.approx(0.25 + 0.001 / (dmp.time_constant / 2), abs=1e-12)
+
+
+def test_amplitude_change_converges_to_scaled_cycle():
+    dmp = random_rhythmic(seed=7, setpoint=np.zeros(2))
+    stepper = dmp.stepper(0.001)
+    stepper.set_amplitude(2 * dmp.amplitude)
+    n = int(6 * dmp.period / 0.001)
+    positions = _run(stepper, n)
+    reference = dmp.with_amplitude(2 * dmp.amplitude).rollout(n * 0.001, 0.001).positions
+    period_steps = int(dmp.period / 0.001)
+    np.testing.assert_allclose(positions[-period_steps:], reference[-period_steps:], atol=1e-6)
+
+
+def test_errors():
+    stepper = random_discrete().stepper()
+    with pytest.raises(InvalidInputError, match="set_amplitude applies to rhythmic"):
+        stepper.set_amplitude(2.0)
+    with pytest.raises(InvalidInputError, match="time_constant must be a positive"):
+        stepper.set_time_constant(0.0)
+    with pytest.raises(InvalidInputError, match="reset_phase applies to rhythmic"):
+        stepper.reset_phase(0.0)

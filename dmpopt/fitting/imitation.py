@@ -158,7 +158,7 @@ def fit_discrete(
         if method == "least_squares":
             forcing = _ridge(regressors, targets, regularization).T
         else:
-            forcing = _local_regression(unit, states, targets)
+            forcing = _local_regression(unit, states[:, :2], targets)
 
     if scaling == "paper":
         weights = forcing / (goal - start)[:, None]
@@ -205,16 +205,34 @@ def _features(dmp, states: np.ndarray) -> np.ndarray:
     return function(states[:, :2].T, dmp.centres, dmp.widths).full().T
 
 
-def _local_regression(dmp, states: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """One weighted least-squares model per basis function (LWR), (n_dofs, n_features)."""
-    if dmp.form not in symbolic.DISCRETE_FORMS:
-        raise InvalidInputError("lwr for rhythmic DMPs: use method='least_squares' or 'position'")
-    function = symbolic.activation_function(dmp.signature).map(states.shape[0])
-    activation = function(states[:, :2].T, dmp.centres, dmp.widths).full().T
-    scale = states[:, 1]
-    numerator = (activation * scale[:, None]).T @ targets
-    denominator = (activation * scale[:, None] ** 2).sum(axis=0)
-    return (numerator / np.maximum(denominator, 1e-300)[:, None]).T
+def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    r"""One weighted least-squares model per basis function (LWR), (n_dofs, n_features).
+
+    Discrete: :math:`f \approx w_i v`, so :math:`w_i = \sum_t \psi_i v f / \sum_t \psi_i v^2`.
+    Rhythmic: :math:`f \approx w_i^T \tilde v` with the 2-vector carrier :math:`\tilde v`, so
+    :math:`w_i = (\sum_t \psi_i \tilde v \tilde v^T)^{-1} \sum_t \psi_i \tilde v f`.
+    The carrier is read off the features, which are :math:`\bar\psi_i \tilde v` with
+    normalised activations :math:`\bar\psi_i` summing to one.
+    """
+    n_steps = canonical.shape[0]
+    activation = symbolic.activation_function(dmp.signature).map(n_steps)(
+        canonical.T, dmp.centres, dmp.widths
+    ).full().T
+    regressors = symbolic.feature_function(dmp.signature).map(n_steps)(
+        canonical.T, dmp.centres, dmp.widths
+    ).full().T
+    if dmp.form in symbolic.DISCRETE_FORMS:
+        carrier = regressors.sum(axis=1)[:, None, None]  # the phase velocity v
+    else:
+        carrier = regressors.reshape(n_steps, dmp.n_basis, 2).sum(axis=1)[:, :, None]
+    # moments[i] = sum_t psi_i(t) carrier carrier^T ; cross[i] = sum_t psi_i carrier f^T
+    outer = carrier @ carrier.transpose(0, 2, 1)
+    moments = np.einsum("ti,tab->iab", activation, outer)
+    cross = np.einsum("ti,tad->iad", activation, carrier * targets[:, None, :])
+    size = moments.shape[1]
+    ridge = 1e-12 * np.trace(moments, axis1=1, axis2=2)[:, None, None] / size
+    weights = np.linalg.solve(moments + ridge * np.eye(size) + 1e-300, cross)  # (basis, a, dofs)
+    return weights.transpose(2, 0, 1).reshape(targets.shape[1], -1)
 
 
 def reproduction_error(dmp, demo: Trajectory) -> float:
@@ -223,7 +241,7 @@ def reproduction_error(dmp, demo: Trajectory) -> float:
     if isinstance(dmp, DiscreteDMP):
         plan = dmp.rollout(demo.duration, dt, start_velocity=demo.velocities[0])
     else:
-        plan = dmp.rollout(demo.duration, dt, start=demo.positions[0])
+        plan = dmp.rollout(demo.duration, dt, demo.positions[0], demo.velocities[0])
     return float(np.sqrt(np.mean(np.sum((plan.positions - demo.positions) ** 2, axis=1))))
 
 
@@ -231,18 +249,21 @@ def fit_to_accuracy(
     demo: Trajectory,
     tolerance: float,
     candidates=(5, 10, 15, 20, 30, 40, 60, 80, 100, 150, 200),
+    rhythmic: bool = False,
     **options,
-) -> DiscreteDMP:
+):
     """Fit with the fewest basis functions whose reproduction RMSE is below ``tolerance``.
 
     This is the automatic choice of the number of basis functions that LWPR gave the paper.
-    Raises :class:`InvalidInputError` if no candidate reaches the tolerance.
+    ``rhythmic`` selects :func:`fit_rhythmic` instead of :func:`fit_discrete`; ``options``
+    are passed on. Raises :class:`InvalidInputError` if no candidate reaches the tolerance.
     """
     if not tolerance > 0:
         raise InvalidInputError(f"tolerance must be positive, got {tolerance!r}")
+    fit = fit_rhythmic if rhythmic else fit_discrete
     errors = []
     for n_basis in candidates:
-        dmp = fit_discrete(demo, n_basis, **options)
+        dmp = fit(demo, n_basis, **options)
         errors.append(reproduction_error(dmp, demo))
         if errors[-1] <= tolerance:
             return dmp
@@ -316,18 +337,16 @@ def fit_rhythmic(
         Period [s]; estimated from the spectrum if omitted.
     form : {"phase", "energy"}
         Eqs. (11)-(12) or (13)-(14).
-    method : {"position", "least_squares"}
+    method : {"position", "least_squares", "lwr"}
         ``"position"`` fits the plan's limit cycle (after ``warm_up_periods`` periods of
         integration from the demonstrated start) to the demonstration; ``"least_squares"``
-        regresses the forcing targets of eq. (15).
+        and ``"lwr"`` regress the forcing targets of eq. (15).
     kernel : {"von_mises", "paper"}
     amplitude : float
         Amplitude the weights are learned at; scaling it later scales the movement.
     """
     demo = _check_demo(demo)
     method = _check_method(method)
-    if method == "lwr":
-        raise InvalidInputError("method='lwr' fits discrete DMPs; use 'position' or 'least_squares'")
     n_basis = basis.check_n_basis(n_basis)
     period = estimate_period(demo) if period is None else period
     if not (np.isfinite(period) and period > 0):
@@ -374,7 +393,10 @@ def fit_rhythmic(
             canonical.T, unit.centres, unit.widths
         ).full().T
         targets = _periodic_velocity_targets(unit, demo)
-        forcing = _ridge(regressors, targets, regularization).T
+        if method == "least_squares":
+            forcing = _ridge(regressors, targets, regularization).T
+        else:
+            forcing = _local_regression(unit, canonical, targets)
     return unit.replace(weights=forcing.reshape(demo.n_dofs, n_basis, 2))
 
 

@@ -1,0 +1,52 @@
+"""Timings of the DMP core (issue targets in brackets). Run: python benchmarks/bench_core.py
+
+BLAS is limited to one thread: the matrices are small, and on a loaded 2-core machine
+multithreaded BLAS turns a 0.5 ms product into tens of milliseconds.
+"""
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from dmpopt import DiscreteDMP, fit_discrete  # noqa: E402
+from dmpopt.basis import discrete_basis  # noqa: E402
+
+
+def median_us(function, repeats):
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return 1e6 * float(np.median(times))
+
+
+def main():
+    rng = np.random.default_rng(0)
+    centres, widths = discrete_basis(50, (25.0, 6.25, 25.0, 6.25))
+    dmp = DiscreteDMP(100 * rng.normal(size=(30, 50)), np.zeros(30), np.ones(30), 0.5,
+                      centres, widths, form="acceleration", goal_scaling="translation")
+    dmp.rollout(0.999, 0.001)  # builds and caches the response matrices
+    rollout = median_us(lambda: dmp.rollout(0.999, 0.001), 200)
+    print(f"rollout, 30 DOFs, 50 bases, 1000 steps: {rollout / 1e3:.3f} ms median  [<= 1 ms]")
+    for compile_ in (False, True):
+        stepper = dmp.stepper(0.001, compile=compile_)
+        step = median_us(stepper.step, 5000)
+        label = "compiled C" if compile_ else "casadi VM"
+        print(f"online step, 30 DOFs, 50 bases ({label}): {step:.1f} us median  [<= 20 us]")
+    from studies import lasa
+
+    demo = lasa.demonstrations("Angle")[0]
+    fit_discrete(demo, 50)
+    fit = median_us(lambda: fit_discrete(demo, 50), 200)
+    print(f"fit of one LASA demo, 2 DOFs, 1000 samples, 50 bases: {fit / 1e3:.3f} ms median  "
+          "[<= 2 ms]")
+
+
+if __name__ == "__main__":
+    main()

@@ -29,8 +29,16 @@ def median_us(function, repeats):
 def main():
     rng = np.random.default_rng(0)
     centres, widths = discrete_basis(50, (25.0, 6.25, 25.0, 6.25))
-    dmp = DiscreteDMP(100 * rng.normal(size=(30, 50)), np.zeros(30), np.ones(30), 0.5,
-                      centres, widths, form="acceleration", goal_scaling="translation")
+    dmp = DiscreteDMP(
+        100 * rng.normal(size=(30, 50)),
+        np.zeros(30),
+        np.ones(30),
+        0.5,
+        centres,
+        widths,
+        form="acceleration",
+        goal_scaling="translation",
+    )
     dmp.rollout(0.999, 0.001)  # builds and caches the response matrices
     rollout = median_us(lambda: dmp.rollout(0.999, 0.001), 200)
     print(f"rollout, 30 DOFs, 50 bases, 1000 steps: {rollout / 1e3:.3f} ms median  [<= 1 ms]")
@@ -44,8 +52,10 @@ def main():
     demo = lasa.demonstrations("Angle")[0]
     fit_discrete(demo, 50)
     fit = median_us(lambda: fit_discrete(demo, 50), 200)
-    print(f"fit of one LASA demo, 2 DOFs, 1000 samples, 50 bases: {fit / 1e3:.3f} ms median  "
-          "[<= 2 ms]")
+    print(
+        f"fit of one LASA demo, 2 DOFs, 1000 samples, 50 bases: {fit / 1e3:.3f} ms median  "
+        "[<= 2 ms]"
+    )
 
 
 if __name__ == "__main__":

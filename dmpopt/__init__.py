@@ -19,7 +19,7 @@ symbol                          meaning                                API name
 :math:`w_i, c_i, h_i`           weights, centres, widths               ``weights``, ``centres``, ``widths``
 :math:`f`                       forcing term                           ``forcing_weights()``
 ==============================  =====================================  =====================
-"""
+"""  # noqa: E501
 
 from .dmp import AffinePlan, DiscreteDMP, RhythmicDMP, similarity_transform
 from .exceptions import (
@@ -35,8 +35,8 @@ from .exceptions import (
 )
 from .fitting import fit_discrete, fit_rhythmic, fit_to_accuracy, reproduction_error
 from .io import load, save
-from .superposition import superpose
 from .stepper import Stepper
+from .superposition import superpose
 from .trajectory import Trajectory
 
 __version__ = "0.1.0"

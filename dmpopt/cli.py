@@ -39,10 +39,14 @@ def _list(studies: dict) -> int:
 
 
 def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int) -> int:
-    total = sum(getattr(studies[n], "EXPECTED_SECONDS", {}).get("quick" if quick else "full", 0)
-                for n in names)
-    print(f"running {', '.join(names)} ({'quick' if quick else 'full'}): "
-          f"expected about {total / 60:.1f} min on 2 cores; results in {out}")
+    total = sum(
+        getattr(studies[n], "EXPECTED_SECONDS", {}).get("quick" if quick else "full", 0)
+        for n in names
+    )
+    print(
+        f"running {', '.join(names)} ({'quick' if quick else 'full'}): "
+        f"expected about {total / 60:.1f} min on 2 cores; results in {out}"
+    )
     results = {}
     for name in names:
         start = time.perf_counter()

@@ -104,8 +104,17 @@ def _response(key: tuple) -> np.ndarray:
     goal = unit[n_transformation]
     forcing_weights = unit[n_transformation + 1 :].T
     signature = symbolic.Signature(form, n_inputs, n_basis, kernel)
-    parameters = [1.0, goal, target, forcing_weights, np.array(centres), np.array(widths),
-                  np.array(gains), np.zeros(n_inputs), 0.0]
+    parameters = [
+        1.0,
+        goal,
+        target,
+        forcing_weights,
+        np.array(centres),
+        np.array(widths),
+        np.array(gains),
+        np.zeros(n_inputs),
+        0.0,
+    ]
     _, positions, velocities, accelerations = symbolic.simulate(
         signature, n_steps, initial, dt, parameters
     )
@@ -348,12 +357,16 @@ class DiscreteDMP(_DmpCommon):
                     "goal_scaling='translation' for movements that end where they start"
                 )
             object.__setattr__(self, "reference_displacement", _frozen(reference))
-        for name, default in (("phase_damping", self.phase_stiffness / 4.0),
-                              ("goal_rate", self.stiffness / 2.0)):
+        for name, default in (
+            ("phase_damping", self.phase_stiffness / 4.0),
+            ("goal_rate", self.stiffness / 2.0),
+        ):
             if getattr(self, name) is None:
                 object.__setattr__(self, name, default)
             object.__setattr__(self, name, _positive(name, getattr(self, name)))
-        object.__setattr__(self, "phase_stiffness", _positive("phase_stiffness", self.phase_stiffness))
+        object.__setattr__(
+            self, "phase_stiffness", _positive("phase_stiffness", self.phase_stiffness)
+        )
 
     @property
     def gains(self) -> tuple:

@@ -47,7 +47,9 @@ class Stepper:
         self.dt = _positive("dt", dt)
         step = symbolic.step_function(dmp.signature)
         self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
-        self._function.set_inputs(np.zeros(dmp.signature.n_states), self.dt, *dmp.parameter_values())
+        self._function.set_inputs(
+            np.zeros(dmp.signature.n_states), self.dt, *dmp.parameter_values()
+        )
         self.time = 0.0
         self._start = _vector("start", start, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
         self._goal = np.array(dmp._goal_input(), dtype=float)

@@ -148,7 +148,9 @@ def canonical_rhs(form: str, canonical, target, gains, coupling):
     first, second = canonical[0], canonical[1]
     if form in DISCRETE_FORMS:
         phase_stiffness, phase_damping = gains[2], gains[3]
-        return ca.vertcat(second, phase_stiffness * (phase_damping * (1 - first) - second) + coupling)
+        return ca.vertcat(
+            second, phase_stiffness * (phase_damping * (1 - first) - second) + coupling
+        )
     if form == "phase":
         amplitude_rate = gains[2]
         return ca.vertcat(1 + coupling, amplitude_rate * (target - second))
@@ -251,7 +253,9 @@ def system_rhs(signature: Signature, s: Symbols, state):
     canonical, transformation = state[:2], state[2:]
     phi = features(form, signature.kernel, canonical, s.centres, s.widths)
     forcing = s.forcing_weights @ phi
-    canonical_rate = canonical_rhs(form, canonical, s.canonical_target, s.gains, s.canonical_coupling)
+    canonical_rate = canonical_rhs(
+        form, canonical, s.canonical_target, s.gains, s.canonical_coupling
+    )
     transformation_rate = transformation_rhs(
         form, transformation, s.goal, forcing, s.gains, s.coupling
     )

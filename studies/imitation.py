@@ -14,8 +14,6 @@ velocity rotated and scaled like the rest of the demonstration.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 from tqdm import tqdm
 
@@ -92,13 +90,16 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
                 nonfinite += int(not np.isfinite(moved.positions).all())
                 reference = rotated_and_scaled(demo, goal)
                 shift_error.append(_rmse(moved.positions, reference))
-                new_goal_plans[(name, k)] = (moved.positions, reference)
+                new_goal_plans[(name, k)] = (moved.positions, reference, None)
                 try:
                     paper = fit_discrete(demo, 30, goal_scaling="paper")
-                    paper_plan = paper.with_goal(goal).rollout(
-                        demo.duration, dt, start_velocity=velocity
-                    ).positions
+                    paper_plan = (
+                        paper.with_goal(goal)
+                        .rollout(demo.duration, dt, start_velocity=velocity)
+                        .positions
+                    )
                     paper_shift_error.append(_rmse(paper_plan, reference))
+                    new_goal_plans[(name, k)] = (moved.positions, reference, paper_plan)
                 except DmpoptError:
                     paper_failures += 1
         for label, options in COMPARED:
@@ -127,8 +128,14 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "rollout_ms_median": 1e3 * float(np.median(rollout_seconds)),
     }
     _figures(out, names, reproductions, new_goal_plans, rmse)
-    parameters = {"n_basis": N_BASIS, "goal_shift": GOAL_SHIFT, "shapes": names,
-                  "demos_per_shape": demos_per_shape, "form": "velocity", "method": "position"}
+    parameters = {
+        "n_basis": N_BASIS,
+        "goal_shift": GOAL_SHIFT,
+        "shapes": names,
+        "demos_per_shape": demos_per_shape,
+        "form": "velocity",
+        "method": "position",
+    }
     return write_metrics(out, "imitation", metrics, parameters, seed, quick)
 
 
@@ -157,8 +164,10 @@ def _figures(out, names, reproductions, new_goal_plans, rmse) -> None:
     chosen = list(new_goal_plans)[:: max(1, len(new_goal_plans) // 4)][:4]
     for ax, key in zip(axes, chosen):
         demo = lasa.demonstrations(key[0])[key[1]]
-        plan, reference = new_goal_plans[key]
+        plan, reference, paper = new_goal_plans[key]
         ax.plot(*demo.positions.T, color="0.6", lw=2, label="demonstration")
+        if paper is not None:
+            ax.plot(*paper.T, "--", color="C3", lw=1, label="paper's per-axis scaling")
         ax.plot(*reference.T, color="C1", lw=3, alpha=0.5, label="rotated + scaled demo")
         ax.plot(*plan.T, color="C0", lw=1, label="DMP to the new goal")
         ax.plot(*plan[-1], "k*", ms=8)

@@ -15,7 +15,6 @@ from dmpopt import Trajectory
 from dmpopt.exceptions import MissingDependency
 
 
-
 def _module():
     try:
         with contextlib.redirect_stdout(io.StringIO()):  # the package prints on import

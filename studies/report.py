@@ -37,7 +37,7 @@ def write_report(out_dir, results: dict) -> Path:
         "body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}"
         "img{max-width:100%;border:1px solid #ddd}figure{margin:1em 0}"
         "pre{background:#f6f6f6;padding:.6em;overflow-x:auto;white-space:pre-wrap}"
-        "</style></head><body><h1>dmpopt: the studies of \"Learning Movement Primitives\"</h1>"
+        '</style></head><body><h1>dmpopt: the studies of "Learning Movement Primitives"</h1>'
         + "".join(sections)
         + "</body></html>\n"
     )

@@ -25,8 +25,9 @@ def test_rollout_equals_direct_integration(form):
     plan = dmp.rollout(0.6, 0.002)
     rows = [dmp.start, np.zeros(3)] + ([dmp.start] if form == "acceleration" else [])
     initial = np.concatenate([[0.0, 0.0], *rows])
-    _, y, yd, ydd = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.002,
-                                      dmp.parameter_values())
+    _, y, yd, ydd = symbolic.simulate(
+        dmp.signature, plan.n_steps, initial, 0.002, dmp.parameter_values()
+    )
     np.testing.assert_allclose(plan.positions, y, atol=1e-12)
     np.testing.assert_allclose(plan.velocities, yd, atol=1e-10)
     np.testing.assert_allclose(plan.accelerations, ydd, atol=1e-8)
@@ -162,7 +163,8 @@ def test_limit_cycle_attracts_perturbed_state(form):
     else:  # the energy oscillator restores its amplitude, not its phase
         for statistic in (np.min, np.max, np.mean):
             np.testing.assert_allclose(
-                statistic(runs[1][1][last], axis=0), statistic(runs[0][1][last], axis=0),
+                statistic(runs[1][1][last], axis=0),
+                statistic(runs[0][1][last], axis=0),
                 atol=2e-3,
             )
         x, v = runs[1][0][-1, :2]
@@ -185,8 +187,9 @@ def test_affine_plan_matches_rollout():
     dmp = random_discrete(seed=11, form="acceleration")
     plan = dmp.affine_plan(0.5, 0.001)
     trajectory = dmp.rollout(0.5, 0.001)
-    np.testing.assert_allclose(plan.evaluate(dmp.forcing_weights())[2], trajectory.accelerations,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        plan.evaluate(dmp.forcing_weights())[2], trajectory.accelerations, atol=1e-9
+    )
 
 
 @pytest.mark.parametrize(

@@ -60,7 +60,9 @@ def test_closed_movement_uses_translation_and_stays_finite():
 def test_paper_scaling_refuses_degenerate_axis():
     times = np.linspace(0, 1, 300)
     demo = Trajectory.from_positions(times, np.c_[times, np.sin(np.pi * times)])
-    with pytest.raises(InvalidInputError, match=r"zero for DOF\(s\) \[1\]; use goal_scaling='rotation'"):
+    with pytest.raises(
+        InvalidInputError, match=r"zero for DOF\(s\) \[1\]; use goal_scaling='rotation'"
+    ):
         fit_discrete(demo, 10, goal_scaling="paper")
 
 
@@ -84,8 +86,9 @@ def test_fit_to_accuracy_picks_fewest_bases():
 
 
 @pytest.mark.parametrize("form", ["phase", "energy"])
-@pytest.mark.parametrize("method, tolerance", [("position", 3e-3), ("least_squares", 4e-3),
-                                               ("lwr", 1e-2)])
+@pytest.mark.parametrize(
+    "method, tolerance", [("position", 3e-3), ("least_squares", 4e-3), ("lwr", 1e-2)]
+)
 def test_rhythmic_reproduces_periodic_demo(form, method, tolerance):
     demo = periodic_demo()
     dmp = fit_rhythmic(demo, 15, form=form, method=method)
@@ -94,7 +97,9 @@ def test_rhythmic_reproduces_periodic_demo(form, method, tolerance):
 
 
 def test_period_estimate():
-    assert estimate_period(periodic_demo(period=0.37, duration=1.5)) == pytest.approx(0.37, rel=1e-4)
+    assert estimate_period(periodic_demo(period=0.37, duration=1.5)) == pytest.approx(
+        0.37, rel=1e-4
+    )
 
 
 @pytest.mark.parametrize(

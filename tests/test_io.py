@@ -12,8 +12,11 @@ from dmpopt import FileFormatError, load, save
 
 @pytest.mark.parametrize(
     "dmp",
-    [random_discrete(seed=1, form="acceleration"), random_rhythmic(seed=2, form="energy"),
-     random_discrete(seed=3, goal_scaling="translation", reference_displacement=None)],
+    [
+        random_discrete(seed=1, form="acceleration"),
+        random_rhythmic(seed=2, form="energy"),
+        random_discrete(seed=3, goal_scaling="translation", reference_displacement=None),
+    ],
 )
 def test_round_trip_is_exact(tmp_path, dmp):
     loaded = load(save(dmp, tmp_path / "movement"))

@@ -15,16 +15,18 @@ def _run(stepper, n, **kwargs):
 def test_stepper_equals_rollout(form):
     dmp = random_discrete(seed=1, form=form)
     plan = dmp.rollout(0.5, 0.001)
-    np.testing.assert_allclose(_run(dmp.stepper(0.001), plan.n_steps - 1), plan.positions,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        _run(dmp.stepper(0.001), plan.n_steps - 1), plan.positions, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("form", ["phase", "energy"])
 def test_rhythmic_stepper_equals_rollout(form):
     dmp = random_rhythmic(seed=2, form=form)
     plan = dmp.rollout(1.0, 0.001)
-    np.testing.assert_allclose(_run(dmp.stepper(0.001), plan.n_steps - 1), plan.positions,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        _run(dmp.stepper(0.001), plan.n_steps - 1), plan.positions, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])

@@ -16,8 +16,9 @@ def test_oscillation_follows_the_discrete_plan():
     # once the discrete DMP has converged, the pattern is the rhythmic limit cycle shifted
     # to the discrete goal
     last = slice(-int(rhythmic.period / 0.001), None)
-    np.testing.assert_allclose(combined.positions[last], alone.positions[last] + discrete.goal,
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        combined.positions[last], alone.positions[last] + discrete.goal, atol=1e-6
+    )
     # with a constant setpoint, superposition is the rhythmic rollout
     resting = discrete.replace(weights=np.zeros_like(discrete.weights), goal=discrete.start)
     still = superpose(resting, rhythmic.with_setpoint(discrete.start), 1.0, 0.001)

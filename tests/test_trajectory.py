@@ -11,8 +11,9 @@ def test_from_positions_differentiates_polynomials_exactly():
     positions = np.c_[1 + 2 * times - times**2, 3 * times**2]
     demo = Trajectory.from_positions(times, positions)
     np.testing.assert_allclose(demo.velocities, np.c_[2 - 2 * times, 6 * times], atol=1e-9)
-    np.testing.assert_allclose(demo.accelerations[2:-2], np.c_[-2 + 0 * times, 6 + 0 * times][2:-2],
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        demo.accelerations[2:-2], np.c_[-2 + 0 * times, 6 + 0 * times][2:-2], atol=1e-6
+    )
 
 
 def test_resampled_keeps_the_curve():
@@ -30,7 +31,12 @@ def test_resampled_keeps_the_curve():
         ([0, 1, 1], [0, 1, 2], InvalidInputError, r"times must be strictly increasing; times\[2\]"),
         ([0, 1, np.nan], [0, 1, 2], InvalidInputError, "times contains 1 NaN"),
         ([0, 1, 2], [0, np.inf, 2], InvalidInputError, "positions contains 1 NaN or infinite"),
-        ([0, 1, 2], [[0, 1], [1, 2]], ShapeError, r"positions has shape \(2, 2\), expected \(3, n_dofs\)"),
+        (
+            [0, 1, 2],
+            [[0, 1], [1, 2]],
+            ShapeError,
+            r"positions has shape \(2, 2\), expected \(3, n_dofs\)",
+        ),
         ([[0, 1, 2]], [0, 1, 2], ShapeError, "times has 2 dimensions"),
     ],
 )

@@ -215,12 +215,18 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
     normalised activations :math:`\bar\psi_i` summing to one.
     """
     n_steps = canonical.shape[0]
-    activation = symbolic.activation_function(dmp.signature).map(n_steps)(
-        canonical.T, dmp.centres, dmp.widths
-    ).full().T
-    regressors = symbolic.feature_function(dmp.signature).map(n_steps)(
-        canonical.T, dmp.centres, dmp.widths
-    ).full().T
+    activation = (
+        symbolic.activation_function(dmp.signature)
+        .map(n_steps)(canonical.T, dmp.centres, dmp.widths)
+        .full()
+        .T
+    )
+    regressors = (
+        symbolic.feature_function(dmp.signature)
+        .map(n_steps)(canonical.T, dmp.centres, dmp.widths)
+        .full()
+        .T
+    )
     if dmp.form in symbolic.DISCRETE_FORMS:
         carrier = regressors.sum(axis=1)[:, None, None]  # the phase velocity v
     else:
@@ -389,9 +395,12 @@ def fit_rhythmic(
     else:
         phases = direction * (demo.times - demo.times[0]) / unit.time_constant
         canonical = np.array([unit.canonical_state(p) for p in phases])
-        regressors = symbolic.feature_function(unit.signature).map(demo.n_steps)(
-            canonical.T, unit.centres, unit.widths
-        ).full().T
+        regressors = (
+            symbolic.feature_function(unit.signature)
+            .map(demo.n_steps)(canonical.T, unit.centres, unit.widths)
+            .full()
+            .T
+        )
         targets = _periodic_velocity_targets(unit, demo)
         if method == "least_squares":
             forcing = _ridge(regressors, targets, regularization).T

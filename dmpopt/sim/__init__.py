@@ -1,0 +1,13 @@
+"""Deterministic simulation: Pinocchio forward dynamics with compliant ground contact.
+
+>>> from dmpopt.sim import Simulator, GroundContact
+>>> sim = Simulator(model, dt=1e-3, contact_points=[("foot", (0, 0, -0.02))],
+...                 ground=GroundContact(stiffness=2e4, damping=300, friction=0.8))
+>>> sim.reset(q, v)
+>>> state = sim.step(tau)   # state.q, state.v, state.t, state.contact_forces, state.in_contact
+"""
+
+from dmpopt.sim.contact import GroundContact, ground_forces
+from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
+
+__all__ = ["GroundContact", "SimState", "Simulator", "TouchdownEvent", "ground_forces"]

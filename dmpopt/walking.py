@@ -1,0 +1,206 @@
+r"""Phase resetting and frequency adaptation of a rhythmic DMP at heel strike, eq. (21).
+
+At heel strike ``n`` of a walker driven by rhythmic DMPs on one shared oscillator
+([dmpopt-paper] eq. (21), Section 4.3):
+
+.. math::
+
+    \phi \leftarrow \phi_{\mathrm{robot}}^{\mathrm{heelstrike}}, \qquad
+    \omega_{n+1} = \omega_n + K\,(\omega_n^{\mathrm{measured}} - \omega_n), \qquad
+    \omega_n^{\mathrm{measured}} = \pi / T_n,
+
+where :math:`\phi_{\mathrm{robot}}^{\mathrm{heelstrike}}` is 0 at the heel strike of the leg the
+oscillator is defined on and :math:`\pi` at the heel strike of the other leg, and :math:`T_n`
+is the duration of step ``n`` (half a period), the time between two successive heel strikes.
+
+Symbols: :math:`\phi` phase (``phase``), :math:`\omega` oscillator frequency [rad/s]
+(``frequency``; the DMP time constant is :math:`1/\omega`), :math:`K` (``gain``),
+:math:`T_n` (``step_duration``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dmpopt.exceptions import InvalidInputError
+
+__all__ = [
+    "FrequencyAdaptation",
+    "HeelStrike",
+    "HeelStrikeDetector",
+    "adapt_frequency",
+    "heel_strike_phase",
+    "measured_frequency",
+]
+
+
+def measured_frequency(step_duration: float) -> float:
+    r"""Frequency of locomotion measured over one step, :math:`\pi / T_n` of eq. (21) [rad/s].
+
+    Parameters
+    ----------
+    step_duration : float
+        :math:`T_n`, time between two successive heel strikes [s] (half a gait period).
+    """
+    if not (np.isfinite(step_duration) and step_duration > 0):
+        raise InvalidInputError(f"step_duration must be > 0 [s], got {step_duration!r}")
+    return float(np.pi / step_duration)
+
+
+def adapt_frequency(frequency: float, step_duration: float, gain: float) -> float:
+    r"""One step of the frequency adaptation law, eq. (21).
+
+    .. math:: \omega_{n+1} = \omega_n + K (\pi / T_n - \omega_n)
+
+    Parameters
+    ----------
+    frequency : float
+        :math:`\omega_n` [rad/s].
+    step_duration : float
+        :math:`T_n` [s].
+    gain : float
+        :math:`K`, in [0, 1] for a convergent (non-overshooting) update.
+
+    Returns
+    -------
+    float
+        :math:`\omega_{n+1}` [rad/s].
+    """
+    if not 0.0 <= gain <= 2.0:
+        raise InvalidInputError(f"gain must be in [0, 2] for a stable update, got {gain!r}")
+    return float(frequency + gain * (measured_frequency(step_duration) - frequency))
+
+
+def heel_strike_phase(leg: int, oscillator_leg: int = 0) -> float:
+    r"""Oscillator phase at a heel strike, :math:`\phi_{\mathrm{robot}}^{\mathrm{heelstrike}}`
+    of eq. (21): 0 for the oscillator's own leg, :math:`\pi` for the other leg [rad]."""
+    if leg not in (0, 1):
+        raise InvalidInputError(f"leg must be 0 or 1, got {leg!r}")
+    return 0.0 if leg == oscillator_leg else float(np.pi)
+
+
+@dataclass(frozen=True)
+class HeelStrike:
+    """A foot landed: ``time`` [s], ``leg`` index and world ``position`` [m]."""
+
+    time: float
+    leg: int
+    position: np.ndarray
+
+
+class HeelStrikeDetector:
+    """Heel strikes from per-foot contact flags, robust to contact chatter.
+
+    A touchdown counts as a heel strike when the foot was off the ground for at least
+    ``min_swing_time`` before it and the other leg struck last (legs alternate), so bounces
+    of a compliant contact and scuffs of the swing foot are not taken for steps.
+
+    Parameters
+    ----------
+    min_swing_time : float
+        Minimum airborne time before a touchdown counts [s].
+    alternate : bool
+        Require left and right strikes to alternate.
+    """
+
+    def __init__(self, min_swing_time: float = 0.1, alternate: bool = True):
+        if not min_swing_time >= 0:
+            raise InvalidInputError(f"min_swing_time must be >= 0 [s], got {min_swing_time!r}")
+        self.min_swing_time = float(min_swing_time)
+        self.alternate = alternate
+        self.strikes: list[HeelStrike] = []
+        self._lift_off = [-np.inf, -np.inf]
+        self._was_in_contact = [True, True]
+
+    def update(self, time: float, in_contact, positions=None) -> HeelStrike | None:
+        """Feed the contact flags of both feet at ``time``; return a new heel strike or None.
+
+        Parameters
+        ----------
+        time : float
+            [s]
+        in_contact : sequence of bool, length 2
+        positions : array_like, shape (2, 3), optional
+            Foot positions, stored with the strike.
+        """
+        strike = None
+        for leg in (0, 1):
+            touching = bool(in_contact[leg])
+            was = self._was_in_contact[leg]
+            if was and not touching:
+                self._lift_off[leg] = time
+            elif touching and not was:
+                airborne = time - self._lift_off[leg]
+                last_leg = self.strikes[-1].leg if self.strikes else None
+                alternates = not self.alternate or last_leg != leg
+                if airborne >= self.min_swing_time and alternates:
+                    where = np.zeros(3) if positions is None else np.asarray(positions[leg])
+                    strike = HeelStrike(float(time), leg, np.array(where, dtype=float))
+                    self.strikes.append(strike)
+            self._was_in_contact[leg] = touching
+        return strike
+
+
+@dataclass
+class FrequencyAdaptation:
+    """Phase resetting and frequency adaptation of eq. (21), each switchable.
+
+    Parameters
+    ----------
+    frequency : float
+        Initial oscillator frequency :math:`\\omega_0` [rad/s].
+    gain : float
+        :math:`K` of eq. (21).
+    reset_phase : bool
+        Apply :math:`\\phi \\leftarrow \\phi_{\\mathrm{robot}}^{\\mathrm{heelstrike}}`.
+    adapt : bool
+        Apply the frequency update; when False the frequency stays at its initial value.
+    oscillator_leg : int
+        The leg whose heel strike has phase 0.
+
+    Attributes
+    ----------
+    frequencies : list of float
+        :math:`\\omega_n` after each heel strike (the first entry is :math:`\\omega_0`).
+    step_durations : list of float
+        :math:`T_n` of each completed step [s].
+    """
+
+    frequency: float
+    gain: float = 0.3
+    reset_phase: bool = True
+    adapt: bool = True
+    oscillator_leg: int = 0
+    frequencies: list = field(default_factory=list)
+    step_durations: list = field(default_factory=list)
+    _last_strike_time: float | None = None
+
+    def __post_init__(self):
+        if not (np.isfinite(self.frequency) and self.frequency > 0):
+            raise InvalidInputError(f"frequency must be > 0 [rad/s], got {self.frequency!r}")
+        if not 0.0 <= self.gain <= 2.0:
+            raise InvalidInputError(f"gain must be in [0, 2], got {self.gain!r}")
+        self.frequencies = [float(self.frequency)]
+
+    def on_heel_strike(self, strike: HeelStrike) -> tuple[float | None, float]:
+        """Apply eq. (21) at a heel strike.
+
+        Returns
+        -------
+        phase : float or None
+            The phase to reset the oscillator to, or None when resetting is off.
+        frequency : float
+            :math:`\\omega_{n+1}` [rad/s] (unchanged when adaptation is off or at the first
+            strike, which has no step duration yet).
+        """
+        if self._last_strike_time is not None:
+            duration = strike.time - self._last_strike_time
+            self.step_durations.append(duration)
+            if self.adapt:
+                self.frequency = adapt_frequency(self.frequency, duration, self.gain)
+            self.frequencies.append(self.frequency)
+        self._last_strike_time = strike.time
+        phase = heel_strike_phase(strike.leg, self.oscillator_leg) if self.reset_phase else None
+        return phase, self.frequency

@@ -1,0 +1,440 @@
+r"""Biped walking with rhythmic DMPs, phase resetting and resonance tuning (Figs. 6-7).
+
+Claim of [dmpopt-paper] Section 4.3: four phase-oscillator DMPs on one canonical system,
+learned from a demonstrated gait and tracked by PD control, drive a planar five-link biped;
+with phase resetting at heel strike and the frequency adaptation of eq. (21) the oscillator
+frequency converges to a frequency set by the walker's own dynamics.
+
+Set-up (all choices are ours, see the README):
+
+* robot: ``robots/biped.urdf`` (leg 0.6 m, 7 kg), planar base (x, z, pitch) on a simulated
+  boom that holds the torso pitch with a spring-damper torque (``BOOM_PITCH_*``); the boom
+  neither lifts nor propels the robot;
+* ground: compliant spring-damper contact with Coulomb friction at point feet
+  (:mod:`dmpopt.sim`), 1 ms step;
+* demonstration: approximate normative sagittal hip and knee angles over a gait cycle, read
+  off the averaged adult curves of D. A. Winter, "Biomechanics and Motor Control of Human
+  Movement", 4th ed., Wiley 2009 (Ch. 5, normal cadence) and J. Perry, J. Burnfield, "Gait
+  Analysis", 2nd ed., 2010, at 5-15 % steps of the cycle (``HIP_KEYPOINTS``,
+  ``KNEE_KEYPOINTS``), joined by a periodic cubic spline; the left leg is the right leg half
+  a cycle later;
+* DMPs: :func:`dmpopt.fit_rhythmic` (phase oscillator, eqs. (11)-(12)), one shared phase;
+* control: joint PD on the DMP's position and velocity, torques saturated at the URDF limits;
+* eq. (21): :class:`dmpopt.walking.FrequencyAdaptation` at each heel strike.
+
+Run: ``python -m studies.biped OUT_DIR [--quick]``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from dmpopt import Trajectory
+from dmpopt.sim import GroundContact, Simulator
+from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
+from robots.biped import Biped, load_biped
+
+try:
+    from dmpopt import fit_rhythmic
+except ImportError:  # not yet re-exported at the top level
+    from dmpopt.fitting.imitation import fit_rhythmic
+
+# Percent of the gait cycle (right heel strike at 0) and joint angle [deg]; flexion positive.
+HIP_KEYPOINTS = np.array(
+    [
+        [0, 25],
+        [10, 22],
+        [20, 15],
+        [30, 7],
+        [40, 0],
+        [50, -8],
+        [55, -10],
+        [60, -5],
+        [70, 10],
+        [80, 22],
+        [87, 27],
+        [95, 26],
+    ],
+    dtype=float,
+)
+KNEE_KEYPOINTS = np.array(
+    [
+        [0, 5],
+        [5, 10],
+        [15, 18],
+        [25, 12],
+        [35, 6],
+        [42, 5],
+        [50, 10],
+        [60, 35],
+        [67, 55],
+        [72, 60],
+        [80, 50],
+        [90, 25],
+        [95, 8],
+    ],
+    dtype=float,
+)
+
+DT = 1e-3  # [s] simulation and control step
+GROUND = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
+HIP_GAINS = (100.0, 3.0)  # [N m/rad], [N m s/rad]
+KNEE_GAINS = (100.0, 3.0)
+BOOM_PITCH_STIFFNESS = 500.0  # [N m/rad]
+BOOM_PITCH_DAMPING = 30.0  # [N m s/rad]
+ADAPTATION_GAIN = 0.3  # K of eq. (21)
+DEMO_FREQUENCY = 5.0  # [rad/s] frequency the DMPs are learned at (period 1.26 s)
+WRONG_FREQUENCIES = (5.0, 3.6, 2.0)  # [rad/s] deliberately wrong starting frequencies
+LOG_EVERY = 10  # steps between logged samples
+
+
+def demonstrated_gait(period: float = 2 * np.pi / DEMO_FREQUENCY, n_samples: int = 400):
+    """Two periods of the demonstrated gait, DOFs (right hip, right knee, left hip, left knee).
+
+    Returns
+    -------
+    Trajectory
+        Angles [rad]; the cycle starts at the right heel strike (oscillator phase 0).
+    """
+    times = np.linspace(0.0, 2 * period, 2 * n_samples + 1)
+    cycle = (times / period) % 1.0
+
+    def joint(keypoints):
+        x = np.r_[keypoints[:, 0], 100.0] / 100.0
+        y = np.radians(np.r_[keypoints[:, 1], keypoints[0, 1]])
+        return CubicSpline(x, y, bc_type="periodic")
+
+    hip, knee = joint(HIP_KEYPOINTS), joint(KNEE_KEYPOINTS)
+    other = (cycle + 0.5) % 1.0
+    positions = np.column_stack([hip(cycle), knee(cycle), hip(other), knee(other)])
+    return Trajectory.from_positions(times, positions)
+
+
+@dataclass
+class WalkLog:
+    """What one walk produced (samples every ``LOG_EVERY`` steps)."""
+
+    times: list = field(default_factory=list)
+    q: list = field(default_factory=list)
+    desired: list = field(default_factory=list)
+    strikes: list = field(default_factory=list)  # (time, leg, x of the foot)
+    frequencies: list = field(default_factory=list)
+    positive_work: float = 0.0  # [J] actuator work, sum over joints of max(tau qdot, 0) dt
+    absolute_work: float = 0.0  # [J] sum of |tau qdot| dt
+    fell: bool = False
+    diverged: str = ""
+    duration: float = 0.0  # [s] simulated
+    wall_time: float = 0.0  # [s]
+    cpu_time: float = 0.0  # [s] process time, insensitive to other load on the machine
+    distance: float = 0.0  # [m]
+
+
+def walk(
+    biped: Biped,
+    dmp,
+    duration: float,
+    frequency: float,
+    adapt: bool = True,
+    reset_phase: bool = True,
+    push_impulse: float = 0.0,
+    push_time: float = 0.0,
+    seed: int = 0,
+) -> WalkLog:
+    """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
+
+    The robot starts at the right heel strike of the demonstrated posture with a forward speed
+    of 0.35 m/s plus a seeded perturbation of +-0.02 m/s. A horizontal ``push_impulse`` [N s]
+    on the torso (hip point) is spread over 0.1 s from ``push_time``.
+    """
+    rng = np.random.default_rng(seed)
+    sim = Simulator(
+        biped.model,
+        DT,
+        biped.contact_points,
+        GROUND,
+        n_base_dofs=3,
+        fall_frame=biped.torso_frame,
+        fall_height=0.35,
+    )
+    start_position, start_velocity = _limit_cycle_start(dmp, frequency)
+    stepper = dmp.stepper(DT, start=start_position, start_velocity=start_velocity)
+    stepper.set_time_constant(1.0 / frequency)
+    q = biped.configuration(0.0, biped.leg_length, 0.0, stepper.position)
+    q[1] -= biped.foot_positions(q)[:, 1].min()
+    v = np.zeros(biped.model.nv)
+    v[0] = 0.35 + rng.uniform(-0.02, 0.02)
+    state = sim.reset(q, v)
+    index = biped.joint_velocity_indices
+    gains = np.array([HIP_GAINS, KNEE_GAINS, HIP_GAINS, KNEE_GAINS])
+    limit = biped.torque_limit
+    detector = HeelStrikeDetector(min_swing_time=0.1)
+    adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
+    log = WalkLog(frequencies=[frequency])
+    base_force = np.zeros(3)
+    n_steps = int(round(duration / DT))
+    start, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        for k in range(n_steps):
+            if push_impulse and abs(state.t - push_time) < 0.5 * DT:
+                sim.push_impulse(biped.torso_frame, [push_impulse, 0.0, 0.0], duration=0.1)
+            desired, desired_velocity, _ = stepper.step()
+            joints, joint_velocities = state.q[index], state.v[index]
+            torque = gains[:, 0] * (desired - joints) + gains[:, 1] * (
+                desired_velocity - joint_velocities
+            )
+            torque = np.clip(torque, -limit, limit)
+            base_force[2] = -BOOM_PITCH_STIFFNESS * state.q[2] - BOOM_PITCH_DAMPING * state.v[2]
+            state = sim.step(biped.actuator_torques(torque), base_force)
+            power = torque * joint_velocities
+            log.positive_work += DT * float(np.maximum(power, 0.0).sum())
+            log.absolute_work += DT * float(np.abs(power).sum())
+            strike = detector.update(state.t, state.in_contact, state.contact_positions)
+            if strike is not None:
+                phase, new_frequency = adaptation.on_heel_strike(strike)
+                if phase is not None:
+                    stepper.reset_phase(phase)
+                stepper.set_time_constant(1.0 / new_frequency)
+                log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+            if k % LOG_EVERY == 0:
+                log.times.append(state.t)
+                log.q.append(state.q.copy())
+                log.desired.append(desired.copy())
+            if state.fallen:
+                log.fell = True
+                break
+    except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
+        log.fell, log.diverged = True, str(error)
+    log.wall_time = time.perf_counter() - start
+    log.cpu_time = time.process_time() - cpu_start
+    log.duration = sim.t
+    log.distance = float(sim.q[0] - q[0])
+    log.frequencies = adaptation.frequencies
+    return log
+
+
+def _limit_cycle_start(dmp, frequency: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity of the DMP's limit cycle at phase 0 (the right heel strike)."""
+    plan = dmp.with_time_constant(1.0 / frequency).rollout(
+        duration=3 * 2 * np.pi / frequency, dt=DT
+    )
+    return plan.positions[-1], plan.velocities[-1]
+
+
+def learn_gait():
+    """Fit the four rhythmic DMPs (one shared phase) to the demonstrated gait."""
+    demo = demonstrated_gait()
+    return demo, fit_rhythmic(demo, n_basis=25, period=2 * np.pi / DEMO_FREQUENCY)
+
+
+def steps_to_within(frequencies, tolerance: float = 0.02) -> int | None:
+    """First step after which the frequency stays within ``tolerance`` of its final value."""
+    frequencies = np.asarray(frequencies, dtype=float)
+    inside = np.abs(frequencies / frequencies[-1] - 1.0) <= tolerance
+    outside = np.flatnonzero(~inside)
+    return 0 if outside.size == 0 else int(outside[-1] + 1)
+
+
+def cost_of_transport(log: WalkLog, mass: float, gravity: float = 9.81) -> float | None:
+    """Mechanical cost of transport, positive actuator work / (m g |distance|) [-].
+
+    The boom's pitch torque does no work on average and is not counted.
+    """
+    if log.distance == 0.0:
+        return None
+    return log.positive_work / (mass * gravity * abs(log.distance))
+
+
+def survives_push(biped, dmp, frequency, adapt, impulse, seed) -> bool:
+    """Whether the walker, warmed up at ``frequency``, survives a forward torso push."""
+    log = walk(
+        biped, dmp, 9.0, frequency, adapt=adapt, push_impulse=impulse, push_time=5.0, seed=seed
+    )
+    return not log.fell
+
+
+def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
+    """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    biped = load_biped()
+    demo, dmp = learn_gait()
+    duration = 15.0 if quick else 75.0
+    start_frequency = WRONG_FREQUENCIES[0]
+
+    adapted = walk(biped, dmp, duration, start_frequency, adapt=True, seed=seed)
+    fixed = walk(biped, dmp, duration, start_frequency, adapt=False, seed=seed)
+    others = (
+        []
+        if quick
+        else [walk(biped, dmp, 40.0, f, adapt=True, seed=seed) for f in WRONG_FREQUENCIES[1:]]
+    )
+    final = adapted.frequencies[-1]
+    n_to_2pct = steps_to_within(adapted.frequencies)
+    natural_straight = biped.swing_leg_natural_frequency(0.0)
+    natural_bent = biped.swing_leg_natural_frequency(np.radians(35.0))
+    stance_pendulum = float(np.sqrt(9.81 / biped.leg_length))
+    mass = biped.mass
+
+    # After adaptation: the same walk restarted at the adapted frequency, adaptation off.
+    converged = walk(biped, dmp, min(duration, 30.0), final, adapt=False, seed=seed)
+    push_results = {}
+    impulses = (5.0, 15.0) if quick else (2.5, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0)
+    for label, freq, adapt in (
+        ("with_adaptation", final, True),
+        ("without_adaptation", start_frequency, False),
+    ):
+        survived = [i for i in impulses if survives_push(biped, dmp, freq, adapt, i, seed)]
+        push_results[label] = max(survived) if survived else 0.0
+
+    metrics = {
+        "steps_walked": len(adapted.strikes),
+        "fell": adapted.fell,
+        "simulated_time_s": adapted.duration,
+        "distance_m": adapted.distance,
+        "speed_m_per_s": adapted.distance / adapted.duration,
+        "start_frequency_rad_per_s": start_frequency,
+        "final_frequency_rad_per_s": final,
+        "steps_to_2pct": n_to_2pct,
+        "frequency_error_vs_step": list(np.asarray(adapted.frequencies) / final - 1.0),
+        "frequency_vs_step_other_starts": {
+            f"{f:g}": log.frequencies for f, log in zip(WRONG_FREQUENCIES[1:], others)
+        },
+        "swing_leg_natural_frequency_rad_per_s": {
+            "straight_knee": natural_straight,
+            "knee_35deg": natural_bent,
+        },
+        "stance_inverted_pendulum_rate_rad_per_s": stance_pendulum,
+        "final_over_swing_leg_natural": final / natural_straight,
+        "cost_of_transport": {
+            "adapted_run": cost_of_transport(adapted, mass),
+            "after_adaptation_fixed_at_final_frequency": cost_of_transport(converged, mass),
+            "without_adaptation_fixed_at_start_frequency": cost_of_transport(fixed, mass),
+        },
+        "without_adaptation": {
+            "steps_walked": len(fixed.strikes),
+            "fell": fixed.fell,
+            "speed_m_per_s": fixed.distance / fixed.duration,
+            "distance_m": fixed.distance,
+        },
+        "largest_survived_push_N_s": push_results,
+        "push_impulses_tried_N_s": list(impulses),
+        "real_time_factor": adapted.duration / adapted.wall_time,
+        "real_time_factor_cpu": adapted.duration / adapted.cpu_time,
+        "quick": quick,
+        "seed": seed,
+    }
+    _plot(out_dir, biped, adapted, others, final, natural_straight, metrics)
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_jsonable))
+    return metrics
+
+
+def _jsonable(value):
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, np.bool_):
+        return bool(value)
+    raise TypeError(f"cannot serialise {type(value).__name__}")
+
+
+def _plot(out_dir, biped, adapted, others, final, natural, metrics) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    # Fig. 7: frequency against step.
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for log in [adapted, *others]:
+        ax.plot(log.frequencies, marker=".", label=f"start {log.frequencies[0]:.1f} rad/s")
+    ax.axhline(natural, color="k", ls="--", lw=1, label="swing-leg pendulum (straight)")
+    ax.set_xlabel("heel strike n")
+    ax.set_ylabel(r"oscillator frequency $\omega_n$ [rad/s]")
+    ax.set_title("Frequency adaptation, eq. (21)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "biped_frequency.png", dpi=120)
+    plt.close(fig)
+
+    # Joint trajectories, desired against actual, first and last seconds.
+    times = np.asarray(adapted.times)
+    q = np.asarray(adapted.q)[:, biped.joint_velocity_indices]
+    desired = np.asarray(adapted.desired)
+    fig, axes = plt.subplots(4, 2, figsize=(9, 7), sharex="col")
+    windows = [times <= times[0] + 4.0, times >= times[-1] - 4.0]
+    for col, window in enumerate(windows):
+        for row, name in enumerate(biped.joint_names):
+            ax = axes[row, col]
+            ax.plot(times[window], np.degrees(desired[window, row]), "--", label="DMP")
+            ax.plot(times[window], np.degrees(q[window, row]), label="robot")
+            for t, leg, _ in adapted.strikes:
+                if times[window][0] <= t <= times[window][-1]:
+                    ax.axvline(t, color="r" if leg == 0 else "b", lw=0.4)
+            ax.set_ylabel(f"{name} [deg]", fontsize=8)
+    axes[0, 0].set_title("start (wrong frequency)")
+    axes[0, 1].set_title("end (adapted)")
+    axes[0, 0].legend(fontsize=7)
+    axes[-1, 0].set_xlabel("t [s]")
+    axes[-1, 1].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(out_dir / "biped_joints.png", dpi=120)
+    plt.close(fig)
+
+    # Stick-figure strip of the last gait cycles.
+    fig, ax = plt.subplots(figsize=(10, 2.6))
+    window = np.flatnonzero(times >= times[-1] - 3.0)[::8]
+    import pinocchio as pin
+
+    data = biped.model.createData()
+    frames = ["torso", "right_knee", "right_foot", "left_knee", "left_foot"]
+    ids = {f: biped.model.getFrameId(f) for f in frames}
+    colours = plt.cm.viridis(np.linspace(0, 1, len(window)))
+    for colour, k in zip(colours, window):
+        pin.framesForwardKinematics(biped.model, data, adapted.q[k])
+        p = {f: data.oMf[i].translation[[0, 2]] for f, i in ids.items()}
+        top = p["torso"] + 0.3 * np.array([np.sin(adapted.q[k][2]), np.cos(adapted.q[k][2])])
+        for chain in (
+            [top, p["torso"]],
+            [p["torso"], p["right_knee"], p["right_foot"]],
+            [p["torso"], p["left_knee"], p["left_foot"]],
+        ):
+            chain = np.array(chain)
+            ax.plot(chain[:, 0], chain[:, 1], color=colour, lw=1)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_title(f"last 3 s, {metrics['speed_m_per_s']:.2f} m/s")
+    fig.tight_layout()
+    fig.savefig(out_dir / "biped_stick_figure.png", dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    metrics = run(args.out_dir, quick=args.quick, seed=args.seed)
+    summary = {
+        k: metrics[k]
+        for k in (
+            "steps_walked",
+            "fell",
+            "final_frequency_rad_per_s",
+            "steps_to_2pct",
+            "real_time_factor",
+        )
+    }
+    print(json.dumps(summary, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,208 @@
+"""Tests of dmpopt.sim: energy, resting contact, Coulomb friction, touchdowns, falls, pushes."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dmpopt.exceptions import InvalidInputError, ShapeError, SimulationDiverged
+from dmpopt.sim import GroundContact, Simulator
+
+GRAVITY = 9.81
+
+
+def double_pendulum() -> pin.Model:
+    """Fixed-base planar double pendulum (two 1 m rods of 1 kg, pitch joints)."""
+    model = pin.Model()
+    parent, placement = 0, pin.SE3.Identity()
+    for i in range(2):
+        joint = model.addJoint(parent, pin.JointModelRY(), placement, f"joint_{i}")
+        rod = pin.Inertia(1.0, np.array([0, 0, -0.5]), np.diag([1 / 12, 1 / 12, 1e-3]))
+        model.appendBodyToJoint(joint, rod, pin.SE3.Identity())
+        model.addFrame(pin.Frame(f"link_{i}", joint, 0, pin.SE3.Identity(), pin.FrameType.BODY))
+        parent, placement = joint, pin.SE3(np.eye(3), np.array([0, 0, -1.0]))
+    return model
+
+
+def free_box(mass=2.0, size=(0.4, 0.3, 0.2)) -> pin.Model:
+    """Free-flying box with a frame ``box`` at its centre."""
+    model = pin.Model()
+    joint = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "root")
+    model.appendBodyToJoint(joint, pin.Inertia.FromBox(mass, *size), pin.SE3.Identity())
+    model.addFrame(pin.Frame("box", joint, 0, pin.SE3.Identity(), pin.FrameType.BODY))
+    return model
+
+
+def box_corners(size=(0.4, 0.3, 0.2)):
+    a, b, c = (s / 2 for s in size)
+    return [("box", (sx * a, sy * b, -c)) for sx in (-1, 1) for sy in (-1, 1)]
+
+
+def box_at(height, model):
+    q = pin.neutral(model)
+    q[2] = height
+    return q
+
+
+def energy(sim):
+    return pin.computeMechanicalEnergy(sim.model, sim.data, sim.q, sim.v)
+
+
+def test_energy_conserved_without_torque_or_contact():
+    """A swinging double pendulum keeps its energy to integration accuracy (error ~ dt)."""
+    drifts = []
+    for dt in (4e-4, 2e-4):
+        sim = Simulator(double_pendulum(), dt)
+        sim.reset([1.0, -0.5], [0.0, 0.0])
+        e0 = energy(sim)
+        worst = 0.0
+        for _ in range(int(1.0 / dt)):
+            sim.step(np.zeros(2))
+            worst = max(worst, abs(energy(sim) - e0))
+        drifts.append(worst / abs(e0))
+    assert sim.n_base_dofs == 0 and sim.n_actuated == 2
+    assert drifts[0] < 5e-3
+    assert drifts[1] < 0.7 * drifts[0]  # first-order convergence
+
+
+def test_free_flyer_tumbling_in_zero_gravity_keeps_energy():
+    """A free-floating box spinning about all axes keeps its kinetic energy."""
+    model = free_box()
+    model.gravity.linear[:] = 0.0
+    sim = Simulator(model, 1e-3)
+    assert sim.n_base_dofs == 6 and sim.n_actuated == 0
+    sim.reset(box_at(1.0, model), [0.1, 0.0, 0.2, 1.0, 2.0, 3.0])
+    e0 = energy(sim)
+    for _ in range(1000):
+        sim.step(np.zeros(0))
+    assert abs(energy(sim) - e0) / e0 < 1e-2
+
+
+def test_dropped_box_rests_at_spring_height_with_weight_as_normal_force():
+    """Four-corner box settles where 4 k d = m g and the ground carries exactly m g."""
+    mass, k = 2.0, 2e4
+    model = free_box(mass)
+    ground = GroundContact(stiffness=k, damping=200.0, friction=0.8)
+    sim = Simulator(model, 1e-3, contact_points=box_corners(), ground=ground)
+    sim.reset(box_at(0.3, model))
+    for _ in range(2000):
+        state = sim.step(np.zeros(0))
+    assert state.in_contact.all()
+    assert np.sum(state.contact_forces[:, 2]) == pytest.approx(mass * GRAVITY, rel=1e-3)
+    assert np.abs(state.contact_forces[:, :2]).max() < 1e-3
+    expected = 0.1 - mass * GRAVITY / (4 * k)
+    assert state.q[2] == pytest.approx(expected, abs=1e-5)
+    assert np.abs(state.v).max() < 1e-3
+
+
+def test_touchdown_time_matches_free_fall():
+    """The touchdown event fires once per corner within one step of sqrt(2 h / g)."""
+    model = free_box()
+    ground = GroundContact(stiffness=2e4, damping=400.0, friction=0.8)
+    dt = 5e-4
+    sim = Simulator(model, dt, contact_points=box_corners(), ground=ground)
+    drop = 0.2
+    sim.reset(box_at(0.1 + drop, model))
+    events = []
+    for _ in range(600):
+        events.extend(sim.step(np.zeros(0)).touchdowns)
+    expected = np.sqrt(2 * drop / GRAVITY)
+    assert sorted(e.point for e in events[:4]) == [0, 1, 2, 3]
+    for event in events[:4]:
+        assert event.time == pytest.approx(expected, abs=2 * dt)
+        assert event.frame == "box"
+
+
+@pytest.mark.parametrize("ratio, sticks", [(0.5, True), (1.5, False)])
+def test_push_sticks_below_and_slides_above_coulomb_limit(ratio, sticks):
+    """A horizontal force below mu m g leaves the box in place; above, it accelerates at
+    (F - mu m g) / m."""
+    mass, mu = 2.0, 0.5
+    model = free_box(mass)
+    ground = GroundContact(stiffness=2e4, damping=300.0, friction=mu)
+    sim = Simulator(model, 1e-3, contact_points=box_corners(), ground=ground)
+    sim.reset(box_at(0.1 - mass * GRAVITY / 8e4, model))
+    for _ in range(300):
+        sim.step(np.zeros(0))
+    x0 = sim.q[0]
+    force = ratio * mu * mass * GRAVITY
+    # Push at the height of the contact plane so the box does not tip.
+    sim.push("box", [force, 0.0, 0.0], duration=0.5, offset=(0, 0, -0.1))
+    for _ in range(500):
+        state = sim.step(np.zeros(0))
+    moved = state.q[0] - x0
+    if sticks:
+        assert abs(moved) < 1e-3
+    else:
+        acceleration = (force - mu * mass * GRAVITY) / mass
+        assert moved == pytest.approx(0.5 * acceleration * 0.5**2, rel=0.05)
+        tangential = np.linalg.norm(state.contact_forces[:, :2], axis=1)
+        assert tangential == pytest.approx(mu * state.contact_forces[:, 2], rel=1e-6)
+
+
+@pytest.mark.parametrize("slope_deg, sticks", [(15.0, True), (35.0, False)])
+def test_box_on_slope_sticks_or_slides(slope_deg, sticks):
+    """On a slope flatter than atan(mu) the box stays; on a steeper one it slides down."""
+    mu, mass = 0.5, 2.0  # atan(0.5) = 26.6 deg
+    angle = np.radians(slope_deg)
+    normal = np.array([-np.sin(angle), 0.0, np.cos(angle)])
+    model = free_box(mass)
+    ground = GroundContact(stiffness=2e4, damping=300.0, friction=mu, normal=normal)
+    sim = Simulator(model, 1e-3, contact_points=box_corners(), ground=ground)
+    q = pin.neutral(model)
+    rotation = pin.utils.rotate("y", -angle)  # box bottom parallel to the slope
+    q[:3] = normal * (0.1 - mass * GRAVITY * np.cos(angle) / 8e4)
+    q[3:7] = pin.Quaternion(rotation).coeffs()
+    sim.reset(q)
+    for _ in range(1000):
+        state = sim.step(np.zeros(0))
+    downhill = np.array([np.cos(angle), 0.0, np.sin(angle)])  # x rises uphill
+    travelled = -(state.q[:3] - q[:3]) @ downhill
+    if sticks:
+        assert abs(travelled) < 2e-3
+    else:
+        expected = 0.5 * GRAVITY * (np.sin(angle) - mu * np.cos(angle)) * 1.0**2
+        assert travelled == pytest.approx(expected, rel=0.05)
+
+
+def test_fall_flag_and_no_pulling():
+    """The fall flag rises when the frame drops below the height; ground never pulls."""
+    model = free_box()
+    ground = GroundContact(stiffness=2e4, damping=5e3, friction=0.8)
+    sim = Simulator(
+        model, 1e-3, contact_points=box_corners(), ground=ground, fall_frame="box", fall_height=0.25
+    )
+    sim.reset(box_at(0.3, model), [0, 0, -3.0, 0, 0, 0])
+    fell, min_force = False, np.inf
+    for _ in range(300):
+        state = sim.step(np.zeros(0))
+        fell |= state.fallen
+        min_force = min(min_force, state.contact_forces[:, 2].min())
+    assert fell and state.fallen
+    assert min_force >= 0.0
+
+
+def test_divergence_is_reported():
+    """A far too stiff ground at a coarse step blows up and raises SimulationDiverged."""
+    model = free_box(mass=0.01)
+    ground = GroundContact(stiffness=1e8, damping=0.0, friction=0.8)
+    sim = Simulator(model, 1e-2, contact_points=box_corners(), ground=ground)
+    sim.reset(box_at(0.09, model))
+    with pytest.raises(SimulationDiverged, match="reduce dt"):
+        for _ in range(100):
+            sim.step(np.zeros(0))
+
+
+def test_bad_arguments_are_named():
+    model = free_box()
+    with pytest.raises(InvalidInputError, match="dt must be"):
+        Simulator(model, 0.0)
+    with pytest.raises(InvalidInputError, match="frame 'nope'"):
+        Simulator(model, 1e-3, [("nope", (0, 0, 0))], GroundContact(1e4, 10, 1))
+    with pytest.raises(InvalidInputError, match="pass ground="):
+        Simulator(model, 1e-3, [("box", (0, 0, 0))])
+    with pytest.raises(ShapeError, match=r"q has shape \(3,\)"):
+        Simulator(model, 1e-3).reset(np.zeros(3))
+    with pytest.raises(ShapeError, match=r"tau has shape \(2,\), expected \(0,\)"):
+        Simulator(model, 1e-3).step(np.zeros(2))
+    with pytest.raises(InvalidInputError, match="stiffness must be"):
+        GroundContact(stiffness=-1.0, damping=1.0, friction=1.0)

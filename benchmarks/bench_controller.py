@@ -1,0 +1,147 @@
+"""Time per 1 kHz tick of the QP inverse-dynamics controller on Talos (drumming hands).
+
+Each case runs the controller in closed loop with the simulator for ``--seconds`` of simulated
+time while both hands drum (alternating vertical sine waves) and times only
+``InverseDynamicsController.compute_torques`` (model terms, QP assembly, warm-started solve):
+
+- full floating-base Talos (nv = 50) standing on two sole contacts,
+- reduced floating-base Talos (nv = 38) standing on two sole contacts,
+- fixed-base upper body of the reduced and the full model (nv = 20 and 32), no contacts.
+
+Reference (TSID 1.7, C++): ~160-170 us/tick reduced, 250-340 us full, ~20 us upper body.
+Run: ``/work/venv/bin/python benchmarks/bench_controller.py [--seconds 2]``.
+"""
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # tiny matrices: threads only cost
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+
+from dmpopt.control import (  # noqa: E402
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    PostureTask,
+    SoleContact,
+)
+from dmpopt.sim import GroundContact, Simulator  # noqa: E402
+from robots import load_talos  # noqa: E402
+
+DT = 1e-3  # [s] control and simulation period
+DRUM_AMPLITUDE = 0.04  # [m]
+DRUM_FREQUENCY = 2.0  # [Hz]
+GROUND_STIFFNESS = 2e4  # [N/m] per sole corner
+
+
+def build(robot):
+    """Controller with posture, hand, (CoM, pelvis orientation and sole contacts if standing)."""
+    tasks = [PostureTask(robot, weight=0.1, stiffness=10.0)]
+    hands = [
+        FrameTask(robot, f, weight=1.0, stiffness=100.0, components="position")
+        for f in robot.hand_frames
+    ]
+    tasks += hands
+    contacts = []
+    if robot.floating_base:
+        tasks += [
+            ComTask(robot, weight=10.0, stiffness=50.0),
+            FrameTask(robot, "base_link", weight=1.0, stiffness=50.0, components="orientation"),
+        ]
+        contacts = [SoleContact(robot, f) for f in robot.foot_frames]
+    return InverseDynamicsController(robot, tasks, contacts), hands
+
+
+def simulator_for(robot):
+    if not robot.floating_base:
+        return Simulator(robot.model, DT), robot.reference_configuration.copy()
+    points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
+    simulator = Simulator(
+        robot.model,
+        DT,
+        contact_points=points,
+        ground=GroundContact(stiffness=GROUND_STIFFNESS, damping=300.0, friction=1.0),
+        fall_frame="base_link",
+        fall_height=0.7,
+    )
+    q0 = robot.reference_configuration.copy()
+    q0[2] -= pin.computeTotalMass(robot.model) * 9.81 / len(points) / GROUND_STIFFNESS
+    return simulator, q0
+
+
+def run_case(robot, seconds):
+    controller, hands = build(robot)
+    simulator, q0 = simulator_for(robot)
+    state = simulator.reset(q0)
+    starts = [hand.target_placement.translation.copy() for hand in hands]
+    omega = 2 * np.pi * DRUM_FREQUENCY
+    times = np.empty(int(round(seconds / DT)))
+    cpu_times = np.empty_like(times)
+    iterations = np.empty_like(times)
+    for k in range(times.size):
+        t = k * DT
+        for sign, hand, start in zip((1.0, -1.0), hands, starts):
+            height = sign * DRUM_AMPLITUDE * np.sin(omega * t)
+            speed = sign * DRUM_AMPLITUDE * omega * np.cos(omega * t)
+            accel = -(omega**2) * height
+            hand.set_target(
+                start + [0.0, 0.0, height],
+                velocity=[0, 0, speed, 0, 0, 0],
+                acceleration=[0, 0, accel, 0, 0, 0],
+            )
+        begin, cpu_begin = time.perf_counter_ns(), time.thread_time_ns()
+        tau = controller.compute_torques(state.q, state.v)
+        cpu_times[k] = time.thread_time_ns() - cpu_begin
+        times[k] = time.perf_counter_ns() - begin
+        iterations[k] = controller.stats.last_iterations
+        state = simulator.step(tau)
+    return times / 1e3, cpu_times / 1e3, iterations, controller.stats, state  # [us]
+
+
+def calibration():
+    """Machine speed markers, to compare with the TSID reference machine."""
+    robot = load_talos("full")
+    data = robot.create_data()
+    q, v = robot.reference_configuration, np.zeros(robot.nv)
+    samples = []
+    for _ in range(2000):
+        begin = time.perf_counter_ns()
+        pin.computeAllTerms(robot.model, data, q, v)
+        samples.append(time.perf_counter_ns() - begin)
+    return np.median(samples) / 1e3
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="simulated time per case [s]")
+    args = parser.parse_args()
+    cases = [
+        ("full Talos, floating base, 2 sole contacts", load_talos("full")),
+        ("reduced Talos, floating base, 2 sole contacts", load_talos("reduced")),
+        ("reduced Talos upper body, fixed base", load_talos("reduced", fixed_base=True)),
+        ("full Talos upper body, fixed base", load_talos("full", fixed_base=True)),
+    ]
+    print(f"computeAllTerms on full Talos (machine marker): {calibration():.1f} us")
+    print("per tick [us]: wall clock (perf_counter) and CPU time of the thread (thread_time,")
+    print("unaffected by other processes on a loaded machine); QP iterations median/max")
+    print(
+        f"{'case':48s} {'nv':>3s} {'wall med':>9s} {'wall p99':>9s} {'cpu med':>8s} "
+        f"{'cpu p99':>8s} {'iters':>7s}  solver health"
+    )
+    for name, robot in cases:
+        times, cpu_times, iterations, stats, state = run_case(robot, args.seconds)
+        fallen = " FELL" if state.fallen else ""
+        print(
+            f"{name:48s} {robot.nv:3d} {np.median(times):9.1f} {np.percentile(times, 99):9.1f} "
+            f"{np.median(cpu_times):8.1f} {np.percentile(cpu_times, 99):8.1f} "
+            f"{np.median(iterations):3.0f}/{iterations.max():<3.0f}  cold restarts "
+            f"{stats.n_cold_restarts}, fallbacks {stats.n_fallbacks}{fallen}"
+        )
+
+
+if __name__ == "__main__":
+    main()

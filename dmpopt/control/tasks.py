@@ -1,0 +1,446 @@
+r"""Acceleration tasks and rigid sole contacts of the inverse-dynamics QP.
+
+Every task turns the current state into a linear least-squares term on the joint accelerations
+:math:`\ddot q`: a Jacobian :math:`J` and a desired acceleration :math:`a^*` such that the QP
+minimises
+
+.. math:: w \, \lVert J \ddot q + \dot J \dot q - a^* \rVert^2 ,
+   \qquad a^* = a_{\mathrm{ref}} + K_p\, e + K_d\, (\dot x_{\mathrm{ref}} - \dot x),
+
+the operational-space PD law of [Khatib1987]_ with the reference acceleration as feed-forward
+(the form TSID uses [DelPrete2016]_). A task's :meth:`Task.update` fills ``jacobian`` :math:`J`
+and ``target`` :math:`b = a^* - \dot J \dot q`; the controller adds :math:`w J^\top J` to the
+Hessian and :math:`-w J^\top b` to the gradient. A :class:`PostureTask` selects joints, so its
+Hessian term is the constant :math:`w` on their diagonal entries. The drift :math:`\dot J \dot q`
+is read from the Pinocchio data filled by ``computeAllTerms`` (which runs the kinematics with
+zero acceleration). Weights are read once, when the controller is built.
+
+A :class:`SoleContact` is not a task but a constraint: it holds a sole still (a 6-D rigid
+contact) and bounds its contact wrench to a linearised friction cone with centre-of-pressure
+bounds.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from dmpopt.exceptions import InvalidInputError, ShapeError
+
+__all__ = ["ComTask", "FrameTask", "PostureTask", "SoleContact", "Task"]
+
+_LWA = pin.LOCAL_WORLD_ALIGNED
+
+
+def _vector(value, size: int, name: str) -> np.ndarray:
+    """Broadcast a scalar or check a vector of length ``size``."""
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        return np.full(size, float(array))
+    if array.shape != (size,):
+        raise ShapeError(f"{name} has shape {array.shape}, expected () or ({size},)")
+    return array.copy()
+
+
+def _gains(stiffness, damping, size: int) -> tuple[np.ndarray, np.ndarray]:
+    kp = _vector(stiffness, size, "stiffness")
+    kd = 2.0 * np.sqrt(kp) if damping is None else _vector(damping, size, "damping")
+    if np.any(kp < 0) or np.any(kd < 0) or not np.all(np.isfinite(kp) & np.isfinite(kd)):
+        raise InvalidInputError("stiffness and damping must be finite and >= 0")
+    return kp, kd
+
+
+def _check_weight(weight: float) -> float:
+    if not (np.isfinite(weight) and weight > 0):
+        raise InvalidInputError(f"weight must be finite and > 0, got {weight!r}")
+    return float(weight)
+
+
+class Task:
+    r"""Base class: a weighted least-squares term :math:`w\lVert J\ddot q - b\rVert^2`.
+
+    Subclasses fill ``self.jacobian`` (shape (m, nv)) and ``self.target`` (:math:`b = a^* -
+    \dot J \dot q`, shape (m,)) in :meth:`update`; a :class:`PostureTask` has
+    ``velocity_indices`` instead of a Jacobian.
+    """
+
+    weight: float
+    jacobian: np.ndarray
+    target: np.ndarray
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Compute ``jacobian`` and ``target`` from the state and the filled Pinocchio data."""
+        raise NotImplementedError
+
+    def error(self) -> np.ndarray:
+        """Tracking error :math:`e` of the last :meth:`update`."""
+        return self._error.copy()
+
+
+class PostureTask(Task):
+    r"""Joint-space tracking of a joint group: the task a DMP drives.
+
+    .. math:: \ddot q_j^* = \ddot q_{\mathrm{ref}} + K_p (q_{\mathrm{ref}} - q_j)
+              + K_d (\dot q_{\mathrm{ref}} - \dot q_j)
+
+    With a DMP plan as reference, the plan's acceleration is the feed-forward and the PD gains
+    stay low. Call :meth:`set_reference` every tick with the DMP's ``y, yd, ydd``.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot (see :mod:`robots`).
+    joints : str or sequence of str
+        A joint group of ``robot`` (``"left_arm"``) or 1-DOF joint names; ``None`` for all
+        actuated joints.
+    weight : float
+        Task weight :math:`w`.
+    stiffness : float or ndarray, shape (n_joints,)
+        :math:`K_p` [1/s^2].
+    damping : float or ndarray, shape (n_joints,), optional
+        :math:`K_d` [1/s]; default :math:`2\sqrt{K_p}` (critical damping).
+
+    Notes
+    -----
+    The reference starts at ``robot.reference_configuration`` with zero velocity and
+    acceleration.
+    """
+
+    def __init__(self, robot, joints=None, weight: float = 1.0, stiffness=10.0, damping=None):
+        joints = robot.actuated_joint_names if joints is None else joints
+        self.joint_names = (
+            tuple(robot.joint_groups[joints]) if isinstance(joints, str) else (tuple(joints))
+        )
+        self.velocity_indices = robot.velocity_indices(joints)
+        self.configuration_indices = robot.configuration_indices(joints)
+        size = len(self.velocity_indices)
+        self.weight = _check_weight(weight)
+        self.stiffness, self.damping = _gains(stiffness, damping, size)
+        self.reference_position = robot.reference_configuration[self.configuration_indices].copy()
+        self.reference_velocity = np.zeros(size)
+        self.reference_acceleration = np.zeros(size)
+        self.target = np.zeros(size)
+        self._error = np.zeros(size)
+
+    def set_reference(self, positions, velocities=None, accelerations=None) -> None:
+        """Set the joint reference for the coming ticks (e.g. one DMP step).
+
+        Parameters
+        ----------
+        positions : ndarray, shape (n_joints,)
+            Desired joint positions [rad].
+        velocities, accelerations : ndarray, shape (n_joints,), optional
+            Desired joint velocities [rad/s] and accelerations [rad/s^2]; zero if omitted.
+        """
+        size = len(self.velocity_indices)
+        for name, value, slot in (
+            ("positions", positions, self.reference_position),
+            ("velocities", velocities, self.reference_velocity),
+            ("accelerations", accelerations, self.reference_acceleration),
+        ):
+            if value is None:
+                slot[:] = 0.0
+                continue
+            value = np.asarray(value, dtype=float)
+            if value.shape != (size,):
+                raise ShapeError(
+                    f"{name} has shape {value.shape}, expected ({size},) for the joints "
+                    f"{self.joint_names}"
+                )
+            slot[:] = value
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Compute the desired joint accelerations of the PD law above."""
+        np.subtract(self.reference_position, q[self.configuration_indices], out=self._error)
+        self.target[:] = (
+            self.reference_acceleration
+            + self.stiffness * self._error
+            + self.damping * (self.reference_velocity - v[self.velocity_indices])
+        )
+
+
+class FrameTask(Task):
+    r"""Track a frame's placement (SE(3)), position or orientation, in world-aligned axes.
+
+    Errors are expressed in the world frame at the frame origin
+    (``LOCAL_WORLD_ALIGNED``): :math:`e = (p_{\mathrm{ref}} - p,\;
+    \log_3(R_{\mathrm{ref}} R^\top))`, tracked with the classical frame acceleration.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot.
+    frame : str
+        Frame name, e.g. ``"gripper_left_base_link"`` or ``"base_link"`` (pelvis).
+    weight : float
+        Task weight.
+    stiffness, damping : float or ndarray, shape (6,)
+        PD gains on (linear, angular) components; damping defaults to critical.
+    components : {"all", "position", "orientation"} or sequence of int
+        Which of the 6 rows (x, y, z, roll, pitch, yaw axes) to track.
+
+    Notes
+    -----
+    The target starts at the frame's placement in ``robot.reference_configuration``.
+    """
+
+    _COMPONENTS = {"all": range(6), "position": range(3), "orientation": range(3, 6)}
+
+    def __init__(
+        self,
+        robot,
+        frame: str,
+        weight: float = 1.0,
+        stiffness=100.0,
+        damping=None,
+        components: str | Sequence[int] = "all",
+    ):
+        if not robot.model.existFrame(frame):
+            raise InvalidInputError(f"frame={frame!r} is not a frame of {robot.name!r}")
+        if isinstance(components, str):
+            if components not in self._COMPONENTS:
+                raise InvalidInputError(
+                    f"components={components!r}; expected one of {sorted(self._COMPONENTS)} "
+                    "or a list of row indices in 0..5"
+                )
+            components = self._COMPONENTS[components]
+        self.rows = np.array(sorted(set(int(c) for c in components)), dtype=int)
+        if self.rows.size == 0 or self.rows.min() < 0 or self.rows.max() > 5:
+            raise InvalidInputError(f"components={components!r}; expected indices in 0..5")
+        self._all_rows = self.rows.size == 6
+        self._tracks_position = bool(self.rows.min() < 3)
+        self._tracks_orientation = bool(self.rows.max() >= 3)
+        self.model = robot.model
+        self.frame = frame
+        self.frame_id = robot.model.getFrameId(frame)
+        self.weight = _check_weight(weight)
+        self.stiffness, self.damping = _gains(stiffness, damping, 6)
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, robot.reference_configuration)
+        self.target_placement = data.oMf[self.frame_id].copy()
+        self.target_velocity = np.zeros(6)
+        self.target_acceleration = np.zeros(6)
+        self._error = np.zeros(6)
+        self.target = np.zeros(self.rows.size)
+        self.jacobian = np.zeros((self.rows.size, robot.nv))
+
+    def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
+        """Set the desired placement (or position), velocity and acceleration.
+
+        Parameters
+        ----------
+        placement : pinocchio.SE3 or ndarray, shape (3,)
+            Desired placement; a 3-vector sets the position and keeps the orientation.
+        velocity, acceleration : ndarray, shape (6,), optional
+            Desired (linear, angular) velocity and acceleration in world-aligned axes; zero if
+            omitted.
+        """
+        if isinstance(placement, pin.SE3):
+            self.target_placement = placement.copy()
+        else:
+            position = np.asarray(placement, dtype=float)
+            if position.shape != (3,):
+                raise ShapeError(
+                    f"placement has shape {position.shape}, expected a pinocchio.SE3 or (3,)"
+                )
+            self.target_placement.translation = position
+        self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 6, "velocity")
+        self.target_acceleration[:] = (
+            0.0 if acceleration is None else _vector(acceleration, 6, "acceleration")
+        )
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Compute the rows of the frame Jacobian and the desired acceleration."""
+        model, frame_id = self.model, self.frame_id
+        placement = data.oMf[frame_id]
+        error = self._error
+        if self._tracks_position:
+            np.subtract(self.target_placement.translation, placement.translation, out=error[:3])
+        if self._tracks_orientation:
+            error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
+        velocity = pin.getFrameVelocity(model, data, frame_id, _LWA).vector
+        drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
+        desired = self.stiffness * error
+        desired += self.damping * (self.target_velocity - velocity)
+        desired += self.target_acceleration
+        desired -= drift
+        jacobian = pin.getFrameJacobian(model, data, frame_id, _LWA)
+        if self._all_rows:
+            self.target[:] = desired
+            self.jacobian[:] = jacobian
+        else:
+            self.target[:] = desired[self.rows]
+            self.jacobian[:] = jacobian[self.rows]
+
+
+class ComTask(Task):
+    r"""Track the centre of mass :math:`c` with a PD law and feed-forward.
+
+    .. math:: \ddot c^* = \ddot c_{\mathrm{ref}} + K_p (c_{\mathrm{ref}} - c)
+              + K_d (\dot c_{\mathrm{ref}} - \dot c)
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot.
+    weight : float
+        Task weight.
+    stiffness, damping : float or ndarray, shape (3,)
+        PD gains; damping defaults to critical.
+
+    Notes
+    -----
+    The target starts at the centre of mass of ``robot.reference_configuration``.
+    """
+
+    def __init__(self, robot, weight: float = 1.0, stiffness=50.0, damping=None):
+        self.model = robot.model
+        self.weight = _check_weight(weight)
+        self.stiffness, self.damping = _gains(stiffness, damping, 3)
+        data = robot.model.createData()
+        self.target_position = pin.centerOfMass(robot.model, data, robot.reference_configuration)
+        self.target_velocity = np.zeros(3)
+        self.target_acceleration = np.zeros(3)
+        self._error = np.zeros(3)
+        self.target = np.zeros(3)
+        self.jacobian = np.zeros((3, robot.nv))
+
+    def set_target(self, position, velocity=None, acceleration=None) -> None:
+        """Set the desired CoM position [m], velocity [m/s] and acceleration [m/s^2], shape (3,)."""
+        self.target_position = _vector(position, 3, "position")
+        self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 3, "velocity")
+        self.target_acceleration[:] = (
+            0.0 if acceleration is None else _vector(acceleration, 3, "acceleration")
+        )
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Compute the CoM Jacobian and desired acceleration minus drift.
+
+        Uses ``data.Jcom`` from ``computeAllTerms`` and the CoM drift from the zero-acceleration
+        kinematics already in ``data``.
+        """
+        pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
+        np.subtract(self.target_position, data.com[0], out=self._error)
+        self.target[:] = (
+            self.target_acceleration
+            + self.stiffness * self._error
+            + self.damping * (self.target_velocity - data.vcom[0])
+            - data.acom[0]
+        )
+        self.jacobian[:] = data.Jcom
+
+
+class SoleContact:
+    r"""A flat foot held still on the ground, with its contact wrench in a linearised cone.
+
+    The contact wrench :math:`f = (f_x, f_y, f_z, \tau_x, \tau_y, \tau_z)` is expressed in the
+    sole frame (z normal to the sole, origin on the sole). The QP keeps the sole's spatial
+    acceleration at :math:`a^* = -K_p \log_6(M_{\mathrm{ref}}^{-1} M) - K_d \nu` (zero for a
+    sole at rest at its reference, Baumgarte stabilisation otherwise) and imposes
+
+    - friction pyramid inscribed in the cone of coefficient :math:`\mu`:
+      :math:`|f_x|, |f_y| \le (\mu/\sqrt 2)\, f_z`, so :math:`\lVert f_t \rVert \le \mu f_z`;
+    - centre of pressure :math:`(-\tau_y/f_z,\ \tau_x/f_z)` inside the sole's bounding box;
+    - yaw torque :math:`|\tau_z| \le (\mu/\sqrt 2)\, r\, f_z` with :math:`r` the smaller
+      half-size of the sole (a conservative bound);
+    - :math:`f_{\min} \le f_z \le f_{\max}`.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot; ``robot.sole_corners`` gives the sole's extent.
+    frame : str
+        Sole frame, e.g. ``"left_sole_link"``.
+    friction_coefficient : float
+        :math:`\mu`.
+    min_normal_force, max_normal_force : float
+        Bounds on :math:`f_z` [N].
+    stiffness, damping : float
+        Baumgarte gains pulling the sole back to its reference placement.
+    """
+
+    n_wrench_rows = 12
+
+    def __init__(
+        self,
+        robot,
+        frame: str,
+        friction_coefficient: float = 0.7,
+        min_normal_force: float = 1.0,
+        max_normal_force: float = 5000.0,
+        stiffness: float = 10.0,
+        damping: float | None = None,
+    ):
+        if frame not in robot.foot_frames:
+            raise InvalidInputError(
+                f"frame={frame!r} is not a foot frame of {robot.name!r}; "
+                f"expected one of {robot.foot_frames}"
+            )
+        if not (np.isfinite(friction_coefficient) and friction_coefficient > 0):
+            raise InvalidInputError(
+                f"friction_coefficient must be finite and > 0, got {friction_coefficient!r}"
+            )
+        if not 0 <= min_normal_force < max_normal_force:
+            raise InvalidInputError(
+                "expected 0 <= min_normal_force < max_normal_force, got "
+                f"{min_normal_force!r} and {max_normal_force!r}"
+            )
+        self.model = robot.model
+        self.frame = frame
+        self.frame_id = robot.model.getFrameId(frame)
+        self.friction_coefficient = float(friction_coefficient)
+        self.stiffness = float(stiffness)
+        self.damping = 2.0 * np.sqrt(self.stiffness) if damping is None else float(damping)
+        corners = np.asarray(robot.sole_corners)
+        self.x_min, self.y_min = corners[:, :2].min(axis=0)
+        self.x_max, self.y_max = corners[:, :2].max(axis=0)
+        self.wrench_matrix, self.wrench_upper = self._wrench_cone(
+            min_normal_force, max_normal_force
+        )
+        self.reference_placement: pin.SE3 | None = None
+        self.jacobian = np.zeros((6, robot.nv))
+        self.target = np.zeros(6)
+
+    def _wrench_cone(self, f_min: float, f_max: float) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``C f <= u`` of the linearised wrench cone."""
+        mu = self.friction_coefficient / np.sqrt(2.0)
+        radius = min(-self.x_min, self.x_max, -self.y_min, self.y_max)
+        #              fx   fy   fz             tx   ty   tz
+        matrix = np.array(
+            [
+                [1.0, 0.0, -mu, 0.0, 0.0, 0.0],  # fx <= mu' fz
+                [-1.0, 0.0, -mu, 0.0, 0.0, 0.0],  # -fx <= mu' fz
+                [0.0, 1.0, -mu, 0.0, 0.0, 0.0],  # fy <= mu' fz
+                [0.0, -1.0, -mu, 0.0, 0.0, 0.0],  # -fy <= mu' fz
+                [0.0, 0.0, -self.x_max, 0.0, -1.0, 0.0],  # CoP x = -ty/fz <= x_max
+                [0.0, 0.0, self.x_min, 0.0, 1.0, 0.0],  # CoP x >= x_min
+                [0.0, 0.0, -self.y_max, 1.0, 0.0, 0.0],  # CoP y = tx/fz <= y_max
+                [0.0, 0.0, self.y_min, -1.0, 0.0, 0.0],  # CoP y >= y_min
+                [0.0, 0.0, -mu * radius, 0.0, 0.0, 1.0],  # tz <= mu' r fz
+                [0.0, 0.0, -mu * radius, 0.0, 0.0, -1.0],  # -tz <= mu' r fz
+                [0.0, 0.0, -1.0, 0.0, 0.0, 0.0],  # fz >= f_min
+                [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],  # fz <= f_max
+            ]
+        )
+        upper = np.zeros(self.n_wrench_rows)
+        upper[10], upper[11] = -f_min, f_max
+        return matrix, upper
+
+    def cone_margin(self, wrench: np.ndarray) -> np.ndarray:
+        """Slack ``u - C f`` of each cone row for a wrench, shape (12,); >= 0 inside the cone."""
+        return self.wrench_upper - self.wrench_matrix @ np.asarray(wrench, dtype=float)
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
+        placement = data.oMf[self.frame_id]
+        if self.reference_placement is None:
+            self.reference_placement = placement.copy()
+        velocity = pin.getFrameVelocity(self.model, data, self.frame_id, pin.LOCAL).vector
+        drift = pin.getFrameAcceleration(self.model, data, self.frame_id, pin.LOCAL).vector
+        self.target[:] = -self.damping * velocity - drift
+        if self.stiffness > 0:
+            deviation = pin.log6(self.reference_placement.actInv(placement)).vector
+            self.target -= self.stiffness * deviation
+        self.jacobian[:] = pin.getFrameJacobian(self.model, data, self.frame_id, pin.LOCAL)

@@ -1,0 +1,311 @@
+"""Tests of dmpopt.control: QP inverse dynamics, its tasks and contacts, computed torque."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dmpopt.control import (
+    ComputedTorqueController,
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    PostureTask,
+    SoleContact,
+)
+from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
+from robots import load_talos
+
+
+@pytest.fixture(scope="module")
+def talos():
+    return load_talos("full")
+
+
+@pytest.fixture(scope="module")
+def upper_body():
+    return load_talos("reduced", fixed_base=True)
+
+
+def random_state(robot, rng, spread=0.2, speed=0.5):
+    q = pin.integrate(
+        robot.model, robot.reference_configuration, spread * rng.normal(size=robot.nv)
+    )
+    q = np.clip(q, robot.position_lower, robot.position_upper)
+    return q, speed * rng.normal(size=robot.nv)
+
+
+def standing_controller(robot, friction=0.7, **options):
+    posture = PostureTask(robot, weight=0.1, stiffness=10.0)
+    com = ComTask(robot, weight=10.0, stiffness=50.0)
+    base = FrameTask(robot, "base_link", weight=1.0, stiffness=50.0, components="orientation")
+    contacts = [SoleContact(robot, f, friction_coefficient=friction) for f in robot.foot_frames]
+    controller = InverseDynamicsController(robot, [posture, com, base], contacts, **options)
+    return controller, com
+
+
+# ---------------------------------------------------------------- fixed base, no contacts
+def test_torques_reproduce_rnea_fixed_base(upper_body):
+    """Unconstrained fixed base: tau = RNEA(q, v, qdd_ref) and qdd = qdd_ref (pure feed-forward)."""
+    rng = np.random.default_rng(0)
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(
+        upper_body, [posture], acceleration_regularization=1e-12, tolerance=1e-10
+    )
+    data = upper_body.create_data()
+    for _ in range(5):
+        q, v = random_state(upper_body, rng)
+        acceleration = rng.normal(size=upper_body.nv)
+        posture.set_reference(q, v, acceleration)
+        tau = controller.compute_torques(q, v)
+        np.testing.assert_allclose(controller.joint_accelerations, acceleration, atol=1e-8)
+        np.testing.assert_allclose(
+            tau, pin.rnea(upper_body.model, data, q, v, acceleration), atol=1e-7
+        )
+    assert controller.stats.n_fallbacks == 0 and controller.stats.n_cold_restarts == 0
+
+
+def test_posture_pd_law(upper_body):
+    """qdd = qdd_ref + Kp (q_ref - q) + Kd (qd_ref - qd) on the joints of the posture task."""
+    rng = np.random.default_rng(1)
+    kp, kd = 25.0, 7.0
+    posture = PostureTask(upper_body, weight=1.0, stiffness=kp, damping=kd)
+    controller = InverseDynamicsController(
+        upper_body, [posture], acceleration_regularization=1e-12, tolerance=1e-10
+    )
+    q, v = random_state(upper_body, rng)
+    q_ref, v_ref, a_ref = random_state(upper_body, rng) + (rng.normal(size=upper_body.nv),)
+    posture.set_reference(q_ref, v_ref, a_ref)
+    controller.compute_torques(q, v)
+    expected = a_ref + kp * (q_ref - q) + kd * (v_ref - v)
+    np.testing.assert_allclose(controller.joint_accelerations, expected, atol=1e-8)
+
+
+def test_frame_task_acceleration_by_finite_differences(upper_body):
+    """A dominant hand task reaches its desired acceleration, checked by differentiating the
+    hand velocity numerically (Jacobian, drift and frame conventions together)."""
+    rng = np.random.default_rng(2)
+    model, data = upper_body.model, upper_body.create_data()
+    hand = FrameTask(upper_body, "gripper_left_base_link", weight=1e2, stiffness=10.0)
+    others = [
+        j
+        for g in ("right_arm", "head", "left_gripper", "right_gripper")
+        for j in upper_body.joint_groups[g]
+    ]  # joints that cannot move the left hand
+    posture = PostureTask(upper_body, others, weight=1.0, stiffness=1.0)
+    controller = InverseDynamicsController(upper_body, [hand, posture], tolerance=1e-8)
+    q, v = random_state(upper_body, rng, spread=0.05, speed=0.1)
+    pin.framesForwardKinematics(model, data, q)
+    target = data.oMf[hand.frame_id] * pin.exp6(0.02 * rng.normal(size=6))
+    hand.set_target(
+        target, velocity=0.1 * rng.normal(size=6), acceleration=0.3 * rng.normal(size=6)
+    )
+    tau = controller.compute_torques(q, v)
+    assert np.all(np.abs(tau) < 0.9 * upper_body.torque_limit)  # no limit active
+    qdd = controller.joint_accelerations
+
+    def hand_velocity(dt):
+        q_t = pin.integrate(model, q, v * dt + 0.5 * qdd * dt**2)
+        pin.computeJointJacobians(model, data, q_t)
+        pin.updateFramePlacements(model, data)
+        jacobian = pin.getFrameJacobian(model, data, hand.frame_id, pin.LOCAL_WORLD_ALIGNED)
+        return jacobian @ (v + qdd * dt)
+
+    step = 1e-6
+    measured = (hand_velocity(step) - hand_velocity(-step)) / (2 * step)
+    error, velocity = hand.error(), hand_velocity(0.0)
+    desired = hand.target_acceleration + hand.stiffness * error
+    desired += hand.damping * (hand.target_velocity - velocity)
+    assert controller.stats.last_status == "PROXQP_SOLVED"
+    np.testing.assert_allclose(measured, desired, atol=1e-5)
+
+
+def test_torque_limits_hold(upper_body):
+    """An aggressive reference saturates some joints; no torque leaves its limit."""
+    rng = np.random.default_rng(3)
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(upper_body, [posture], tolerance=1e-9)
+    q, v = random_state(upper_body, rng)
+    posture.set_reference(q, v, 500.0 * rng.normal(size=upper_body.nv))
+    tau = controller.compute_torques(q, v)
+    limit = upper_body.torque_limit
+    assert np.all(np.abs(tau) <= limit + 1e-9)
+    assert np.any(np.abs(tau) >= limit - 1e-6)
+    data = upper_body.create_data()
+    np.testing.assert_allclose(
+        tau, pin.rnea(upper_body.model, data, q, v, controller.joint_accelerations), atol=1e-6
+    )
+
+
+# ---------------------------------------------------------------- floating base with contacts
+def test_contact_wrenches_satisfy_friction_cones(talos):
+    """With a low friction coefficient and a CoM pushed sideways, every wrench stays in its
+    cone (||f_t|| <= mu f_z), its CoP in the sole and f_z >= f_min; some row is active."""
+    rng = np.random.default_rng(4)
+    mu = 0.2
+    controller, com = standing_controller(talos, friction=mu, tolerance=1e-9)
+    active = False
+    for _ in range(4):
+        q, v = random_state(talos, rng, spread=0.02, speed=0.1)
+        q[:3] = talos.reference_configuration[:3]
+        com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
+        controller.reset()
+        controller.compute_torques(q, v)
+        assert controller.stats.last_status == "PROXQP_SOLVED"
+        for contact, wrench in zip(controller.contacts, controller.contact_wrenches):
+            force, torque = wrench[:3], wrench[3:]
+            assert np.hypot(force[0], force[1]) <= mu * force[2] + 1e-6
+            assert force[2] >= 1.0 - 1e-6
+            cop = np.array([-torque[1], torque[0]]) / force[2]
+            assert contact.x_min - 1e-8 <= cop[0] <= contact.x_max + 1e-8
+            assert contact.y_min - 1e-8 <= cop[1] <= contact.y_max + 1e-8
+            margin = contact.cone_margin(wrench)
+            assert margin.min() >= -1e-6
+            active |= margin[:4].min() < 1e-6
+    assert active, "the test should make a friction row active"
+
+
+def test_solution_satisfies_equations_of_motion(talos):
+    """Forward dynamics of (tau, contact wrenches) gives back the QP's qdd, and the soles
+    accelerate as the contact constraint asks."""
+    rng = np.random.default_rng(5)
+    controller, _ = standing_controller(talos, tolerance=1e-10)
+    q, v = random_state(talos, rng, spread=0.02, speed=0.2)
+    tau = controller.compute_torques(q, v)
+    model, data = talos.model, talos.create_data()
+    jacobians = [
+        pin.computeFrameJacobian(model, data, q, c.frame_id, pin.LOCAL) for c in controller.contacts
+    ]
+    generalized = np.concatenate([np.zeros(6), tau])
+    generalized += np.vstack(jacobians).T @ controller.contact_wrenches.ravel()
+    qdd = pin.aba(model, data, q, v, generalized)
+    np.testing.assert_allclose(qdd, controller.joint_accelerations, atol=1e-7)
+    pin.forwardKinematics(model, data, q, v, qdd)
+    for contact in controller.contacts:
+        reference = contact.reference_placement
+        pin.updateFramePlacements(model, data)
+        deviation = pin.log6(reference.actInv(data.oMf[contact.frame_id])).vector
+        velocity = pin.getFrameVelocity(model, data, contact.frame_id, pin.LOCAL).vector
+        acceleration = pin.getFrameAcceleration(model, data, contact.frame_id, pin.LOCAL).vector
+        expected = -contact.stiffness * deviation - contact.damping * velocity
+        np.testing.assert_allclose(acceleration, expected, atol=1e-6)
+
+
+def test_weight_is_carried_by_the_feet(talos):
+    """Standing still in half-sitting, the normal forces sum to the robot's weight."""
+    controller, _ = standing_controller(talos, tolerance=1e-10)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    controller.compute_torques(q, v)
+    mass = pin.computeTotalMass(talos.model)
+    total = controller.contact_wrenches[:, 2].sum()
+    assert total == pytest.approx(mass * 9.81, rel=1e-5)
+
+
+# ---------------------------------------------------------------- failures
+def test_failed_solve_falls_back_without_nan(talos):
+    """A solve that cannot finish is retried cold, then the last torque is returned, counted."""
+    controller, com = standing_controller(talos)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    first = controller.compute_torques(q, v)
+    controller.qp.settings.max_iter = 1
+    com.set_target(com.target_position + [0.05, 0.02, -0.05])
+    second = controller.compute_torques(q, v)
+    assert np.all(np.isfinite(second))
+    np.testing.assert_array_equal(second, first)
+    assert controller.stats.n_cold_restarts == 1 and controller.stats.n_fallbacks == 1
+    assert controller.stats.last_status == "PROXQP_MAX_ITER_REACHED"
+    controller.qp.settings.max_iter = 1000
+    controller.compute_torques(q, v)
+    assert controller.stats.last_status == "PROXQP_SOLVED"
+
+
+def test_failed_solve_can_raise(talos):
+    """With raise_on_failure, a double failure raises NoSolutionFound carrying the stats."""
+    controller, com = standing_controller(talos, raise_on_failure=True)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    controller.compute_torques(q, v)
+    controller.qp.settings.max_iter = 1
+    com.set_target(com.target_position + [0.05, 0.02, -0.05])
+    with pytest.raises(NoSolutionFound) as error:
+        controller.compute_torques(q, v)
+    assert error.value.stats.n_fallbacks == 1
+
+
+def test_input_errors(talos, upper_body):
+    """Wrong shapes and non-finite states are rejected with the expected sizes."""
+    controller, _ = standing_controller(talos)
+    with pytest.raises(ShapeError) as error:
+        controller.compute_torques(np.zeros(50), np.zeros(50))
+    assert str(error.value) == (
+        "q and v have shapes (50,) and (50,), expected (51,) and (50,) for talos_full"
+    )
+    q = talos.reference_configuration.copy()
+    q[10] = np.nan
+    with pytest.raises(InvalidInputError):
+        controller.compute_torques(q, np.zeros(50))
+    arm = PostureTask(upper_body, "left_arm")
+    with pytest.raises(ShapeError) as error:
+        arm.set_reference(np.zeros(6))
+    assert str(error.value).startswith("positions has shape (6,), expected (7,) for the joints")
+    with pytest.raises(InvalidInputError):
+        SoleContact(upper_body, "left_sole_link")
+    with pytest.raises(InvalidInputError):
+        InverseDynamicsController(upper_body, [])
+
+
+# ---------------------------------------------------------------- computed torque
+def test_computed_torque_formula(upper_body):
+    """u = M qdd_d + h + Kp (q_d - q) + Kd (qd_d - qd), checked against crba and nle."""
+    rng = np.random.default_rng(6)
+    controller = ComputedTorqueController(
+        upper_body, stiffness=50.0, damping=5.0, clip_to_limits=False
+    )
+    q, v = random_state(upper_body, rng)
+    q_ref, v_ref = random_state(upper_body, rng)
+    a_ref = rng.normal(size=upper_body.nv)
+    data = upper_body.create_data()
+    mass = pin.crba(upper_body.model, data, q)
+    bias = pin.nonLinearEffects(upper_body.model, data, q, v)
+    expected = mass @ a_ref + bias + 50.0 * (q_ref - q) + 5.0 * (v_ref - v)
+    np.testing.assert_allclose(
+        controller.compute_torques(q, v, q_ref, v_ref, a_ref), expected, atol=1e-9
+    )
+
+
+def test_computed_torque_needs_fixed_base(talos):
+    """A floating-base robot is refused with the remedy."""
+    with pytest.raises(InvalidInputError, match="computed torque needs a fixed base"):
+        ComputedTorqueController(talos)
+
+
+# ---------------------------------------------------------------- closed loop
+def test_talos_stands_in_simulation(talos):
+    """Talos stands 1.5 s on compliant ground under the QP controller: no fall, no fallback,
+    base and CoM within a few millimetres, feet not sliding."""
+    from dmpopt.sim import GroundContact, Simulator
+
+    stiffness = 2e4  # [N/m] per sole corner
+    points = [(foot, corner) for foot in talos.foot_frames for corner in talos.sole_corners]
+    simulator = Simulator(
+        talos.model,
+        1e-3,
+        contact_points=points,
+        ground=GroundContact(stiffness=stiffness, damping=300.0, friction=1.0),
+        fall_frame="base_link",
+        fall_height=0.7,
+    )
+    q0 = talos.reference_configuration.copy()
+    q0[2] -= pin.computeTotalMass(talos.model) * 9.81 / len(points) / stiffness
+    state = simulator.reset(q0)
+    controller, com = standing_controller(talos)
+    com.set_target(pin.centerOfMass(talos.model, talos.create_data(), q0))
+    for _ in range(1500):
+        state = simulator.step(controller.compute_torques(state.q, state.v))
+    assert not state.fallen
+    assert controller.stats.n_fallbacks == 0
+    np.testing.assert_allclose(state.q[:3], q0[:3], atol=3e-3)
+    final_com = pin.centerOfMass(talos.model, talos.create_data(), state.q)
+    np.testing.assert_allclose(final_com, com.target_position, atol=3e-3)
+    assert np.abs(state.v).max() < 1e-2
+    sole_positions = state.contact_positions
+    start = simulator.reset(q0).contact_positions
+    np.testing.assert_allclose(sole_positions[:, :2], start[:, :2], atol=1e-3)

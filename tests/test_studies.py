@@ -43,3 +43,47 @@ def test_cli_rejects_unknown_study(capsys):
     with pytest.raises(SystemExit):
         cli.main(["study", "run", "nonsense"])
     assert "unknown study 'nonsense'" in capsys.readouterr().err
+
+
+def test_report_links_every_figure(tmp_path):
+    """report.html names each study, embeds each figure it links, and renders if a browser
+    is installed (headless Chromium from the Debian package)."""
+    import re
+    import shutil
+    import subprocess
+
+    from studies import imitation
+    from studies.report import write_report
+
+    metrics = imitation.run(tmp_path / "imitation", quick=True)
+    page = write_report(tmp_path, {"imitation": metrics}).read_text()
+    assert page.startswith("<!DOCTYPE html>") and page.rstrip().endswith("</html>")
+    assert '<section id="imitation">' in page and "rmse_mm" in page
+    images = re.findall(r'<img src="([^"]+)"', page)
+    assert len(images) == 3
+    assert all((tmp_path / image).stat().st_size > 10_000 for image in images)
+    browser = shutil.which("chromium")
+    if browser is None:
+        return
+    shot = tmp_path / "report.png"
+    subprocess.run(
+        [
+            browser,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            f"--screenshot={shot}",
+            "--window-size=1200,2000",
+            (tmp_path / "report.html").as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
+    assert shot.stat().st_size > 50_000  # a blank page compresses to a few kB

@@ -3,24 +3,32 @@ r"""Biped walking with rhythmic DMPs, phase resetting and resonance tuning (Figs
 Claim of [dmpopt-paper] Section 4.3: four phase-oscillator DMPs on one canonical system,
 learned from a demonstrated gait and tracked by PD control, drive a planar five-link biped;
 with phase resetting at heel strike and the frequency adaptation of eq. (21) the oscillator
-frequency converges to a frequency set by the walker's own dynamics.
+frequency converges to a frequency set by the walker's own dynamics (its "resonance").
 
-Set-up (all choices are ours, see the README):
+Set-up (all choices are ours, see ``robots/README.md``):
 
 * robot: ``robots/biped.urdf`` (leg 0.6 m, 7 kg), planar base (x, z, pitch) on a simulated
-  boom that holds the torso pitch with a spring-damper torque (``BOOM_PITCH_*``); the boom
-  neither lifts nor propels the robot;
+  boom that holds the torso pitch with a spring-damper torque (``BOOM_PITCH_*``, 500 N m/rad);
+  the boom neither lifts nor propels the robot;
 * ground: compliant spring-damper contact with Coulomb friction at point feet
-  (:mod:`dmpopt.sim`), 1 ms step;
+  (:mod:`dmpopt.sim`), 1 ms step; the DMP steps every 4 ms (compiled), the PD law every 1 ms;
 * demonstration: approximate normative sagittal hip and knee angles over a gait cycle, read
   off the averaged adult curves of D. A. Winter, "Biomechanics and Motor Control of Human
   Movement", 4th ed., Wiley 2009 (Ch. 5, normal cadence) and J. Perry, J. Burnfield, "Gait
   Analysis", 2nd ed., 2010, at 5-15 % steps of the cycle (``HIP_KEYPOINTS``,
   ``KNEE_KEYPOINTS``), joined by a periodic cubic spline; the left leg is the right leg half
-  a cycle later;
+  a cycle later. Retargeted to point feet: the trailing knee is flexed 23 deg (not 10) at 50 %
+  of the cycle so that both feet reach the ground exactly at heel strike (a human gets the
+  same from ankle plantar-flexion, which the robot lacks);
 * DMPs: :func:`dmpopt.fit_rhythmic` (phase oscillator, eqs. (11)-(12)), one shared phase;
 * control: joint PD on the DMP's position and velocity, torques saturated at the URDF limits;
 * eq. (21): :class:`dmpopt.walking.FrequencyAdaptation` at each heel strike.
+
+What "resonance" means here: with stiff PD tracking the swing leg does not swing passively,
+so the swing-leg pendulum frequency (about 5.2 rad/s) is not where the frequency goes. The
+independent check is a sweep of fixed frequencies without adaptation
+(:func:`fixed_frequency_sweep`): the adapted frequency lands at the frequency of least
+mechanical cost of transport, from above and from below.
 
 Run: ``python -m studies.biped OUT_DIR [--quick]``.
 """
@@ -71,8 +79,8 @@ KNEE_KEYPOINTS = np.array(
         [25, 12],
         [35, 6],
         [42, 5],
-        [50, 10],
-        [60, 35],
+        [50, 23],
+        [60, 40],
         [67, 55],
         [72, 60],
         [80, 50],
@@ -82,15 +90,32 @@ KNEE_KEYPOINTS = np.array(
     dtype=float,
 )
 
-DT = 1e-3  # [s] simulation and control step
+DT = 1e-3  # [s] simulation and PD step
+CONTROL_EVERY = 4  # the DMP steps every CONTROL_EVERY * DT
+COMPILE = True  # compiled DMP step (generated C, cached in ~/.cache/dmpopt)
 GROUND = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
-HIP_GAINS = (100.0, 3.0)  # [N m/rad], [N m s/rad]
-KNEE_GAINS = (100.0, 3.0)
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Joint PD gains: stiffness [N m/rad] and damping [N m s/rad]."""
+
+    hip_stiffness: float = 100.0
+    hip_damping: float = 3.0
+    knee_stiffness: float = 100.0
+    knee_damping: float = 3.0
+    swing_hip_stiffness: float = 100.0
+    swing_hip_damping: float = 3.0
+
+
+GAINS = Gains()
 BOOM_PITCH_STIFFNESS = 500.0  # [N m/rad]
 BOOM_PITCH_DAMPING = 30.0  # [N m s/rad]
 ADAPTATION_GAIN = 0.3  # K of eq. (21)
 DEMO_FREQUENCY = 5.0  # [rad/s] frequency the DMPs are learned at (period 1.26 s)
-WRONG_FREQUENCIES = (5.0, 3.6, 2.0)  # [rad/s] deliberately wrong starting frequencies
+WRONG_FREQUENCIES = (5.0, 1.8)  # [rad/s] deliberately wrong starting frequencies (above, below)
+SWEEP = (1.8, 2.1, 2.4, 2.8, 3.2, 4.0, 5.0)  # [rad/s] fixed frequencies for the CoT sweep
+SWEEP_QUICK = (1.8, 2.4, 3.2, 5.0)
 LOG_EVERY = 10  # steps between logged samples
 
 
@@ -145,13 +170,17 @@ def walk(
     push_impulse: float = 0.0,
     push_time: float = 0.0,
     seed: int = 0,
+    gains: Gains | None = None,
+    log_every: int = LOG_EVERY,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
 
     The robot starts at the right heel strike of the demonstrated posture with a forward speed
     of 0.35 m/s plus a seeded perturbation of +-0.02 m/s. A horizontal ``push_impulse`` [N s]
-    on the torso (hip point) is spread over 0.1 s from ``push_time``.
+    on the torso (hip point) is spread over 0.1 s from ``push_time``. The DMP steps at the
+    control period ``CONTROL_EVERY * DT``; the PD law and the contact simulation at ``DT``.
     """
+    gains = GAINS if gains is None else gains
     rng = np.random.default_rng(seed)
     sim = Simulator(
         biped.model,
@@ -163,48 +192,75 @@ def walk(
         fall_height=0.35,
     )
     start_position, start_velocity = _limit_cycle_start(dmp, frequency)
-    stepper = dmp.stepper(DT, start=start_position, start_velocity=start_velocity)
+    stepper = dmp.stepper(
+        CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
+    )
     stepper.set_time_constant(1.0 / frequency)
     q = biped.configuration(0.0, biped.leg_length, 0.0, stepper.position)
     q[1] -= biped.foot_positions(q)[:, 1].min()
     v = np.zeros(biped.model.nv)
     v[0] = 0.35 + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
-    index = biped.joint_velocity_indices
-    gains = np.array([HIP_GAINS, KNEE_GAINS, HIP_GAINS, KNEE_GAINS])
-    limit = biped.torque_limit
+    # Model order throughout the loop: the gait order is used only for the DMP.
+    order = biped.joint_velocity_indices - biped.n_base_dofs
+    index = np.sort(biped.joint_velocity_indices)
+    stiffness = np.empty(4)
+    damping = np.empty(4)
+    stiffness[order] = [gains.hip_stiffness, gains.knee_stiffness] * 2
+    damping[order] = [gains.hip_damping, gains.knee_damping] * 2
+    stance_stiffness, stance_damping = stiffness.copy(), damping.copy()
+    swing_stiffness, swing_damping = stiffness.copy(), damping.copy()
+    hips = order[[0, 2]]  # model-order slots of the right and left hip
+    swing_stiffness[hips] = gains.swing_hip_stiffness
+    swing_damping[hips] = gains.swing_hip_damping
+    contact = np.ones(2, dtype=bool)
+    limit = np.empty(4)
+    limit[order] = biped.torque_limit
     detector = HeelStrikeDetector(min_swing_time=0.1)
     adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
     log = WalkLog(frequencies=[frequency])
     base_force = np.zeros(3)
+    desired = np.empty(4)
+    desired_velocity = np.empty(4)
+    positive_work = absolute_work = 0.0
     n_steps = int(round(duration / DT))
+    push_step = int(round(push_time / DT)) if push_impulse else -1
     start, cpu_start = time.perf_counter(), time.process_time()
     try:
         for k in range(n_steps):
-            if push_impulse and abs(state.t - push_time) < 0.5 * DT:
+            if k == push_step:
                 sim.push_impulse(biped.torso_frame, [push_impulse, 0.0, 0.0], duration=0.1)
-            desired, desired_velocity, _ = stepper.step()
+            if k % CONTROL_EVERY == 0:
+                position, velocity, _ = stepper.step()
+                desired[order] = position
+                desired_velocity[order] = velocity
             joints, joint_velocities = state.q[index], state.v[index]
-            torque = gains[:, 0] * (desired - joints) + gains[:, 1] * (
+            torque = stiffness * (desired - joints) + damping * (
                 desired_velocity - joint_velocities
             )
-            torque = np.clip(torque, -limit, limit)
+            np.clip(torque, -limit, limit, out=torque)
             base_force[2] = -BOOM_PITCH_STIFFNESS * state.q[2] - BOOM_PITCH_DAMPING * state.v[2]
-            state = sim.step(biped.actuator_torques(torque), base_force)
-            power = torque * joint_velocities
-            log.positive_work += DT * float(np.maximum(power, 0.0).sum())
-            log.absolute_work += DT * float(np.abs(power).sum())
-            strike = detector.update(state.t, state.in_contact, state.contact_positions)
-            if strike is not None:
-                phase, new_frequency = adaptation.on_heel_strike(strike)
-                if phase is not None:
-                    stepper.reset_phase(phase)
-                stepper.set_time_constant(1.0 / new_frequency)
-                log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
-            if k % LOG_EVERY == 0:
+            state = sim.step(torque, base_force)
+            power = torque @ joint_velocities
+            work = np.abs(torque * joint_velocities).sum()
+            absolute_work += work
+            positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
+            if (state.in_contact != contact).any():  # stance or swing gains per leg
+                contact = state.in_contact
+                stiffness[hips] = np.where(contact, stance_stiffness[hips], swing_stiffness[hips])
+                damping[hips] = np.where(contact, stance_damping[hips], swing_damping[hips])
+            if state.touchdowns or not state.in_contact.all():
+                strike = detector.update(state.t, state.in_contact, state.contact_positions)
+                if strike is not None:
+                    phase, new_frequency = adaptation.on_heel_strike(strike)
+                    if phase is not None:
+                        stepper.reset_phase(phase)
+                    stepper.set_time_constant(1.0 / new_frequency)
+                    log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+            if k % log_every == 0:
                 log.times.append(state.t)
-                log.q.append(state.q.copy())
-                log.desired.append(desired.copy())
+                log.q.append(state.q)
+                log.desired.append(desired[order])
             if state.fallen:
                 log.fell = True
                 break
@@ -212,6 +268,7 @@ def walk(
         log.fell, log.diverged = True, str(error)
     log.wall_time = time.perf_counter() - start
     log.cpu_time = time.process_time() - cpu_start
+    log.positive_work, log.absolute_work = DT * positive_work, DT * absolute_work
     log.duration = sim.t
     log.distance = float(sim.q[0] - q[0])
     log.frequencies = adaptation.frequencies
@@ -251,11 +308,55 @@ def cost_of_transport(log: WalkLog, mass: float, gravity: float = 9.81) -> float
 
 
 def survives_push(biped, dmp, frequency, adapt, impulse, seed) -> bool:
-    """Whether the walker, warmed up at ``frequency``, survives a forward torso push."""
+    """Whether the walker at ``frequency`` survives a forward torso push at 6 s.
+
+    The boom holds the pitch, so the torso rarely drops; surviving therefore also needs the
+    gait to go on: at least three alternating heel strikes in the last 5 s of a 12 s walk.
+    """
     log = walk(
-        biped, dmp, 9.0, frequency, adapt=adapt, push_impulse=impulse, push_time=5.0, seed=seed
+        biped, dmp, 12.0, frequency, adapt=adapt, push_impulse=impulse, push_time=6.0, seed=seed
     )
-    return not log.fell
+    late = [leg for t, leg, _ in log.strikes if t > 7.0]
+    return not log.fell and len(late) >= 3
+
+
+def largest_survived_push(biped, dmp, frequency, adapt, seed, upper=100.0, tolerance=2.0):
+    """Largest forward impulse [N s] survived, by bisection on ``[0, upper]`` to ``tolerance``.
+
+    Assumes survival is monotonic in the impulse (checked only at the bisection points).
+    """
+    if survives_push(biped, dmp, frequency, adapt, upper, seed):
+        return upper
+    low, high = 0.0, upper
+    while high - low > tolerance:
+        middle = 0.5 * (low + high)
+        if survives_push(biped, dmp, frequency, adapt, middle, seed):
+            low = middle
+        else:
+            high = middle
+    return low
+
+
+def fixed_frequency_sweep(biped, dmp, frequencies, duration, seed=0) -> list[dict]:
+    """Walk at each fixed frequency (phase resetting on, adaptation off); CoT and step rate.
+
+    The frequency with the lowest cost of transport is the independent estimate of the
+    walker's "resonance" that the adapted frequency is compared with.
+    """
+    rows = []
+    for frequency in frequencies:
+        log = walk(biped, dmp, duration, frequency, adapt=False, seed=seed, log_every=10**9)
+        durations = np.diff([t for t, _, _ in log.strikes])[2:]
+        rows.append(
+            {
+                "frequency": float(frequency),
+                "fell": log.fell,
+                "cost_of_transport": cost_of_transport(log, biped.mass),
+                "speed_m_per_s": log.distance / log.duration,
+                "measured_frequency": float(np.pi / durations.mean()) if durations.size else None,
+            }
+        )
+    return rows
 
 
 def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
@@ -264,56 +365,59 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     biped = load_biped()
     demo, dmp = learn_gait()
-    duration = 15.0 if quick else 75.0
+    duration = 20.0 if quick else 150.0
     start_frequency = WRONG_FREQUENCIES[0]
 
     adapted = walk(biped, dmp, duration, start_frequency, adapt=True, seed=seed)
-    fixed = walk(biped, dmp, duration, start_frequency, adapt=False, seed=seed)
-    others = (
-        []
-        if quick
-        else [walk(biped, dmp, 40.0, f, adapt=True, seed=seed) for f in WRONG_FREQUENCIES[1:]]
-    )
+    fixed = walk(biped, dmp, 10.0 if quick else 40.0, start_frequency, adapt=False, seed=seed)
+    others = [
+        walk(biped, dmp, 15.0 if quick else 60.0, f, adapt=True, seed=seed)
+        for f in WRONG_FREQUENCIES[1:]
+    ]
     final = adapted.frequencies[-1]
     n_to_2pct = steps_to_within(adapted.frequencies)
+    sweep = fixed_frequency_sweep(
+        biped, dmp, SWEEP_QUICK if quick else SWEEP, 8.0 if quick else 20.0, seed
+    )
+    walked = [row for row in sweep if not row["fell"]]
+    cheapest = min(walked, key=lambda row: row["cost_of_transport"])["frequency"]
     natural_straight = biped.swing_leg_natural_frequency(0.0)
-    natural_bent = biped.swing_leg_natural_frequency(np.radians(35.0))
     stance_pendulum = float(np.sqrt(9.81 / biped.leg_length))
     mass = biped.mass
 
     # After adaptation: the same walk restarted at the adapted frequency, adaptation off.
-    converged = walk(biped, dmp, min(duration, 30.0), final, adapt=False, seed=seed)
-    push_results = {}
-    impulses = (5.0, 15.0) if quick else (2.5, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0)
-    for label, freq, adapt in (
-        ("with_adaptation", final, True),
-        ("without_adaptation", start_frequency, False),
-    ):
-        survived = [i for i in impulses if survives_push(biped, dmp, freq, adapt, i, seed)]
-        push_results[label] = max(survived) if survived else 0.0
-
+    converged = walk(biped, dmp, 10.0 if quick else 30.0, final, adapt=False, seed=seed)
+    tolerance = 25.0 if quick else 2.0
+    push = {
+        label: largest_survived_push(biped, dmp, final, adapt, seed, tolerance=tolerance)
+        for label, adapt in (("with_adaptation", True), ("without_adaptation", False))
+    }
+    speed = adapted.distance / adapted.duration
     metrics = {
         "steps_walked": len(adapted.strikes),
         "fell": adapted.fell,
         "simulated_time_s": adapted.duration,
         "distance_m": adapted.distance,
-        "speed_m_per_s": adapted.distance / adapted.duration,
-        "start_frequency_rad_per_s": start_frequency,
-        "final_frequency_rad_per_s": final,
+        "speed_m_per_s": speed,
+        "start_frequency": start_frequency,
+        "frequency_final": final,
         "steps_to_2pct": n_to_2pct,
+        "frequency_vs_step": adapted.frequencies,
         "frequency_error_vs_step": list(np.asarray(adapted.frequencies) / final - 1.0),
         "frequency_vs_step_other_starts": {
             f"{f:g}": log.frequencies for f, log in zip(WRONG_FREQUENCIES[1:], others)
         },
-        "swing_leg_natural_frequency_rad_per_s": {
-            "straight_knee": natural_straight,
-            "knee_35deg": natural_bent,
+        "natural_frequency_estimate": {
+            "min_cost_of_transport_fixed_frequency": cheapest,
+            "swing_leg_pendulum_straight_knee": natural_straight,
+            "stance_inverted_pendulum_sqrt_g_over_l": stance_pendulum,
         },
-        "stance_inverted_pendulum_rate_rad_per_s": stance_pendulum,
-        "final_over_swing_leg_natural": final / natural_straight,
+        "final_over_min_cot_frequency": final / cheapest,
+        "final_over_swing_leg_pendulum": final / natural_straight,
+        "fixed_frequency_sweep": sweep,
         "cost_of_transport": {
             "adapted_run": cost_of_transport(adapted, mass),
-            "after_adaptation_fixed_at_final_frequency": cost_of_transport(converged, mass),
+            "with_adaptation_fixed_at_final_frequency": cost_of_transport(converged, mass),
             "without_adaptation_fixed_at_start_frequency": cost_of_transport(fixed, mass),
         },
         "without_adaptation": {
@@ -322,14 +426,17 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
             "speed_m_per_s": fixed.distance / fixed.duration,
             "distance_m": fixed.distance,
         },
-        "largest_survived_push_N_s": push_results,
-        "push_impulses_tried_N_s": list(impulses),
+        "push_survived_ns": push,
+        "push_bisection_tolerance_ns": tolerance,
+        "boom_pitch_stiffness_N_m_per_rad": BOOM_PITCH_STIFFNESS,
         "real_time_factor": adapted.duration / adapted.wall_time,
         "real_time_factor_cpu": adapted.duration / adapted.cpu_time,
+        "sim_step_s": DT,
+        "dmp_step_s": CONTROL_EVERY * DT,
         "quick": quick,
         "seed": seed,
     }
-    _plot(out_dir, biped, adapted, others, final, natural_straight, metrics)
+    _plot(out_dir, biped, adapted, others, final, natural_straight, sweep, metrics)
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_jsonable))
     return metrics
 
@@ -342,21 +449,36 @@ def _jsonable(value):
     raise TypeError(f"cannot serialise {type(value).__name__}")
 
 
-def _plot(out_dir, biped, adapted, others, final, natural, metrics) -> None:
+def _plot(out_dir, biped, adapted, others, final, natural, sweep, metrics) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    # Fig. 7: frequency against step.
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    # Fig. 7: frequency against step, and the fixed-frequency cost-of-transport sweep.
+    fig, (ax, ax_cot) = plt.subplots(1, 2, figsize=(10, 3.6))
     for log in [adapted, *others]:
         ax.plot(log.frequencies, marker=".", label=f"start {log.frequencies[0]:.1f} rad/s")
     ax.axhline(natural, color="k", ls="--", lw=1, label="swing-leg pendulum (straight)")
+    cheapest = metrics["natural_frequency_estimate"]["min_cost_of_transport_fixed_frequency"]
+    ax.axhline(cheapest, color="g", ls=":", lw=1.2, label="min CoT, fixed frequency")
     ax.set_xlabel("heel strike n")
     ax.set_ylabel(r"oscillator frequency $\omega_n$ [rad/s]")
     ax.set_title("Frequency adaptation, eq. (21)")
     ax.legend(fontsize=7)
+    walked = [row for row in sweep if not row["fell"]]
+    ax_cot.plot(
+        [row["frequency"] for row in walked],
+        [row["cost_of_transport"] for row in walked],
+        "o-",
+        label="fixed frequency (no adaptation)",
+    )
+    ax_cot.axvline(final, color="r", lw=1, label=f"adapted {final:.2f} rad/s")
+    ax_cot.axvline(natural, color="k", ls="--", lw=1, label="swing-leg pendulum")
+    ax_cot.set_xlabel(r"oscillator frequency $\omega$ [rad/s]")
+    ax_cot.set_ylabel("mechanical cost of transport [-]")
+    ax_cot.set_title("Cost of transport vs fixed frequency")
+    ax_cot.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out_dir / "biped_frequency.png", dpi=120)
     plt.close(fig)
@@ -428,9 +550,15 @@ def main(argv=None) -> None:
         for k in (
             "steps_walked",
             "fell",
-            "final_frequency_rad_per_s",
+            "simulated_time_s",
+            "speed_m_per_s",
+            "frequency_final",
             "steps_to_2pct",
+            "natural_frequency_estimate",
+            "cost_of_transport",
+            "push_survived_ns",
             "real_time_factor",
+            "real_time_factor_cpu",
         )
     }
     print(json.dumps(summary, indent=2))

@@ -66,7 +66,8 @@ def test_short_walk_does_not_fall_and_strikes_alternate(biped, gait):
     _, dmp = gait
     log = walk(biped, dmp, duration=6.0, frequency=5.0, adapt=True, seed=0)
     assert not log.fell, log.diverged
-    assert log.distance > 0.5
+    assert log.distance > 1.5
+    assert log.positive_work > 0 and log.absolute_work >= log.positive_work
     legs = [leg for _, leg, _ in log.strikes]
     assert len(legs) >= 4
     assert all(a != b for a, b in zip(legs, legs[1:]))
@@ -91,3 +92,39 @@ def test_phase_reset_sets_the_dmp_phase_per_eq_21(gait):
         assert stepper.phase == pytest.approx(expected)
     stepper.step()
     assert stepper.phase == pytest.approx(frequency * 1e-3)
+
+
+def test_demonstration_puts_both_feet_on_the_ground_at_heel_strike(gait):
+    """Retargeted to point feet: both legs reach equally far down at phase 0 and pi."""
+    demo, _ = gait
+
+    def reach(hip, knee):  # vertical hip-to-foot distance, thigh and shank 0.3 m
+        return 0.3 * np.cos(hip) + 0.3 * np.cos(hip - knee)
+
+    n = (len(demo.times) - 1) // 2
+    for k in (0, n // 2):
+        right, left = demo.positions[k, :2], demo.positions[k, 2:]
+        assert reach(*right) == pytest.approx(reach(*left), abs=2e-3)
+
+
+def test_adaptation_moves_towards_the_measured_step_rate(biped, gait):
+    """From the too-high demonstrated frequency the walker steps slower than pi / omega, so
+    eq. (21) lowers omega, every update by K times the measured error."""
+    from studies.biped import ADAPTATION_GAIN, walk
+
+    _, dmp = gait
+    log = walk(biped, dmp, duration=6.0, frequency=5.0, adapt=True, seed=0, log_every=10**9)
+    frequencies = np.asarray(log.frequencies)
+    durations = np.diff([t for t, _, _ in log.strikes])
+    expected = frequencies[:-1] + ADAPTATION_GAIN * (np.pi / durations - frequencies[:-1])
+    assert frequencies[1:] == pytest.approx(expected, rel=1e-12)
+    assert frequencies[-1] < 0.9 * frequencies[0]
+
+
+def test_push_survival_needs_continued_stepping(biped, gait):
+    """A small push is survived; the bisection returns the upper bound when that survives."""
+    from studies.biped import largest_survived_push, survives_push
+
+    _, dmp = gait
+    assert survives_push(biped, dmp, 2.4, True, 2.0, seed=0)
+    assert largest_survived_push(biped, dmp, 2.4, True, 0, upper=5.0, tolerance=10.0) == 5.0

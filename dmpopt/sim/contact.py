@@ -136,27 +136,32 @@ def ground_forces(
     """
     frame = ground.frame
     local_position = positions @ frame.T  # columns: tangent 1, tangent 2, normal
-    local_velocity = velocities @ frame.T
     depth = ground.height - local_position[:, 2]
     touching = depth > 0.0
     if not touching.any():  # all in the air: nothing to compute
         return np.zeros_like(positions), anchors, touching
-    normal_force = touching * np.maximum(
-        0.0, ground.stiffness * depth - ground.damping * local_velocity[:, 2]
-    )
+    local_velocity = velocities @ frame.T
+    normal_force = np.maximum(0.0, ground.stiffness * depth - ground.damping * local_velocity[:, 2])
+    normal_force *= touching
     tangent_position = local_position[:, :2]
-    anchors = np.where((touching & ~in_contact)[:, None], tangent_position, anchors)
-    trial = (
-        ground.tangential_stiffness * (anchors - tangent_position)
-        - ground.tangential_damping * local_velocity[:, :2]
-    )
+    fresh = touching & ~in_contact
+    if fresh.any():
+        anchors = np.where(fresh[:, None], tangent_position, anchors)
+    trial = ground.tangential_stiffness * (anchors - tangent_position)
+    trial -= ground.tangential_damping * local_velocity[:, :2]
     trial_norm = np.hypot(trial[:, 0], trial[:, 1])
     limit = ground.friction * normal_force
     slipping = trial_norm > limit
-    scale = np.where(slipping, limit / np.maximum(trial_norm, 1e-300), 1.0)
-    tangential = trial * (scale * touching)[:, None]
-    anchors = np.where(
-        slipping[:, None], tangent_position + tangential / ground.tangential_stiffness, anchors
-    )
-    local_force = np.column_stack((tangential, normal_force))
+    local_force = np.empty_like(positions)
+    local_force[:, 2] = normal_force
+    if slipping.any():
+        scale = np.where(slipping, limit / np.maximum(trial_norm, 1e-300), 1.0) * touching
+        local_force[:, :2] = trial * scale[:, None]
+        anchors = np.where(
+            slipping[:, None],
+            tangent_position + local_force[:, :2] / ground.tangential_stiffness,
+            anchors,
+        )
+    else:
+        local_force[:, :2] = trial * touching[:, None]
     return local_force @ frame, anchors, touching

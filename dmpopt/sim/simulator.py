@@ -4,13 +4,14 @@ One step (semi-implicit Euler on the configuration manifold):
 
 .. math::
 
-    \dot v = \mathrm{ABA}(q, v, \tau, f_{\mathrm{ext}}), \qquad
+    \dot v = \mathrm{ABA}(q, v, \tau + \textstyle\sum_i J_i^\top f_i), \qquad
     v \leftarrow v + \Delta t\, \dot v, \qquad q \leftarrow q \oplus \Delta t\, v,
 
-where :math:`f_{\mathrm{ext}}` holds the ground forces of :mod:`dmpopt.sim.contact` and any
-pushes, and :math:`\oplus` is ``pinocchio.integrate``. Per step the simulator makes one
-``forwardKinematics`` call and one ``aba`` call; contact forces are computed for all points at
-once with NumPy.
+where :math:`f_i` are the ground forces of :mod:`dmpopt.sim.contact` and any
+pushes, applied as generalised forces :math:`J^\top f` through the world-aligned point
+Jacobians, and :math:`\oplus` is ``pinocchio.integrate``. Per step the simulator makes one
+``computeJointJacobians`` call and one ``aba`` call; contact forces are computed for all points
+at once with NumPy.
 """
 
 from __future__ import annotations
@@ -142,23 +143,13 @@ class Simulator:
         self.ground = ground
         self.contact_frames = [name for name, _ in contact_points]
         located = [self._locate(name, offset) for name, offset in contact_points]
-        point_joints = [int(j) for j, _ in located]
-        self._point_joints = np.array(point_joints, dtype=int)
-        self._points_in_joint = np.array([p for _, p in located], dtype=float).reshape(-1, 3)
-        self._point_skew = np.array([pin.skew(p) for p in self._points_in_joint]).reshape(-1, 3, 3)
-        # Unique joints carrying contact points, and which of them each point belongs to.
-        self._contact_joints = sorted(set(point_joints))
-        self._point_slot = np.array([self._contact_joints.index(j) for j in point_joints], int)
-        self._joint_of_point = (
-            self._point_slot[None, :] == np.arange(len(self._contact_joints))[:, None]
-        ).astype(float)
+        self._point_list = [int(j) for j, _ in located]
+        self._n_points = len(located)
+        self._point_placements = [pin.SE3(np.eye(3), p) for _, p in located]
         self._fall_frame = None if fall_frame is None else self._frame_id(fall_frame)
         if (fall_frame is None) != (fall_height is None):
             raise InvalidInputError("fall_frame and fall_height must be given together")
         self._fall_height = fall_height
-        self._fext = pin.StdVec_Force()
-        for _ in range(model.njoints):
-            self._fext.append(pin.Force.Zero())
         self._tau = np.zeros(model.nv)
         self.touchdown_events: list[TouchdownEvent] = []
         self.reset(pin.neutral(model), np.zeros(model.nv))
@@ -187,21 +178,18 @@ class Simulator:
         if v.shape != (self.model.nv,):
             raise ShapeError(f"v has shape {v.shape}, expected ({self.model.nv},)")
         self.q, self.v, self.t = q, v, float(t)
-        n_points = len(self._point_joints)
+        n_points = self._n_points
         self._anchors = np.zeros((n_points, 2))
         self._in_contact = np.zeros(n_points, dtype=bool)
         self._forces = np.zeros((n_points, 3))
         self._positions = np.zeros((n_points, 3))
         self._pushes: list[_Push] = []
-        self._pushed_joints: set[int] = set()
-        for j in range(self.model.njoints):
-            self._fext[j] = pin.Force.Zero()
         self.touchdown_events = []
         self._last_touchdowns: tuple = ()
         self.fallen = False
         if n_points:
-            pin.forwardKinematics(self.model, self.data, self.q, self.v)
-            self._positions, _ = self._point_kinematics()
+            pin.computeJointJacobians(self.model, self.data, self.q)
+            self._positions, _ = self._point_jacobians(self._point_list, self._point_placements)
             self._in_contact = self.ground.penetration(self._positions) > 0
             self._anchors = (self._positions @ self.ground.frame.T)[:, :2]
         return self.state
@@ -239,24 +227,28 @@ class Simulator:
         self.push(frame_name, np.asarray(impulse, dtype=float) / duration, duration, offset)
 
     # ------------------------------------------------------------------ dynamics
-    def _point_kinematics(self) -> tuple[np.ndarray, np.ndarray]:
-        """World positions and velocities of the contact points (after forwardKinematics)."""
-        placements = [self.data.oMi[j] for j in self._contact_joints]
-        velocities = [self.data.v[j] for j in self._contact_joints]
-        slot = self._point_slot
-        rotations = np.array([m.rotation for m in placements])[slot]
-        origins = np.array([m.translation for m in placements])[slot]
-        linear = np.array([v.linear for v in velocities])[slot]
-        angular = np.array([v.angular for v in velocities])[slot]
-        # v_point = R (v_joint + w x r) = R (v_joint - [r]x w), all in the joint frame.
-        local_velocity = linear - (self._point_skew @ angular[:, :, None])[:, :, 0]
-        positions = origins + (rotations @ self._points_in_joint[:, :, None])[:, :, 0]
-        world_velocity = (rotations @ local_velocity[:, :, None])[:, :, 0]
-        self._rotations = rotations
-        return positions, world_velocity
+    def _point_jacobians(self, joints, placements) -> tuple[np.ndarray, np.ndarray]:
+        """World positions (n, 3) and world-aligned linear Jacobians (n, 3, nv) of points.
+
+        ``placements`` are ``pin.SE3`` of the points in their joints' frames; needs
+        ``computeJointJacobians`` on the current ``q``.
+        """
+        model, data = self.model, self.data
+        positions = np.empty((len(joints), 3))
+        jacobians = np.empty((len(joints), 3, model.nv))
+        for i, (joint, placement) in enumerate(zip(joints, placements)):
+            positions[i] = data.oMi[joint].act(placement.translation)
+            jacobians[i] = pin.getFrameJacobian(
+                model, data, joint, placement, pin.LOCAL_WORLD_ALIGNED
+            )[:3]
+        return positions, jacobians
 
     def step(self, tau, base_force=None) -> SimState:
-        """Advance one time step under actuated joint torques ``tau``.
+        r"""Advance one time step under actuated joint torques ``tau``.
+
+        Ground and push forces enter as generalised forces :math:`J^\top f` of the point
+        Jacobians, so a step is one ``computeJointJacobians`` and one ``aba`` call plus a
+        few vectorised NumPy operations.
 
         Parameters
         ----------
@@ -287,25 +279,27 @@ class Simulator:
         else:
             tau_full[: self.n_base_dofs] = base_force
         model, data = self.model, self.data
-        pin.forwardKinematics(model, data, self.q, self.v)
+        pin.computeJointJacobians(model, data, self.q)
+        generalized = tau_full
         touchdowns = ()
-        if len(self._point_joints):
-            positions, velocities = self._point_kinematics()
+        if self._n_points:
+            positions, jacobians = self._point_jacobians(self._point_list, self._point_placements)
+            velocities = jacobians @ self.v
             forces, self._anchors, touching = ground_forces(
                 self.ground, positions, velocities, self._anchors, self._in_contact
             )
             started = np.flatnonzero(touching & ~self._in_contact)
             self._in_contact, self._forces, self._positions = touching, forces, positions
-            self._set_contact_wrenches(forces)
-            touchdowns = tuple(
-                TouchdownEvent(self.t + self.dt, int(i), self.contact_frames[i], positions[i])
-                for i in started
-            )
-        for j in self._pushed_joints - set(self._contact_joints):
-            self._fext[j] = pin.Force.Zero()
-        self._pushed_joints = set()
-        self._apply_pushes()
-        acceleration = pin.aba(model, data, self.q, self.v, tau_full, self._fext)
+            if touching.any():
+                generalized = tau_full + np.einsum("pkn,pk->n", jacobians, forces)
+            if started.size:
+                touchdowns = tuple(
+                    TouchdownEvent(self.t + self.dt, int(i), self.contact_frames[i], positions[i])
+                    for i in started
+                )
+        if self._pushes:
+            generalized = generalized + self._push_forces()
+        acceleration = pin.aba(model, data, self.q, self.v, generalized)
         self.v = self.v + self.dt * acceleration
         self.q = pin.integrate(model, self.q, self.dt * self.v)
         self.t += self.dt
@@ -318,26 +312,16 @@ class Simulator:
             self.fallen = bool(data.oMf[self._fall_frame].translation[2] < self._fall_height)
         return self.state
 
-    def _set_contact_wrenches(self, forces: np.ndarray) -> None:
-        """Per-joint wrenches (joint frame) of the world-frame point forces (n_points, 3)."""
-        linear = (self._rotations.transpose(0, 2, 1) @ forces[:, :, None])[:, :, 0]  # R^T f
-        angular = (self._point_skew @ linear[:, :, None])[:, :, 0]  # r x (R^T f)
-        linear_per_joint = self._joint_of_point @ linear
-        angular_per_joint = self._joint_of_point @ angular
-        for k, j in enumerate(self._contact_joints):
-            self._fext[j] = pin.Force(linear_per_joint[k], angular_per_joint[k])
-
-    def _apply_pushes(self) -> None:
-        """Add the active pushes to the joint wrenches; drop the finished ones."""
-        if not self._pushes:
-            return
+    def _push_forces(self) -> np.ndarray:
+        """Generalised force of the active pushes; drops the finished ones."""
         self._pushes = [p for p in self._pushes if p.end_time > self.t]
-        for push in self._pushes:
-            rotation = self.data.oMi[push.joint].rotation
-            linear = rotation.T @ push.force
-            wrench = pin.Force(linear, np.cross(push.point_in_joint, linear))
-            self._fext[push.joint] = self._fext[push.joint] + wrench
-        self._pushed_joints = {p.joint for p in self._pushes}
+        if not self._pushes:
+            return np.zeros(self.model.nv)
+        joints = [p.joint for p in self._pushes]
+        points = [pin.SE3(np.eye(3), p.point_in_joint) for p in self._pushes]
+        _, jacobians = self._point_jacobians(joints, points)
+        forces = np.array([p.force for p in self._pushes])
+        return np.einsum("pkn,pk->n", jacobians, forces)
 
     def _check_finite(self) -> None:
         fastest = np.abs(self.v).max(initial=0.0)
@@ -350,18 +334,6 @@ class Simulator:
                 f"|v| reached {fastest:.3g} > max_speed = {self.max_speed:.3g} at "
                 f"t = {self.t:.4f} s; reduce dt or the contact stiffness"
             )
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays, cheaper than ``np.cross`` for small n."""
-    return np.stack(
-        (
-            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
-        ),
-        axis=1,
-    )
 
 
 def _detect_base_dofs(model: pin.Model) -> int:

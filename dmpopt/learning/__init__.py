@@ -1,0 +1,49 @@
+r"""Reinforcement learning of DMP weights (Section 3.5 and Fig. 5 of [dmpopt-paper]).
+
+:mod:`~dmpopt.learning.policy_search`: one ask/tell interface for episodic Natural
+Actor-Critic (eqs. 17-19), episodic REINFORCE, PI-BB and CMA-ES.
+:mod:`~dmpopt.learning.tasks`: the paper's reaching task, a multi-DOF and a via-point task,
+each with its exact optimum (the plan is affine in the weights).
+"""
+
+from .policy_search import (
+    CMAES,
+    METHODS,
+    PIBB,
+    EpisodicNAC,
+    EpisodicReinforce,
+    Exploration,
+    LearningCurve,
+    PolicySearch,
+    enac_gradient,
+    make_method,
+    optimise,
+    reinforce_gradient,
+)
+from .tasks import (
+    RewardTask,
+    ViaPoint,
+    multi_dof_reaching_task,
+    paper_reaching_task,
+    via_point_task,
+)
+
+__all__ = [
+    "CMAES",
+    "METHODS",
+    "PIBB",
+    "EpisodicNAC",
+    "EpisodicReinforce",
+    "Exploration",
+    "LearningCurve",
+    "PolicySearch",
+    "RewardTask",
+    "ViaPoint",
+    "enac_gradient",
+    "make_method",
+    "multi_dof_reaching_task",
+    "optimise",
+    "paper_reaching_task",
+    "reinforce_gradient",
+    "via_point_task",
+]

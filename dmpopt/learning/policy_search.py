@@ -1,0 +1,519 @@
+r"""Policy search on DMP weights behind one ask/tell interface.
+
+Every optimiser proposes a batch of ``K`` exploratory roll-outs (:meth:`PolicySearch.ask`
+returns an :class:`Exploration`), receives their rewards (:meth:`PolicySearch.tell`) and
+updates its mean weights. A task (:class:`dmpopt.learning.RewardTask`) turns an
+``Exploration`` into rewards in one batched call; :func:`optimise` runs the loop.
+
+Two kinds of exploration:
+
+*Action space* (:class:`EpisodicNAC`, :class:`EpisodicReinforce`), the Gaussian policy of
+[dmpopt-paper] eq. (17): all roll-outs of a batch use the mean weights ``W``, and each
+perturbs the acceleration command of every step by :math:`\epsilon_{k,t} \sim N(0, \sigma^2)`.
+With :math:`\partial\mu_t/\partial w = \phi_t` (``features``), the log-likelihood gradient
+summed over a roll-out is
+
+.. math:: \psi_k = \nabla_W \sum_t \log\pi(\ddot y_{t,k}) =
+          \sum_t \epsilon_{t,k}\, \phi_t / \sigma^2 ,
+          \qquad \partial_{\log\sigma} \sum_t \log\pi = \sum_t (\epsilon_{t,k}^2/\sigma^2 - 1).
+
+*Parameter space* (:class:`PIBB`, :class:`CMAES`): each roll-out uses its own weights
+:math:`W + \delta_k` and a noise-free plan (PI-BB of Stulp & Sigaud 2012, CMA-ES of Hansen).
+
+Rewards given to ``tell`` may be per step, shape (K, n_steps), or returns, shape (K,); every
+method here is episodic and uses the return :math:`R_k = \sum_t r_{t,k}`, eq. (18), so
+delayed rewards (everything at the last step) give the same updates.
+
+Step rules of the gradient methods (``step_rule``): ``"constant"``
+:math:`W \leftarrow W + \alpha g`; ``"kl"`` scales the step so that the Kullback-Leibler
+divergence between the roll-out distributions before and after the update is ``step_size``,
+:math:`\alpha = \sqrt{2\,\mathrm{step\_size} / (g^T F g)}` with ``F`` the exact Fisher matrix
+of the policy, :math:`F = \sum_t \phi_t\phi_t^T / \sigma^2` per DOF. Both are divided by
+``1 + decay * n_updates``: a fixed step keeps jumping around the optimum with the noise of the
+estimate, a decaying one settles.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InvalidInputError, MissingDependency, ShapeError
+
+__all__ = [
+    "CMAES",
+    "PIBB",
+    "EpisodicNAC",
+    "EpisodicReinforce",
+    "Exploration",
+    "LearningCurve",
+    "PolicySearch",
+    "enac_gradient",
+    "make_method",
+    "optimise",
+    "reinforce_gradient",
+]
+
+STEP_RULES = ("constant", "kl")
+
+
+@dataclass(frozen=True, eq=False)
+class Exploration:
+    """A batch of roll-outs to evaluate.
+
+    Attributes
+    ----------
+    weights : ndarray, shape (K, n_dofs, n_basis)
+        Forcing weights of each roll-out.
+    acceleration_noise : ndarray, shape (K, n_actions, n_dofs) or None
+        Perturbation of the acceleration command at each step (action-space exploration).
+    """
+
+    weights: np.ndarray
+    acceleration_noise: np.ndarray | None = None
+
+    @property
+    def n_rollouts(self) -> int:
+        """``K``."""
+        return self.weights.shape[0]
+
+
+def _as_returns(rewards, n_rollouts: int) -> np.ndarray:
+    rewards = np.asarray(rewards, dtype=float)
+    if rewards.ndim == 2:
+        rewards = rewards.sum(axis=1)
+    if rewards.shape != (n_rollouts,):
+        raise ShapeError(
+            f"rewards has shape {rewards.shape}, expected ({n_rollouts},) returns or "
+            f"({n_rollouts}, n_steps) per-step rewards for the {n_rollouts} roll-outs asked"
+        )
+    if not np.all(np.isfinite(rewards)):
+        raise InvalidInputError("rewards contain non-finite values")
+    return rewards
+
+
+def enac_gradient(scores, returns) -> tuple[np.ndarray, float]:
+    r"""Natural gradient and baseline by regression, [dmpopt-paper] eq. (19).
+
+    .. math:: [g^T, c]^T = (\Psi^T\Psi)^{-1}\Psi^T R,\qquad \Psi_k = [\psi_k^T, 1]
+
+    Parameters
+    ----------
+    scores : ndarray, shape (K, n_params)
+        Log-likelihood gradients summed over each roll-out.
+    returns : ndarray, shape (K,)
+
+    Returns
+    -------
+    natural_gradient : ndarray, shape (n_params,)
+    baseline : float
+    """
+    scores = np.asarray(scores, dtype=float)
+    design = np.column_stack([scores, np.ones(scores.shape[0])])
+    solution = np.linalg.lstsq(design, np.asarray(returns, dtype=float), rcond=None)[0]
+    return solution[:-1], float(solution[-1])
+
+
+def reinforce_gradient(scores, returns) -> np.ndarray:
+    r"""Episodic REINFORCE with the optimal (per-component) baseline.
+
+    .. math:: g_h = \langle \psi_h (R - b_h)\rangle,\qquad
+              b_h = \langle \psi_h^2 R\rangle / \langle \psi_h^2\rangle
+
+    (Williams 1992; the variance-minimising baseline of Peters & Schaal 2008.)
+    """
+    scores = np.asarray(scores, dtype=float)
+    returns = np.asarray(returns, dtype=float)
+    squared = scores**2
+    baseline = (squared * returns[:, None]).sum(axis=0) / np.maximum(squared.sum(axis=0), 1e-300)
+    return np.mean(scores * (returns[:, None] - baseline), axis=0)
+
+
+class PolicySearch(ABC):
+    """Ask/tell interface: ``ask()`` a batch, evaluate it, ``tell(rewards)``, repeat.
+
+    Optimisers are stateful objects (like ``cma``): ``mean`` is the current policy's weights,
+    ``n_trials`` counts every exploratory roll-out told so far.
+    """
+
+    n_rollouts: int
+    n_trials: int = 0
+    n_updates: int = 0
+
+    @property
+    @abstractmethod
+    def mean(self) -> np.ndarray:
+        """Current weights, shape (n_dofs, n_basis)."""
+
+    @abstractmethod
+    def ask(self) -> Exploration:
+        """The next batch of exploratory roll-outs."""
+
+    @abstractmethod
+    def tell(self, rewards) -> None:
+        """Rewards of the last batch asked: (K,) returns or (K, n_steps) per-step rewards."""
+
+    def _check_pending(self):
+        if getattr(self, "_pending", None) is None:
+            raise InvalidInputError("tell() called without a pending ask(); call ask() first")
+
+
+def _check_common(n_rollouts, step_size, decay, step_rule=None):
+    if int(n_rollouts) != n_rollouts or n_rollouts < 2:
+        raise InvalidInputError(f"n_rollouts must be an integer >= 2, got {n_rollouts!r}")
+    if not np.isfinite(step_size) or step_size <= 0:
+        raise InvalidInputError(f"step_size must be positive, got {step_size!r}")
+    if not np.isfinite(decay) or decay < 0:
+        raise InvalidInputError(f"decay must be >= 0, got {decay!r}")
+    if step_rule is not None and step_rule not in STEP_RULES:
+        raise InvalidInputError(f"step_rule must be one of {STEP_RULES}, got {step_rule!r}")
+
+
+class _ActionSpaceGradient(PolicySearch):
+    """Shared machinery of the likelihood-ratio methods on the policy of eq. (17)."""
+
+    def __init__(
+        self,
+        features,
+        initial_weights,
+        exploration_std: float,
+        n_rollouts: int = 20,
+        step_size: float = 0.1,
+        step_rule: str = "kl",
+        decay: float = 0.0,
+        learn_exploration: bool = False,
+        seed=None,
+    ):
+        features = np.asarray(features, dtype=float)
+        weights = np.atleast_2d(np.asarray(initial_weights, dtype=float))
+        if features.ndim != 2 or features.shape[1] != weights.shape[1]:
+            raise ShapeError(
+                f"features has shape {features.shape}, expected (n_actions, {weights.shape[1]}) "
+                f"to match initial_weights {weights.shape}"
+            )
+        if not np.isfinite(exploration_std) or exploration_std <= 0:
+            raise InvalidInputError(f"exploration_std must be positive, got {exploration_std!r}")
+        _check_common(n_rollouts, step_size, decay, step_rule)
+        self.features = features
+        self._weights = weights.copy()
+        self.log_std = float(np.log(exploration_std))
+        self.n_rollouts = int(n_rollouts)
+        self.step_size = float(step_size)
+        self.step_rule = step_rule
+        self.decay = float(decay)
+        self.learn_exploration = bool(learn_exploration)
+        self.rng = np.random.default_rng(seed)
+        self.n_trials = 0
+        self.n_updates = 0
+        self._pending = None
+        self._gram = features.T @ features  # sum_t phi_t phi_t^T
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self._weights.copy()
+
+    @property
+    def exploration_std(self) -> float:
+        """Current :math:`\\sigma` [acceleration units]."""
+        return float(np.exp(self.log_std))
+
+    def ask(self) -> Exploration:
+        k, (n_dofs, _) = self.n_rollouts, self._weights.shape
+        noise = self.exploration_std * self.rng.standard_normal((k, self.features.shape[0], n_dofs))
+        self._pending = noise
+        weights = np.broadcast_to(self._weights, (k,) + self._weights.shape)
+        return Exploration(weights=weights, acceleration_noise=noise)
+
+    def scores(self, noise) -> np.ndarray:
+        r"""Log-likelihood gradients summed over each roll-out, shape (K, n_params).
+
+        Columns: the weights, flattened row-major (DOF, basis), then :math:`\log\sigma` if
+        the exploration is learned.
+        """
+        variance = self.exploration_std**2
+        weight_scores = np.einsum("ktd,tb->kdb", noise, self.features) / variance
+        columns = [weight_scores.reshape(noise.shape[0], -1)]
+        if self.learn_exploration:
+            columns.append(np.sum(noise**2 / variance - 1.0, axis=(1, 2))[:, None])
+        return np.concatenate(columns, axis=1)
+
+    def fisher(self) -> np.ndarray:
+        """Exact Fisher matrix of the roll-out distribution, in the layout of :meth:`scores`."""
+        n_dofs = self._weights.shape[0]
+        blocks = np.kron(np.eye(n_dofs), self._gram) / self.exploration_std**2
+        if not self.learn_exploration:
+            return blocks
+        size = blocks.shape[0] + 1
+        fisher = np.zeros((size, size))
+        fisher[:-1, :-1] = blocks
+        fisher[-1, -1] = 2.0 * self.features.shape[0] * n_dofs
+        return fisher
+
+    @abstractmethod
+    def direction(self, scores, returns) -> np.ndarray:
+        """Ascent direction in the layout of :meth:`scores`."""
+
+    def tell(self, rewards) -> None:
+        self._check_pending()
+        noise, self._pending = self._pending, None
+        returns = _as_returns(rewards, noise.shape[0])
+        direction = self.direction(self.scores(noise), returns)
+        if self.step_rule == "kl":
+            curvature = float(direction @ self.fisher() @ direction)
+            step = np.sqrt(2.0 * self.step_size / curvature) if curvature > 0 else 0.0
+        else:
+            step = self.step_size
+        step /= 1.0 + self.decay * self.n_updates
+        change = step * direction
+        n = self._weights.size
+        self._weights = self._weights + change[:n].reshape(self._weights.shape)
+        if self.learn_exploration:
+            self.log_std += float(change[n])
+        self.n_trials += noise.shape[0]
+        self.n_updates += 1
+
+
+class EpisodicNAC(_ActionSpaceGradient):
+    r"""Episodic Natural Actor-Critic, [dmpopt-paper] eqs. (17)-(19).
+
+    Gaussian exploration on the acceleration command (eq. 17), log-likelihood gradients
+    summed over each roll-out, natural gradient and baseline by regression (eq. 19,
+    :func:`enac_gradient`; needs ``n_rollouts > n_params + 1`` for a unique solution, else the
+    minimum-norm one is used), ``W <- W + alpha g_NAC``. With ``learn_exploration`` the
+    regression includes the score of :math:`\log\sigma`, which is updated along.
+
+    Parameters
+    ----------
+    features : ndarray, shape (n_actions, n_basis)
+        :math:`\partial\mu_t / \partial w_i`, e.g. ``task.policy_features``.
+    initial_weights : ndarray, shape (n_dofs, n_basis)
+    exploration_std : float
+        :math:`\sigma` of eq. (17) [acceleration units].
+    n_rollouts : int
+        Roll-outs per update.
+    step_size : float
+        :math:`\alpha` (``step_rule="constant"``) or the KL per update (``"kl"``).
+    step_rule : {"kl", "constant"}
+    decay : float
+        Step divided by ``1 + decay * n_updates``.
+    learn_exploration : bool
+    seed : int or numpy Generator, optional
+    """
+
+    def direction(self, scores, returns) -> np.ndarray:
+        return enac_gradient(scores, returns)[0]
+
+
+class EpisodicReinforce(_ActionSpaceGradient):
+    r"""Episodic REINFORCE with the optimal baseline (:func:`reinforce_gradient`).
+
+    The paper's comparison for eNAC: same policy, same scores, vanilla gradient. Parameters
+    as :class:`EpisodicNAC`; with ``step_rule="kl"`` only the length of the step is
+    normalised, its direction stays the vanilla gradient.
+    """
+
+    def direction(self, scores, returns) -> np.ndarray:
+        return reinforce_gradient(scores, returns)
+
+
+class PIBB(PolicySearch):
+    r"""PI-BB: reward-weighted averaging of parameter perturbations (Stulp & Sigaud 2012).
+
+    Samples :math:`W_k = W + \delta_k`, :math:`\delta_k\sim N(0, \Sigma)`; weights
+    :math:`P_k \propto \exp(h (R_k - \max R)/(\max R - \min R))`, new mean
+    :math:`\sum_k P_k W_k`. The covariance is either shrunk by ``decay`` per update
+    (``adapt_covariance=False``, the original PI-BB) or re-estimated from the weighted
+    samples (PI2-CMA style, mixed with the old one by ``covariance_rate``, floored at
+    ``1e-6`` of its initial scale).
+    """
+
+    def __init__(
+        self,
+        initial_weights,
+        exploration_std: float,
+        n_rollouts: int = 20,
+        eliteness: float = 10.0,
+        decay: float = 0.98,
+        adapt_covariance: bool = True,
+        covariance_rate: float = 0.5,
+        seed=None,
+    ):
+        weights = np.atleast_2d(np.asarray(initial_weights, dtype=float))
+        _check_common(n_rollouts, 1.0, 0.0)
+        if not np.isfinite(exploration_std) or exploration_std <= 0:
+            raise InvalidInputError(f"exploration_std must be positive, got {exploration_std!r}")
+        if not 0 < decay <= 1:
+            raise InvalidInputError(f"decay must be in (0, 1], got {decay!r}")
+        self.shape = weights.shape
+        self._mean = weights.ravel().copy()
+        self.covariance = np.eye(self._mean.size) * exploration_std**2
+        self._floor = 1e-6 * exploration_std**2
+        self.n_rollouts = int(n_rollouts)
+        self.eliteness = float(eliteness)
+        self.decay = float(decay)
+        self.adapt_covariance = bool(adapt_covariance)
+        self.covariance_rate = float(covariance_rate)
+        self.rng = np.random.default_rng(seed)
+        self.n_trials = 0
+        self.n_updates = 0
+        self._pending = None
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self._mean.reshape(self.shape).copy()
+
+    def ask(self) -> Exploration:
+        samples = self.rng.multivariate_normal(self._mean, self.covariance, self.n_rollouts)
+        self._pending = samples
+        return Exploration(weights=samples.reshape((-1,) + self.shape))
+
+    def tell(self, rewards) -> None:
+        self._check_pending()
+        samples, self._pending = self._pending, None
+        returns = _as_returns(rewards, samples.shape[0])
+        spread = returns.max() - returns.min()
+        scaled = (returns - returns.max()) / spread if spread > 0 else np.zeros_like(returns)
+        probabilities = np.exp(self.eliteness * scaled)
+        probabilities /= probabilities.sum()
+        deviations = samples - self._mean
+        self._mean = probabilities @ samples
+        if self.adapt_covariance:
+            estimate = (probabilities[:, None] * deviations).T @ deviations
+            rate = self.covariance_rate
+            covariance = (1 - rate) * self.covariance + rate * estimate
+        else:
+            covariance = self.covariance
+        covariance = self.decay * covariance
+        self.covariance = covariance + self._floor * np.eye(self._mean.size)
+        self.n_trials += samples.shape[0]
+        self.n_updates += 1
+
+
+class CMAES(PolicySearch):
+    """CMA-ES (Hansen) on the flattened weights, through the ``cma`` package.
+
+    ``n_rollouts`` is CMA's population size; the returns are maximised. Stopping criteria of
+    ``cma`` are switched off: the caller decides how many trials to run.
+    """
+
+    def __init__(self, initial_weights, exploration_std: float, n_rollouts: int = 20, seed=None,
+                 options: dict | None = None):
+        try:
+            import cma
+        except ImportError as error:  # pragma: no cover - depends on the installation
+            raise MissingDependency(
+                "CMAES needs the 'cma' package: pip install 'dmpopt[rl]'"
+            ) from error
+        weights = np.atleast_2d(np.asarray(initial_weights, dtype=float))
+        _check_common(n_rollouts, 1.0, 0.0)
+        self.shape = weights.shape
+        seed = int(np.random.default_rng(seed).integers(1, 2**31 - 1))  # cma: 0 means "random"
+        settings = {
+            "popsize": int(n_rollouts), "seed": seed, "verbose": -9, "tolfun": 0.0,
+            "tolfunhist": 0.0, "tolx": 0.0, "tolstagnation": 10**9, "tolflatfitness": 10**9,
+            "maxiter": 10**9,
+        }
+        settings.update(options or {})
+        self.strategy = cma.CMAEvolutionStrategy(weights.ravel(), float(exploration_std), settings)
+        self.n_rollouts = int(n_rollouts)
+        self.n_trials = 0
+        self.n_updates = 0
+        self._pending = None
+
+    @property
+    def mean(self) -> np.ndarray:
+        return np.asarray(self.strategy.mean).reshape(self.shape).copy()
+
+    def ask(self) -> Exploration:
+        samples = np.asarray(self.strategy.ask())
+        self._pending = samples
+        return Exploration(weights=samples.reshape((-1,) + self.shape))
+
+    def tell(self, rewards) -> None:
+        self._check_pending()
+        samples, self._pending = self._pending, None
+        returns = _as_returns(rewards, samples.shape[0])
+        self.strategy.tell(list(samples), list(-returns))
+        self.n_trials += samples.shape[0]
+        self.n_updates += 1
+
+
+METHODS = ("enac", "ereinforce", "pibb", "cmaes")
+
+
+def make_method(name: str, task, seed=None, **options) -> PolicySearch:
+    """An optimiser for ``task`` (a :class:`~dmpopt.learning.RewardTask`) by name.
+
+    ``"enac"`` and ``"ereinforce"`` take ``features`` and ``initial_weights`` from the task;
+    ``"pibb"`` and ``"cmaes"`` take ``initial_weights``. ``options`` go to the constructor
+    (``exploration_std`` is required).
+    """
+    if name == "enac":
+        return EpisodicNAC(task.policy_features, task.initial_weights, seed=seed, **options)
+    if name == "ereinforce":
+        return EpisodicReinforce(task.policy_features, task.initial_weights, seed=seed, **options)
+    if name == "pibb":
+        return PIBB(task.initial_weights, seed=seed, **options)
+    if name == "cmaes":
+        return CMAES(task.initial_weights, seed=seed, **options)
+    raise InvalidInputError(f"method must be one of {METHODS}, got {name!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class LearningCurve:
+    """Progress of one run, one entry per update (plus the start).
+
+    Attributes
+    ----------
+    trials : ndarray, shape (n_updates + 1,)
+        Exploratory roll-outs used so far.
+    returns : ndarray, shape (n_updates + 1,)
+        Return of the noise-free plan of the mean weights.
+    improvement : ndarray, shape (n_updates + 1,)
+        ``returns`` as the fraction of the achievable improvement (``task.improvement``).
+    weights : ndarray, shape (n_updates + 1, n_dofs, n_basis)
+        Mean weights after each update.
+    """
+
+    trials: np.ndarray
+    returns: np.ndarray
+    improvement: np.ndarray
+    weights: np.ndarray
+
+    @property
+    def final_weights(self) -> np.ndarray:
+        """Mean weights after the last update, shape (n_dofs, n_basis)."""
+        return self.weights[-1]
+
+    def weights_at(self, trials: float) -> np.ndarray:
+        """Mean weights after the last update that used at most ``trials`` roll-outs."""
+        return self.weights[int(np.searchsorted(self.trials, trials, side="right")) - 1]
+
+    def trials_to(self, fraction: float) -> float:
+        """First trial count at which ``improvement >= fraction`` (``inf`` if never)."""
+        reached = np.nonzero(self.improvement >= fraction)[0]
+        return float(self.trials[reached[0]]) if reached.size else float("inf")
+
+
+def optimise(method: PolicySearch, task, n_trials: int) -> LearningCurve:
+    """Run ask/evaluate/tell until ``n_trials`` roll-outs have been used.
+
+    After every update the noise-free plan of ``method.mean`` is scored on ``task``.
+    """
+    means = [method.mean]
+    trials = [method.n_trials]
+    while method.n_trials + method.n_rollouts <= n_trials:
+        method.tell(task.evaluate(method.ask()))
+        means.append(method.mean)
+        trials.append(method.n_trials)
+    means = np.stack(means)
+    returns = task.returns(means)
+    start, best = task.initial_return, task.optimum_return
+    return LearningCurve(
+        trials=np.asarray(trials, dtype=float),
+        returns=returns,
+        improvement=(returns - start) / (best - start),
+        weights=means,
+    )

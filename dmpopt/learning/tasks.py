@@ -1,0 +1,442 @@
+r"""Reinforcement-learning tasks on discrete DMPs, with their exact optimum.
+
+A task fixes a :class:`~dmpopt.DiscreteDMP` (start, goal, time constant, basis) and a
+quadratic reward on its plan. The learner chooses the forcing weights :math:`W` of shape
+(n_dofs, n_basis) (``dmp.forcing_weights()``; with ``goal_scaling="translation"`` these are
+the DMP's ``weights``).
+
+Exploration on the acceleration command, [dmpopt-paper] eq. (17)
+-----------------------------------------------------------------
+The policy draws, at every step ``k = 0 .. n_steps - 2``, the acceleration command
+
+.. math:: \ddot y_k = \mu_k(W) + \epsilon_k, \qquad \epsilon_k \sim N(0, \sigma^2),
+
+with :math:`\mu_k = \dot z_k / \tau` the DMP's acceleration of eq. (10); the perturbation is
+held over the step ``[t_k, t_{k+1})``. It enters eq. (10) as the additive input ``C`` of
+:math:`\tau \dot z` (``coupling`` in :mod:`dmpopt.symbolic`) with :math:`C = \tau^2 \epsilon`.
+The transformation system is linear, so the noisy plan is still affine,
+
+.. math:: Y = F + G W^T + H \epsilon,
+
+with ``F, G`` the :class:`~dmpopt.AffinePlan` and ``H`` (:attr:`RewardTask.noise_response`)
+the response to a unit acceleration held over one step, derived from the symbolic RK4 step
+(the same discretisation as the plan). A batch of ``K`` roll-outs is two matrix products.
+
+The score of the policy (the derivative of the mean command with respect to the weights at
+a fixed state) is :math:`\partial \mu_k / \partial w_i = \phi_i(x_k) / \tau^2` with
+:math:`\phi_i` the normalised, phase-velocity-gated basis of eq. (7)
+(:attr:`RewardTask.policy_features`). It treats the forcing term as held over each step,
+whereas the plan integrates it continuously (RK4); the resulting bias of likelihood-ratio
+gradients is of order ``dt`` (measured in the tests: below 1 %).
+
+Reward, a choice for the OCR-garbled eq. (20) of [dmpopt-paper]
+----------------------------------------------------------------
+.. math::
+
+    R = -c_g \lVert y(T) - g\rVert^2 - c_v \lVert \dot y(T)\rVert^2
+        - c_a \sum_{k=0}^{n-2} \lVert \ddot y_k\rVert^2 \Delta t
+        - c_j \sum_{k=0}^{n-2} \lVert (\ddot y_{k+1} - \ddot y_k) / \Delta t\rVert^2 \Delta t
+        - \sum_v c_v' \lVert y(t_v) - p_v \rVert^2
+
+with the paper's task using :math:`c_g = 1000, c_v = 1, c_a = 10^{-3}, c_j = 0`. The
+acceleration cost is an integral (times ``dt``) weighted by ``1e-3``: the plain unweighted sum
+of squared accelerations over 500 steps would swamp the goal term, and the optimum would no
+longer reach the goal. The jerk cost (option) gives the minimum-jerk, "5th-order polynomial"
+shape. Per-step rewards put the acceleration and jerk terms at their step and the terminal and
+via-point terms at their sample; ``delayed=True`` gives the whole return at the last step only.
+
+Exact optimum
+-------------
+Every term is the square of an affine function of the plan, and the plan is affine in the
+weights, so :math:`R(W) = -\lVert A\,\mathrm{vec}(W) - b\rVert^2` and the best weights are a
+linear least-squares solution. With exploration noise the expected return is
+:math:`R(W)` minus a constant that does not depend on ``W``, so the same weights maximise it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import basis, symbolic
+from ..dmp import AffinePlan, DiscreteDMP
+from ..exceptions import InvalidInputError, ShapeError
+
+__all__ = [
+    "RewardTask",
+    "ViaPoint",
+    "multi_dof_reaching_task",
+    "paper_reaching_task",
+    "via_point_task",
+]
+
+
+@dataclass(frozen=True)
+class ViaPoint:
+    """A position to pass at a given time, rewarded by ``-weight * ||y(time) - position||^2``."""
+
+    time: float  # [s]
+    position: tuple
+    weight: float = 1000.0
+
+
+def _noise_response(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
+    """Response of positions, velocities, accelerations to a unit acceleration input.
+
+    Returns ``H`` of shape (3, n_steps, n_steps - 1): ``H[:, k, j]`` is the effect on sample
+    ``k`` of an acceleration ``epsilon_j = 1`` held over step ``j`` (coupling
+    ``tau^2 epsilon_j`` on ``tau zdot`` in eq. (10)). The one-step map and the outputs are read
+    off the symbolic RK4 step; the response is time invariant (lower-triangular Toeplitz).
+    """
+    signature = symbolic.Signature("acceleration", 1, 1, "gaussian")
+    tau = dmp.time_constant
+    gains = np.asarray(dmp.gains)
+    step = symbolic.step_function(signature)
+    output = symbolic.output_function(signature)
+
+    def parameters(coupling):
+        # tau, goal, canonical target, weights, centres, widths, gains, coupling, canonical C
+        return [tau, 0.0, 1.0, 0.0, 0.0, 1.0, gains, coupling, 0.0]
+
+    def transformation_step(state, coupling):
+        full = np.concatenate([[0.0, 0.0], state])
+        return np.asarray(step(full, dt, *parameters(coupling))[0]).ravel()[2:]
+
+    def outputs(state, coupling):
+        full = np.concatenate([[0.0, 0.0], state])
+        return np.array([float(v) for v in output(full, *parameters(coupling))])
+
+    unit = np.eye(3)
+    transition = np.column_stack([transformation_step(e, 0.0) for e in unit])  # (y, z, r)
+    input_column = transformation_step(np.zeros(3), tau**2)
+    readout = np.column_stack([outputs(e, 0.0) for e in unit])  # (3 outputs, 3 states)
+    feedthrough = outputs(np.zeros(3), tau**2)  # (0, 0, 1): the held command itself
+
+    impulse = np.zeros((3, n_steps))  # impulse[:, m]: effect m samples after the input
+    impulse[:, 0] = feedthrough
+    state = input_column
+    for m in range(1, n_steps):
+        impulse[:, m] = readout @ state
+        state = transition @ state
+    lag = np.arange(n_steps)[:, None] - np.arange(n_steps - 1)[None, :]
+    response = np.where(lag >= 0, impulse[:, np.clip(lag, 0, None)], 0.0)
+    response.setflags(write=False)
+    return response
+
+
+def _policy_features(dmp: DiscreteDMP, times: np.ndarray, dt: float) -> np.ndarray:
+    """``d mu_k / d w_i = phi_i(x_k) / tau^2`` at each step's sample, (n_steps - 1, n_basis)."""
+    signature = symbolic.Signature("acceleration", 1, dmp.n_basis, "gaussian")
+    n_steps = times.size
+    initial = np.zeros(signature.n_states)
+    parameters = dmp.replace(weights=np.zeros((1, dmp.n_basis)), start=[0.0], goal=[0.0])
+    states = symbolic.simulate(signature, n_steps, initial, dt, parameters.parameter_values())[0]
+    feature = symbolic.feature_function(signature).map(n_steps - 1)
+    phi = feature(states[:-1, :2].T, np.asarray(dmp.centres), np.asarray(dmp.widths)).full().T
+    return phi / dmp.time_constant**2
+
+
+@dataclass(frozen=True, eq=False)
+class RewardTask:
+    r"""A DMP, a horizon and a quadratic reward (module docstring); values are read-only.
+
+    Parameters
+    ----------
+    dmp : DiscreteDMP
+        Start, goal, time constant and basis; its weights are the task's initial weights.
+    duration : float
+        Horizon ``T`` [s].
+    dt : float
+        Step [s]; one exploration sample per step.
+    goal_weight, velocity_weight, acceleration_weight, jerk_weight : float
+        :math:`c_g, c_v, c_a, c_j` of the reward.
+    via_points : tuple of ViaPoint
+        Positions to pass (one entry per DOF in ``position``).
+    delayed : bool
+        Per-step rewards (False) or the whole return at the last step (True).
+
+    Attributes
+    ----------
+    plan : AffinePlan
+        Noise-free plan as an affine function of the forcing weights.
+    noise_response : ndarray, shape (3, n_steps, n_steps - 1)
+        ``H``: response to a unit acceleration held over one step.
+    policy_features : ndarray, shape (n_steps - 1, n_basis)
+        Derivative of the mean acceleration command of each step w.r.t. each weight.
+    """
+
+    dmp: DiscreteDMP
+    duration: float = 0.5
+    dt: float = 0.001
+    goal_weight: float = 1000.0
+    velocity_weight: float = 1.0
+    acceleration_weight: float = 1e-3
+    jerk_weight: float = 0.0
+    via_points: tuple = ()
+    delayed: bool = False
+    plan: AffinePlan = field(init=False)
+    noise_response: np.ndarray = field(init=False)
+    policy_features: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        if not isinstance(self.dmp, DiscreteDMP) or self.dmp.form != "acceleration":
+            raise InvalidInputError(
+                "dmp must be a DiscreteDMP with form='acceleration' (the policy of eq. (17) "
+                "perturbs the acceleration command of eq. (10))"
+            )
+        for name in ("goal_weight", "velocity_weight", "acceleration_weight", "jerk_weight"):
+            value = float(getattr(self, name))
+            if not np.isfinite(value) or value < 0.0:
+                raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
+        plan = self.dmp.affine_plan(self.duration, self.dt)
+        object.__setattr__(self, "plan", plan)
+        n_steps = plan.times.size
+        via = []
+        for point in self.via_points:
+            position = np.atleast_1d(np.asarray(point.position, dtype=float))
+            if position.shape != (self.n_dofs,):
+                raise ShapeError(
+                    f"via point position has shape {position.shape}, expected ({self.n_dofs},)"
+                )
+            index = int(round(point.time / self.dt))
+            if not 0 <= index < n_steps:
+                raise InvalidInputError(
+                    f"via point time {point.time} is outside the horizon [0, {self.duration}]"
+                )
+            via.append((index, position, float(point.weight)))
+        object.__setattr__(self, "_via", tuple(via))
+        response = _noise_response(self.dmp, n_steps, self.dt)
+        object.__setattr__(self, "noise_response", response)
+        fft_size = 1 << int(np.ceil(np.log2(2 * n_steps)))
+        object.__setattr__(self, "_fft_size", fft_size)
+        impulse = response[:, :, 0]  # effect of an input at step 0 on every sample
+        object.__setattr__(self, "_impulse_spectrum", np.fft.rfft(impulse, n=fft_size, axis=1))
+        features = _policy_features(self.dmp, plan.times, self.dt)
+        features.setflags(write=False)
+        object.__setattr__(self, "policy_features", features)
+        object.__setattr__(self, "_optimum", self._solve_optimum())
+
+    # -- sizes --------------------------------------------------------------------------
+
+    @property
+    def n_dofs(self) -> int:
+        """Number of DOFs."""
+        return self.dmp.n_dofs
+
+    @property
+    def n_basis(self) -> int:
+        """Weights per DOF."""
+        return self.dmp.n_basis
+
+    @property
+    def n_steps(self) -> int:
+        """Samples of the plan, ``0, dt, ..., T``."""
+        return self.plan.times.size
+
+    @property
+    def n_actions(self) -> int:
+        """Exploratory acceleration commands per DOF and roll-out (``n_steps - 1``)."""
+        return self.n_steps - 1
+
+    @property
+    def initial_weights(self) -> np.ndarray:
+        """Forcing weights the learners start from, shape (n_dofs, n_basis)."""
+        return np.array(self.dmp.forcing_weights())
+
+    # -- roll-outs and rewards ---------------------------------------------------------------
+
+    def rollouts(self, weights, acceleration_noise=None) -> np.ndarray:
+        r"""Plans of a batch, shape (K, 3, n_steps, n_dofs) (positions, velocities, accelerations).
+
+        Parameters
+        ----------
+        weights : array_like, shape (K, n_dofs, n_basis) or (n_dofs, n_basis)
+            Forcing weights of each roll-out.
+        acceleration_noise : array_like, shape (K, n_steps - 1, n_dofs), optional
+            Exploration :math:`\epsilon` added to the acceleration command at each step.
+        """
+        weights = self._batch_weights(weights)
+        k = weights.shape[0]
+        flat = weights.transpose(2, 0, 1).reshape(self.n_basis, k * self.n_dofs)
+        response = self.plan.weight_response.reshape(3 * self.n_steps, self.n_basis)
+        forced = (response @ flat).reshape(3, self.n_steps, k, self.n_dofs)
+        plans = self.plan.free[None] + forced.transpose(2, 0, 1, 3)
+        if acceleration_noise is not None:
+            noise = np.asarray(acceleration_noise, dtype=float)
+            expected = (weights.shape[0], self.n_actions, self.n_dofs)
+            if noise.shape != expected:
+                raise ShapeError(
+                    f"acceleration_noise has shape {noise.shape}, expected {expected} "
+                    "(roll-outs, steps - 1, DOFs)"
+                )
+            # H is lower-triangular Toeplitz: H @ noise is a causal convolution, done by FFT
+            spectrum = np.fft.rfft(noise, n=self._fft_size, axis=1)  # (K, n_freq, D)
+            noisy = np.fft.irfft(
+                self._impulse_spectrum[None, :, :, None] * spectrum[:, None],
+                n=self._fft_size, axis=2,
+            )
+            plans = plans + noisy[:, :, : self.n_steps]
+        return plans
+
+    def rewards(self, plans: np.ndarray) -> np.ndarray:
+        """Per-step rewards of plans from :meth:`rollouts`, shape (K, n_steps).
+
+        With ``delayed=True`` all but the last column are zero.
+        """
+        plans = np.asarray(plans, dtype=float)
+        positions, velocities, accelerations = plans[:, 0], plans[:, 1], plans[:, 2]
+        dt = self.dt
+        rewards = np.zeros(positions.shape[:2])
+        commands = accelerations[:, :-1]
+        rewards[:, :-1] -= self.acceleration_weight * dt * np.sum(commands**2, axis=-1)
+        if self.jerk_weight > 0.0:
+            jerk = np.diff(accelerations, axis=1) / dt
+            rewards[:, :-1] -= self.jerk_weight * dt * np.sum(jerk**2, axis=-1)
+        for index, position, weight in self._via:
+            rewards[:, index] -= weight * np.sum((positions[:, index] - position) ** 2, axis=-1)
+        goal = np.asarray(self.dmp.goal)
+        rewards[:, -1] -= self.goal_weight * np.sum((positions[:, -1] - goal) ** 2, axis=-1)
+        rewards[:, -1] -= self.velocity_weight * np.sum(velocities[:, -1] ** 2, axis=-1)
+        if self.delayed:
+            total = rewards.sum(axis=1)
+            rewards = np.zeros_like(rewards)
+            rewards[:, -1] = total
+        return rewards
+
+    def evaluate(self, exploration) -> np.ndarray:
+        """Per-step rewards (K, n_steps) of the roll-outs an optimiser asked for.
+
+        ``exploration`` has ``weights`` (K, n_dofs, n_basis) and ``acceleration_noise``
+        (K, n_steps - 1, n_dofs) or None (see :class:`dmpopt.learning.Exploration`).
+        """
+        return self.rewards(self.rollouts(exploration.weights, exploration.acceleration_noise))
+
+    def returns(self, weights, acceleration_noise=None) -> np.ndarray:
+        """Returns (sums of rewards) of a batch, shape (K,)."""
+        return self.rewards(self.rollouts(weights, acceleration_noise)).sum(axis=1)
+
+    def deterministic_return(self, weights) -> float:
+        """Return of the noise-free plan with ``weights`` (n_dofs, n_basis)."""
+        return float(self.returns(np.asarray(weights)[None])[0])
+
+    # -- exact optimum -----------------------------------------------------------------------
+
+    def _batch_weights(self, weights) -> np.ndarray:
+        weights = np.asarray(weights, dtype=float)
+        if weights.ndim == 2:
+            weights = weights[None]
+        if weights.ndim != 3 or weights.shape[1:] != (self.n_dofs, self.n_basis):
+            raise ShapeError(
+                f"weights has shape {weights.shape}, expected (K, {self.n_dofs}, {self.n_basis})"
+            )
+        return weights
+
+    def _residuals(self, plans: np.ndarray) -> np.ndarray:
+        """Affine residuals whose squared norm is minus the return, shape (K, m)."""
+        positions, velocities, accelerations = plans[:, 0], plans[:, 1], plans[:, 2]
+        k = plans.shape[0]
+        dt = self.dt
+        parts = [np.sqrt(self.acceleration_weight * dt) * accelerations[:, :-1].reshape(k, -1)]
+        if self.jerk_weight > 0.0:
+            jerk = np.diff(accelerations, axis=1) / dt
+            parts.append(np.sqrt(self.jerk_weight * dt) * jerk.reshape(k, -1))
+        for index, position, weight in self._via:
+            parts.append(np.sqrt(weight) * (positions[:, index] - position))
+        parts.append(np.sqrt(self.goal_weight) * (positions[:, -1] - np.asarray(self.dmp.goal)))
+        parts.append(np.sqrt(self.velocity_weight) * velocities[:, -1])
+        return np.concatenate(parts, axis=1)
+
+    def _solve_optimum(self):
+        n = self.n_dofs * self.n_basis
+        unit = np.concatenate([np.zeros((1, n)), np.eye(n)]).reshape(n + 1, self.n_dofs, -1)
+        residuals = self._residuals(self.rollouts(unit))
+        offset = residuals[0]
+        jacobian = (residuals[1:] - offset).T
+        solution = np.linalg.lstsq(jacobian, -offset, rcond=None)[0]
+        weights = solution.reshape(self.n_dofs, self.n_basis)
+        weights.setflags(write=False)
+        return weights, self.deterministic_return(weights)
+
+    @property
+    def optimal_weights(self) -> np.ndarray:
+        """Forcing weights of the best noise-free plan (exact least squares), (n_dofs, n_basis)."""
+        return self._optimum[0]
+
+    @property
+    def optimum_return(self) -> float:
+        """Best achievable return of the noise-free plan; also maximises the expected return."""
+        return self._optimum[1]
+
+    @property
+    def initial_return(self) -> float:
+        """Return of the noise-free plan with :attr:`initial_weights`."""
+        return self.deterministic_return(self.initial_weights)
+
+    def improvement(self, weights) -> np.ndarray:
+        """Fraction of the achievable improvement: 0 at the initial, 1 at the optimal weights.
+
+        ``weights`` of shape (n_dofs, n_basis) or a batch (K, n_dofs, n_basis).
+        """
+        batch = self._batch_weights(weights)
+        returns = self.returns(batch)
+        start = self.initial_return
+        fraction = (returns - start) / (self.optimum_return - start)
+        return fraction if np.ndim(weights) == 3 else float(fraction[0])
+
+
+def _dmp(start, goal, duration: float, n_basis: int) -> DiscreteDMP:
+    """Acceleration DMP, zero weights, unforced plan 95 % converged at ``duration``.
+
+    ``tau = duration / convergence_time(tau = 1)`` (Section 3.4's choice of ``tau``).
+    """
+    start = np.atleast_1d(np.asarray(start, dtype=float))
+    template = DiscreteDMP(
+        weights=np.zeros((start.size, n_basis)), start=start, goal=goal, time_constant=1.0,
+        centres=np.zeros(n_basis), widths=np.ones(n_basis), form="acceleration",
+        goal_scaling="translation",
+    )
+    centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
+    tau = duration / basis.convergence_time("acceleration", template.gains)
+    return template.replace(time_constant=tau, centres=centres, widths=widths)
+
+
+def paper_reaching_task(
+    jerk_weight: float = 0.0, delayed: bool = False, dt: float = 0.001, n_basis: int = 10
+) -> RewardTask:
+    """The task of Section 4.2 of [dmpopt-paper]: 1 DOF, ``y: 0 -> g = 1`` in 500 ms.
+
+    Acceleration DMP, 10 basis functions, weights start at zero, ``dt = 1 ms``, reward of the
+    module docstring with ``c_g = 1000, c_v = 1, c_a = 1e-3`` (and ``jerk_weight`` if given).
+    """
+    return RewardTask(
+        _dmp([0.0], [1.0], 0.5, n_basis), duration=0.5, dt=dt, jerk_weight=jerk_weight,
+        delayed=delayed,
+    )
+
+
+def multi_dof_reaching_task(
+    goals=(1.0, -0.5, 0.8, 0.3, -1.2, 0.6), duration: float = 0.5, dt: float = 0.001,
+    n_basis: int = 10, delayed: bool = False,
+) -> RewardTask:
+    """Several DOFs from 0 to different goals on one canonical system (default 6 DOFs)."""
+    goals = np.atleast_1d(np.asarray(goals, dtype=float))
+    return RewardTask(
+        _dmp(np.zeros(goals.size), goals, duration, n_basis), duration=duration, dt=dt,
+        delayed=delayed,
+    )
+
+
+def via_point_task(
+    via_time: float = 0.2, via_position=(0.3, 0.6), goal=(1.0, 0.0), duration: float = 0.5,
+    dt: float = 0.001, n_basis: int = 10, delayed: bool = False,
+) -> RewardTask:
+    """A 2-DOF reach from the origin to ``goal`` that must pass ``via_position`` at ``via_time``.
+
+    The unforced plan goes straight; the via point (weight 1000) makes the learner bend it.
+    """
+    goal = np.asarray(goal, dtype=float)
+    return RewardTask(
+        _dmp(np.zeros(goal.size), goal, duration, n_basis), duration=duration, dt=dt,
+        via_points=(ViaPoint(via_time, tuple(via_position)),), delayed=delayed,
+    )

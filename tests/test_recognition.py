@@ -1,0 +1,300 @@
+"""Tests of dmpopt.recognition: invariant features, classifiers, partial observations."""
+
+import re
+
+import numpy as np
+import pytest
+
+from dmpopt import Trajectory, fit_discrete
+from dmpopt.exceptions import InvalidInputError, ShapeError
+from dmpopt.recognition import (
+    NearestNeighbourClassifier,
+    PartialObservationClassifier,
+    ShrinkageLdaClassifier,
+    confusion_matrix,
+    first_part,
+    leave_one_out,
+    movement_features,
+    normalised_weights,
+    plan_metric_factor,
+)
+
+N_BASIS = 12
+N_STEPS = 200
+
+
+def _shape(kind: int, rng=None, duration: float = 1.0) -> Trajectory:
+    """Make a 2-D point-to-point synthetic stroke of one of three kinds (optionally perturbed)."""
+    s = np.linspace(0.0, 1.0, N_STEPS)
+    progress = 10 * s**3 - 15 * s**4 + 6 * s**5  # minimum jerk
+    start, goal = np.array([-3.0, 1.0]), np.array([2.0, 0.5])
+    bumps = (np.sin(np.pi * progress), np.sin(2 * np.pi * progress), np.sin(np.pi * progress) ** 3)
+    amplitudes = (1.5, 1.0, -2.0)
+    amplitude = amplitudes[kind]
+    if rng is not None:
+        amplitude *= 1.0 + 0.05 * rng.standard_normal()
+        goal = goal + 0.05 * rng.standard_normal(2)
+    direction = goal - start
+    normal = np.array([-direction[1], direction[0]]) / np.linalg.norm(direction)
+    positions = start + progress[:, None] * direction + amplitude * bumps[kind][:, None] * normal
+    return Trajectory.from_positions(duration * s, positions)
+
+
+def _moved(demo: Trajectory, scale=3.7, angle=0.0, offset=(40.0, -12.0), stretch=2.5):
+    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    positions = scale * demo.positions @ rotation.T + np.asarray(offset)
+    return Trajectory.from_positions(stretch * demo.times + 0.3, positions)
+
+
+def _synthetic_set(n_per_class: int = 4, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    demos, labels = [], []
+    for kind in range(3):
+        for _ in range(n_per_class):
+            demos.append(_shape(kind, rng, duration=rng.uniform(0.8, 1.5)))
+            labels.append(f"kind{kind}")
+    return demos, np.array(labels)
+
+
+@pytest.fixture(scope="module")
+def demo():
+    """Return a clean synthetic stroke."""
+    return _shape(0)
+
+
+@pytest.fixture(scope="module")
+def dmp(demo):
+    """Return the DMP fitted to ``demo``."""
+    return fit_discrete(demo, N_BASIS)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"scale": 1.0, "stretch": 1.0},  # translation only
+        {"offset": (0.0, 0.0), "stretch": 1.0},  # scaling only
+        {"scale": 1.0, "offset": (0.0, 0.0)},  # time stretch only
+        {},  # all three
+        {"angle": 2.1},  # and a rotation
+    ],
+)
+def test_normalised_weights_are_invariant(demo, dmp, change):
+    """Translation, uniform scaling, time stretching and 2-D rotation leave them unchanged."""
+    moved = fit_discrete(_moved(demo, **change), N_BASIS)
+    expected = normalised_weights(dmp)
+    assert np.allclose(normalised_weights(moved), expected, rtol=0, atol=1e-9 * abs(expected).max())
+
+
+def test_raw_weights_are_not_invariant(demo, dmp):
+    """Control: the weights themselves scale and rotate with the movement."""
+    moved = fit_discrete(_moved(demo, angle=0.7), N_BASIS)
+    assert not np.allclose(moved.forcing_weights(), dmp.forcing_weights(), atol=1e-3)
+
+
+def test_features_invariant_except_direction_under_rotation(demo, dmp):
+    """Features ignore translation, scale and time; only the direction part sees a rotation."""
+    shifted = fit_discrete(_moved(demo), N_BASIS)
+    rotated = fit_discrete(_moved(demo, angle=-1.2), N_BASIS)
+    features = movement_features([dmp, shifted, rotated])
+    atol = 1e-9 * abs(features).max()
+    assert np.allclose(features[1], features[0], rtol=0, atol=atol)
+    assert np.allclose(features[2, :-2], features[0, :-2], rtol=0, atol=atol)
+    assert not np.allclose(features[2, -2:], features[0, -2:], atol=1e-3)
+    plain = movement_features([dmp, rotated], direction_weight=0.0)
+    assert np.allclose(plain[1], plain[0], rtol=0, atol=atol)
+    assert features.shape == (3, 2 * N_BASIS + 2)
+
+
+def test_plan_metric_measures_plan_differences(dmp):
+    """|(W1 - W2) L|^2 is the mean squared difference of the plans of W1 and W2."""
+    rng = np.random.default_rng(1)
+    other = dmp.replace(weights=dmp.weights + rng.normal(size=dmp.weights.shape))
+    factor = plan_metric_factor(dmp, n_samples=300)
+    duration = dmp.convergence_time
+    plans = [m.rollout(duration, duration / 299).positions for m in (dmp, other)]
+    expected = np.mean(np.sum((plans[1] - plans[0]) ** 2, axis=1))
+    difference = (other.forcing_weights() - dmp.forcing_weights()) @ factor
+    assert np.isclose(np.sum(difference**2), expected, rtol=1e-9)
+
+
+def test_nearest_neighbour_on_synthetic_set():
+    """1-NN and 3-NN on normalised features recognise every synthetic stroke (leave-one-out)."""
+    demos, labels = _synthetic_set()
+    features = movement_features([fit_discrete(d, N_BASIS) for d in demos])
+    for k in (1, 3):
+        predictions = leave_one_out(NearestNeighbourClassifier(k), features, labels)
+        assert np.array_equal(predictions, labels)
+    moved = movement_features([fit_discrete(_moved(d), N_BASIS) for d in demos])
+    predictions = leave_one_out(NearestNeighbourClassifier(), features, labels, moved)
+    assert np.array_equal(predictions, labels)
+
+
+def test_nearest_neighbour_basics():
+    """Fit returns self, attributes end in _, and ties go to the nearest neighbour."""
+    features = np.array([[0.0], [1.0], [2.1], [10.0]])
+    labels = np.array(["a", "b", "c", "c"])
+    classifier = NearestNeighbourClassifier(n_neighbours=3)
+    assert classifier.fit(features, labels) is classifier
+    assert list(classifier.classes_) == ["a", "b", "c"]
+    assert list(classifier.predict([[0.2], [9.0]])) == ["a", "c"]
+    distances, indices = classifier.kneighbours([[0.2]])
+    assert np.allclose(distances, [[0.2, 0.8, 1.9]]) and list(indices[0]) == [0, 1, 2]
+
+
+def test_shrinkage_lda_on_blobs():
+    """LDA separates Gaussian classes that differ along a low-variance direction."""
+    rng = np.random.default_rng(2)
+    spread = np.array([5.0, 0.1, 0.1])
+    means = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    features = np.vstack([m + spread * rng.standard_normal((20, 3)) for m in means])
+    labels = np.repeat([0, 1, 2], 20)
+    classifier = ShrinkageLdaClassifier(shrinkage=0.05).fit(features, labels)
+    test = np.vstack([m + spread * rng.standard_normal((10, 3)) for m in means])
+    assert np.mean(classifier.predict(test) == np.repeat([0, 1, 2], 10)) >= 0.95
+    assert classifier.decision_distances(test).shape == (30, 3)
+
+
+def test_partial_observation_recognised():
+    """The first half of a transformed stroke is matched to the right kind."""
+    demos, labels = _synthetic_set(n_per_class=2)
+    classifier = PartialObservationClassifier().fit(
+        [fit_discrete(d, N_BASIS) for d in demos], labels
+    )
+    for kind in range(3):
+        observation = first_part(_moved(_shape(kind), angle=0.0), 0.5)
+        assert classifier.predict([observation])[0] == f"kind{kind}"
+    residuals, fractions = classifier.match(first_part(_shape(1), 0.5))
+    assert residuals.shape == fractions.shape == (6,)
+    assert np.all(residuals >= -1e-12) and np.all(residuals <= 1 + 1e-12)
+
+
+def test_partial_observation_rotation_option():
+    """With rotation=True a rotated observation fits its plan as well as the original."""
+    dmp = fit_discrete(_shape(2), N_BASIS)
+    classifier = PartialObservationClassifier(rotation=True).fit([dmp], ["kind2"])
+    plain = classifier.match(first_part(_shape(2), 0.5))[0]
+    rotated = classifier.match(first_part(_moved(_shape(2), angle=2.0), 0.5))[0]
+    assert np.allclose(rotated, plain, atol=1e-9)
+
+
+def test_confusion_matrix_counts():
+    """Rows are true classes, columns predictions."""
+    matrix = confusion_matrix(["a", "a", "b", "c"], ["a", "b", "b", "a"], classes=["a", "b", "c"])
+    assert matrix.tolist() == [[1, 1, 0], [0, 1, 0], [1, 0, 0]]
+
+
+def test_first_part_keeps_the_beginning(demo):
+    """first_part keeps the samples of the first fraction of the duration."""
+    half = first_part(demo, 0.5)
+    assert half.times[-1] <= demo.times[0] + 0.5 * demo.duration + 1e-12
+    assert half.n_steps == np.count_nonzero(demo.times <= 0.5 + 1e-12)
+
+
+# ---------------------------------------------------------------------------------------
+# Errors
+# ---------------------------------------------------------------------------------------
+
+
+def _raises(error, message):
+    return pytest.raises(error, match=f"^{re.escape(message)}$")
+
+
+def test_error_not_a_dmp():
+    """Only DiscreteDMPs have normalised weights."""
+    with _raises(
+        InvalidInputError,
+        "dmp must be a DiscreteDMP, got ndarray; fit one with dmpopt.fit_discrete(demo, n_basis)",
+    ):
+        normalised_weights(np.zeros((2, 3)))
+
+
+def test_error_goal_equals_start(dmp):
+    """Closed movements cannot be normalised by the start-goal vector."""
+    with _raises(
+        InvalidInputError,
+        "the DMP's goal equals its start, so its weights cannot be "
+        "normalised by the start-goal vector; recognition needs point-to-point "
+        "movements (for a closed movement, compare dmp.forcing_weights() divided by "
+        "their norm instead)",
+    ):
+        normalised_weights(dmp.replace(goal_scaling="translation", goal=dmp.start))
+
+
+def test_error_mismatched_dmps(dmp, demo):
+    """Features are only built from DMPs with the same basis, form and gains."""
+    other = fit_discrete(demo, N_BASIS + 1)
+    with _raises(
+        ShapeError,
+        f"dmps[1] has weights of shape (2, {N_BASIS + 1}), expected "
+        f"(2, {N_BASIS}) like dmps[0]; fit all movements with the same n_basis and "
+        "number of DOFs",
+    ):
+        movement_features([dmp, other])
+    accel = fit_discrete(demo, N_BASIS, form="acceleration")
+    with _raises(
+        InvalidInputError,
+        "dmps[1] has a different form, basis or gains than dmps[0]; "
+        "weights are only comparable between DMPs fitted with the same options",
+    ):
+        movement_features([dmp, accel])
+
+
+def test_error_bad_feature_options(dmp):
+    """Bad metric, direction weight or empty input are refused."""
+    with _raises(InvalidInputError, "metric must be one of ('plan', 'euclidean'), got 'cosine'"):
+        movement_features([dmp], metric="cosine")
+    with _raises(InvalidInputError, "direction_weight must be a finite number >= 0, got -1.0"):
+        movement_features([dmp], direction_weight=-1)
+    with _raises(InvalidInputError, "dmps is empty; pass at least one fitted DiscreteDMP"):
+        movement_features([])
+
+
+def test_error_classifier_inputs():
+    """Classifiers check fitting, shapes, values and hyper-parameters."""
+    features = np.zeros((4, 3))
+    with _raises(
+        InvalidInputError, "this NearestNeighbourClassifier is not fitted yet; call fit(...) first"
+    ):
+        NearestNeighbourClassifier().predict(features)
+    with _raises(ShapeError, "labels has shape (3,), expected (4,): one label per sample"):
+        NearestNeighbourClassifier().fit(features, [0, 1, 2])
+    with _raises(InvalidInputError, "n_neighbours must be a positive integer, got 0"):
+        NearestNeighbourClassifier(0).fit(features, [0, 1, 2, 3])
+    with _raises(InvalidInputError, "n_neighbours = 5 exceeds the 4 training samples"):
+        NearestNeighbourClassifier(5).fit(features, [0, 1, 2, 3])
+    fitted = NearestNeighbourClassifier().fit(features, [0, 1, 2, 3])
+    with _raises(
+        ShapeError,
+        "features has shape (1, 2), expected (n_samples, 3) like the "
+        "features the classifier was fitted on",
+    ):
+        fitted.predict(np.zeros((1, 2)))
+    with _raises(
+        InvalidInputError,
+        "features contains 1 NaN or infinite value(s); clean or interpolate them first",
+    ):
+        fitted.predict([[np.nan, 0.0, 0.0]])
+    with _raises(InvalidInputError, "shrinkage must be in (0, 1], got 0.0"):
+        ShrinkageLdaClassifier(0.0).fit(features, [0, 1, 2, 3])
+    with _raises(ShapeError, "queries has 2 entries, expected 4: one per sample"):
+        leave_one_out(NearestNeighbourClassifier(), features, [0, 1, 2, 3], np.zeros((2, 3)))
+
+
+def test_error_partial_inputs(dmp, demo):
+    """The partial classifier checks fractions and observations."""
+    with _raises(
+        InvalidInputError, "fractions must be a non-empty list of numbers in (0, 1], got (0.5, 1.5)"
+    ):
+        PartialObservationClassifier(fractions=(0.5, 1.5)).fit([dmp], ["a"])
+    classifier = PartialObservationClassifier().fit([dmp], ["a"])
+    with _raises(
+        InvalidInputError,
+        "observation must be a Trajectory, got ndarray; build one "
+        "with Trajectory.from_positions(times, positions)",
+    ):
+        classifier.match(np.zeros((10, 2)))
+    still = Trajectory.from_positions(np.arange(5.0), np.ones((5, 2)))
+    with _raises(InvalidInputError, "observation does not move, so it matches every shape"):
+        classifier.match(still)
+    with _raises(InvalidInputError, "fraction must be in (0, 1], got 0.0"):
+        first_part(demo, 0.0)

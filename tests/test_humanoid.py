@@ -1,0 +1,104 @@
+"""Drumming on Talos with rhythmic DMPs and QP inverse dynamics (studies/humanoid.py, Fig. 4)."""
+
+import numpy as np
+import pytest
+
+from robots import load_talos
+from studies import humanoid
+
+TRACKING_TOLERANCE = 0.01  # [rad] largest joint tracking error allowed in a short run
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return humanoid.demonstrate_drumming()
+
+
+@pytest.fixture(scope="module")
+def dmps(demo):
+    return humanoid.learn_drumming(demo)
+
+
+def test_demonstration_is_periodic_and_exact(demo):
+    """The IK reaches every target pose and the joint demonstration closes on itself."""
+    positions = demo.joints.positions
+    half = (positions.shape[0] - 1) // 2
+    assert demo.ik_error < 1e-6
+    np.testing.assert_allclose(positions[0], positions[half], atol=1e-6)
+    assert positions.shape[1] == 12
+    assert np.ptp(positions, axis=0).max() > 0.1  # the arms really move
+
+
+def test_dmps_reproduce_the_demonstration(dmps, demo):
+    """The learned limit cycle matches the demonstrated cycle within 2 mrad."""
+    period_steps = int(round(humanoid.PERIOD / humanoid.DT))
+    plan = humanoid.plan_rollout(dmps, humanoid.PERIOD)["positions"]
+    demo_cycle = demo.joints.positions[: demo.joints.n_steps // 2 + 1]
+    index = np.linspace(0, period_steps, demo_cycle.shape[0]).round().astype(int)
+    assert np.abs(plan[index] - demo_cycle).max() < 2e-3
+
+
+@pytest.mark.parametrize("name", ["amplitude", "frequency", "setpoint"])
+def test_fig4_modification_converges_to_new_limit_cycle(dmps, name):
+    """A x2, tau/2, g + 0.1 rad on the elbow plan: within 5 % of the new cycle within 0.5 s."""
+    modification = humanoid.Modification(name, 1.0, 4.0)
+    plan = humanoid.plan_rollout(dmps, 6.0, modification)
+    times = plan["times"]
+    elbow = plan["positions"][:, dmps.elbow_index]
+    ideal = humanoid.ideal_elbow(dmps, modification, times, plan["elbow_phase"])
+    window = (times >= 1.0) & (times < 4.0)
+    tolerance = humanoid.SETTLE_TOLERANCE * np.ptp(ideal[window])
+    settle = humanoid.settle_time(times, elbow, ideal, 1.0, 4.0, tolerance)
+    assert settle is not None and settle < 0.5
+    late = (times >= 2.0) & (times < 4.0)
+    assert np.abs(elbow[late] - ideal[late]).max() < 0.01 * np.ptp(ideal[window])
+    # The other joints do not notice (one shared oscillator, untouched).
+    unmodified = humanoid.plan_rollout(dmps, 6.0)["positions"]
+    others = np.arange(12) != dmps.elbow_index
+    np.testing.assert_allclose(plan["positions"][:, others], unmodified[:, others], atol=1e-12)
+    if name == "amplitude":
+        assert np.ptp(elbow[late]) == pytest.approx(
+            2 * np.ptp(unmodified[late, dmps.elbow_index]), rel=0.02
+        )
+    if name == "frequency":
+        rate = np.gradient(plan["elbow_phase"], times)
+        assert rate[late].mean() == pytest.approx(2 / dmps.elbow.time_constant, rel=1e-3)
+
+
+def test_elbow_relocks_to_the_shared_oscillator(dmps):
+    """After tau/2 ends, the phase coupling brings the elbow back in phase with the others."""
+    plan = humanoid.plan_rollout(dmps, 8.0, humanoid.Modification("frequency", 1.0, 2.0))
+    shared = humanoid.plan_rollout(dmps, 8.0)["elbow_phase"]
+    difference = np.angle(np.exp(1j * (plan["elbow_phase"] - shared)))
+    assert abs(difference[int(1.5 / humanoid.DT)]) > 0.5  # really out of phase
+    assert abs(difference[-1]) < 0.01
+
+
+def test_fixed_base_drumming_tracks(dmps):
+    """Fixed-base upper body, 1 s of drumming: every joint within TRACKING_TOLERANCE."""
+    log = humanoid.run_drumming(load_talos("full", fixed_base=True), dmps, 1.0)
+    error = np.abs(log.actual - log.desired)
+    assert error.max() < TRACKING_TOLERANCE
+    assert log.n_fallbacks == 0
+    assert log.torque_use.max() <= 1.0 + 1e-9
+
+
+def test_standing_drumming_tracks_and_stays_up(dmps):
+    """Floating-base Talos on two feet, 1 s of drumming: tracks, balances, does not fall."""
+    log = humanoid.run_drumming(load_talos("full"), dmps, 1.0)
+    assert np.abs(log.actual - log.desired).max() < TRACKING_TOLERANCE
+    assert not log.fell
+    assert np.degrees(np.ptp(log.base[:, 3])) < 0.5  # pelvis roll held by the base task
+    assert log.n_fallbacks == 0
+
+
+def test_quick_study_writes_metrics_and_figures(tmp_path):
+    """The quick study runs end to end and reports the required metrics."""
+    metrics = humanoid.run(tmp_path, quick=True)
+    for key in ("tick_us_median", "tick_us_p99", "tracking_rms_rad", "real_time_factor"):
+        assert metrics[key] > 0
+    assert metrics["fell"] is False
+    assert metrics["tracking_rms_rad"] < 0.005
+    assert (tmp_path / "metrics.json").exists()
+    for figure in ("fig4_elbow", "drumming_tracking", "figure8", "base_com", "tick_times"):
+        assert (tmp_path / f"{figure}.png").stat().st_size > 10_000

@@ -8,6 +8,10 @@ time while both hands drum (alternating vertical sine waves) and times only
 - reduced floating-base Talos (nv = 38) standing on two sole contacts,
 - fixed-base upper body of the reduced and the full model (nv = 20 and 32), no contacts.
 
+Each case is run twice: once plain, for the wall and CPU time per tick (median and p99), and
+once with the controller's assembly and solve methods wrapped in timers, for the breakdown.
+On a shared machine compare CPU times (thread_time), and compare variants in one process.
+
 Reference (TSID 1.7, C++): ~160-170 us/tick reduced, 250-340 us full, ~20 us upper body.
 Run: ``/work/venv/bin/python benchmarks/bench_controller.py [--seconds 2]``.
 """
@@ -73,16 +77,41 @@ def simulator_for(robot):
     return simulator, q0
 
 
-def run_case(robot, seconds):
+def _timed(function, samples):
+    """Wrap a bound method to append its CPU time [ns] per call to ``samples``."""
+
+    def wrapper(*args, **kwargs):
+        begin = time.thread_time_ns()
+        result = function(*args, **kwargs)
+        samples.append(time.thread_time_ns() - begin)
+        return result
+
+    return wrapper
+
+
+def run_case(robot, seconds, breakdown=False):
+    """Closed-loop run; per-tick wall and CPU time [us] of ``compute_torques``.
+
+    With ``breakdown``, the controller's assembly (the ``_assemble*`` methods: model terms,
+    tasks, constraint elimination, QP matrices) and solve (``_solve``: proxsuite update and
+    solve, solution and torque readout) are timed too (CPU, summed per tick), at the cost of a
+    little wrapper overhead.
+    """
     controller, hands = build(robot)
+    assembly, solve = [], []
+    if breakdown:
+        for name in ("_assemble", "_assemble_eliminated", "_assemble_y", "_assemble_torque_rows"):
+            if hasattr(controller, name):
+                setattr(controller, name, _timed(getattr(controller, name), assembly))
+        controller._solve = _timed(controller._solve, solve)
     simulator, q0 = simulator_for(robot)
     state = simulator.reset(q0)
     starts = [hand.target_placement.translation.copy() for hand in hands]
     omega = 2 * np.pi * DRUM_FREQUENCY
-    times = np.empty(int(round(seconds / DT)))
-    cpu_times = np.empty_like(times)
-    iterations = np.empty_like(times)
-    for k in range(times.size):
+    n_ticks = int(round(seconds / DT))
+    times, cpu_times, iterations = np.empty(n_ticks), np.empty(n_ticks), np.empty(n_ticks)
+    phases = np.zeros((n_ticks, 2))
+    for k in range(n_ticks):
         t = k * DT
         for sign, hand, start in zip((1.0, -1.0), hands, starts):
             height = sign * DRUM_AMPLITUDE * np.sin(omega * t)
@@ -93,13 +122,24 @@ def run_case(robot, seconds):
                 velocity=[0, 0, speed, 0, 0, 0],
                 acceleration=[0, 0, accel, 0, 0, 0],
             )
+        assembly.clear()
+        solve.clear()
         begin, cpu_begin = time.perf_counter_ns(), time.thread_time_ns()
         tau = controller.compute_torques(state.q, state.v)
         cpu_times[k] = time.thread_time_ns() - cpu_begin
         times[k] = time.perf_counter_ns() - begin
+        phases[k] = sum(assembly), sum(solve)
         iterations[k] = controller.stats.last_iterations
         state = simulator.step(tau)
-    return times / 1e3, cpu_times / 1e3, iterations, controller.stats, state  # [us]
+    return {
+        "wall": times / 1e3,
+        "cpu": cpu_times / 1e3,
+        "assembly": phases[:, 0] / 1e3,
+        "solve": phases[:, 1] / 1e3,
+        "iterations": iterations,
+        "stats": controller.stats,
+        "fallen": state.fallen,
+    }
 
 
 def calibration():
@@ -126,20 +166,30 @@ def main():
         ("full Talos upper body, fixed base", load_talos("full", fixed_base=True)),
     ]
     print(f"computeAllTerms on full Talos (machine marker): {calibration():.1f} us")
-    print("per tick [us]: wall clock (perf_counter) and CPU time of the thread (thread_time,")
-    print("unaffected by other processes on a loaded machine); QP iterations median/max")
     print(
-        f"{'case':48s} {'nv':>3s} {'wall med':>9s} {'wall p99':>9s} {'cpu med':>8s} "
-        f"{'cpu p99':>8s} {'iters':>7s}  solver health"
+        "per tick [us]: median / p99 of wall clock (perf_counter) and of the thread's CPU time\n"
+        "(thread_time: excludes waiting for a core on a loaded machine, not cache misses);\n"
+        "breakdown (CPU medians, separate instrumented run): assembly = model terms, tasks and\n"
+        "QP matrices; solve = proxsuite update + solve and the torque readout; iterations\n"
+        "median/max; solver health"
     )
+    header = (
+        f"{'case':46s} {'nv':>3s} {'wall med':>8s} {'p99':>7s} {'cpu med':>8s} {'p99':>7s}"
+        f" {'assembly':>8s} {'solve':>7s} {'iters':>6s}"
+    )
+    print(header)
     for name, robot in cases:
-        times, cpu_times, iterations, stats, state = run_case(robot, args.seconds)
-        fallen = " FELL" if state.fallen else ""
+        run = run_case(robot, args.seconds)
+        parts = run_case(robot, args.seconds, breakdown=True)
+        stats = run["stats"]
+        wall, cpu, iterations = run["wall"], run["cpu"], run["iterations"]
         print(
-            f"{name:48s} {robot.nv:3d} {np.median(times):9.1f} {np.percentile(times, 99):9.1f} "
-            f"{np.median(cpu_times):8.1f} {np.percentile(cpu_times, 99):8.1f} "
-            f"{np.median(iterations):3.0f}/{iterations.max():<3.0f}  cold restarts "
-            f"{stats.n_cold_restarts}, fallbacks {stats.n_fallbacks}{fallen}"
+            f"{name:46s} {robot.nv:3d} {np.median(wall):8.1f} {np.percentile(wall, 99):7.1f} "
+            f"{np.median(cpu):8.1f} {np.percentile(cpu, 99):7.1f} "
+            f"{np.median(parts['assembly']):8.1f} {np.median(parts['solve']):7.1f} "
+            f"{np.median(iterations):2.0f}/{iterations.max():<3.0f}  cold restarts "
+            f"{stats.n_cold_restarts}, fallbacks {stats.n_fallbacks}, torque-limited ticks "
+            f"{stats.n_torque_limited}{' FELL' if run['fallen'] else ''}"
         )
 
 

@@ -309,3 +309,125 @@ def test_talos_stands_in_simulation(talos):
     sole_positions = state.contact_positions
     start = simulator.reset(q0).contact_positions
     np.testing.assert_allclose(sole_positions[:, :2], start[:, :2], atol=1e-3)
+
+
+# ---------------------------------------------------------------- the reduced QPs
+def reference_solution(controller, q, v, acceleration_regularization, force_regularization):
+    """The QP of the module docstring, assembled naively: x = (qdd, f) with the base and
+    contact rows as equalities and the torque and cone rows as inequalities, from the tasks as
+    the controller's last tick updated them. Returns (qdd, wrenches, tau)."""
+    import proxsuite
+
+    robot, model = controller.robot, controller.model
+    data = model.createData()
+    pin.computeAllTerms(model, data, q, v)
+    mass, bias = data.M, data.nle
+    nv, n_act = robot.nv, robot.n_actuated
+    n_base, n_force = nv - n_act, 6 * len(controller.contacts)
+    n = nv + n_force
+    hessian = np.diag(np.r_[np.full(nv, acceleration_regularization), np.full(n_force, 0.0)])
+    hessian[nv:, nv:] += force_regularization * np.eye(n_force)
+    gradient = np.zeros(n)
+    for task in controller.tasks:
+        if isinstance(task, PostureTask):
+            indices = task.velocity_indices
+            hessian[indices, indices] += task.weight
+            gradient[indices] -= task.weight * task.target
+        else:
+            hessian[:nv, :nv] += task.weight * task.jacobian.T @ task.jacobian
+            gradient[:nv] -= task.weight * task.jacobian.T @ task.target
+    contact_jacobian = np.vstack([c.jacobian for c in controller.contacts])
+    contact_target = np.concatenate([c.target for c in controller.contacts])
+    equality = np.zeros((n_base + n_force, n))
+    equality[:n_base, :nv] = mass[:n_base]
+    equality[:n_base, nv:] = -contact_jacobian[:, :n_base].T
+    equality[n_base:, :nv] = contact_jacobian
+    equality_target = np.r_[-bias[:n_base], contact_target]
+    n_cone = 12 * len(controller.contacts)
+    inequality = np.zeros((n_act + n_cone, n))
+    inequality[:n_act, :nv] = mass[n_base:]
+    inequality[:n_act, nv:] = -contact_jacobian[:, n_base:].T
+    lower = np.r_[-robot.torque_limit - bias[n_base:], np.full(n_cone, -1e20)]
+    upper = np.r_[robot.torque_limit - bias[n_base:], np.zeros(n_cone)]
+    for k, contact in enumerate(controller.contacts):
+        rows = slice(n_act + 12 * k, n_act + 12 * (k + 1))
+        inequality[rows, nv + 6 * k : nv + 6 * (k + 1)] = contact.wrench_matrix
+        upper[rows] = contact.wrench_upper
+    qp = proxsuite.proxqp.dense.QP(n, n_base + n_force, n_act + n_cone)
+    qp.settings.eps_abs, qp.settings.eps_rel, qp.settings.max_iter = 1e-10, 0.0, 100000
+    qp.settings.eps_primal_inf = qp.settings.eps_dual_inf = 1e-14  # it is feasible
+    qp.init(hessian, gradient, equality, equality_target, inequality, lower, upper)
+    qp.solve()
+    assert qp.results.info.status.name == "PROXQP_SOLVED"
+    x = qp.results.x
+    tau = mass[n_base:] @ x[:nv] + bias[n_base:] - contact_jacobian[:, n_base:].T @ x[nv:]
+    return x[:nv], x[nv:].reshape(-1, 6), tau
+
+
+@pytest.mark.parametrize("case", ["free", "cones", "torque_limits", "contact_rows_kept"])
+def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
+    """The controller's eliminations (base and contact rows solved for the basic
+    accelerations, scaled wrenches, inequality rows added on demand) give the solution of the
+    QP as stated, when no inequality is active and when cone or torque rows are."""
+    import dataclasses
+
+    import dmpopt.control.inverse_dynamics as inverse_dynamics
+
+    rng = np.random.default_rng(7)
+    robot, friction, com_acceleration = talos, 0.7, [0.0, 0.0, 0.0]
+    if case == "cones":
+        friction, com_acceleration = 0.2, [6.0, -4.0, 0.0]
+    if case == "torque_limits":  # knees (leg joints 4) and hip pitch (3) far below gravity
+        limit = talos.torque_limit.copy()
+        limit[[2, 3, 8, 9]] = 20.0
+        robot = dataclasses.replace(talos, torque_limit=limit)
+    if case == "contact_rows_kept":  # every tick takes the ill-conditioned fallback
+        monkeypatch.setattr(inverse_dynamics, "_MIN_PIVOT_RATIO", 2.0)
+    regularization = {"acceleration_regularization": 1e-6, "force_regularization": 1e-6}
+    controller, com = standing_controller(
+        robot, friction=friction, tolerance=1e-10, **regularization
+    )
+    com.set_target(com.target_position, acceleration=com_acceleration)
+    for _ in range(3):
+        q, v = random_state(robot, rng, spread=0.02, speed=0.2)
+        q[:3] = robot.reference_configuration[:3]
+        tau = controller.compute_torques(q, v)
+        assert controller.stats.last_status == "PROXQP_SOLVED"
+        qdd, wrenches, tau_ref = reference_solution(controller, q, v, **regularization)
+        np.testing.assert_allclose(controller.joint_accelerations, qdd, atol=1e-6)
+        np.testing.assert_allclose(controller.contact_wrenches, wrenches, atol=1e-4)
+        tau_ref = np.clip(tau_ref, -robot.torque_limit, robot.torque_limit)
+        np.testing.assert_allclose(tau, tau_ref, atol=1e-4)
+    stats = controller.stats
+    assert stats.n_fallbacks == 0 and stats.n_cold_restarts == 0
+    if case == "cones":
+        margins = [c.cone_margin(w) for c, w in zip(controller.contacts, wrenches)]
+        assert min(m.min() for m in margins) < 1e-6, "a cone row should be active"
+    if case == "torque_limits":
+        assert stats.n_torque_limited > 0
+        assert np.any(np.abs(tau) >= robot.torque_limit - 1e-6)
+        assert np.all(np.abs(tau) <= robot.torque_limit + 1e-9)
+    else:
+        assert stats.n_torque_limited == 0
+
+
+def test_tasks_shared_by_two_controllers(upper_body):
+    """Tasks write into their controller's rows; a second controller built on the same tasks
+    takes them over, and the first still gets correct values."""
+    rng = np.random.default_rng(8)
+
+    def build():
+        posture = PostureTask(upper_body, weight=0.1, stiffness=10.0)
+        hand = FrameTask(upper_body, "gripper_left_base_link", weight=1.0, stiffness=50.0)
+        return [posture, hand]
+
+    shared = build()
+    first = InverseDynamicsController(upper_body, shared)
+    second = InverseDynamicsController(upper_body, shared)
+    alone = InverseDynamicsController(upper_body, build())
+    for _ in range(3):
+        q, v = random_state(upper_body, rng)
+        expected = alone.compute_torques(q, v)
+        np.testing.assert_allclose(first.compute_torques(q, v), expected, atol=1e-8)
+        np.testing.assert_allclose(second.compute_torques(q, v), expected, atol=1e-8)
+        np.testing.assert_allclose(shared[1].jacobian, alone.tasks[1].jacobian, atol=1e-12)

@@ -33,6 +33,53 @@ def test_imitation_full(tmp_path):
     assert metrics["goal_shift_error_mm"]["worst"] <= 1.0
 
 
+def _figures(folder):
+    return sorted(p.name for p in folder.glob("*.png") if p.stat().st_size > 10_000)
+
+
+def test_constrained_quick(tmp_path):
+    from studies import constrained
+
+    metrics = constrained.run(tmp_path, quick=True)
+    violations = metrics["violation_fraction"]
+    assert violations["dmp_unconstrained"] > 0.5  # the bounds are tight
+    constrained_name = [
+        m for m in violations if "dmp" in m and "constrained" in m and "unconstrained" not in m
+    ][0]
+    assert violations[constrained_name] == 0.0
+    assert metrics["solve_ms_median"][constrained_name] > 0
+    assert len(_figures(tmp_path)) >= 3
+
+
+def test_rl_quick(tmp_path):
+    from studies import rl
+
+    metrics = rl.run(tmp_path, quick=True)
+    assert metrics["optimum_return"] > metrics["initial_return"]
+    assert {"enac", "ereinforce"} <= set(metrics["trials_to_95"])
+    assert all(t is None or t > 0 for t in metrics["trials_to_95"].values())
+    assert metrics["trials_to_95"]["enac"] <= 400
+    assert len(_figures(tmp_path)) >= 2
+
+
+def test_recognition_quick(tmp_path):
+    from studies import recognition
+
+    metrics = recognition.run(tmp_path, quick=True)
+    assert 0.9 <= metrics["accuracy_loo"] <= 1.0
+    assert metrics["accuracy_transformed"] == metrics["accuracy_loo"]
+    assert len(_figures(tmp_path)) >= 2
+
+
+def test_biped_quick(tmp_path):
+    from studies import biped
+
+    metrics = biped.run(tmp_path, quick=True)
+    assert metrics["fell"] is False and metrics["steps_walked"] >= 10
+    assert {"steps_to_2pct", "cost_of_transport", "real_time_factor"} <= set(metrics)
+    assert len(_figures(tmp_path)) >= 3
+
+
 def test_cli_lists_studies(capsys):
     assert cli.main(["study", "list"]) == 0
     out = capsys.readouterr().out

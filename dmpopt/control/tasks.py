@@ -44,6 +44,14 @@ def _vector(value, size: int, name: str) -> np.ndarray:
     return array.copy()
 
 
+def _index(indices) -> slice | np.ndarray:
+    """A slice for contiguous increasing indices (faster to apply), else an index array."""
+    indices = np.asarray(indices, dtype=int)
+    if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
+        return slice(int(indices[0]), int(indices[0]) + indices.size)
+    return indices
+
+
 def _gains(stiffness, damping, size: int) -> tuple[np.ndarray, np.ndarray]:
     kp = _vector(stiffness, size, "stiffness")
     kd = 2.0 * np.sqrt(kp) if damping is None else _vector(damping, size, "damping")
@@ -62,8 +70,14 @@ class Task:
     r"""Base class: a weighted least-squares term :math:`w\lVert J\ddot q - b\rVert^2`.
 
     Subclasses fill ``self.jacobian`` (shape (m, nv)) and ``self.target`` (:math:`b = a^* -
-    \dot J \dot q`, shape (m,)) in :meth:`update`; a :class:`PostureTask` has
-    ``velocity_indices`` instead of a Jacobian.
+    \dot J \dot q`, shape (m,)) in :meth:`update`, in place (``self.jacobian[:] = ...``); a
+    :class:`PostureTask` has ``velocity_indices`` instead of a Jacobian.
+
+    An :class:`~dmpopt.control.InverseDynamicsController` makes ``jacobian`` and ``target``
+    views of its own QP rows when it is built, so that :meth:`update` writes straight into
+    them: read them through the attributes, not through references kept from before. (An
+    update that rebinds them instead, or a second controller sharing the task, is detected
+    and handled by copying.) :class:`SoleContact` is bound the same way.
     """
 
     weight: float
@@ -115,6 +129,8 @@ class PostureTask(Task):
         )
         self.velocity_indices = robot.velocity_indices(joints)
         self.configuration_indices = robot.configuration_indices(joints)
+        self._q_index = _index(self.configuration_indices)
+        self._v_index = _index(self.velocity_indices)
         size = len(self.velocity_indices)
         self.weight = _check_weight(weight)
         self.stiffness, self.damping = _gains(stiffness, damping, size)
@@ -153,12 +169,12 @@ class PostureTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the desired joint accelerations of the PD law above."""
-        np.subtract(self.reference_position, q[self.configuration_indices], out=self._error)
-        self.target[:] = (
-            self.reference_acceleration
-            + self.stiffness * self._error
-            + self.damping * (self.reference_velocity - v[self.velocity_indices])
-        )
+        np.subtract(self.reference_position, q[self._q_index], out=self._error)
+        target = self.target
+        np.subtract(self.reference_velocity, v[self._v_index], out=target)
+        target *= self.damping
+        target += self.stiffness * self._error
+        target += self.reference_acceleration
 
 
 class FrameTask(Task):
@@ -209,7 +225,9 @@ class FrameTask(Task):
         self.rows = np.array(sorted(set(int(c) for c in components)), dtype=int)
         if self.rows.size == 0 or self.rows.min() < 0 or self.rows.max() > 5:
             raise InvalidInputError(f"components={components!r}; expected indices in 0..5")
-        self._all_rows = self.rows.size == 6
+        first = int(self.rows[0])
+        contiguous = np.array_equal(self.rows, np.arange(first, first + self.rows.size))
+        self._row_index = slice(first, first + self.rows.size) if contiguous else self.rows
         self._tracks_position = bool(self.rows.min() < 3)
         self._tracks_orientation = bool(self.rows.max() >= 3)
         self.model = robot.model
@@ -253,7 +271,7 @@ class FrameTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration."""
-        model, frame_id = self.model, self.frame_id
+        model, frame_id, rows = self.model, self.frame_id, self._row_index
         placement = data.oMf[frame_id]
         error = self._error
         if self._tracks_position:
@@ -262,17 +280,13 @@ class FrameTask(Task):
             error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
         velocity = pin.getFrameVelocity(model, data, frame_id, _LWA).vector
         drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
-        desired = self.stiffness * error
-        desired += self.damping * (self.target_velocity - velocity)
-        desired += self.target_acceleration
-        desired -= drift
-        jacobian = pin.getFrameJacobian(model, data, frame_id, _LWA)
-        if self._all_rows:
-            self.target[:] = desired
-            self.jacobian[:] = jacobian
-        else:
-            self.target[:] = desired[self.rows]
-            self.jacobian[:] = jacobian[self.rows]
+        target = self.target  # a_ref + Kp e + Kd (v_ref - v) - drift, tracked rows only
+        np.subtract(self.target_velocity[rows], velocity[rows], out=target)
+        target *= self.damping[rows]
+        target += self.stiffness[rows] * error[rows]
+        target += self.target_acceleration[rows]
+        target -= drift[rows]
+        self.jacobian[:] = pin.getFrameJacobian(model, data, frame_id, _LWA)[rows]
 
 
 class ComTask(Task):
@@ -323,12 +337,12 @@ class ComTask(Task):
         """
         pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
         np.subtract(self.target_position, data.com[0], out=self._error)
-        self.target[:] = (
-            self.target_acceleration
-            + self.stiffness * self._error
-            + self.damping * (self.target_velocity - data.vcom[0])
-            - data.acom[0]
-        )
+        target = self.target
+        np.subtract(self.target_velocity, data.vcom[0], out=target)
+        target *= self.damping
+        target += self.stiffness * self._error
+        target += self.target_acceleration
+        target -= data.acom[0]
         self.jacobian[:] = data.Jcom
 
 
@@ -434,13 +448,16 @@ class SoleContact:
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
-        placement = data.oMf[self.frame_id]
+        model, frame_id = self.model, self.frame_id
+        placement = data.oMf[frame_id]
         if self.reference_placement is None:
             self.reference_placement = placement.copy()
-        velocity = pin.getFrameVelocity(self.model, data, self.frame_id, pin.LOCAL).vector
-        drift = pin.getFrameAcceleration(self.model, data, self.frame_id, pin.LOCAL).vector
-        self.target[:] = -self.damping * velocity - drift
+        target = self.target
+        velocity = pin.getFrameVelocity(model, data, frame_id, pin.LOCAL).vector
+        np.multiply(velocity, -self.damping, out=target)
+        target -= pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
         if self.stiffness > 0:
             deviation = pin.log6(self.reference_placement.actInv(placement)).vector
-            self.target -= self.stiffness * deviation
-        self.jacobian[:] = pin.getFrameJacobian(self.model, data, self.frame_id, pin.LOCAL)
+            deviation *= self.stiffness
+            target -= deviation
+        self.jacobian[:] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)

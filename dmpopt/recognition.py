@@ -31,6 +31,10 @@ smallest rotation onto :math:`e_1` is not unique up to a rotation about :math:`d
   shapes such as a "J" drawn upright or tilted have close :math:`\bar w` and differ in the
   direction in which they travel. Set ``direction_weight=0`` for rotation-invariant features.
 
+Because the features are exactly invariant to uniform scaling, movements that differ only in
+size get identical features: classes defined partly by size (in LASA, Multi_Models_4 demos
+5-7 are a Trapezoid at half its size) cannot be separated by any classifier on them.
+
 Classifiers follow scikit-learn's conventions (``fit`` returns ``self``, fitted attributes
 end in ``_``): :class:`NearestNeighbourClassifier` (the paper's choice) and
 :class:`ShrinkageLdaClassifier` (linear discriminant analysis with a shrunk pooled

@@ -298,3 +298,34 @@ def test_error_partial_inputs(dmp, demo):
         classifier.match(still)
     with _raises(InvalidInputError, "fraction must be in (0, 1], got 0.0"):
         first_part(demo, 0.0)
+
+
+def test_nested_leave_one_out_table_matches_refits():
+    """The study's nested LOO table: entry [i, j] is 1-NN trained without samples i and j."""
+    from studies.recognition import _loo_distance_predictions
+
+    rng = np.random.default_rng(3)
+    features = rng.normal(size=(12, 3))
+    labels = np.array(list("aabbccaabbcc"))
+    table = _loo_distance_predictions(features, labels)
+    assert np.array_equal(
+        np.diag(table), leave_one_out(NearestNeighbourClassifier(), features, labels)
+    )
+    for i, j in ((0, 5), (7, 2), (11, 4)):
+        keep = np.setdiff1d(np.arange(12), [i, j])
+        fitted = NearestNeighbourClassifier().fit(features[keep], labels[keep])
+        assert table[i, j] == fitted.predict(features[[j]])[0]
+
+
+def test_scaled_copy_is_indistinguishable():
+    """A smaller copy of a stroke has exactly the same features: scale cannot separate classes.
+
+    This is why, in LASA, Multi_Models sub-patterns that are smaller copies of single shapes
+    (Multi_Models_4 demos 5-7 and Trapezoid) are confused by any scale-invariant recogniser.
+    """
+    demo = _shape(1)
+    small = _moved(demo, scale=0.45, offset=(-20.0, 3.0), stretch=1.0)
+    features = movement_features([fit_discrete(demo, N_BASIS), fit_discrete(small, N_BASIS)])
+    assert np.allclose(features[1], features[0], rtol=0, atol=1e-9 * abs(features).max())
+    classifier = NearestNeighbourClassifier().fit(features[:1], ["big"])
+    assert classifier.predict(features[1:])[0] == "big"

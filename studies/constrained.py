@@ -1,4 +1,4 @@
-"""Study `constrained`: limits by construction versus after the fact, on the LASA shapes.
+"""Constrained DMPs vs minimum jerk vs retiming under tight limits on LASA (beyond the paper).
 
 Claim evaluated: fitting DMP weights as a QP under velocity/acceleration bounds (with a
 shifted goal) gives plans that respect the bounds at every sample, keep the demonstrated

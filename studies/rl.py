@@ -1,4 +1,4 @@
-"""Study ``rl``: reinforcement learning of a DMP, Fig. 5 of [dmpopt-paper] (Section 4.2).
+"""Reinforcement learning of DMP weights: eNAC vs eREINFORCE and beyond (Fig. 5, Section 4.2).
 
 Claim of the paper: on a 1-DOF acceleration DMP that must move from 0 to 1 in 500 ms
 (10 basis functions, weights from zero, 20 roll-outs per update), episodic Natural
@@ -58,7 +58,8 @@ VARIANTS = {
     # CMA-ES with its own default population size 4 + floor(3 ln n) instead of 20 roll-outs
     "cmaes_default_population": ("cmaes", {}, "exploration_std", (5.0, 10.0, 20.0, 40.0)),
 }
-SCALE_FREE = ("enac_kl", "ereinforce_kl", "pibb", "cmaes", "cmaes_default_population")  # usable on any task unchanged
+# variants usable on any task unchanged
+SCALE_FREE = ("enac_kl", "ereinforce_kl", "pibb", "cmaes", "cmaes_default_population")
 EXPLORATION_STD = 10.0  # sigma of eq. (17) [m/s^2 per 1 ms step], the default noise level
 BATCH = 20
 EXPECTED_SECONDS = {"full": 560, "quick": 25}  # measured on the 2-core machine

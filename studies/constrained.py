@@ -26,7 +26,7 @@ import numpy as np
 from . import lasa
 from .common import write_metrics
 
-EXPECTED_SECONDS = {"full": 30, "quick": 5}  # measured on the 2-core machine
+EXPECTED_SECONDS = {"full": 25, "quick": 2}  # measured on the 2-core machine
 METHODS = ("dmp_unconstrained", "dmp_constrained", "minimum_jerk", "dmp_retimed_toppra",
            "dmp_tau_scaled")
 

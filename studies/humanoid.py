@@ -67,7 +67,7 @@ from dmpopt.control import (
 from dmpopt.sim import GroundContact, Simulator
 from robots import load_talos
 
-EXPECTED_SECONDS = {"full": 40, "quick": 20}  # measured: 38 s and 20 s wall, 2 cores
+EXPECTED_SECONDS = {"full": 35, "quick": 15}  # measured on the 2-core machine
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)

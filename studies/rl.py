@@ -62,7 +62,7 @@ VARIANTS = {
 SCALE_FREE = ("enac_kl", "ereinforce_kl", "pibb", "cmaes", "cmaes_default_population")
 EXPLORATION_STD = 10.0  # sigma of eq. (17) [m/s^2 per 1 ms step], the default noise level
 BATCH = 20
-EXPECTED_SECONDS = {"full": 560, "quick": 25}  # measured on the 2-core machine
+EXPECTED_SECONDS = {"full": 340, "quick": 20}  # measured on the 2-core machine
 
 
 def _options(variant: str, value: float, sigma: float, batch: int, n_params: int = 10) -> dict:

@@ -16,25 +16,21 @@ Reference (TSID 1.7, C++): ~160-170 us/tick reduced, 250-340 us full, ~20 us upp
 Run: ``/work/venv/bin/python benchmarks/bench_controller.py [--seconds 2]``.
 """
 
-import os
+import argparse
+import time
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # tiny matrices: threads only cost
+import numpy as np
+import pinocchio as pin
 
-import argparse  # noqa: E402
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-
-from dmpopt.control import (  # noqa: E402
+from dmpopt.control import (
     ComTask,
     FrameTask,
     InverseDynamicsController,
     PostureTask,
     SoleContact,
 )
-from dmpopt.sim import GroundContact, Simulator  # noqa: E402
-from robots import load_talos  # noqa: E402
+from dmpopt.sim import GroundContact, Simulator
+from robots import load_talos
 
 DT = 1e-3  # [s] control and simulation period
 DRUM_AMPLITUDE = 0.04  # [m]
@@ -194,4 +190,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):  # tiny matrices: threads only cost
+        main()

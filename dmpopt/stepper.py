@@ -11,7 +11,7 @@ import numpy as np
 
 from . import symbolic
 from .dmp import DiscreteDMP, RhythmicDMP, _positive, _vector
-from .exceptions import InvalidInputError
+from .exceptions import InvalidInputError, ShapeError
 
 _INPUT = {name: 2 + i for i, name in enumerate(symbolic.PARAMETER_NAMES)}
 
@@ -126,6 +126,12 @@ class Stepper:
             Additive term on the canonical system (``tau * vdot`` or ``tau * phidot``).
         """
         if coupling is not None:
+            coupling = np.asarray(coupling, dtype=float)
+            if coupling.shape not in ((), (1,), (self.dmp.n_dofs,)):
+                raise ShapeError(
+                    f"coupling has shape {coupling.shape}, expected ({self.dmp.n_dofs},) "
+                    "(one term per DOF) or a scalar"
+                )
             self._write("coupling", coupling)
         self._function.inputs[_INPUT["canonical_coupling"]][0] = canonical_coupling
         self._function.evaluate()

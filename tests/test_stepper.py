@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import InvalidInputError
+from dmpopt import InvalidInputError, ShapeError
 
 
 def _run(stepper, n, **kwargs):
@@ -86,3 +86,5 @@ def test_errors():
         stepper.set_time_constant(0.0)
     with pytest.raises(InvalidInputError, match="reset_phase applies to rhythmic"):
         stepper.reset_phase(0.0)
+    with pytest.raises(ShapeError, match=r"coupling has shape \(5,\), expected \(2,\)"):
+        stepper.step(coupling=np.zeros(5))

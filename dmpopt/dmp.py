@@ -87,7 +87,7 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
 def _response(key: tuple) -> np.ndarray:
     """Response matrices of one DOF, in time normalised by ``tau``.
 

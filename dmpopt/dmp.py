@@ -405,6 +405,26 @@ class DiscreteDMP(_DmpCommon):
         gains = self.gains[:4] + ((self.goal_rate,) if self.form == "acceleration" else ())
         return self.time_constant * basis.convergence_time(self.form, gains)
 
+    def phase_features(self, n_steps: int, dt: float) -> np.ndarray:
+        """Regressors of the forcing term, eq. (7), at ``k dt`` for ``k < n_steps``.
+
+        The canonical system (6) is integrated from rest as in a rollout; the result does not
+        depend on the weights, start or goal. Shape (n_steps, n_basis).
+        """
+        signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
+        unforced = self.replace(
+            weights=np.zeros((1, self.n_basis)),
+            start=[0.0],
+            goal=[0.0],
+            goal_scaling="translation",
+            reference_displacement=None,
+        )
+        states = symbolic.simulate(
+            signature, n_steps, np.zeros(signature.n_states), dt, unforced.parameter_values()
+        )[0]
+        features = symbolic.feature_function(signature).map(n_steps)
+        return features(states[:, :2].T, self.centres, self.widths).full().T
+
     def rollout(self, duration: float | None = None, dt: float = 0.001, start_velocity=0.0):
         """The whole plan from ``start`` at rest (or ``start_velocity``).
 

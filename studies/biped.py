@@ -446,14 +446,6 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     return write_metrics(out_dir, "biped", metrics, parameters, seed, quick)
 
 
-def _jsonable(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, np.bool_):
-        return bool(value)
-    raise TypeError(f"cannot serialise {type(value).__name__}")
-
-
 def _plot(out_dir, biped, adapted, others, final, natural, sweep, metrics) -> None:
     import matplotlib
 

@@ -247,3 +247,12 @@ def test_symbolic_rollout_function_matches_numeric_integration(form):
     )
     stepped = symbolic.simulate(dmp.signature, n, initial, 0.002, dmp.parameter_values())[1]
     np.testing.assert_allclose(positions, stepped, atol=1e-12)
+
+
+def test_phase_features_sum_to_the_phase_velocity():
+    """Normalised activations sum to one, so the features of eq. (7) sum to v (eq. 6)."""
+    dmp = random_discrete(seed=13)
+    features = dmp.phase_features(300, 0.002)
+    s = dmp.phase_stiffness * np.arange(300) * 0.002 / (2 * dmp.time_constant)
+    velocity = dmp.phase_stiffness / 2 * s * np.exp(-s)  # d/dt' of 1 - (1 + s) e^-s, tau = 1
+    np.testing.assert_allclose(features.sum(axis=1), velocity, atol=1e-5)  # RK4, dt/tau = 0.005

@@ -43,7 +43,6 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .. import symbolic
 from ..dmp import AffinePlan, DiscreteDMP, similarity_transform
 from ..exceptions import (
     FittingFailed,
@@ -362,23 +361,6 @@ def _interpolation(time_value: float, dt: float, n_steps: int, name: str) -> tup
     return k, float(np.clip(position - k, 0.0, 1.0))
 
 
-def _features_over_time(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
-    """Regressors of the forcing term at every sample, shape (n_steps, n_basis)."""
-    signature = symbolic.Signature(dmp.form, 1, dmp.n_basis, "gaussian")
-    one = dmp.replace(
-        weights=np.zeros((1, dmp.n_basis)),
-        start=[0.0],
-        goal=[1.0],
-        goal_scaling="translation",
-        reference_displacement=None,
-        time_constant=1.0,
-    )
-    initial = np.zeros(signature.n_states)
-    states = symbolic.simulate(signature, n_steps, initial, dt, one.parameter_values())[0]
-    function = symbolic.feature_function(signature).map(n_steps)
-    return function(states[:, :2].T, dmp.centres, dmp.widths).full().T
-
-
 def _moved_demonstration(demo, dmp, start, goal, times, duration):
     """The demonstration carried to a new start, goal and duration by the goal scaling."""
     normalised = times / duration * demo.duration + demo.times[0]
@@ -511,7 +493,7 @@ def build_fitting_problem(
         targets = target - plan.free[0]
         prior = np.zeros((n_dofs, dmp.n_basis))
     else:
-        matrix = _features_over_time(dmp, n_steps, dt / tau)
+        matrix = dmp.phase_features(n_steps, dt)
         prior = dmp.forcing_weights()
         targets = matrix @ prior.T
     gram = matrix.T @ matrix

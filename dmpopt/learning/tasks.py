@@ -125,18 +125,6 @@ def _noise_response(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
     return response
 
 
-def _policy_features(dmp: DiscreteDMP, times: np.ndarray, dt: float) -> np.ndarray:
-    """``d mu_k / d w_i = phi_i(x_k) / tau^2`` at each step's sample, (n_steps - 1, n_basis)."""
-    signature = symbolic.Signature("acceleration", 1, dmp.n_basis, "gaussian")
-    n_steps = times.size
-    initial = np.zeros(signature.n_states)
-    parameters = dmp.replace(weights=np.zeros((1, dmp.n_basis)), start=[0.0], goal=[0.0])
-    states = symbolic.simulate(signature, n_steps, initial, dt, parameters.parameter_values())[0]
-    feature = symbolic.feature_function(signature).map(n_steps - 1)
-    phi = feature(states[:-1, :2].T, np.asarray(dmp.centres), np.asarray(dmp.widths)).full().T
-    return phi / dmp.time_constant**2
-
-
 @dataclass(frozen=True, eq=False)
 class RewardTask:
     r"""A DMP, a horizon and a quadratic reward (module docstring); values are read-only.
@@ -212,7 +200,8 @@ class RewardTask:
         object.__setattr__(self, "_fft_size", fft_size)
         impulse = response[:, :, 0]  # effect of an input at step 0 on every sample
         object.__setattr__(self, "_impulse_spectrum", np.fft.rfft(impulse, n=fft_size, axis=1))
-        features = _policy_features(self.dmp, plan.times, self.dt)
+        # d mu_k / d w_i = phi_i(x_k) / tau^2 at each step's sample, (n_steps - 1, n_basis)
+        features = self.dmp.phase_features(n_steps, self.dt)[:-1] / self.dmp.time_constant**2
         features.setflags(write=False)
         object.__setattr__(self, "policy_features", features)
         object.__setattr__(self, "_optimum", self._solve_optimum())

@@ -69,6 +69,7 @@ __all__ = ["ControllerStats", "InverseDynamicsController"]
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 _COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+_DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
 _NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
 _RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
 _MIRRORED_SETTINGS = ("eps_abs", "eps_rel", "max_iter", "verbose")
@@ -347,7 +348,7 @@ class InverseDynamicsController:
         # ---- QPs over z = x_N (nonbasic): the base and contact rows [G | t] solved for the
         # basic accelerations, x_B = U_c - U_N z with [U_N | U_c] = G_B^-1 [G_N | t]; without
         # inequality rows (primary) and with the cone rows.
-        self._eliminated = self._eliminated_cones = None
+        self._basic = self._eliminated_cones = None
         joints = _contact_joints(robot, self.contacts, n_base) if n_c else np.zeros(0, int)
         if joints is not None and n_base + joints.size:
             basic = np.concatenate([np.arange(n_base), joints])
@@ -366,9 +367,10 @@ class InverseDynamicsController:
             self._z_cone_upper = cone_upper
             self._z_cone_release = cone_upper - _CONE_RELEASE_MARGIN * scale
             self._z_cone_values = np.zeros(n_cone)
+            self._z_solution = np.zeros(n_z)
+            self._z_factor = np.zeros((n_z, n_z))
             z_cones = (self._z_cone_matrix, cone_lower, cone_upper)
             z_arguments = _arguments(self._z_hessian, self._z_gradient)
-            self._eliminated = _Stage(n_z, 0, 0, dense_backend, z_arguments, z_arguments)
             if n_cone:
                 self._eliminated_cones = _Stage(
                     n_z,
@@ -378,11 +380,10 @@ class InverseDynamicsController:
                     _arguments(self._z_hessian, self._z_gradient, None, z_cones),
                     z_arguments,
                 )
-        self._primary = self._eliminated or self._free
+        self._primary = self._limited
+        self._y_factor = np.zeros((n, n))  # for the Cholesky factor of the Hessian over y
         self._stages = tuple(
-            s
-            for s in (self._eliminated, self._eliminated_cones, self._free, self._limited)
-            if s is not None
+            s for s in (self._eliminated_cones, self._free, self._limited) if s is not None
         )
         self.qp = self._primary.qp
         self.qp.settings.eps_abs = tolerance
@@ -455,26 +456,35 @@ class InverseDynamicsController:
         self.stats.n_ticks += 1
         self._assemble(q, v)
         # Inequality rows are added only when the solution without them violates them; a
-        # level is kept until its rows are slack by a margin (hysteresis).
+        # level is kept until its rows are slack by a margin (hysteresis). Without inequality
+        # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
         level, solved, mapped = self._level, True, False
         if level < 2:
-            if self._eliminated is not None and self._assemble_eliminated():
+            if self._basic is not None and self._assemble_eliminated():
                 if level == 0:
-                    solved = self._solve(self._eliminated)
-                    if solved and self._eliminated_cones is not None and self._cones_violated():
+                    solved = self._solve_direct(self._z_hessian, self._z_gradient, eliminated=True)
+                    if not solved:
+                        level = 2
+                    elif self._eliminated_cones is not None and self._cones_violated():
                         level = 1
-                if solved and level == 1:
+                if level == 1:
                     solved = self._solve(self._eliminated_cones)
                     if solved and self._cones_released():
                         level = 0
+            elif not self.contacts:  # fixed base: no equality rows
+                self._assemble_y()
+                mapped = True
+                solved = self._solve_direct(self._hessian, self._gradient, eliminated=False)
+                if not solved:
+                    level = 2
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
                 self._assemble_y()
                 mapped = True
                 solved = self._solve(self._free)
                 level = min(level, 1)
-            if solved and (np.abs(self._tau) > self.torque_limit).any():
+            if solved and level < 2 and (np.abs(self._tau) > self.torque_limit).any():
                 level = 2
-        if solved and level == 2:
+        if level == 2:
             self.stats.n_torque_limited += 1
             if not mapped:
                 self._assemble_y()
@@ -570,7 +580,7 @@ class InverseDynamicsController:
 
     def _cones_violated(self) -> bool:
         """Whether the cone-free solution z leaves a friction or CoP cone."""
-        values = np.dot(self._z_cone_matrix, self._eliminated.qp.results.x, out=self._z_cone_values)
+        values = np.dot(self._z_cone_matrix, self._z_solution, out=self._z_cone_values)
         return bool((values > self._z_cone_upper).any())
 
     def _cones_released(self) -> bool:
@@ -665,8 +675,32 @@ class InverseDynamicsController:
         solution = results.x
         if not math.isfinite(solution.sum()):
             return False
+        self._accept(solution, eliminated=stage is self._eliminated_cones)
+        return True
+
+    def _solve_direct(self, hessian: np.ndarray, gradient: np.ndarray, eliminated: bool) -> bool:
+        """Minimise 1/2 u^T H u + g^T u without constraints: H u = -g by Cholesky.
+
+        H is kept for a QP solve on the same tick; its copy is factorised in place (symmetric,
+        so the C-ordered copy read in Fortran order is the same matrix).
+        """
+        factor = self._z_factor if eliminated else self._y_factor
+        np.copyto(factor, hessian)
+        _, solution, info = lapack.dposv(factor.T, gradient, overwrite_a=1)
+        stats = self.stats
+        stats.last_status, stats.last_iterations = _DIRECT, 0
+        if info != 0 or not math.isfinite(solution.sum()):
+            return False
+        np.negative(solution, out=solution)
+        if eliminated:
+            self._z_solution = solution
+        self._accept(solution, eliminated)
+        return True
+
+    def _accept(self, solution: np.ndarray, eliminated: bool) -> None:
+        """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
         x, n_base = self._candidate, self._n_base
-        if stage is self._eliminated or stage is self._eliminated_cones:  # x_B = U_c - U_N z
+        if eliminated:  # x_B = U_c - U_N z
             elimination, basic = self._elimination, self._basic
             n_z = solution.size
             x[self._nonbasic] = solution
@@ -680,7 +714,6 @@ class InverseDynamicsController:
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
         self._read_torques()
-        return True
 
     def _read_torques(self) -> None:
         """Unscale the wrenches of the candidate x and compute its torques."""

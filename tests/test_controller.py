@@ -134,6 +134,13 @@ def test_torque_limits_hold(upper_body):
     np.testing.assert_allclose(
         tau, pin.rnea(upper_body.model, data, q, v, controller.joint_accelerations), atol=1e-6
     )
+    assert controller.stats.n_torque_limited == 1 and controller.stats.n_direct == 0
+    # A gentle reference releases the limits: from the next tick on, closed form again.
+    posture.set_reference(q, v, np.zeros(upper_body.nv))
+    for _ in range(2):
+        tau = controller.compute_torques(q, v)
+    assert controller.stats.n_direct == 1 and controller.stats.last_status == "CHOLESKY_SOLVED"
+    np.testing.assert_allclose(tau, pin.rnea(upper_body.model, data, q, v, 0 * v), atol=1e-6)
 
 
 # ---------------------------------------------------------------- floating base with contacts

@@ -34,9 +34,13 @@ The QP that proxsuite sees is smaller than this statement, with the same solutio
   ill-conditioned on a tick (a stretched leg), that tick falls back to eliminating only the
   base rows (with :math:`M_{bb}`, the robot's composite inertia, always positive definite) and
   keeping the contact rows as equality constraints.
-- **Inequality rows on demand.** The QP without inequality rows is solved first; if its
-  wrenches are inside the cones and its torques within the limits, it is also the solution with
-  them (a convex problem whose optimum without some constraints satisfies them). Otherwise the
+- **Inequality rows on demand.** The QP without inequality rows is solved first; it is an
+  unconstrained least-squares problem over z, solved by one Cholesky factorisation of its
+  Hessian, without proxsuite. With posture tasks only on a fixed base its Hessian is diagonal:
+  :math:`\ddot q = -g/d` in closed form and :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`.
+  If its wrenches are inside the cones and its torques within the limits, it is also the
+  solution with them (a convex problem whose optimum without some constraints satisfies
+  them); on the drumming study this holds on every tick. Otherwise the
   QP with the cone rows is solved, and if the torques leave their limits the QP with cone and
   torque rows (over :math:`(\ddot q_a, f)`, base rows eliminated). A QP with more rows is used
   first on the following ticks until its extra rows are slack by a margin (1 % of the torque
@@ -44,8 +48,8 @@ The QP that proxsuite sees is smaller than this statement, with the same solutio
 
 The wrenches enter the QP divided by the robot's weight, so that forces and accelerations have
 the same scale, and proxsuite's proximal parameter is lowered to 1e-8 (the Hessians are
-positive definite). Every QP is sized once and warm-started from its previous primal and dual
-solution; the constant cone rows are passed to proxsuite once.
+positive definite). Every proxsuite QP is sized once and warm-started from its previous
+primal and dual solution; the constant cone rows are passed to proxsuite once.
 """
 
 from __future__ import annotations
@@ -98,8 +102,12 @@ class ControllerStats:
         Ticks where the cold solve failed too and the fallback torque was returned.
     n_torque_limited : int
         Ticks that needed the QP with torque-limit rows.
+    n_direct : int
+        Ticks solved without proxsuite: no inequality row was active, so the QP reduced to a
+        least-squares problem (one Cholesky factorisation, or closed form for posture tasks
+        on a fixed base).
     last_status : str
-        proxsuite status of the last solve.
+        proxsuite status of the last solve, or ``"CHOLESKY_SOLVED"`` for a direct one.
     last_iterations : int
         Iterations of the last solve.
     """
@@ -108,6 +116,7 @@ class ControllerStats:
     n_cold_restarts: int = 0
     n_fallbacks: int = 0
     n_torque_limited: int = 0
+    n_direct: int = 0
     last_status: str = "not run"
     last_iterations: int = 0
 
@@ -195,17 +204,19 @@ class InverseDynamicsController:
     Attributes
     ----------
     qp : proxsuite.proxqp.dense.QP
-        The QP solved on ordinary ticks: over the reduced variables of the module notes,
-        without inequality rows. Its settings ``eps_abs``, ``eps_rel``, ``max_iter`` and
-        ``verbose`` are copied to the other QPs (with cone rows, with torque-limit rows, with
-        the contact rows kept) before each of their solves.
+        The QP with torque-limit rows (and cone rows, if in contact). Its settings
+        ``eps_abs``, ``eps_rel``, ``max_iter`` and ``verbose`` are copied to the other
+        proxsuite QPs (with cone rows only, with the contact rows kept) before each of their
+        solves. Ticks without an active inequality row do not use proxsuite.
 
     Notes
     -----
     A failed solve (status other than solved, or any non-finite value) is re-solved once
     without initial guess; if that fails too, the controller returns the last valid torque
     (gravity and Coriolis compensation :math:`h_a` on the first tick), clipped to the torque
-    limits, and counts the event in :attr:`stats`. It never returns NaN.
+    limits, and counts the event in :attr:`stats`. It never returns NaN. A Cholesky
+    factorisation that fails (not expected: the Hessians are positive definite) hands its tick
+    to the QP with all inequality rows.
     """
 
     def __init__(
@@ -296,6 +307,9 @@ class InverseDynamicsController:
             diagonal[indices] += task.weight
             self._posture_terms.append((task, _index(indices), -task.weight))
         self._posture_gradient = np.zeros(n_x)
+        # Fixed base, posture tasks only: diagonal Hessian, solved in closed form.
+        self._joint_space = not (self.contacts or self._stacked_tasks or nv > robot.n_actuated)
+        self._negative_inverse_diagonal = -1.0 / diagonal
 
         # Cone rows over x (scaled wrenches): constant.
         cone_matrix = np.zeros((n_cone, n_x))
@@ -454,6 +468,8 @@ class InverseDynamicsController:
         ):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
+        if self._joint_space and self._level == 0 and self._solve_joint_space(q, v):
+            return self._torques.copy()
         self._assemble(q, v)
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
@@ -491,9 +507,11 @@ class InverseDynamicsController:
             self._assemble_torque_rows()
             solved = self._solve(self._limited)
             if solved and (np.abs(self._tau) < self._release_limit).all():
-                level = 1
+                level = 1 if self.contacts else 0  # without contacts there are no cone rows
         self._level = level
         if solved:
+            if self.stats.last_status is _DIRECT:
+                self.stats.n_direct += 1
             self._has_valid_torque = True
             self._solution, self._candidate = self._candidate, self._solution
             np.minimum(self._tau, self.torque_limit, out=self._torques)
@@ -501,6 +519,25 @@ class InverseDynamicsController:
         else:
             self._fall_back()
         return self._torques.copy()
+
+    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
+        """Fixed base with posture tasks only: the QP without torque rows has a diagonal
+        Hessian, so qdd = -g / d and tau = RNEA(q, v, qdd). False (nothing changed but the
+        tasks) if a torque leaves its limit; the caller then solves the QP with the limits.
+        """
+        self._update_posture(q, v)
+        x = self._candidate
+        np.multiply(self._posture_gradient, self._negative_inverse_diagonal, out=x)
+        tau = pin.rnea(self.model, self.data, q, v, x)
+        if (np.abs(tau) > self.torque_limit).any():
+            return False
+        stats = self.stats
+        stats.last_status, stats.last_iterations = _DIRECT, 0
+        stats.n_direct += 1
+        self._has_valid_torque = True
+        self._solution, self._candidate = x, self._solution
+        np.copyto(self._torques, tau)
+        return True
 
     # ------------------------------------------------------------------ assembly
     def _bind(self, item, rows: slice) -> tuple:
@@ -521,7 +558,11 @@ class InverseDynamicsController:
             if item.jacobian is not jacobian:  # rebound since (e.g. by another controller)
                 rows[block, : self._nv] = item.jacobian
                 rows[block, -1] = item.target
-        posture, terms = self._posture_gradient, self._posture_terms
+        self._update_posture(q, v)
+
+    def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Posture targets and their gradient terms -w qdd* over x."""
+        posture, terms, data = self._posture_gradient, self._posture_terms, self.data
         if len(terms) == 1:  # entries off the task's joints stay zero
             task, indices, scale = terms[0]
             task.update(q, v, data)

@@ -27,6 +27,15 @@ smallest rotation onto :math:`e_1` is not unique up to a rotation about :math:`d
   \bar w_2)^T\|^2`. Raw Euclidean distances between weights are dominated by directions
   the plan hardly sees (nearby Gaussians with opposite weights), more so with many basis
   functions;
+* the plan also depends on the initial velocity :math:`\dot y_0` that
+  :func:`dmpopt.fit_discrete` starts it from (the demonstration's first velocity), which the
+  weights do not hold: a demonstration that starts fast is fitted with weights that assume
+  that start. Passed as ``start_velocities``, :math:`\bar v = S(d \to e_1)\, \tau \dot y_0`
+  (invariant like :math:`\bar w`) joins the weights, so the metric compares the plans the
+  DMPs were fitted to reproduce (:func:`normalised_plan`);
+* the same normalised plan resampled at equal arc length (its *path*, ``path_weight``):
+  the plan metric compares positions at equal times, so one demonstration that traces the
+  path of its class with a different speed profile is far from it; its path is not;
 * the unit start-goal direction :math:`d / \|d\|`, times ``direction_weight``, is appended:
   shapes such as a "J" drawn upright or tilted have close :math:`\bar w` and differ in the
   direction in which they travel. Set ``direction_weight=0`` for rotation-invariant features.
@@ -86,6 +95,14 @@ def _displacement(dmp: DiscreteDMP) -> tuple[np.ndarray, np.ndarray]:
     return forcing, displacement
 
 
+def _start_goal_frame(dmp: DiscreteDMP) -> tuple[np.ndarray, np.ndarray]:
+    r"""Forcing weights and :math:`S(d \to e_1)`; raise if :math:`d` is (numerically) zero."""
+    forcing, displacement = _displacement(dmp)
+    axis = np.zeros_like(displacement)
+    axis[0] = 1.0
+    return forcing, similarity_transform(displacement, axis)
+
+
 def normalised_weights(dmp: DiscreteDMP) -> np.ndarray:
     r"""Express the forcing weights in the start-goal frame, per unit of the start-goal distance.
 
@@ -102,14 +119,93 @@ def normalised_weights(dmp: DiscreteDMP) -> np.ndarray:
     -------
     ndarray, shape (n_dofs, n_basis)
     """
+    forcing, frame = _start_goal_frame(_check_dmp(dmp))
+    return frame @ forcing
+
+
+def _check_start_velocity(value, n_dofs: int) -> np.ndarray:
+    if value is None:
+        return np.zeros(n_dofs)
+    velocity = np.atleast_1d(as_finite_array("start_velocity", value))
+    if velocity.shape != (n_dofs,):
+        raise ShapeError(
+            f"start_velocity has shape {velocity.shape}, expected ({n_dofs},): the DMP's first "
+            "velocity, one value per DOF (fit_discrete starts from demo.velocities[0])"
+        )
+    return velocity
+
+
+def _check_n_samples(n_samples) -> int:
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 3:
+        raise InvalidInputError(f"n_samples must be an integer >= 3, got {n_samples!r}")
+    return int(n_samples)
+
+
+def normalised_plan(dmp: DiscreteDMP, start_velocity=None, n_samples: int = 200) -> np.ndarray:
+    r"""The DMP's plan in the start-goal frame, per unit of the start-goal distance.
+
+    The plan of the DMP with weights :math:`\bar w` (:func:`normalised_weights`), start 0,
+    goal :math:`e_1`, :math:`\tau = 1` and initial velocity
+    :math:`\bar v = S(d \to e_1)\, \tau \dot y_0`, sampled at ``n_samples`` equally spaced
+    times over its convergence time. It is :math:`S(d \to e_1)(y(t) - y_0)` for the DMP's
+    own plan from ``start_velocity``, at :math:`t` in :math:`[0, T]` normalised to
+    :math:`[0, 1]`, so it is invariant like :math:`\bar w`.
+
+    Parameters
+    ----------
+    dmp : DiscreteDMP
+        A fitted DMP with ``goal != start``.
+    start_velocity : array_like, shape (n_dofs,), optional
+        Initial velocity [units/s] of the plan; :func:`dmpopt.fit_discrete` fits the weights
+        for ``demo.velocities[0]``. Defaults to rest.
+    n_samples : int
+        Samples of the plan.
+
+    Returns
+    -------
+    ndarray, shape (n_samples, n_dofs)
+        Starts at 0 and ends near :math:`e_1`.
+    """
     dmp = _check_dmp(dmp)
-    forcing, displacement = _displacement(dmp)
-    axis = np.zeros_like(displacement)
-    axis[0] = 1.0
-    return similarity_transform(displacement, axis) @ forcing
+    n_samples = _check_n_samples(n_samples)
+    velocity = _check_start_velocity(start_velocity, dmp.n_dofs)
+    forcing, frame = _start_goal_frame(dmp)
+    unit_goal = np.zeros(dmp.n_dofs)
+    unit_goal[0] = 1.0
+    unit = dmp.replace(
+        weights=frame @ forcing,
+        start=np.zeros(dmp.n_dofs),
+        goal=unit_goal,
+        time_constant=1.0,
+        goal_scaling="translation",
+        reference_displacement=None,
+    )
+    duration = unit.convergence_time
+    unit_velocity = frame @ (dmp.time_constant * velocity)  # tau = 1 now
+    plan = unit.rollout(duration, duration / (n_samples - 1), start_velocity=unit_velocity)
+    return plan.positions[:n_samples]
 
 
-def plan_metric_factor(dmp: DiscreteDMP, n_samples: int = 200) -> np.ndarray:
+def arc_length_resampled(positions, n_samples: int) -> np.ndarray:
+    """Points at ``n_samples`` equal arc-length steps along a polyline (linear), (n, n_dofs).
+
+    The path of a curve, independent of the speed at which it is traced.
+    """
+    positions = as_finite_array("positions", positions)
+    n_samples = _check_n_samples(n_samples)
+    if positions.ndim != 2 or positions.shape[0] < 2:
+        raise ShapeError(f"positions has shape {positions.shape}, expected (n_points, n_dofs)")
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
+    length = np.concatenate([[0.0], np.cumsum(steps)])
+    if not length[-1] > 0.0:
+        raise InvalidInputError("positions do not move, so they have no path to resample")
+    grid = np.linspace(0.0, length[-1], n_samples)
+    return np.stack([np.interp(grid, length, p) for p in positions.T], axis=1)
+
+
+def plan_metric_factor(
+    dmp: DiscreteDMP, n_samples: int = 200, start_velocity: bool = False
+) -> np.ndarray:
     r"""Factor :math:`L` with :math:`L L^T = G = \Phi^T \Phi / N`, the plan metric on weights.
 
     :math:`\Phi` (shape (N, n_basis)) is the response of one DOF's plan to its weights,
@@ -117,17 +213,26 @@ def plan_metric_factor(dmp: DiscreteDMP, n_samples: int = 200) -> np.ndarray:
     time normalised by :math:`\tau`. For weights :math:`W` of shape (n_dofs, n_basis),
     :math:`\|W L\|_F^2` is the mean squared (summed over DOFs) position difference that
     :math:`W` makes to the plan. It depends only on the form, basis and gains of ``dmp``.
+    With ``start_velocity``, :math:`\Phi` gets one more column, the plan's response to the
+    initial velocity :math:`\tau \dot y_0`, and :math:`W` one more column, :math:`\tau \dot y_0`.
 
     Returns
     -------
-    ndarray, shape (n_basis, n_basis)
+    ndarray, shape (n_basis, n_basis), or (n_basis + 1, n_basis + 1) with ``start_velocity``
     """
     dmp = _check_dmp(dmp)
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 3:
-        raise InvalidInputError(f"n_samples must be an integer >= 3, got {n_samples!r}")
+    n_samples = _check_n_samples(n_samples)
     unit = dmp.with_time_constant(1.0)
     duration = unit.convergence_time
-    response = unit.affine_plan(duration, duration / (n_samples - 1)).weight_response[0]
+    dt = duration / (n_samples - 1)
+    plan = unit.affine_plan(duration, dt)
+    response = plan.weight_response[0][:n_samples]
+    if start_velocity:
+        push = np.zeros(dmp.n_dofs)
+        push[0] = 1.0
+        moving = unit.affine_plan(duration, dt, start_velocity=push)
+        column = (moving.free[0] - plan.free[0])[:n_samples, 0]
+        response = np.column_stack([response, column])
     gram = response.T @ response / response.shape[0]
     eigenvalues, eigenvectors = np.linalg.eigh(gram)
     return eigenvectors * np.sqrt(np.clip(eigenvalues, 0.0, None))
@@ -153,45 +258,61 @@ def _same_system(reference: DiscreteDMP, other: DiscreteDMP, index: int):
         )
 
 
+def _check_weight(name: str, value) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value < 0.0:
+        raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
+    return value
+
+
 def movement_features(
     dmps: Sequence[DiscreteDMP],
     *,
+    start_velocities=None,
     metric: str = "plan",
     direction_weight: float = 1.0,
+    path_weight: float = 1.0,
     n_samples: int = 200,
 ) -> np.ndarray:
     r"""Feature vectors for recognition, one row per DMP (module docstring).
 
-    Each row is :math:`[\mathrm{vec}(\bar w L),\ \lambda\, d / \|d\|]` with :math:`\bar w`
-    from :func:`normalised_weights`, :math:`L` from :func:`plan_metric_factor`
-    (``metric="plan"``) or the identity (``metric="euclidean"``), and
-    :math:`\lambda` = ``direction_weight``. Euclidean distances between rows are then
-    root-mean-square differences of the normalised plans (in units of the start-goal
-    distance) plus :math:`\lambda` times the chord between the travel directions.
+    Each row is :math:`[\mathrm{vec}([\bar w\ \bar v] L),\ \mu\, \mathrm{vec}(P) / \sqrt{n},
+    \ \lambda\, d / \|d\|]` with :math:`\bar w` from :func:`normalised_weights`,
+    :math:`\bar v = S(d \to e_1) \tau \dot y_0` the normalised start velocity, :math:`L`
+    from :func:`plan_metric_factor` (``metric="plan"``) or the identity
+    (``metric="euclidean"``), :math:`P` the :func:`normalised_plan` resampled at
+    :math:`n` = ``n_samples`` equal arc-length steps (:func:`arc_length_resampled`),
+    :math:`\mu` = ``path_weight`` and :math:`\lambda` = ``direction_weight``. Euclidean
+    distances between rows are then (squared) the mean squared difference of the normalised
+    plans at equal times, plus :math:`\mu^2` times that at equal arc lengths, plus
+    :math:`\lambda^2` times the squared chord between the travel directions.
 
     Parameters
     ----------
     dmps : sequence of DiscreteDMP
         Fitted with the same form, ``n_basis``, gains and number of DOFs.
+    start_velocities : array_like, shape (n_dmps, n_dofs), optional
+        The velocity each DMP's plan starts with, as in the fit: ``demo.velocities[0]`` for
+        :func:`dmpopt.fit_discrete`. Defaults to rest.
     metric : {"plan", "euclidean"}
-        How weight differences are measured.
+        How differences of the weights (and start velocities) are measured.
     direction_weight : float
         Weight of the start-goal direction; 0 gives rotation-invariant features (2-D).
+    path_weight : float
+        Weight of the path; 0 leaves it out (features of the weights alone).
     n_samples : int
-        Samples of the plan metric (see :func:`plan_metric_factor`).
+        Samples of the plan metric (see :func:`plan_metric_factor`) and of the path.
 
     Returns
     -------
-    ndarray, shape (n_dmps, n_dofs * n_basis + n_dofs)
-        Invariant to translation, uniform scaling and time stretching of the movements.
+    ndarray, shape (n_dmps, n_dofs * (n_basis + 1) + n_dofs * n_samples + n_dofs)
+        Invariant to translation, uniform scaling and time stretching of the movements (the
+        path block is left out when ``path_weight`` is 0).
     """
     if metric not in METRICS:
         raise InvalidInputError(f"metric must be one of {METRICS}, got {metric!r}")
-    direction_weight = float(direction_weight)
-    if not np.isfinite(direction_weight) or direction_weight < 0.0:
-        raise InvalidInputError(
-            f"direction_weight must be a finite number >= 0, got {direction_weight!r}"
-        )
+    direction_weight = _check_weight("direction_weight", direction_weight)
+    path_weight = _check_weight("path_weight", path_weight)
     if isinstance(dmps, DiscreteDMP):
         dmps = [dmps]
     dmps = list(dmps)
@@ -200,15 +321,32 @@ def movement_features(
     for index, dmp in enumerate(dmps):
         _check_dmp(dmp, f"dmps[{index}]")
         _same_system(dmps[0], dmp, index)
-    factor = plan_metric_factor(dmps[0], n_samples) if metric == "plan" else None
+    n_dofs = dmps[0].n_dofs
+    if start_velocities is None:
+        start_velocities = np.zeros((len(dmps), n_dofs))
+    start_velocities = as_finite_array("start_velocities", start_velocities)
+    if start_velocities.shape != (len(dmps), n_dofs):
+        raise ShapeError(
+            f"start_velocities has shape {start_velocities.shape}, expected "
+            f"({len(dmps)}, {n_dofs}): one first velocity per DMP (demo.velocities[0])"
+        )
+    n_samples = _check_n_samples(n_samples)
+    if metric == "plan":
+        factor = plan_metric_factor(dmps[0], n_samples, start_velocity=True)
+    else:
+        factor = np.eye(dmps[0].n_basis + 1)
     rows = []
-    for dmp in dmps:
-        weights = normalised_weights(dmp)
-        if factor is not None:
-            weights = weights @ factor
+    for dmp, velocity in zip(dmps, start_velocities):
+        forcing, frame = _start_goal_frame(dmp)
+        weights = np.column_stack([frame @ forcing, frame @ (dmp.time_constant * velocity)])
+        parts = [(weights @ factor).ravel()]
+        if path_weight > 0.0:
+            plan = normalised_plan(dmp, velocity, n_samples)
+            path = arc_length_resampled(plan, n_samples)
+            parts.append(path_weight / np.sqrt(n_samples) * path.ravel())
         displacement = np.asarray(dmp.goal) - np.asarray(dmp.start)
-        direction = displacement / np.linalg.norm(displacement)
-        rows.append(np.concatenate([weights.ravel(), direction_weight * direction]))
+        parts.append(direction_weight * displacement / np.linalg.norm(displacement))
+        rows.append(np.concatenate(parts))
     return np.array(rows)
 
 

@@ -11,10 +11,12 @@ from dmpopt.recognition import (
     NearestNeighbourClassifier,
     PartialObservationClassifier,
     ShrinkageLdaClassifier,
+    arc_length_resampled,
     confusion_matrix,
     first_part,
     leave_one_out,
     movement_features,
+    normalised_plan,
     normalised_weights,
     plan_metric_factor,
 )
@@ -91,18 +93,94 @@ def test_raw_weights_are_not_invariant(demo, dmp):
     assert not np.allclose(moved.forcing_weights(), dmp.forcing_weights(), atol=1e-3)
 
 
-def test_features_invariant_except_direction_under_rotation(demo, dmp):
+def _moving_start(kind: int = 1) -> Trajectory:
+    """A stroke that starts at speed: ``_shape(kind)`` without its first 15 %."""
+    whole = _shape(kind)
+    keep = whole.times >= 0.15
+    return Trajectory.from_positions(whole.times[keep], whole.positions[keep])
+
+
+def test_features_invariant_except_direction_under_rotation():
     """Features ignore translation, scale and time; only the direction part sees a rotation."""
-    shifted = fit_discrete(_moved(demo), N_BASIS)
-    rotated = fit_discrete(_moved(demo, angle=-1.2), N_BASIS)
-    features = movement_features([dmp, shifted, rotated])
+    demo = _moving_start()
+    demos = [demo, _moved(demo), _moved(demo, angle=-1.2)]
+    dmps = [fit_discrete(d, N_BASIS) for d in demos]
+    velocities = [d.velocities[0] for d in demos]
+    assert np.linalg.norm(velocities[0]) > 1.0  # the plan does not start at rest
+    features = movement_features(dmps, start_velocities=velocities)
     atol = 1e-9 * abs(features).max()
     assert np.allclose(features[1], features[0], rtol=0, atol=atol)
     assert np.allclose(features[2, :-2], features[0, :-2], rtol=0, atol=atol)
     assert not np.allclose(features[2, -2:], features[0, -2:], atol=1e-3)
-    plain = movement_features([dmp, rotated], direction_weight=0.0)
-    assert np.allclose(plain[1], plain[0], rtol=0, atol=atol)
-    assert features.shape == (3, 2 * N_BASIS + 2)
+    plain = movement_features(dmps, start_velocities=velocities, direction_weight=0.0)
+    assert np.allclose(plain[2], plain[0], rtol=0, atol=atol)
+    assert features.shape == (3, 2 * (N_BASIS + 1) + 2 * 200 + 2)
+    weights_only = movement_features(dmps, path_weight=0.0, n_samples=50)
+    assert weights_only.shape == (3, 2 * (N_BASIS + 1) + 2)
+
+
+def test_normalised_plan_is_the_plan_in_the_start_goal_frame():
+    """It equals S(d -> e1) (y(t) - y0) of the DMP's own plan from its start velocity."""
+    demo = _moved(_moving_start(), scale=2.0, angle=0.4)
+    dmp = fit_discrete(demo, N_BASIS)
+    velocity = demo.velocities[0]
+    plan = normalised_plan(dmp, velocity, n_samples=101)
+    duration = dmp.convergence_time
+    own = dmp.rollout(duration, duration / 100, start_velocity=velocity).positions[:101]
+    displacement = dmp.goal - dmp.start
+    angle = np.arctan2(displacement[1], displacement[0])
+    frame = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+    expected = (own - dmp.start) @ frame.T / np.linalg.norm(displacement)
+    assert plan.shape == (101, 2)
+    assert np.allclose(plan, expected, rtol=0, atol=1e-9)
+    assert np.allclose(plan[0], 0.0) and np.allclose(plan[-1], [1.0, 0.0], atol=1e-3)
+    # the fit reproduces the demo only from the demo's start velocity, not from rest
+    demo_positions = (demo.resampled(101).positions - dmp.start) @ frame.T
+    demo_positions /= np.linalg.norm(displacement)
+    assert np.abs(plan - demo_positions).max() < 0.002
+    assert np.abs(normalised_plan(dmp, n_samples=101) - demo_positions).max() > 0.02
+
+
+def test_plan_metric_with_start_velocity_measures_plan_differences():
+    """Feature distances (no path, no direction) are RMS differences of the normalised plans."""
+    demos = [_moving_start(1), _moving_start(0)]
+    dmps = [fit_discrete(d, N_BASIS) for d in demos]
+    velocities = [d.velocities[0] for d in demos]
+    features = movement_features(
+        dmps, start_velocities=velocities, path_weight=0.0, direction_weight=0.0, n_samples=300
+    )
+    plans = [normalised_plan(m, v, n_samples=300) for m, v in zip(dmps, velocities)]
+    expected = np.mean(np.sum((plans[1] - plans[0]) ** 2, axis=1))
+    assert expected > 1e-3
+    assert np.isclose(np.sum((features[1] - features[0]) ** 2), expected, rtol=1e-9)
+    assert plan_metric_factor(dmps[0], 300, start_velocity=True).shape == (N_BASIS + 1,) * 2
+
+
+def test_arc_length_resampling_ignores_the_speed_profile():
+    """An L-shaped path traced at any speed gives points at equal distances along it."""
+    slow, fast = np.linspace(0.0, 1.0, 301) ** 3, np.linspace(0.0, 1.0, 7)[1:]
+    positions = np.vstack(  # along x (length 3) slowly at first, then up y (length 1) fast
+        [np.column_stack([3.0 * slow, 0.0 * slow]), np.column_stack([3.0 + 0.0 * fast, fast])]
+    )
+    path = arc_length_resampled(positions, 9)
+    expected = [[0, 0], [0.5, 0], [1, 0], [1.5, 0], [2, 0], [2.5, 0], [3, 0], [3, 0.5], [3, 1]]
+    assert np.allclose(path, expected, rtol=0, atol=1e-12)
+
+
+def test_path_features_ignore_the_speed_profile():
+    """The same stroke drawn with another speed profile: same path block, different plan."""
+    s = np.linspace(0.0, 1.0, N_STEPS)
+    original = _shape(1)
+    warped_progress = np.interp(s**1.6, s, s)  # the same positions, reached later
+    positions = np.stack([np.interp(warped_progress, s, p) for p in original.positions.T], 1)
+    warped = Trajectory.from_positions(s, positions)
+    dmps = [fit_discrete(original, N_BASIS), fit_discrete(warped, N_BASIS)]
+    features = movement_features(dmps, direction_weight=0.0, n_samples=100)
+    n_plan = 2 * (N_BASIS + 1)
+    plan_distance = np.linalg.norm(features[1, :n_plan] - features[0, :n_plan])
+    path_distance = np.linalg.norm(features[1, n_plan:] - features[0, n_plan:])
+    assert plan_distance > 0.1
+    assert path_distance < 0.1 * plan_distance
 
 
 def test_plan_metric_measures_plan_differences(dmp):
@@ -240,11 +318,29 @@ def test_error_mismatched_dmps(dmp, demo):
 
 
 def test_error_bad_feature_options(dmp):
-    """Bad metric, direction weight or empty input are refused."""
+    """Bad metric, weights, start velocities or empty input are refused."""
     with _raises(InvalidInputError, "metric must be one of ('plan', 'euclidean'), got 'cosine'"):
         movement_features([dmp], metric="cosine")
     with _raises(InvalidInputError, "direction_weight must be a finite number >= 0, got -1.0"):
         movement_features([dmp], direction_weight=-1)
+    with _raises(InvalidInputError, "path_weight must be a finite number >= 0, got inf"):
+        movement_features([dmp], path_weight=np.inf)
+    with _raises(
+        ShapeError,
+        "start_velocities has shape (2,), expected (1, 2): one first velocity per DMP "
+        "(demo.velocities[0])",
+    ):
+        movement_features([dmp], start_velocities=[0.0, 1.0])
+    with _raises(
+        ShapeError,
+        "start_velocity has shape (3,), expected (2,): the DMP's first velocity, one value "
+        "per DOF (fit_discrete starts from demo.velocities[0])",
+    ):
+        normalised_plan(dmp, [0.0, 1.0, 2.0])
+    with _raises(InvalidInputError, "positions do not move, so they have no path to resample"):
+        arc_length_resampled(np.ones((5, 2)), 10)
+    with _raises(InvalidInputError, "n_samples must be an integer >= 3, got 2"):
+        normalised_plan(dmp, n_samples=2)
     with _raises(InvalidInputError, "dmps is empty; pass at least one fitted DiscreteDMP"):
         movement_features([])
 

@@ -27,20 +27,25 @@ def demonstration(n_samples: int = 1000) -> Trajectory:
 def main(repeats: int = 11) -> None:
     demo = demonstration()
     reference = fit_discrete(demo, 50)
-    plan = reference.rollout(demo.duration, demo.duration / (demo.n_steps - 1),
-                             start_velocity=demo.velocities[0])
-    bounds = Bounds(velocity=0.8 * np.abs(plan.velocities).max(0),
-                    acceleration=0.6 * np.abs(plan.accelerations).max(0))
+    plan = reference.rollout(
+        demo.duration, demo.duration / (demo.n_steps - 1), start_velocity=demo.velocities[0]
+    )
+    bounds = Bounds(
+        velocity=0.8 * np.abs(plan.velocities).max(0),
+        acceleration=0.6 * np.abs(plan.accelerations).max(0),
+    )
     goal = demo.positions[-1]
     for solver in ("daqp", "qpoases", "proxsuite"):
         repeats_here = repeats if solver != "proxsuite" else 3
         cold, warm, failures = [], [], 0
         for k in range(repeats_here):
             shift = 0.002 * k * np.array([1.0, -1.0])
-            problem = build_fitting_problem(demo, reference=reference, bounds=bounds,
-                                            goal=goal + shift, solver=solver)
-            follow = build_fitting_problem(demo, reference=reference, bounds=bounds,
-                                           goal=goal + shift + 0.002, solver=solver)
+            problem = build_fitting_problem(
+                demo, reference=reference, bounds=bounds, goal=goal + shift, solver=solver
+            )
+            follow = build_fitting_problem(
+                demo, reference=reference, bounds=bounds, goal=goal + shift + 0.002, solver=solver
+            )
             try:
                 _, first = fit_weights_constrained(problem)
                 _, second = fit_weights_constrained(follow, warm_start=first)
@@ -51,9 +56,11 @@ def main(repeats: int = 11) -> None:
             cold.append(first.solve_time)
             warm.append(second.solve_time)
         if cold:
-            print(f"{solver:10s} cold median {1e3 * np.median(cold):7.2f} ms   "
-                  f"warm median {1e3 * np.median(warm):7.2f} ms   "
-                  f"({len(cold)} runs, {failures} failed)")
+            print(
+                f"{solver:10s} cold median {1e3 * np.median(cold):7.2f} ms   "
+                f"warm median {1e3 * np.median(warm):7.2f} ms   "
+                f"({len(cold)} runs, {failures} failed)"
+            )
         else:
             print(f"{solver:10s} failed on all {failures} runs: {last_error}")
 

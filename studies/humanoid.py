@@ -13,8 +13,9 @@ Set-up (all choices are ours):
   (:mod:`dmpopt.sim`, 1 ms semi-implicit Euler), floating base; and the fixed-base upper body
   (legs and pelvis locked in half-sitting) for comparison;
 * controller: :class:`dmpopt.control.InverseDynamicsController` at 1 kHz (a least-squares
-  solve per tick, proxsuite when a friction, CoP or torque row is active) with the DMP-driven arm joints as a posture task (plan acceleration as feed-forward,
-  low-gain PD ``ARM_STIFFNESS``), a whole-body posture task, and, standing, a CoM task, a pelvis
+  solve per tick, proxsuite when a friction, CoP or torque row is active) with the
+  DMP-driven arm joints as a posture task (plan acceleration as feed-forward, low-gain PD
+  ``ARM_STIFFNESS``), a whole-body posture task, and, standing, a CoM task, a pelvis
   orientation task (alternating hands would otherwise roll the pelvis) and two sole contacts;
 * drumming demonstration (synthetic, hand-designed, not motion capture): a task-space stick
   stroke per hand -- asymmetric vertical wrist path (quick rebound after the strike, slow

@@ -21,8 +21,9 @@ def test_polynomial_matches_its_closed_form(start, delta, duration):
     """Positions, velocities, accelerations equal the quintic and its derivatives."""
     plan = minimum_jerk([start], [start + delta], duration, n_samples=201)
     s = plan.times / duration
-    np.testing.assert_allclose(plan.positions[:, 0],
-                               start + delta * (10 * s**3 - 15 * s**4 + 6 * s**5), atol=1e-12)
+    np.testing.assert_allclose(
+        plan.positions[:, 0], start + delta * (10 * s**3 - 15 * s**4 + 6 * s**5), atol=1e-12
+    )
     np.testing.assert_allclose(plan.velocities[-1], 0.0, atol=1e-12)
     peak = 1.875 * delta / duration
     np.testing.assert_allclose(np.abs(plan.velocities).max(), peak, rtol=1e-6)
@@ -58,8 +59,9 @@ def test_qp_matches_exact_via_point_solution():
     """Through a via-point the QP approaches the exact piecewise quintic."""
     via = [ViaPoint(0.4, [0.7, 0.1])]
     exact = minimum_jerk_via_points([0, 0], [1, 1], 1.0, via, n_samples=501)
-    plan, _ = minimum_jerk_constrained([0, 0], [1, 1], 1.0, via_points=via, n_samples=501,
-                                       n_segments=100)
+    plan, _ = minimum_jerk_constrained(
+        [0, 0], [1, 1], 1.0, via_points=via, n_samples=501, n_segments=100
+    )
     np.testing.assert_allclose(plan.positions, exact.positions, atol=5e-4)
 
 

@@ -12,8 +12,9 @@ from dmpopt.retiming import retime, time_scaled, uniform_time_scaling
 
 
 def plan():
-    return minimum_jerk_via_points([0.0, 0.0], [1.0, 0.5], 1.0, [ViaPoint(0.5, [0.3, 0.9])],
-                                   n_samples=301)
+    return minimum_jerk_via_points(
+        [0.0, 0.0], [1.0, 0.5], 1.0, [ViaPoint(0.5, [0.3, 0.9])], n_samples=301
+    )
 
 
 def planar_arm():
@@ -50,8 +51,10 @@ def test_uniform_scaling_makes_the_limits_exactly_tight():
     original = plan()
     factor = uniform_time_scaling(original, [1.0, 1.5], [4.0, 6.0])
     scaled = time_scaled(original, factor)
-    use = max(np.max(np.abs(scaled.velocities) / [1.0, 1.5]),
-              np.max(np.abs(scaled.accelerations) / [4.0, 6.0]))
+    use = max(
+        np.max(np.abs(scaled.velocities) / [1.0, 1.5]),
+        np.max(np.abs(scaled.accelerations) / [4.0, 6.0]),
+    )
     np.testing.assert_allclose(use, 1.0, rtol=1e-12)
 
 
@@ -63,8 +66,12 @@ def test_torque_limits_hold_on_a_pinocchio_arm():
     limit = np.array([60.0, 25.0])
     result = retime(original, robot=model, torque_limit=limit, dt=0.002)
     traj = result.trajectory
-    torques = np.array([pin.rnea(model, data, q, v, a) for q, v, a in
-                        zip(traj.positions, traj.velocities, traj.accelerations)])
+    torques = np.array(
+        [
+            pin.rnea(model, data, q, v, a)
+            for q, v, a in zip(traj.positions, traj.velocities, traj.accelerations)
+        ]
+    )
     assert np.all(np.abs(torques) <= limit * (1 + 1e-6))
     uniform = uniform_time_scaling(original, robot=model, torque_limit=limit) * original.duration
     assert result.duration <= uniform * (1 + 1e-6)

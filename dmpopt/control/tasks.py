@@ -237,20 +237,12 @@ class FrameTask(Task):
         self.stiffness, self.damping = _gains(stiffness, damping, 6)
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, robot.reference_configuration)
-        placement = data.oMf[self.frame_id]
-        self._target_translation = placement.translation.copy()
-        self._target_rotation = placement.rotation.copy()
+        self.target_placement = data.oMf[self.frame_id].copy()
         self.target_velocity = np.zeros(6)
         self.target_acceleration = np.zeros(6)
         self._error = np.zeros(6)
-        self._desired = np.zeros(6)  # a_ref + Kp e + Kd (v_ref - v) - drift, all rows
         self.target = np.zeros(self.rows.size)
         self.jacobian = np.zeros((self.rows.size, robot.nv))
-
-    @property
-    def target_placement(self) -> pin.SE3:
-        """Desired placement (a copy; change it with :meth:`set_target`)."""
-        return pin.SE3(self._target_rotation, self._target_translation)
 
     def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
         """Set the desired placement (or position), velocity and acceleration.
@@ -264,15 +256,14 @@ class FrameTask(Task):
             omitted.
         """
         if isinstance(placement, pin.SE3):
-            self._target_translation[:] = placement.translation
-            self._target_rotation[:] = placement.rotation
+            self.target_placement = placement.copy()
         else:
             position = np.asarray(placement, dtype=float)
             if position.shape != (3,):
                 raise ShapeError(
                     f"placement has shape {position.shape}, expected a pinocchio.SE3 or (3,)"
                 )
-            self._target_translation[:] = position
+            self.target_placement.translation = position
         self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 6, "velocity")
         self.target_acceleration[:] = (
             0.0 if acceleration is None else _vector(acceleration, 6, "acceleration")
@@ -280,24 +271,21 @@ class FrameTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration."""
-        model, frame_id = self.model, self.frame_id
+        model, frame_id, rows = self.model, self.frame_id, self._row_index
         placement = data.oMf[frame_id]
-        error, desired = self._error, self._desired
+        error = self._error
         if self._tracks_position:
-            np.subtract(self._target_translation, placement.translation, out=error[:3])
+            np.subtract(self.target_placement.translation, placement.translation, out=error[:3])
         if self._tracks_orientation:
-            error[3:] = pin.log3(self._target_rotation @ placement.rotation.T)
-        np.subtract(
-            self.target_velocity,
-            pin.getFrameVelocity(model, data, frame_id, _LWA).vector,
-            out=desired,
-        )
-        desired *= self.damping
-        desired += self.stiffness * error
-        desired += self.target_acceleration
-        desired -= pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
-        rows = self._row_index
-        self.target[:] = desired[rows]
+            error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
+        velocity = pin.getFrameVelocity(model, data, frame_id, _LWA).vector
+        drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
+        target = self.target  # a_ref + Kp e + Kd (v_ref - v) - drift, tracked rows only
+        np.subtract(self.target_velocity[rows], velocity[rows], out=target)
+        target *= self.damping[rows]
+        target += self.stiffness[rows] * error[rows]
+        target += self.target_acceleration[rows]
+        target -= drift[rows]
         self.jacobian[:] = pin.getFrameJacobian(model, data, frame_id, _LWA)[rows]
 
 

@@ -468,17 +468,20 @@ class InverseDynamicsController:
         ):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
-        if self._joint_space and self._level == 0 and self._solve_joint_space(q, v):
-            return self._torques.copy()
-        self._assemble(q, v)
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
         level, solved, mapped = self._level, True, False
-        if level < 2:
+        # Posture tasks on a fixed base need no model terms below the torque limits.
+        assembled = not (self._joint_space and level == 0)
+        if not assembled:
+            self._solve_joint_space(q, v)
+        else:
+            self._assemble(q, v)
+        if assembled and level < 2:
             if self._basic is not None and self._assemble_eliminated():
                 if level == 0:
-                    solved = self._solve_direct(self._z_hessian, self._z_gradient, eliminated=True)
+                    solved = self._solve_direct(eliminated=True)
                     if not solved:
                         level = 2
                     elif self._eliminated_cones is not None and self._cones_violated():
@@ -490,7 +493,7 @@ class InverseDynamicsController:
             elif not self.contacts:  # fixed base: no equality rows
                 self._assemble_y()
                 mapped = True
-                solved = self._solve_direct(self._hessian, self._gradient, eliminated=False)
+                solved = self._solve_direct(eliminated=False)
                 if not solved:
                     level = 2
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
@@ -498,10 +501,12 @@ class InverseDynamicsController:
                 mapped = True
                 solved = self._solve(self._free)
                 level = min(level, 1)
-            if solved and level < 2 and (np.abs(self._tau) > self.torque_limit).any():
-                level = 2
+        if solved and level < 2 and (np.abs(self._tau) > self.torque_limit).any():
+            level = 2
         if level == 2:
             self.stats.n_torque_limited += 1
+            if not assembled:
+                self._assemble(q, v)
             if not mapped:
                 self._assemble_y()
             self._assemble_torque_rows()
@@ -510,34 +515,28 @@ class InverseDynamicsController:
                 level = 1 if self.contacts else 0  # without contacts there are no cone rows
         self._level = level
         if solved:
-            if self.stats.last_status is _DIRECT:
-                self.stats.n_direct += 1
             self._has_valid_torque = True
             self._solution, self._candidate = self._candidate, self._solution
-            np.minimum(self._tau, self.torque_limit, out=self._torques)
-            np.maximum(self._torques, -self.torque_limit, out=self._torques)
+            if self.stats.last_status is _DIRECT:  # its torques were checked against the limits
+                self.stats.n_direct += 1
+                np.copyto(self._torques, self._tau)
+            else:  # proxsuite meets the limit rows only to its tolerance
+                np.minimum(self._tau, self.torque_limit, out=self._torques)
+                np.maximum(self._torques, -self.torque_limit, out=self._torques)
         else:
             self._fall_back()
         return self._torques.copy()
 
-    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
+    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> None:
         """Fixed base with posture tasks only: the QP without torque rows has a diagonal
-        Hessian, so qdd = -g / d and tau = RNEA(q, v, qdd). False (nothing changed but the
-        tasks) if a torque leaves its limit; the caller then solves the QP with the limits.
+        Hessian, so the candidate qdd = -g / d and tau = RNEA(q, v, qdd), without the model
+        terms of :meth:`_assemble`.
         """
         self._update_posture(q, v)
         x = self._candidate
         np.multiply(self._posture_gradient, self._negative_inverse_diagonal, out=x)
-        tau = pin.rnea(self.model, self.data, q, v, x)
-        if (np.abs(tau) > self.torque_limit).any():
-            return False
-        stats = self.stats
-        stats.last_status, stats.last_iterations = _DIRECT, 0
-        stats.n_direct += 1
-        self._has_valid_torque = True
-        self._solution, self._candidate = x, self._solution
-        np.copyto(self._torques, tau)
-        return True
+        self._tau[:] = pin.rnea(self.model, self.data, q, v, x)
+        self.stats.last_status, self.stats.last_iterations = _DIRECT, 0
 
     # ------------------------------------------------------------------ assembly
     def _bind(self, item, rows: slice) -> tuple:
@@ -719,13 +718,17 @@ class InverseDynamicsController:
         self._accept(solution, eliminated=stage is self._eliminated_cones)
         return True
 
-    def _solve_direct(self, hessian: np.ndarray, gradient: np.ndarray, eliminated: bool) -> bool:
+    def _solve_direct(self, eliminated: bool) -> bool:
         """Minimise 1/2 u^T H u + g^T u without constraints: H u = -g by Cholesky.
 
-        H is kept for a QP solve on the same tick; its copy is factorised in place (symmetric,
-        so the C-ordered copy read in Fortran order is the same matrix).
+        Over z (``eliminated``) or y. H is kept for a QP solve on the same tick; its copy is
+        factorised in place (symmetric, so the C-ordered copy read in Fortran order is the
+        same matrix).
         """
-        factor = self._z_factor if eliminated else self._y_factor
+        if eliminated:
+            hessian, gradient, factor = self._z_hessian, self._z_gradient, self._z_factor
+        else:
+            hessian, gradient, factor = self._hessian, self._gradient, self._y_factor
         np.copyto(factor, hessian)
         _, solution, info = lapack.dposv(factor.T, gradient, overwrite_a=1)
         stats = self.stats

@@ -170,10 +170,16 @@ def normalised_plan(dmp: DiscreteDMP, start_velocity=None, n_samples: int = 200)
     n_samples = _check_n_samples(n_samples)
     velocity = _check_start_velocity(start_velocity, dmp.n_dofs)
     forcing, frame = _start_goal_frame(dmp)
+    return _unit_plan(dmp, frame @ forcing, frame @ (dmp.time_constant * velocity), n_samples)
+
+
+def _unit_plan(dmp: DiscreteDMP, weights, velocity, n_samples: int) -> np.ndarray:
+    r"""Plan of ``dmp``'s system from 0 to :math:`e_1` with :math:`\tau = 1`, normalised
+    weights :math:`\bar w` and initial velocity :math:`\bar v` (:func:`normalised_plan`)."""
     unit_goal = np.zeros(dmp.n_dofs)
     unit_goal[0] = 1.0
     unit = dmp.replace(
-        weights=frame @ forcing,
+        weights=weights,
         start=np.zeros(dmp.n_dofs),
         goal=unit_goal,
         time_constant=1.0,
@@ -181,8 +187,7 @@ def normalised_plan(dmp: DiscreteDMP, start_velocity=None, n_samples: int = 200)
         reference_displacement=None,
     )
     duration = unit.convergence_time
-    unit_velocity = frame @ (dmp.time_constant * velocity)  # tau = 1 now
-    plan = unit.rollout(duration, duration / (n_samples - 1), start_velocity=unit_velocity)
+    plan = unit.rollout(duration, duration / (n_samples - 1), start_velocity=velocity)
     return plan.positions[:n_samples]
 
 
@@ -341,7 +346,7 @@ def movement_features(
         weights = np.column_stack([frame @ forcing, frame @ (dmp.time_constant * velocity)])
         parts = [(weights @ factor).ravel()]
         if path_weight > 0.0:
-            plan = normalised_plan(dmp, velocity, n_samples)
+            plan = _unit_plan(dmp, weights[:, :-1], weights[:, -1], n_samples)
             path = arc_length_resampled(plan, n_samples)
             parts.append(path_weight / np.sqrt(n_samples) * path.ravel())
         displacement = np.asarray(dmp.goal) - np.asarray(dmp.start)
@@ -383,8 +388,8 @@ def _check_fitted(classifier, attribute: str):
         )
 
 
-def _squared_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Squared Euclidean distances between the rows of ``a`` and ``b``."""
+def squared_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Squared Euclidean distances between the rows of ``a`` and ``b``, shape (n_a, n_b)."""
     distances = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * a @ b.T
     return np.maximum(distances, 0.0)
 
@@ -428,7 +433,7 @@ class NearestNeighbourClassifier:
         """Distances and indices of the nearest training samples, each (n_queries, k)."""
         _check_fitted(self, "features_")
         features = _check_features(features, n_features=self.features_.shape[1])
-        distances = _squared_distances(features, self.features_)
+        distances = squared_distances(features, self.features_)
         order = np.argsort(distances, axis=1, kind="stable")[:, : self.n_neighbours]
         return np.sqrt(np.take_along_axis(distances, order, axis=1)), order
 
@@ -495,7 +500,7 @@ class ShrinkageLdaClassifier:
         """Squared Mahalanobis distance of each row to each class mean, (n_queries, n_classes)."""
         _check_fitted(self, "means_")
         features = _check_features(features, n_features=self.means_.shape[1])
-        return _squared_distances(features @ self.whitening_, self.means_ @ self.whitening_)
+        return squared_distances(features @ self.whitening_, self.means_ @ self.whitening_)
 
     def predict(self, features) -> np.ndarray:
         """Predicted label of each row of ``features``, shape (n_queries,)."""

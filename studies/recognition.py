@@ -60,6 +60,7 @@ from dmpopt.recognition import (
     leave_one_out,
     movement_features,
     normalised_weights,
+    squared_distances,
 )
 
 from .common import output_dir, pyplot, write_metrics
@@ -183,8 +184,7 @@ def _trajectory_ladder(demos, labels, n_samples: int = 100) -> dict:
 
 def _distances(features: np.ndarray) -> np.ndarray:
     """Euclidean distances between the rows of ``features``, infinite on the diagonal."""
-    squared = (features * features).sum(1)
-    distances = np.sqrt(np.maximum(squared[:, None] + squared[None] - 2 * features @ features.T, 0))
+    distances = np.sqrt(squared_distances(features, features))
     np.fill_diagonal(distances, np.inf)
     return distances
 

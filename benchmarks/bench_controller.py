@@ -16,9 +16,16 @@ Columns: CPU time of the thread (thread_time, which excludes waiting for a core 
 machine) and wall time per tick, median and p99; the share of ticks solved without proxsuite
 (no friction, CoP or torque row active); solver health; whether the robot fell.
 
-Reference (TSID 1.7, C++, from Python, on this kind of machine): ~160-170 us/tick reduced,
-250-340 us full, ~20 us fixed-base upper body.
-Run: ``python benchmarks/bench_controller.py [--seconds 2]``.
+With TSID importable, each case also runs TSID on the same loop with the same tasks
+(:mod:`tsid_baseline`) and prints dmpopt's median CPU time as a fraction of TSID's; the target
+is at most 0.5. TSID's wheels crash with pin 4 (binary mismatch), so it runs in its own venv
+with the last working combination, TSID 1.7.1 on pin 3.4.0::
+
+    python3.11 -m venv .venv-tsid
+    .venv-tsid/bin/pip install -c benchmarks/tsid-constraints.txt -e ".[test]" tsid
+    .venv-tsid/bin/python benchmarks/bench_controller.py
+
+Run: ``python benchmarks/bench_controller.py [--seconds 2] [--no-tsid]``.
 """
 
 import argparse
@@ -29,6 +36,11 @@ import pinocchio as pin
 
 from robots import load_talos
 from studies import humanoid
+
+try:
+    from tsid_baseline import build_tsid
+except ImportError:  # TSID is optional: only the reference column needs it
+    build_tsid = None
 
 
 def calibration():
@@ -47,7 +59,11 @@ def calibration():
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated time per case [s]")
+    parser.add_argument("--no-tsid", action="store_true", help="skip the TSID reference runs")
     args = parser.parse_args()
+    builders = [("dmpopt", humanoid.build_controller)]
+    if build_tsid is not None and not args.no_tsid:
+        builders.append(("TSID", build_tsid))
     dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
     robots = [
         ("full, floating base", load_talos("full")),
@@ -56,25 +72,33 @@ def main():
         ("reduced upper body, fixed base", load_talos("reduced", fixed_base=True)),
     ]
     tasks = {
-        "drumming": lambda robot: humanoid.run_drumming(robot, dmps, args.seconds),
-        "figure-8": lambda robot: humanoid.run_figure8(robot, args.seconds)[0],
+        "drumming": lambda robot, build: humanoid.run_drumming(
+            robot, dmps, args.seconds, build=build
+        ),
+        "figure-8": lambda robot, build: humanoid.run_figure8(robot, args.seconds, build=build)[0],
     }
-    print(f"computeAllTerms on full Talos (machine marker): {calibration():.1f} us")
+    print(f"pinocchio {pin.__version__}; computeAllTerms on full Talos: {calibration():.1f} us")
     print(
-        f"{'robot':31s} {'task':9s} {'nv':>3s} {'cpu med':>8s} {'p99':>6s} {'wall med':>8s}"
-        f" {'p99':>6s} {'direct':>7s}"
+        f"{'robot':31s} {'task':9s} {'nv':>3s} {'ctrl':6s} {'cpu med':>8s} {'p99':>6s}"
+        f" {'wall med':>8s} {'p99':>6s} {'direct':>7s} {'rms':>8s}"
     )
     for robot_name, robot in robots:
         for task_name, run in tasks.items():
-            log = run(robot)
-            cpu, wall = log.tick_cpu_us, log.tick_wall_us
-            print(
-                f"{robot_name:31s} {task_name:9s} {robot.nv:3d} {np.median(cpu):8.1f} "
-                f"{np.percentile(cpu, 99):6.1f} {np.median(wall):8.1f} "
-                f"{np.percentile(wall, 99):6.1f} {log.n_direct / log.times.size:7.1%}  "
-                f"cold restarts {log.n_cold_restarts}, fallbacks {log.n_fallbacks}"
-                f"{', FELL' if log.fell else ''}"
-            )
+            medians = {}
+            for controller_name, build in builders:
+                log = run(robot, build)
+                cpu, wall = log.tick_cpu_us, log.tick_wall_us
+                medians[controller_name] = np.median(cpu)
+                rms = np.sqrt(np.mean(np.square(log.desired - log.actual)))
+                print(
+                    f"{robot_name:31s} {task_name:9s} {robot.nv:3d} {controller_name:6s} "
+                    f"{np.median(cpu):8.1f} {np.percentile(cpu, 99):6.1f} {np.median(wall):8.1f} "
+                    f"{np.percentile(wall, 99):6.1f} {log.n_direct / log.times.size:7.1%} "
+                    f"{rms:8.2e}  cold restarts {log.n_cold_restarts}, fallbacks "
+                    f"{log.n_fallbacks}{', FELL' if log.fell else ''}"
+                )
+            if "TSID" in medians:
+                print(f"{'':44s} dmpopt / TSID = {medians['dmpopt'] / medians['TSID']:.2f}")
 
 
 if __name__ == "__main__":

@@ -593,18 +593,21 @@ def run_drumming(
     compile=False,
     controller_robot=None,
     base_task: bool = True,
+    build=build_controller,
 ) -> RunLog:
     """Drum for ``duration`` [s] with the learned DMPs on ``robot`` (floating or fixed base).
 
     ``controller_robot`` (default ``robot``) is the model the controller believes in, e.g.
-    :func:`with_mass_error` of ``robot``; the simulator always uses ``robot``.
+    :func:`with_mass_error` of ``robot``; the simulator always uses ``robot``. ``build`` makes
+    the controller and its driven task, with :func:`build_controller`'s signature (another
+    controller can be compared on the same loop).
     """
     q_start = drumming_posture(robot)
     q_indices = robot.configuration_indices(list(DRUM_JOINTS))
     q_start[q_indices] = dmps.start
     v_start = np.zeros(robot.nv)
     v_start[robot.velocity_indices(list(DRUM_JOINTS))] = dmps.start_velocity
-    controller, task = build_controller(controller_robot or robot, q_start, base_task=base_task)
+    controller, task = build(controller_robot or robot, q_start, base_task=base_task)
     plan = DrumPlan(dmps, DT, modification, compile=compile)
     phases = []
 
@@ -649,10 +652,11 @@ def figure8_demonstration(center: np.ndarray, n_per_period: int = 400, periods: 
     return Trajectory.from_positions(times, positions)
 
 
-def run_figure8(robot, duration: float, progress=None, compile=False):
+def run_figure8(robot, duration: float, progress=None, compile=False, build=build_controller):
     """Draw the figure-8 with the right hand: task-space DMP tracked by a hand position task.
 
-    Returns the run log (desired and actual hand positions) and the fitted DMP.
+    Returns the run log (desired and actual hand positions) and the fitted DMP. ``build`` as
+    in :func:`run_drumming`.
     """
     hand = robot.hand_frames[1]
     q_start = drumming_posture(robot)
@@ -672,7 +676,7 @@ def run_figure8(robot, duration: float, progress=None, compile=False):
     )[:3, arm]
     v_start = np.zeros(robot.nv)
     v_start[arm] = np.linalg.pinv(jacobian) @ start_velocity
-    controller, task = build_controller(robot, q_start, hand=hand)
+    controller, task = build(robot, q_start, hand=hand)
     ticks = []
 
     def reference():

@@ -119,6 +119,46 @@ def test_frame_task_acceleration_by_finite_differences(upper_body):
     np.testing.assert_allclose(measured, desired, atol=1e-5)
 
 
+@pytest.mark.parametrize("components", ["all", "position"])
+def test_fixed_base_woodbury_solve_matches_the_cholesky_solve(upper_body, components):
+    """Posture on every joint plus a hand task on a fixed base is solved without the mass
+    matrix (Woodbury identity, torques by RNEA); it must equal the Cholesky solve of the
+    same least-squares problem with the mass matrix."""
+    rng = np.random.default_rng(3)
+
+    def controller():
+        posture = PostureTask(upper_body, weight=1e-2, stiffness=10.0)
+        arm = PostureTask(upper_body, "left_arm", weight=1.0, stiffness=100.0)
+        hand = FrameTask(
+            upper_body,
+            "gripper_right_base_link",
+            weight=1.0,
+            stiffness=100.0,
+            components=components,
+        )
+        return InverseDynamicsController(upper_body, [posture, arm, hand]), hand
+
+    woodbury, hand_w = controller()
+    cholesky, hand_c = controller()
+    assert woodbury._joint_space
+    cholesky._joint_space = False  # the general path: computeAllTerms, Cholesky, M qdd + h
+    model, data = upper_body.model, upper_body.create_data()
+    for _ in range(5):
+        q, v = random_state(upper_body, rng, spread=0.05, speed=0.05)
+        pin.framesForwardKinematics(model, data, q)
+        target = data.oMf[hand_w.frame_id] * pin.exp6(0.01 * rng.normal(size=6))
+        velocity = 0.02 * rng.normal(size=6)
+        for hand in (hand_w, hand_c):
+            hand.set_target(target, velocity=velocity)
+        tau_w, tau_c = woodbury.compute_torques(q, v), cholesky.compute_torques(q, v)
+        assert woodbury.stats.last_status == cholesky.stats.last_status == "CHOLESKY_SOLVED"
+        np.testing.assert_allclose(
+            woodbury.joint_accelerations, cholesky.joint_accelerations, rtol=1e-9, atol=1e-9
+        )
+        np.testing.assert_allclose(tau_w, tau_c, rtol=1e-9, atol=1e-8)
+    assert woodbury.stats.n_direct == 5
+
+
 def test_torque_limits_hold(upper_body):
     """An aggressive reference saturates some joints; no torque leaves its limit."""
     rng = np.random.default_rng(3)

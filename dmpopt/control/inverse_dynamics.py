@@ -36,8 +36,10 @@ The QP that proxsuite sees is smaller than this statement, with the same solutio
   keeping the contact rows as equality constraints.
 - **Inequality rows on demand.** The QP without inequality rows is solved first; it is an
   unconstrained least-squares problem over z, solved by one Cholesky factorisation of its
-  Hessian, without proxsuite. With posture tasks only on a fixed base its Hessian is diagonal:
-  :math:`\ddot q = -g/d` in closed form and :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`.
+  Hessian, without proxsuite. On a fixed base with a posture task on every joint, its Hessian
+  is diagonal plus a low-rank term from the frame tasks (none for posture tasks alone): it is
+  solved by the Woodbury identity, and :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`,
+  without the mass matrix.
   If its wrenches are inside the cones and its torques within the limits, it is also the
   solution with them (a convex problem whose optimum without some constraints satisfies
   them); on the drumming study this holds on every tick. Otherwise the
@@ -66,7 +68,7 @@ from scipy.linalg import lapack
 
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 
-from .tasks import PostureTask, SoleContact, Task, _index
+from .tasks import FrameTask, PostureTask, SoleContact, Task, _index
 
 __all__ = ["ControllerStats", "InverseDynamicsController"]
 
@@ -307,9 +309,27 @@ class InverseDynamicsController:
             diagonal[indices] += task.weight
             self._posture_terms.append((task, _index(indices), -task.weight))
         self._posture_gradient = np.zeros(n_x)
-        # Fixed base, posture tasks only: diagonal Hessian, solved in closed form.
-        self._joint_space = not (self.contacts or self._stacked_tasks or nv > robot.n_actuated)
-        self._negative_inverse_diagonal = -1.0 / diagonal
+        # Fixed base, posture tasks on every joint plus frame tasks: the Hessian is diagonal
+        # plus a low-rank term, solved through the Woodbury identity without the mass matrix,
+        # and the torques come from RNEA (see _solve_joint_space).
+        covered = diagonal[:nv] >= acceleration_regularization + min(
+            (task.weight for task in self._posture_tasks), default=np.inf
+        )
+        self._joint_space = (
+            not self.contacts
+            and nv == robot.n_actuated
+            and all(isinstance(task, FrameTask) for task in self._stacked_tasks)
+            and (not self._stacked_tasks or bool(covered.all()))
+        )
+        self._inverse_diagonal = 1.0 / diagonal[:nv]
+        self._negative_inverse_diagonal = -self._inverse_diagonal
+        self._zero_acceleration = np.zeros(nv)
+        # Woodbury solve: W^-1 + J D^-1 J^T and J D^-1 over the frame-task rows.
+        self._task_weights = self._row_scale[:n_task, 0] ** 2
+        self._inverse_task_weights = 1.0 / self._task_weights
+        self._capacitance = np.zeros((n_task, n_task))
+        self._capacitance_diagonal_view = self._capacitance.reshape(-1)[:: n_task + 1]
+        self._scaled_rows = np.zeros((n_task, nv))
 
         # Cone rows over x (scaled wrenches): constant.
         cone_matrix = np.zeros((n_cone, n_x))
@@ -475,7 +495,9 @@ class InverseDynamicsController:
         # Posture tasks on a fixed base need no model terms below the torque limits.
         assembled = not (self._joint_space and level == 0)
         if not assembled:
-            self._solve_joint_space(q, v)
+            solved = self._solve_joint_space(q, v)
+            if not solved:  # not expected: S = I + A D^-1 A^T is positive definite
+                level = 2
         else:
             self._assemble(q, v)
         if assembled and level < 2:
@@ -527,16 +549,51 @@ class InverseDynamicsController:
             self._fall_back()
         return self._torques.copy()
 
-    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Fixed base with posture tasks only: the QP without torque rows has a diagonal
-        Hessian, so the candidate qdd = -g / d and tau = RNEA(q, v, qdd), without the model
-        terms of :meth:`_assemble`.
+    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
+        r"""Fixed base, posture tasks on every joint plus frame tasks: the QP without torque
+        rows, without the mass matrix.
+
+        Its Hessian is :math:`H = D + J^\top W J` (D the diagonal posture and regularisation
+        weights; J, t the frame-task rows, a few, with weights W), its gradient
+        :math:`p - J^\top W t`, so by the Woodbury identity
+
+        .. math:: \ddot q = H^{-1} r = D^{-1} r - D^{-1} J^\top (W^{-1} + J D^{-1} J^\top)^{-1}
+                  J D^{-1} r, \qquad r = J^\top W t - p,
+
+        with a factorisation of the small matrix only; posture tasks alone give
+        :math:`\ddot q = -p/d`. Then :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`.
         """
+        model, data, x = self.model, self.data, self._candidate
         self._update_posture(q, v)
-        x = self._candidate
-        np.multiply(self._posture_gradient, self._negative_inverse_diagonal, out=x)
-        self._tau[:] = pin.rnea(self.model, self.data, q, v, x)
-        self.stats.last_status, self.stats.last_iterations = _DIRECT, 0
+        stats = self.stats
+        stats.last_status, stats.last_iterations = _DIRECT, 0
+        if not self._stacked_tasks:
+            np.multiply(self._posture_gradient, self._negative_inverse_diagonal, out=x)
+            self._tau[:] = pin.rnea(model, data, q, v, x)
+            return True
+        pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+        rows = self._rows
+        for item, jacobian, block in self._bound:
+            item.update(q, v, data)
+            if item.jacobian is not jacobian:  # rebound since (e.g. by another controller)
+                rows[block, :-1] = item.jacobian
+                rows[block, -1] = item.target
+        n_task, nv = self._n_task, self._nv
+        jacobian, scaled = rows[:n_task, :nv], self._scaled_rows
+        np.dot(rows[:n_task, nv] * self._task_weights, jacobian, out=x)  # r = J^T W t - p
+        x -= self._posture_gradient
+        np.multiply(jacobian, self._inverse_diagonal, out=scaled)  # J D^-1
+        capacitance = np.dot(scaled, jacobian.T, out=self._capacitance)
+        self._capacitance_diagonal_view += self._inverse_task_weights
+        _, correction, info = lapack.dposv(capacitance, np.dot(scaled, x), overwrite_a=1)
+        if info != 0 or not math.isfinite(correction.sum()):
+            return False
+        x *= self._inverse_diagonal  # D^-1 r - (J D^-1)^T (W^-1 + J D^-1 J^T)^-1 J D^-1 r
+        x -= np.dot(correction, scaled)
+        self._tau[:] = pin.rnea(model, data, q, v, x)
+        return True
 
     # ------------------------------------------------------------------ assembly
     def _bind(self, item, rows: slice) -> tuple:

@@ -39,8 +39,8 @@ from studies import humanoid
 
 try:
     from tsid_baseline import build_tsid
-except ImportError:  # TSID is optional: only the reference column needs it
-    build_tsid = None
+except ImportError as error:  # TSID is optional: only the reference column needs it
+    build_tsid, tsid_missing = None, str(error)
 
 
 def calibration():
@@ -64,6 +64,8 @@ def main():
     builders = [("dmpopt", humanoid.build_controller)]
     if build_tsid is not None and not args.no_tsid:
         builders.append(("TSID", build_tsid))
+    elif not args.no_tsid:
+        print(f"TSID reference skipped: {tsid_missing}")
     dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
     robots = [
         ("full, floating base", load_talos("full")),

@@ -20,7 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-import tsid
+
+if int(pin.__version__.split(".")[0]) >= 4:
+    raise ImportError(
+        f"TSID's wheels crash with pin {pin.__version__} (binary mismatch); install the "
+        "versions in benchmarks/tsid-constraints.txt in a separate venv"
+    )
+import tsid  # noqa: E402
 
 from studies import humanoid
 

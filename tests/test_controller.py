@@ -80,6 +80,37 @@ def test_posture_pd_law(upper_body):
     np.testing.assert_allclose(controller.joint_accelerations, expected, atol=1e-8)
 
 
+def test_overlapping_posture_tasks_blend_by_weight(upper_body):
+    """Two posture tasks on the same joints give the weighted mean of their PD laws; gains
+    and references assigned after the controller is built take effect."""
+    rng = np.random.default_rng(4)
+    whole = PostureTask(upper_body, weight=0.5, stiffness=10.0)
+    arm = PostureTask(upper_body, "right_arm", weight=2.0, stiffness=30.0)
+    controller = InverseDynamicsController(
+        upper_body, [whole, arm], acceleration_regularization=1e-12
+    )
+    arm.stiffness = 40.0  # a scalar broadcasts over the arm's joints
+    arm.damping = np.linspace(1.0, 7.0, len(arm.velocity_indices))
+    whole.reference_acceleration = rng.normal(size=upper_body.nv)
+    q, v = random_state(upper_body, rng)
+    arm_reference = q[arm.configuration_indices] + 0.1 * rng.normal(size=7)
+    arm.set_reference(arm_reference, rng.normal(size=7), rng.normal(size=7))
+    controller.compute_torques(q, v)
+    law_whole = whole.reference_acceleration + 10.0 * (whole.reference_position - q)
+    law_whole += 2.0 * np.sqrt(10.0) * (whole.reference_velocity - v)
+    joints = arm.velocity_indices
+    law_arm = arm.reference_acceleration + 40.0 * (arm_reference - q[joints])
+    law_arm += arm.damping * (arm.reference_velocity - v[joints])
+    expected = law_whole.copy()
+    expected[joints] = (0.5 * law_whole[joints] + 2.0 * law_arm) / 2.5
+    np.testing.assert_allclose(controller.joint_accelerations, expected, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(arm.target, law_arm, rtol=1e-12)
+    with pytest.raises(InvalidInputError, match="stiffness"):
+        arm.stiffness = -1.0
+    with pytest.raises(ShapeError, match="damping"):
+        arm.damping = np.ones(3)
+
+
 def test_frame_task_acceleration_by_finite_differences(upper_body):
     """A dominant hand task reaches its desired acceleration, checked by differentiating the
     hand velocity numerically (Jacobian, drift and frame conventions together)."""

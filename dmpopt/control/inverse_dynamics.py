@@ -303,12 +303,9 @@ class InverseDynamicsController:
         # wrenches. The posture tasks' linear terms -w qdd* go to posture_gradient.
         diagonal = np.full(n_x, force_regularization * scale**2)
         diagonal[:nv] = acceleration_regularization
-        self._posture_terms = []
         for task in self._posture_tasks:
-            indices = np.asarray(task.velocity_indices, dtype=int)
-            diagonal[indices] += task.weight
-            self._posture_terms.append((task, _index(indices), -task.weight))
-        self._posture_gradient = np.zeros(n_x)
+            diagonal[np.asarray(task.velocity_indices, dtype=int)] += task.weight
+        self._bind_posture_tasks(n_x)
         # Fixed base, posture tasks on every joint plus frame tasks: the Hessian is diagonal
         # plus a low-rank term, solved through the Woodbury identity without the mass matrix,
         # and the torques come from RNEA (see _solve_joint_space).
@@ -616,18 +613,48 @@ class InverseDynamicsController:
                 rows[block, -1] = item.target
         self._update_posture(q, v)
 
+    def _bind_posture_tasks(self, n_x: int) -> None:
+        """Stack the posture tasks' state blocks into one, which the tasks then view.
+
+        The PD laws of all posture tasks then run as one vectorised law, and their gradient
+        terms -w qdd* are scattered over x by one product with a constant matrix.
+        """
+        tasks = self._posture_tasks
+        sizes = [task._state.shape[1] for task in tasks]
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+        self._posture_state = np.zeros((7, int(offsets[-1])))
+        self._posture_rows = tuple(self._posture_state)  # persistent views of the 7 rows
+        self._posture_views = []
+        scatter = np.zeros((int(offsets[-1]), n_x))
+        for task, start, stop in zip(tasks, offsets[:-1], offsets[1:]):
+            columns = slice(int(start), int(stop))
+            self._posture_state[:, columns] = task._state
+            task._state = self._posture_state[:, columns]
+            self._posture_views.append((task, task._state, columns))
+            scatter[np.arange(start, stop), task.velocity_indices] = -task.weight
+        self._posture_scatter = scatter
+        self._posture_q = _index(np.concatenate([[]] + [t.configuration_indices for t in tasks]))
+        self._posture_v = _index(np.concatenate([[]] + [t.velocity_indices for t in tasks]))
+        self._posture_scratch = np.zeros(int(offsets[-1]))
+        self._posture_gradient = np.zeros(n_x)
+
     def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Posture targets and their gradient terms -w qdd* over x."""
-        posture, terms, data = self._posture_gradient, self._posture_terms, self.data
-        if len(terms) == 1:  # entries off the task's joints stay zero
-            task, indices, scale = terms[0]
-            task.update(q, v, data)
-            posture[indices] = scale * task.target
-        elif terms:
-            posture[:] = 0.0
-            for task, indices, scale in terms:
-                task.update(q, v, data)
-                posture[indices] += scale * task.target
+        """Posture targets (the PD law of :class:`PostureTask`, all tasks at once) and their
+        gradient terms -w qdd* over x."""
+        if not self._posture_tasks:
+            return
+        state = self._posture_state
+        for task, view, columns in self._posture_views:
+            if task._state is not view:  # rebound since (by another controller): take it back
+                state[:, columns] = task._state
+                task._state = view
+        position, velocity, acceleration, stiffness, damping, target, error = self._posture_rows
+        np.subtract(position, q[self._posture_q], out=error)
+        np.subtract(velocity, v[self._posture_v], out=target)
+        target *= damping
+        target += np.multiply(stiffness, error, out=self._posture_scratch)
+        target += acceleration
+        np.dot(target, self._posture_scatter, out=self._posture_gradient)
 
     def _assemble_eliminated(self) -> bool:
         """Hessian and gradient over z; False if the basic block is ill-conditioned."""
@@ -667,7 +694,7 @@ class InverseDynamicsController:
         self._z_hessian_diagonal_view += self._z_hessian_diagonal
         gradient = self._z_gradient
         np.dot(matrix.T, z_rows[:, n_z], out=gradient)
-        if self._posture_terms:  # g = p_N - U_N^T p_B - A^T t
+        if self._posture_tasks:  # g = p_N - U_N^T p_B - A^T t
             posture = self._posture_gradient
             np.subtract(posture[self._nonbasic], gradient, out=gradient)
             gradient -= np.dot(posture[basic], elimination[:, :n_z])
@@ -713,7 +740,7 @@ class InverseDynamicsController:
         self._hessian_diagonal_view += self._hessian_diagonal
         gradient = self._gradient
         np.dot(cost.T, mapped[:n_cost, n], out=gradient)
-        if self._posture_terms:  # g = p - A^T t
+        if self._posture_tasks:  # g = p - A^T t
             np.subtract(self._posture_gradient[n_base:], gradient, out=gradient)
         else:
             np.negative(gradient, out=gradient)

@@ -93,6 +93,21 @@ class Task:
         return self._error.copy()
 
 
+def _posture_row(index: int, name: str, doc: str, nonnegative: bool = False) -> property:
+    """Row ``index`` of a PostureTask's state block; assigning writes into the row."""
+
+    def get(self) -> np.ndarray:
+        return self._state[index]
+
+    def set(self, value) -> None:
+        value = _vector(value, self._state.shape[1], name)
+        if nonnegative and not (np.isfinite(value).all() and (value >= 0).all()):
+            raise InvalidInputError(f"{name} must be finite and >= 0")
+        self._state[index] = value
+
+    return property(get, set, doc=doc)
+
+
 class PostureTask(Task):
     r"""Joint-space tracking of a joint group: the task a DMP drives.
 
@@ -122,6 +137,18 @@ class PostureTask(Task):
     acceleration.
     """
 
+    # The task's arrays are the rows of one block, shape (7, n_joints); a controller stacks the
+    # blocks of its posture tasks to run their PD laws as one vectorised law per tick.
+    reference_position = _posture_row(0, "reference_position", "Desired joint positions [rad].")
+    reference_velocity = _posture_row(1, "reference_velocity", "Desired joint velocities [rad/s].")
+    reference_acceleration = _posture_row(
+        2, "reference_acceleration", "Desired joint accelerations [rad/s^2]."
+    )
+    stiffness = _posture_row(3, "stiffness", ":math:`K_p` [1/s^2].", nonnegative=True)
+    damping = _posture_row(4, "damping", ":math:`K_d` [1/s].", nonnegative=True)
+    target = _posture_row(5, "target", "Desired joint accelerations of the last update.")
+    _error = _posture_row(6, "_error", "Position error of the last update [rad].")
+
     def __init__(self, robot, joints=None, weight: float = 1.0, stiffness=10.0, damping=None):
         joints = robot.actuated_joint_names if joints is None else joints
         self.joint_names = (
@@ -133,12 +160,9 @@ class PostureTask(Task):
         self._v_index = _index(self.velocity_indices)
         size = len(self.velocity_indices)
         self.weight = _check_weight(weight)
+        self._state = np.zeros((7, size))
         self.stiffness, self.damping = _gains(stiffness, damping, size)
-        self.reference_position = robot.reference_configuration[self.configuration_indices].copy()
-        self.reference_velocity = np.zeros(size)
-        self.reference_acceleration = np.zeros(size)
-        self.target = np.zeros(size)
-        self._error = np.zeros(size)
+        self.reference_position = robot.reference_configuration[self.configuration_indices]
 
     def set_reference(self, positions, velocities=None, accelerations=None) -> None:
         """Set the joint reference for the coming ticks (e.g. one DMP step).
@@ -169,12 +193,12 @@ class PostureTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the desired joint accelerations of the PD law above."""
-        np.subtract(self.reference_position, q[self._q_index], out=self._error)
-        target = self.target
-        np.subtract(self.reference_velocity, v[self._v_index], out=target)
-        target *= self.damping
-        target += self.stiffness * self._error
-        target += self.reference_acceleration
+        position, velocity, acceleration, stiffness, damping, target, error = self._state
+        np.subtract(position, q[self._q_index], out=error)
+        np.subtract(velocity, v[self._v_index], out=target)
+        target *= damping
+        target += stiffness * error
+        target += acceleration
 
 
 class FrameTask(Task):

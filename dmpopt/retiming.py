@@ -50,9 +50,7 @@ def _robot_arguments(robot, torque_limit, n_dofs):
     if robot is None:
         return None, None
     if robot.nq != n_dofs or robot.nv != n_dofs:
-        raise ShapeError(
-            f"robot has nq = {robot.nq}, nv = {robot.nv}; the plan has {n_dofs} DOFs"
-        )
+        raise ShapeError(f"robot has nq = {robot.nq}, nv = {robot.nv}; the plan has {n_dofs} DOFs")
     return robot, _limits("torque_limit", torque_limit, n_dofs)
 
 
@@ -88,8 +86,14 @@ def _torque_parts(robot, trajectory: Trajectory):
     return gravity, dynamic
 
 
-def uniform_time_scaling(trajectory: Trajectory, velocity_limit=None, acceleration_limit=None,
-                         *, robot=None, torque_limit=None) -> float:
+def uniform_time_scaling(
+    trajectory: Trajectory,
+    velocity_limit=None,
+    acceleration_limit=None,
+    *,
+    robot=None,
+    torque_limit=None,
+) -> float:
     r"""Smallest factor ``c`` such that ``time_scaled(trajectory, c)`` respects every limit.
 
     ``c < 1`` means the plan may be sped up. Velocities scale with :math:`1/c`,
@@ -215,8 +219,9 @@ def retime(
         data = robot.createData()
 
         def inverse_dynamics(q, qd, qdd):
-            return pin.rnea(robot, data, np.asarray(q, float), np.asarray(qd, float),
-                            np.asarray(qdd, float))
+            return pin.rnea(
+                robot, data, np.asarray(q, float), np.asarray(qd, float), np.asarray(qdd, float)
+            )
 
         constraints.append(
             constraint.JointTorqueConstraint(
@@ -228,8 +233,9 @@ def retime(
         )
     gridpoints = np.linspace(0.0, path_time[-1], max(int(n_gridpoints), 3))
     begin = time.perf_counter()
-    instance = algorithm.TOPPRA(constraints, path, gridpoints=gridpoints,
-                                parametrizer="ParametrizeConstAccel")
+    instance = algorithm.TOPPRA(
+        constraints, path, gridpoints=gridpoints, parametrizer="ParametrizeConstAccel"
+    )
     timed = instance.compute_trajectory(0.0, 0.0)
     elapsed = time.perf_counter() - begin
     if timed is None:
@@ -244,8 +250,9 @@ def retime(
     result = Trajectory(times, timed(times), timed(times, 1), timed(times, 2))
     # path parameter s(t): toppra's path is parametrised by the plan's own time
     parameter = np.asarray(timed._eval_params(times)[0], dtype=float)  # s(t) on the path
-    stretch = uniform_time_scaling(result, velocity_limit, acceleration_limit, robot=robot,
-                                   torque_limit=torque_limit)
+    stretch = uniform_time_scaling(
+        result, velocity_limit, acceleration_limit, robot=robot, torque_limit=torque_limit
+    )
     stretch = max(stretch * (1 + _TOLERANCE), 1.0) if stretch > 1.0 else 1.0
     if stretch > 1.0:
         result = time_scaled(result, stretch)

@@ -27,8 +27,13 @@ from . import lasa
 from .common import write_metrics
 
 EXPECTED_SECONDS = {"full": 25, "quick": 2}  # measured on the 2-core machine
-METHODS = ("dmp_unconstrained", "dmp_constrained", "minimum_jerk", "dmp_retimed_toppra",
-           "dmp_tau_scaled")
+METHODS = (
+    "dmp_unconstrained",
+    "dmp_constrained",
+    "minimum_jerk",
+    "dmp_retimed_toppra",
+    "dmp_tau_scaled",
+)
 
 
 def _violates(trajectory, bounds, tolerance=1e-7):
@@ -74,8 +79,10 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         goal = demo.positions[-1] + 0.1 * extent * np.array([1.0, -1.0])
         free = build_fitting_problem(demo, reference=reference, goal=goal)
         plain = free.rollout(free.dmp)
-        bounds = Bounds(velocity=velocity_fraction * np.abs(plain.velocities).max(0),
-                        acceleration=acceleration_fraction * np.abs(plain.accelerations).max(0))
+        bounds = Bounds(
+            velocity=velocity_fraction * np.abs(plain.velocities).max(0),
+            acceleration=acceleration_fraction * np.abs(plain.accelerations).max(0),
+        )
         target = free.target
         case = {"shape": name}
         plans = {"dmp_unconstrained": (plain, 0.0)}
@@ -89,8 +96,8 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
             k = [n_samples // 4, n_samples // 2, 3 * n_samples // 4]
             vias = [ViaPoint(free.plan.times[i], target[i], tolerance=0.05 * extent) for i in k]
             trajectory, report = minimum_jerk_constrained(
-                target[0], goal, demo.duration, bounds=bounds, via_points=vias,
-                n_samples=n_samples)
+                target[0], goal, demo.duration, bounds=bounds, via_points=vias, n_samples=n_samples
+            )
             plans["minimum_jerk"] = (trajectory, report.solve_time)
         except DmpoptError as error:
             failures.append({"shape": name, "method": "minimum_jerk", "error": str(error)})
@@ -122,26 +129,37 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
 
     metrics = {
         "claim": "constrained DMP fits respect velocity/acceleration bounds at every sample "
-                 "while keeping the shape and the duration",
+        "while keeping the shape and the duration",
         "quick": quick,
         "n_shapes": len(cases),
         "n_samples": n_samples,
         "n_basis": n_basis,
-        "bounds": {"velocity_fraction_of_unconstrained_peak": velocity_fraction,
-                   "acceleration_fraction_of_unconstrained_peak": acceleration_fraction,
-                   "goal_shift_fraction_of_extent": 0.1},
-        "violation_fraction": {m: float(np.mean(collect(m, "violates"))) if collect(m, "violates")
-                               else None for m in METHODS},
+        "bounds": {
+            "velocity_fraction_of_unconstrained_peak": velocity_fraction,
+            "acceleration_fraction_of_unconstrained_peak": acceleration_fraction,
+            "goal_shift_fraction_of_extent": 0.1,
+        },
+        "violation_fraction": {
+            m: float(np.mean(collect(m, "violates"))) if collect(m, "violates") else None
+            for m in METHODS
+        },
         "failure_fraction": {m: 1 - len(collect(m, "violates")) / len(cases) for m in METHODS},
-        "solve_ms_median": {m: float(np.median(collect(m, "solve_ms"))) for m in METHODS
-                            if collect(m, "solve_ms")},
-        "shape_error_median": {m: float(np.median(collect(m, "shape_error"))) for m in METHODS
-                               if collect(m, "shape_error")},
+        "solve_ms_median": {
+            m: float(np.median(collect(m, "solve_ms"))) for m in METHODS if collect(m, "solve_ms")
+        },
+        "shape_error_median": {
+            m: float(np.median(collect(m, "shape_error")))
+            for m in METHODS
+            if collect(m, "shape_error")
+        },
         "integrated_squared_jerk_median": {
-            m: float(np.median(collect(m, "integrated_squared_jerk"))) for m in METHODS
-            if collect(m, "integrated_squared_jerk")},
-        "duration_median": {m: float(np.median(collect(m, "duration"))) for m in METHODS
-                            if collect(m, "duration")},
+            m: float(np.median(collect(m, "integrated_squared_jerk")))
+            for m in METHODS
+            if collect(m, "integrated_squared_jerk")
+        },
+        "duration_median": {
+            m: float(np.median(collect(m, "duration"))) for m in METHODS if collect(m, "duration")
+        },
         "failures": failures,
         "cases": cases,
     }
@@ -197,8 +215,14 @@ def main(argv=None) -> None:
     argv = sys.argv[1:] if argv is None else argv
     out = argv[0] if argv and not argv[0].startswith("--") else "out/constrained"
     metrics = run(out, quick="--quick" in argv)
-    for key in ("violation_fraction", "failure_fraction", "shape_error_median",
-                "integrated_squared_jerk_median", "duration_median", "solve_ms_median"):
+    for key in (
+        "violation_fraction",
+        "failure_fraction",
+        "shape_error_median",
+        "integrated_squared_jerk_median",
+        "duration_median",
+        "solve_ms_median",
+    ):
         print(key, json.dumps(metrics[key]))
 
 

@@ -47,12 +47,24 @@ from .common import write_metrics
 # sigma^2); the vanilla gradient's expectation does not depend on sigma.
 VARIANTS = {
     "enac": ("enac", {"step_rule": "constant"}, "step_size", (5.0, 10.0, 20.0, 40.0, 80.0)),
-    "ereinforce": ("ereinforce", {"step_rule": "constant"}, "step_size",
-                   (10.0, 20.0, 40.0, 80.0, 160.0)),
-    "enac_kl": ("enac", {"step_rule": "kl", "decay": 0.05}, "step_size",
-                (1.0, 3.0, 10.0, 30.0, 100.0)),
-    "ereinforce_kl": ("ereinforce", {"step_rule": "kl", "decay": 0.05}, "step_size",
-                      (1.0, 3.0, 10.0, 30.0, 100.0)),
+    "ereinforce": (
+        "ereinforce",
+        {"step_rule": "constant"},
+        "step_size",
+        (10.0, 20.0, 40.0, 80.0, 160.0),
+    ),
+    "enac_kl": (
+        "enac",
+        {"step_rule": "kl", "decay": 0.05},
+        "step_size",
+        (1.0, 3.0, 10.0, 30.0, 100.0),
+    ),
+    "ereinforce_kl": (
+        "ereinforce",
+        {"step_rule": "kl", "decay": 0.05},
+        "step_size",
+        (1.0, 3.0, 10.0, 30.0, 100.0),
+    ),
     "pibb": ("pibb", {}, "exploration_std", (5.0, 10.0, 20.0, 40.0)),
     "cmaes": ("cmaes", {}, "exploration_std", (5.0, 10.0, 20.0, 40.0)),
     # CMA-ES with its own default population size 4 + floor(3 ln n) instead of 20 roll-outs
@@ -86,8 +98,9 @@ def _run(task, variant, options, seed, n_trials):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            return optimise(make_method(VARIANTS[variant][0], task, seed=seed, **options), task,
-                            n_trials)
+            return optimise(
+                make_method(VARIANTS[variant][0], task, seed=seed, **options), task, n_trials
+            )
     except (DmpoptError, np.linalg.LinAlgError):
         return None
 
@@ -112,10 +125,14 @@ def _tune(task, variant, sigma, batch, seeds, n_trials, progress):
 
 def _summary(values):
     finite = np.isfinite(values)
-    quartiles = np.percentile(values, [25, 75]) if finite.all() else [
-        float(np.percentile(values, 25)) if np.mean(finite) >= 0.25 else None,
-        float(np.percentile(values, 75)) if np.mean(finite) >= 0.75 else None,
-    ]
+    quartiles = (
+        np.percentile(values, [25, 75])
+        if finite.all()
+        else [
+            float(np.percentile(values, 25)) if np.mean(finite) >= 0.25 else None,
+            float(np.percentile(values, 75)) if np.mean(finite) >= 0.75 else None,
+        ]
+    )
     return {
         "median": float(np.median(values)) if np.mean(finite) >= 0.5 else None,
         "q25": None if quartiles[0] is None else float(quartiles[0]),
@@ -144,8 +161,9 @@ def _metrics_of(results):
             "tuned_value": result["tuned"],
             "trials_to_95": _summary(_trials(curves, 0.95)),
             "trials_to_99": _summary(_trials(curves, 0.99)),
-            "final_improvement_median": float(np.median(
-                [c.improvement[-1] if c is not None else -np.inf for c in curves])),
+            "final_improvement_median": float(
+                np.median([c.improvement[-1] if c is not None else -np.inf for c in curves])
+            ),
             "diverged": int(sum(c is None for c in curves)),
         }
     return out
@@ -168,23 +186,36 @@ def _plot_curves(path, results, title, n_trials):
         curves = [c for c in result["curves"] if c is not None]
         if not curves:
             continue
-        values = np.stack([np.interp(grid, c.trials, c.improvement, right=c.improvement[-1])
-                           for c in curves])
+        values = np.stack(
+            [np.interp(grid, c.trials, c.improvement, right=c.improvement[-1]) for c in curves]
+        )
         median = np.median(values, axis=0)
         low, high = np.percentile(values, [25, 75], axis=0)
         line = axes[0].plot(grid, median, label=f"{variant} ({len(curves)} seeds)")[0]
         axes[0].fill_between(grid, low, high, color=line.get_color(), alpha=0.2)
         gap = np.clip(1 - values, 1e-5, None)
         axes[1].semilogy(grid, np.median(gap, axis=0), color=line.get_color(), label=variant)
-        axes[1].fill_between(grid, np.percentile(gap, 25, axis=0), np.percentile(gap, 75, axis=0),
-                             color=line.get_color(), alpha=0.2)
+        axes[1].fill_between(
+            grid,
+            np.percentile(gap, 25, axis=0),
+            np.percentile(gap, 75, axis=0),
+            color=line.get_color(),
+            alpha=0.2,
+        )
     axes[0].axhline(0.95, color="k", lw=0.5, ls="--")
-    axes[0].set(xlabel="trials (roll-outs)", ylabel="fraction of achievable improvement",
-                ylim=(-0.1, 1.05), title=title)
+    axes[0].set(
+        xlabel="trials (roll-outs)",
+        ylabel="fraction of achievable improvement",
+        ylim=(-0.1, 1.05),
+        title=title,
+    )
     axes[1].axhline(0.05, color="k", lw=0.5, ls="--")
     axes[1].axhline(0.01, color="k", lw=0.5, ls=":")
-    axes[1].set(xlabel="trials (roll-outs)", ylabel="1 - fraction (median, IQR)",
-                title="distance to the exact optimum")
+    axes[1].set(
+        xlabel="trials (roll-outs)",
+        ylabel="1 - fraction (median, IQR)",
+        title="distance to the exact optimum",
+    )
     axes[0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -230,8 +261,9 @@ def _bell_shaped(velocity, tolerance: float = 0.01) -> bool:
         return False
     after = velocity[peak:]
     before = velocity[: peak + 1][::-1]
-    rebound = max(np.max(after - np.minimum.accumulate(after)),
-                  np.max(before - np.minimum.accumulate(before)))
+    rebound = max(
+        np.max(after - np.minimum.accumulate(after)), np.max(before - np.minimum.accumulate(before))
+    )
     return bool(rebound <= tolerance * velocity[peak])
 
 
@@ -250,52 +282,69 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     dependence_seeds = extra_seeds if quick else eval_seeds
 
     task = paper_reaching_task()
-    extra_tasks = {} if quick else {"six_dof": multi_dof_reaching_task(),
-                                    "via_point": via_point_task()}
+    extra_tasks = (
+        {} if quick else {"six_dof": multi_dof_reaching_task(), "via_point": via_point_task()}
+    )
     total = sum(len(v[3]) * n_tune + n_eval for v in VARIANTS.values())
-    total += len(settings) * sum(len(VARIANTS[v][3]) * n_tune + len(dependence_seeds)
-                                 for v in ("enac", "ereinforce", "enac_kl", "ereinforce_kl"))
-    total += len(extra_tasks) * sum(len(VARIANTS[v][3]) * n_tune + len(extra_seeds)
-                                    for v in SCALE_FREE)
+    total += len(settings) * sum(
+        len(VARIANTS[v][3]) * n_tune + len(dependence_seeds)
+        for v in ("enac", "ereinforce", "enac_kl", "ereinforce_kl")
+    )
+    total += len(extra_tasks) * sum(
+        len(VARIANTS[v][3]) * n_tune + len(extra_seeds) for v in SCALE_FREE
+    )
     progress = tqdm(total=total, desc="rl study (runs)", unit="run")
 
     # The paper's task ------------------------------------------------------------------
-    results = _study_task(task, VARIANTS, EXPLORATION_STD, BATCH, tuning_seeds, eval_seeds,
-                          n_trials, progress)
+    results = _study_task(
+        task, VARIANTS, EXPLORATION_STD, BATCH, tuning_seeds, eval_seeds, n_trials, progress
+    )
     method_metrics = _metrics_of(results)
 
     # Dependence of the REINFORCE / NAC ratio on noise and batch ----------------------
     dependence = []
     for sigma, batch in settings:
         pairs = ("enac", "ereinforce", "enac_kl", "ereinforce_kl")
-        part = _metrics_of(_study_task(task, pairs, sigma, batch, tuning_seeds,
-                                       dependence_seeds, n_trials, progress))
-        dependence.append({
-            "exploration_std": sigma, "n_rollouts": batch,
-            "trials_to_95": {k: v["trials_to_95"]["median"] for k, v in part.items()},
-            "trials_to_99": {k: v["trials_to_99"]["median"] for k, v in part.items()},
-            "ratio_fixed_step_95": _ratio(part, "ereinforce", "enac"),
-            "ratio_kl_step_95": _ratio(part, "ereinforce_kl", "enac_kl"),
-            "ratio_fixed_step_99": _ratio(part, "ereinforce", "enac", "trials_to_99"),
-            "ratio_kl_step_99": _ratio(part, "ereinforce_kl", "enac_kl", "trials_to_99"),
-        })
+        part = _metrics_of(
+            _study_task(
+                task, pairs, sigma, batch, tuning_seeds, dependence_seeds, n_trials, progress
+            )
+        )
+        dependence.append(
+            {
+                "exploration_std": sigma,
+                "n_rollouts": batch,
+                "trials_to_95": {k: v["trials_to_95"]["median"] for k, v in part.items()},
+                "trials_to_99": {k: v["trials_to_99"]["median"] for k, v in part.items()},
+                "ratio_fixed_step_95": _ratio(part, "ereinforce", "enac"),
+                "ratio_kl_step_95": _ratio(part, "ereinforce_kl", "enac_kl"),
+                "ratio_fixed_step_99": _ratio(part, "ereinforce", "enac", "trials_to_99"),
+                "ratio_kl_step_99": _ratio(part, "ereinforce_kl", "enac_kl", "trials_to_99"),
+            }
+        )
 
     # Beyond one joint ------------------------------------------------------------------
     extra_metrics = {}
     for name, extra in extra_tasks.items():
-        extra_results = _study_task(extra, SCALE_FREE, EXPLORATION_STD, BATCH, tuning_seeds,
-                                    extra_seeds, n_trials, progress)
+        extra_results = _study_task(
+            extra, SCALE_FREE, EXPLORATION_STD, BATCH, tuning_seeds, extra_seeds, n_trials, progress
+        )
         extra_metrics[name] = {
-            "n_dofs": extra.n_dofs, "optimum_return": extra.optimum_return,
-            "initial_return": extra.initial_return, "methods": _metrics_of(extra_results),
+            "n_dofs": extra.n_dofs,
+            "optimum_return": extra.optimum_return,
+            "initial_return": extra.initial_return,
+            "methods": _metrics_of(extra_results),
         }
-        _plot_curves(out / f"rl_curves_{name}.png", extra_results,
-                     f"{name}: {extra.n_dofs} DOFs, 20 roll-outs/update", n_trials)
+        _plot_curves(
+            out / f"rl_curves_{name}.png",
+            extra_results,
+            f"{name}: {extra.n_dofs} DOFs, 20 roll-outs/update",
+            n_trials,
+        )
     progress.close()
 
     # Figures and velocity profiles ---------------------------------------------------
-    _plot_curves(out / "rl_curves.png", results, "Fig. 5 task: 1 DOF, 0 -> 1 in 500 ms",
-                 n_trials)
+    _plot_curves(out / "rl_curves.png", results, "Fig. 5 task: 1 DOF, 0 -> 1 in 500 ms", n_trials)
     enac_curves = [c for c in results["enac"]["curves"] if c is not None]
     typical = None
     if enac_curves:
@@ -306,10 +355,12 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
 
     velocity_start = task.plan.evaluate(task.initial_weights)[1, :, 0]
     velocity_optimum = task.plan.evaluate(task.optimal_weights)[1, :, 0]
-    velocity_200 = (task.plan.evaluate(typical.weights_at(200))[1, :, 0]
-                    if typical is not None else None)
-    velocity_end = (task.plan.evaluate(typical.final_weights)[1, :, 0]
-                    if typical is not None else None)
+    velocity_200 = (
+        task.plan.evaluate(typical.weights_at(200))[1, :, 0] if typical is not None else None
+    )
+    velocity_end = (
+        task.plan.evaluate(typical.final_weights)[1, :, 0] if typical is not None else None
+    )
     trials_95 = {v: m["trials_to_95"]["median"] for v, m in method_metrics.items()}
     trials_99 = {v: m["trials_to_99"]["median"] for v, m in method_metrics.items()}
     finite = {v: t for v, t in trials_95.items() if t is not None}
@@ -322,19 +373,23 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "trial_budget": n_trials,
         "exploration_std": EXPLORATION_STD,
         "n_rollouts": BATCH,
-        "reward": ("R = -1000 (y(T)-g)^2 - ydot(T)^2 - 1e-3 * sum_k yddot_k^2 dt "
-                   "(acceleration integral over the n-1 held commands); optional jerk term"),
+        "reward": (
+            "R = -1000 (y(T)-g)^2 - ydot(T)^2 - 1e-3 * sum_k yddot_k^2 dt "
+            "(acceleration integral over the n-1 held commands); optional jerk term"
+        ),
         "optimum_return": task.optimum_return,
         "initial_return": task.initial_return,
         "trials_to_95": trials_95,
         "trials_to_99": trials_99,
         "methods": method_metrics,
         "ratio_ereinforce_over_enac_95": _ratio(method_metrics, "ereinforce", "enac"),
-        "ratio_ereinforce_over_enac_99": _ratio(method_metrics, "ereinforce", "enac",
-                                                "trials_to_99"),
+        "ratio_ereinforce_over_enac_99": _ratio(
+            method_metrics, "ereinforce", "enac", "trials_to_99"
+        ),
         "ratio_ereinforce_kl_over_enac_kl_95": _ratio(method_metrics, "ereinforce_kl", "enac_kl"),
-        "ratio_ereinforce_kl_over_enac_kl_99": _ratio(method_metrics, "ereinforce_kl", "enac_kl",
-                                                      "trials_to_99"),
+        "ratio_ereinforce_kl_over_enac_kl_99": _ratio(
+            method_metrics, "ereinforce_kl", "enac_kl", "trials_to_99"
+        ),
         "best_method_95": min(finite, key=finite.get) if finite else None,
         "ratio_dependence": dependence,
         "velocity_bell_shaped": {
@@ -364,9 +419,21 @@ def main():
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     metrics = run(args.out_dir, quick=args.quick, seed=args.seed)
-    print(json.dumps({k: metrics[k] for k in ("optimum_return", "trials_to_95", "trials_to_99",
-                                              "ratio_ereinforce_over_enac_95", "wall_time_s")},
-                     indent=2))
+    print(
+        json.dumps(
+            {
+                k: metrics[k]
+                for k in (
+                    "optimum_return",
+                    "trials_to_95",
+                    "trials_to_99",
+                    "ratio_ereinforce_over_enac_95",
+                    "wall_time_s",
+                )
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

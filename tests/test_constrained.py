@@ -30,8 +30,9 @@ REFERENCES = {form: fit_discrete(DEMO, 20, form=form) for form in ("velocity", "
 
 def plain_plan(form="velocity"):
     dmp = REFERENCES[form]
-    return dmp.rollout(DEMO.duration, DEMO.duration / (DEMO.n_steps - 1),
-                       start_velocity=DEMO.velocities[0])
+    return dmp.rollout(
+        DEMO.duration, DEMO.duration / (DEMO.n_steps - 1), start_velocity=DEMO.velocities[0]
+    )
 
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
@@ -47,8 +48,9 @@ def test_unconstrained_request_reproduces_imitation(form):
 def test_unconstrained_forcing_objective_returns_reference_weights():
     """The forcing objective without any constraint returns the reference weights exactly."""
     reference = REFERENCES["velocity"]
-    dmp, _ = fit_weights_constrained(DEMO, reference=reference, objective="forcing",
-                                     end_position_tolerance=None)
+    dmp, _ = fit_weights_constrained(
+        DEMO, reference=reference, objective="forcing", end_position_tolerance=None
+    )
     np.testing.assert_allclose(dmp.weights, reference.weights, rtol=1e-8, atol=1e-8)
 
 
@@ -60,19 +62,26 @@ def test_unconstrained_forcing_objective_returns_reference_weights():
     form=st.sampled_from(["velocity", "acceleration"]),
     objective=st.sampled_from(["position", "forcing"]),
 )
-def test_bounds_hold_on_the_rollout(velocity_fraction, acceleration_fraction, goal_shift, form,
-                                    objective):
+def test_bounds_hold_on_the_rollout(
+    velocity_fraction, acceleration_fraction, goal_shift, form, objective
+):
     """Velocity and acceleration limits hold at every sample of the returned DMP's rollout."""
     plan = plain_plan(form)
     velocity = velocity_fraction * np.abs(plan.velocities).max(0)
     acceleration = acceleration_fraction * np.abs(plan.accelerations).max(0)
     goal = DEMO.positions[-1] + goal_shift
     dmp, report = fit_weights_constrained(
-        DEMO, reference=REFERENCES[form], goal=goal, objective=objective,
+        DEMO,
+        reference=REFERENCES[form],
+        goal=goal,
+        objective=objective,
         bounds=Bounds(velocity=velocity, acceleration=acceleration),
     )
-    rollout = dmp.rollout(DEMO.duration, DEMO.duration / (DEMO.n_steps - 1),
-                          start_velocity=report.problem.start_velocity)
+    rollout = dmp.rollout(
+        DEMO.duration,
+        DEMO.duration / (DEMO.n_steps - 1),
+        start_velocity=report.problem.start_velocity,
+    )
     assert np.all(np.abs(rollout.velocities) <= velocity)
     assert np.all(np.abs(rollout.accelerations) <= acceleration)
     np.testing.assert_allclose(rollout.positions[-1], goal, atol=1e-9)
@@ -86,7 +95,10 @@ def test_position_jerk_via_points_and_end_conditions_hold():
     via = ViaPoint(0.5, [0.55, 0.45], tolerance=0.01)
     duration = 1.2
     dmp, report = fit_weights_constrained(
-        DEMO, reference=REFERENCES["velocity"], duration=duration, n_samples=241,
+        DEMO,
+        reference=REFERENCES["velocity"],
+        duration=duration,
+        n_samples=241,
         bounds=Bounds(position_lower=[-0.01, -0.2], position_upper=[1.05, 1.0], jerk=0.8 * jerk),
         via_points=[via, ViaPoint(0.9, [0.95, 0.95], tolerance=[0.02, 0.02])],
         end_velocity_tolerance=0.01,
@@ -105,7 +117,9 @@ def test_euclidean_via_point_uses_the_nlp():
     """A ball via-point is met (within its radius) by the IPOPT fallback."""
     point = np.array([0.6, 0.5])
     dmp, report = fit_weights_constrained(
-        DEMO, reference=REFERENCES["velocity"], n_samples=101,
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
         via_points=[ViaPoint(0.5, point, tolerance=0.02, norm="ball")],
     )
     assert report.solver == "ipopt"
@@ -116,7 +130,8 @@ def test_problem_is_inspectable_and_warm_starts():
     """The built problem exposes its groups and stacked QP; a second solve reuses it."""
     plan = plain_plan()
     problem = build_fitting_problem(
-        DEMO, reference=REFERENCES["velocity"],
+        DEMO,
+        reference=REFERENCES["velocity"],
         bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
     )
     assert [g.name for g in problem.groups] == ["velocity", "end_position"]
@@ -133,7 +148,9 @@ def test_infeasible_request_names_the_constraint_group():
     """Too tight a velocity limit raises InfeasibleProblem naming the groups and amounts."""
     plan = plain_plan()
     problem = build_fitting_problem(
-        DEMO, reference=REFERENCES["velocity"], n_samples=101,
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
         bounds=Bounds(velocity=0.2 * np.abs(plan.velocities).max(0)),
     )
     with pytest.raises(InfeasibleProblem) as caught:
@@ -153,5 +170,6 @@ def test_invalid_requests_are_rejected():
     with pytest.raises(InvalidInputError, match="velocity must be positive"):
         Bounds(velocity=-1.0)
     with pytest.raises(InvalidInputError, match="outside the plan"):
-        build_fitting_problem(DEMO, reference=REFERENCES["velocity"],
-                              via_points=[ViaPoint(2.0, [0.0, 0.0])])
+        build_fitting_problem(
+            DEMO, reference=REFERENCES["velocity"], via_points=[ViaPoint(2.0, [0.0, 0.0])]
+        )

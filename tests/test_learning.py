@@ -64,8 +64,10 @@ def test_reward_definition(task):
     noise = 5 * rng.standard_normal((3, task.n_actions, 1))
     plans = task.rollouts(weights, noise)
     y, yd, ydd = plans[:, 0, :, 0], plans[:, 1, :, 0], plans[:, 2, :, 0]
-    expected = -1000 * (y[:, -1] - 1) ** 2 - yd[:, -1] ** 2 - 1e-3 * task.dt * np.sum(
-        ydd[:, :-1] ** 2, axis=1
+    expected = (
+        -1000 * (y[:, -1] - 1) ** 2
+        - yd[:, -1] ** 2
+        - 1e-3 * task.dt * np.sum(ydd[:, :-1] ** 2, axis=1)
     )
     np.testing.assert_allclose(task.returns(weights, noise), expected, rtol=1e-12)
     delayed = paper_reaching_task(delayed=True).rewards(plans)
@@ -75,6 +77,7 @@ def test_reward_definition(task):
 
 def test_exact_optimum_matches_numerical_optimisation(task):
     """The least-squares optimum equals BFGS on the noise-free return, and reaches the goal."""
+
     def cost(w):
         return -task.deterministic_return(w[None])
 
@@ -205,8 +208,9 @@ def test_each_method_improves_the_paper_task(task, name, options):
 
 def test_learned_exploration_changes_sigma_and_improves(task):
     """eNAC with learn_exploration updates sigma and still improves the return."""
-    method = make_method("enac", task, seed=1, exploration_std=10.0, step_size=10.0,
-                         learn_exploration=True)
+    method = make_method(
+        "enac", task, seed=1, exploration_std=10.0, step_size=10.0, learn_exploration=True
+    )
     curve = optimise(method, task, 300)
     assert method.exploration_std != 10.0
     assert curve.improvement[-1] > 0.8
@@ -215,16 +219,20 @@ def test_learned_exploration_changes_sigma_and_improves(task):
 def test_delayed_rewards_give_the_same_learning(task):
     """Episodic methods see the same returns with per-step or end-only rewards."""
     delayed = paper_reaching_task(delayed=True)
-    curves = [optimise(make_method("enac", t, seed=5, exploration_std=10.0, step_size=10.0), t,
-                       200) for t in (task, delayed)]
+    curves = [
+        optimise(make_method("enac", t, seed=5, exploration_std=10.0, step_size=10.0), t, 200)
+        for t in (task, delayed)
+    ]
     np.testing.assert_allclose(curves[0].weights, curves[1].weights, rtol=1e-9, atol=1e-9)
 
 
 def test_methods_improve_the_via_point_task():
     """KL-normalised eNAC (more roll-outs than its 20 weights) and CMA-ES improve a 2-DOF task."""
     via = via_point_task()
-    for name, options in (("enac", {"exploration_std": 30.0, "step_size": 30.0, "n_rollouts": 30}),
-                          ("cmaes", {"exploration_std": 20.0})):
+    for name, options in (
+        ("enac", {"exploration_std": 30.0, "step_size": 30.0, "n_rollouts": 30}),
+        ("cmaes", {"exploration_std": 20.0}),
+    ):
         curve = optimise(make_method(name, via, seed=0, **options), via, 400)
         assert curve.improvement[-1] > 0.5
 

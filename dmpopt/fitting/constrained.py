@@ -518,9 +518,14 @@ def build_fitting_problem(
         if bounds.position_lower is not None or bounds.position_upper is not None:
             low = -np.inf if bounds.position_lower is None else bounds.position_lower
             high = np.inf if bounds.position_upper is None else bounds.position_upper
-            add("position", "position", lambda v, h: v[0], response[0],
+            add(
+                "position",
+                "position",
+                lambda v, h: v[0],
+                response[0],
                 _per_dof("position_lower", np.atleast_1d(low), n_dofs),
-                _per_dof("position_upper", np.atleast_1d(high), n_dofs))
+                _per_dof("position_upper", np.atleast_1d(high), n_dofs),
+            )
         # |velocity| <= limit at every sample
         if bounds.velocity is not None:
             limit = _per_dof("velocity", bounds.velocity, n_dofs)
@@ -532,8 +537,14 @@ def build_fitting_problem(
         # |jerk| <= limit between samples (forward difference of accelerations)
         if bounds.jerk is not None:
             limit = _per_dof("jerk", bounds.jerk, n_dofs)
-            add("jerk", "jerk", lambda v, h: np.diff(v[2], axis=0) / h,
-                np.diff(response[2], axis=0) / dt, -limit, limit)
+            add(
+                "jerk",
+                "jerk",
+                lambda v, h: np.diff(v[2], axis=0) / h,
+                np.diff(response[2], axis=0) / dt,
+                -limit,
+                limit,
+            )
     # via-points: plan interpolated linearly between the neighbouring samples
     balls, ball_rows = [], []
     via_points = tuple(via_points)
@@ -553,8 +564,14 @@ def build_fitting_problem(
         def select(v, h, k=k, a=a):
             return ((1 - a) * v[0, k] + a * v[0, k + 1])[None, :]
 
-        add(f"via_point[{i}]", "position", select, row[None, :], point - tolerance,
-            point + tolerance)
+        add(
+            f"via_point[{i}]",
+            "position",
+            select,
+            row[None, :],
+            point - tolerance,
+            point + tolerance,
+        )
     # end conditions at the last sample: goal reached, at rest
     for quantity, index, tolerance, centre in (
         ("position", 0, end_position_tolerance, goal),
@@ -566,8 +583,14 @@ def build_fitting_problem(
         tolerance = float(tolerance)
         if tolerance < 0:
             raise InvalidInputError(f"end_{quantity}_tolerance must be >= 0, got {tolerance}")
-        add(f"end_{quantity}", quantity, lambda v, h, i=index: v[i, -1:],
-            response[index, -1][None, :], centre - tolerance, centre + tolerance)
+        add(
+            f"end_{quantity}",
+            quantity,
+            lambda v, h, i=index: v[i, -1:],
+            response[index, -1][None, :],
+            centre - tolerance,
+            centre + tolerance,
+        )
 
     # scale: rows in group units (divide by unit), then to unit norm; margin inside the box
     matrices, lowers, uppers, row_scales, groups = [], [], [], [], []
@@ -592,12 +615,28 @@ def build_fitting_problem(
     row_scale = np.concatenate(row_scales) if row_scales else np.zeros(0)
 
     problem = FittingProblem(
-        dmp=dmp, plan=plan, target=target, objective=objective, duration=duration, dt=dt,
-        start_velocity=start_velocity, length_scale=length, scale=scale, hessian=hessian,
-        gradient=gradient, constraint_matrix=constraint_matrix,
-        lower=np.clip(lower, -_INFINITY, _INFINITY), upper=np.clip(upper, -_INFINITY, _INFINITY),
-        row_scale=row_scale, groups=tuple(groups), bounds=bounds, via_points=via_points,
-        balls=tuple(balls), solver=solver, margin=margin, checks=checks,
+        dmp=dmp,
+        plan=plan,
+        target=target,
+        objective=objective,
+        duration=duration,
+        dt=dt,
+        start_velocity=start_velocity,
+        length_scale=length,
+        scale=scale,
+        hessian=hessian,
+        gradient=gradient,
+        constraint_matrix=constraint_matrix,
+        lower=np.clip(lower, -_INFINITY, _INFINITY),
+        upper=np.clip(upper, -_INFINITY, _INFINITY),
+        row_scale=row_scale,
+        groups=tuple(groups),
+        bounds=bounds,
+        via_points=via_points,
+        balls=tuple(balls),
+        solver=solver,
+        margin=margin,
+        checks=checks,
     )
     problem.cache["ball_rows"] = tuple(ball_rows)
     return problem
@@ -679,12 +718,26 @@ def _backend_solve(solver, hessian, gradient, matrix, lower, upper):
     function, result = _silenced(call) if solver == "qpoases" else call()
     stats = function.stats()
     status = str(stats.get("return_status", stats.get("unified_return_status", "")))
-    return (result["x"].full().ravel(), result["lam_a"].full().ravel(),
-            bool(stats.get("success", False)), status)
+    return (
+        result["x"].full().ravel(),
+        result["lam_a"].full().ravel(),
+        bool(stats.get("success", False)),
+        status,
+    )
 
 
-def solve_qp(hessian, gradient, constraint_matrix, lower, upper, *, solver="auto", rows=None,
-             stride: int = 10, tolerance: float = 1e-9) -> QpSolution:
+def solve_qp(
+    hessian,
+    gradient,
+    constraint_matrix,
+    lower,
+    upper,
+    *,
+    solver="auto",
+    rows=None,
+    stride: int = 10,
+    tolerance: float = 1e-9,
+) -> QpSolution:
     r"""Solve :math:`\min \frac12 x^T H x + g^T x` s.t. :math:`l \le A x \le u` (dense).
 
     The one place where dmpopt picks a QP backend. Rows are generated lazily: the QP is
@@ -800,8 +853,13 @@ def diagnose_infeasibility(problem: FittingProblem) -> dict:
     epsilon = 1e-6
     hessian = epsilon * np.eye(n + n_groups)
     gradient = np.concatenate([np.zeros(n), np.ones(n_groups)])
-    matrix = np.block([[matrix_units, membership], [matrix_units, -membership],
-                       [np.zeros((n_groups, n)), np.eye(n_groups)]])
+    matrix = np.block(
+        [
+            [matrix_units, membership],
+            [matrix_units, -membership],
+            [np.zeros((n_groups, n)), np.eye(n_groups)],
+        ]
+    )
     relaxations = {}
     for d in range(problem.n_dofs):
         lower_units = problem.lower[d] * problem.row_scale
@@ -812,8 +870,10 @@ def diagnose_infeasibility(problem: FittingProblem) -> dict:
         keep[-n_groups:] = True  # s >= 0 from the start: the elastic LP is bounded
         solution = solve_qp(hessian, gradient, matrix, lower, upper, solver="qpoases", rows=keep)
         if not solution.success:
-            raise FittingFailed(f"the elastic problem that locates the infeasibility failed "
-                                f"({solution.status})", problem=problem)
+            raise FittingFailed(
+                f"the elastic problem that locates the infeasibility failed ({solution.status})",
+                problem=problem,
+            )
         slack = solution.x[n:]
         for g, group in enumerate(problem.groups):
             if slack[g] > 0.1 * problem.margin:
@@ -851,8 +911,13 @@ def _solve_nlp(problem: FittingProblem):
         x, success = np.full((problem.n_basis, problem.n_dofs), np.nan), False
     elapsed = time.perf_counter() - begin
     stats = opti.stats()
-    return x.T.reshape(problem.n_dofs, problem.n_basis), success, str(
-        stats.get("return_status", "")), elapsed, int(stats.get("iter_count", -1))
+    return (
+        x.T.reshape(problem.n_dofs, problem.n_basis),
+        success,
+        str(stats.get("return_status", "")),
+        elapsed,
+        int(stats.get("iter_count", -1)),
+    )
 
 
 def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -> ConstrainedFit:
@@ -902,8 +967,12 @@ def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -
         for d in range(problem.n_dofs):
             for backend in dict.fromkeys([problem.solver, "qpoases"]):  # fallback: qpOASES
                 solution = solve_qp(
-                    problem.hessian, problem.gradient[d], problem.constraint_matrix,
-                    problem.lower[d], problem.upper[d], solver=backend,
+                    problem.hessian,
+                    problem.gradient[d],
+                    problem.constraint_matrix,
+                    problem.lower[d],
+                    problem.upper[d],
+                    solver=backend,
                     rows=None if previous is None else previous[d],
                 )
                 solve_time += solution.solve_time
@@ -921,8 +990,12 @@ def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -
         x, success, status, solve_time, iterations = _solve_nlp(problem)
         active, solver_name = None, "ipopt"
 
-    stats = {"solver": solver_name, "status": status, "solve_time": solve_time,
-             "iterations": iterations}
+    stats = {
+        "solver": solver_name,
+        "status": status,
+        "solve_time": solve_time,
+        "iterations": iterations,
+    }
     if not success or not np.all(np.isfinite(x)):
         error = _infeasible(problem, status, stats)
         if error is not None:
@@ -930,7 +1003,8 @@ def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -
         raise FittingFailed(
             f"the {solver_name} solver failed ({status}) although the constraints can hold; "
             "try another solver ('daqp', 'qpoases') or a larger regularization",
-            problem=problem, stats=stats,
+            problem=problem,
+            stats=stats,
         )
 
     dmp = problem.dmp_for(problem.forcing_weights(x))
@@ -945,12 +1019,12 @@ def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -
         raise FittingFailed(
             f"the {solver_name} answer violates '{worst}' by {violations[worst]:.3g} on the "
             "rollout; raise margin (build_fitting_problem) or try another solver",
-            problem=problem, stats=stats,
+            problem=problem,
+            stats=stats,
         )
     if active is not None:
         problem.cache["active"] = active
-    report = FitReport(solver_name, status, solve_time, iterations, violations, trajectory,
-                       problem)
+    report = FitReport(solver_name, status, solve_time, iterations, violations, trajectory, problem)
     return ConstrainedFit(dmp, report)
 
 

@@ -58,8 +58,9 @@ def _endpoints(start, goal):
     return start, goal
 
 
-def minimum_jerk(start, goal, duration: float, dt: float | None = 0.001, *,
-                 n_samples: int | None = None) -> Trajectory:
+def minimum_jerk(
+    start, goal, duration: float, dt: float | None = 0.001, *, n_samples: int | None = None
+) -> Trajectory:
     r"""Closed-form rest-to-rest minimum-jerk movement (5th-order polynomial).
 
     Parameters
@@ -79,8 +80,9 @@ def minimum_jerk(start, goal, duration: float, dt: float | None = 0.001, *,
     rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / times[-1]
     curvature = (60 * s - 180 * s**2 + 120 * s**3) / times[-1] ** 2
     delta = goal - start
-    return Trajectory(times, start + shape[:, None] * delta, rate[:, None] * delta,
-                      curvature[:, None] * delta)
+    return Trajectory(
+        times, start + shape[:, None] * delta, rate[:, None] * delta, curvature[:, None] * delta
+    )
 
 
 def _quintic_rows(t: float, derivative: int) -> np.ndarray:
@@ -92,9 +94,15 @@ def _quintic_rows(t: float, derivative: int) -> np.ndarray:
     return row
 
 
-def minimum_jerk_via_points(start, goal, duration: float, via_points: Sequence[ViaPoint],
-                            dt: float | None = 0.001, *,
-                            n_samples: int | None = None) -> Trajectory:
+def minimum_jerk_via_points(
+    start,
+    goal,
+    duration: float,
+    via_points: Sequence[ViaPoint],
+    dt: float | None = 0.001,
+    *,
+    n_samples: int | None = None,
+) -> Trajectory:
     """Exact rest-to-rest minimum-jerk movement through via-points (tolerances ignored).
 
     Piecewise quintic; at each via-point the position is prescribed and velocity,
@@ -203,8 +211,9 @@ def minimum_jerk_constrained(
     response = jerk_response(times, n_segments)
     length = float(max(np.abs(goal - start).max(), 1e-12))
     if via_points:
-        extent = np.ptp(np.vstack([start, goal] + [np.atleast_1d(v.position) for v in via_points]),
-                        axis=0)
+        extent = np.ptp(
+            np.vstack([start, goal] + [np.atleast_1d(v.position) for v in via_points]), axis=0
+        )
         length = max(length, float(extent.max()))
     units = [length, length / duration, length / duration**2, length / duration**3]
     jerk_unit = units[3]
@@ -221,23 +230,39 @@ def minimum_jerk_constrained(
         scaled = matrix * jerk_unit / unit
         norms = np.maximum(np.linalg.norm(scaled, axis=1), 1e-300)
         rows.append(scaled / norms[:, None])
-        lowers.append((np.where(np.isfinite(low), (low - offset) / unit + margin * tight,
-                                -1e20)) / norms[:, None])
-        uppers.append((np.where(np.isfinite(high), (high - offset) / unit - margin * tight,
-                                1e20)) / norms[:, None])
+        lowers.append(
+            (np.where(np.isfinite(low), (low - offset) / unit + margin * tight, -1e20))
+            / norms[:, None]
+        )
+        uppers.append(
+            (np.where(np.isfinite(high), (high - offset) / unit - margin * tight, 1e20))
+            / norms[:, None]
+        )
         checks[name] = (quantity, low, high)
 
     # end conditions: at the goal, at rest
     for k in range(3):
         target = goal if k == 0 else np.zeros(n_dofs)
-        add(("end_position", "end_velocity", "end_acceleration")[k], k, response[k, -1:],
-            free[k, -1:], target, target)
+        add(
+            ("end_position", "end_velocity", "end_acceleration")[k],
+            k,
+            response[k, -1:],
+            free[k, -1:],
+            target,
+            target,
+        )
     if bounds is not None:
         if bounds.position_lower is not None or bounds.position_upper is not None:
             low = -np.inf if bounds.position_lower is None else bounds.position_lower
             high = np.inf if bounds.position_upper is None else bounds.position_upper
-            add("position", 0, response[0], free[0], _per_dof("position_lower", low, n_dofs),
-                _per_dof("position_upper", high, n_dofs))
+            add(
+                "position",
+                0,
+                response[0],
+                free[0],
+                _per_dof("position_lower", low, n_dofs),
+                _per_dof("position_upper", high, n_dofs),
+            )
         for k, name in ((1, "velocity"), (2, "acceleration")):
             limit = getattr(bounds, name)
             if limit is not None:
@@ -245,8 +270,14 @@ def minimum_jerk_constrained(
                 add(name, k, response[k], free[k], -limit, limit)
         if bounds.jerk is not None:
             limit = _per_dof("jerk", bounds.jerk, n_dofs)
-            add("jerk", 3, np.diff(response[2], axis=0) / step, np.zeros((times.size - 1, n_dofs)),
-                -limit, limit)
+            add(
+                "jerk",
+                3,
+                np.diff(response[2], axis=0) / step,
+                np.zeros((times.size - 1, n_dofs)),
+                -limit,
+                limit,
+            )
     for i, via in enumerate(via_points):
         if via.norm != "box":
             raise InvalidInputError("minimum_jerk_constrained takes 'box' via-points only")
@@ -262,8 +293,9 @@ def minimum_jerk_constrained(
     begin, rounds = time.perf_counter(), 0
     for d in range(n_dofs):
         for backend in ("daqp", "qpoases"):  # qpOASES confirms a DAQP infeasibility
-            solution = solve_qp(hessian, np.zeros(n_segments), matrix, lower[:, d],
-                                upper[:, d], solver=backend)
+            solution = solve_qp(
+                hessian, np.zeros(n_segments), matrix, lower[:, d], upper[:, d], solver=backend
+            )
             rounds += solution.iterations
             if solution.success:
                 break

@@ -398,8 +398,14 @@ class CMAES(PolicySearch):
     ``cma`` are switched off: the caller decides how many trials to run.
     """
 
-    def __init__(self, initial_weights, exploration_std: float, n_rollouts: int = 20, seed=None,
-                 options: dict | None = None):
+    def __init__(
+        self,
+        initial_weights,
+        exploration_std: float,
+        n_rollouts: int = 20,
+        seed=None,
+        options: dict | None = None,
+    ):
         try:
             import cma
         except ImportError as error:  # pragma: no cover - depends on the installation
@@ -411,8 +417,14 @@ class CMAES(PolicySearch):
         self.shape = weights.shape
         seed = int(np.random.default_rng(seed).integers(1, 2**31 - 1))  # cma: 0 means "random"
         settings = {
-            "popsize": int(n_rollouts), "seed": seed, "verbose": -9, "tolfun": 0.0,
-            "tolfunhist": 0.0, "tolx": 0.0, "tolstagnation": 10**9, "tolflatfitness": 10**9,
+            "popsize": int(n_rollouts),
+            "seed": seed,
+            "verbose": -9,
+            "tolfun": 0.0,
+            "tolfunhist": 0.0,
+            "tolx": 0.0,
+            "tolstagnation": 10**9,
+            "tolflatfitness": 10**9,
             "maxiter": 10**9,
         }
         settings.update(options or {})

@@ -263,7 +263,8 @@ class RewardTask:
             spectrum = np.fft.rfft(noise, n=self._fft_size, axis=1)  # (K, n_freq, D)
             noisy = np.fft.irfft(
                 self._impulse_spectrum[None, :, :, None] * spectrum[:, None],
-                n=self._fft_size, axis=2,
+                n=self._fft_size,
+                axis=2,
             )
             plans = plans + noisy[:, :, : self.n_steps]
         return plans
@@ -381,8 +382,13 @@ def _dmp(start, goal, duration: float, n_basis: int) -> DiscreteDMP:
     """
     start = np.atleast_1d(np.asarray(start, dtype=float))
     template = DiscreteDMP(
-        weights=np.zeros((start.size, n_basis)), start=start, goal=goal, time_constant=1.0,
-        centres=np.zeros(n_basis), widths=np.ones(n_basis), form="acceleration",
+        weights=np.zeros((start.size, n_basis)),
+        start=start,
+        goal=goal,
+        time_constant=1.0,
+        centres=np.zeros(n_basis),
+        widths=np.ones(n_basis),
+        form="acceleration",
         goal_scaling="translation",
     )
     centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
@@ -399,26 +405,39 @@ def paper_reaching_task(
     module docstring with ``c_g = 1000, c_v = 1, c_a = 1e-3`` (and ``jerk_weight`` if given).
     """
     return RewardTask(
-        _dmp([0.0], [1.0], 0.5, n_basis), duration=0.5, dt=dt, jerk_weight=jerk_weight,
+        _dmp([0.0], [1.0], 0.5, n_basis),
+        duration=0.5,
+        dt=dt,
+        jerk_weight=jerk_weight,
         delayed=delayed,
     )
 
 
 def multi_dof_reaching_task(
-    goals=(1.0, -0.5, 0.8, 0.3, -1.2, 0.6), duration: float = 0.5, dt: float = 0.001,
-    n_basis: int = 10, delayed: bool = False,
+    goals=(1.0, -0.5, 0.8, 0.3, -1.2, 0.6),
+    duration: float = 0.5,
+    dt: float = 0.001,
+    n_basis: int = 10,
+    delayed: bool = False,
 ) -> RewardTask:
     """Several DOFs from 0 to different goals on one canonical system (default 6 DOFs)."""
     goals = np.atleast_1d(np.asarray(goals, dtype=float))
     return RewardTask(
-        _dmp(np.zeros(goals.size), goals, duration, n_basis), duration=duration, dt=dt,
+        _dmp(np.zeros(goals.size), goals, duration, n_basis),
+        duration=duration,
+        dt=dt,
         delayed=delayed,
     )
 
 
 def via_point_task(
-    via_time: float = 0.2, via_position=(0.3, 0.6), goal=(1.0, 0.0), duration: float = 0.5,
-    dt: float = 0.001, n_basis: int = 10, delayed: bool = False,
+    via_time: float = 0.2,
+    via_position=(0.3, 0.6),
+    goal=(1.0, 0.0),
+    duration: float = 0.5,
+    dt: float = 0.001,
+    n_basis: int = 10,
+    delayed: bool = False,
 ) -> RewardTask:
     """A 2-DOF reach from the origin to ``goal`` that must pass ``via_position`` at ``via_time``.
 
@@ -426,6 +445,9 @@ def via_point_task(
     """
     goal = np.asarray(goal, dtype=float)
     return RewardTask(
-        _dmp(np.zeros(goal.size), goal, duration, n_basis), duration=duration, dt=dt,
-        via_points=(ViaPoint(via_time, tuple(via_position)),), delayed=delayed,
+        _dmp(np.zeros(goal.size), goal, duration, n_basis),
+        duration=duration,
+        dt=dt,
+        via_points=(ViaPoint(via_time, tuple(via_position)),),
+        delayed=delayed,
     )

@@ -77,7 +77,9 @@ class Task:
     views of its own QP rows when it is built, so that :meth:`update` writes straight into
     them: read them through the attributes, not through references kept from before. (An
     update that rebinds them instead, or a second controller sharing the task, is detected
-    and handled by copying.) :class:`SoleContact` is bound the same way.
+    and handled by copying.) :class:`SoleContact` is bound the same way, and a
+    :class:`PostureTask`'s references, gains and target are views of a block the controller
+    stacks for all its posture tasks (assigning to them writes into that block).
     """
 
     weight: float

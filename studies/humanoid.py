@@ -806,6 +806,13 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     hand_error = np.linalg.norm(figure8_log.actual - figure8_log.desired, axis=1)
     standing = list(runs.values()) + [figure8_log]
     torque_use = np.max([log.torque_use for log in standing], axis=0)
+    # Distance of the DMP-driven joints to their position limits, over the drumming runs.
+    drum_q = floating.configuration_indices(list(DRUM_JOINTS))
+    lower, upper = floating.position_lower[drum_q], floating.position_upper[drum_q]
+    position_margin = np.min(
+        [np.minimum(log.actual - lower, upper - log.actual).min(axis=0) for log in runs.values()],
+        axis=0,
+    )
     names = floating.actuated_joint_names
     torque_groups = {
         group: float(torque_use[np.isin(names, joints)].max())
@@ -877,6 +884,8 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "torque_limit_use_max": float(torque_use.max()),
         "torque_limit_use_joint": names[int(np.argmax(torque_use))],
         "torque_limit_use_per_group": torque_groups,
+        "position_limit_margin_rad": float(position_margin.min()),
+        "position_limit_margin_joint": DRUM_JOINTS[int(np.argmin(position_margin))],
         "fell": any(log.fell for log in standing),
         "base_roll_pitch_yaw_ptp_deg": np.degrees(np.ptp(drum.base[:, 3:], axis=0)),
         "com_excursion_mm": 1e3 * np.ptp(drum.com, axis=0),
@@ -1094,6 +1103,7 @@ def main(argv=None) -> None:
         "figure8_rms_mm",
         "settle_time_s",
         "torque_limit_use_max",
+        "position_limit_margin_rad",
         "fell",
         "n_cold_restarts",
         "n_fallbacks",

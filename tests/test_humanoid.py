@@ -99,6 +99,9 @@ def test_quick_study_writes_metrics_and_figures(tmp_path):
         assert metrics[key] > 0
     assert metrics["fell"] is False
     assert metrics["tracking_rms_rad"] < 0.005
+    # the drumming joints stay inside their position limits, by a margin below a half-turn
+    assert 0.0 < metrics["position_limit_margin_rad"] < np.pi
+    assert metrics["position_limit_margin_joint"] in humanoid.DRUM_JOINTS
     assert (tmp_path / "metrics.json").exists()
     for figure in ("fig4_elbow", "drumming_tracking", "figure8", "base_com", "tick_times"):
         assert (tmp_path / f"{figure}.png").stat().st_size > 10_000

@@ -571,13 +571,8 @@ class InverseDynamicsController:
         pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
         pin.computeJointJacobians(model, data)
         pin.updateFramePlacements(model, data)
-        rows = self._rows
-        for item, jacobian, block in self._bound:
-            item.update(q, v, data)
-            if item.jacobian is not jacobian:  # rebound since (e.g. by another controller)
-                rows[block, :-1] = item.jacobian
-                rows[block, -1] = item.target
-        n_task, nv = self._n_task, self._nv
+        self._update_rows(q, v)
+        rows, n_task, nv = self._rows, self._n_task, self._nv
         jacobian, scaled = rows[:n_task, :nv], self._scaled_rows
         np.dot(rows[:n_task, nv] * self._task_weights, jacobian, out=x)  # r = J^T W t - p
         x -= self._posture_gradient
@@ -603,15 +598,21 @@ class InverseDynamicsController:
 
     def _assemble(self, q: np.ndarray, v: np.ndarray) -> None:
         """Model terms, then the task and contact rows and the posture gradient over x."""
-        model, data, rows = self.model, self.data, self._rows
+        model, data = self.model, self.data
         pin.computeAllTerms(model, data, q, v)
         pin.updateFramePlacements(model, data)
+        self._update_rows(q, v)
+        self._update_posture(q, v)
+
+    def _update_rows(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Let the tasks and contacts write their rows (copied if they were rebound since,
+        e.g. by another controller built on them)."""
+        rows, data, nv = self._rows, self.data, self._nv
         for item, jacobian, block in self._bound:
             item.update(q, v, data)
-            if item.jacobian is not jacobian:  # rebound since (e.g. by another controller)
-                rows[block, : self._nv] = item.jacobian
+            if item.jacobian is not jacobian:
+                rows[block, :nv] = item.jacobian
                 rows[block, -1] = item.target
-        self._update_posture(q, v)
 
     def _bind_posture_tasks(self, n_x: int) -> None:
         """Stack the posture tasks' state blocks into one, which the tasks then view.

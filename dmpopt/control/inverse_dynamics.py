@@ -68,7 +68,7 @@ from scipy.linalg import lapack
 
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 
-from .tasks import FrameTask, PostureTask, SoleContact, Task, _index
+from .tasks import FrameTask, PostureTask, SoleContact, Task, _index, _posture_law
 
 __all__ = ["ControllerStats", "InverseDynamicsController"]
 
@@ -493,7 +493,7 @@ class InverseDynamicsController:
         assembled = not (self._joint_space and level == 0)
         if not assembled:
             solved = self._solve_joint_space(q, v)
-            if not solved:  # not expected: S = I + A D^-1 A^T is positive definite
+            if not solved:  # not expected: W^-1 + J D^-1 J^T is positive definite
                 level = 2
         else:
             self._assemble(q, v)
@@ -649,13 +649,9 @@ class InverseDynamicsController:
             if task._state is not view:  # rebound since (by another controller): take it back
                 state[:, columns] = task._state
                 task._state = view
-        position, velocity, acceleration, stiffness, damping, target, error = self._posture_rows
-        np.subtract(position, q[self._posture_q], out=error)
-        np.subtract(velocity, v[self._posture_v], out=target)
-        target *= damping
-        target += np.multiply(stiffness, error, out=self._posture_scratch)
-        target += acceleration
-        np.dot(target, self._posture_scatter, out=self._posture_gradient)
+        rows = self._posture_rows
+        _posture_law(rows, self._posture_q, self._posture_v, q, v, self._posture_scratch)
+        np.dot(rows[5], self._posture_scatter, out=self._posture_gradient)  # targets
 
     def _assemble_eliminated(self) -> bool:
         """Hessian and gradient over z; False if the basic block is ill-conditioned."""

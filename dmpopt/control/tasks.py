@@ -195,12 +195,22 @@ class PostureTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the desired joint accelerations of the PD law above."""
-        position, velocity, acceleration, stiffness, damping, target, error = self._state
-        np.subtract(position, q[self._q_index], out=error)
-        np.subtract(velocity, v[self._v_index], out=target)
-        target *= damping
-        target += stiffness * error
-        target += acceleration
+        _posture_law(self._state, self._q_index, self._v_index, q, v)
+
+
+def _posture_law(rows, q_index, v_index, q, v, scratch=None) -> None:
+    """The PD law of :class:`PostureTask` on the 7 rows of a state block, in place.
+
+    ``rows`` are (reference position, velocity, acceleration, stiffness, damping, target,
+    error); the block is one task's or a controller's stack of several, with ``q_index`` and
+    ``v_index`` the joints of its columns. Writes ``target`` and ``error``.
+    """
+    position, velocity, acceleration, stiffness, damping, target, error = rows
+    np.subtract(position, q[q_index], out=error)
+    np.subtract(velocity, v[v_index], out=target)
+    target *= damping
+    target += np.multiply(stiffness, error, out=scratch)
+    target += acceleration
 
 
 class FrameTask(Task):

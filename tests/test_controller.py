@@ -334,6 +334,29 @@ def test_input_errors(talos, upper_body):
         SoleContact(upper_body, "left_sole_link")
     with pytest.raises(InvalidInputError):
         InverseDynamicsController(upper_body, [])
+    with pytest.raises(InvalidInputError, match="velocities must be finite"):
+        arm.set_reference(np.zeros(7), np.full(7, np.inf))
+    hand = FrameTask(upper_body, "gripper_left_base_link")
+    with pytest.raises(InvalidInputError, match="placement must be finite"):
+        hand.set_target(np.array([np.nan, 0.0, 0.0]))
+    with pytest.raises(InvalidInputError, match="acceleration must be finite"):
+        hand.set_target(np.zeros(3), acceleration=np.full(6, np.nan))
+
+
+@pytest.mark.parametrize("with_hand", [False, True])
+def test_nan_written_into_a_task_never_reaches_the_torques(upper_body, with_hand):
+    """A NaN that bypasses validation (written into a task's array) fails the tick's checks:
+    the controller falls back to finite torques and counts it, on the closed-form and the
+    Woodbury path alike."""
+    posture = PostureTask(upper_body)
+    tasks = [posture] + [FrameTask(upper_body, "gripper_left_base_link")] * with_hand
+    controller = InverseDynamicsController(upper_body, tasks, max_iterations=50)
+    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
+    good = controller.compute_torques(q, v)
+    posture.reference_position[3] = np.nan
+    tau = controller.compute_torques(q, v)
+    assert np.isfinite(tau).all() and controller.stats.n_fallbacks == 1
+    np.testing.assert_array_equal(tau, good)  # the last valid torque
 
 
 # ---------------------------------------------------------------- computed torque

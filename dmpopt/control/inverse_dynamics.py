@@ -520,7 +520,8 @@ class InverseDynamicsController:
                 mapped = True
                 solved = self._solve(self._free)
                 level = min(level, 1)
-        if solved and level < 2 and (np.abs(self._tau) > self.torque_limit).any():
+        # Written so that a NaN torque (from a NaN written into a task) also fails the check.
+        if solved and level < 2 and not (np.abs(self._tau) <= self.torque_limit).all():
             level = 2
         if level == 2:
             self.stats.n_torque_limited += 1

@@ -22,6 +22,7 @@ bounds.
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -35,12 +36,14 @@ _LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 def _vector(value, size: int, name: str) -> np.ndarray:
-    """Broadcast a scalar or check a vector of length ``size``."""
+    """Broadcast a scalar or check a vector of length ``size``; all entries finite."""
     array = np.asarray(value, dtype=float)
     if array.ndim == 0:
-        return np.full(size, float(array))
-    if array.shape != (size,):
+        array = np.full(size, float(array))
+    elif array.shape != (size,):
         raise ShapeError(f"{name} has shape {array.shape}, expected () or ({size},)")
+    if not np.isfinite(array).all():
+        raise InvalidInputError(f"{name} must be finite; it holds NaN or inf")
     return array.copy()
 
 
@@ -191,6 +194,8 @@ class PostureTask(Task):
                     f"{name} has shape {value.shape}, expected ({size},) for the joints "
                     f"{self.joint_names}"
                 )
+            if not math.isfinite(value.sum()) and not np.isfinite(value).all():
+                raise InvalidInputError(f"{name} must be finite; it holds NaN or inf")
             slot[:] = value
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
@@ -299,6 +304,8 @@ class FrameTask(Task):
                 raise ShapeError(
                     f"placement has shape {position.shape}, expected a pinocchio.SE3 or (3,)"
                 )
+            if not np.isfinite(position).all():
+                raise InvalidInputError("placement must be finite; it holds NaN or inf")
             self.target_placement.translation = position
         self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 6, "velocity")
         self.target_acceleration[:] = (

@@ -68,7 +68,8 @@ from scipy.linalg import lapack
 
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 
-from .tasks import FrameTask, PostureTask, SoleContact, Task, _index, _posture_law
+from . import kernels
+from .tasks import FrameTask, PostureTask, SoleContact, Task
 
 __all__ = ["ControllerStats", "InverseDynamicsController"]
 
@@ -248,8 +249,6 @@ class InverseDynamicsController:
         self.data = robot.create_data()
         # Views of the mass matrix and bias forces, refilled in place by computeAllTerms.
         self._mass, self._bias = self.data.M, self.data.nle
-        self._mass_actuated = self._mass[robot.nv - robot.n_actuated :]
-        self._bias_actuated = self._bias[robot.nv - robot.n_actuated :]
         self.tasks = tuple(tasks)
         self.contacts = tuple(contacts)
         self.raise_on_failure = raise_on_failure
@@ -319,14 +318,14 @@ class InverseDynamicsController:
             and (not self._stacked_tasks or bool(covered.all()))
         )
         self._inverse_diagonal = 1.0 / diagonal[:nv]
-        self._negative_inverse_diagonal = -self._inverse_diagonal
         self._zero_acceleration = np.zeros(nv)
         # Woodbury solve: W^-1 + J D^-1 J^T and J D^-1 over the frame-task rows.
         self._task_weights = self._row_scale[:n_task, 0] ** 2
-        self._inverse_task_weights = 1.0 / self._task_weights
-        self._capacitance = np.zeros((n_task, n_task))
-        self._capacitance_diagonal_view = self._capacitance.reshape(-1)[:: n_task + 1]
-        self._scaled_rows = np.zeros((n_task, nv))
+        self._woodbury = (  # arguments of kernels.joint_space_accelerations
+            self._rows, n_task, self._inverse_diagonal, self._task_weights,
+            np.zeros((n_task, nv)), np.zeros((n_task, n_task)), np.zeros((n_task, n_task)),
+            np.zeros(n_task),
+        )  # fmt: skip
 
         # Cone rows over x (scaled wrenches): constant.
         cone_matrix = np.zeros((n_cone, n_x))
@@ -385,21 +384,36 @@ class InverseDynamicsController:
             basic = np.concatenate([np.arange(n_base), joints])
             nonbasic = np.setdiff1d(np.arange(n_x), basic)
             n_z = nonbasic.size
-            self._basic, self._nonbasic = _index(basic), _index(nonbasic)
-            self._nonbasic_constant = _index(np.append(nonbasic, n_x))
-            self._basic_scale = -np.sqrt(diagonal[basic])[:, None]  # rows -sqrt(d_B) U
-            self._z_rows = np.zeros((n_task + basic.size, n_z + 1))
+            self._basic = basic
+            self._nonbasic_constant = np.append(nonbasic, n_x)  # and the constant column
+            self._basic_scale = -np.sqrt(diagonal[basic])  # rows -sqrt(d_B) U
+            self._lu = np.zeros((basic.size, basic.size))
+            self._elimination = np.zeros((basic.size, n_z + 1))
+            self._z_matrix = np.zeros((n_task + basic.size, n_z))
+            self._z_target = np.zeros(n_task + basic.size)
             self._z_hessian = np.zeros((n_z, n_z))
-            self._z_hessian_diagonal_view = self._z_hessian.reshape(-1)[:: n_z + 1]
             self._z_hessian_diagonal = diagonal[nonbasic].copy()
             self._z_gradient = np.zeros(n_z)
-            self._elimination = np.zeros((basic.size, n_z + 1))
             self._z_cone_matrix = np.ascontiguousarray(cone_matrix[:, nonbasic])
-            self._z_cone_upper = cone_upper
             self._z_cone_release = cone_upper - _CONE_RELEASE_MARGIN * scale
             self._z_cone_values = np.zeros(n_cone)
             self._z_solution = np.zeros(n_z)
             self._z_factor = np.zeros((n_z, n_z))
+            # Arguments of the compiled stages (persistent arrays, filled in place).
+            self._elimination_arguments = (
+                self._rows, n_cost, nv, n_base, self._mass, self._bias, scale, basic,
+                self._nonbasic_constant, self._lu, self._elimination, _MIN_PIVOT_RATIO,
+            )  # fmt: skip
+            self._reduction_arguments = (
+                self._rows, n_task, basic, self._nonbasic_constant, self._elimination,
+                self._row_scale[:, 0].copy(), self._basic_scale, self._posture_gradient,
+                self._z_hessian_diagonal, self._z_matrix, self._z_target, self._z_hessian,
+                self._z_gradient,
+            )  # fmt: skip
+            self._solve_arguments = (
+                self._z_factor, self._z_solution, self._z_cone_matrix, cone_upper,
+                self.torque_limit,
+            )  # fmt: skip
             z_cones = (self._z_cone_matrix, cone_lower, cone_upper)
             z_arguments = _arguments(self._z_hessian, self._z_gradient)
             if n_cone:
@@ -413,6 +427,7 @@ class InverseDynamicsController:
                 )
         self._primary = self._limited
         self._y_factor = np.zeros((n, n))  # for the Cholesky factor of the Hessian over y
+        self._y_solution = np.zeros(n)
         self._stages = tuple(
             s for s in (self._eliminated_cones, self._free, self._limited) if s is not None
         )
@@ -488,7 +503,7 @@ class InverseDynamicsController:
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
-        level, solved, mapped = self._level, True, False
+        level, solved, mapped, checked = self._level, True, False, False
         # Posture tasks on a fixed base need no model terms below the torque limits.
         assembled = not (self._joint_space and level == 0)
         if not assembled:
@@ -498,21 +513,22 @@ class InverseDynamicsController:
         else:
             self._assemble(q, v)
         if assembled and level < 2:
-            if self._basic is not None and self._assemble_eliminated():
-                if level == 0:
-                    solved = self._solve_direct(eliminated=True)
-                    if not solved:
-                        level = 2
-                    elif self._eliminated_cones is not None and self._cones_violated():
-                        level = 1
-                if level == 1:
-                    solved = self._solve(self._eliminated_cones)
-                    if solved and self._cones_released():
-                        level = 0
+            outcome = kernels.ILL_CONDITIONED
+            if self._basic is not None:
+                outcome = self._eliminated_tick() if level == 0 else self._assemble_eliminated()
+            if outcome == kernels.SOLVED:
+                checked = True  # cones and torques checked by the tick
+            elif outcome == kernels.TORQUES_VIOLATED:
+                level = 2
+            elif outcome == kernels.NOT_POSITIVE_DEFINITE:
+                solved, level = False, 2
+            elif outcome == kernels.CONES_VIOLATED:
+                solved = self._solve(self._eliminated_cones)
+                level = 0 if solved and self._cones_released() else 1
             elif not self.contacts:  # fixed base: no equality rows
                 self._assemble_y()
                 mapped = True
-                solved = self._solve_direct(eliminated=False)
+                solved = self._solve_direct()
                 if not solved:
                     level = 2
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
@@ -521,8 +537,9 @@ class InverseDynamicsController:
                 solved = self._solve(self._free)
                 level = min(level, 1)
         # Written so that a NaN torque (from a NaN written into a task) also fails the check.
-        if solved and level < 2 and not (np.abs(self._tau) <= self.torque_limit).all():
-            level = 2
+        if solved and level < 2 and not checked:
+            if not (np.abs(self._tau) <= self.torque_limit).all():
+                level = 2
         if level == 2:
             self.stats.n_torque_limited += 1
             if not assembled:
@@ -562,29 +579,15 @@ class InverseDynamicsController:
         :math:`\ddot q = -p/d`. Then :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`.
         """
         model, data, x = self.model, self.data, self._candidate
-        self._update_posture(q, v)
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
-        if not self._stacked_tasks:
-            np.multiply(self._posture_gradient, self._negative_inverse_diagonal, out=x)
-            self._tau[:] = pin.rnea(model, data, q, v, x)
-            return True
-        pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
-        pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
-        self._update_rows(q, v)
-        rows, n_task, nv = self._rows, self._n_task, self._nv
-        jacobian, scaled = rows[:n_task, :nv], self._scaled_rows
-        np.dot(rows[:n_task, nv] * self._task_weights, jacobian, out=x)  # r = J^T W t - p
-        x -= self._posture_gradient
-        np.multiply(jacobian, self._inverse_diagonal, out=scaled)  # J D^-1
-        capacitance = np.dot(scaled, jacobian.T, out=self._capacitance)
-        self._capacitance_diagonal_view += self._inverse_task_weights
-        _, correction, info = lapack.dposv(capacitance, np.dot(scaled, x), overwrite_a=1)
-        if info != 0 or not math.isfinite(correction.sum()):
+        if self._stacked_tasks:
+            pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
+            pin.computeJointJacobians(model, data)
+            pin.updateFramePlacements(model, data)
+            self._update_rows(q, v)
+        if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
             return False
-        x *= self._inverse_diagonal  # D^-1 r - (J D^-1)^T (W^-1 + J D^-1 J^T)^-1 J D^-1 r
-        x -= np.dot(correction, scaled)
         self._tau[:] = pin.rnea(model, data, q, v, x)
         return True
 
@@ -625,85 +628,49 @@ class InverseDynamicsController:
         sizes = [task._state.shape[1] for task in tasks]
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
         self._posture_state = np.zeros((7, int(offsets[-1])))
-        self._posture_rows = tuple(self._posture_state)  # persistent views of the 7 rows
         self._posture_views = []
-        scatter = np.zeros((int(offsets[-1]), n_x))
         for task, start, stop in zip(tasks, offsets[:-1], offsets[1:]):
             columns = slice(int(start), int(stop))
             self._posture_state[:, columns] = task._state
             task._state = self._posture_state[:, columns]
             self._posture_views.append((task, task._state, columns))
-            scatter[np.arange(start, stop), task.velocity_indices] = -task.weight
-        self._posture_scatter = scatter
-        self._posture_q = _index(np.concatenate([[]] + [t.configuration_indices for t in tasks]))
-        self._posture_v = _index(np.concatenate([[]] + [t.velocity_indices for t in tasks]))
-        self._posture_scratch = np.zeros(int(offsets[-1]))
+        indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
+        self._posture_arguments = (  # of kernels.posture_gradient, without q and v
+            self._posture_state,
+            np.concatenate(indices + [t.configuration_indices for t in tasks]),
+            np.concatenate(indices + [t.velocity_indices for t in tasks]),
+            np.concatenate([[]] + [np.full(t._state.shape[1], t.weight) for t in tasks]),
+            self._posture_gradient,
+        )
 
     def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
         """Posture targets (the PD law of :class:`PostureTask`, all tasks at once) and their
         gradient terms -w qdd* over x."""
-        if not self._posture_tasks:
-            return
         state = self._posture_state
         for task, view, columns in self._posture_views:
             if task._state is not view:  # rebound since (by another controller): take it back
                 state[:, columns] = task._state
                 task._state = view
-        rows = self._posture_rows
-        _posture_law(rows, self._posture_q, self._posture_v, q, v, self._posture_scratch)
-        np.dot(rows[5], self._posture_scatter, out=self._posture_gradient)  # targets
+        kernels.posture_gradient(*self._posture_arguments, q, v)
 
-    def _assemble_eliminated(self) -> bool:
-        """Hessian and gradient over z; False if the basic block is ill-conditioned."""
-        rows, n_task, n_base, nv = self._rows, self._n_task, self._n_base, self._nv
-        if n_base:
-            dynamics = rows[self._dynamics_rows]
-            dynamics[:, :nv] = self._mass[:n_base]
-            np.multiply(
-                rows[self._n_cost : self._dynamics_rows.start, :n_base].T,
-                -self._force_scale,
-                out=dynamics[:, nv:-1],
-            )
-            np.negative(self._bias[:n_base], out=dynamics[:, -1])
-        constraints = rows[self._n_cost :]
-        basic, nonbasic = self._basic, self._nonbasic_constant
-        # U = G_B^-1 [G_N, g_c]; LAPACK getrs is slow for small blocks, getri + gemm is not.
-        lu, pivots, info = lapack.dgetrf(constraints[:, basic])
-        if info != 0:
-            return False
-        diagonal = np.abs(lu.diagonal())
-        if diagonal.min() < _MIN_PIVOT_RATIO * diagonal.max():
-            return False
-        inverse, info = lapack.dgetri(lu, pivots, overwrite_lu=1)
-        if info != 0:
-            return False
-        elimination = self._elimination
-        np.dot(inverse, constraints[:, nonbasic], out=elimination)
-        # x_B = U_c - U_N z turns a row [A | t] into [A_N - A_B U_N | t - A_B U_c].
-        z_rows, tasks = self._z_rows, rows[:n_task]
-        np.dot(tasks[:, basic], elimination, out=z_rows[:n_task])
-        np.subtract(tasks[:, nonbasic], z_rows[:n_task], out=z_rows[:n_task])
-        z_rows[:n_task] *= self._row_scale[:n_task]
-        np.multiply(self._basic_scale, elimination, out=z_rows[n_task:])  # sqrt(d_B) x_B = 0
-        n_z = z_rows.shape[1] - 1
-        matrix = z_rows[:, :n_z]
-        np.dot(matrix.T, matrix, out=self._z_hessian)
-        self._z_hessian_diagonal_view += self._z_hessian_diagonal
-        gradient = self._z_gradient
-        np.dot(matrix.T, z_rows[:, n_z], out=gradient)
-        if self._posture_tasks:  # g = p_N - U_N^T p_B - A^T t
-            posture = self._posture_gradient
-            np.subtract(posture[self._nonbasic], gradient, out=gradient)
-            gradient -= np.dot(posture[basic], elimination[:, :n_z])
-        else:
-            np.negative(gradient, out=gradient)
-        return True
+    def _eliminated_tick(self) -> int:
+        """The tick without inequality rows over z, as one compiled call (an outcome of
+        :func:`kernels.eliminated_tick`)."""
+        stats = self.stats
+        stats.last_status, stats.last_iterations = _DIRECT, 0
+        return kernels.eliminated_tick(
+            self._elimination_arguments, self._reduction_arguments, self._solve_arguments,
+            self._candidate, self._tau,
+        )  # fmt: skip
 
-    def _cones_violated(self) -> bool:
-        """Whether the cone-free solution z leaves a friction or CoP cone."""
-        values = np.dot(self._z_cone_matrix, self._z_solution, out=self._z_cone_values)
-        return bool((values > self._z_cone_upper).any())
+    def _assemble_eliminated(self) -> int:
+        """Hessian and gradient over z for the QP with cone rows: CONES_VIOLATED (to be
+        solved with them), or ILL_CONDITIONED if the basic block is."""
+        if not kernels.eliminate(*self._elimination_arguments):
+            return kernels.ILL_CONDITIONED
+        kernels.reduce_costs(*self._reduction_arguments)
+        return kernels.CONES_VIOLATED
 
     def _cones_released(self) -> bool:
         """Whether all cone rows are slack by the release margin."""
@@ -761,7 +728,16 @@ class InverseDynamicsController:
 
     # ------------------------------------------------------------------ solve
     def _solve(self, stage: _Stage) -> bool:
-        """Solve one stage warm (cold on its first use); on failure once more cold."""
+        """Solve one stage warm (cold on its first use); on failure once more cold.
+
+        A non-finite Hessian or gradient (a NaN written into a task) fails without a solve:
+        proxsuite can report such a problem solved.
+        """
+        hessian, gradient = stage.update_arguments[:2]
+        if not math.isfinite(hessian.sum() + gradient.sum()):
+            self.stats.last_status, self.stats.last_iterations = "NON_FINITE_PROBLEM", 0
+            stage.initialized = False
+            return False
         qp = stage.qp
         if stage is not self._primary:
             settings, source = qp.settings, self.qp.settings
@@ -800,57 +776,31 @@ class InverseDynamicsController:
         self._accept(solution, eliminated=stage is self._eliminated_cones)
         return True
 
-    def _solve_direct(self, eliminated: bool) -> bool:
-        """Minimise 1/2 u^T H u + g^T u without constraints: H u = -g by Cholesky.
-
-        Over z (``eliminated``) or y. H is kept for a QP solve on the same tick; its copy is
-        factorised in place (symmetric, so the C-ordered copy read in Fortran order is the
-        same matrix).
-        """
-        if eliminated:
-            hessian, gradient, factor = self._z_hessian, self._z_gradient, self._z_factor
-        else:
-            hessian, gradient, factor = self._hessian, self._gradient, self._y_factor
-        np.copyto(factor, hessian)
-        _, solution, info = lapack.dposv(factor.T, gradient, overwrite_a=1)
+    def _solve_direct(self) -> bool:
+        """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
+        solution = self._y_solution
+        solved = kernels.cholesky_solve(self._hessian, self._y_factor, self._gradient, solution)
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
-        if info != 0 or not math.isfinite(solution.sum()):
-            return False
-        np.negative(solution, out=solution)
-        if eliminated:
-            self._z_solution = solution
-        self._accept(solution, eliminated)
-        return True
+        if solved:
+            self._accept(solution, eliminated=False)
+        return solved
 
     def _accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
         x, n_base = self._candidate, self._n_base
         if eliminated:  # x_B = U_c - U_N z
-            elimination, basic = self._elimination, self._basic
-            n_z = solution.size
-            x[self._nonbasic] = solution
-            values = np.dot(elimination[:, :n_z], solution)
-            np.subtract(elimination[:, n_z], values, out=values)
-            x[basic] = values
+            kernels.expand(self._elimination, self._basic, self._nonbasic_constant, solution, x)
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
             x[n_base:] = solution
             if n_base:
                 base_map, n = self._base_map, self._n
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
-        self._read_torques()
-
-    def _read_torques(self) -> None:
-        """Unscale the wrenches of the candidate x and compute its torques."""
-        nv, n_base, tau, x = self._nv, self._n_base, self._tau, self._candidate
-        np.dot(self._mass_actuated, x[:nv], out=tau)
-        tau += self._bias_actuated
-        if x.size > nv:
-            forces = x[nv:]
-            forces *= self._force_scale
-            contact = self._rows[self._n_cost : self._dynamics_rows.start, n_base:nv]
-            tau -= np.dot(forces, contact)
+        kernels.torques(
+            self._mass, self._bias, self._rows, self._n_cost, n_base, self._force_scale, x,
+            self._tau,
+        )  # fmt: skip
 
     def _fall_back(self) -> None:
         self.stats.n_fallbacks += 1

@@ -30,6 +30,8 @@ import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError, ShapeError
 
+from . import kernels
+
 __all__ = ["ComTask", "FrameTask", "PostureTask", "SoleContact", "Task"]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
@@ -45,14 +47,6 @@ def _vector(value, size: int, name: str) -> np.ndarray:
     if not np.isfinite(array).all():
         raise InvalidInputError(f"{name} must be finite; it holds NaN or inf")
     return array.copy()
-
-
-def _index(indices) -> slice | np.ndarray:
-    """A slice for contiguous increasing indices (faster to apply), else an index array."""
-    indices = np.asarray(indices, dtype=int)
-    if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
-        return slice(int(indices[0]), int(indices[0]) + indices.size)
-    return indices
 
 
 def _gains(stiffness, damping, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -159,10 +153,8 @@ class PostureTask(Task):
         self.joint_names = (
             tuple(robot.joint_groups[joints]) if isinstance(joints, str) else (tuple(joints))
         )
-        self.velocity_indices = robot.velocity_indices(joints)
-        self.configuration_indices = robot.configuration_indices(joints)
-        self._q_index = _index(self.configuration_indices)
-        self._v_index = _index(self.velocity_indices)
+        self.velocity_indices = np.asarray(robot.velocity_indices(joints), dtype=np.int64)
+        self.configuration_indices = np.asarray(robot.configuration_indices(joints), dtype=np.int64)
         size = len(self.velocity_indices)
         self.weight = _check_weight(weight)
         self._state = np.zeros((7, size))
@@ -200,22 +192,7 @@ class PostureTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the desired joint accelerations of the PD law above."""
-        _posture_law(self._state, self._q_index, self._v_index, q, v)
-
-
-def _posture_law(rows, q_index, v_index, q, v, scratch=None) -> None:
-    """The PD law of :class:`PostureTask` on the 7 rows of a state block, in place.
-
-    ``rows`` are (reference position, velocity, acceleration, stiffness, damping, target,
-    error); the block is one task's or a controller's stack of several, with ``q_index`` and
-    ``v_index`` the joints of its columns. Writes ``target`` and ``error``.
-    """
-    position, velocity, acceleration, stiffness, damping, target, error = rows
-    np.subtract(position, q[q_index], out=error)
-    np.subtract(velocity, v[v_index], out=target)
-    target *= damping
-    target += np.multiply(stiffness, error, out=scratch)
-    target += acceleration
+        kernels.posture_law(self._state, self.configuration_indices, self.velocity_indices, q, v)
 
 
 class FrameTask(Task):

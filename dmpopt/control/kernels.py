@@ -1,0 +1,322 @@
+r"""Compiled numeric kernels of the inverse-dynamics tick (numba).
+
+A controller tick is a few dozen small dense operations (tens of rows and columns). In NumPy
+each costs a call of about a microsecond whatever its size, which is most of the tick; these
+kernels run a whole stage as one compiled call. They work in place on the controller's
+preallocated arrays, so that its proxsuite QPs read the same Hessians and gradients. Index
+arguments are integer arrays; matrices are C-ordered. Each kernel is compiled on its first call
+and cached on disk (``cache=True``).
+
+The maths is that of :mod:`dmpopt.control.inverse_dynamics` and
+:mod:`dmpopt.control.tasks`, where each stage is described.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = [
+    "cholesky_solve",
+    "eliminate",
+    "eliminated_tick",
+    "expand",
+    "joint_space_accelerations",
+    "posture_gradient",
+    "posture_law",
+    "reduce_costs",
+    "torques",
+]
+
+# Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
+# the callers) instead of raising.
+_compile = numba.njit(cache=True, nogil=True, error_model="numpy")
+
+# eliminated_tick's outcomes
+SOLVED, CONES_VIOLATED, TORQUES_VIOLATED, ILL_CONDITIONED, NOT_POSITIVE_DEFINITE = range(5)
+
+
+@_compile
+def posture_law(state, q_index, v_index, q, v):
+    r"""PD law of :class:`~dmpopt.control.tasks.PostureTask` on the 7 rows of a state block:
+    :math:`\ddot q^* = \ddot q_{ref} + K_p (q_{ref} - q) + K_d (\dot q_{ref} - \dot q)`.
+
+    Rows of ``state``: reference position, velocity, acceleration, stiffness, damping, then
+    written: target :math:`\ddot q^*` and error :math:`q_{ref} - q`.
+    """
+    for j in range(state.shape[1]):
+        error = state[0, j] - q[q_index[j]]
+        state[6, j] = error
+        state[5, j] = (
+            state[2, j] + state[3, j] * error + state[4, j] * (state[1, j] - v[v_index[j]])
+        )
+
+
+@_compile
+def posture_gradient(state, q_index, v_index, weights, gradient, q, v):
+    r"""Posture targets (:func:`posture_law`) and their gradient terms :math:`-w \ddot q^*`,
+    summed per velocity index into ``gradient`` (zero elsewhere)."""
+    posture_law(state, q_index, v_index, q, v)
+    gradient[:] = 0.0
+    for j in range(state.shape[1]):
+        gradient[v_index[j]] -= weights[j] * state[5, j]
+
+
+@_compile
+def cholesky_solve(matrix, factor, rhs, solution) -> bool:
+    r"""``solution`` :math:`= -H^{-1} g` for a symmetric positive definite :math:`H`
+    (``matrix``, kept) and :math:`g` (``rhs``), through a Cholesky factorisation written
+    into ``factor``. ``rhs`` and ``solution`` may be the same array. False if :math:`H` is
+    not positive definite or the result not finite.
+    """
+    n = matrix.shape[0]
+    for i in range(n):
+        for k in range(i + 1):
+            value = matrix[i, k]
+            for m in range(k):
+                value -= factor[i, m] * factor[k, m]
+            if k < i:
+                factor[i, k] = value / factor[k, k]
+            elif value > 0.0:
+                factor[i, i] = math.sqrt(value)
+            else:  # also catches NaN
+                return False
+    for i in range(n):  # L y = -g
+        value = -rhs[i]
+        for m in range(i):
+            value -= factor[i, m] * solution[m]
+        solution[i] = value / factor[i, i]
+    total = 0.0
+    for i in range(n - 1, -1, -1):  # L^T u = y
+        value = solution[i]
+        for m in range(i + 1, n):
+            value -= factor[m, i] * solution[m]
+        solution[i] = value / factor[i, i]
+        total += solution[i]
+    return math.isfinite(total)
+
+
+@_compile
+def joint_space_accelerations(posture, woodbury, q, v, x) -> bool:
+    r"""Fixed base, posture tasks on every joint plus ``n_task`` frame-task rows: the
+    accelerations ``x`` minimising the QP's cost, by the Woodbury identity
+
+    .. math:: \ddot q = D^{-1} r - (J D^{-1})^\top (W^{-1} + J D^{-1} J^\top)^{-1}
+              J D^{-1} r, \qquad r = J^\top W t - p,
+
+    with ``rows[:n_task] = [J | t]``, D the diagonal posture and regularisation weights
+    (``inverse_diagonal`` :math:`= D^{-1}`), W the task weights and p the posture gradient
+    (:func:`posture_gradient` with the arguments ``posture``). ``woodbury`` is (rows, n_task,
+    inverse_diagonal, task_weights, scaled, capacitance, factor, correction), the last four
+    scratch arrays. False if the small system fails (not expected: it is positive definite).
+    """
+    posture_gradient(*posture, q, v)
+    gradient = posture[-1]
+    rows, n_task, inverse_diagonal, task_weights, scaled, capacitance, factor, correction = woodbury
+    nv = x.size
+    for i in range(nv):
+        x[i] = -gradient[i]
+    for k in range(n_task):
+        weighted = task_weights[k] * rows[k, nv]
+        for i in range(nv):
+            x[i] += weighted * rows[k, i]
+            scaled[k, i] = rows[k, i] * inverse_diagonal[i]
+    if n_task:
+        for k in range(n_task):  # capacitance W^-1 + J D^-1 J^T, and J D^-1 r
+            for m in range(k + 1):
+                value = 0.0
+                for i in range(nv):
+                    value += scaled[k, i] * rows[m, i]
+                capacitance[k, m] = value
+                capacitance[m, k] = value
+            capacitance[k, k] += 1.0 / task_weights[k]
+            value = 0.0
+            for i in range(nv):
+                value += scaled[k, i] * x[i]
+            correction[k] = value
+        # correction = -(W^-1 + J D^-1 J^T)^-1 J D^-1 r
+        if not cholesky_solve(capacitance, factor, correction, correction):
+            return False
+    for i in range(nv):
+        value = x[i] * inverse_diagonal[i]
+        for k in range(n_task):
+            value += correction[k] * scaled[k, i]
+        x[i] = value
+    return True
+
+
+@_compile
+def eliminate(
+    rows, n_cost, nv, n_base, mass, bias, force_scale, basic, nonbasic, lu, elimination,
+    min_pivot_ratio,
+) -> bool:  # fmt: skip
+    r"""Solve the base and contact rows for the basic accelerations.
+
+    Fills the base-dynamics rows :math:`[M_b \,|\, -s J_{c,b}^\top \,|\, -h_b]` below the
+    contact rows of ``rows`` (``rows[n_cost:]``, :math:`[G \,|\, t]`), then
+    :math:`[U_N \,|\, U_c] = G_B^{-1} [G_N \,|\, t]` into ``elimination`` by Gaussian
+    elimination with partial pivoting (:math:`G_B` in ``lu``). ``nonbasic`` lists the
+    nonbasic columns and then the constant column. False if the smallest pivot is below
+    ``min_pivot_ratio`` times the largest (ill-conditioned :math:`G_B`).
+    """
+    n_con = basic.size
+    n_contact = n_con - n_base
+    first = n_cost + n_contact  # base-dynamics rows
+    width = rows.shape[1]
+    for i in range(n_base):  # mass is symmetric and read by columns (Fortran-ordered)
+        row = first + i
+        for j in range(nv):
+            rows[row, j] = mass[j, i]
+        for k in range(n_contact):
+            rows[row, nv + k] = -force_scale * rows[n_cost + k, i]
+        rows[row, width - 1] = -bias[i]
+    for i in range(n_con):
+        for j in range(n_con):
+            lu[i, j] = rows[n_cost + i, basic[j]]
+        for j in range(nonbasic.size):
+            elimination[i, j] = rows[n_cost + i, nonbasic[j]]
+    smallest, largest = np.inf, 0.0
+    for k in range(n_con):
+        pivot = k
+        for i in range(k + 1, n_con):
+            if abs(lu[i, k]) > abs(lu[pivot, k]):
+                pivot = i
+        if pivot != k:
+            for j in range(k, n_con):
+                lu[k, j], lu[pivot, j] = lu[pivot, j], lu[k, j]
+            for j in range(nonbasic.size):
+                elimination[k, j], elimination[pivot, j] = elimination[pivot, j], elimination[k, j]
+        magnitude = abs(lu[k, k])
+        smallest, largest = min(smallest, magnitude), max(largest, magnitude)
+        if not magnitude > 0.0:  # also NaN
+            return False
+        for i in range(k + 1, n_con):
+            factor = lu[i, k] / lu[k, k]
+            if factor != 0.0:
+                for j in range(k + 1, n_con):
+                    lu[i, j] -= factor * lu[k, j]
+                for j in range(nonbasic.size):
+                    elimination[i, j] -= factor * elimination[k, j]
+    if smallest < min_pivot_ratio * largest:
+        return False
+    for k in range(n_con - 1, -1, -1):  # back substitution, all columns at once
+        for i in range(k + 1, n_con):
+            factor = lu[k, i]
+            for j in range(nonbasic.size):
+                elimination[k, j] -= factor * elimination[i, j]
+        inverse = 1.0 / lu[k, k]
+        for j in range(nonbasic.size):
+            elimination[k, j] *= inverse
+    return True
+
+
+@_compile
+def reduce_costs(
+    rows, n_task, basic, nonbasic, elimination, row_scale, basic_scale, posture, diagonal,
+    z_matrix, z_target, hessian, gradient,
+):  # fmt: skip
+    r"""Hessian and gradient over the nonbasic unknowns z, with :math:`x_B = U_c - U_N z`.
+
+    Each task row :math:`[A | t]` becomes :math:`\sqrt{w}\,[A_N - A_B U_N \,|\, t - A_B U_c]`
+    and the regularisation of the basic unknowns :math:`-\sqrt{d_B}\,[U_N | U_c]`: the rows
+    :math:`[Z | t_z]` (``z_matrix``, ``z_target``); then :math:`H = Z^\top Z +
+    \mathrm{diag}(d_N)` and :math:`g = p_N - U_N^\top p_B - Z^\top t_z` with p the posture
+    gradient.
+    """
+    n_con, n_z = basic.size, nonbasic.size - 1
+    for r in range(n_task):
+        for j in range(n_z):
+            z_matrix[r, j] = rows[r, nonbasic[j]]
+        target = rows[r, nonbasic[n_z]]
+        for i in range(n_con):
+            a = rows[r, basic[i]]
+            if a != 0.0:
+                for j in range(n_z):
+                    z_matrix[r, j] -= a * elimination[i, j]
+                target -= a * elimination[i, n_z]
+        for j in range(n_z):
+            z_matrix[r, j] *= row_scale[r]
+        z_target[r] = row_scale[r] * target
+    for i in range(n_con):
+        for j in range(n_z):
+            z_matrix[n_task + i, j] = basic_scale[i] * elimination[i, j]
+        z_target[n_task + i] = basic_scale[i] * elimination[i, n_z]
+    np.dot(z_matrix.T, z_matrix, hessian)
+    for i in range(n_z):
+        hessian[i, i] += diagonal[i]
+        gradient[i] = posture[nonbasic[i]]
+    for r in range(z_matrix.shape[0]):
+        t = z_target[r]
+        for j in range(n_z):
+            gradient[j] -= z_matrix[r, j] * t
+    for i in range(n_con):
+        p = posture[basic[i]]
+        if p != 0.0:
+            for j in range(n_z):
+                gradient[j] -= p * elimination[i, j]
+
+
+@_compile
+def expand(elimination, basic, nonbasic, z, x):
+    r"""Unknowns x from the nonbasic ones z: :math:`x_N = z`, :math:`x_B = U_c - U_N z`."""
+    n_z = z.size
+    for j in range(n_z):
+        x[nonbasic[j]] = z[j]
+    for i in range(basic.size):
+        value = elimination[i, n_z]
+        for j in range(n_z):
+            value -= elimination[i, j] * z[j]
+        x[basic[i]] = value
+
+
+@_compile
+def torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau):
+    r"""Unscale the wrenches of x (in place) and read the torques off the equations of
+    motion, :math:`\tau = M_a \ddot q + h_a - J_{c,a}^\top f`, with the contact Jacobians
+    :math:`J_c` the rows ``rows[n_cost:n_cost + n_f]``."""
+    nv = mass.shape[0]
+    for k in range(nv, x.size):
+        x[k] *= force_scale
+    for i in range(tau.size):
+        joint = n_base + i
+        value = bias[joint]
+        for j in range(nv):  # row `joint` of the symmetric, Fortran-ordered mass matrix
+            value += mass[j, joint] * x[j]
+        for k in range(x.size - nv):
+            value -= rows[n_cost + k, joint] * x[nv + k]
+        tau[i] = value
+
+
+@_compile
+def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
+    """One tick without inequality rows on the eliminated QP: :func:`eliminate` and
+    :func:`reduce_costs` (their arguments as the tuples ``elimination`` and ``reduction``),
+    the Cholesky solve for z, the cone check, :func:`expand` and :func:`torques` with the
+    torque-limit check; ``solve`` is (factor, z, cone_matrix, cone_upper, torque_limit).
+
+    Returns SOLVED, CONES_VIOLATED (z, x and the torques are filled), TORQUES_VIOLATED,
+    ILL_CONDITIONED (nothing is solved) or NOT_POSITIVE_DEFINITE (Hessian and gradient are
+    filled).
+    """
+    if not eliminate(*elimination):
+        return ILL_CONDITIONED
+    reduce_costs(*reduction)
+    rows, n_cost, _, n_base, mass, bias, force_scale, basic, nonbasic, _, matrix, _ = elimination
+    hessian, gradient = reduction[-2:]
+    factor, z, cone_matrix, cone_upper, torque_limit = solve
+    if not cholesky_solve(hessian, factor, gradient, z):
+        return NOT_POSITIVE_DEFINITE
+    expand(matrix, basic, nonbasic, z, x)
+    torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau)
+    for i in range(cone_matrix.shape[0]):
+        value = 0.0
+        for j in range(z.size):
+            value += cone_matrix[i, j] * z[j]
+        if value > cone_upper[i]:
+            return CONES_VIOLATED
+    for i in range(tau.size):
+        if not abs(tau[i]) <= torque_limit[i]:  # NaN fails too
+            return TORQUES_VIOLATED
+    return SOLVED

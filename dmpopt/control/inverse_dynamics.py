@@ -494,10 +494,7 @@ class InverseDynamicsController:
                 f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
                 f"({self._nv},) for {self.robot.name}"
             )
-        # A finite sum proves every entry finite; an overflowing sum gets the exact check.
-        if not math.isfinite(q.sum() + v.sum()) and not (
-            np.isfinite(q).all() and np.isfinite(v).all()
-        ):
+        if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
         # Inequality rows are added only when the solution without them violates them; a
@@ -536,9 +533,9 @@ class InverseDynamicsController:
                 mapped = True
                 solved = self._solve(self._free)
                 level = min(level, 1)
-        # Written so that a NaN torque (from a NaN written into a task) also fails the check.
+        # A NaN torque (from a NaN written into a task) fails the check too.
         if solved and level < 2 and not checked:
-            if not (np.abs(self._tau) <= self.torque_limit).all():
+            if not kernels.within_limits(self._tau, self.torque_limit):
                 level = 2
         if level == 2:
             self.stats.n_torque_limited += 1

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 __all__ = [
+    "all_finite",
     "cholesky_solve",
     "eliminate",
     "eliminated_tick",
@@ -26,8 +27,10 @@ __all__ = [
     "joint_space_accelerations",
     "posture_gradient",
     "posture_law",
+    "pd_task_rows",
     "reduce_costs",
     "torques",
+    "within_limits",
 ]
 
 # Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
@@ -36,6 +39,27 @@ _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 # eliminated_tick's outcomes
 SOLVED, CONES_VIOLATED, TORQUES_VIOLATED, ILL_CONDITIONED, NOT_POSITIVE_DEFINITE = range(5)
+
+
+@_compile
+def all_finite(q, v) -> bool:
+    """Whether every entry of q and v is finite."""
+    for value in q:
+        if not math.isfinite(value):
+            return False
+    for value in v:
+        if not math.isfinite(value):
+            return False
+    return True
+
+
+@_compile
+def within_limits(values, limits) -> bool:
+    r"""Whether :math:`|v_i| \le l_i` for all i (False for a NaN)."""
+    for i in range(values.size):
+        if not abs(values[i]) <= limits[i]:
+            return False
+    return True
 
 
 @_compile
@@ -62,6 +86,27 @@ def posture_gradient(state, q_index, v_index, weights, gradient, q, v):
     gradient[:] = 0.0
     for j in range(state.shape[1]):
         gradient[v_index[j]] -= weights[j] * state[5, j]
+
+
+@_compile
+def pd_task_rows(
+    target, jacobian, components, error, velocity, drift, reference_velocity,
+    reference_acceleration, stiffness, damping, full_jacobian,
+):  # fmt: skip
+    r"""Rows of a task with the PD law of :mod:`dmpopt.control.tasks`, for the tracked
+    ``components`` c of its full (e.g. 6-D) quantity:
+    :math:`b_c = a_{ref,c} + K_{p,c}\, e_c + K_{d,c} (v_{ref,c} - v_c) - (\dot J \dot q)_c`
+    into ``target`` and row c of ``full_jacobian`` into ``jacobian``."""
+    for k in range(components.size):
+        c = components[k]
+        target[k] = (
+            reference_acceleration[c]
+            + stiffness[c] * error[c]
+            + damping[c] * (reference_velocity[c] - velocity[c])
+            - drift[c]
+        )
+        for j in range(full_jacobian.shape[1]):
+            jacobian[k, j] = full_jacobian[c, j]
 
 
 @_compile
@@ -316,7 +361,4 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
             value += cone_matrix[i, j] * z[j]
         if value > cone_upper[i]:
             return CONES_VIOLATED
-    for i in range(tau.size):
-        if not abs(tau[i]) <= torque_limit[i]:  # NaN fails too
-            return TORQUES_VIOLATED
-    return SOLVED
+    return SOLVED if within_limits(tau, torque_limit) else TORQUES_VIOLATED

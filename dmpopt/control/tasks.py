@@ -35,6 +35,9 @@ from . import kernels
 __all__ = ["ComTask", "FrameTask", "PostureTask", "SoleContact", "Task"]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
+_XYZ = np.arange(3)
+_SPATIAL = np.arange(6)
+_ZERO_MOTION = np.zeros(6)
 
 
 def _vector(value, size: int, name: str) -> np.ndarray:
@@ -55,6 +58,13 @@ def _gains(stiffness, damping, size: int) -> tuple[np.ndarray, np.ndarray]:
     if np.any(kp < 0) or np.any(kd < 0) or not np.all(np.isfinite(kp) & np.isfinite(kd)):
         raise InvalidInputError("stiffness and damping must be finite and >= 0")
     return kp, kd
+
+
+def _gain(value: float, name: str) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and value >= 0):
+        raise InvalidInputError(f"{name} must be finite and >= 0, got {value!r}")
+    return value
 
 
 def _check_weight(weight: float) -> float:
@@ -243,9 +253,6 @@ class FrameTask(Task):
         self.rows = np.array(sorted(set(int(c) for c in components)), dtype=int)
         if self.rows.size == 0 or self.rows.min() < 0 or self.rows.max() > 5:
             raise InvalidInputError(f"components={components!r}; expected indices in 0..5")
-        first = int(self.rows[0])
-        contiguous = np.array_equal(self.rows, np.arange(first, first + self.rows.size))
-        self._row_index = slice(first, first + self.rows.size) if contiguous else self.rows
         self._tracks_position = bool(self.rows.min() < 3)
         self._tracks_orientation = bool(self.rows.max() >= 3)
         self.model = robot.model
@@ -291,22 +298,20 @@ class FrameTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration."""
-        model, frame_id, rows = self.model, self.frame_id, self._row_index
+        model, frame_id = self.model, self.frame_id
         placement = data.oMf[frame_id]
         error = self._error
         if self._tracks_position:
             np.subtract(self.target_placement.translation, placement.translation, out=error[:3])
         if self._tracks_orientation:
             error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
-        velocity = pin.getFrameVelocity(model, data, frame_id, _LWA).vector
-        drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
-        target = self.target  # a_ref + Kp e + Kd (v_ref - v) - drift, tracked rows only
-        np.subtract(self.target_velocity[rows], velocity[rows], out=target)
-        target *= self.damping[rows]
-        target += self.stiffness[rows] * error[rows]
-        target += self.target_acceleration[rows]
-        target -= drift[rows]
-        self.jacobian[:] = pin.getFrameJacobian(model, data, frame_id, _LWA)[rows]
+        kernels.pd_task_rows(
+            self.target, self.jacobian, self.rows, error,
+            pin.getFrameVelocity(model, data, frame_id, _LWA).vector,
+            pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
+            self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
+            pin.getFrameJacobian(model, data, frame_id, _LWA),
+        )  # fmt: skip
 
 
 class ComTask(Task):
@@ -357,13 +362,11 @@ class ComTask(Task):
         """
         pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
         np.subtract(self.target_position, data.com[0], out=self._error)
-        target = self.target
-        np.subtract(self.target_velocity, data.vcom[0], out=target)
-        target *= self.damping
-        target += self.stiffness * self._error
-        target += self.target_acceleration
-        target -= data.acom[0]
-        self.jacobian[:] = data.Jcom
+        kernels.pd_task_rows(
+            self.target, self.jacobian, _XYZ, self._error, data.vcom[0], data.acom[0],
+            self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
+            data.Jcom,
+        )  # fmt: skip
 
 
 class SoleContact:
@@ -425,8 +428,9 @@ class SoleContact:
         self.frame = frame
         self.frame_id = robot.model.getFrameId(frame)
         self.friction_coefficient = float(friction_coefficient)
-        self.stiffness = float(stiffness)
-        self.damping = 2.0 * np.sqrt(self.stiffness) if damping is None else float(damping)
+        self._stiffness, self._damping = np.zeros(6), np.zeros(6)  # the gains, per component
+        self.stiffness = stiffness
+        self.damping = 2.0 * np.sqrt(self.stiffness) if damping is None else damping
         corners = np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)
@@ -436,6 +440,24 @@ class SoleContact:
         self.reference_placement: pin.SE3 | None = None
         self.jacobian = np.zeros((6, robot.nv))
         self.target = np.zeros(6)
+
+    @property
+    def stiffness(self) -> float:
+        """Baumgarte stiffness :math:`K_p` [1/s^2]."""
+        return float(self._stiffness[0])
+
+    @stiffness.setter
+    def stiffness(self, value: float) -> None:
+        self._stiffness[:] = _gain(value, "stiffness")
+
+    @property
+    def damping(self) -> float:
+        """Baumgarte damping :math:`K_d` [1/s]."""
+        return float(self._damping[0])
+
+    @damping.setter
+    def damping(self, value: float) -> None:
+        self._damping[:] = _gain(value, "damping")
 
     def _wrench_cone(self, f_min: float, f_max: float) -> tuple[np.ndarray, np.ndarray]:
         """Rows ``C f <= u`` of the linearised wrench cone."""
@@ -472,12 +494,12 @@ class SoleContact:
         placement = data.oMf[frame_id]
         if self.reference_placement is None:
             self.reference_placement = placement.copy()
-        target = self.target
-        velocity = pin.getFrameVelocity(model, data, frame_id, pin.LOCAL).vector
-        np.multiply(velocity, -self.damping, out=target)
-        target -= pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
-        if self.stiffness > 0:
-            deviation = pin.log6(self.reference_placement.actInv(placement)).vector
-            deviation *= self.stiffness
-            target -= deviation
-        self.jacobian[:] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
+        # error log6(M^-1 M_ref) = -log6(M_ref^-1 M)
+        error = pin.log6(placement.actInv(self.reference_placement)).vector
+        kernels.pd_task_rows(
+            self.target, self.jacobian, _SPATIAL, error,
+            pin.getFrameVelocity(model, data, frame_id, pin.LOCAL).vector,
+            pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector,
+            _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
+            pin.getFrameJacobian(model, data, frame_id, pin.LOCAL),
+        )  # fmt: skip

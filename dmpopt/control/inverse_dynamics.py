@@ -581,7 +581,6 @@ class InverseDynamicsController:
         if self._stacked_tasks:
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.computeJointJacobians(model, data)
-            pin.updateFramePlacements(model, data)
             self._update_rows(q, v)
         if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
             return False
@@ -601,7 +600,6 @@ class InverseDynamicsController:
         """Model terms, then the task and contact rows and the posture gradient over x."""
         model, data = self.model, self.data
         pin.computeAllTerms(model, data, q, v)
-        pin.updateFramePlacements(model, data)
         self._update_rows(q, v)
         self._update_posture(q, v)
 

@@ -12,8 +12,8 @@ the operational-space PD law of [Khatib1987]_ with the reference acceleration as
 and ``target`` :math:`b = a^* - \dot J \dot q`; the controller adds :math:`w J^\top J` to the
 Hessian and :math:`-w J^\top b` to the gradient. A :class:`PostureTask` selects joints, so its
 Hessian term is the constant :math:`w` on their diagonal entries. The drift :math:`\dot J \dot q`
-is read from the Pinocchio data filled by ``computeAllTerms`` (which runs the kinematics with
-zero acceleration). Weights are read once, when the controller is built.
+is read from the Pinocchio data, whose kinematics the controller runs with zero acceleration.
+Weights are read once, when the controller is built.
 
 A :class:`SoleContact` is not a task but a constraint: it holds a sole still (a 6-D rigid
 contact) and bounds its contact wrench to a linearised friction cone with centre-of-pressure
@@ -94,7 +94,13 @@ class Task:
     target: np.ndarray
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
-        """Compute ``jacobian`` and ``target`` from the state and the filled Pinocchio data."""
+        r"""Compute ``jacobian`` and ``target`` from the state and the Pinocchio data.
+
+        ``data`` holds the joint kinematics of :math:`(q, \dot q, \ddot q = 0)` and the joint
+        Jacobians (on a floating base, everything ``computeAllTerms`` fills). Frame
+        placements are not refreshed for all frames: a task that reads a frame updates its
+        own (``pin.updateFramePlacement``).
+        """
         raise NotImplementedError
 
     def error(self) -> np.ndarray:
@@ -299,7 +305,7 @@ class FrameTask(Task):
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration."""
         model, frame_id = self.model, self.frame_id
-        placement = data.oMf[frame_id]
+        placement = pin.updateFramePlacement(model, data, frame_id)
         error = self._error
         if self._tracks_position:
             np.subtract(self.target_placement.translation, placement.translation, out=error[:3])
@@ -491,7 +497,7 @@ class SoleContact:
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
-        placement = data.oMf[frame_id]
+        placement = pin.updateFramePlacement(model, data, frame_id)
         if self.reference_placement is None:
             self.reference_placement = placement.copy()
         # error log6(M^-1 M_ref) = -log6(M_ref^-1 M)

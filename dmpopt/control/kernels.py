@@ -90,23 +90,25 @@ def posture_gradient(state, q_index, v_index, weights, gradient, q, v):
 
 @_compile
 def pd_task_rows(
-    target, jacobian, components, error, velocity, drift, reference_velocity,
-    reference_acceleration, stiffness, damping, full_jacobian,
+    target, jacobian, components, error, full_jacobian, v, drift, reference_velocity,
+    reference_acceleration, stiffness, damping,
 ):  # fmt: skip
     r"""Rows of a task with the PD law of :mod:`dmpopt.control.tasks`, for the tracked
-    ``components`` c of its full (e.g. 6-D) quantity:
-    :math:`b_c = a_{ref,c} + K_{p,c}\, e_c + K_{d,c} (v_{ref,c} - v_c) - (\dot J \dot q)_c`
-    into ``target`` and row c of ``full_jacobian`` into ``jacobian``."""
+    ``components`` c of its full (e.g. 6-D) quantity with Jacobian :math:`J` (``full_jacobian``):
+    :math:`b_c = a_{ref,c} + K_{p,c}\, e_c + K_{d,c} (v_{ref,c} - (J \dot q)_c)
+    - (\dot J \dot q)_c` into ``target`` and row c of :math:`J` into ``jacobian``."""
     for k in range(components.size):
         c = components[k]
+        velocity = 0.0
+        for j in range(full_jacobian.shape[1]):
+            jacobian[k, j] = full_jacobian[c, j]
+            velocity += full_jacobian[c, j] * v[j]
         target[k] = (
             reference_acceleration[c]
             + stiffness[c] * error[c]
-            + damping[c] * (reference_velocity[c] - velocity[c])
+            + damping[c] * (reference_velocity[c] - velocity)
             - drift[c]
         )
-        for j in range(full_jacobian.shape[1]):
-            jacobian[k, j] = full_jacobian[c, j]
 
 
 @_compile

@@ -313,10 +313,9 @@ class FrameTask(Task):
             error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
         kernels.pd_task_rows(
             self.target, self.jacobian, self.rows, error,
-            pin.getFrameVelocity(model, data, frame_id, _LWA).vector,
+            pin.getFrameJacobian(model, data, frame_id, _LWA), v,
             pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
             self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
-            pin.getFrameJacobian(model, data, frame_id, _LWA),
         )  # fmt: skip
 
 
@@ -369,9 +368,8 @@ class ComTask(Task):
         pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
         np.subtract(self.target_position, data.com[0], out=self._error)
         kernels.pd_task_rows(
-            self.target, self.jacobian, _XYZ, self._error, data.vcom[0], data.acom[0],
+            self.target, self.jacobian, _XYZ, self._error, data.Jcom, v, data.acom[0],
             self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
-            data.Jcom,
         )  # fmt: skip
 
 
@@ -504,8 +502,7 @@ class SoleContact:
         error = pin.log6(placement.actInv(self.reference_placement)).vector
         kernels.pd_task_rows(
             self.target, self.jacobian, _SPATIAL, error,
-            pin.getFrameVelocity(model, data, frame_id, pin.LOCAL).vector,
+            pin.getFrameJacobian(model, data, frame_id, pin.LOCAL), v,
             pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector,
             _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
-            pin.getFrameJacobian(model, data, frame_id, pin.LOCAL),
         )  # fmt: skip

@@ -242,6 +242,41 @@ def test_contact_wrenches_satisfy_friction_cones(talos):
     assert active, "the test should make a friction row active"
 
 
+def test_com_task_pd_law(talos):
+    """The CoM task's target is c_ref'' + Kp (c_ref - c) + Kd (c_ref' - c') minus the drift,
+    with c' and the drift from Pinocchio's centre-of-mass kinematics."""
+    rng = np.random.default_rng(7)
+    model, data = talos.model, talos.create_data()
+    com = ComTask(talos, stiffness=np.array([20.0, 30.0, 40.0]))
+    com.set_target(
+        com.target_position + 0.01, velocity=rng.normal(size=3), acceleration=rng.normal(size=3)
+    )
+    q, v = random_state(talos, rng, spread=0.05, speed=0.3)
+    pin.computeAllTerms(model, data, q, v)
+    com.update(q, v, data)
+    check = talos.create_data()
+    pin.centerOfMass(model, check, q, v, np.zeros(talos.nv))
+    expected = (
+        com.target_acceleration
+        + com.stiffness * (com.target_position - check.com[0])
+        + com.damping * (com.target_velocity - check.vcom[0])
+        - check.acom[0]
+    )
+    np.testing.assert_allclose(com.target, expected, atol=1e-12)
+    np.testing.assert_allclose(com.jacobian, pin.jacobianCenterOfMass(model, check, q), atol=1e-12)
+
+
+def test_sole_contact_gains_are_validated(talos):
+    contact = SoleContact(talos, "left_sole_link", stiffness=4.0)
+    assert contact.damping == pytest.approx(4.0)  # critical by default
+    contact.stiffness, contact.damping = 9.0, 1.0
+    assert (contact.stiffness, contact.damping) == (9.0, 1.0)
+    with pytest.raises(InvalidInputError, match="stiffness must be finite and >= 0"):
+        contact.stiffness = -1.0
+    with pytest.raises(InvalidInputError, match="damping"):
+        contact.damping = float("nan")
+
+
 def test_solution_satisfies_equations_of_motion(talos):
     """Forward dynamics of (tau, contact wrenches) gives back the QP's qdd, and the soles
     accelerate as the contact constraint asks."""

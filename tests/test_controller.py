@@ -11,6 +11,7 @@ from dmpopt.control import (
     InverseDynamicsController,
     PostureTask,
     SoleContact,
+    kernels,
 )
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 from robots import load_talos
@@ -275,6 +276,24 @@ def test_sole_contact_gains_are_validated(talos):
         contact.stiffness = -1.0
     with pytest.raises(InvalidInputError, match="damping"):
         contact.damping = float("nan")
+
+
+def test_construction_compiles_the_kernels_of_a_tick(talos):
+    """A new controller's first ticks (with the writable state of a control loop) compile
+    nothing; contact references set before construction are kept."""
+    sole = SoleContact(talos, "left_sole_link")
+    sole.reference_placement = pin.SE3(np.eye(3), np.array([0.0, 0.1, 0.0]))
+    posture = PostureTask(talos, weight=0.1)
+    controller = InverseDynamicsController(
+        talos, [posture, ComTask(talos)], [sole, SoleContact(talos, "right_sole_link")]
+    )
+    assert controller.stats.n_ticks == 0
+    assert sole.reference_placement.translation[1] == 0.1
+    compiled = {name: len(getattr(kernels, name).signatures) for name in kernels.__all__}
+    q, v = random_state(talos, np.random.default_rng(3), spread=0.02, speed=0.1)
+    for _ in range(3):
+        controller.compute_torques(q, v)
+    assert {name: len(getattr(kernels, name).signatures) for name in kernels.__all__} == compiled
 
 
 def test_solution_satisfies_equations_of_motion(talos):

@@ -449,6 +449,28 @@ class InverseDynamicsController:
         self._solution = np.zeros(n_x)
         self._candidate = np.zeros(n_x)
         self._has_valid_torque = False
+        self._compile_kernels()
+
+    def _compile_kernels(self) -> None:
+        """Compile (or load from numba's disk cache) the kernels a tick can use, so that no
+        tick of a control loop waits for a compilation: one tick on the reference
+        configuration with a read-only and a writable state, and the stages used around
+        proxsuite; then the controller is as new (contact references kept)."""
+        references = [contact.reference_placement for contact in self.contacts]
+        v = np.zeros(self._nv)
+        v.flags.writeable = False
+        q = np.array(self.robot.reference_configuration, dtype=float)
+        q.flags.writeable = False
+        for state in ((q, v), (q.copy(), v.copy())):
+            self.compute_torques(*state)
+        if self._basic is not None:
+            self._assemble_eliminated()
+            self._accept(self._z_solution, eliminated=True)
+        self._solve_direct()
+        kernels.within_limits(self._tau, self.torque_limit)
+        self.reset()
+        for contact, reference in zip(self.contacts, references):
+            contact.reference_placement = reference
 
     # ------------------------------------------------------------------ results
     @property

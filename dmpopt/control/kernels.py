@@ -4,8 +4,10 @@ A controller tick is a few dozen small dense operations (tens of rows and column
 each costs a call of about a microsecond whatever its size, which is most of the tick; these
 kernels run a whole stage as one compiled call. They work in place on the controller's
 preallocated arrays, so that its proxsuite QPs read the same Hessians and gradients. Index
-arguments are integer arrays; matrices are C-ordered. Each kernel is compiled on its first call
-and cached on disk (``cache=True``).
+arguments are integer arrays; the controller's matrices are C-ordered, Pinocchio's (mass
+matrix, Jacobians) are read as Pinocchio returns them (Fortran-ordered). Each kernel is
+compiled for the argument types of its first call and cached on disk (``cache=True``); the
+controller makes those calls when it is built, so that no tick waits for a compilation.
 
 The maths is that of :mod:`dmpopt.control.inverse_dynamics` and
 :mod:`dmpopt.control.tasks`, where each stage is described.

@@ -545,7 +545,7 @@ class InverseDynamicsController:
                 checked = True  # cones and torques checked by the tick
             elif outcome == kernels.TORQUES_VIOLATED:
                 level = 2
-            elif outcome == kernels.NOT_POSITIVE_DEFINITE:
+            elif outcome == kernels.CHOLESKY_FAILED:
                 solved, level = False, 2
             elif outcome == kernels.CONES_VIOLATED:
                 solved = self._solve(self._eliminated_cones)

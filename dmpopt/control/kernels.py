@@ -40,7 +40,7 @@ __all__ = [
 _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 # eliminated_tick's outcomes
-SOLVED, CONES_VIOLATED, TORQUES_VIOLATED, ILL_CONDITIONED, NOT_POSITIVE_DEFINITE = range(5)
+SOLVED, CONES_VIOLATED, TORQUES_VIOLATED, ILL_CONDITIONED, CHOLESKY_FAILED = range(5)
 
 
 @_compile
@@ -346,8 +346,8 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
     torque-limit check; ``solve`` is (factor, z, cone_matrix, cone_upper, torque_limit).
 
     Returns SOLVED, CONES_VIOLATED (z, x and the torques are filled), TORQUES_VIOLATED,
-    ILL_CONDITIONED (nothing is solved) or NOT_POSITIVE_DEFINITE (Hessian and gradient are
-    filled).
+    ILL_CONDITIONED (nothing is solved) or CHOLESKY_FAILED (Hessian not positive definite or
+    solution not finite; Hessian and gradient are filled).
     """
     if not eliminate(*elimination):
         return ILL_CONDITIONED
@@ -356,7 +356,7 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
     hessian, gradient = reduction[-2:]
     factor, z, cone_matrix, cone_upper, torque_limit = solve
     if not cholesky_solve(hessian, factor, gradient, z):
-        return NOT_POSITIVE_DEFINITE
+        return CHOLESKY_FAILED
     expand(matrix, basic, nonbasic, z, x)
     torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau)
     for i in range(cone_matrix.shape[0]):

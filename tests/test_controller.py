@@ -472,6 +472,81 @@ def test_talos_stands_in_simulation(talos):
     np.testing.assert_allclose(sole_positions[:, :2], start[:, :2], atol=1e-3)
 
 
+@pytest.mark.parametrize("horizon", [None, 0.05])
+def test_joint_limits_hold_in_simulation(upper_body, horizon):
+    """A posture reference 0.3 rad past the left elbow's upper limit, and a head reference
+    that stiff gains would reach at 3 rad/s (limit 1 rad/s): with joint limits the simulated
+    elbow stops at its limit and the head at its speed limit; without, both pass them."""
+    from dmpopt.sim import Simulator
+
+    names = list(upper_body.actuated_joint_names)
+    elbow, head = names.index("arm_left_4_joint"), names.index("head_1_joint")
+    q_elbow, q_head = upper_body.configuration_indices(["arm_left_4_joint", "head_1_joint"])
+    v_head = upper_body.velocity_indices(["head_1_joint"])[0]
+    elbow_limit, head_speed = upper_body.position_upper[q_elbow], upper_body.velocity_limit[v_head]
+    posture = PostureTask(upper_body, weight=1.0, stiffness=400.0)
+    reference = posture.reference_position.copy()
+    reference[elbow], reference[head] = elbow_limit + 0.3, 0.7
+    posture.set_reference(reference)
+    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=horizon)
+    simulator = Simulator(upper_body.model, 1e-3)
+    state = simulator.reset(upper_body.reference_configuration)
+    elbow_peak = head_peak = -np.inf
+    for _ in range(1000):
+        state = simulator.step(controller.compute_torques(state.q, state.v))
+        elbow_peak = max(elbow_peak, state.q[q_elbow])
+        head_peak = max(head_peak, state.v[v_head])
+    assert controller.stats.n_fallbacks == 0
+    if horizon is None:
+        assert elbow_peak > elbow_limit + 0.2 and head_peak > 2.5 * head_speed
+    else:
+        assert elbow_limit - 0.01 < elbow_peak <= elbow_limit + 1e-3  # reaches it, stays out
+        assert 0.95 * head_speed < head_peak <= head_speed + 1e-3
+        assert abs(state.q[q_head] - 0.7) < 1e-3  # the head still gets there
+
+
+def test_joint_limits_standing(talos):
+    """Standing Talos with an arm moving fast toward its limit: the accelerations of the tick
+    (through the eliminated QP, then the QP with bound rows) respect the bound formula."""
+    controller, _ = standing_controller(talos, joint_limit_horizon=0.05)
+    arm = PostureTask(talos, "left_arm", weight=10.0, stiffness=400.0)
+    controller = InverseDynamicsController(
+        talos, [*controller.tasks, arm], controller.contacts, joint_limit_horizon=0.05
+    )
+    joint = "arm_left_4_joint"
+    i_q, i_v = talos.configuration_indices([joint])[0], talos.velocity_indices([joint])[0]
+    reference = arm.reference_position.copy()
+    reference[3] = talos.position_upper[i_q] + 0.5
+    arm.set_reference(reference)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    q[i_q], v[i_v] = talos.position_upper[i_q] - 0.05, 1.5
+    controller.compute_torques(q, v)
+    h = 0.05
+    bound = min(
+        (talos.position_upper[i_q] - q[i_q]) / h**2 - 2 * v[i_v] / h,
+        (talos.velocity_limit[i_v] - v[i_v]) / h,
+    )
+    assert controller.stats.n_torque_limited == 1 and controller.stats.n_fallbacks == 0
+    assert controller.joint_accelerations[i_v] == pytest.approx(bound, abs=1e-4)  # brakes
+
+
+def test_acceleration_bounds_formula(upper_body):
+    h = 0.1
+    lower, upper = np.zeros(3), np.zeros(3)
+    kernels.acceleration_bounds(
+        np.arange(3), np.arange(3), np.array([-1.0, -np.inf, -1.0]), np.array([1.0, np.inf, 1.0]),
+        np.array([2.0, np.inf, 0.5]), h, lower, upper,
+        np.array([0.5, 0.0, 1.5]), np.array([0.1, 0.0, 3.0]),
+    )  # fmt: skip
+    # joint 0: position (1 - 0.5)/h^2 - 2 (0.1)/h = 48 vs velocity (2 - 0.1)/h = 19
+    assert upper[0] == pytest.approx(19.0) and lower[0] == pytest.approx(-21.0)
+    assert (lower[1], upper[1]) == (-np.inf, np.inf)  # no limits
+    # joint 2 is past its limit and too fast: the bounds cross and meet at their mean
+    assert lower[2] == upper[2] == pytest.approx(0.5 * ((-0.5 - 3.0) / h + (1 - 1.5) / h**2 - 60.0))
+    with pytest.raises(InvalidInputError, match="joint_limit_horizon"):
+        InverseDynamicsController(upper_body, [PostureTask(upper_body)], joint_limit_horizon=0.0)
+
+
 # ---------------------------------------------------------------- the reduced QPs
 def reference_solution(controller, q, v, acceleration_regularization, force_regularization):
     """The QP of the module docstring, assembled naively: x = (qdd, f) with the base and

@@ -18,9 +18,14 @@ sole contact (in the sole frame). Each tick solves
 
     \hphantom{\text{s.t.}\quad} C f \le u              \quad\text{(friction and CoP cones)}
 
+    \hphantom{\text{s.t.}\quad} l(q, \dot q) \le \ddot q_a \le u(q, \dot q)
+                                \quad\text{(joint limits, optional)}
+
 where the rows of :math:`M, h, J_c` are split into base (b) and actuated (a) coordinates, the
-task terms come from :mod:`dmpopt.control.tasks`, and the torque is read off the equations of
-motion, :math:`\tau = M_a \ddot q + h_a - J_{c,a}^\top f` [DelPrete2016]_.
+task terms come from :mod:`dmpopt.control.tasks`, the acceleration bounds l, u keep the joints
+within their position and velocity limits (:func:`kernels.acceleration_bounds`), and the
+torque is read off the equations of motion, :math:`\tau = M_a \ddot q + h_a - J_{c,a}^\top f`
+[DelPrete2016]_.
 
 The QP that proxsuite sees is smaller than this statement, with the same solution:
 
@@ -40,13 +45,14 @@ The QP that proxsuite sees is smaller than this statement, with the same solutio
   is diagonal plus a low-rank term from the frame tasks (none for posture tasks alone): it is
   solved by the Woodbury identity, and :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`,
   without the mass matrix.
-  If its wrenches are inside the cones and its torques within the limits, it is also the
-  solution with them (a convex problem whose optimum without some constraints satisfies
-  them); on the drumming study this holds on every tick. Otherwise the
-  QP with the cone rows is solved, and if the torques leave their limits the QP with cone and
-  torque rows (over :math:`(\ddot q_a, f)`, base rows eliminated). A QP with more rows is used
-  first on the following ticks until its extra rows are slack by a margin (1 % of the torque
-  limits, 0.1 % of the robot's weight for the cones).
+  If its wrenches are inside the cones, its torques within the limits and its accelerations
+  within their bounds, it is also the solution with them (a convex problem whose optimum
+  without some constraints satisfies them); on the drumming study this holds on every tick.
+  Otherwise the QP with the cone rows is solved, and if the torques leave their limits (or
+  the accelerations their bounds) the QP with cone, torque and bound rows (over
+  :math:`(\ddot q_a, f)`, base rows eliminated). A QP with more rows is used first on the
+  following ticks until its extra rows are slack by a margin (1 % of the torque limits,
+  0.01 rad/s^2 for the bounds, 0.1 % of the robot's weight for the cones).
 
 Pinocchio computes the model terms and task quantities; everything after them on a tick
 without an active inequality row (elimination, reduced Hessian and gradient, Cholesky or
@@ -85,6 +91,7 @@ _COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
 _DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
 _NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
 _RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
+_BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
 _MIRRORED_SETTINGS = ("eps_abs", "eps_rel", "max_iter", "verbose")
 # proxsuite's primal proximal parameter (default 1e-6). The Hessians here are positive definite
 # (eps_a, eps_f > 0), so a smaller rho is safe; on the drumming benchmark it cut the
@@ -110,7 +117,8 @@ class ControllerStats:
     n_fallbacks : int
         Ticks where the cold solve failed too and the fallback torque was returned.
     n_torque_limited : int
-        Ticks that needed the QP with torque-limit rows.
+        Ticks that needed the QP with torque-limit rows (and acceleration bounds, if the
+        joint limits are on).
     n_direct : int
         Ticks solved without proxsuite: no inequality row was active, so the QP reduced to a
         least-squares problem (one Cholesky factorisation, or closed form for posture tasks
@@ -199,12 +207,23 @@ class InverseDynamicsController:
         of times larger than accelerations, so it is small: 1e-5 would already let Talos sag
         by 0.02 m/s^2 to save force.
     tolerance : float
-        proxsuite absolute tolerance ``eps_abs`` on the KKT residuals.
+        proxsuite absolute tolerance ``eps_abs`` on the KKT residuals; the acceleration
+        bounds of the joint limits are met to it (a joint resting at its limit would
+        otherwise violate them by rounding errors).
     max_iterations : int
         proxsuite iteration limit per solve.
     raise_on_failure : bool
         If True, a tick whose warm and cold solves both fail raises :class:`NoSolutionFound`
         instead of returning the fallback torque.
+    joint_limit_horizon : float, optional
+        h [s]: bound the actuated joints' accelerations so that they stay within the robot's
+        position and velocity limits (see :func:`kernels.acceleration_bounds`: a joint brakes
+        no later than a critically damped approach of time constant h). None (default): no
+        such bounds, torque limits only.
+    limited_joints : str or sequence of str, optional
+        The joints so bounded: a joint group (``"right_arm"``) or joint names; default all
+        actuated joints. Joints that rest at a limit (Talos's closed grippers) keep their
+        bound active, and every tick then goes through proxsuite: leave them out.
     dense_backend : proxsuite.proxqp.dense.DenseBackend
         Factorisation used by proxsuite. ``PrimalDualLDLT`` (the KKT system) is the default:
         ``PrimalLDLT`` factorises :math:`H + C^\top C/\mu` and stalls at tight tolerances on
@@ -239,6 +258,8 @@ class InverseDynamicsController:
         tolerance: float = 1e-6,
         max_iterations: int = 1000,
         raise_on_failure: bool = False,
+        joint_limit_horizon: float | None = None,
+        limited_joints: str | Sequence[str] | None = None,
         dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
     ):
         if not tasks:
@@ -267,6 +288,13 @@ class InverseDynamicsController:
         self._nv, self._n_base, self._n_act, self._n = nv, n_base, n_act, n
         self.torque_limit = np.asarray(robot.torque_limit, dtype=float).copy()
         self._release_limit = _RELEASE_MARGIN * self.torque_limit
+        self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
+        bounds = self._bound_arguments = self._joint_limits(joint_limit_horizon, limited_joints)
+        self._bound_index = bounds[1] if bounds else np.zeros(0, dtype=np.int64)  # over x
+        n_bound = self._bound_index.size
+        self._acceleration_lower, self._acceleration_upper = (
+            bounds[-2:] if bounds else (np.zeros(0), np.zeros(0))
+        )
         # The QP's wrench unknowns are wrenches divided by the robot's weight: dimensionless
         # forces as large as the accelerations, so that proxsuite's absolute tolerance pins
         # the internal forces between the soles (which only eps_f determines).
@@ -352,14 +380,17 @@ class InverseDynamicsController:
         self._hessian_diagonal_view = self._hessian.reshape(-1)[:: n + 1]
         self._gradient = np.zeros(n)
         self._eq_vector = self._mapped[n_cost:, n]
-        self._in_matrix = np.zeros((n_act + n_cone, n))
-        self._in_matrix[n_act:] = cone_matrix[:, n_base:]
-        self._in_lower = np.concatenate([np.full(n_act, -_NO_BOUND), cone_lower])
-        self._in_upper = np.concatenate([np.full(n_act, _NO_BOUND), cone_upper])
+        # Inequality rows over y: torques, acceleration bounds (if any), cones.
+        n_limit = n_act + n_bound
+        self._in_matrix = np.zeros((n_limit + n_cone, n))
+        self._in_matrix[n_act + np.arange(n_bound), self._bound_index - n_base] = 1.0
+        self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
+        self._in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), cone_lower])
+        self._in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
         self._torque_rows = np.zeros((n_act, n + 1))
         equalities = (self._mapped[n_cost:, :n], self._eq_vector) if n_force else None
         cones = (
-            (self._in_matrix[n_act:], self._in_lower[n_act:], self._in_upper[n_act:])
+            (self._in_matrix[n_limit:], self._in_lower[n_limit:], self._in_upper[n_limit:])
             if n_cone
             else None
         )
@@ -375,7 +406,7 @@ class InverseDynamicsController:
         self._limited = _Stage(
             n,
             n_force,
-            n_act + n_cone,
+            n_limit + n_cone,
             dense_backend,
             _arguments(self._hessian, self._gradient, equalities, everything),
             _arguments(self._hessian, self._gradient, equalities, everything),
@@ -418,7 +449,8 @@ class InverseDynamicsController:
             )  # fmt: skip
             self._solve_arguments = (
                 self._z_factor, self._z_solution, self._z_cone_matrix, cone_upper,
-                self.torque_limit,
+                self.torque_limit, self._bound_index, self._acceleration_lower,
+                self._acceleration_upper, self._bound_tolerance,
             )  # fmt: skip
             z_cones = (self._z_cone_matrix, cone_lower, cone_upper)
             z_arguments = _arguments(self._z_hessian, self._z_gradient)
@@ -467,10 +499,46 @@ class InverseDynamicsController:
             self._assemble_eliminated()
             self._accept(self._z_solution, eliminated=True)
         self._solve_direct()
-        kernels.within_limits(self._tau, self.torque_limit)
+        self._feasible(self.torque_limit, self._bound_tolerance)
         self.reset()
         for contact, reference in zip(self.contacts, references):
             contact.reference_placement = reference
+
+    def _joint_limits(self, horizon: float | None, joints) -> tuple:
+        """Arguments of kernels.acceleration_bounds (without q, v), or () without limits."""
+        if horizon is None:
+            return ()
+        if not (math.isfinite(horizon) and horizon > 0):
+            raise InvalidInputError(
+                f"joint_limit_horizon must be finite and > 0 [s], got {horizon!r}; "
+                "None disables the joint limits"
+            )
+        robot, model = self.robot, self.model
+        joints = robot.actuated_joint_names if joints is None else joints
+        names = robot.joint_groups[joints] if isinstance(joints, str) else joints
+        q_index = robot.configuration_indices(joints)  # checks the names, 1-DOF joints
+        for name in names:
+            if model.joints[model.getJointId(name)].nq != 1:
+                raise InvalidInputError(
+                    f"limited_joints: {name!r} has no position limit (a continuous joint); "
+                    "leave it out"
+                )
+        v_index = robot.velocity_indices(joints).astype(np.int64)
+        return (
+            q_index.astype(np.int64), v_index,
+            np.asarray(robot.position_lower, dtype=float)[q_index],
+            np.asarray(robot.position_upper, dtype=float)[q_index],
+            np.asarray(robot.velocity_limit, dtype=float)[v_index], float(horizon),
+            np.full(v_index.size, -np.inf), np.full(v_index.size, np.inf),
+        )  # fmt: skip
+
+    def _feasible(self, torque_limit: np.ndarray, margin: float) -> bool:
+        """Whether the candidate's torques are within ``torque_limit`` and its accelerations
+        ``margin`` inside their bounds (kernels.feasible)."""
+        return kernels.feasible(
+            self._tau, torque_limit, self._candidate, self._bound_index,
+            self._acceleration_lower, self._acceleration_upper, margin,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ results
     @property
@@ -525,6 +593,8 @@ class InverseDynamicsController:
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
+        if self._bound_arguments:
+            kernels.acceleration_bounds(*self._bound_arguments, q, v)
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
@@ -543,7 +613,7 @@ class InverseDynamicsController:
                 outcome = self._eliminated_tick() if level == 0 else self._assemble_eliminated()
             if outcome == kernels.SOLVED:
                 checked = True  # cones and torques checked by the tick
-            elif outcome == kernels.TORQUES_VIOLATED:
+            elif outcome == kernels.LIMITS_VIOLATED:
                 level = 2
             elif outcome == kernels.CHOLESKY_FAILED:
                 solved, level = False, 2
@@ -563,7 +633,7 @@ class InverseDynamicsController:
                 level = min(level, 1)
         # A NaN torque (from a NaN written into a task) fails the check too.
         if solved and level < 2 and not checked:
-            if not kernels.within_limits(self._tau, self.torque_limit):
+            if not self._feasible(self.torque_limit, self._bound_tolerance):
                 level = 2
         if level == 2:
             self.stats.n_torque_limited += 1
@@ -573,7 +643,7 @@ class InverseDynamicsController:
                 self._assemble_y()
             self._assemble_torque_rows()
             solved = self._solve(self._limited)
-            if solved and (np.abs(self._tau) < self._release_limit).all():
+            if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN):
                 level = 1 if self.contacts else 0  # without contacts there are no cone rows
         self._level = level
         if solved:
@@ -748,6 +818,9 @@ class InverseDynamicsController:
         self._in_matrix[:n_act] = torque[:, :n]
         np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
         np.add(self.torque_limit, torque[:, n], out=self._in_upper[:n_act])
+        n_bound = self._bound_index.size  # proxsuite takes |bound| >= 1e20 as none
+        np.clip(self._acceleration_lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][:n_bound])
+        np.clip(self._acceleration_upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][:n_bound])
 
     # ------------------------------------------------------------------ solve
     def _solve(self, stage: _Stage) -> bool:

@@ -21,18 +21,19 @@ import numba
 import numpy as np
 
 __all__ = [
+    "acceleration_bounds",
     "all_finite",
     "cholesky_solve",
     "eliminate",
     "eliminated_tick",
     "expand",
+    "feasible",
     "joint_space_accelerations",
     "posture_gradient",
     "posture_law",
     "pd_task_rows",
     "reduce_costs",
     "torques",
-    "within_limits",
 ]
 
 # Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
@@ -40,7 +41,7 @@ __all__ = [
 _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 # eliminated_tick's outcomes
-SOLVED, CONES_VIOLATED, TORQUES_VIOLATED, ILL_CONDITIONED, CHOLESKY_FAILED = range(5)
+SOLVED, CONES_VIOLATED, LIMITS_VIOLATED, ILL_CONDITIONED, CHOLESKY_FAILED = range(5)
 
 
 @_compile
@@ -56,12 +57,50 @@ def all_finite(q, v) -> bool:
 
 
 @_compile
-def within_limits(values, limits) -> bool:
-    r"""Whether :math:`|v_i| \le l_i` for all i (False for a NaN)."""
-    for i in range(values.size):
-        if not abs(values[i]) <= limits[i]:
+def feasible(tau, torque_limit, x, index, lower, upper, margin) -> bool:
+    r"""Whether :math:`|\tau_i| \le \tau_{max,i}` and :math:`l_j + m \le x_{k_j} \le u_j - m`
+    for the accelerations :math:`k_j` = ``index[j]`` of x, with m = ``margin`` (negative: a
+    tolerance); False for a NaN."""
+    for i in range(tau.size):
+        if not abs(tau[i]) <= torque_limit[i]:
+            return False
+    for j in range(index.size):
+        value = x[index[j]]
+        if not (lower[j] + margin <= value and value <= upper[j] - margin):
             return False
     return True
+
+
+@_compile
+def acceleration_bounds(
+    q_index, v_index, position_lower, position_upper, velocity_limit, horizon, lower, upper,
+    q, v,
+):  # fmt: skip
+    r"""Bounds :math:`l \le \ddot q \le u` that keep joints within their position and
+    velocity limits: near a position limit the joint may approach it no faster than a
+    critically damped system of time constant h (``horizon``), and its velocity may reach
+    the limit in no less than h,
+
+    .. math:: u = \min\big(\tfrac{1}{h^2}(q_{max} - q) - \tfrac{2}{h}\dot q,\;
+              \tfrac{1}{h}(\dot q_{max} - \dot q)\big)
+
+    and symmetrically for l. Infinite limits give infinite bounds; if l > u (a joint
+    already past a limit and moving fast), both become their mean.
+    """
+    stiffness, damping, rate = 1.0 / horizon**2, 2.0 / horizon, 1.0 / horizon
+    for j in range(q_index.size):
+        position, velocity = q[q_index[j]], v[v_index[j]]
+        high = min(
+            stiffness * (position_upper[j] - position) - damping * velocity,
+            rate * (velocity_limit[j] - velocity),
+        )
+        low = max(
+            stiffness * (position_lower[j] - position) - damping * velocity,
+            rate * (-velocity_limit[j] - velocity),
+        )
+        if low > high:
+            low = high = 0.5 * (low + high)
+        lower[j], upper[j] = low, high
 
 
 @_compile
@@ -343,9 +382,10 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
     """One tick without inequality rows on the eliminated QP: :func:`eliminate` and
     :func:`reduce_costs` (their arguments as the tuples ``elimination`` and ``reduction``),
     the Cholesky solve for z, the cone check, :func:`expand` and :func:`torques` with the
-    torque-limit check; ``solve`` is (factor, z, cone_matrix, cone_upper, torque_limit).
+    torque-limit and acceleration-bound check (:func:`feasible`); ``solve`` is (factor, z,
+    cone_matrix, cone_upper, torque_limit, bound_index, lower, upper, bound_margin).
 
-    Returns SOLVED, CONES_VIOLATED (z, x and the torques are filled), TORQUES_VIOLATED,
+    Returns SOLVED, CONES_VIOLATED (z, x and the torques are filled), LIMITS_VIOLATED,
     ILL_CONDITIONED (nothing is solved) or CHOLESKY_FAILED (Hessian not positive definite or
     solution not finite; Hessian and gradient are filled).
     """
@@ -354,7 +394,7 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
     reduce_costs(*reduction)
     rows, n_cost, _, n_base, mass, bias, force_scale, basic, nonbasic, _, matrix, _ = elimination
     hessian, gradient = reduction[-2:]
-    factor, z, cone_matrix, cone_upper, torque_limit = solve
+    factor, z, cone_matrix, cone_upper, torque_limit, index, lower, upper, margin = solve
     if not cholesky_solve(hessian, factor, gradient, z):
         return CHOLESKY_FAILED
     expand(matrix, basic, nonbasic, z, x)
@@ -365,4 +405,6 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
             value += cone_matrix[i, j] * z[j]
         if value > cone_upper[i]:
             return CONES_VIOLATED
-    return SOLVED if within_limits(tau, torque_limit) else TORQUES_VIOLATED
+    if feasible(tau, torque_limit, x, index, lower, upper, margin):
+        return SOLVED
+    return LIMITS_VIOLATED

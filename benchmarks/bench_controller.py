@@ -18,7 +18,8 @@ machine) and wall time per tick, median and p99; the share of ticks solved witho
 
 With TSID importable, each case also runs TSID on the same loop with the same tasks
 (:mod:`tsid_baseline`) and prints dmpopt's median CPU time as a fraction of TSID's; the target
-is at most 0.5. TSID's wheels crash with pin 4 (binary mismatch), so it runs in its own venv
+is at most 0.5. dmpopt's controller also bounds the driven joints' accelerations for their
+position and velocity limits (never active in these runs); TSID's has no such rows. TSID's wheels crash with pin 4 (binary mismatch), so it runs in its own venv
 with a combination that runs, TSID 1.7.1 on pin 3.4.0::
 
     python3.11 -m venv .venv-tsid

@@ -105,6 +105,7 @@ FIGURE8_SIZE = (0.10, 0.06)  # [m] half width (lateral) and half height of the f
 
 ARM_STIFFNESS = 100.0  # [1/s^2] low-gain feedback around the DMP plan (damping critical)
 HAND_STIFFNESS = 100.0  # [1/s^2] figure-8 hand task
+JOINT_LIMIT_HORIZON = 0.05  # [s] the DMP-driven joints brake for their position/velocity limits
 POSTURE_WEIGHT = 1e-2
 COM_WEIGHT, BASE_WEIGHT = 10.0, 1.0
 GROUND_STIFFNESS = 2e4  # [N/m] per sole corner
@@ -434,7 +435,8 @@ def build_controller(
 
     The driven task is a :class:`PostureTask` on ``arm_joints`` (drumming) or, with ``hand``
     a frame name, a position :class:`FrameTask` on that hand (figure-8). ``base_task=False``
-    leaves out the pelvis orientation task (to show why it is needed).
+    leaves out the pelvis orientation task (to show why it is needed). The driven joints (the
+    hand's arm for the figure-8) are kept within their position and velocity limits.
     """
     actuated = np.sort(
         np.concatenate([robot.configuration_indices([n]) for n in robot.actuated_joint_names])
@@ -450,8 +452,10 @@ def build_controller(
         pin.framesForwardKinematics(robot.model, data, q_start)
         driven.set_target(data.oMf[robot.model.getFrameId(hand)].translation.copy())
     tasks = [posture, driven]
+    limited = list(arm_joints)
     if hand is not None:  # hold the other arm (the CoM task would otherwise swing it)
         other = "left_arm" if "right" in hand else "right_arm"
+        limited = robot.joint_groups["right_arm" if other == "left_arm" else "left_arm"]
         hold = PostureTask(robot, other, weight=1.0, stiffness=ARM_STIFFNESS)
         hold.set_reference(q_start[robot.configuration_indices(other)])
         tasks.append(hold)
@@ -467,7 +471,10 @@ def build_controller(
         )
         tasks += [com, base] if base_task else [com]
         contacts = [SoleContact(robot, f) for f in robot.foot_frames]
-    return InverseDynamicsController(robot, tasks, contacts), driven
+    controller = InverseDynamicsController(
+        robot, tasks, contacts, joint_limit_horizon=JOINT_LIMIT_HORIZON, limited_joints=limited
+    )
+    return controller, driven
 
 
 def make_simulator(robot, q_start: np.ndarray):
@@ -886,6 +893,9 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "torque_limit_use_per_group": torque_groups,
         "position_limit_margin_rad": float(position_margin.min()),
         "position_limit_margin_joint": DRUM_JOINTS[int(np.argmin(position_margin))],
+        "position_limit_margin_note": "closest approach of the drumming joints to a position "
+        "limit; the controller bounds their accelerations to keep them within their position "
+        f"and velocity limits (joint_limit_horizon {JOINT_LIMIT_HORIZON} s)",
         "fell": any(log.fell for log in standing),
         "base_roll_pitch_yaw_ptp_deg": np.degrees(np.ptp(drum.base[:, 3:], axis=0)),
         "com_excursion_mm": 1e3 * np.ptp(drum.com, axis=0),

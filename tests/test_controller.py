@@ -533,11 +533,11 @@ def test_joint_limits_standing(talos):
 def test_acceleration_bounds_formula(upper_body):
     h = 0.1
     lower, upper = np.zeros(3), np.zeros(3)
-    kernels.acceleration_bounds(
+    bounds = (
         np.arange(3), np.arange(3), np.array([-1.0, -np.inf, -1.0]), np.array([1.0, np.inf, 1.0]),
         np.array([2.0, np.inf, 0.5]), h, lower, upper,
-        np.array([0.5, 0.0, 1.5]), np.array([0.1, 0.0, 3.0]),
     )  # fmt: skip
+    kernels.acceleration_bounds(bounds, np.array([0.5, 0.0, 1.5]), np.array([0.1, 0.0, 3.0]))
     # joint 0: position (1 - 0.5)/h^2 - 2 (0.1)/h = 48 vs velocity (2 - 0.1)/h = 19
     assert upper[0] == pytest.approx(19.0) and lower[0] == pytest.approx(-21.0)
     assert (lower[1], upper[1]) == (-np.inf, np.inf)  # no limits

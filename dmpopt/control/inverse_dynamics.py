@@ -289,12 +289,9 @@ class InverseDynamicsController:
         self.torque_limit = np.asarray(robot.torque_limit, dtype=float).copy()
         self._release_limit = _RELEASE_MARGIN * self.torque_limit
         self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
-        bounds = self._bound_arguments = self._joint_limits(joint_limit_horizon, limited_joints)
-        self._bound_index = bounds[1] if bounds else np.zeros(0, dtype=np.int64)  # over x
-        n_bound = self._bound_index.size
-        self._acceleration_lower, self._acceleration_upper = (
-            bounds[-2:] if bounds else (np.zeros(0), np.zeros(0))
-        )
+        # Arguments of kernels.acceleration_bounds (no joints without limits).
+        self._bounds = self._joint_limits(joint_limit_horizon, limited_joints)
+        n_bound = self._bounds[1].size
         # The QP's wrench unknowns are wrenches divided by the robot's weight: dimensionless
         # forces as large as the accelerations, so that proxsuite's absolute tolerance pins
         # the internal forces between the soles (which only eps_f determines).
@@ -383,7 +380,7 @@ class InverseDynamicsController:
         # Inequality rows over y: torques, acceleration bounds (if any), cones.
         n_limit = n_act + n_bound
         self._in_matrix = np.zeros((n_limit + n_cone, n))
-        self._in_matrix[n_act + np.arange(n_bound), self._bound_index - n_base] = 1.0
+        self._in_matrix[n_act + np.arange(n_bound), self._bounds[1] - n_base] = 1.0
         self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
         self._in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), cone_lower])
         self._in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
@@ -449,8 +446,7 @@ class InverseDynamicsController:
             )  # fmt: skip
             self._solve_arguments = (
                 self._z_factor, self._z_solution, self._z_cone_matrix, cone_upper,
-                self.torque_limit, self._bound_index, self._acceleration_lower,
-                self._acceleration_upper, self._bound_tolerance,
+                self.torque_limit, self._bounds, self._bound_tolerance,
             )  # fmt: skip
             z_cones = (self._z_cone_matrix, cone_lower, cone_upper)
             z_arguments = _arguments(self._z_hessian, self._z_gradient)
@@ -495,50 +491,52 @@ class InverseDynamicsController:
         q.flags.writeable = False
         for state in ((q, v), (q.copy(), v.copy())):
             self.compute_torques(*state)
+            self._feasible(self.torque_limit, self._bound_tolerance, *state)
+            kernels.acceleration_bounds(self._bounds, *state)
         if self._basic is not None:
             self._assemble_eliminated()
             self._accept(self._z_solution, eliminated=True)
         self._solve_direct()
-        self._feasible(self.torque_limit, self._bound_tolerance)
         self.reset()
         for contact, reference in zip(self.contacts, references):
             contact.reference_placement = reference
 
     def _joint_limits(self, horizon: float | None, joints) -> tuple:
-        """Arguments of kernels.acceleration_bounds (without q, v), or () without limits."""
+        """Arguments of kernels.acceleration_bounds (without q, v): for no joint if
+        ``horizon`` is None."""
+        robot, model = self.robot, self.model
         if horizon is None:
-            return ()
-        if not (math.isfinite(horizon) and horizon > 0):
+            joints = []
+        elif not (math.isfinite(horizon) and horizon > 0):
             raise InvalidInputError(
                 f"joint_limit_horizon must be finite and > 0 [s], got {horizon!r}; "
                 "None disables the joint limits"
             )
-        robot, model = self.robot, self.model
-        joints = robot.actuated_joint_names if joints is None else joints
+        elif joints is None:
+            joints = robot.actuated_joint_names
         names = robot.joint_groups[joints] if isinstance(joints, str) else joints
-        q_index = robot.configuration_indices(joints)  # checks the names, 1-DOF joints
+        q_index = robot.configuration_indices(joints).astype(np.int64)  # checks the names
+        v_index = robot.velocity_indices(joints).astype(np.int64)
         for name in names:
             if model.joints[model.getJointId(name)].nq != 1:
                 raise InvalidInputError(
                     f"limited_joints: {name!r} has no position limit (a continuous joint); "
                     "leave it out"
                 )
-        v_index = robot.velocity_indices(joints).astype(np.int64)
         return (
-            q_index.astype(np.int64), v_index,
-            np.asarray(robot.position_lower, dtype=float)[q_index],
+            q_index, v_index, np.asarray(robot.position_lower, dtype=float)[q_index],
             np.asarray(robot.position_upper, dtype=float)[q_index],
-            np.asarray(robot.velocity_limit, dtype=float)[v_index], float(horizon),
+            np.asarray(robot.velocity_limit, dtype=float)[v_index],
+            1.0 if horizon is None else float(horizon),
             np.full(v_index.size, -np.inf), np.full(v_index.size, np.inf),
         )  # fmt: skip
 
-    def _feasible(self, torque_limit: np.ndarray, margin: float) -> bool:
+    def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
         """Whether the candidate's torques are within ``torque_limit`` and its accelerations
         ``margin`` inside their bounds (kernels.feasible)."""
         return kernels.feasible(
-            self._tau, torque_limit, self._candidate, self._bound_index,
-            self._acceleration_lower, self._acceleration_upper, margin,
-        )  # fmt: skip
+            self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
+        )
 
     # ------------------------------------------------------------------ results
     @property
@@ -593,8 +591,6 @@ class InverseDynamicsController:
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
-        if self._bound_arguments:
-            kernels.acceleration_bounds(*self._bound_arguments, q, v)
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
@@ -610,7 +606,7 @@ class InverseDynamicsController:
         if assembled and level < 2:
             outcome = kernels.ILL_CONDITIONED
             if self._basic is not None:
-                outcome = self._eliminated_tick() if level == 0 else self._assemble_eliminated()
+                outcome = self._eliminated_tick(q, v) if level == 0 else self._assemble_eliminated()
             if outcome == kernels.SOLVED:
                 checked = True  # cones and torques checked by the tick
             elif outcome == kernels.LIMITS_VIOLATED:
@@ -633,7 +629,7 @@ class InverseDynamicsController:
                 level = min(level, 1)
         # A NaN torque (from a NaN written into a task) fails the check too.
         if solved and level < 2 and not checked:
-            if not self._feasible(self.torque_limit, self._bound_tolerance):
+            if not self._feasible(self.torque_limit, self._bound_tolerance, q, v):
                 level = 2
         if level == 2:
             self.stats.n_torque_limited += 1
@@ -641,9 +637,10 @@ class InverseDynamicsController:
                 self._assemble(q, v)
             if not mapped:
                 self._assemble_y()
+            kernels.acceleration_bounds(self._bounds, q, v)
             self._assemble_torque_rows()
             solved = self._solve(self._limited)
-            if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN):
+            if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
                 level = 1 if self.contacts else 0  # without contacts there are no cone rows
         self._level = level
         if solved:
@@ -747,14 +744,14 @@ class InverseDynamicsController:
                 task._state = view
         kernels.posture_gradient(*self._posture_arguments, q, v)
 
-    def _eliminated_tick(self) -> int:
+    def _eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
         """The tick without inequality rows over z, as one compiled call (an outcome of
         :func:`kernels.eliminated_tick`)."""
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
         return kernels.eliminated_tick(
             self._elimination_arguments, self._reduction_arguments, self._solve_arguments,
-            self._candidate, self._tau,
+            q, v, self._candidate, self._tau,
         )  # fmt: skip
 
     def _assemble_eliminated(self) -> int:
@@ -818,9 +815,9 @@ class InverseDynamicsController:
         self._in_matrix[:n_act] = torque[:, :n]
         np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
         np.add(self.torque_limit, torque[:, n], out=self._in_upper[:n_act])
-        n_bound = self._bound_index.size  # proxsuite takes |bound| >= 1e20 as none
-        np.clip(self._acceleration_lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][:n_bound])
-        np.clip(self._acceleration_upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][:n_bound])
+        lower, upper = self._bounds[6:]  # proxsuite takes |bound| >= 1e20 as none
+        np.clip(lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][: lower.size])
+        np.clip(upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][: upper.size])
 
     # ------------------------------------------------------------------ solve
     def _solve(self, stage: _Stage) -> bool:

@@ -57,36 +57,21 @@ def all_finite(q, v) -> bool:
 
 
 @_compile
-def feasible(tau, torque_limit, x, index, lower, upper, margin) -> bool:
-    r"""Whether :math:`|\tau_i| \le \tau_{max,i}` and :math:`l_j + m \le x_{k_j} \le u_j - m`
-    for the accelerations :math:`k_j` = ``index[j]`` of x, with m = ``margin`` (negative: a
-    tolerance); False for a NaN."""
-    for i in range(tau.size):
-        if not abs(tau[i]) <= torque_limit[i]:
-            return False
-    for j in range(index.size):
-        value = x[index[j]]
-        if not (lower[j] + margin <= value and value <= upper[j] - margin):
-            return False
-    return True
-
-
-@_compile
-def acceleration_bounds(
-    q_index, v_index, position_lower, position_upper, velocity_limit, horizon, lower, upper,
-    q, v,
-):  # fmt: skip
+def acceleration_bounds(bounds, q, v):
     r"""Bounds :math:`l \le \ddot q \le u` that keep joints within their position and
-    velocity limits: near a position limit the joint may approach it no faster than a
-    critically damped system of time constant h (``horizon``), and its velocity may reach
-    the limit in no less than h,
+    velocity limits: near a position limit a joint may approach it no faster than a
+    critically damped system of time constant h, and its velocity may reach the limit in no
+    less than h,
 
     .. math:: u = \min\big(\tfrac{1}{h^2}(q_{max} - q) - \tfrac{2}{h}\dot q,\;
               \tfrac{1}{h}(\dot q_{max} - \dot q)\big)
 
-    and symmetrically for l. Infinite limits give infinite bounds; if l > u (a joint
-    already past a limit and moving fast), both become their mean.
+    and symmetrically for l. ``bounds`` is (q_index, v_index, position_lower, position_upper,
+    velocity_limit, h, lower, upper): the joints' entries in q and v, their limits, and the
+    arrays written. Infinite limits give infinite bounds; if l > u (a joint already past a
+    limit and moving fast), both become their mean.
     """
+    q_index, v_index, position_lower, position_upper, velocity_limit, horizon, lower, upper = bounds
     stiffness, damping, rate = 1.0 / horizon**2, 2.0 / horizon, 1.0 / horizon
     for j in range(q_index.size):
         position, velocity = q[q_index[j]], v[v_index[j]]
@@ -101,6 +86,23 @@ def acceleration_bounds(
         if low > high:
             low = high = 0.5 * (low + high)
         lower[j], upper[j] = low, high
+
+
+@_compile
+def feasible(tau, torque_limit, x, bounds, q, v, margin) -> bool:
+    r"""Whether :math:`|\tau_i| \le \tau_{max,i}` and the accelerations x of the bounded
+    joints are within their :func:`acceleration_bounds` (computed here) by ``margin``
+    (negative: a tolerance); False for a NaN."""
+    for i in range(tau.size):
+        if not abs(tau[i]) <= torque_limit[i]:
+            return False
+    acceleration_bounds(bounds, q, v)
+    v_index, lower, upper = bounds[1], bounds[6], bounds[7]
+    for j in range(v_index.size):
+        value = x[v_index[j]]
+        if not (lower[j] + margin <= value and value <= upper[j] - margin):
+            return False
+    return True
 
 
 @_compile
@@ -378,12 +380,13 @@ def torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau):
 
 
 @_compile
-def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
+def eliminated_tick(elimination, reduction, solve, q, v, x, tau) -> int:
     """One tick without inequality rows on the eliminated QP: :func:`eliminate` and
     :func:`reduce_costs` (their arguments as the tuples ``elimination`` and ``reduction``),
     the Cholesky solve for z, the cone check, :func:`expand` and :func:`torques` with the
     torque-limit and acceleration-bound check (:func:`feasible`); ``solve`` is (factor, z,
-    cone_matrix, cone_upper, torque_limit, bound_index, lower, upper, bound_margin).
+    cone_matrix, cone_upper, torque_limit, bounds, bound_margin) with ``bounds`` as in
+    :func:`acceleration_bounds`.
 
     Returns SOLVED, CONES_VIOLATED (z, x and the torques are filled), LIMITS_VIOLATED,
     ILL_CONDITIONED (nothing is solved) or CHOLESKY_FAILED (Hessian not positive definite or
@@ -394,7 +397,7 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
     reduce_costs(*reduction)
     rows, n_cost, _, n_base, mass, bias, force_scale, basic, nonbasic, _, matrix, _ = elimination
     hessian, gradient = reduction[-2:]
-    factor, z, cone_matrix, cone_upper, torque_limit, index, lower, upper, margin = solve
+    factor, z, cone_matrix, cone_upper, torque_limit, bounds, margin = solve
     if not cholesky_solve(hessian, factor, gradient, z):
         return CHOLESKY_FAILED
     expand(matrix, basic, nonbasic, z, x)
@@ -405,6 +408,6 @@ def eliminated_tick(elimination, reduction, solve, x, tau) -> int:
             value += cone_matrix[i, j] * z[j]
         if value > cone_upper[i]:
             return CONES_VIOLATED
-    if feasible(tau, torque_limit, x, index, lower, upper, margin):
+    if feasible(tau, torque_limit, x, bounds, q, v, margin):
         return SOLVED
     return LIMITS_VIOLATED

@@ -278,21 +278,30 @@ def test_sole_contact_gains_are_validated(talos):
         contact.damping = float("nan")
 
 
-def test_construction_compiles_the_kernels_of_a_tick(talos):
+def test_construction_compiles_the_kernels_of_a_tick(talos, upper_body):
     """A new controller's first ticks (with the writable state of a control loop) compile
-    nothing; contact references set before construction are kept."""
+    nothing, standing or on a fixed base whose posture reference is far from the reference
+    configuration (the construction's own ticks then hit the torque limits); contact
+    references set before construction are kept."""
     sole = SoleContact(talos, "left_sole_link")
     sole.reference_placement = pin.SE3(np.eye(3), np.array([0.0, 0.1, 0.0]))
-    posture = PostureTask(talos, weight=0.1)
-    controller = InverseDynamicsController(
-        talos, [posture, ComTask(talos)], [sole, SoleContact(talos, "right_sole_link")]
-    )
-    assert controller.stats.n_ticks == 0
+    standing = InverseDynamicsController(
+        talos, [PostureTask(talos, weight=0.1), ComTask(talos)],
+        [sole, SoleContact(talos, "right_sole_link")],
+    )  # fmt: skip
+    assert standing.stats.n_ticks == 0
     assert sole.reference_placement.translation[1] == 0.1
+    arm = PostureTask(upper_body, "left_arm", stiffness=400.0)
+    arm.set_reference(arm.reference_position + 1.0)
+    fixed = InverseDynamicsController(
+        upper_body, [PostureTask(upper_body), arm], joint_limit_horizon=0.05
+    )
     compiled = {name: len(getattr(kernels, name).signatures) for name in kernels.__all__}
-    q, v = random_state(talos, np.random.default_rng(3), spread=0.02, speed=0.1)
-    for _ in range(3):
-        controller.compute_torques(q, v)
+    rng = np.random.default_rng(3)
+    for controller, robot in ((standing, talos), (fixed, upper_body)):
+        q, v = random_state(robot, rng, spread=0.02, speed=0.1)
+        for _ in range(3):
+            controller.compute_torques(q, v)
     assert {name: len(getattr(kernels, name).signatures) for name in kernels.__all__} == compiled
 
 

@@ -490,6 +490,7 @@ class InverseDynamicsController:
         q = np.array(self.robot.reference_configuration, dtype=float)
         q.flags.writeable = False
         for state in ((q, v), (q.copy(), v.copy())):
+            self._level = 0  # the path of a tick without active inequality rows
             self.compute_torques(*state)
             self._feasible(self.torque_limit, self._bound_tolerance, *state)
             kernels.acceleration_bounds(self._bounds, *state)

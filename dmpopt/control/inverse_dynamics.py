@@ -609,7 +609,7 @@ class InverseDynamicsController:
             if self._basic is not None:
                 outcome = self._eliminated_tick(q, v) if level == 0 else self._assemble_eliminated()
             if outcome == kernels.SOLVED:
-                checked = True  # cones and torques checked by the tick
+                checked = True  # cones, torques and acceleration bounds checked by the tick
             elif outcome == kernels.LIMITS_VIOLATED:
                 level = 2
             elif outcome == kernels.CHOLESKY_FAILED:

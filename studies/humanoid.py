@@ -452,10 +452,9 @@ def build_controller(
         pin.framesForwardKinematics(robot.model, data, q_start)
         driven.set_target(data.oMf[robot.model.getFrameId(hand)].translation.copy())
     tasks = [posture, driven]
-    limited = list(arm_joints)
+    limited = list(arm_joints)  # the joints the plan moves
     if hand is not None:  # hold the other arm (the CoM task would otherwise swing it)
-        other = "left_arm" if "right" in hand else "right_arm"
-        limited = robot.joint_groups["right_arm" if other == "left_arm" else "left_arm"]
+        limited, other = ("right_arm", "left_arm") if "right" in hand else ("left_arm", "right_arm")
         hold = PostureTask(robot, other, weight=1.0, stiffness=ARM_STIFFNESS)
         hold.set_reference(q_start[robot.configuration_indices(other)])
         tasks.append(hold)

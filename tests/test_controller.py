@@ -552,8 +552,15 @@ def test_acceleration_bounds_formula(upper_body):
     assert (lower[1], upper[1]) == (-np.inf, np.inf)  # no limits
     # joint 2 is past its limit and too fast: the bounds cross and meet at their mean
     assert lower[2] == upper[2] == pytest.approx(0.5 * ((-0.5 - 3.0) / h + (1 - 1.5) / h**2 - 60.0))
-    with pytest.raises(InvalidInputError, match="joint_limit_horizon"):
-        InverseDynamicsController(upper_body, [PostureTask(upper_body)], joint_limit_horizon=0.0)
+    posture = PostureTask(upper_body)
+    with pytest.raises(InvalidInputError, match="joint_limit_horizon must be finite and > 0"):
+        InverseDynamicsController(upper_body, [posture], joint_limit_horizon=0.0)
+    with pytest.raises(InvalidInputError, match="limited_joints is given without"):
+        InverseDynamicsController(upper_body, [posture], limited_joints="left_arm")
+    with pytest.raises(InvalidInputError, match="limited_joints: joint 'elbow'"):
+        InverseDynamicsController(
+            upper_body, [posture], joint_limit_horizon=0.05, limited_joints=["elbow"]
+        )
 
 
 # ---------------------------------------------------------------- the reduced QPs

@@ -124,7 +124,8 @@ class ControllerStats:
         least-squares problem (one Cholesky factorisation, or closed form for posture tasks
         on a fixed base).
     last_status : str
-        proxsuite status of the last solve, or ``"CHOLESKY_SOLVED"`` for a direct one.
+        proxsuite status of the last solve, ``"CHOLESKY_SOLVED"`` for a direct one, or
+        ``"NON_FINITE_PROBLEM"`` for a QP refused before proxsuite (a NaN in a task).
     last_iterations : int
         Iterations of the last solve.
     """
@@ -507,17 +508,25 @@ class InverseDynamicsController:
         ``horizon`` is None."""
         robot, model = self.robot, self.model
         if horizon is None:
+            if joints is not None:
+                raise InvalidInputError(
+                    "limited_joints is given without joint_limit_horizon; give both (e.g. "
+                    "joint_limit_horizon=0.05) or neither"
+                )
             joints = []
-        elif not (math.isfinite(horizon) and horizon > 0):
+        elif not (isinstance(horizon, (int, float)) and math.isfinite(horizon) and horizon > 0):
             raise InvalidInputError(
                 f"joint_limit_horizon must be finite and > 0 [s], got {horizon!r}; "
                 "None disables the joint limits"
             )
         elif joints is None:
             joints = robot.actuated_joint_names
-        names = robot.joint_groups[joints] if isinstance(joints, str) else joints
-        q_index = robot.configuration_indices(joints).astype(np.int64)  # checks the names
+        try:
+            q_index = robot.configuration_indices(joints).astype(np.int64)
+        except InvalidInputError as error:
+            raise InvalidInputError(f"limited_joints: {error}") from None
         v_index = robot.velocity_indices(joints).astype(np.int64)
+        names = robot.joint_groups[joints] if isinstance(joints, str) else joints
         for name in names:
             if model.joints[model.getJointId(name)].nq != 1:
                 raise InvalidInputError(

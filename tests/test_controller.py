@@ -272,8 +272,10 @@ def test_sole_contact_gains_are_validated(talos):
     assert contact.damping == pytest.approx(4.0)  # critical by default
     contact.stiffness, contact.damping = 9.0, 1.0
     assert (contact.stiffness, contact.damping) == (9.0, 1.0)
-    with pytest.raises(InvalidInputError, match="stiffness must be finite and >= 0"):
+    with pytest.raises(InvalidInputError, match="stiffness must be a finite number >= 0"):
         contact.stiffness = -1.0
+    with pytest.raises(InvalidInputError, match="got 'stiff'"):
+        contact.stiffness = "stiff"
     with pytest.raises(InvalidInputError, match="damping"):
         contact.damping = float("nan")
 

@@ -61,10 +61,13 @@ def _gains(stiffness, damping, size: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _gain(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value >= 0):
-        raise InvalidInputError(f"{name} must be finite and >= 0, got {value!r}")
-    return value
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if not (math.isfinite(number) and number >= 0):
+        raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
+    return number
 
 
 def _check_weight(weight: float) -> float:

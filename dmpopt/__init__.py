@@ -30,6 +30,7 @@ from .exceptions import (
     InvalidInputError,
     MissingDependency,
     NoSolutionFound,
+    ResourceLimitError,
     ShapeError,
     SimulationDiverged,
 )
@@ -65,6 +66,7 @@ __all__ = [
     "InvalidInputError",
     "MissingDependency",
     "NoSolutionFound",
+    "ResourceLimitError",
     "RhythmicDMP",
     "ShapeError",
     "SimulationDiverged",

@@ -44,3 +44,8 @@ class MissingDependency(DmpoptError, ImportError):
 
 class SimulationDiverged(DmpoptError, RuntimeError):
     """A simulation blew up (non-finite or exploding state)."""
+
+
+class ResourceLimitError(DmpoptError, ValueError):
+    """A request would need more memory or time than a documented bound; the message states
+    the estimate and what to change."""

@@ -1,0 +1,117 @@
+"""Standing Talos drumming: the native simulator against the MuJoCo backend, same everything else.
+
+Both runs use the humanoid study's pieces (:mod:`studies.humanoid`): the learned drumming DMPs,
+``build_controller`` (QP inverse dynamics at 1 kHz with the 12 DMP-driven arm joints as a
+posture task, CoM, pelvis orientation and two sole contacts) and the same start state (the
+drumming posture on the limit cycle). Only the plant differs:
+
+- native: :class:`dmpopt.sim.Simulator`, compliant ground under the eight sole corners
+  (20 kN/m, 300 N s/m, friction 1), as in the study;
+- mujoco: :class:`dmpopt.sim.MujocoSimulator` from the same URDF, MuJoCo's soft contacts
+  between the floor and a 5 mm sphere at each of the same eight sole corners, friction 1,
+  no joint armature, damping or friction (the controller's model exactly).
+
+Printed per backend: tracking RMS and max over the 12 arm joints [rad], whether the robot fell,
+the mean vertical ground force over m g, the real-time factor of the whole loop (simulated
+time / wall time of plan + controller + simulator) and of the simulator step alone.
+
+Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--video FILE.webp]``.
+"""
+
+import argparse
+import time
+
+import numpy as np
+import pinocchio as pin
+
+from dmpopt.sim import FallCriteria, MujocoSimulator
+from robots import load_talos
+from studies import humanoid
+
+DT = humanoid.DT
+
+
+def make_plant(backend: str, robot, q_start: np.ndarray):
+    """The simulator of ``backend`` and its start configuration."""
+    if backend == "native":
+        return humanoid.make_simulator(robot, q_start)
+    points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
+    simulator = MujocoSimulator(
+        robot.model, robot.source, DT, points, friction=1.0, fall=FallCriteria("base_link")
+    )
+    return simulator, q_start.copy()
+
+
+def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict:
+    """Drum for ``seconds`` on ``backend``; tracking, falls, timing and recorded frames."""
+    q_start = humanoid.drumming_posture(robot)
+    q_start[robot.configuration_indices(list(humanoid.DRUM_JOINTS))] = dmps.start
+    v_start = np.zeros(robot.nv)
+    v_start[robot.velocity_indices(list(humanoid.DRUM_JOINTS))] = dmps.start_velocity
+    controller, task = humanoid.build_controller(robot, q_start)
+    plan = humanoid.DrumPlan(dmps, DT)
+    simulator, q0 = make_plant(backend, robot, q_start)
+    state = simulator.reset(q0, v_start)
+    joints = robot.configuration_indices(list(humanoid.DRUM_JOINTS))
+    n = int(round(seconds / DT))
+    error = np.empty((n, joints.size))
+    vertical = np.empty(n)
+    frames, fell, sim_time = [], False, 0.0
+    begin = time.perf_counter()
+    for k in range(n):
+        if k:
+            plan.step()
+        task.set_reference(plan.position, plan.velocity, plan.acceleration)
+        tau = controller.compute_torques(state.q, state.v)
+        error[k] = state.q[joints] - plan.position
+        step_begin = time.perf_counter()
+        state = simulator.step(tau)
+        sim_time += time.perf_counter() - step_begin
+        vertical[k] = state.contact_forces[:, 2].sum()
+        fell = fell or state.fallen
+        if video_every and k % video_every == 0:
+            frames.append(state.q)
+    wall = time.perf_counter() - begin
+    weight = pin.computeTotalMass(robot.model) * 9.81
+    return {
+        "tracking_rms_rad": float(np.sqrt(np.mean(error**2))),
+        "tracking_max_rad": float(np.abs(error).max()),
+        "fell": bool(fell),
+        "vertical_force_over_weight": float(vertical.mean() / weight),
+        "real_time_factor": n * DT / wall,
+        "simulator_real_time_factor": n * DT / sim_time,
+        "frames": frames,
+        "simulator": simulator,
+    }
+
+
+def main():
+    """Command line: run both backends and print the side-by-side table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=5.0, help="simulated time [s]")
+    parser.add_argument("--variant", default="full", choices=("full", "reduced"))
+    parser.add_argument("--video", help="write the MuJoCo run as an animated .webp or .gif")
+    args = parser.parse_args()
+    robot = load_talos(args.variant)
+    dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
+    every = int(round(1 / (25 * DT))) if args.video else 0
+    results = {b: run(b, robot, dmps, args.seconds, every) for b in ("native", "mujoco")}
+    keys = [k for k in results["native"] if k not in ("frames", "simulator")]
+    print(f"Talos {args.variant}, {args.seconds:g} s of standing drumming, dt = {DT} s")
+    print(f"{'':28s}{'native':>12s}{'mujoco':>12s}")
+    for key in keys:
+        values = [results[b][key] for b in ("native", "mujoco")]
+        print(
+            f"{key:28s}"
+            + "".join(f"{v!s:>12s}" if isinstance(v, bool) else f"{v:12.4g}" for v in values)
+        )
+    if args.video:
+        from dmpopt.sim import render_animation
+
+        mujoco_run = results["mujoco"]
+        path = render_animation(mujoco_run["simulator"], mujoco_run["frames"], args.video)
+        print(f"video: {path} ({path.stat().st_size / 1e6:.2f} MB)")
+
+
+if __name__ == "__main__":
+    main()

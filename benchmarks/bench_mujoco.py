@@ -13,7 +13,9 @@ drumming posture on the limit cycle). Only the plant differs:
 
 Printed per backend: tracking RMS and max over the 12 arm joints [rad], whether the robot fell,
 the mean vertical ground force over m g, the real-time factor of the whole loop (simulated
-time / wall time of plan + controller + simulator) and of the simulator step alone.
+time / time of plan + controller + simulator) and of the simulator step alone, each by the
+wall clock and by CPU time (process time for the loop, thread time for the step; the CPU
+figures are the ones to compare on a loaded machine).
 
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--video FILE.webp]``.
 """
@@ -56,22 +58,23 @@ def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict
     n = int(round(seconds / DT))
     error = np.empty((n, joints.size))
     vertical = np.empty(n)
-    frames, fell, sim_time = [], False, 0.0
-    begin = time.perf_counter()
+    frames, fell, sim_wall, sim_cpu = [], False, 0.0, 0.0
+    begin, cpu_begin = time.perf_counter(), time.process_time()
     for k in range(n):
         if k:
             plan.step()
         task.set_reference(plan.position, plan.velocity, plan.acceleration)
         tau = controller.compute_torques(state.q, state.v)
         error[k] = state.q[joints] - plan.position
-        step_begin = time.perf_counter()
+        step_begin, step_cpu = time.perf_counter(), time.thread_time()
         state = simulator.step(tau)
-        sim_time += time.perf_counter() - step_begin
+        sim_cpu += time.thread_time() - step_cpu
+        sim_wall += time.perf_counter() - step_begin
         vertical[k] = state.contact_forces[:, 2].sum()
         fell = fell or state.fallen
         if video_every and k % video_every == 0:
             frames.append(state.q)
-    wall = time.perf_counter() - begin
+    wall, cpu = time.perf_counter() - begin, time.process_time() - cpu_begin
     weight = pin.computeTotalMass(robot.model) * 9.81
     return {
         "tracking_rms_rad": float(np.sqrt(np.mean(error**2))),
@@ -79,7 +82,9 @@ def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict
         "fell": bool(fell),
         "vertical_force_over_weight": float(vertical.mean() / weight),
         "real_time_factor": n * DT / wall,
-        "simulator_real_time_factor": n * DT / sim_time,
+        "real_time_factor_cpu": n * DT / cpu,
+        "simulator_real_time_factor": n * DT / sim_wall,
+        "simulator_real_time_factor_cpu": n * DT / sim_cpu,
         "frames": frames,
         "simulator": simulator,
     }
@@ -98,11 +103,11 @@ def main():
     results = {b: run(b, robot, dmps, args.seconds, every) for b in ("native", "mujoco")}
     keys = [k for k in results["native"] if k not in ("frames", "simulator")]
     print(f"Talos {args.variant}, {args.seconds:g} s of standing drumming, dt = {DT} s")
-    print(f"{'':28s}{'native':>12s}{'mujoco':>12s}")
+    print(f"{'':32s}{'native':>12s}{'mujoco':>12s}")
     for key in keys:
         values = [results[b][key] for b in ("native", "mujoco")]
         print(
-            f"{key:28s}"
+            f"{key:32s}"
             + "".join(f"{v!s:>12s}" if isinstance(v, bool) else f"{v:12.4g}" for v in values)
         )
     if args.video:

@@ -314,6 +314,8 @@ def test_bad_simulator_arguments(talos, talos_sim):
             MujocoSimulator(model, urdf, dt=dt)
     with pytest.raises(InvalidInputError, match="frame 'no_foot' is not in the model"):
         MujocoSimulator(model, urdf, contact_points=[("no_foot", (0, 0, 0))])
+    with pytest.raises(InvalidInputError, match=r"contact_points must hold \(frame_name"):
+        MujocoSimulator(model, urdf, contact_points=["left_sole_link"])
     with pytest.raises(ShapeError, match="offset of contact point 'left_sole_link'"):
         MujocoSimulator(model, urdf, contact_points=[("left_sole_link", (0, 0))])
     with pytest.raises(InvalidInputError, match="friction must be"):

@@ -128,7 +128,7 @@ class _Push:
     end_time: float
 
 
-def _positive(name: str, value, allow_none: bool = False, allow_zero: bool = False) -> float:
+def _positive(name: str, value, allow_none=False, allow_zero=False) -> float | None:
     if value is None and allow_none:
         return None
     try:
@@ -152,6 +152,17 @@ def _vector(name: str, value, size: int) -> np.ndarray:
     if not np.isfinite(array).all():
         raise InvalidInputError(f"{name} must be finite, got {array}")
     return array
+
+
+def _pairs(contact_points) -> list[tuple[str, object]]:
+    """``contact_points`` as a list of ``(frame_name, offset)`` pairs."""
+    pairs = list(contact_points)
+    for item in pairs:
+        if not (isinstance(item, (tuple, list)) and len(item) == 2):
+            raise InvalidInputError(
+                f"contact_points must hold (frame_name, offset_xyz) pairs, got {item!r}"
+            )
+    return pairs
 
 
 def _urdf_for_mujoco(urdf: Path, package_dirs) -> str:
@@ -261,15 +272,15 @@ class MujocoSimulator:
         if package_dirs is None:
             package_dirs = urdf.resolve().parents
         self.model = model
-        self._data = model.createData()
         self._base = _base_joint(model)
         self.n_base_dofs = 0 if self._base is None else model.joints[1].nv
         self.n_actuated = model.nv - self.n_base_dofs
 
         spec = self._spec(urdf, package_dirs)
+        self._check_joints(spec, urdf)
         self._set_joint_dynamics(spec, joint_values)
         self._add_floor(spec, friction)
-        contact_points = list(contact_points)
+        contact_points = _pairs(contact_points)
         self.contact_frames = [name for name, _ in contact_points]
         for index, (name, offset) in enumerate(contact_points):
             self._add_contact_point(spec, index, name, offset, contact_radius)
@@ -278,7 +289,8 @@ class MujocoSimulator:
         except ValueError as error:
             raise FileFormatError(f"MuJoCo could not compile {urdf.name}: {error}") from None
         self.mj_data = mujoco.MjData(self.mj_model)
-        self._map_coordinates(urdf)
+        self._map_coordinates()
+        self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._point_of_geom = np.full(self.mj_model.ngeom, -1)
         names = [f"contact_point_{i}" for i in range(self._n_points)]
@@ -373,10 +385,7 @@ class MujocoSimulator:
         offset = _vector(f"offset of contact point {name!r}", offset, 3)
         point = frame.placement.act(offset)
         up = frame.placement.rotation[:, 2]
-        try:
-            body = self._spec_body(spec, frame.parentJoint)
-        except (AttributeError, ValueError):
-            raise InvalidInputError(f"frame {name!r} has no body in the URDF") from None
+        body = self._spec_body(spec, frame.parentJoint)
         body.add_site(name=f"contact_point_{index}", pos=point)
         body.add_geom(
             name=f"contact_point_{index}",
@@ -390,13 +399,12 @@ class MujocoSimulator:
             rgba=[0.9, 0.3, 0.2, 1.0],
         )
 
-    def _map_coordinates(self, urdf: Path) -> None:
-        """Index maps between Pinocchio (q, v) and MuJoCo (qpos, qvel), by joint name."""
-        model, mj_model = self.model, self.mj_model
+    def _check_joints(self, spec, urdf: Path) -> None:
+        """The model's joints are the URDF's, by name, and all have one axis."""
+        model = self.model
         first = 1 if self._base is None else 2
         pin_names = list(model.names[first:])
-        mj_names = {mj_model.joint(j).name for j in range(mj_model.njnt)}
-        mj_names -= set(self._base_joint_names())
+        mj_names = {j.name for j in spec.joints} - set(self._base_joint_names())
         missing = [n for n in pin_names if n not in mj_names]
         extra = sorted(mj_names - set(pin_names))
         if missing or extra:
@@ -405,7 +413,6 @@ class MujocoSimulator:
                 f"in the URDF only {extra}; build model from this URDF (locked joints are not "
                 "supported)"
             )
-        qpos, dofs = np.empty(model.nq, dtype=int), np.empty(model.nv, dtype=int)
         for joint_id, name in enumerate(pin_names, start=first):
             joint = model.joints[joint_id]
             if joint.nq != 1 or joint.nv != 1:
@@ -413,6 +420,22 @@ class MujocoSimulator:
                     f"joint {name!r} is a {joint.shortname()} (nq={joint.nq}, nv={joint.nv}); "
                     "only one-axis revolute or prismatic joints are supported"
                 )
+
+    def _check_mass(self, urdf: Path) -> None:
+        mass, mj_mass = pin.computeTotalMass(self.model), float(self.mj_model.body_subtreemass[0])
+        if not np.isclose(mass, mj_mass, rtol=1e-6):
+            raise InvalidInputError(
+                f"model ({mass:.6g} kg) and urdf {urdf.name} ({mj_mass:.6g} kg) are not the same "
+                "robot; pass the URDF the model was built from"
+            )
+
+    def _map_coordinates(self) -> None:
+        """Index maps between Pinocchio (q, v) and MuJoCo (qpos, qvel), by joint name."""
+        model, mj_model = self.model, self.mj_model
+        first = 1 if self._base is None else 2
+        qpos, dofs = np.empty(model.nq, dtype=int), np.empty(model.nv, dtype=int)
+        for joint_id in range(first, model.njoints):
+            joint, name = model.joints[joint_id], model.names[joint_id]
             qpos[joint.idx_q] = mj_model.joint(name).qposadr[0]
             dofs[joint.idx_v] = mj_model.joint(name).dofadr[0]
         if self._base == "free":
@@ -424,12 +447,6 @@ class MujocoSimulator:
                 joint = mj_model.joint(f"{model.names[1]}_{k}")
                 qpos[k], dofs[k] = joint.qposadr[0], joint.dofadr[0]
         self._qpos_index, self._dof_index = qpos, dofs
-        mass, mj_mass = pin.computeTotalMass(model), float(mj_model.body_subtreemass[0])
-        if not np.isclose(mass, mj_mass, rtol=1e-6):
-            raise InvalidInputError(
-                f"model ({mass:.6g} kg) and urdf {urdf.name} ({mj_mass:.6g} kg) are not the same "
-                "robot; pass the URDF the model was built from"
-            )
 
     def _locate(self, frame_name: str, offset) -> tuple[int, np.ndarray]:
         """MuJoCo body of a frame and the point's position in that body's frame."""
@@ -785,6 +802,7 @@ def render_animation(
                 f"{name} must be an integer in [16, 4096] pixels, got {value!r}"
             )
     distance = _positive("distance", distance)
+    max_bytes = _positive("max_bytes", max_bytes)
     try:
         from PIL import Image
     except ImportError:

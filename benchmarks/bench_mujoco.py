@@ -17,7 +17,13 @@ time / time of plan + controller + simulator) and of the simulator step alone, e
 wall clock and by CPU time (process time for the loop, thread time for the step; the CPU
 figures are the ones to compare on a loaded machine).
 
-Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--video FILE.webp]``.
+Then the planar biped of the walking study (:func:`studies.biped.walk`: DMP gait, PD, boom,
+frequency adaptation) walks ``--biped-seconds`` on each backend: distance, heel strikes, the
+adapted frequency, falls. ``walk`` builds its simulator itself, so the MuJoCo run swaps the
+module's ``Simulator`` for a MuJoCo factory (the study integration will make this a switch).
+
+Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
+[--video FILE.webp]``.
 """
 
 import argparse
@@ -28,6 +34,8 @@ import pinocchio as pin
 
 from dmpopt.sim import FallCriteria, MujocoSimulator
 from robots import load_talos
+from robots.biped import BIPED_URDF, load_biped
+from studies import biped as biped_study
 from studies import humanoid
 
 DT = humanoid.DT
@@ -90,26 +98,64 @@ def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict
     }
 
 
+def walk_biped(backend: str, seconds: float) -> dict:
+    """The walking study's biped on ``backend`` for ``seconds``."""
+    biped = load_biped()
+    _, dmp = biped_study.learn_gait()
+
+    def mujoco_simulator(model, dt, contact_points, ground, n_base_dofs, fall_frame, fall_height):
+        fall = FallCriteria(fall_frame, fall_height / biped.leg_length, max_tilt=np.pi / 2)
+        return MujocoSimulator(
+            model, BIPED_URDF, dt, contact_points, friction=ground.friction, fall=fall
+        )
+
+    native = biped_study.Simulator
+    if backend == "mujoco":
+        biped_study.Simulator = mujoco_simulator
+    try:
+        log = biped_study.walk(biped, dmp, seconds, biped_study.DEMO_FREQUENCY)
+    finally:
+        biped_study.Simulator = native
+    return {
+        "distance_m": log.distance,
+        "heel_strikes": len(log.strikes),
+        "final_frequency_rad_s": log.frequencies[-1],
+        "fell": log.fell,
+        "real_time_factor": log.duration / log.wall_time,
+        "real_time_factor_cpu": log.duration / log.cpu_time,
+    }
+
+
+def print_table(title: str, results: dict) -> None:
+    """Rows of numbers, one column per backend."""
+    print(title)
+    print(f"{'':32s}{'native':>12s}{'mujoco':>12s}")
+    for key, value in results["native"].items():
+        if isinstance(value, (bool, int, float)):
+            values = [results[b][key] for b in ("native", "mujoco")]
+            print(
+                f"{key:32s}"
+                + "".join(f"{v!s:>12s}" if isinstance(v, bool) else f"{v:12.4g}" for v in values)
+            )
+
+
 def main():
     """Command line: run both backends and print the side-by-side table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="simulated time [s]")
     parser.add_argument("--variant", default="full", choices=("full", "reduced"))
+    parser.add_argument("--biped-seconds", type=float, default=10.0, help="walking time [s]")
     parser.add_argument("--video", help="write the MuJoCo run as an animated .webp or .gif")
     args = parser.parse_args()
     robot = load_talos(args.variant)
     dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
     every = int(round(1 / (25 * DT))) if args.video else 0
     results = {b: run(b, robot, dmps, args.seconds, every) for b in ("native", "mujoco")}
-    keys = [k for k in results["native"] if k not in ("frames", "simulator")]
-    print(f"Talos {args.variant}, {args.seconds:g} s of standing drumming, dt = {DT} s")
-    print(f"{'':32s}{'native':>12s}{'mujoco':>12s}")
-    for key in keys:
-        values = [results[b][key] for b in ("native", "mujoco")]
-        print(
-            f"{key:32s}"
-            + "".join(f"{v!s:>12s}" if isinstance(v, bool) else f"{v:12.4g}" for v in values)
-        )
+    print_table(
+        f"Talos {args.variant}, {args.seconds:g} s of standing drumming, dt = {DT} s", results
+    )
+    walks = {b: walk_biped(b, args.biped_seconds) for b in ("native", "mujoco")}
+    print_table(f"Planar biped, {args.biped_seconds:g} s of walking", walks)
     if args.video:
         from dmpopt.sim import render_animation
 

@@ -391,3 +391,27 @@ def test_missing_mujoco_names_the_extra(talos, monkeypatch):
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(MissingDependency, match=r"dmpopt\[mujoco\]"):
         MujocoSimulator(talos.model, talos.source)
+
+
+def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator(monkeypatch):
+    """The walking study's gait (DMPs, PD, boom, frequency adaptation) on MuJoCo for 4 s: no
+    fall, and distance and heel strikes within 15 % / one strike of the native simulator's."""
+    from studies import biped as study
+
+    biped = load_biped()
+    _, dmp = study.learn_gait()
+
+    def mujoco_simulator(model, dt, contact_points, ground, n_base_dofs, fall_frame, fall_height):
+        assert n_base_dofs == 3
+        fall = FallCriteria(fall_frame, fall_height / biped.leg_length, max_tilt=np.pi / 2)
+        return MujocoSimulator(
+            model, BIPED_URDF, dt, contact_points, friction=ground.friction, fall=fall
+        )
+
+    native = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY)
+    monkeypatch.setattr(study, "Simulator", mujoco_simulator)
+    on_mujoco = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY)
+    assert not native.fell and not on_mujoco.fell, on_mujoco.diverged
+    assert native.distance > 1.0
+    assert abs(on_mujoco.distance / native.distance - 1) < 0.15
+    assert abs(len(on_mujoco.strikes) - len(native.strikes)) <= 1

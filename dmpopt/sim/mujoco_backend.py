@@ -18,7 +18,8 @@ Contact
     the native simulator, each a sphere of ``contact_radius`` whose lowest point is the contact
     point when the frame's z axis is vertical. The URDF collision geometry is kept for rendering
     only (it collides with nothing), so only the contact points touch the floor, as in the
-    native simulator.
+    native simulator. ``SimState.contact_forces`` are the solver's contact forces
+    (``efc_force``), summed per point and rotated to the world frame.
 Integration
     Time step ``dt`` (1 ms by default), ``implicitfast`` integrator (damping implicit), Newton
     solver. Torques enter as ``qfrc_applied`` without saturation, like the native simulator.
@@ -34,7 +35,10 @@ State conversion (the part where bugs hide): MuJoCo's free joint stores the quat
 angular velocity in the **local** frame); Pinocchio's free flyer stores (x, y, z, w) and
 (linear, angular) both in the **local** frame. With :math:`R` the base orientation,
 :math:`\dot q_{mj} = T \dot q_{pin}`, :math:`T = \mathrm{diag}(R, I, P)` with :math:`P` the
-name-matched joint permutation; generalised forces map with :math:`T^{-\top}`.
+name-matched joint permutation; generalised forces map with :math:`T^{-\top}`. As :math:`T`
+depends on :math:`q`, MuJoCo's base linear acceleration is Pinocchio's plus
+:math:`R\,(\omega \times v_{lin})` (:math:`v_{lin}` the local linear velocity), and its bias
+forces are :math:`T^{-\top}` of Pinocchio's minus :math:`M_{mj} \dot T v`.
 
 Falls (a stand-in for the shared fall detector, with the same meaning): the robot has fallen,
 for good until the next reset, when the watched frame is below ``height_fraction`` of its
@@ -456,7 +460,7 @@ class MujocoSimulator:
         if joint_id == 0:
             body = 0
         elif joint_id == 1 and self._base is not None:
-            body = int(self.mj_model.joint(self.model.names[1]).bodyid[0])
+            body = int(self.mj_model.joint(self._base_joint_names()[0]).bodyid[0])
         else:
             body = int(self.mj_model.joint(self.model.names[joint_id]).bodyid[0])
         return body, frame.placement.act(offset)

@@ -21,6 +21,7 @@ from dmpopt.exceptions import (
     MissingDependency,
     ResourceLimitError,
     ShapeError,
+    SimulationDiverged,
 )
 from dmpopt.sim import FallCriteria, MujocoSimulator, render_animation
 from robots import load_talos
@@ -253,13 +254,14 @@ def stand_and_drum(talos, humanoid, dmps, seconds):
 
 
 def test_standing_talos_drums_on_mujoco(talos, drumming):
-    """1 s of drumming, standing on MuJoCo contacts: no fall, arm tracking RMS < 2 mrad (the
-    arms move through ~0.3 rad), ground carries the weight on average (within 3 %)."""
+    """1 s of drumming, standing on MuJoCo contacts: no fall, arm tracking RMS < 1 mrad and
+    max < 5 mrad (the arms move through ~0.3 rad; the native simulator gives 0.17 and 0.7 mrad),
+    the ground carries the weight on average (within 3 %)."""
     humanoid, dmps = drumming
     errors, vertical, fell, plan = stand_and_drum(talos, humanoid, dmps, 1.0)
     assert not fell
-    assert np.sqrt(np.mean(errors**2)) < 2e-3
-    assert np.abs(errors).max() < 1e-2
+    assert np.sqrt(np.mean(errors**2)) < 1e-3
+    assert np.abs(errors).max() < 5e-3
     weight = pin.computeTotalMass(talos.model) * GRAVITY
     assert abs(vertical.mean() / weight - 1) < 0.03
 
@@ -270,7 +272,7 @@ def test_standing_talos_drums_for_five_seconds(talos, drumming):
     humanoid, dmps = drumming
     errors, _, fell, _ = stand_and_drum(talos, humanoid, dmps, 5.0)
     assert not fell
-    assert np.sqrt(np.mean(errors**2)) < 2e-3
+    assert np.sqrt(np.mean(errors**2)) < 1e-3
 
 
 # -------------------------------------------------------------------------- rendering
@@ -324,7 +326,7 @@ def test_bad_simulator_arguments(talos, talos_sim):
         MujocoSimulator(model, urdf, damping=np.inf)
     with pytest.raises(InvalidInputError, match="urdf '/no/such.urdf' is not a file"):
         MujocoSimulator(model, "/no/such.urdf")
-    with pytest.raises(InvalidInputError, match="model must be a pinocchio.Model"):
+    with pytest.raises(InvalidInputError, match="model must be a pinocchio.Model.*robot.model"):
         MujocoSimulator(talos, urdf)
     with pytest.raises(InvalidInputError, match="fall must be a FallCriteria"):
         MujocoSimulator(model, urdf, fall="base_link")
@@ -384,6 +386,13 @@ def test_bad_state_torque_and_push_arguments(talos_sim):
         render_animation(sim, [sim.state.q], "video.mp4")
     with pytest.raises(ShapeError, match="configurations has shape"):
         render_animation(sim, np.zeros((2, 3)), "video.gif")
+
+
+def test_exploding_torques_raise_simulation_diverged(talos_sim):
+    """Torques of 1e12 N m: SimulationDiverged naming the time, never a silent MuJoCo reset."""
+    talos_sim.reset(talos_sim.state.q)
+    with pytest.raises(SimulationDiverged, match="at t = "):
+        talos_sim.step(np.full(talos_sim.n_actuated, 1e12))
 
 
 def test_missing_mujoco_names_the_extra(talos, monkeypatch):

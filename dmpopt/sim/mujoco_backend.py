@@ -256,7 +256,10 @@ class MujocoSimulator:
         mujoco = _import_mujoco()
         self._mj = mujoco
         if not isinstance(model, pin.Model):
-            raise InvalidInputError(f"model must be a pinocchio.Model, got {type(model).__name__}")
+            raise InvalidInputError(
+                f"model must be a pinocchio.Model, got {type(model).__name__}; pass e.g. "
+                "robot.model with urdf=robot.source"
+            )
         self.dt = _positive("dt", dt)
         self.max_speed = _positive("max_speed", max_speed)
         friction = _positive("friction", friction, allow_zero=True)

@@ -22,13 +22,19 @@ frequency adaptation) walks ``--biped-seconds`` on each backend: distance, heel 
 adapted frequency, falls. ``walk`` builds its simulator itself, so the MuJoCo run swaps the
 module's ``Simulator`` for a MuJoCo factory (the study integration will make this a switch).
 
+First, the model agreement (the answer key of ``tests/test_mujoco.py`` as numbers): over
+``--states`` random states, the largest differences between Pinocchio and MuJoCo on the same
+URDF in link positions [m] and rotation matrices, link velocities (local frame), the mass matrix
+and the bias forces (relative to their largest entry), after the coordinate change.
+
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
-[--video FILE.webp]``.
+[--states 20] [--video FILE.webp]``.
 """
 
 import argparse
 import time
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -126,6 +132,62 @@ def walk_biped(backend: str, seconds: float) -> dict:
     }
 
 
+def agreement(simulator, n_states: int, seed: int = 0) -> dict:
+    """Worst Pinocchio-MuJoCo differences over random states (see the module docstring)."""
+    model, mj_model, mj_data = simulator.model, simulator.mj_model, simulator.mj_data
+    data = model.createData()
+    rng = np.random.default_rng(seed)
+    free = simulator.n_base_dofs == 6
+    worst = dict.fromkeys(("position_m", "rotation", "velocity", "mass_rel", "bias_rel"), 0.0)
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    lower = np.where(np.abs(model.lowerPositionLimit) < 1e10, model.lowerPositionLimit, -1)
+    upper = np.where(np.abs(model.upperPositionLimit) < 1e10, model.upperPositionLimit, 1)
+    for _ in range(n_states):
+        q = pin.randomConfiguration(model, lower, upper)
+        v = rng.normal(size=model.nv)
+        simulator.reset(q, v)
+        q = simulator.state.q  # normalised quaternion
+        mujoco.mj_forward(mj_model, mj_data)
+        pin.forwardKinematics(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        for name in bodies:
+            body, frame = mj_model.body(name).id, model.getFrameId(name)
+            velocity, mj_velocity = pin.getFrameVelocity(model, data, frame), np.empty(6)
+            mujoco.mj_objectVelocity(
+                mj_model, mj_data, mujoco.mjtObj.mjOBJ_XBODY, body, mj_velocity, 1
+            )
+            errors = {
+                "position_m": mj_data.xpos[body] - data.oMf[frame].translation,
+                "rotation": mj_data.xmat[body].reshape(3, 3) - data.oMf[frame].rotation,
+                "velocity": mj_velocity - np.r_[velocity.angular, velocity.linear],
+            }
+            for key, error in errors.items():
+                worst[key] = max(worst[key], float(np.abs(error).max()))
+        T = np.zeros((mj_model.nv, model.nv))  # qvel_mujoco = T v, joints matched by name
+        for joint_id in range(2 if simulator.n_base_dofs else 1, model.njoints):
+            address = mj_model.joint(model.names[joint_id]).dofadr[0]
+            T[address, model.joints[joint_id].idx_v] = 1.0
+        for k in range(simulator.n_base_dofs):  # the base: free joint or planar joints
+            name = model.names[1] if free else f"{model.names[1]}_{k}"
+            T[mj_model.joint(name).dofadr[0] + (k if free else 0), k] = 1.0
+        t_dot_v = np.zeros(mj_model.nv)
+        if free:  # linear velocity: local in Pinocchio, world in MuJoCo
+            rotation = pin.Quaternion(q[3:7]).toRotationMatrix()
+            T[:3, :3] = rotation
+            t_dot_v[:3] = rotation @ np.cross(v[3:6], v[:3])
+        mass = np.zeros((mj_model.nv, mj_model.nv))
+        mujoco.mj_fullM(mj_model, mj_data, mass)
+        crba = pin.crba(model, data, q)
+        crba = np.triu(crba) + np.triu(crba, 1).T
+        rnea = pin.rnea(model, data, q, v, np.zeros(model.nv))
+        bias = T.T @ (mj_data.qfrc_bias + mass @ t_dot_v)
+        mass_error = np.abs(T.T @ mass @ T - crba).max() / np.abs(crba).max()
+        worst["mass_rel"] = max(worst["mass_rel"], float(mass_error))
+        bias_error = np.abs(bias - rnea).max() / np.abs(rnea).max()
+        worst["bias_rel"] = max(worst["bias_rel"], float(bias_error))
+    return worst
+
+
 def print_table(title: str, results: dict) -> None:
     """Rows of numbers, one column per backend."""
     print(title)
@@ -145,9 +207,19 @@ def main():
     parser.add_argument("--seconds", type=float, default=5.0, help="simulated time [s]")
     parser.add_argument("--variant", default="full", choices=("full", "reduced"))
     parser.add_argument("--biped-seconds", type=float, default=10.0, help="walking time [s]")
+    parser.add_argument("--states", type=int, default=20, help="random states for agreement")
     parser.add_argument("--video", help="write the MuJoCo run as an animated .webp or .gif")
     args = parser.parse_args()
     robot = load_talos(args.variant)
+    biped = load_biped()
+    models = {
+        f"talos_{args.variant}": MujocoSimulator(robot.model, robot.source),
+        "planar_biped": MujocoSimulator(biped.model, BIPED_URDF),
+    }
+    print(f"Model agreement, worst over {args.states} random states (Pinocchio vs MuJoCo)")
+    for name, simulator in models.items():
+        worst = agreement(simulator, args.states)
+        print(f"{name:14s}" + "  ".join(f"{k} {v:.1e}" for k, v in worst.items()))
     dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
     every = int(round(1 / (25 * DT))) if args.video else 0
     results = {b: run(b, robot, dmps, args.seconds, every) for b in ("native", "mujoco")}

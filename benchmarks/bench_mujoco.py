@@ -38,7 +38,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from dmpopt.sim import FallCriteria, MujocoSimulator
+from dmpopt.sim import MujocoSimulator
+from dmpopt.sim.mujoco_backend import FallCriteria
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
 from studies import biped as biped_study

@@ -23,7 +23,8 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from dmpopt.sim import FallCriteria, MujocoSimulator, render_animation
+from dmpopt.sim import MujocoSimulator, render_animation
+from dmpopt.sim.mujoco_backend import FallCriteria
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
 

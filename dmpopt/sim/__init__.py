@@ -8,11 +8,10 @@
 """
 
 from dmpopt.sim.contact import GroundContact, ground_forces
-from dmpopt.sim.mujoco_backend import FallCriteria, MujocoSimulator, render_animation
+from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
 __all__ = [
-    "FallCriteria",
     "GroundContact",
     "MujocoSimulator",
     "SimState",

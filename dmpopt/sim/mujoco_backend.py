@@ -306,6 +306,7 @@ class MujocoSimulator:
         self._fall = fall
         if fall is not None:
             self._fall_body, self._fall_point = self._locate(fall.frame, np.zeros(3))
+            self._fall_rotation = self._frame(fall.frame).placement.rotation
         self.reset(pin.neutral(model), np.zeros(model.nv))
 
     # ------------------------------------------------------------------ model building
@@ -677,7 +678,7 @@ class MujocoSimulator:
         """World position of the fall frame and its z axis (current kinematics)."""
         data, body = self.mj_data, self._fall_body
         rotation = data.xmat[body].reshape(3, 3)
-        frame_rotation = rotation @ self._frame(self._fall.frame).placement.rotation
+        frame_rotation = rotation @ self._fall_rotation
         return data.xpos[body] + rotation @ self._fall_point, frame_rotation[:, 2]
 
     def _check_fall(self) -> None:

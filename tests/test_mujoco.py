@@ -132,6 +132,14 @@ def test_planar_biped_is_the_same_robot_in_both(seed):
     assert_same_robot(sim, *random_state(biped.model, seed))
 
 
+def test_fixed_base_talos_is_the_same_robot_in_both(talos):
+    """Talos built without a free flyer (root link welded to the world) agrees as well."""
+    model = pin.buildModelFromUrdf(talos.source)
+    sim = MujocoSimulator(model, talos.source)
+    assert sim.n_base_dofs == 0
+    assert_same_robot(sim, *random_state(model, 5))
+
+
 @settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_state_round_trip(talos_sim, seed):
@@ -317,6 +325,8 @@ def test_bad_simulator_arguments(talos, talos_sim):
             MujocoSimulator(model, urdf, dt=dt)
     with pytest.raises(InvalidInputError, match="frame 'no_foot' is not in the model"):
         MujocoSimulator(model, urdf, contact_points=[("no_foot", (0, 0, 0))])
+    with pytest.raises(InvalidInputError, match="contact_points must be a sequence"):
+        MujocoSimulator(model, urdf, contact_points=None)
     with pytest.raises(InvalidInputError, match=r"contact_points must hold \(frame_name"):
         MujocoSimulator(model, urdf, contact_points=["left_sole_link"])
     with pytest.raises(ShapeError, match="offset of contact point 'left_sole_link'"):
@@ -333,6 +343,8 @@ def test_bad_simulator_arguments(talos, talos_sim):
         MujocoSimulator(model, urdf, fall="base_link")
     with pytest.raises(InvalidInputError, match="max_tilt must be"):
         FallCriteria("base_link", max_tilt=0)
+    with pytest.raises(InvalidInputError, match="max_airborne must be a number"):
+        FallCriteria("base_link", max_airborne="long")
 
 
 def test_model_and_urdf_must_be_the_same_robot(talos):
@@ -387,6 +399,10 @@ def test_bad_state_torque_and_push_arguments(talos_sim):
         render_animation(sim, [sim.state.q], "video.mp4")
     with pytest.raises(ShapeError, match="configurations has shape"):
         render_animation(sim, np.zeros((2, 3)), "video.gif")
+    with pytest.raises(InvalidInputError, match=r"configurations must be finite; rows \[1\]"):
+        render_animation(sim, [sim.state.q, np.full(nq, np.nan)], "video.gif")
+    with pytest.raises(InvalidInputError, match="directory '/no/such' does not exist"):
+        render_animation(sim, [sim.state.q], "/no/such/video.gif")
 
 
 def test_exploding_torques_raise_simulation_diverged(talos_sim):

@@ -112,6 +112,13 @@ class FallCriteria:
     max_airborne: float = 0.5
 
     def __post_init__(self):
+        for name in ("height_fraction", "max_tilt", "max_airborne"):
+            try:
+                object.__setattr__(self, name, float(getattr(self, name)))
+            except (TypeError, ValueError):
+                raise InvalidInputError(
+                    f"FallCriteria {name} must be a number, got {getattr(self, name)!r}"
+                ) from None
         checks = (
             ("height_fraction", 0.0 < self.height_fraction < 1.0, "in (0, 1)"),
             ("max_tilt", 0.0 < self.max_tilt <= np.pi, "in (0, pi] [rad]"),
@@ -154,13 +161,20 @@ def _vector(name: str, value, size: int) -> np.ndarray:
     if array.shape != (size,):
         raise ShapeError(f"{name} has shape {np.shape(value)}, expected ({size},)")
     if not np.isfinite(array).all():
-        raise InvalidInputError(f"{name} must be finite, got {array}")
+        bad = np.flatnonzero(~np.isfinite(array)).tolist()
+        raise InvalidInputError(f"{name} must be finite; entries {bad} are not")
     return array
 
 
 def _pairs(contact_points) -> list[tuple[str, object]]:
     """``contact_points`` as a list of ``(frame_name, offset)`` pairs."""
-    pairs = list(contact_points)
+    try:
+        pairs = list(contact_points)
+    except TypeError:
+        raise InvalidInputError(
+            f"contact_points must be a sequence of (frame_name, offset_xyz) pairs, got "
+            f"{contact_points!r}; pass () for no contact"
+        ) from None
     for item in pairs:
         if not (isinstance(item, (tuple, list)) and len(item) == 2):
             raise InvalidInputError(
@@ -278,6 +292,8 @@ class MujocoSimulator:
             raise InvalidInputError(f"urdf {str(urdf)!r} is not a file; pass the robot's URDF path")
         if package_dirs is None:
             package_dirs = urdf.resolve().parents
+        elif isinstance(package_dirs, (str, Path)):
+            package_dirs = [package_dirs]
         self.model = model
         self._base = _base_joint(model)
         self.n_base_dofs = 0 if self._base is None else model.joints[1].nv
@@ -313,8 +329,9 @@ class MujocoSimulator:
     def _spec(self, urdf: Path, package_dirs):
         """MjSpec of the URDF with the Pinocchio base joint added to the root link."""
         mujoco = self._mj
+        text = _urdf_for_mujoco(urdf, package_dirs)
         try:
-            spec = mujoco.MjSpec.from_string(_urdf_for_mujoco(urdf, package_dirs))
+            spec = mujoco.MjSpec.from_string(text)
         except ValueError as error:
             raise FileFormatError(f"MuJoCo could not read {urdf.name}: {error}") from None
         spec.option.timestep = self.dt
@@ -430,7 +447,12 @@ class MujocoSimulator:
                 )
 
     def _check_mass(self, urdf: Path) -> None:
-        mass, mj_mass = pin.computeTotalMass(self.model), float(self.mj_model.body_subtreemass[0])
+        """Same mass on the moving bodies (a fixed base's root link belongs to the world)."""
+        moving = self.mj_model.body_weldid != 0
+        mass, mj_mass = (
+            pin.computeTotalMass(self.model),
+            float(self.mj_model.body_mass[moving].sum()),
+        )
         if not np.isclose(mass, mj_mass, rtol=1e-6):
             raise InvalidInputError(
                 f"model ({mass:.6g} kg) and urdf {urdf.name} ({mj_mass:.6g} kg) are not the same "
@@ -701,19 +723,19 @@ class MujocoSimulator:
 
 def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
     try:
-        tau = np.asarray(tau, dtype=float).reshape(-1)
+        array = np.asarray(tau, dtype=float).reshape(-1)
     except (TypeError, ValueError):
         raise InvalidInputError(f"tau must be numbers, got {tau!r}") from None
-    if tau.shape != (n_actuated,):
+    if array.shape != (n_actuated,):
         raise ShapeError(
-            f"tau has shape {tau.shape}, expected ({n_actuated},): one torque per actuated "
+            f"tau has shape {np.shape(tau)}, expected ({n_actuated},): one torque per actuated "
             f"joint (model.nv = {nv} minus {n_base} base dofs)"
         )
-    if not np.isfinite(tau).all():
+    if not np.isfinite(array).all():
         raise InvalidInputError(
-            f"tau must be finite; entries {np.flatnonzero(~np.isfinite(tau)).tolist()} are not"
+            f"tau must be finite; entries {np.flatnonzero(~np.isfinite(array)).tolist()} are not"
         )
-    return tau
+    return array
 
 
 def _base_joint(model: pin.Model):
@@ -800,9 +822,16 @@ def render_animation(
         raise ShapeError(
             f"configurations has shape {configurations.shape}, expected (n_frames, {nq})"
         )
+    if not np.isfinite(configurations).all():
+        rows = np.flatnonzero(~np.isfinite(configurations).all(axis=1)).tolist()
+        raise InvalidInputError(f"configurations must be finite; rows {rows} are not")
     path = Path(path)
     if path.suffix.lower() not in (".webp", ".gif"):
         raise InvalidInputError(f"path {str(path)!r} must end in .webp or .gif")
+    if not path.parent.is_dir():
+        raise InvalidInputError(
+            f"path {str(path)!r}: directory {str(path.parent)!r} does not exist"
+        )
     fps = _positive("fps", fps)
     for name, value in (("width", width), ("height", height)):
         if not (isinstance(value, (int, np.integer)) and 16 <= value <= 4096):

@@ -34,7 +34,6 @@ Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped
 import argparse
 import time
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -135,6 +134,8 @@ def walk_biped(backend: str, seconds: float) -> dict:
 
 def agreement(simulator, n_states: int, seed: int = 0) -> dict:
     """Worst Pinocchio-MuJoCo differences over random states (see the module docstring)."""
+    import mujoco  # after MujocoSimulator has defaulted MUJOCO_GL to egl (headless video)
+
     model, mj_model, mj_data = simulator.model, simulator.mj_model, simulator.mj_data
     data = model.createData()
     rng = np.random.default_rng(seed)

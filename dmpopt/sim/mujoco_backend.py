@@ -646,9 +646,9 @@ class MujocoSimulator:
             self._apply_pushes()
         mujoco.mj_step2(model, data)
         self._check_stable()
-        mujoco.mj_kinematics(model, data)  # body poses at the new state
         was_in_contact = self._in_contact
-        self._read_contacts()
+        self._read_contacts()  # contacts found and solved at the start of the step
+        mujoco.mj_kinematics(model, data)  # body poses at the new state
         started = np.flatnonzero(self._in_contact & ~was_in_contact)
         self._last_touchdowns = tuple(
             TouchdownEvent(self.t, int(i), self.contact_frames[i], self._positions[i].copy())

@@ -75,6 +75,7 @@ _PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
 _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
+_XYZ = np.arange(3)
 
 
 def _import_mujoco():
@@ -312,13 +313,17 @@ class MujocoSimulator:
         except ValueError as error:
             raise FileFormatError(f"MuJoCo could not compile {urdf.name}: {error}") from None
         self.mj_data = mujoco.MjData(self.mj_model)
+        warning = mujoco.mjtWarning
+        self._unstable = np.array(
+            [warning.mjWARN_BADQACC, warning.mjWARN_BADQVEL, warning.mjWARN_BADQPOS], dtype=int
+        )
         self._map_coordinates()
         self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._point_of_geom = np.full(self.mj_model.ngeom, -1)
         names = [f"contact_point_{i}" for i in range(self._n_points)]
         self._point_of_geom[[self.mj_model.geom(n).id for n in names]] = np.arange(self._n_points)
-        self._point_sites = [self.mj_model.site(n).id for n in names]
+        self._point_sites = np.array([self.mj_model.site(n).id for n in names], dtype=int)
         self._fall = fall
         if fall is not None:
             self._fall_body, self._fall_point = self._locate(fall.frame, np.zeros(3))
@@ -661,33 +666,33 @@ class MujocoSimulator:
 
     def _read_contacts(self) -> None:
         """Forces, positions and contact flags of the contact points (start of the last step)."""
-        n = self._n_points
+        n, data = self._n_points, self.mj_data
+        self._positions = data.site_xpos[self._point_sites]
         self._forces, self._in_contact = np.zeros((n, 3)), np.zeros(n, dtype=bool)
-        self._positions = self.mj_data.site_xpos[self._point_sites].copy().reshape(n, 3)
-        contacts = self.mj_data.contact
-        points = self._point_of_geom[contacts.geom]  # (n_contacts, 2): -1 for other geoms
-        ours = points.max(axis=1) >= 0
-        if not ours.any():
+        if not data.ncon:
             return
-        points, frames = points[ours], contacts.frame[ours].reshape(-1, 3, 3)
-        # The contact normal (first row of the frame) points from geom1 to geom2.
-        sign = np.where(points[:, 1] >= 0, 1.0, -1.0)
-        points = points.max(axis=1)
-        # Elliptic cones: efc_force holds the normal and two tangent forces of each contact.
-        rows = contacts.efc_address[ours][:, None] + np.arange(3)
-        local = self.mj_data.efc_force[rows] * sign[:, None]
-        np.add.at(self._forces, points, np.einsum("nij,ni->nj", frames, local))
+        contacts = data.contact
+        pairs = self._point_of_geom[contacts.geom]  # (n_contacts, 2): -1 for other geoms
+        # A sphere touches nothing but the floor: at most one contact per point.
+        points = pairs.max(axis=1)
+        ours = points >= 0
+        points = points[ours]
+        # Contact frame rows: the normal, from geom1 to geom2, then two tangents. With elliptic
+        # cones efc_force holds each contact's normal and tangential forces in that frame.
+        sign = np.where(pairs[ours, 1] >= 0, 1.0, -1.0)
+        local = data.efc_force[contacts.efc_address[ours, None] + _XYZ] * sign[:, None]
+        frames = contacts.frame[ours].reshape(-1, 3, 3)
+        self._forces[points] = np.einsum("nij,ni->nj", frames, local)
         self._in_contact[points] = True
 
     def _check_stable(self) -> None:
-        warnings = self.mj_data.warning
-        bad = self._mj.mjtWarning
-        for kind in (bad.mjWARN_BADQACC, bad.mjWARN_BADQVEL, bad.mjWARN_BADQPOS):
-            if warnings[kind].number:
-                raise SimulationDiverged(
-                    f"MuJoCo reported {kind.name} at t = {self.t:.4f} s (it resets the state); "
-                    "reduce dt or check the torques"
-                )
+        unstable = self.mj_data.warning.number[self._unstable]
+        if unstable.any():
+            kind = self._mj.mjtWarning(self._unstable[np.argmax(unstable > 0)])
+            raise SimulationDiverged(
+                f"MuJoCo reported {kind.name} at t = {self.t:.4f} s (it resets the state); "
+                "reduce dt or check the torques"
+            )
         fastest = np.abs(self.mj_data.qvel).max(initial=0.0)
         if not np.isfinite(fastest) or fastest > self.max_speed:
             raise SimulationDiverged(

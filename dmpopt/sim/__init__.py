@@ -8,6 +8,15 @@
 """
 
 from dmpopt.sim.contact import GroundContact, ground_forces
+from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
-__all__ = ["GroundContact", "SimState", "Simulator", "TouchdownEvent", "ground_forces"]
+__all__ = [
+    "GroundContact",
+    "MujocoSimulator",
+    "SimState",
+    "Simulator",
+    "TouchdownEvent",
+    "ground_forces",
+    "render_animation",
+]

@@ -1,0 +1,242 @@
+"""Standing Talos drumming: the native simulator against the MuJoCo backend, same everything else.
+
+Both runs use the humanoid study's pieces (:mod:`studies.humanoid`): the learned drumming DMPs,
+``build_controller`` (QP inverse dynamics at 1 kHz with the 12 DMP-driven arm joints as a
+posture task, CoM, pelvis orientation and two sole contacts) and the same start state (the
+drumming posture on the limit cycle). Only the plant differs:
+
+- native: :class:`dmpopt.sim.Simulator`, compliant ground under the eight sole corners
+  (20 kN/m, 300 N s/m, friction 1), as in the study;
+- mujoco: :class:`dmpopt.sim.MujocoSimulator` from the same URDF, MuJoCo's soft contacts
+  between the floor and a 5 mm sphere at each of the same eight sole corners, friction 1,
+  no joint armature, damping or friction (the controller's model exactly).
+
+Printed per backend: tracking RMS and max over the 12 arm joints [rad], whether the robot fell,
+the mean vertical ground force over m g, the real-time factor of the whole loop (simulated
+time / time of plan + controller + simulator) and of the simulator step alone, each by the
+wall clock and by CPU time (process time for the loop, thread time for the step; the CPU
+figures are the ones to compare on a loaded machine).
+
+Then the planar biped of the walking study (:func:`studies.biped.walk`: DMP gait, PD, boom,
+frequency adaptation) walks ``--biped-seconds`` on each backend: distance, heel strikes, the
+adapted frequency, falls. ``walk`` builds its simulator itself, so the MuJoCo run swaps the
+module's ``Simulator`` for a MuJoCo factory (the study integration will make this a switch).
+
+First, the model agreement (the answer key of ``tests/test_mujoco.py`` as numbers): over
+``--states`` random states, the largest differences between Pinocchio and MuJoCo on the same
+URDF in link positions [m] and rotation matrices, link velocities (local frame), the mass matrix
+and the bias forces (relative to their largest entry), after the coordinate change.
+
+Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
+[--states 20] [--video FILE.webp]``.
+"""
+
+import argparse
+import time
+
+import numpy as np
+import pinocchio as pin
+
+from dmpopt.sim import MujocoSimulator
+from dmpopt.sim.mujoco_backend import FallCriteria
+from robots import load_talos
+from robots.biped import BIPED_URDF, load_biped
+from studies import biped as biped_study
+from studies import humanoid
+
+DT = humanoid.DT
+
+
+def make_plant(backend: str, robot, q_start: np.ndarray):
+    """The simulator of ``backend`` and its start configuration."""
+    if backend == "native":
+        return humanoid.make_simulator(robot, q_start)
+    points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
+    simulator = MujocoSimulator(
+        robot.model, robot.source, DT, points, friction=1.0, fall=FallCriteria("base_link")
+    )
+    return simulator, q_start.copy()
+
+
+def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict:
+    """Drum for ``seconds`` on ``backend``; tracking, falls, timing and recorded frames."""
+    q_start = humanoid.drumming_posture(robot)
+    q_start[robot.configuration_indices(list(humanoid.DRUM_JOINTS))] = dmps.start
+    v_start = np.zeros(robot.nv)
+    v_start[robot.velocity_indices(list(humanoid.DRUM_JOINTS))] = dmps.start_velocity
+    controller, task = humanoid.build_controller(robot, q_start)
+    plan = humanoid.DrumPlan(dmps, DT)
+    simulator, q0 = make_plant(backend, robot, q_start)
+    state = simulator.reset(q0, v_start)
+    joints = robot.configuration_indices(list(humanoid.DRUM_JOINTS))
+    n = int(round(seconds / DT))
+    error = np.empty((n, joints.size))
+    vertical = np.empty(n)
+    frames, fell, sim_wall, sim_cpu = [], False, 0.0, 0.0
+    begin, cpu_begin = time.perf_counter(), time.process_time()
+    for k in range(n):
+        if k:
+            plan.step()
+        task.set_reference(plan.position, plan.velocity, plan.acceleration)
+        tau = controller.compute_torques(state.q, state.v)
+        error[k] = state.q[joints] - plan.position
+        step_begin, step_cpu = time.perf_counter(), time.thread_time()
+        state = simulator.step(tau)
+        sim_cpu += time.thread_time() - step_cpu
+        sim_wall += time.perf_counter() - step_begin
+        vertical[k] = state.contact_forces[:, 2].sum()
+        fell = fell or state.fallen
+        if video_every and k % video_every == 0:
+            frames.append(state.q)
+    wall, cpu = time.perf_counter() - begin, time.process_time() - cpu_begin
+    weight = pin.computeTotalMass(robot.model) * 9.81
+    return {
+        "tracking_rms_rad": float(np.sqrt(np.mean(error**2))),
+        "tracking_max_rad": float(np.abs(error).max()),
+        "fell": bool(fell),
+        "vertical_force_over_weight": float(vertical.mean() / weight),
+        "real_time_factor": n * DT / wall,
+        "real_time_factor_cpu": n * DT / cpu,
+        "simulator_real_time_factor": n * DT / sim_wall,
+        "simulator_real_time_factor_cpu": n * DT / sim_cpu,
+        "frames": frames,
+        "simulator": simulator,
+    }
+
+
+def walk_biped(backend: str, seconds: float) -> dict:
+    """The walking study's biped on ``backend`` for ``seconds``."""
+    biped = load_biped()
+    _, dmp = biped_study.learn_gait()
+
+    def mujoco_simulator(model, dt, contact_points, ground, n_base_dofs, fall_frame, fall_height):
+        fall = FallCriteria(fall_frame, fall_height / biped.leg_length, max_tilt=np.pi / 2)
+        return MujocoSimulator(
+            model, BIPED_URDF, dt, contact_points, friction=ground.friction, fall=fall
+        )
+
+    native = biped_study.Simulator
+    if backend == "mujoco":
+        biped_study.Simulator = mujoco_simulator
+    try:
+        log = biped_study.walk(biped, dmp, seconds, biped_study.DEMO_FREQUENCY)
+    finally:
+        biped_study.Simulator = native
+    return {
+        "distance_m": log.distance,
+        "heel_strikes": len(log.strikes),
+        "final_frequency_rad_s": log.frequencies[-1],
+        "fell": log.fell,
+        "real_time_factor": log.duration / log.wall_time,
+        "real_time_factor_cpu": log.duration / log.cpu_time,
+    }
+
+
+def agreement(simulator, n_states: int, seed: int = 0) -> dict:
+    """Worst Pinocchio-MuJoCo differences over random states (see the module docstring)."""
+    import mujoco  # after MujocoSimulator has defaulted MUJOCO_GL to egl (headless video)
+
+    model, mj_model, mj_data = simulator.model, simulator.mj_model, simulator.mj_data
+    data = model.createData()
+    rng = np.random.default_rng(seed)
+    free = simulator.n_base_dofs == 6
+    worst = dict.fromkeys(("position_m", "rotation", "velocity", "mass_rel", "bias_rel"), 0.0)
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    lower = np.where(np.abs(model.lowerPositionLimit) < 1e10, model.lowerPositionLimit, -1)
+    upper = np.where(np.abs(model.upperPositionLimit) < 1e10, model.upperPositionLimit, 1)
+    for _ in range(n_states):
+        q = pin.randomConfiguration(model, lower, upper)
+        v = rng.normal(size=model.nv)
+        simulator.reset(q, v)
+        q = simulator.state.q  # normalised quaternion
+        mujoco.mj_forward(mj_model, mj_data)
+        pin.forwardKinematics(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        for name in bodies:
+            body, frame = mj_model.body(name).id, model.getFrameId(name)
+            velocity, mj_velocity = pin.getFrameVelocity(model, data, frame), np.empty(6)
+            mujoco.mj_objectVelocity(
+                mj_model, mj_data, mujoco.mjtObj.mjOBJ_XBODY, body, mj_velocity, 1
+            )
+            errors = {
+                "position_m": mj_data.xpos[body] - data.oMf[frame].translation,
+                "rotation": mj_data.xmat[body].reshape(3, 3) - data.oMf[frame].rotation,
+                "velocity": mj_velocity - np.r_[velocity.angular, velocity.linear],
+            }
+            for key, error in errors.items():
+                worst[key] = max(worst[key], float(np.abs(error).max()))
+        T = np.zeros((mj_model.nv, model.nv))  # qvel_mujoco = T v, joints matched by name
+        for joint_id in range(2 if simulator.n_base_dofs else 1, model.njoints):
+            address = mj_model.joint(model.names[joint_id]).dofadr[0]
+            T[address, model.joints[joint_id].idx_v] = 1.0
+        for k in range(simulator.n_base_dofs):  # the base: free joint or planar joints
+            name = model.names[1] if free else f"{model.names[1]}_{k}"
+            T[mj_model.joint(name).dofadr[0] + (k if free else 0), k] = 1.0
+        t_dot_v = np.zeros(mj_model.nv)
+        if free:  # linear velocity: local in Pinocchio, world in MuJoCo
+            rotation = pin.Quaternion(q[3:7]).toRotationMatrix()
+            T[:3, :3] = rotation
+            t_dot_v[:3] = rotation @ np.cross(v[3:6], v[:3])
+        mass = np.zeros((mj_model.nv, mj_model.nv))
+        mujoco.mj_fullM(mj_model, mj_data, mass)
+        crba = pin.crba(model, data, q)
+        crba = np.triu(crba) + np.triu(crba, 1).T
+        rnea = pin.rnea(model, data, q, v, np.zeros(model.nv))
+        bias = T.T @ (mj_data.qfrc_bias + mass @ t_dot_v)
+        mass_error = np.abs(T.T @ mass @ T - crba).max() / np.abs(crba).max()
+        worst["mass_rel"] = max(worst["mass_rel"], float(mass_error))
+        bias_error = np.abs(bias - rnea).max() / np.abs(rnea).max()
+        worst["bias_rel"] = max(worst["bias_rel"], float(bias_error))
+    return worst
+
+
+def print_table(title: str, results: dict) -> None:
+    """Rows of numbers, one column per backend."""
+    print(title)
+    print(f"{'':32s}{'native':>12s}{'mujoco':>12s}")
+    for key, value in results["native"].items():
+        if isinstance(value, (bool, int, float)):
+            values = [results[b][key] for b in ("native", "mujoco")]
+            print(
+                f"{key:32s}"
+                + "".join(f"{v!s:>12s}" if isinstance(v, bool) else f"{v:12.4g}" for v in values)
+            )
+
+
+def main():
+    """Command line: run both backends and print the side-by-side table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=5.0, help="simulated time [s]")
+    parser.add_argument("--variant", default="full", choices=("full", "reduced"))
+    parser.add_argument("--biped-seconds", type=float, default=10.0, help="walking time [s]")
+    parser.add_argument("--states", type=int, default=20, help="random states for agreement")
+    parser.add_argument("--video", help="write the MuJoCo run as an animated .webp or .gif")
+    args = parser.parse_args()
+    robot = load_talos(args.variant)
+    biped = load_biped()
+    models = {
+        f"talos_{args.variant}": MujocoSimulator(robot.model, robot.source),
+        "planar_biped": MujocoSimulator(biped.model, BIPED_URDF),
+    }
+    print(f"Model agreement, worst over {args.states} random states (Pinocchio vs MuJoCo)")
+    for name, simulator in models.items():
+        worst = agreement(simulator, args.states)
+        print(f"{name:14s}" + "  ".join(f"{k} {v:.1e}" for k, v in worst.items()))
+    dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
+    every = int(round(1 / (25 * DT))) if args.video else 0
+    results = {b: run(b, robot, dmps, args.seconds, every) for b in ("native", "mujoco")}
+    print_table(
+        f"Talos {args.variant}, {args.seconds:g} s of standing drumming, dt = {DT} s", results
+    )
+    walks = {b: walk_biped(b, args.biped_seconds) for b in ("native", "mujoco")}
+    print_table(f"Planar biped, {args.biped_seconds:g} s of walking", walks)
+    if args.video:
+        from dmpopt.sim import render_animation
+
+        mujoco_run = results["mujoco"]
+        path = render_animation(mujoco_run["simulator"], mujoco_run["frames"], args.video)
+        print(f"video: {path} ({path.stat().st_size / 1e6:.2f} MB)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,899 @@
+r"""MuJoCo backend of :mod:`dmpopt.sim`: the same robot, from the same URDF, under MuJoCo physics.
+
+:class:`MujocoSimulator` has the interface of :class:`dmpopt.sim.Simulator` (``reset(q, v)``,
+``state``, ``step(tau)``, ``push``, ``push_impulse``, touchdown events, falls) and speaks
+Pinocchio's coordinates, so a controller written against the Pinocchio model drives either.
+
+Model
+    MuJoCo reads the URDF the Pinocchio model was built from (``package://`` mesh paths resolved
+    against ``package_dirs``; static links kept as bodies). The Pinocchio root joint is added to
+    the URDF root link: a free joint for a free flyer, slide/hinge joints for a composite of
+    one-axis joints (the planar biped), nothing for a fixed base. Joints are matched by name and
+    the total masses must agree. URDF ``<mimic>`` couplings are dropped, as Pinocchio's URDF
+    reader drops them (the Talos gripper joints move independently in both).
+Contact
+    MuJoCo's soft-constraint contact (default ``solref`` = (0.02 s, 1), ``solimp`` = (0.9, 0.95,
+    0.001 m)), elliptic friction cones with ``condim`` 3 (sliding friction only), between a flat
+    floor at z = 0 and one small sphere per contact point: the same ``(frame, offset)`` points as
+    the native simulator, each a sphere of ``contact_radius`` whose lowest point is the contact
+    point when the frame's z axis is vertical. The URDF collision geometry is kept for rendering
+    only (it collides with nothing), so only the contact points touch the floor, as in the
+    native simulator. ``SimState.contact_forces`` are the solver's contact forces
+    (``efc_force``), summed per point and rotated to the world frame.
+Integration
+    Time step ``dt`` (1 ms by default), ``implicitfast`` integrator (damping implicit), Newton
+    solver. Torques enter as ``qfrc_applied`` without saturation, like the native simulator.
+Joints
+    Armature, viscous damping and dry friction (``frictionloss``) are 0 by default on every
+    actuated joint, so the simulated robot is exactly the rigid-body model the controllers use
+    (the native simulator has none either); pass values, or ``None`` to keep the URDF's
+    ``<dynamics>`` (Talos: damping 0.5-1 N m s/rad, friction 1 N m). URDF position limits are
+    MuJoCo limit constraints (the native simulator has none).
+
+State conversion (the part where bugs hide): MuJoCo's free joint stores the quaternion as
+(w, x, y, z) and its velocity as (linear velocity of the body origin in the **world** frame,
+angular velocity in the **local** frame); Pinocchio's free flyer stores (x, y, z, w) and
+(linear, angular) both in the **local** frame. With :math:`R` the base orientation,
+:math:`\dot q_{mj} = T \dot q_{pin}`, :math:`T = \mathrm{diag}(R, I, P)` with :math:`P` the
+name-matched joint permutation; generalised forces map with :math:`T^{-\top}`. As :math:`T`
+depends on :math:`q`, MuJoCo's base linear acceleration is Pinocchio's plus
+:math:`R\,(\omega \times v_{lin})` (:math:`v_{lin}` the local linear velocity), and its bias
+forces are :math:`T^{-\top}` of Pinocchio's minus :math:`M_{mj} \dot T v`.
+
+Falls (a stand-in for the shared fall detector, with the same meaning): the robot has fallen,
+for good until the next reset, when the watched frame is below ``height_fraction`` of its
+height at reset, or tilted more than ``max_tilt`` from vertical, or when no contact point has
+touched the floor for longer than ``max_airborne`` (see :class:`FallCriteria`).
+
+The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
+defaults to ``egl`` (headless rendering) when unset at that moment.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from dmpopt.exceptions import (
+    FileFormatError,
+    InvalidInputError,
+    MissingDependency,
+    ResourceLimitError,
+    ShapeError,
+    SimulationDiverged,
+)
+from dmpopt.sim.simulator import SimState, TouchdownEvent
+
+__all__ = ["FallCriteria", "MujocoSimulator", "render_animation"]
+
+_PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
+_ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+_FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
+_XYZ = np.arange(3)
+
+
+def _import_mujoco():
+    """The ``mujoco`` module, or :class:`MissingDependency` naming the extra."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    try:
+        import mujoco
+    except ImportError as error:
+        raise MissingDependency(
+            f"the MuJoCo backend needs the `mujoco` package ({error}); "
+            "install it with `pip install 'dmpopt[mujoco]'`"
+        ) from None
+    return mujoco
+
+
+@dataclass(frozen=True)
+class FallCriteria:
+    """When the simulated robot counts as fallen.
+
+    Parameters
+    ----------
+    frame : str
+        Frame watched (the pelvis or torso), a frame of the Pinocchio model.
+    height_fraction : float
+        Fallen when the frame's height is below this fraction of its height at reset, in (0, 1).
+    max_tilt : float
+        Fallen when the frame's z axis is more than this from the vertical [rad], in (0, pi].
+    max_airborne : float
+        Fallen when no contact point has touched the floor for longer than this [s].
+    """
+
+    frame: str
+    height_fraction: float = 0.7
+    max_tilt: float = np.pi / 4
+    max_airborne: float = 0.5
+
+    def __post_init__(self):
+        for name in ("height_fraction", "max_tilt", "max_airborne"):
+            try:
+                object.__setattr__(self, name, float(getattr(self, name)))
+            except (TypeError, ValueError):
+                raise InvalidInputError(
+                    f"FallCriteria {name} must be a number, got {getattr(self, name)!r}"
+                ) from None
+        checks = (
+            ("height_fraction", 0.0 < self.height_fraction < 1.0, "in (0, 1)"),
+            ("max_tilt", 0.0 < self.max_tilt <= np.pi, "in (0, pi] [rad]"),
+            ("max_airborne", 0.0 < self.max_airborne < np.inf, "a positive finite time [s]"),
+        )
+        for name, ok, expected in checks:
+            if not ok:
+                raise InvalidInputError(
+                    f"FallCriteria {name} must be {expected}, got {getattr(self, name)!r}"
+                )
+
+
+@dataclass
+class _Push:
+    body: int
+    point_in_body: np.ndarray
+    force: np.ndarray
+    end_time: float
+
+
+def _positive(name: str, value, allow_none=False, allow_zero=False) -> float | None:
+    if value is None and allow_none:
+        return None
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        value = np.nan
+    if not (np.isfinite(value) and (value >= 0 if allow_zero else value > 0)):
+        bound = ">= 0" if allow_zero else "> 0"
+        extra = " or None (keep the URDF value)" if allow_none else ""
+        raise InvalidInputError(f"{name} must be a finite number {bound}{extra}, got {value!r}")
+    return value
+
+
+def _vector(name: str, value, size: int) -> np.ndarray:
+    try:
+        array = np.array(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be numbers, got {value!r}") from None
+    if array.shape != (size,):
+        raise ShapeError(f"{name} has shape {np.shape(value)}, expected ({size},)")
+    if not np.isfinite(array).all():
+        bad = np.flatnonzero(~np.isfinite(array)).tolist()
+        raise InvalidInputError(f"{name} must be finite; entries {bad} are not")
+    return array
+
+
+def _pairs(contact_points) -> list[tuple[str, object]]:
+    """``contact_points`` as a list of ``(frame_name, offset)`` pairs."""
+    try:
+        pairs = list(contact_points)
+    except TypeError:
+        raise InvalidInputError(
+            f"contact_points must be a sequence of (frame_name, offset_xyz) pairs, got "
+            f"{contact_points!r}; pass () for no contact"
+        ) from None
+    for item in pairs:
+        if not (isinstance(item, (tuple, list)) and len(item) == 2):
+            raise InvalidInputError(
+                f"contact_points must hold (frame_name, offset_xyz) pairs, got {item!r}"
+            )
+    return pairs
+
+
+def _urdf_for_mujoco(urdf: Path, package_dirs) -> str:
+    """URDF text with ``package://`` paths made absolute and MuJoCo compiler options added."""
+    text = urdf.read_text()
+    directories = [Path(d) for d in package_dirs]
+
+    def resolve(match: re.Match) -> str:
+        package, rest = match.groups()
+        for directory in directories:
+            candidate = directory / package / rest
+            if candidate.is_file():
+                return str(candidate)
+        raise FileFormatError(
+            f"{urdf.name}: mesh {match.group(0)!r} was not found in any of package_dirs "
+            f"{[str(d) for d in directories]}; pass package_dirs= with the directory that holds "
+            f"the package {package!r}"
+        )
+
+    text = _PACKAGE_URI.sub(resolve, text)
+    if not _ROBOT_TAG.search(text):
+        raise FileFormatError(f"urdf {str(urdf)!r} has no <robot> element; expected a URDF file")
+    compiler = (
+        '<mujoco><compiler fusestatic="false" strippath="false" discardvisual="true" '
+        f'meshdir="{urdf.parent}"/></mujoco>'
+    )
+    return _ROBOT_TAG.sub(lambda m: m.group(0) + compiler, text, count=1)
+
+
+class MujocoSimulator:
+    """A Pinocchio-described robot simulated by MuJoCo from the same URDF.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        The robot as the controller sees it, built from ``urdf``; its root joint (free flyer,
+        composite of one-axis joints, or none) is the unactuated base. ``q`` and ``v`` are in
+        its coordinates.
+    urdf : str or Path
+        The URDF file ``model`` was built from.
+    dt : float
+        Time step [s].
+    contact_points : sequence of (str, array_like)
+        ``(frame_name, offset_xyz)`` pairs, offset in the frame [m]; one floor-contact sphere each.
+    friction : float
+        Coulomb friction coefficient between the contact spheres and the floor [-].
+    contact_radius : float
+        Radius of the contact spheres [m].
+    armature, damping, joint_friction : float or None
+        Rotor inertia [kg m^2], viscous damping [N m s/rad] and dry friction [N m] of every
+        actuated joint; ``None`` keeps the URDF's values (armature: 0).
+    package_dirs : sequence of path, optional
+        Where ``package://NAME/...`` is looked up as ``DIR/NAME/...``; defaults to the URDF's
+        parent directories.
+    fall : FallCriteria, optional
+        When to flag a fall; no fall detection without it.
+    max_speed : float
+        Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s].
+
+    Attributes
+    ----------
+    model : pinocchio.Model
+    mj_model, mj_data : mujoco.MjModel, mujoco.MjData
+    n_base_dofs, n_actuated : int
+    contact_frames : list of str
+    touchdown_events : list of TouchdownEvent
+    fallen : bool
+    fall_reason : str or None
+        Which criterion flagged the fall.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        urdf,
+        dt: float = 1e-3,
+        contact_points=(),
+        friction: float = 1.0,
+        contact_radius: float = 0.005,
+        armature: float | None = 0.0,
+        damping: float | None = 0.0,
+        joint_friction: float | None = 0.0,
+        package_dirs=None,
+        fall: FallCriteria | None = None,
+        max_speed: float = 1e3,
+    ):
+        mujoco = _import_mujoco()
+        self._mj = mujoco
+        if not isinstance(model, pin.Model):
+            raise InvalidInputError(
+                f"model must be a pinocchio.Model, got {type(model).__name__}; pass e.g. "
+                "robot.model with urdf=robot.source"
+            )
+        self.dt = _positive("dt", dt)
+        self.max_speed = _positive("max_speed", max_speed)
+        friction = _positive("friction", friction, allow_zero=True)
+        contact_radius = _positive("contact_radius", contact_radius)
+        joint_values = {
+            "armature": _positive("armature", armature, allow_none=True, allow_zero=True),
+            "damping": _positive("damping", damping, allow_none=True, allow_zero=True),
+            "joint_friction": _positive(
+                "joint_friction", joint_friction, allow_none=True, allow_zero=True
+            ),
+        }
+        if fall is not None and not isinstance(fall, FallCriteria):
+            raise InvalidInputError(f"fall must be a FallCriteria or None, got {fall!r}")
+        urdf = Path(urdf)
+        if not urdf.is_file():
+            raise InvalidInputError(f"urdf {str(urdf)!r} is not a file; pass the robot's URDF path")
+        if package_dirs is None:
+            package_dirs = urdf.resolve().parents
+        elif isinstance(package_dirs, (str, Path)):
+            package_dirs = [package_dirs]
+        self.model = model
+        self._base = _base_joint(model)
+        self.n_base_dofs = 0 if self._base is None else model.joints[1].nv
+        self.n_actuated = model.nv - self.n_base_dofs
+
+        spec = self._spec(urdf, package_dirs)
+        self._check_joints(spec, urdf)
+        self._set_joint_dynamics(spec, joint_values)
+        self._add_floor(spec, friction)
+        contact_points = _pairs(contact_points)
+        self.contact_frames = [name for name, _ in contact_points]
+        for index, (name, offset) in enumerate(contact_points):
+            self._add_contact_point(spec, index, name, offset, contact_radius)
+        try:
+            self.mj_model = spec.compile()
+        except ValueError as error:
+            raise FileFormatError(f"MuJoCo could not compile {urdf.name}: {error}") from None
+        self.mj_data = mujoco.MjData(self.mj_model)
+        warning = mujoco.mjtWarning
+        self._unstable = np.array(
+            [warning.mjWARN_BADQACC, warning.mjWARN_BADQVEL, warning.mjWARN_BADQPOS], dtype=int
+        )
+        self._map_coordinates()
+        self._check_mass(urdf)
+        self._n_points = len(contact_points)
+        self._point_of_geom = np.full(self.mj_model.ngeom, -1)
+        names = [f"contact_point_{i}" for i in range(self._n_points)]
+        self._point_of_geom[[self.mj_model.geom(n).id for n in names]] = np.arange(self._n_points)
+        self._point_sites = np.array([self.mj_model.site(n).id for n in names], dtype=int)
+        self._fall = fall
+        if fall is not None:
+            self._fall_body, self._fall_point = self._locate(fall.frame, np.zeros(3))
+            self._fall_rotation = self._frame(fall.frame).placement.rotation
+        self.reset(pin.neutral(model), np.zeros(model.nv))
+
+    # ------------------------------------------------------------------ model building
+    def _spec(self, urdf: Path, package_dirs):
+        """MjSpec of the URDF with the Pinocchio base joint added to the root link."""
+        mujoco = self._mj
+        text = _urdf_for_mujoco(urdf, package_dirs)
+        try:
+            spec = mujoco.MjSpec.from_string(text)
+        except ValueError as error:
+            raise FileFormatError(f"MuJoCo could not read {urdf.name}: {error}") from None
+        spec.option.timestep = self.dt
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        spec.option.solver = mujoco.mjtSolver.mjSOL_NEWTON
+        root = spec.worldbody.first_body()
+        if self._base == "free":
+            root.add_freejoint(name=self.model.names[1])
+        elif self._base is not None:
+            for k, (kind, axis) in enumerate(self._base):
+                joint_type = (
+                    mujoco.mjtJoint.mjJNT_SLIDE if kind == "P" else mujoco.mjtJoint.mjJNT_HINGE
+                )
+                root.add_joint(name=f"{self.model.names[1]}_{k}", type=joint_type, axis=axis)
+        for equality in list(spec.equalities):  # URDF <mimic>: Pinocchio's joints are free
+            spec.delete(equality)
+        spec.compiler.discardvisual = False  # keep the non-colliding geometry below
+        for geom in spec.geoms:  # URDF collision geometry: drawn, never in contact
+            geom.contype = geom.conaffinity = 0
+        return spec
+
+    def _set_joint_dynamics(self, spec, values) -> None:
+        base_names = self._base_joint_names()
+        for joint in spec.joints:
+            if joint.name in base_names:
+                continue
+            if values["armature"] is not None:
+                joint.armature = values["armature"]
+            if values["damping"] is not None:
+                joint.damping = [values["damping"], 0.0, 0.0]
+            if values["joint_friction"] is not None:
+                joint.frictionloss = values["joint_friction"]
+
+    def _add_floor(self, spec, friction: float) -> None:
+        mujoco = self._mj
+        spec.worldbody.add_light(pos=[0, 0, 4], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+        spec.worldbody.add_geom(
+            name="floor",
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[0, 0, 0.05],
+            rgba=_FLOOR_RGBA,
+            friction=[friction, 0.005, 0.0001],
+            condim=3,
+            contype=1,
+            conaffinity=1,
+        )
+
+    def _base_joint_names(self) -> list[str]:
+        """Names of the MuJoCo joints that stand for the Pinocchio root joint."""
+        if self._base is None:
+            return []
+        if self._base == "free":
+            return [self.model.names[1]]
+        return [f"{self.model.names[1]}_{k}" for k in range(len(self._base))]
+
+    def _spec_body(self, spec, joint_id: int):
+        """The MjSpec body moved by Pinocchio joint ``joint_id`` (the world for 0)."""
+        if joint_id == 0:
+            return spec.worldbody
+        if joint_id == 1 and self._base is not None:
+            return spec.worldbody.first_body()
+        return spec.joint(self.model.names[joint_id]).parent
+
+    def _frame(self, name: str) -> pin.Frame:
+        if not isinstance(name, str) or not self.model.existFrame(name):
+            raise InvalidInputError(
+                f"frame {name!r} is not in the model {self.model.name!r}; "
+                "use a frame name of the Pinocchio model"
+            )
+        return self.model.frames[self.model.getFrameId(name)]
+
+    def _add_contact_point(self, spec, index: int, name: str, offset, radius: float) -> None:
+        """A site at the point and a sphere resting on it (lowest point when z is vertical)."""
+        frame = self._frame(name)
+        offset = _vector(f"offset of contact point {name!r}", offset, 3)
+        point = frame.placement.act(offset)
+        up = frame.placement.rotation[:, 2]
+        body = self._spec_body(spec, frame.parentJoint)
+        body.add_site(name=f"contact_point_{index}", pos=point)
+        body.add_geom(
+            name=f"contact_point_{index}",
+            type=self._mj.mjtGeom.mjGEOM_SPHERE,
+            size=[radius, 0, 0],
+            pos=point + radius * up,
+            contype=1,
+            conaffinity=0,
+            condim=3,
+            friction=[spec.geom("floor").friction[0], 0.005, 0.0001],
+            rgba=[0.9, 0.3, 0.2, 1.0],
+        )
+
+    def _check_joints(self, spec, urdf: Path) -> None:
+        """The model's joints are the URDF's, by name, and all have one axis."""
+        model = self.model
+        first = 1 if self._base is None else 2
+        pin_names = list(model.names[first:])
+        mj_names = {j.name for j in spec.joints} - set(self._base_joint_names())
+        missing = [n for n in pin_names if n not in mj_names]
+        extra = sorted(mj_names - set(pin_names))
+        if missing or extra:
+            raise InvalidInputError(
+                f"model and urdf {urdf.name} disagree on joints: in the model only {missing}, "
+                f"in the URDF only {extra}; build model from this URDF (locked joints are not "
+                "supported)"
+            )
+        for joint_id, name in enumerate(pin_names, start=first):
+            joint = model.joints[joint_id]
+            if joint.nq != 1 or joint.nv != 1:
+                raise InvalidInputError(
+                    f"joint {name!r} is a {joint.shortname()} (nq={joint.nq}, nv={joint.nv}); "
+                    "only one-axis revolute or prismatic joints are supported"
+                )
+
+    def _check_mass(self, urdf: Path) -> None:
+        """Same mass on the moving bodies (a fixed base's root link belongs to the world)."""
+        moving = self.mj_model.body_weldid != 0
+        mass, mj_mass = (
+            pin.computeTotalMass(self.model),
+            float(self.mj_model.body_mass[moving].sum()),
+        )
+        if not np.isclose(mass, mj_mass, rtol=1e-6):
+            raise InvalidInputError(
+                f"model ({mass:.6g} kg) and urdf {urdf.name} ({mj_mass:.6g} kg) are not the same "
+                "robot; pass the URDF the model was built from"
+            )
+
+    def _map_coordinates(self) -> None:
+        """Index maps between Pinocchio (q, v) and MuJoCo (qpos, qvel), by joint name."""
+        model, mj_model = self.model, self.mj_model
+        first = 1 if self._base is None else 2
+        qpos, dofs = np.empty(model.nq, dtype=int), np.empty(model.nv, dtype=int)
+        for joint_id in range(first, model.njoints):
+            joint, name = model.joints[joint_id], model.names[joint_id]
+            qpos[joint.idx_q] = mj_model.joint(name).qposadr[0]
+            dofs[joint.idx_v] = mj_model.joint(name).dofadr[0]
+        if self._base == "free":
+            root = mj_model.joint(model.names[1])
+            qpos[:7] = root.qposadr[0] + np.array([0, 1, 2, 4, 5, 6, 3])  # x y z | qx qy qz qw
+            dofs[:6] = root.dofadr[0] + np.arange(6)
+        elif self._base is not None:
+            for k in range(len(self._base)):
+                joint = mj_model.joint(f"{model.names[1]}_{k}")
+                qpos[k], dofs[k] = joint.qposadr[0], joint.dofadr[0]
+        self._qpos_index, self._dof_index = qpos, dofs
+
+    def _locate(self, frame_name: str, offset) -> tuple[int, np.ndarray]:
+        """MuJoCo body of a frame and the point's position in that body's frame."""
+        frame = self._frame(frame_name)
+        offset = _vector("offset", offset, 3)
+        joint_id = frame.parentJoint
+        if joint_id == 0:
+            body = 0
+        elif joint_id == 1 and self._base is not None:
+            body = int(self.mj_model.joint(self._base_joint_names()[0]).bodyid[0])
+        else:
+            body = int(self.mj_model.joint(self.model.names[joint_id]).bodyid[0])
+        return body, frame.placement.act(offset)
+
+    # ------------------------------------------------------------------ state conversion
+    def _base_rotation(self, qpos: np.ndarray) -> np.ndarray:
+        rotation = np.empty(9)
+        self._mj.mju_quat2Mat(rotation, qpos[self._qpos_index[[6, 3, 4, 5]]])
+        return rotation.reshape(3, 3)
+
+    def to_mujoco(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo ``(qpos, qvel)`` of Pinocchio ``(q, v)``.
+
+        Parameters
+        ----------
+        q : array_like, shape (nq,)
+        v : array_like, shape (nv,)
+        """
+        q = _vector("q", q, self.model.nq)
+        v = _vector("v", v, self.model.nv)
+        qpos, qvel = np.zeros(self.mj_model.nq), np.zeros(self.mj_model.nv)
+        if self._base == "free":
+            norm = np.linalg.norm(q[3:7])
+            if not norm > 1e-9:
+                raise InvalidInputError(
+                    f"q[3:7] is the base quaternion (x, y, z, w) and must be non-zero, got {q[3:7]}"
+                )
+            q = q.copy()
+            q[3:7] /= norm
+            v = v.copy()
+            v[:3] = pin.Quaternion(q[3:7]).toRotationMatrix() @ v[:3]  # local -> world
+        qpos[self._qpos_index] = q
+        qvel[self._dof_index] = v
+        return qpos, qvel
+
+    def from_mujoco(self, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
+        """Pinocchio ``(q, v)`` of MuJoCo ``(qpos, qvel)``."""
+        q = np.asarray(qpos, dtype=float)[self._qpos_index]
+        v = np.asarray(qvel, dtype=float)[self._dof_index]
+        if self._base == "free":
+            v[:3] = self._base_rotation(qpos).T @ v[:3]  # world -> local
+        return q, v
+
+    def _generalized_to_mujoco(self, force: np.ndarray, out: np.ndarray) -> None:
+        """Add Pinocchio generalised forces (nv,) to MuJoCo's ``out`` (power-preserving)."""
+        if self._base == "free":
+            force = force.copy()
+            force[:3] = self._base_rotation(self.mj_data.qpos) @ force[:3]
+        out[self._dof_index] += force
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q, v=None, t: float = 0.0) -> SimState:
+        """Set the configuration ``q`` (nq,), velocity ``v`` (nv,) and time; clear contacts."""
+        mujoco, data = self._mj, self.mj_data
+        v = np.zeros(self.model.nv) if v is None else v
+        qpos, qvel = self.to_mujoco(q, v)
+        t = _positive("t", t, allow_zero=True)
+        mujoco.mj_resetData(self.mj_model, data)
+        data.qpos[:], data.qvel[:], data.time = qpos, qvel, t
+        mujoco.mj_forward(self.mj_model, data)
+        self._pushes: list[_Push] = []
+        self.touchdown_events: list[TouchdownEvent] = []
+        self._last_touchdowns: tuple = ()
+        self.fallen, self.fall_reason = False, None
+        self._read_contacts()
+        self._last_contact_time = t
+        if self._fall is not None:
+            self._standing_height = self._fall_pose()[0][2]
+        return self.state
+
+    @property
+    def t(self) -> float:
+        """Simulation time [s]."""
+        return float(self.mj_data.time)
+
+    @property
+    def q(self) -> np.ndarray:
+        """Configuration in Pinocchio coordinates, shape (nq,)."""
+        return self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)[0]
+
+    @property
+    def v(self) -> np.ndarray:
+        """Velocity in Pinocchio coordinates, shape (nv,)."""
+        return self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)[1]
+
+    @property
+    def state(self) -> SimState:
+        """The current :class:`~dmpopt.sim.SimState` (arrays are copies)."""
+        q, v = self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)
+        return SimState(
+            t=self.t,
+            q=q,
+            v=v,
+            contact_forces=self._forces.copy(),
+            in_contact=self._in_contact.copy(),
+            contact_positions=self._positions.copy(),
+            touchdowns=self._last_touchdowns,
+            fallen=self.fallen,
+        )
+
+    # ------------------------------------------------------------------ pushes
+    def push(self, frame_name: str, force, duration: float, offset=(0.0, 0.0, 0.0)) -> None:
+        """Apply a constant world-frame ``force`` [N] at a point of a frame for ``duration`` [s].
+
+        The push starts now; several pushes add up.
+        """
+        force = _vector("force", force, 3)
+        duration = _positive("duration", duration)
+        body, point = self._locate(frame_name, offset)
+        self._pushes.append(_Push(body, point, force, self.t + duration - 0.5 * self.dt))
+
+    def push_impulse(self, frame_name: str, impulse, duration: float = 0.05, offset=(0, 0, 0)):
+        """Apply a world-frame ``impulse`` [N s] spread evenly over ``duration`` [s]."""
+        impulse = _vector("impulse", impulse, 3)
+        duration = _positive("duration", duration)
+        self.push(frame_name, impulse / duration, duration, offset)
+
+    def _apply_pushes(self) -> None:
+        """Add the active pushes to ``qfrc_applied``; needs the current kinematics."""
+        self._pushes = [p for p in self._pushes if p.end_time > self.t]
+        data = self.mj_data
+        for p in self._pushes:
+            point = data.xpos[p.body] + data.xmat[p.body].reshape(3, 3) @ p.point_in_body
+            self._mj.mj_applyFT(
+                self.mj_model, data, p.force, np.zeros(3), point, p.body, data.qfrc_applied
+            )
+
+    # ------------------------------------------------------------------ dynamics
+    def step(self, tau, base_force=None) -> SimState:
+        """Advance one time step under actuated joint torques ``tau``.
+
+        Parameters
+        ----------
+        tau : array_like, shape (n_actuated,)
+            Torques/forces of the actuated joints, in the order of ``v[n_base_dofs:]``.
+        base_force : array_like, shape (n_base_dofs,), optional
+            Generalised force on the base coordinates (Pinocchio's, e.g. a boom).
+
+        Returns
+        -------
+        SimState
+
+        Raises
+        ------
+        SimulationDiverged
+            When MuJoCo reports an unstable acceleration or the state exceeds ``max_speed``.
+        """
+        mujoco, model, data = self._mj, self.mj_model, self.mj_data
+        force = np.zeros(self.model.nv)
+        force[self.n_base_dofs :] = _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
+        if base_force is not None:
+            force[: self.n_base_dofs] = _vector("base_force", base_force, self.n_base_dofs)
+        data.qfrc_applied[:] = 0.0
+        mujoco.mj_step1(model, data)  # kinematics and collisions at the current state
+        self._generalized_to_mujoco(force, data.qfrc_applied)
+        if self._pushes:
+            self._apply_pushes()
+        mujoco.mj_step2(model, data)
+        self._check_stable()
+        was_in_contact = self._in_contact
+        self._read_contacts()  # contacts found and solved at the start of the step
+        mujoco.mj_kinematics(model, data)  # body poses at the new state
+        started = np.flatnonzero(self._in_contact & ~was_in_contact)
+        self._last_touchdowns = tuple(
+            TouchdownEvent(self.t, int(i), self.contact_frames[i], self._positions[i].copy())
+            for i in started
+        )
+        self.touchdown_events.extend(self._last_touchdowns)
+        if self._fall is not None and not self.fallen:
+            self._check_fall()
+        return self.state
+
+    def _read_contacts(self) -> None:
+        """Forces, positions and contact flags of the contact points (start of the last step)."""
+        n, data = self._n_points, self.mj_data
+        self._positions = data.site_xpos[self._point_sites]
+        self._forces, self._in_contact = np.zeros((n, 3)), np.zeros(n, dtype=bool)
+        if not data.ncon:
+            return
+        contacts = data.contact
+        pairs = self._point_of_geom[contacts.geom]  # (n_contacts, 2): -1 for other geoms
+        # A sphere touches nothing but the floor: at most one contact per point.
+        points = pairs.max(axis=1)
+        ours = points >= 0
+        points = points[ours]
+        # Contact frame rows: the normal, from geom1 to geom2, then two tangents. With elliptic
+        # cones efc_force holds each contact's normal and tangential forces in that frame.
+        sign = np.where(pairs[ours, 1] >= 0, 1.0, -1.0)
+        local = data.efc_force[contacts.efc_address[ours, None] + _XYZ] * sign[:, None]
+        frames = contacts.frame[ours].reshape(-1, 3, 3)
+        self._forces[points] = np.einsum("nij,ni->nj", frames, local)
+        self._in_contact[points] = True
+
+    def _check_stable(self) -> None:
+        unstable = self.mj_data.warning.number[self._unstable]
+        if unstable.any():
+            kind = self._mj.mjtWarning(self._unstable[np.argmax(unstable > 0)])
+            raise SimulationDiverged(
+                f"MuJoCo reported {kind.name} at t = {self.t:.4f} s (it resets the state); "
+                "reduce dt or check the torques"
+            )
+        fastest = np.abs(self.mj_data.qvel).max(initial=0.0)
+        if not np.isfinite(fastest) or fastest > self.max_speed:
+            raise SimulationDiverged(
+                f"|v| reached {fastest:.3g} > max_speed = {self.max_speed:.3g} at "
+                f"t = {self.t:.4f} s; reduce dt or check the torques"
+            )
+
+    # ------------------------------------------------------------------ falls
+    def _fall_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """World position of the fall frame and its z axis (current kinematics)."""
+        data, body = self.mj_data, self._fall_body
+        rotation = data.xmat[body].reshape(3, 3)
+        frame_rotation = rotation @ self._fall_rotation
+        return data.xpos[body] + rotation @ self._fall_point, frame_rotation[:, 2]
+
+    def _check_fall(self) -> None:
+        criteria = self._fall
+        position, z_axis = self._fall_pose()
+        if self._in_contact.any():
+            self._last_contact_time = self.t
+        tilt = float(np.arccos(np.clip(z_axis[2], -1.0, 1.0)))
+        if position[2] < criteria.height_fraction * self._standing_height:
+            self.fall_reason = (
+                f"{criteria.frame} at {position[2]:.3f} m < {criteria.height_fraction:g} x "
+                f"{self._standing_height:.3f} m"
+            )
+        elif tilt > criteria.max_tilt:
+            self.fall_reason = f"{criteria.frame} tilted {np.degrees(tilt):.1f} deg"
+        elif self.t - self._last_contact_time > criteria.max_airborne:
+            self.fall_reason = f"no contact for {self.t - self._last_contact_time:.3f} s"
+        self.fallen = self.fall_reason is not None
+
+
+def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
+    try:
+        array = np.asarray(tau, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"tau must be numbers, got {tau!r}") from None
+    if array.shape != (n_actuated,):
+        raise ShapeError(
+            f"tau has shape {np.shape(tau)}, expected ({n_actuated},): one torque per actuated "
+            f"joint (model.nv = {nv} minus {n_base} base dofs)"
+        )
+    if not np.isfinite(array).all():
+        raise InvalidInputError(
+            f"tau must be finite; entries {np.flatnonzero(~np.isfinite(array)).tolist()} are not"
+        )
+    return array
+
+
+def _base_joint(model: pin.Model):
+    """``"free"``, a list of ``(kind, axis)`` for a composite root, or None (fixed base)."""
+    if model.njoints < 2:
+        return None
+    root = model.joints[1]
+    name = root.shortname()
+    if name == "JointModelFreeFlyer":
+        return "free"
+    if name != "JointModelComposite":
+        if model.names[1] == "root_joint":
+            raise InvalidInputError(
+                f"root joint {name} is not supported; use a free flyer, a composite of "
+                "one-axis joints, or a fixed base"
+            )
+        return None
+    axes = []
+    for joint in root.extract().joints:
+        match = re.fullmatch(r"JointModel([PR])([XYZ])", joint.shortname())
+        if match is None:
+            raise InvalidInputError(
+                f"composite root joint part {joint.shortname()} is not supported; use "
+                "JointModelP{X,Y,Z} and JointModelR{X,Y,Z} parts"
+            )
+        axes.append((match.group(1), _AXES[match.group(2)]))
+    return axes
+
+
+# ---------------------------------------------------------------------------------- rendering
+def render_animation(
+    simulator: MujocoSimulator,
+    configurations,
+    path,
+    fps: float = 25.0,
+    width: int = 480,
+    height: int = 360,
+    distance: float = 3.0,
+    max_bytes: int = 5_000_000,
+) -> Path:
+    """Render configurations offscreen and write an animated WebP or GIF.
+
+    The camera follows the root body from ``distance`` at a fixed azimuth and elevation. If the
+    file is larger than ``max_bytes``, every other frame is dropped (each shown twice as long)
+    until it fits.
+
+    Parameters
+    ----------
+    simulator : MujocoSimulator
+        Provides the model; its simulation state is not changed.
+    configurations : array_like, shape (n_frames, nq)
+        Pinocchio configurations, e.g. ``state.q`` every ``1 / (fps dt)`` steps.
+    path : str or Path
+        Output file, ``.webp`` or ``.gif``.
+    fps : float
+        Frames per second of the animation.
+    width, height : int
+        Image size [pixels].
+    distance : float
+        Camera distance to the root body [m].
+    max_bytes : int
+        Size bound of the file.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    MissingDependency
+        Without an OpenGL context (the message says why: set ``MUJOCO_GL`` to ``egl`` or
+        ``osmesa``) or without Pillow.
+    ResourceLimitError
+        If even a single frame exceeds ``max_bytes``.
+    """
+    if not isinstance(simulator, MujocoSimulator):
+        raise InvalidInputError(
+            f"simulator must be a MujocoSimulator, got {type(simulator).__name__}"
+        )
+    configurations = np.array(configurations, dtype=float, ndmin=2)
+    nq = simulator.model.nq
+    if configurations.ndim != 2 or configurations.shape[1] != nq or not len(configurations):
+        raise ShapeError(
+            f"configurations has shape {configurations.shape}, expected (n_frames, {nq})"
+        )
+    if not np.isfinite(configurations).all():
+        rows = np.flatnonzero(~np.isfinite(configurations).all(axis=1)).tolist()
+        raise InvalidInputError(f"configurations must be finite; rows {rows} are not")
+    path = Path(path)
+    if path.suffix.lower() not in (".webp", ".gif"):
+        raise InvalidInputError(f"path {str(path)!r} must end in .webp or .gif")
+    if not path.parent.is_dir():
+        raise InvalidInputError(
+            f"path {str(path)!r}: directory {str(path.parent)!r} does not exist"
+        )
+    fps = _positive("fps", fps)
+    for name, value in (("width", width), ("height", height)):
+        if not (isinstance(value, (int, np.integer)) and 16 <= value <= 4096):
+            raise InvalidInputError(
+                f"{name} must be an integer in [16, 4096] pixels, got {value!r}"
+            )
+    distance = _positive("distance", distance)
+    max_bytes = _positive("max_bytes", max_bytes)
+    try:
+        from PIL import Image
+    except ImportError:
+        raise MissingDependency(
+            "writing animations needs Pillow; install it with `pip install 'dmpopt[plot]'`"
+        ) from None
+    frames = [
+        Image.fromarray(f)
+        for f in _render_frames(simulator, configurations, width, height, distance)
+    ]
+    duration = 1000.0 / fps  # [ms] per frame
+    while True:
+        frames[0].save(
+            path, save_all=True, append_images=frames[1:], duration=round(duration), loop=0
+        )
+        size = path.stat().st_size
+        if size <= max_bytes:
+            return path
+        if len(frames) == 1:
+            raise ResourceLimitError(
+                f"one frame of {width}x{height} already takes {size} bytes > max_bytes = "
+                f"{max_bytes}; reduce width and height"
+            )
+        frames, duration = frames[::2], 2 * duration
+
+
+def _render_frames(simulator, configurations, width, height, distance) -> list[np.ndarray]:
+    """RGB images, shape (height, width, 3) each, of Pinocchio configurations."""
+    mujoco = simulator._mj
+    model = simulator.mj_model
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    try:
+        renderer = mujoco.Renderer(model, height=height, width=width)
+    except Exception as error:  # noqa: BLE001 - each GL back end fails in its own way
+        raise MissingDependency(
+            f"no OpenGL context for offscreen rendering (MUJOCO_GL="
+            f"{os.environ.get('MUJOCO_GL', '')!r}): {error}; set MUJOCO_GL=egl (GPU) or "
+            "MUJOCO_GL=osmesa (software) before importing mujoco"
+        ) from None
+    data = mujoco.MjData(model)
+    camera = mujoco.MjvCamera()
+    camera.distance, camera.azimuth, camera.elevation = distance, 135.0, -15.0
+    images = []
+    with renderer:
+        for q in configurations:
+            data.qpos[:] = simulator.to_mujoco(q, np.zeros(simulator.model.nv))[0]
+            mujoco.mj_forward(model, data)
+            camera.lookat[:] = data.xpos[1]  # the URDF root link
+            renderer.update_scene(data, camera)
+            images.append(renderer.render().copy())
+    return images

@@ -1,0 +1,444 @@
+"""Tests of the MuJoCo backend: the same robot as Pinocchio's, state conversion, contacts,
+pushes, falls, the standing Talos under the inverse-dynamics controller, rendering, bad inputs.
+
+The answer key of the model tests is Pinocchio on the same URDF: frame placements and
+velocities, the mass matrix (CRBA) and the bias forces (RNEA) must match MuJoCo's after the
+coordinate change written out here independently of the backend.
+"""
+
+import os
+import sys
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dmpopt.exceptions import (
+    FileFormatError,
+    InvalidInputError,
+    MissingDependency,
+    ResourceLimitError,
+    ShapeError,
+    SimulationDiverged,
+)
+from dmpopt.sim import MujocoSimulator, render_animation
+from dmpopt.sim.mujoco_backend import FallCriteria
+from robots import load_talos
+from robots.biped import BIPED_URDF, load_biped
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; read when mujoco is imported
+mujoco = pytest.importorskip("mujoco")
+
+GRAVITY = 9.81
+
+
+@pytest.fixture(scope="module")
+def talos():
+    return load_talos("full")
+
+
+@pytest.fixture(scope="module")
+def talos_sim(talos):
+    points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
+    return MujocoSimulator(talos.model, talos.source, contact_points=points)
+
+
+def random_state(model, seed, height=1.0):
+    """A configuration inside the joint limits (margin 0.05 rad) and a random velocity."""
+    rng = np.random.default_rng(seed)
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    lower = np.where(np.abs(lower) < 1e10, lower, -1) + 0.05  # URDFs write no limit as 1e308
+    upper = np.where(np.abs(upper) < 1e10, upper, 1) - 0.05
+    q = pin.randomConfiguration(model, np.minimum(lower, upper), np.maximum(lower, upper))
+    if model.joints[1].shortname() == "JointModelFreeFlyer":
+        q[:3] = rng.normal(size=3) + [0, 0, height]
+        quaternion = rng.normal(size=4)
+        q[3:7] = quaternion / np.linalg.norm(quaternion)
+    return q, rng.normal(size=model.nv)
+
+
+def coordinate_change(sim, q):
+    """T with qvel_mujoco = T v_pinocchio, built from MuJoCo's joint table by name."""
+    model, mj_model = sim.model, sim.mj_model
+    T = np.zeros((mj_model.nv, model.nv))
+    for joint_id in range(1, model.njoints):
+        joint, name = model.joints[joint_id], model.names[joint_id]
+        if joint.shortname() == "JointModelFreeFlyer":
+            address = mj_model.joint(name).dofadr[0]
+            T[address : address + 3, :3] = pin.Quaternion(q[3:7]).toRotationMatrix()
+            T[address + 3 : address + 6, 3:6] = np.eye(3)
+        elif joint.shortname() == "JointModelComposite":
+            for k in range(joint.nv):
+                T[mj_model.joint(f"{name}_{k}").dofadr[0], joint.idx_v + k] = 1.0
+        else:
+            T[mj_model.joint(name).dofadr[0], joint.idx_v] = 1.0
+    return T
+
+
+def assert_same_robot(sim, q, v):
+    """Frames, frame velocities, mass matrix and bias forces: Pinocchio vs MuJoCo."""
+    model, mj_model, mj_data = sim.model, sim.mj_model, sim.mj_data
+    data = model.createData()
+    sim.reset(q, v)
+    mujoco.mj_forward(mj_model, mj_data)
+    pin.forwardKinematics(model, data, q, v)
+    pin.updateFramePlacements(model, data)
+    bodies = [f for f in model.frames if f.type == pin.FrameType.BODY and f.name != "universe"]
+    assert len(bodies) > 3
+    for frame in bodies:
+        body = mj_model.body(frame.name).id
+        placement = data.oMf[model.getFrameId(frame.name)]
+        rotation = mj_data.xmat[body].reshape(3, 3)
+        np.testing.assert_allclose(mj_data.xpos[body], placement.translation, atol=1e-9)
+        np.testing.assert_allclose(rotation, placement.rotation, atol=1e-9)
+        velocity = pin.getFrameVelocity(model, data, model.getFrameId(frame.name), pin.LOCAL)
+        mj_velocity = np.empty(6)  # (angular, linear) of the body frame, local axes
+        mujoco.mj_objectVelocity(mj_model, mj_data, mujoco.mjtObj.mjOBJ_XBODY, body, mj_velocity, 1)
+        np.testing.assert_allclose(mj_velocity[3:], velocity.linear, atol=1e-8)
+        np.testing.assert_allclose(mj_velocity[:3], velocity.angular, atol=1e-8)
+    T = coordinate_change(sim, q)
+    mass = np.zeros((mj_model.nv, mj_model.nv))
+    mujoco.mj_fullM(mj_model, mj_data, mass)
+    crba = pin.crba(model, data, q)
+    crba = np.triu(crba) + np.triu(crba, 1).T
+    np.testing.assert_allclose(T.T @ mass @ T, crba, atol=1e-6 * np.abs(crba).max())
+    # T depends on q: qacc_mj = T a_pin + dT/dt v, so b_pin = T^T (b_mj + M_mj dT/dt v), where
+    # dT/dt v = (R (omega x v_linear), 0, ...) for a free flyer (0 for one-axis joints).
+    t_dot_v = np.zeros(mj_model.nv)
+    if model.joints[1].shortname() == "JointModelFreeFlyer":
+        t_dot_v[:3] = T[:3, :3] @ np.cross(v[3:6], v[:3])
+    rnea = pin.rnea(model, data, q, v, np.zeros(model.nv))
+    bias = T.T @ (mj_data.qfrc_bias + mass @ t_dot_v)
+    np.testing.assert_allclose(bias, rnea, atol=1e-6 * np.abs(rnea).max())
+
+
+# ------------------------------------------------------------------------- same robot
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_talos_is_the_same_robot_in_both(talos_sim, seed):
+    """Talos (full URDF, free flyer): placements and velocities of every link, M and the bias
+    forces agree with Pinocchio to 1e-6 relative at random states."""
+    assert_same_robot(talos_sim, *random_state(talos_sim.model, seed))
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_planar_biped_is_the_same_robot_in_both(seed):
+    """The planar biped (composite x, z, pitch base) agrees with Pinocchio as well."""
+    biped = load_biped()
+    sim = MujocoSimulator(biped.model, BIPED_URDF, contact_points=biped.contact_points)
+    assert_same_robot(sim, *random_state(biped.model, seed))
+
+
+def test_fixed_base_talos_is_the_same_robot_in_both(talos):
+    """Talos built without a free flyer (root link welded to the world) agrees as well."""
+    model = pin.buildModelFromUrdf(talos.source)
+    sim = MujocoSimulator(model, talos.source)
+    assert sim.n_base_dofs == 0
+    assert_same_robot(sim, *random_state(model, 5))
+
+
+@settings(max_examples=5, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_state_round_trip(talos_sim, seed):
+    """reset(q, v) then state gives back q (normalised quaternion) and v."""
+    q, v = random_state(talos_sim.model, seed)
+    q[3:7] *= 3.0  # an unnormalised quaternion is the same orientation
+    state = talos_sim.reset(q, v)
+    expected = q.copy()
+    expected[3:7] /= 3.0
+    np.testing.assert_allclose(state.q, expected, atol=1e-12)
+    np.testing.assert_allclose(state.v, v, atol=1e-12)
+
+
+def test_one_step_follows_pinocchio_forward_dynamics(talos_sim):
+    """In the air, one step under random torques, base force and a push: v_joints and the base
+    angular velocity (local) move by dt * ABA(q, v, f + J^T push); the base linear velocity,
+    stored in the world frame by MuJoCo, moves by dt * (a_linear + omega x v_linear) in the
+    start frame."""
+    sim, model = talos_sim, talos_sim.model
+    data = model.createData()
+    q, v = random_state(model, 3, height=3.0)
+    rng = np.random.default_rng(4)
+    tau, base_force, push = rng.normal(size=model.nv - 6), rng.normal(size=6) * 10, [40, -20, 30]
+    offset = np.array([0.1, -0.2, 0.05])
+    sim.reset(q, v)
+    sim.push("arm_left_4_link", push, duration=0.01, offset=offset)
+    state = sim.step(tau, base_force=base_force)
+    assert not state.in_contact.any()
+    pin.computeJointJacobians(model, data, q)
+    frame = model.frames[model.getFrameId("arm_left_4_link")]
+    point = pin.SE3(np.eye(3), frame.placement.act(offset))
+    jacobian = pin.getFrameJacobian(model, data, frame.parentJoint, point, pin.LOCAL_WORLD_ALIGNED)
+    force = np.r_[base_force, tau] + jacobian[:3].T @ push
+    acceleration = pin.aba(model, data, q, v, force)
+    expected = v + sim.dt * acceleration
+    np.testing.assert_allclose(state.v[3:], expected[3:], rtol=1e-9, atol=1e-9)
+    start, end = (pin.Quaternion(x[3:7]).toRotationMatrix() for x in (q, state.q))
+    linear = end.T @ start @ (v[:3] + sim.dt * (acceleration[:3] + np.cross(v[3:6], v[:3])))
+    np.testing.assert_allclose(state.v[:3], linear, rtol=1e-9, atol=1e-9)
+
+
+# ----------------------------------------------------------------------- contacts, pushes
+def test_push_impulse_changes_momentum_by_the_impulse(talos_sim):
+    """Free-floating Talos: linear momentum changes by the impulse plus m g t (Newton).
+
+    Euler steps in joint coordinates let the momentum drift by O(dt) while the limp limbs
+    flail (0.2 N s here; 0.02 N s at dt = 1e-4); one step more or less of the push would be
+    0.6 N s."""
+    sim, model = talos_sim, talos_sim.model
+    q = np.array(load_talos("full").reference_configuration)
+    q[2] = 3.0
+    sim.reset(q)
+    impulse = np.array([30.0, -12.0, 5.0])
+    sim.push_impulse("torso_2_link", impulse, duration=0.05, offset=(0.1, 0.2, 0.3))
+    n = 50  # the push's duration
+    for _ in range(n):
+        state = sim.step(np.zeros(sim.n_actuated))
+    mass = pin.computeTotalMass(model)
+    momentum = pin.computeCentroidalMomentum(model, model.createData(), state.q, state.v).linear
+    expected = impulse + mass * np.array([0, 0, -GRAVITY]) * n * sim.dt
+    np.testing.assert_allclose(momentum, expected, atol=0.3)
+
+
+def test_touchdown_at_free_fall_time_then_fall(talos, talos_sim):
+    """Dropped 2 cm with zero torque, each sole corner touches down at sqrt(2 h / g) for its
+    height h (one step of tolerance); the limp robot then falls (height criterion)."""
+    points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
+    sim = MujocoSimulator(
+        talos.model, talos.source, contact_points=points, fall=FallCriteria("base_link")
+    )
+    q = np.array(talos.reference_configuration)
+    q[2] += 0.02
+    state = sim.reset(q)
+    heights = state.contact_positions[:, 2]
+    assert not state.in_contact.any()
+    touchdown = np.full(len(points), np.nan)
+    while np.isnan(touchdown).any() and state.t < 0.2:
+        state = sim.step(np.zeros(sim.n_actuated))
+        for event in state.touchdowns:
+            touchdown[event.point] = event.time
+    assert not state.fallen
+    expected = np.sqrt(2 * heights / GRAVITY)
+    np.testing.assert_allclose(touchdown, expected, atol=1.5 * sim.dt)
+    while not state.fallen and state.t < 2.0:
+        state = sim.step(np.zeros(sim.n_actuated))
+    assert state.fallen and "base_link at" in sim.fall_reason
+
+
+# ------------------------------------------------------------------------- closed loop
+@pytest.fixture(scope="module")
+def drumming():
+    from studies import humanoid
+
+    return humanoid, humanoid.learn_drumming(humanoid.demonstrate_drumming())
+
+
+def stand_and_drum(talos, humanoid, dmps, seconds):
+    """The humanoid study's controller and DMP plan closing the loop on MuJoCo."""
+    q0 = humanoid.drumming_posture(talos)
+    q0[talos.configuration_indices(list(humanoid.DRUM_JOINTS))] = dmps.start
+    v0 = np.zeros(talos.nv)
+    v0[talos.velocity_indices(list(humanoid.DRUM_JOINTS))] = dmps.start_velocity
+    controller, task = humanoid.build_controller(talos, q0)
+    plan = humanoid.DrumPlan(dmps, humanoid.DT)
+    points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
+    sim = MujocoSimulator(
+        talos.model, talos.source, humanoid.DT, points, fall=FallCriteria("base_link")
+    )
+    state = sim.reset(q0, v0)
+    joints = talos.configuration_indices(list(humanoid.DRUM_JOINTS))
+    errors, vertical, fell = [], [], False
+    for k in range(int(round(seconds / humanoid.DT))):
+        if k:
+            plan.step()
+        task.set_reference(plan.position, plan.velocity, plan.acceleration)
+        state = sim.step(controller.compute_torques(state.q, state.v))
+        errors.append(state.q[joints] - plan.position)
+        vertical.append(state.contact_forces[:, 2].sum())
+        fell = fell or state.fallen
+    return np.array(errors), np.array(vertical), fell, plan
+
+
+def test_standing_talos_drums_on_mujoco(talos, drumming):
+    """1 s of drumming, standing on MuJoCo contacts: no fall, arm tracking RMS < 1 mrad and
+    max < 5 mrad (the arms move through ~0.3 rad; the native simulator gives 0.17 and 0.7 mrad),
+    the ground carries the weight on average (within 3 %)."""
+    humanoid, dmps = drumming
+    errors, vertical, fell, plan = stand_and_drum(talos, humanoid, dmps, 1.0)
+    assert not fell
+    assert np.sqrt(np.mean(errors**2)) < 1e-3
+    assert np.abs(errors).max() < 5e-3
+    weight = pin.computeTotalMass(talos.model) * GRAVITY
+    assert abs(vertical.mean() / weight - 1) < 0.03
+
+
+@pytest.mark.slow
+def test_standing_talos_drums_for_five_seconds(talos, drumming):
+    """5 s: no fall and the same tracking bound."""
+    humanoid, dmps = drumming
+    errors, _, fell, _ = stand_and_drum(talos, humanoid, dmps, 5.0)
+    assert not fell
+    assert np.sqrt(np.mean(errors**2)) < 1e-3
+
+
+# -------------------------------------------------------------------------- rendering
+def test_render_animation_writes_frames(talos, talos_sim, tmp_path):
+    """Three configurations become a three-frame GIF under the size bound."""
+    q = np.array(talos.reference_configuration)
+    bent = q.copy()
+    bent[talos.configuration_indices(["arm_left_4_joint"])] = -0.5
+    configurations = [q, bent, q]
+    try:
+        path = render_animation(talos_sim, configurations, tmp_path / "a.gif", width=64, height=48)
+    except MissingDependency as error:
+        pytest.skip(f"no offscreen rendering here: {error}")
+    from PIL import Image
+
+    with Image.open(path) as image:
+        assert image.n_frames == 3 and image.size == (64, 48)
+    assert path.stat().st_size < 5_000_000
+    with pytest.raises(ResourceLimitError, match="max_bytes"):
+        render_animation(talos_sim, [q], tmp_path / "b.webp", width=64, height=48, max_bytes=10)
+
+
+def test_render_without_gl_context_says_why(talos_sim, monkeypatch, tmp_path):
+    """A renderer that cannot get an OpenGL context becomes MissingDependency with the reason."""
+
+    def no_context(*args, **kwargs):
+        raise RuntimeError("eglInitialize failed")
+
+    monkeypatch.setattr(mujoco, "Renderer", no_context)
+    q = talos_sim.state.q
+    with pytest.raises(MissingDependency, match="OpenGL.*eglInitialize failed"):
+        render_animation(talos_sim, [q], tmp_path / "a.webp")
+
+
+# -------------------------------------------------------------------------- bad inputs
+def test_bad_simulator_arguments(talos, talos_sim):
+    """Each bad constructor argument is named in the error."""
+    model, urdf = talos.model, talos.source
+    for dt in (0.0, -1e-3, np.nan, "fast"):
+        with pytest.raises(InvalidInputError, match="dt must be"):
+            MujocoSimulator(model, urdf, dt=dt)
+    with pytest.raises(InvalidInputError, match="frame 'no_foot' is not in the model"):
+        MujocoSimulator(model, urdf, contact_points=[("no_foot", (0, 0, 0))])
+    with pytest.raises(InvalidInputError, match="contact_points must be a sequence"):
+        MujocoSimulator(model, urdf, contact_points=None)
+    with pytest.raises(InvalidInputError, match=r"contact_points must hold \(frame_name"):
+        MujocoSimulator(model, urdf, contact_points=["left_sole_link"])
+    with pytest.raises(ShapeError, match="offset of contact point 'left_sole_link'"):
+        MujocoSimulator(model, urdf, contact_points=[("left_sole_link", (0, 0))])
+    with pytest.raises(InvalidInputError, match="friction must be"):
+        MujocoSimulator(model, urdf, friction=-1)
+    with pytest.raises(InvalidInputError, match="damping must be"):
+        MujocoSimulator(model, urdf, damping=np.inf)
+    with pytest.raises(InvalidInputError, match="urdf '/no/such.urdf' is not a file"):
+        MujocoSimulator(model, "/no/such.urdf")
+    with pytest.raises(InvalidInputError, match="model must be a pinocchio.Model.*robot.model"):
+        MujocoSimulator(talos, urdf)
+    with pytest.raises(InvalidInputError, match="fall must be a FallCriteria"):
+        MujocoSimulator(model, urdf, fall="base_link")
+    with pytest.raises(InvalidInputError, match="max_tilt must be"):
+        FallCriteria("base_link", max_tilt=0)
+    with pytest.raises(InvalidInputError, match="max_airborne must be a number"):
+        FallCriteria("base_link", max_airborne="long")
+
+
+def test_model_and_urdf_must_be_the_same_robot(talos):
+    """Another robot's URDF, a model with other masses, a locked-joint model: named errors."""
+    biped = load_biped()
+    with pytest.raises(InvalidInputError, match="disagree on joints"):
+        MujocoSimulator(biped.model, talos.source)
+    heavier = pin.Model(talos.model)
+    inertia = heavier.inertias[5]
+    heavier.inertias[5] = pin.Inertia(inertia.mass * 1.1, inertia.lever, inertia.inertia * 1.1)
+    with pytest.raises(InvalidInputError, match="not the same robot"):
+        MujocoSimulator(heavier, talos.source)
+    upper_body = load_talos("full", fixed_base=True)
+    with pytest.raises(InvalidInputError, match="in the URDF only .*leg_left_1_joint"):
+        MujocoSimulator(upper_body.model, talos.source)
+
+
+def test_unresolved_mesh_package_names_package_dirs(talos, tmp_path):
+    """A package:// mesh that is not under package_dirs is a FileFormatError naming them."""
+    with pytest.raises(FileFormatError, match="package_dirs"):
+        MujocoSimulator(talos.model, talos.source, package_dirs=[tmp_path])
+
+
+def test_bad_state_torque_and_push_arguments(talos_sim):
+    """reset, step and push name the argument, the expected shape and what arrived."""
+    sim = talos_sim
+    nq, nv, na = sim.model.nq, sim.model.nv, sim.n_actuated
+    with pytest.raises(ShapeError, match=rf"q has shape \(3,\), expected \({nq},\)"):
+        sim.reset(np.zeros(3))
+    q = np.zeros(nq)
+    with pytest.raises(InvalidInputError, match="base quaternion"):
+        sim.reset(q)
+    q[6] = 1.0
+    with pytest.raises(InvalidInputError, match="v must be finite"):
+        sim.reset(q, np.full(nv, np.nan))
+    sim.reset(q)
+    with pytest.raises(ShapeError, match=rf"tau has shape \(2,\), expected \({na},\)"):
+        sim.step(np.zeros(2))
+    tau = np.zeros(na)
+    tau[4] = np.nan
+    with pytest.raises(InvalidInputError, match=r"tau must be finite; entries \[4\]"):
+        sim.step(tau)
+    with pytest.raises(ShapeError, match=r"base_force has shape \(2,\), expected \(6,\)"):
+        sim.step(np.zeros(na), base_force=[1, 2])
+    with pytest.raises(ShapeError, match=r"force has shape \(2,\)"):
+        sim.push("base_link", [1, 2], 0.1)
+    with pytest.raises(InvalidInputError, match="duration must be"):
+        sim.push("base_link", [1, 2, 3], 0.0)
+    with pytest.raises(InvalidInputError, match="frame 'hand' is not in the model"):
+        sim.push_impulse("hand", [1, 2, 3])
+    with pytest.raises(InvalidInputError, match="must end in .webp or .gif"):
+        render_animation(sim, [sim.state.q], "video.mp4")
+    with pytest.raises(ShapeError, match="configurations has shape"):
+        render_animation(sim, np.zeros((2, 3)), "video.gif")
+    with pytest.raises(InvalidInputError, match=r"configurations must be finite; rows \[1\]"):
+        render_animation(sim, [sim.state.q, np.full(nq, np.nan)], "video.gif")
+    with pytest.raises(InvalidInputError, match="directory '/no/such' does not exist"):
+        render_animation(sim, [sim.state.q], "/no/such/video.gif")
+
+
+def test_exploding_torques_raise_simulation_diverged(talos_sim, monkeypatch, tmp_path):
+    """Torques of 1e12 N m: SimulationDiverged naming the time, never a silent MuJoCo reset."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT in the cwd
+    talos_sim.reset(talos_sim.state.q)
+    with pytest.raises(SimulationDiverged, match="at t = "):
+        talos_sim.step(np.full(talos_sim.n_actuated, 1e12))
+
+
+def test_missing_mujoco_names_the_extra(talos, monkeypatch):
+    """Without the mujoco package: MissingDependency naming the dmpopt[mujoco] extra."""
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    with pytest.raises(MissingDependency, match=r"dmpopt\[mujoco\]"):
+        MujocoSimulator(talos.model, talos.source)
+
+
+def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator(monkeypatch):
+    """The walking study's gait (DMPs, PD, boom, frequency adaptation) on MuJoCo for 4 s: no
+    fall, and distance and heel strikes within 15 % / one strike of the native simulator's."""
+    from studies import biped as study
+
+    biped = load_biped()
+    _, dmp = study.learn_gait()
+
+    def mujoco_simulator(model, dt, contact_points, ground, n_base_dofs, fall_frame, fall_height):
+        assert n_base_dofs == 3
+        fall = FallCriteria(fall_frame, fall_height / biped.leg_length, max_tilt=np.pi / 2)
+        return MujocoSimulator(
+            model, BIPED_URDF, dt, contact_points, friction=ground.friction, fall=fall
+        )
+
+    native = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY)
+    monkeypatch.setattr(study, "Simulator", mujoco_simulator)
+    on_mujoco = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY)
+    assert not native.fell and not on_mujoco.fell, on_mujoco.diverged
+    assert native.distance > 1.0
+    assert abs(on_mujoco.distance / native.distance - 1) < 0.15
+    assert abs(len(on_mujoco.strikes) - len(native.strikes)) <= 1

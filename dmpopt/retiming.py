@@ -77,7 +77,7 @@ def time_scaled(trajectory: Trajectory, factor: float) -> Trajectory:
     """
     trajectory = _check_trajectory(trajectory)
     factor = real("factor", factor, minimum=0.0, open_minimum=True)
-    with np.errstate(over="ignore", divide="ignore"):
+    with np.errstate(all="ignore"):
         times = trajectory.times * factor
         velocities = trajectory.velocities / factor
         accelerations = trajectory.accelerations / factor**2

@@ -42,7 +42,7 @@ def real(
     low = "" if minimum is None else f"{'>' if open_minimum else '>='} {minimum:g}"
     high = "" if maximum is None else f"<= {maximum:g}"
     expected = (
-        "a finite real number"
+        "a finite number"
         + (f" {low}" if low else "")
         + (f"{' and' if low else ''} {high}" if high else "")
     )
@@ -71,9 +71,7 @@ def integer(name: str, value, *, minimum: int, maximum: int | None = None, fix: 
         _is_real_scalar(value) and np.isfinite(float(value)) and float(value).is_integer()
     )
     if not (is_int or is_integral_float) or int(value) < minimum:
-        raise InvalidInputError(
-            f"{name} must be an integer >= {minimum}, got {value!r} ({type(value).__name__})"
-        )
+        raise InvalidInputError(f"{name} must be an integer >= {minimum}, got {value!r}")
     number = int(value)
     if maximum is not None and number > maximum:
         raise ResourceLimitError(
@@ -108,7 +106,8 @@ def real_array(name: str, value, *, ndim: int | None = None, fix: str = "") -> n
     if not np.all(np.isfinite(array)):
         bad = int(array.size - np.count_nonzero(np.isfinite(array)))
         raise InvalidInputError(
-            f"{name} contains {bad} NaN or infinite value(s), expected finite numbers{_suffix(fix)}"
+            f"{name} contains {bad} NaN or infinite value(s); "
+            f"{fix or 'clean or interpolate them first'}"
         )
     return array
 

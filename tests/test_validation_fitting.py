@@ -9,10 +9,17 @@ from hypothesis import strategies as st
 
 from dmpopt import metrics, recognition, walking
 from dmpopt.exceptions import InvalidInputError, ResourceLimitError, ShapeError
-from dmpopt.fitting.constrained import Bounds, ViaPoint, fit_weights_constrained
+from dmpopt.fitting.constrained import (
+    Bounds,
+    ViaPoint,
+    diagnose_infeasibility,
+    fit_weights_constrained,
+    solve_qp,
+)
 from dmpopt.fitting.imitation import fit_discrete
 from dmpopt.fitting.minimum_jerk import (
     MIN_SEGMENT_FRACTION,
+    jerk_response,
     minimum_jerk,
     minimum_jerk_constrained,
     minimum_jerk_via_points,
@@ -22,6 +29,8 @@ from dmpopt.learning import (
     PIBB,
     EpisodicNAC,
     EpisodicReinforce,
+    LearningCurve,
+    enac_gradient,
     make_method,
     multi_dof_reaching_task,
     optimise,
@@ -40,6 +49,12 @@ TASK = paper_reaching_task(dt=0.01)
 WEIGHTS = TASK.initial_weights
 FEATURES = TASK.policy_features
 NAN = float("nan")
+CURVE = LearningCurve(
+    trials=np.array([0.0, 5.0]),
+    returns=np.array([-2.0, -1.0]),
+    improvement=np.array([0.0, 0.5]),
+    weights=np.zeros((2, 1, 10)),
+)
 
 
 def fit(**options):
@@ -68,6 +83,16 @@ BAD_INPUTS = {
     "via_points single": (lambda: fit(via_points=ViaPoint(0.5, [0.5, 0.2])), "via_points"),
     "via_points None": (lambda: fit(via_points=None), "via_points"),
     "via position dofs": (lambda: fit(via_points=[ViaPoint(0.5, [0, 0, 0])]), "via_points"),
+    "fit warm_start str": (lambda: fit(warm_start="last"), "warm_start"),
+    "diagnose None": (lambda: diagnose_infeasibility(None), "problem"),
+    "solve_qp nan gradient": (
+        lambda: solve_qp(np.eye(2), [NAN, 0.0], np.eye(2), [0, 0], [1, 1]),
+        "gradient",
+    ),
+    "solve_qp nan bound": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [NAN, 0], [1, 1]),
+        "lower",
+    ),
     "Bounds velocity bool": (lambda: Bounds(velocity=True), "velocity"),
     "Bounds velocity empty": (lambda: Bounds(velocity=[]), "velocity"),
     "Bounds velocity dofs": (lambda: fit(bounds=Bounds(velocity=[1, 2, 3])), "velocity"),
@@ -93,6 +118,7 @@ BAD_INPUTS = {
         "via_points",
     ),
     "mjv via not a ViaPoint": (lambda: minimum_jerk_via_points(0, 1, 1.0, [1]), "via_points"),
+    "jerk_response n_segments 0": (lambda: jerk_response(TIMES, 0), "n_segments"),
     "mjc n_segments str": (lambda: minimum_jerk_constrained(0, 1, 1.0, n_segments="60"), "n_seg"),
     "mjc margin nan": (lambda: minimum_jerk_constrained(0, 1, 1.0, margin=NAN), "margin"),
     "mjc bounds dict": (lambda: minimum_jerk_constrained(0, 1, 1.0, bounds={}), "bounds"),
@@ -144,6 +170,12 @@ BAD_INPUTS = {
         lambda: told(EpisodicReinforce(FEATURES, WEIGHTS, 1.0, n_rollouts=5), [0.0] * 3),
         "rewards",
     ),
+    "enac_gradient returns count": (
+        lambda: enac_gradient(np.zeros((5, 2)), np.zeros(4)),
+        "returns",
+    ),
+    "curve weights_at before start": (lambda: CURVE.weights_at(-1), "trials"),
+    "curve trials_to nan": (lambda: CURVE.trials_to(NAN), "fraction"),
     "make_method without std": (lambda: make_method("pibb", TASK), "exploration_std"),
     "optimise n_trials nan": (lambda: optimise(PIBB(WEIGHTS, 1.0), TASK, NAN), "n_trials"),
     "optimise method None": (lambda: optimise(None, TASK, 10), "method"),

@@ -810,12 +810,25 @@ def solve_qp(
     QpSolution
     """
     solver = _check_solver(solver)
-    hessian = np.ascontiguousarray(hessian, dtype=float)
-    gradient = np.asarray(gradient, dtype=float)
+    hessian = real_array("hessian", hessian, ndim=2)
+    gradient = real_array("gradient", gradient, ndim=1)
+    n = gradient.size
     matrix = np.ascontiguousarray(constraint_matrix, dtype=float)
+    if matrix.ndim != 2 or matrix.shape[1] != n:
+        raise ShapeError(f"constraint_matrix has shape {matrix.shape}, expected (m, {n})")
     lower = np.asarray(lower, dtype=float)
     upper = np.asarray(upper, dtype=float)
     m = matrix.shape[0]
+    if hessian.shape != (n, n) or lower.shape != (m,) or upper.shape != (m,):
+        raise ShapeError(
+            f"hessian {hessian.shape}, constraint_matrix {matrix.shape}, lower {lower.shape} "
+            f"and upper {upper.shape} do not fit a gradient of {n} entries"
+        )
+    if not np.all(np.isfinite(matrix)) or np.isnan(lower).any() or np.isnan(upper).any():
+        raise InvalidInputError(
+            "constraint_matrix must be finite and lower, upper free of NaN (use +-inf for "
+            "a free side)"
+        )
     begin = time.perf_counter()
     selected = np.zeros(m, dtype=bool)
     if rows is not None:  # warm start: the previous working set and a sparser grid
@@ -891,6 +904,11 @@ def diagnose_infeasibility(problem: FittingProblem) -> dict:
     group in the group's unit. Returns ``{group name: (relaxation in physical units, DOFs)}``
     for the groups that need one; empty if the linear constraints can all hold.
     """
+    if not isinstance(problem, FittingProblem):
+        raise InvalidInputError(
+            f"problem must be a FittingProblem, got {type(problem).__name__}; "
+            "build one with build_fitting_problem(...)"
+        )
     n, n_groups = problem.n_basis, len(problem.groups)
     if n_groups == 0:
         return {}
@@ -1002,6 +1020,10 @@ def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -
         problem = build_fitting_problem(problem, *args, **kwargs)
     elif args or kwargs:
         raise InvalidInputError("pass either a FittingProblem or build arguments, not both")
+    if warm_start is not None and not isinstance(warm_start, (FitReport, FittingProblem)):
+        raise InvalidInputError(
+            f"warm_start must be a FitReport or FittingProblem, got {type(warm_start).__name__}"
+        )
     source = warm_start.problem if isinstance(warm_start, FitReport) else warm_start
     source = problem if source is None else source
     previous = source.cache.get("active")

@@ -221,6 +221,13 @@ def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
     rest: e.g. the position response is :math:`R_3(t - t_i) - R_3(t - t_{i+1})` with
     :math:`R_k(x) = \\max(x, 0)^k / k!`.
     """
+    times = real_array("times", times, ndim=1)
+    n_segments = integer("n_segments", n_segments, minimum=1)
+    budget(
+        f"jerk responses at {times.size} times for {n_segments} segments",
+        3 * times.size * n_segments,
+        "lower n_segments or use fewer times",
+    )
     knots = np.linspace(0.0, times[-1], n_segments + 1)
     begin = times[:, None] - knots[None, :-1]
     end = times[:, None] - knots[None, 1:]

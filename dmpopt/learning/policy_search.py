@@ -119,6 +119,17 @@ def _check_sizes(n_rollouts: int, n_per_rollout: int, n_params: int, covariance:
         )
 
 
+def _scores_and_returns(scores, returns) -> tuple[np.ndarray, np.ndarray]:
+    scores = real_array("scores", scores, ndim=2)
+    returns = real_array("returns", returns, ndim=1)
+    if returns.shape != (scores.shape[0],):
+        raise ShapeError(
+            f"returns has shape {returns.shape}, expected ({scores.shape[0]},): one per row "
+            "of scores"
+        )
+    return scores, returns
+
+
 def enac_gradient(scores, returns) -> tuple[np.ndarray, float]:
     r"""Natural gradient and baseline by regression, [dmpopt-paper] eq. (19).
 
@@ -135,9 +146,9 @@ def enac_gradient(scores, returns) -> tuple[np.ndarray, float]:
     natural_gradient : ndarray, shape (n_params,)
     baseline : float
     """
-    scores = np.asarray(scores, dtype=float)
+    scores, returns = _scores_and_returns(scores, returns)
     design = np.column_stack([scores, np.ones(scores.shape[0])])
-    solution = np.linalg.lstsq(design, np.asarray(returns, dtype=float), rcond=None)[0]
+    solution = np.linalg.lstsq(design, returns, rcond=None)[0]
     return solution[:-1], float(solution[-1])
 
 
@@ -149,8 +160,7 @@ def reinforce_gradient(scores, returns) -> np.ndarray:
 
     (Williams 1992; the variance-minimising baseline of Peters & Schaal 2008.)
     """
-    scores = np.asarray(scores, dtype=float)
-    returns = np.asarray(returns, dtype=float)
+    scores, returns = _scores_and_returns(scores, returns)
     squared = scores**2
     baseline = (squared * returns[:, None]).sum(axis=0) / np.maximum(squared.sum(axis=0), 1e-300)
     return np.mean(scores * (returns[:, None] - baseline), axis=0)
@@ -533,10 +543,12 @@ class LearningCurve:
 
     def weights_at(self, trials: float) -> np.ndarray:
         """Mean weights after the last update that used at most ``trials`` roll-outs."""
+        trials = real("trials", trials, minimum=float(self.trials[0]))
         return self.weights[int(np.searchsorted(self.trials, trials, side="right")) - 1]
 
     def trials_to(self, fraction: float) -> float:
         """First trial count at which ``improvement >= fraction`` (``inf`` if never)."""
+        fraction = real("fraction", fraction)
         reached = np.nonzero(self.improvement >= fraction)[0]
         return float(self.trials[reached[0]]) if reached.size else float("inf")
 

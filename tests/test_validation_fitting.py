@@ -274,6 +274,10 @@ def test_bad_input_is_a_named_error(case):
 
 RESOURCE_REQUESTS = {
     "fit n_samples 1e9": (lambda: fit(n_samples=10**9), "1000000000 samples"),
+    "fit 1e5 via-points": (
+        lambda: fit(via_points=[ViaPoint(0.5, [0.5, 0.2], 0.1)] * 10**5),
+        "merge them",
+    ),
     "fit n_basis 1e6": (lambda: fit_weights_constrained(DEMO, 10**6), "1000000 basis"),
     "mj dt 1e-12": (lambda: minimum_jerk(0, 1, 1.0, 1e-12), "every 1e-12 s"),
     "mj n_samples 1e12": (lambda: minimum_jerk(0, 1, 1.0, n_samples=10**12), "n_samples"),

@@ -49,6 +49,7 @@ from ..exceptions import (
     FittingFailed,
     InfeasibleProblem,
     InvalidInputError,
+    ResourceLimitError,
     ShapeError,
 )
 from ..trajectory import Trajectory
@@ -61,6 +62,8 @@ DEFAULT_SOLVER = "daqp"
 FEASIBILITY_TOLERANCE = 1e-7
 """A constraint counts as violated on the rollout above this fraction of its unit."""
 _INFINITY = 1e20
+MAX_VIA_POINTS = 10_000
+"""Largest number of via-points :func:`build_fitting_problem` accepts."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -395,6 +398,12 @@ def _end_tolerances(*values) -> tuple:
 def _check_problem_size(n_steps, n_basis, n_dofs, bounds, n_via_points) -> None:
     """Refuse up front a problem whose matrices would exceed ``dmpopt._arguments.MAX_ELEMENTS``."""
     n_basis = integer("n_basis", n_basis, minimum=1)
+    if n_via_points > MAX_VIA_POINTS:
+        raise ResourceLimitError(
+            f"via_points holds {n_via_points} via-points, above the bound of {MAX_VIA_POINTS} "
+            "(each costs a constraint row and a check; the fit takes about 0.2 ms per "
+            "via-point); merge them or use position bounds"
+        )
     n_limits = 0 if bounds is None else 4
     rows = n_limits * n_steps + n_via_points + 3
     budget(
@@ -479,7 +488,8 @@ def build_fitting_problem(
         names it). ``None`` is the only way to leave an end condition free.
     ResourceLimitError
         The matrices would exceed 20 million entries (``n_samples * n_basis`` and the rows of
-        every sample's limits); lower ``n_samples``.
+        every sample's limits), or ``via_points`` exceeds :data:`MAX_VIA_POINTS`; lower
+        ``n_samples``.
     """
     demo = _check_demo(demo)
     if not isinstance(objective, str) or objective not in OBJECTIVES:

@@ -15,11 +15,44 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arguments import MAX_ELEMENTS, real_array
+from .exceptions import InvalidInputError, ResourceLimitError, ShapeError
 from .trajectory import Trajectory
+
+MAX_PAIRS = 1e9
+"""Largest ``n * m`` (sample pairs) that :func:`path_distance` accepts (its time grows with it)."""
+
+
+def _check_trajectory(trajectory) -> Trajectory:
+    if not isinstance(trajectory, Trajectory):
+        raise InvalidInputError(f"trajectory must be a Trajectory, got {type(trajectory).__name__}")
+    return trajectory
+
+
+def _samples(name: str, value, n_dofs: int | None = None) -> np.ndarray:
+    """Positions as a finite (n, n_dofs) array with at least two samples."""
+    array = real_array(name, value)
+    if array.ndim != 2 or array.shape[0] < 2:
+        raise ShapeError(f"{name} has shape {array.shape}, expected (n >= 2, n_dofs)")
+    if n_dofs is not None and array.shape[1] != n_dofs:
+        raise ShapeError(f"{name} has {array.shape[1]} DOFs, expected {n_dofs} like the other")
+    return array
+
+
+def _limit(name: str, value, n_dofs: int) -> np.ndarray:
+    limit = np.atleast_1d(real_array(name, value))
+    if limit.size == 1:
+        limit = np.full(n_dofs, float(limit[0]))
+    if limit.shape != (n_dofs,) or np.any(limit <= 0):
+        raise InvalidInputError(
+            f"{name} must be positive, one per DOF ({n_dofs}) or a scalar, got {limit.tolist()}"
+        )
+    return limit
 
 
 def jerk(trajectory: Trajectory) -> np.ndarray:
     """Forward finite difference of the accelerations, shape (n_steps - 1, n_dofs)."""
+    trajectory = _check_trajectory(trajectory)
     steps = np.diff(trajectory.times)[:, None]
     return np.diff(trajectory.accelerations, axis=0) / steps
 
@@ -32,11 +65,13 @@ def integrated_squared_jerk(trajectory: Trajectory) -> float:
 
 def peak_velocity(trajectory: Trajectory) -> np.ndarray:
     """Largest absolute velocity per DOF, shape (n_dofs,)."""
+    trajectory = _check_trajectory(trajectory)
     return np.max(np.abs(trajectory.velocities), axis=0)
 
 
 def peak_acceleration(trajectory: Trajectory) -> np.ndarray:
     """Largest absolute acceleration per DOF, shape (n_dofs,)."""
+    trajectory = _check_trajectory(trajectory)
     return np.max(np.abs(trajectory.accelerations), axis=0)
 
 
@@ -51,13 +86,14 @@ def limit_use(trajectory: Trajectory, velocity_limit=None, acceleration_limit=No
     Returns ``{"velocity": float, "acceleration": float}`` (largest over DOFs; 1 means a
     limit is reached, above 1 that it is exceeded). Missing limits are left out.
     """
+    n_dofs = _check_trajectory(trajectory).n_dofs
     use = {}
     if velocity_limit is not None:
-        use["velocity"] = float(np.max(peak_velocity(trajectory) / np.asarray(velocity_limit)))
+        limit = _limit("velocity_limit", velocity_limit, n_dofs)
+        use["velocity"] = float(np.max(peak_velocity(trajectory) / limit))
     if acceleration_limit is not None:
-        use["acceleration"] = float(
-            np.max(peak_acceleration(trajectory) / np.asarray(acceleration_limit))
-        )
+        limit = _limit("acceleration_limit", acceleration_limit, n_dofs)
+        use["acceleration"] = float(np.max(peak_acceleration(trajectory) / limit))
     return use
 
 
@@ -67,7 +103,8 @@ def _closest_distances(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     segment = end - start
     length2 = np.maximum(np.sum(segment**2, axis=1), 1e-300)
     best = np.full(points.shape[0], np.inf)
-    for chunk in np.array_split(np.arange(points.shape[0]), max(1, points.shape[0] // 256)):
+    rows = max(1, MAX_ELEMENTS // (4 * polyline.size))  # temporaries stay within the bound
+    for chunk in np.array_split(np.arange(points.shape[0]), -(-points.shape[0] // rows)):
         offset = points[chunk, None, :] - start[None]
         fraction = np.clip(np.sum(offset * segment[None], axis=2) / length2, 0.0, 1.0)
         nearest = start[None] + fraction[..., None] * segment[None]
@@ -87,8 +124,15 @@ def path_distance(positions: np.ndarray, reference: np.ndarray) -> float:
     ----------
     positions, reference : ndarray, shape (n, n_dofs) and (m, n_dofs)
     """
-    positions = np.asarray(positions, dtype=float)
-    reference = np.asarray(reference, dtype=float)
+    positions = _samples("positions", positions)
+    reference = _samples("reference", reference, positions.shape[1])
+    pairs = positions.shape[0] * reference.shape[0]
+    if pairs > MAX_PAIRS:
+        raise ResourceLimitError(
+            f"path_distance compares every sample of each path with every segment of the "
+            f"other: {positions.shape[0]} x {reference.shape[0]} = {pairs:.3g} pairs, above "
+            f"the bound of {MAX_PAIRS:g}; subsample the paths"
+        )
     forward = _closest_distances(positions, reference).mean()
     backward = _closest_distances(reference, positions).mean()
     return float(0.5 * (forward + backward))
@@ -96,5 +140,11 @@ def path_distance(positions: np.ndarray, reference: np.ndarray) -> float:
 
 def rms_error(positions: np.ndarray, reference: np.ndarray) -> float:
     """Root-mean-square distance between two sample sets of equal shape."""
-    difference = np.asarray(positions) - np.asarray(reference)
+    positions = _samples("positions", positions)
+    reference = _samples("reference", reference, positions.shape[1])
+    if reference.shape != positions.shape:
+        raise ShapeError(
+            f"reference has shape {reference.shape}, expected {positions.shape} like positions"
+        )
+    difference = positions - reference
     return float(np.sqrt(np.mean(np.sum(difference**2, axis=1))))

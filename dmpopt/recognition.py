@@ -58,11 +58,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._arguments import budget, integer, real, real_array
 from .dmp import DiscreteDMP, similarity_transform
 from .exceptions import InvalidInputError, ShapeError
-from .trajectory import Trajectory, as_finite_array
+from .trajectory import Trajectory
 
 METRICS = ("plan", "euclidean")
+MAX_SAMPLES = 100_000
+"""Largest ``n_samples`` (or ``plan_samples``): each is a step of a DMP rollout."""
+MAX_FEATURE = 1e150
+"""Features beyond this magnitude would overflow their squared distances."""
 DEGENERATE_DISPLACEMENT = 1e-9
 """Start-goal distances at or below this fraction of the forcing weights' size count as zero."""
 
@@ -126,7 +131,7 @@ def normalised_weights(dmp: DiscreteDMP) -> np.ndarray:
 def _check_start_velocity(value, n_dofs: int) -> np.ndarray:
     if value is None:
         return np.zeros(n_dofs)
-    velocity = np.atleast_1d(as_finite_array("start_velocity", value))
+    velocity = np.atleast_1d(real_array("start_velocity", value))
     if velocity.shape != (n_dofs,):
         raise ShapeError(
             f"start_velocity has shape {velocity.shape}, expected ({n_dofs},): the DMP's first "
@@ -135,10 +140,8 @@ def _check_start_velocity(value, n_dofs: int) -> np.ndarray:
     return velocity
 
 
-def _check_n_samples(n_samples) -> int:
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 3:
-        raise InvalidInputError(f"n_samples must be an integer >= 3, got {n_samples!r}")
-    return int(n_samples)
+def _check_n_samples(n_samples, name: str = "n_samples") -> int:
+    return integer(name, n_samples, minimum=3, maximum=MAX_SAMPLES, fix="a few hundred suffice")
 
 
 def normalised_plan(dmp: DiscreteDMP, start_velocity=None, n_samples: int = 200) -> np.ndarray:
@@ -196,7 +199,7 @@ def arc_length_resampled(positions, n_samples: int) -> np.ndarray:
 
     The path of a curve, independent of the speed at which it is traced.
     """
-    positions = as_finite_array("positions", positions)
+    positions = real_array("positions", positions)
     n_samples = _check_n_samples(n_samples)
     if positions.ndim != 2 or positions.shape[0] < 2:
         raise ShapeError(f"positions has shape {positions.shape}, expected (n_points, n_dofs)")
@@ -263,11 +266,24 @@ def _same_system(reference: DiscreteDMP, other: DiscreteDMP, index: int):
         )
 
 
+def _dmp_list(dmps) -> list:
+    """``dmps`` as a non-empty list of DiscreteDMP (a single one is wrapped)."""
+    if isinstance(dmps, DiscreteDMP):
+        dmps = [dmps]
+    if dmps is None or isinstance(dmps, (str, bytes)) or not hasattr(dmps, "__iter__"):
+        raise InvalidInputError(
+            f"dmps must be a sequence of fitted DiscreteDMP, got {type(dmps).__name__}"
+        )
+    dmps = list(dmps)
+    if not dmps:
+        raise InvalidInputError("dmps is empty; pass at least one fitted DiscreteDMP")
+    for index, dmp in enumerate(dmps):
+        _check_dmp(dmp, f"dmps[{index}]")
+    return dmps
+
+
 def _check_weight(name: str, value) -> float:
-    value = float(value)
-    if not np.isfinite(value) or value < 0.0:
-        raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
-    return value
+    return real(name, value, minimum=0.0)
 
 
 def movement_features(
@@ -314,22 +330,17 @@ def movement_features(
         Invariant to translation, uniform scaling and time stretching of the movements (the
         path block is left out when ``path_weight`` is 0).
     """
-    if metric not in METRICS:
+    if not isinstance(metric, str) or metric not in METRICS:
         raise InvalidInputError(f"metric must be one of {METRICS}, got {metric!r}")
     direction_weight = _check_weight("direction_weight", direction_weight)
     path_weight = _check_weight("path_weight", path_weight)
-    if isinstance(dmps, DiscreteDMP):
-        dmps = [dmps]
-    dmps = list(dmps)
-    if not dmps:
-        raise InvalidInputError("dmps is empty; pass at least one fitted DiscreteDMP")
+    dmps = _dmp_list(dmps)
     for index, dmp in enumerate(dmps):
-        _check_dmp(dmp, f"dmps[{index}]")
         _same_system(dmps[0], dmp, index)
     n_dofs = dmps[0].n_dofs
     if start_velocities is None:
         start_velocities = np.zeros((len(dmps), n_dofs))
-    start_velocities = as_finite_array("start_velocities", start_velocities)
+    start_velocities = real_array("start_velocities", start_velocities)
     if start_velocities.shape != (len(dmps), n_dofs):
         raise ShapeError(
             f"start_velocities has shape {start_velocities.shape}, expected "
@@ -361,9 +372,16 @@ def movement_features(
 
 
 def _check_features(features, name: str = "features", n_features: int | None = None):
-    features = as_finite_array(name, features)
-    if features.ndim != 2 or features.shape[0] < 1:
+    if isinstance(features, np.ndarray) and features.ndim == 2 and features.size == 0:
         raise ShapeError(f"{name} has shape {features.shape}, expected (n_samples, n_features)")
+    features = real_array(name, features)
+    if features.ndim != 2:
+        raise ShapeError(f"{name} has shape {features.shape}, expected (n_samples, n_features)")
+    if np.abs(features).max() > MAX_FEATURE:
+        raise InvalidInputError(
+            f"{name} holds values up to {np.abs(features).max():.3g}, beyond {MAX_FEATURE:g} "
+            "(their squared distances would overflow); rescale the features"
+        )
     if n_features is not None and features.shape[1] != n_features:
         raise ShapeError(
             f"{name} has shape {features.shape}, expected (n_samples, {n_features}) like the "
@@ -374,6 +392,12 @@ def _check_features(features, name: str = "features", n_features: int | None = N
 
 def _check_labels(labels, n_samples: int) -> np.ndarray:
     labels = np.asarray(labels)
+    if labels.dtype.kind not in "iuUSb" and not (
+        labels.dtype.kind == "f" and np.all(np.isfinite(labels))
+    ):
+        raise InvalidInputError(
+            f"labels must be integers or strings, got dtype {labels.dtype} ({labels!r:.60})"
+        )
     if labels.shape != (n_samples,):
         raise ShapeError(
             f"labels has shape {labels.shape}, expected ({n_samples},): one label per sample"
@@ -476,10 +500,13 @@ class ShrinkageLdaClassifier:
 
     def fit(self, features, labels) -> ShrinkageLdaClassifier:
         """Class means and the whitening of the shrunk pooled covariance; returns ``self``."""
-        shrinkage = float(self.shrinkage)
-        if not 0.0 < shrinkage <= 1.0:
-            raise InvalidInputError(f"shrinkage must be in (0, 1], got {self.shrinkage!r}")
+        shrinkage = real("shrinkage", self.shrinkage, minimum=0.0, maximum=1.0, open_minimum=True)
         features = _check_features(features)
+        budget(
+            f"the covariance of {features.shape[1]} features",
+            features.shape[1] ** 2,
+            "reduce the features (e.g. fewer basis functions or path samples)",
+        )
         labels = _check_labels(labels, features.shape[0])
         classes, index = np.unique(labels, return_inverse=True)
         membership = np.eye(classes.size)[index]  # (n_samples, n_classes)
@@ -532,6 +559,15 @@ def leave_one_out(classifier, samples, labels, queries=None) -> np.ndarray:
     -------
     ndarray, shape (n_samples,)
     """
+    if not (hasattr(classifier, "fit") and hasattr(classifier, "predict")):
+        raise InvalidInputError(
+            f"classifier must have fit() and predict(), got {type(classifier).__name__}"
+        )
+    if not hasattr(samples, "__len__") or isinstance(samples, (str, bytes)):
+        raise InvalidInputError(
+            f"samples must be an array of feature rows or a list of DMPs, got "
+            f"{type(samples).__name__}"
+        )
     labels = _check_labels(labels, len(samples))
     if labels.size < 2:
         raise InvalidInputError("leave_one_out needs at least two samples")
@@ -555,6 +591,9 @@ def confusion_matrix(labels, predictions, classes=None) -> np.ndarray:
     ``classes`` defaults to the sorted distinct values of ``labels`` and ``predictions``.
     """
     labels = np.asarray(labels)
+    if labels.ndim != 1:
+        raise ShapeError(f"labels has shape {labels.shape}, expected (n_samples,)")
+    labels = _check_labels(labels, labels.size)
     predictions = _check_labels(predictions, labels.size)
     if classes is None:
         classes = np.unique(np.concatenate([labels, predictions]))
@@ -652,8 +691,7 @@ class PartialObservationClassifier:
 
     def fit(self, dmps: Sequence[DiscreteDMP], labels) -> PartialObservationClassifier:
         """Roll out and store each DMP's plan over its fitted duration; returns ``self``."""
-        fractions = as_finite_array("fractions", self.fractions)
-        fractions = np.atleast_1d(fractions)
+        fractions = np.atleast_1d(real_array("fractions", self.fractions))
         if (
             fractions.ndim != 1
             or fractions.size == 0
@@ -664,18 +702,13 @@ class PartialObservationClassifier:
                 f"fractions must be a non-empty list of numbers in (0, 1], got {self.fractions!r}"
             )
         for name in ("n_samples", "plan_samples"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 3:
-                raise InvalidInputError(f"{name} must be an integer >= 3, got {value!r}")
-        if isinstance(dmps, DiscreteDMP):
-            dmps = [dmps]
-        dmps = list(dmps)
+            _check_n_samples(getattr(self, name), name)
+        if not isinstance(self.rotation, (bool, np.bool_)):
+            raise InvalidInputError(f"rotation must be True or False, got {self.rotation!r}")
+        dmps = _dmp_list(dmps)
         labels = _check_labels(labels, len(dmps))
-        if not dmps:
-            raise InvalidInputError("dmps is empty; pass at least one fitted DiscreteDMP")
         plans = []
         for index, dmp in enumerate(dmps):
-            _check_dmp(dmp, f"dmps[{index}]")
             if dmp.n_dofs != dmps[0].n_dofs:
                 raise ShapeError(
                     f"dmps[{index}] has {dmp.n_dofs} DOFs, expected {dmps[0].n_dofs} like dmps[0]"
@@ -727,9 +760,9 @@ class PartialObservationClassifier:
 
 def first_part(trajectory: Trajectory, fraction: float = 0.5) -> Trajectory:
     """Keep the samples of ``trajectory`` in the first ``fraction`` of its duration."""
-    fraction = float(fraction)
-    if not 0.0 < fraction <= 1.0:
-        raise InvalidInputError(f"fraction must be in (0, 1], got {fraction!r}")
+    if not isinstance(trajectory, Trajectory):
+        raise InvalidInputError(f"trajectory must be a Trajectory, got {type(trajectory).__name__}")
+    fraction = real("fraction", fraction, minimum=0.0, maximum=1.0, open_minimum=True)
     end = trajectory.times[0] + fraction * trajectory.duration
     keep = trajectory.times <= end + 1e-12 * max(trajectory.duration, 1.0)
     if keep.sum() < 3:

@@ -23,32 +23,48 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._arguments import budget, integer, real, real_array
 from .exceptions import InvalidInputError, NoSolutionFound, ShapeError
 from .trajectory import Trajectory
 
 _TOLERANCE = 1e-9
+MAX_GRIDPOINTS = 100_000
+"""Largest toppra grid :func:`retime` accepts (its time grows linearly with the grid)."""
+
+
+def _check_trajectory(trajectory) -> Trajectory:
+    if not isinstance(trajectory, Trajectory):
+        raise InvalidInputError(
+            f"trajectory must be a Trajectory, got {type(trajectory).__name__}; "
+            "build one with Trajectory.from_positions(times, positions)"
+        )
+    return trajectory
 
 
 def _limits(name: str, value, n_dofs: int):
     if value is None:
         return None
-    value = np.atleast_1d(np.asarray(value, dtype=float))
+    value = np.atleast_1d(real_array(name, value))
     if value.size == 1:
         value = np.full(n_dofs, float(value[0]))
     if value.shape != (n_dofs,):
-        raise ShapeError(f"{name} has shape {value.shape}, expected ({n_dofs},)")
-    if not np.all(np.isfinite(value)) or np.any(value <= 0):
-        raise InvalidInputError(f"{name} must be positive and finite, got {value.tolist()}")
+        raise ShapeError(f"{name} has shape {value.shape}, expected ({n_dofs},): one per DOF")
+    if np.any(value <= 0):
+        raise InvalidInputError(f"{name} must be positive, got {value.tolist()}")
     return value
 
 
 def _robot_arguments(robot, torque_limit, n_dofs):
+    import pinocchio as pin
+
     if (robot is None) != (torque_limit is None):
         raise InvalidInputError(
             "torque limits need both robot (a pinocchio.Model) and torque_limit"
         )
     if robot is None:
         return None, None
+    if not isinstance(robot, pin.Model):
+        raise InvalidInputError(f"robot must be a pinocchio.Model, got {type(robot).__name__}")
     if robot.nq != n_dofs or robot.nv != n_dofs:
         raise ShapeError(f"robot has nq = {robot.nq}, nv = {robot.nv}; the plan has {n_dofs} DOFs")
     return robot, _limits("torque_limit", torque_limit, n_dofs)
@@ -59,15 +75,18 @@ def time_scaled(trajectory: Trajectory, factor: float) -> Trajectory:
 
     For a DMP this is exactly ``dmp.with_time_constant(c * tau)`` (Section 3.3).
     """
-    factor = float(factor)
-    if not factor > 0:
-        raise InvalidInputError(f"factor must be positive, got {factor!r}")
-    return Trajectory(
-        trajectory.times * factor,
-        trajectory.positions,
-        trajectory.velocities / factor,
-        trajectory.accelerations / factor**2,
-    )
+    trajectory = _check_trajectory(trajectory)
+    factor = real("factor", factor, minimum=0.0, open_minimum=True)
+    with np.errstate(all="ignore"):
+        times = trajectory.times * factor
+        velocities = trajectory.velocities / factor
+        accelerations = trajectory.accelerations / factor**2
+    if not all(np.all(np.isfinite(a)) for a in (times, velocities, accelerations)):
+        raise InvalidInputError(
+            f"factor = {factor!r} overflows the scaled times, velocities or accelerations; "
+            "give a factor nearer 1"
+        )
+    return Trajectory(times, trajectory.positions, velocities, accelerations)
 
 
 def _torque_parts(robot, trajectory: Trajectory):
@@ -102,14 +121,21 @@ def uniform_time_scaling(
 
     Raises
     ------
+    InvalidInputError
+        Without any limit, or if the trajectory neither moves nor accelerates (every factor
+        then respects the limits: there is no smallest one).
     NoSolutionFound
         If gravity alone exceeds a torque limit somewhere on the path.
     """
-    n_dofs = trajectory.n_dofs
+    n_dofs = _check_trajectory(trajectory).n_dofs
     velocity_limit = _limits("velocity_limit", velocity_limit, n_dofs)
     acceleration_limit = _limits("acceleration_limit", acceleration_limit, n_dofs)
     robot, torque_limit = _robot_arguments(robot, torque_limit, n_dofs)
-    factor = 1e-12
+    if velocity_limit is None and acceleration_limit is None and robot is None:
+        raise InvalidInputError(
+            "give at least one of velocity_limit, acceleration_limit, robot and torque_limit"
+        )
+    factor = 0.0
     if velocity_limit is not None:
         factor = max(factor, float(np.max(np.abs(trajectory.velocities) / velocity_limit)))
     if acceleration_limit is not None:
@@ -126,7 +152,34 @@ def uniform_time_scaling(
             )
         need = np.where(dynamic > 0, dynamic / room_up, -dynamic / room_down)
         factor = max(factor, float(np.sqrt(np.max(need))))
+    if not factor > 0.0:
+        raise InvalidInputError(
+            "trajectory neither moves nor accelerates, so every time scaling respects the "
+            "limits and there is no smallest factor"
+        )
     return float(factor)
+
+
+def _shortest_duration(trajectory: Trajectory, velocity_limit, acceleration_limit) -> float:
+    """A lower bound of any timing's duration: travel / velocity limit, and from rest the
+    largest excursion ``D`` needs ``sqrt(2 D / a)`` under an acceleration limit ``a``."""
+    bound = 0.0
+    positions = trajectory.positions
+    if velocity_limit is not None:
+        travel = np.abs(np.diff(positions, axis=0)).sum(axis=0)
+        bound = max(bound, float(np.max(travel / velocity_limit)))
+    if acceleration_limit is not None:
+        excursion = np.abs(positions - positions[0]).max(axis=0)
+        bound = max(bound, float(np.max(np.sqrt(2 * excursion / acceleration_limit))))
+    return bound
+
+
+def _check_output_size(duration: float, dt: float, n_dofs: int = 1) -> None:
+    budget(
+        f"the retimed trajectory ({duration:.4g} s sampled every {dt:g} s, {n_dofs} DOFs)",
+        4 * (duration / dt + 1) * n_dofs,
+        "raise dt or the limits",
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,20 +238,29 @@ def retime(
     ------
     NoSolutionFound
         If toppra finds no admissible timing (e.g. gravity exceeds a torque limit).
+    ResourceLimitError
+        If the result would hold more than 20 million values (``duration / dt`` samples;
+        checked on a lower bound of the duration before toppra runs, and on toppra's
+        duration before sampling), or ``n_gridpoints`` exceeds :data:`MAX_GRIDPOINTS`.
     """
     import toppra as ta
     import toppra.algorithm as algorithm
     import toppra.constraint as constraint
 
-    if not isinstance(trajectory, Trajectory):
-        raise InvalidInputError(f"trajectory must be a Trajectory, got {type(trajectory).__name__}")
-    n_dofs = trajectory.n_dofs
+    n_dofs = _check_trajectory(trajectory).n_dofs
     velocity_limit = _limits("velocity_limit", velocity_limit, n_dofs)
     acceleration_limit = _limits("acceleration_limit", acceleration_limit, n_dofs)
     robot, torque_limit = _robot_arguments(robot, torque_limit, n_dofs)
     if velocity_limit is None and acceleration_limit is None and robot is None:
         raise InvalidInputError("give at least one of velocity_limit, acceleration_limit, robot")
-    dt = float(np.mean(np.diff(trajectory.times))) if dt is None else float(dt)
+    if dt is None:
+        dt = float(np.mean(np.diff(trajectory.times)))
+    dt = real("dt", dt, minimum=0.0, open_minimum=True)
+    n_gridpoints = integer(
+        "n_gridpoints", n_gridpoints, minimum=3, maximum=MAX_GRIDPOINTS, fix="use a coarser grid"
+    )
+    shortest = _shortest_duration(trajectory, velocity_limit, acceleration_limit)
+    _check_output_size(shortest, dt, n_dofs)
     path_time = trajectory.times - trajectory.times[0]
     path = ta.SplineInterpolator(path_time, trajectory.positions)
     constraints = []
@@ -231,7 +293,7 @@ def retime(
                 discretization_scheme=constraint.DiscretizationType.Interpolation,
             )
         )
-    gridpoints = np.linspace(0.0, path_time[-1], max(int(n_gridpoints), 3))
+    gridpoints = np.linspace(0.0, path_time[-1], n_gridpoints)
     begin = time.perf_counter()
     instance = algorithm.TOPPRA(
         constraints, path, gridpoints=gridpoints, parametrizer="ParametrizeConstAccel"
@@ -245,6 +307,7 @@ def retime(
             stats={"solve_time": elapsed},
         )
     duration = float(timed.duration)
+    _check_output_size(duration, dt, n_dofs)
     n_steps = max(int(np.ceil(duration / dt)) + 1, 3)
     times = np.linspace(0.0, duration, n_steps)
     result = Trajectory(times, timed(times), timed(times, 1), timed(times, 2))

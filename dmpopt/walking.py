@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dmpopt.exceptions import InvalidInputError
+from dmpopt._arguments import real, real_array
+from dmpopt.exceptions import InvalidInputError, ShapeError
 
 __all__ = [
     "FrequencyAdaptation",
@@ -44,9 +45,22 @@ def measured_frequency(step_duration: float) -> float:
     step_duration : float
         :math:`T_n`, time between two successive heel strikes [s] (half a gait period).
     """
-    if not (np.isfinite(step_duration) and step_duration > 0):
-        raise InvalidInputError(f"step_duration must be > 0 [s], got {step_duration!r}")
+    step_duration = real("step_duration", step_duration, minimum=0.0, open_minimum=True)
     return float(np.pi / step_duration)
+
+
+def _check_gain(gain) -> float:
+    return real("gain", gain, minimum=0.0, maximum=2.0, fix="[0, 1] converges without overshoot")
+
+
+def _check_leg(name: str, leg) -> int:
+    if (
+        isinstance(leg, (bool, np.bool_))
+        or not isinstance(leg, (int, np.integer))
+        or leg not in (0, 1)
+    ):
+        raise InvalidInputError(f"{name} must be 0 or 1, got {leg!r}")
+    return int(leg)
 
 
 def adapt_frequency(frequency: float, step_duration: float, gain: float) -> float:
@@ -68,16 +82,16 @@ def adapt_frequency(frequency: float, step_duration: float, gain: float) -> floa
     float
         :math:`\omega_{n+1}` [rad/s].
     """
-    if not 0.0 <= gain <= 2.0:
-        raise InvalidInputError(f"gain must be in [0, 2] for a stable update, got {gain!r}")
+    frequency = real("frequency", frequency, minimum=0.0, open_minimum=True)
+    gain = _check_gain(gain)
     return float(frequency + gain * (measured_frequency(step_duration) - frequency))
 
 
 def heel_strike_phase(leg: int, oscillator_leg: int = 0) -> float:
     r"""Oscillator phase at a heel strike, :math:`\phi_{\mathrm{robot}}^{\mathrm{heelstrike}}`
     of eq. (21): 0 for the oscillator's own leg, :math:`\pi` for the other leg [rad]."""
-    if leg not in (0, 1):
-        raise InvalidInputError(f"leg must be 0 or 1, got {leg!r}")
+    leg = _check_leg("leg", leg)
+    oscillator_leg = _check_leg("oscillator_leg", oscillator_leg)
     return 0.0 if leg == oscillator_leg else float(np.pi)
 
 
@@ -88,6 +102,14 @@ class HeelStrike:
     time: float
     leg: int
     position: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "time", real("time", self.time))
+        object.__setattr__(self, "leg", _check_leg("leg", self.leg))
+        position = real_array("position", self.position)
+        if position.shape != (3,):
+            raise ShapeError(f"position has shape {position.shape}, expected (3,)")
+        object.__setattr__(self, "position", position)
 
 
 class HeelStrikeDetector:
@@ -106,13 +128,14 @@ class HeelStrikeDetector:
     """
 
     def __init__(self, min_swing_time: float = 0.1, alternate: bool = True):
-        if not min_swing_time >= 0:
-            raise InvalidInputError(f"min_swing_time must be >= 0 [s], got {min_swing_time!r}")
-        self.min_swing_time = float(min_swing_time)
-        self.alternate = alternate
+        self.min_swing_time = real("min_swing_time", min_swing_time, minimum=0.0)
+        if not isinstance(alternate, (bool, np.bool_)):
+            raise InvalidInputError(f"alternate must be True or False, got {alternate!r}")
+        self.alternate = bool(alternate)
         self.strikes: list[HeelStrike] = []
         self._lift_off = [-np.inf, -np.inf]
         self._was_in_contact = [True, True]
+        self._time = -np.inf
 
     def update(self, time: float, in_contact, positions=None) -> HeelStrike | None:
         """Feed the contact flags of both feet at ``time``; return a new heel strike or None.
@@ -125,9 +148,24 @@ class HeelStrikeDetector:
         positions : array_like, shape (2, 3), optional
             Foot positions, stored with the strike.
         """
+        time = real("time", time)
+        if time < self._time:
+            raise InvalidInputError(
+                f"time must not decrease between updates, got {time!r} after {self._time!r}"
+            )
+        self._time = time
+        flags = np.asarray(in_contact) if in_contact is not None else np.asarray(None)
+        if flags.shape != (2,) or flags.dtype.kind not in "biu":
+            raise InvalidInputError(
+                f"in_contact must be two booleans (one per foot), got {in_contact!r}"
+            )
+        if positions is not None:
+            positions = real_array("positions", positions)
+            if positions.shape != (2, 3):
+                raise ShapeError(f"positions has shape {positions.shape}, expected (2, 3)")
         strike = None
         for leg in (0, 1):
-            touching = bool(in_contact[leg])
+            touching = bool(flags[leg])
             was = self._was_in_contact[leg]
             if was and not touching:
                 self._lift_off[leg] = time
@@ -136,8 +174,8 @@ class HeelStrikeDetector:
                 last_leg = self.strikes[-1].leg if self.strikes else None
                 alternates = not self.alternate or last_leg != leg
                 if airborne >= self.min_swing_time and alternates:
-                    where = np.zeros(3) if positions is None else np.asarray(positions[leg])
-                    strike = HeelStrike(float(time), leg, np.array(where, dtype=float))
+                    where = np.zeros(3) if positions is None else positions[leg]
+                    strike = HeelStrike(time, leg, where)
                     self.strikes.append(strike)
             self._was_in_contact[leg] = touching
         return strike
@@ -178,11 +216,15 @@ class FrequencyAdaptation:
     _last_strike_time: float | None = None
 
     def __post_init__(self):
-        if not (np.isfinite(self.frequency) and self.frequency > 0):
-            raise InvalidInputError(f"frequency must be > 0 [rad/s], got {self.frequency!r}")
-        if not 0.0 <= self.gain <= 2.0:
-            raise InvalidInputError(f"gain must be in [0, 2], got {self.gain!r}")
-        self.frequencies = [float(self.frequency)]
+        self.frequency = real("frequency", self.frequency, minimum=0.0, open_minimum=True)
+        self.gain = _check_gain(self.gain)
+        self.oscillator_leg = _check_leg("oscillator_leg", self.oscillator_leg)
+        for name in ("reset_phase", "adapt"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise InvalidInputError(
+                    f"{name} must be True or False, got {getattr(self, name)!r}"
+                )
+        self.frequencies = [self.frequency]
 
     def on_heel_strike(self, strike: HeelStrike) -> tuple[float | None, float]:
         """Apply eq. (21) at a heel strike.
@@ -195,8 +237,15 @@ class FrequencyAdaptation:
             :math:`\\omega_{n+1}` [rad/s] (unchanged when adaptation is off or at the first
             strike, which has no step duration yet).
         """
+        if not isinstance(strike, HeelStrike):
+            raise InvalidInputError(f"strike must be a HeelStrike, got {type(strike).__name__}")
         if self._last_strike_time is not None:
             duration = strike.time - self._last_strike_time
+            if not duration > 0:
+                raise InvalidInputError(
+                    f"strike.time = {strike.time!r} does not follow the previous heel strike at "
+                    f"{self._last_strike_time!r}; feed strikes in time order"
+                )
             self.step_durations.append(duration)
             if self.adapt:
                 self.frequency = adapt_frequency(self.frequency, duration, self.gain)

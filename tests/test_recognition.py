@@ -370,7 +370,7 @@ def test_error_classifier_inputs():
         "features contains 1 NaN or infinite value(s); clean or interpolate them first",
     ):
         fitted.predict([[np.nan, 0.0, 0.0]])
-    with _raises(InvalidInputError, "shrinkage must be in (0, 1], got 0.0"):
+    with _raises(InvalidInputError, "shrinkage must be a finite number > 0 and <= 1, got 0.0"):
         ShrinkageLdaClassifier(0.0).fit(features, [0, 1, 2, 3])
     with _raises(ShapeError, "queries has 2 entries, expected 4: one per sample"):
         leave_one_out(NearestNeighbourClassifier(), features, [0, 1, 2, 3], np.zeros((2, 3)))
@@ -392,7 +392,7 @@ def test_error_partial_inputs(dmp, demo):
     still = Trajectory.from_positions(np.arange(5.0), np.ones((5, 2)))
     with _raises(InvalidInputError, "observation does not move, so it matches every shape"):
         classifier.match(still)
-    with _raises(InvalidInputError, "fraction must be in (0, 1], got 0.0"):
+    with _raises(InvalidInputError, "fraction must be a finite number > 0 and <= 1, got 0.0"):
         first_part(demo, 0.0)
 
 

@@ -79,11 +79,11 @@ def test_detector_reports_alternating_strikes_and_ignores_chatter():
 
 
 def test_bad_arguments_are_named():
-    with pytest.raises(InvalidInputError, match="step_duration must be > 0"):
+    with pytest.raises(InvalidInputError, match="step_duration must be a finite number > 0"):
         measured_frequency(0.0)
-    with pytest.raises(InvalidInputError, match="gain must be in"):
+    with pytest.raises(InvalidInputError, match="gain must be a finite number >= 0 and <= 2"):
         adapt_frequency(1.0, 0.5, -0.1)
     with pytest.raises(InvalidInputError, match="leg must be 0 or 1"):
         heel_strike_phase(2)
-    with pytest.raises(InvalidInputError, match="frequency must be > 0"):
+    with pytest.raises(InvalidInputError, match="frequency must be a finite number > 0"):
         FrequencyAdaptation(frequency=0.0)

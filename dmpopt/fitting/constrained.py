@@ -43,14 +43,16 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from .._arguments import budget, integer, real, real_array, sequence_of
 from ..dmp import AffinePlan, DiscreteDMP, similarity_transform
 from ..exceptions import (
     FittingFailed,
     InfeasibleProblem,
     InvalidInputError,
+    ResourceLimitError,
     ShapeError,
 )
-from ..trajectory import Trajectory, as_finite_array
+from ..trajectory import Trajectory
 from .imitation import _check_demo, fit_discrete
 
 OBJECTIVES = ("position", "forcing")
@@ -60,6 +62,8 @@ DEFAULT_SOLVER = "daqp"
 FEASIBILITY_TOLERANCE = 1e-7
 """A constraint counts as violated on the rollout above this fraction of its unit."""
 _INFINITY = 1e20
+MAX_VIA_POINTS = 10_000
+"""Largest number of via-points :func:`build_fitting_problem` accepts."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -70,7 +74,7 @@ _INFINITY = 1e20
 def _optional_array(name: str, value, positive: bool = False):
     if value is None:
         return None
-    array = np.atleast_1d(as_finite_array(name, value))
+    array = np.atleast_1d(real_array(name, value))
     if array.ndim != 1:
         raise ShapeError(f"{name} has shape {array.shape}, expected (n_dofs,) or a scalar")
     if positive and np.any(array <= 0.0):
@@ -131,12 +135,16 @@ class ViaPoint:
     norm: str = "box"
 
     def __post_init__(self):
-        object.__setattr__(self, "time", float(as_finite_array("time", self.time)))
+        object.__setattr__(self, "time", real("time", self.time, minimum=0.0))
+        if self.position is None:
+            raise InvalidInputError("position must be an array of real numbers, got None")
         object.__setattr__(self, "position", _optional_array("position", self.position))
-        tolerance = np.atleast_1d(as_finite_array("tolerance", self.tolerance))
-        if np.any(tolerance < 0.0):
-            raise InvalidInputError(f"tolerance must be non-negative, got {tolerance.tolist()}")
-        if self.norm not in ("box", "ball"):
+        tolerance = np.atleast_1d(real_array("tolerance", self.tolerance))
+        if tolerance.ndim != 1 or np.any(tolerance < 0.0):
+            raise InvalidInputError(
+                f"tolerance must be a number >= 0 or one per DOF, got {tolerance.tolist()}"
+            )
+        if not isinstance(self.norm, str) or self.norm not in ("box", "ball"):
             raise InvalidInputError(f"norm must be 'box' or 'ball', got {self.norm!r}")
         if self.norm == "ball" and tolerance.size != 1:
             raise InvalidInputError("a 'ball' via-point takes one scalar tolerance (its radius)")
@@ -379,6 +387,34 @@ def _moved_demonstration(demo, dmp, start, goal, times, duration):
     return moved, velocity
 
 
+def _end_tolerances(*values) -> tuple:
+    names = ("end_position_tolerance", "end_velocity_tolerance", "end_acceleration_tolerance")
+    return tuple(
+        None if value is None else real(name, value, minimum=0.0, fix="pass None to leave it free")
+        for name, value in zip(names, values)
+    )
+
+
+def _check_problem_size(n_steps, n_basis, n_dofs, bounds, n_via_points) -> None:
+    """Refuse up front a problem whose matrices would exceed ``dmpopt._arguments.MAX_ELEMENTS``."""
+    n_basis = integer("n_basis", n_basis, minimum=1)
+    if n_via_points > MAX_VIA_POINTS:
+        raise ResourceLimitError(
+            f"via_points holds {n_via_points} via-points, above the bound of {MAX_VIA_POINTS} "
+            "(each costs a constraint row and a check; the fit takes about 0.2 ms per "
+            "via-point); merge them or use position bounds"
+        )
+    n_limits = 0 if bounds is None else 4
+    rows = n_limits * n_steps + n_via_points + 3
+    budget(
+        f"a constrained fit with {n_steps} samples, {n_basis} basis functions, {n_dofs} DOFs and "
+        f"{n_via_points} via-points",
+        max(3 * n_steps * n_basis, rows * n_basis, n_steps * n_dofs, n_basis**2),
+        "lower n_samples (constraints hold at every sample; a few hundred suffice), "
+        "n_basis or the number of via-points",
+    )
+
+
 def build_fitting_problem(
     demo: Trajectory,
     n_basis: int = 30,
@@ -444,28 +480,55 @@ def build_fitting_problem(
     Returns
     -------
     FittingProblem
+
+    Raises
+    ------
+    InvalidInputError, ShapeError
+        An argument is not finite, out of range, of the wrong type or DOF count (the message
+        names it). ``None`` is the only way to leave an end condition free.
+    ResourceLimitError
+        The matrices would exceed 20 million entries (``n_samples * n_basis`` and the rows of
+        every sample's limits), or ``via_points`` exceeds :data:`MAX_VIA_POINTS`; lower
+        ``n_samples``.
     """
     demo = _check_demo(demo)
-    if objective not in OBJECTIVES:
+    if not isinstance(objective, str) or objective not in OBJECTIVES:
         raise InvalidInputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
     solver = _check_solver(solver)
     if bounds is not None and not isinstance(bounds, Bounds):
-        raise InvalidInputError(f"bounds must be a Bounds, got {type(bounds).__name__}")
+        raise InvalidInputError(
+            f"bounds must be a Bounds, got {type(bounds).__name__}; "
+            "write bounds=Bounds(velocity=..., acceleration=...)"
+        )
+    via_points = sequence_of("via_points", via_points, ViaPoint)
+    tolerances = _end_tolerances(
+        end_position_tolerance, end_velocity_tolerance, end_acceleration_tolerance
+    )
+    regularization = real("regularization", regularization, minimum=0.0)
+    margin = real("margin", margin, minimum=0.0, maximum=0.1, fix="keep it tiny, e.g. 1e-6")
+    duration = (
+        demo.duration
+        if duration is None
+        else real("duration", duration, minimum=0.0, open_minimum=True)
+    )
+    n_steps = demo.n_steps if n_samples is None else integer("n_samples", n_samples, minimum=3)
+    n_dofs = demo.n_dofs
+    n_basis = reference.n_basis if isinstance(reference, DiscreteDMP) else n_basis
+    _check_problem_size(n_steps, n_basis, n_dofs, bounds, len(via_points))
     if reference is None:
         reference = fit_discrete(
             demo, n_basis, form=form, goal_scaling=goal_scaling, regularization=regularization
         )
     elif not isinstance(reference, DiscreteDMP) or reference.n_dofs != demo.n_dofs:
         raise InvalidInputError("reference must be a DiscreteDMP with the demonstration's DOFs")
-    n_dofs = demo.n_dofs
-    start = demo.positions[0] if start is None else _per_dof("start", np.asarray(start), n_dofs)
-    goal = demo.positions[-1] if goal is None else _per_dof("goal", np.asarray(goal), n_dofs)
-    duration = demo.duration if duration is None else float(duration)
-    if not duration > 0:
-        raise InvalidInputError(f"duration must be positive, got {duration!r}")
-    n_steps = demo.n_steps if n_samples is None else int(n_samples)
-    if n_steps < 3:
-        raise InvalidInputError(f"n_samples must be at least 3, got {n_samples!r}")
+    start = (
+        demo.positions[0]
+        if start is None
+        else _per_dof("start", real_array("start", start), n_dofs)
+    )
+    goal = (
+        demo.positions[-1] if goal is None else _per_dof("goal", real_array("goal", goal), n_dofs)
+    )
     dt = duration / (n_steps - 1)
     times = np.arange(n_steps) * dt
 
@@ -474,7 +537,9 @@ def build_fitting_problem(
     target, moved_velocity = _moved_demonstration(demo, dmp, start, goal, times, duration)
     if start_velocity is None:
         start_velocity = moved_velocity
-    start_velocity = _per_dof("start_velocity", np.asarray(start_velocity, float), n_dofs)
+    start_velocity = _per_dof(
+        "start_velocity", real_array("start_velocity", start_velocity), n_dofs
+    )
     plan = dmp.affine_plan(duration, dt, start_velocity=start_velocity)
     response = plan.weight_response
 
@@ -510,6 +575,8 @@ def build_fitting_problem(
     def add(name, quantity, select, matrix_rows, lower, upper):
         lower = np.broadcast_to(lower, (matrix_rows.shape[0], n_dofs)).astype(float)
         upper = np.broadcast_to(upper, (matrix_rows.shape[0], n_dofs)).astype(float)
+        if np.isnan(lower).any() or np.isnan(upper).any():  # NaN would read as "no limit"
+            raise InvalidInputError(f"the bounds of '{name}' contain NaN; give finite limits")
         checks[name] = (select, lower, upper)
         blocks.append((name, quantity, select, matrix_rows, lower, upper))
 
@@ -547,10 +614,7 @@ def build_fitting_problem(
             )
     # via-points: plan interpolated linearly between the neighbouring samples
     balls, ball_rows = [], []
-    via_points = tuple(via_points)
     for i, via in enumerate(via_points):
-        if not isinstance(via, ViaPoint):
-            raise InvalidInputError(f"via_points[{i}] must be a ViaPoint, got {type(via).__name__}")
         point = _per_dof(f"via_points[{i}].position", via.position, n_dofs)
         k, a = _interpolation(via.time, dt, n_steps, f"via_points[{i}]")
         row = (1 - a) * response[0, k] + a * response[0, k + 1]
@@ -573,16 +637,11 @@ def build_fitting_problem(
             point + tolerance,
         )
     # end conditions at the last sample: goal reached, at rest
-    for quantity, index, tolerance, centre in (
-        ("position", 0, end_position_tolerance, goal),
-        ("velocity", 1, end_velocity_tolerance, 0.0),
-        ("acceleration", 2, end_acceleration_tolerance, 0.0),
+    for (quantity, index, centre), tolerance in zip(
+        (("position", 0, goal), ("velocity", 1, 0.0), ("acceleration", 2, 0.0)), tolerances
     ):
         if tolerance is None:
             continue
-        tolerance = float(tolerance)
-        if tolerance < 0:
-            raise InvalidInputError(f"end_{quantity}_tolerance must be >= 0, got {tolerance}")
         add(
             f"end_{quantity}",
             quantity,
@@ -761,12 +820,25 @@ def solve_qp(
     QpSolution
     """
     solver = _check_solver(solver)
-    hessian = np.ascontiguousarray(hessian, dtype=float)
-    gradient = np.asarray(gradient, dtype=float)
+    hessian = real_array("hessian", hessian, ndim=2)
+    gradient = real_array("gradient", gradient, ndim=1)
+    n = gradient.size
     matrix = np.ascontiguousarray(constraint_matrix, dtype=float)
+    if matrix.ndim != 2 or matrix.shape[1] != n:
+        raise ShapeError(f"constraint_matrix has shape {matrix.shape}, expected (m, {n})")
     lower = np.asarray(lower, dtype=float)
     upper = np.asarray(upper, dtype=float)
     m = matrix.shape[0]
+    if hessian.shape != (n, n) or lower.shape != (m,) or upper.shape != (m,):
+        raise ShapeError(
+            f"hessian {hessian.shape}, constraint_matrix {matrix.shape}, lower {lower.shape} "
+            f"and upper {upper.shape} do not fit a gradient of {n} entries"
+        )
+    if not np.all(np.isfinite(matrix)) or np.isnan(lower).any() or np.isnan(upper).any():
+        raise InvalidInputError(
+            "constraint_matrix must be finite and lower, upper free of NaN (use +-inf for "
+            "a free side)"
+        )
     begin = time.perf_counter()
     selected = np.zeros(m, dtype=bool)
     if rows is not None:  # warm start: the previous working set and a sparser grid
@@ -842,6 +914,11 @@ def diagnose_infeasibility(problem: FittingProblem) -> dict:
     group in the group's unit. Returns ``{group name: (relaxation in physical units, DOFs)}``
     for the groups that need one; empty if the linear constraints can all hold.
     """
+    if not isinstance(problem, FittingProblem):
+        raise InvalidInputError(
+            f"problem must be a FittingProblem, got {type(problem).__name__}; "
+            "build one with build_fitting_problem(...)"
+        )
     n, n_groups = problem.n_basis, len(problem.groups)
     if n_groups == 0:
         return {}
@@ -953,6 +1030,10 @@ def fit_weights_constrained(problem=None, /, *args, warm_start=None, **kwargs) -
         problem = build_fitting_problem(problem, *args, **kwargs)
     elif args or kwargs:
         raise InvalidInputError("pass either a FittingProblem or build arguments, not both")
+    if warm_start is not None and not isinstance(warm_start, (FitReport, FittingProblem)):
+        raise InvalidInputError(
+            f"warm_start must be a FitReport or FittingProblem, got {type(warm_start).__name__}"
+        )
     source = warm_start.problem if isinstance(warm_start, FitReport) else warm_start
     source = problem if source is None else source
     previous = source.cache.get("active")

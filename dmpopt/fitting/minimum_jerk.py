@@ -27,8 +27,9 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..exceptions import InfeasibleProblem, InvalidInputError
-from ..trajectory import Trajectory, as_finite_array
+from .._arguments import MAX_ELEMENTS, budget, integer, real, real_array, sequence_of
+from ..exceptions import InfeasibleProblem, InvalidInputError, ShapeError
+from ..trajectory import Trajectory
 from .constrained import (
     Bounds,
     ViaPoint,
@@ -36,25 +37,50 @@ from .constrained import (
     solve_qp,
 )
 
+MIN_SEGMENT_FRACTION = 0.01
+"""Via-points must be at least this fraction of the duration away from each other and from
+both ends. In time normalised by the duration, the via-point system's condition number grows
+like ``(duration / gap) ** 5`` (about 1e11 at 1 %), and the optimum's peak acceleration like
+``(duration / gap) ** 2`` times the plain movement's (1e4 at 1 %): closer via-points give
+numbers that no robot can follow (a via-point 1e-12 s after the start gave positions of 1e22)."""
 
-def _grid(duration: float, dt: float | None, n_samples: int | None) -> np.ndarray:
-    duration = float(duration)
-    if not np.isfinite(duration) or duration <= 0:
-        raise InvalidInputError(f"duration must be positive, got {duration!r}")
+
+def _grid(duration, dt, n_samples, n_dofs: int) -> np.ndarray:
+    duration = real("duration", duration, minimum=0.0, open_minimum=True)
     if n_samples is None:
-        if dt is None or not dt > 0:
-            raise InvalidInputError(f"dt must be positive, got {dt!r}")
+        dt = real(
+            "dt",
+            dt,
+            minimum=0.0,
+            maximum=duration / 2,
+            open_minimum=True,
+            fix="or give n_samples",
+        )
+        estimate = duration / dt + 1
+        budget(
+            f"sampling {duration:g} s every {dt:g} s ({n_dofs} DOFs)",
+            4 * estimate * n_dofs,
+            "raise dt or shorten the duration",
+        )
         n_samples = int(round(duration / dt)) + 1
-    if n_samples < 3:
-        raise InvalidInputError(f"at least 3 samples are needed, got {n_samples}")
+    else:
+        n_samples = integer(
+            "n_samples",
+            n_samples,
+            minimum=3,
+            maximum=MAX_ELEMENTS // (4 * n_dofs),
+            fix="sample more coarsely",
+        )
     return np.linspace(0.0, duration, n_samples)
 
 
 def _endpoints(start, goal):
-    start = np.atleast_1d(as_finite_array("start", start))
-    goal = np.atleast_1d(as_finite_array("goal", goal))
-    if start.shape != goal.shape or start.ndim != 1:
-        raise InvalidInputError(f"start {start.shape} and goal {goal.shape} must be equal 1-D")
+    start = np.atleast_1d(real_array("start", start))
+    goal = np.atleast_1d(real_array("goal", goal))
+    if start.ndim != 1 or start.shape != goal.shape:
+        raise ShapeError(
+            f"start has shape {start.shape} and goal {goal.shape}; expected both (n_dofs,)"
+        )
     return start, goal
 
 
@@ -74,7 +100,7 @@ def minimum_jerk(
         Number of samples on ``[0, duration]``.
     """
     start, goal = _endpoints(start, goal)
-    times = _grid(duration, dt, n_samples)
+    times = _grid(duration, dt, n_samples, start.size)
     s = times / times[-1]
     shape = 10 * s**3 - 15 * s**4 + 6 * s**5
     rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / times[-1]
@@ -85,13 +111,31 @@ def minimum_jerk(
     )
 
 
-def _quintic_rows(t: float, derivative: int) -> np.ndarray:
-    """Row of ``d^k/dt^k [1, t, ..., t^5]`` at ``t``."""
-    row = np.zeros(6)
+def _quintic_rows(t, derivative: int) -> np.ndarray:
+    """Rows of ``d^k/dt^k [1, t, ..., t^5]`` at ``t`` (a float: shape (6,); an array: (n, 6))."""
+    t = np.asarray(t, dtype=float)
+    rows = np.zeros(t.shape + (6,))
     for power in range(derivative, 6):
         factor = np.prod(np.arange(power - derivative + 1, power + 1)) if derivative else 1.0
-        row[power] = factor * t ** (power - derivative)
-    return row
+        rows[..., power] = factor * t ** (power - derivative)
+    return rows
+
+
+def _via_knots(via_points, duration: float) -> tuple:
+    """Via-points sorted by time and the knots ``0, t_1, ..., duration``; gaps checked."""
+    vias = sorted(sequence_of("via_points", via_points, ViaPoint), key=lambda via: via.time)
+    knots = np.array([0.0] + [via.time for via in vias] + [duration])
+    gap = MIN_SEGMENT_FRACTION * duration
+    too_close = np.nonzero(np.diff(knots) < gap)[0]
+    if too_close.size:
+        k = int(too_close[0])
+        raise InvalidInputError(
+            f"via_points: times {knots[k]:.12g} s and {knots[k + 1]:.12g} s (counting the start 0 "
+            f"and the end {duration:g} s) are closer than {MIN_SEGMENT_FRACTION:g} of the "
+            f"duration ({gap:g} s); the optimum through them would need absurd accelerations. "
+            "Spread the via-points, drop one or lengthen the duration"
+        )
+    return vias, knots
 
 
 def minimum_jerk_via_points(
@@ -106,17 +150,22 @@ def minimum_jerk_via_points(
     """Exact rest-to-rest minimum-jerk movement through via-points (tolerances ignored).
 
     Piecewise quintic; at each via-point the position is prescribed and velocity,
-    acceleration, jerk and snap are continuous.
+    acceleration, jerk and snap are continuous. Solved in time normalised by the duration.
+
+    Raises
+    ------
+    InvalidInputError
+        If two via-points, or a via-point and an end, are closer than
+        :data:`MIN_SEGMENT_FRACTION` of the duration (hence at most 99 via-points).
     """
     start, goal = _endpoints(start, goal)
-    times = _grid(duration, dt, n_samples)
-    vias = sorted(via_points, key=lambda via: via.time)
-    knots = [0.0] + [via.time for via in vias] + [float(times[-1])]
-    if np.any(np.diff(knots) <= 0):
-        raise InvalidInputError("via-point times must be distinct and inside (0, duration)")
+    times = _grid(duration, dt, n_samples, start.size)
+    total = float(times[-1])
+    vias, knots = _via_knots(via_points, total)
+    knots = knots / total  # normalised time: conditioning independent of the duration
     n_segments = len(knots) - 1
     n_dofs = start.size
-    points = [_per_dof("via_point.position", via.position, n_dofs) for via in vias]
+    points = [_per_dof(f"via_points[{i}].position", v.position, n_dofs) for i, v in enumerate(vias)]
     size = 6 * n_segments
     system = np.zeros((size, size))
     rhs = np.zeros((size, n_dofs))
@@ -145,13 +194,11 @@ def minimum_jerk_via_points(
             system[row, right] = -_quintic_rows(0.0, k)
             row += 1
     coefficients = np.linalg.solve(system, rhs)
-    segment = np.clip(np.searchsorted(knots, times, side="right") - 1, 0, n_segments - 1)
-    local = times - np.asarray(knots)[segment]
-    values = []
-    for k in range(3):
-        basis = np.stack([_quintic_rows(t, k) for t in local])  # (n, 6)
-        blocks = coefficients.reshape(n_segments, 6, n_dofs)[segment]  # (n, 6, d)
-        values.append(np.einsum("nc,ncd->nd", basis, blocks))
+    normalised = times / total
+    segment = np.clip(np.searchsorted(knots, normalised, side="right") - 1, 0, n_segments - 1)
+    local = normalised - knots[segment]
+    blocks = coefficients.reshape(n_segments, 6, n_dofs)[segment]  # (n, 6, d)
+    values = [np.einsum("nc,ncd->nd", _quintic_rows(local, k), blocks) / total**k for k in range(3)]
     return Trajectory(times, *values)
 
 
@@ -174,6 +221,13 @@ def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
     rest: e.g. the position response is :math:`R_3(t - t_i) - R_3(t - t_{i+1})` with
     :math:`R_k(x) = \\max(x, 0)^k / k!`.
     """
+    times = real_array("times", times, ndim=1)
+    n_segments = integer("n_segments", n_segments, minimum=1)
+    budget(
+        f"jerk responses at {times.size} times for {n_segments} segments",
+        3 * times.size * n_segments,
+        "lower n_segments or use fewer times",
+    )
     knots = np.linspace(0.0, times[-1], n_segments + 1)
     begin = times[:, None] - knots[None, :-1]
     end = times[:, None] - knots[None, 1:]
@@ -201,13 +255,38 @@ def minimum_jerk_constrained(
     ------
     InfeasibleProblem
         If the bounds and via-points cannot all hold within ``duration``.
+    ResourceLimitError
+        If the QP's matrices (about ``7 * n_samples * n_segments`` entries) would exceed
+        20 million entries.
     """
     start, goal = _endpoints(start, goal)
-    times = _grid(duration, dt, n_samples)
+    times = _grid(duration, dt, n_samples, start.size)
     n_dofs, duration = start.size, float(times[-1])
     step = times[1] - times[0]
-    if n_segments < 3:
-        raise InvalidInputError(f"n_segments must be at least 3, got {n_segments}")
+    n_segments = integer("n_segments", n_segments, minimum=3)
+    margin = real("margin", margin, minimum=0.0, maximum=0.1, fix="keep it tiny, e.g. 1e-6")
+    if bounds is not None and not isinstance(bounds, Bounds):
+        raise InvalidInputError(
+            f"bounds must be a Bounds, got {type(bounds).__name__}; "
+            "write bounds=Bounds(velocity=..., acceleration=...)"
+        )
+    via_points = sequence_of("via_points", via_points, ViaPoint)
+    for i, via in enumerate(via_points):
+        if via.norm != "box":
+            raise InvalidInputError(
+                f"via_points[{i}] has norm {via.norm!r}; minimum_jerk_constrained takes 'box' "
+                "via-points only"
+            )
+        if via.time > duration:
+            raise InvalidInputError(
+                f"via_points[{i}].time = {via.time:g} s is after the end ({duration:g} s); "
+                "give a time within the duration"
+            )
+    budget(
+        f"a minimum-jerk QP with {times.size} samples and {n_segments} jerk segments",
+        (3 + 4) * times.size * n_segments,
+        "lower n_segments or sample more coarsely (raise dt)",
+    )
     response = jerk_response(times, n_segments)
     length = float(max(np.abs(goal - start).max(), 1e-12))
     if via_points:
@@ -279,10 +358,8 @@ def minimum_jerk_constrained(
                 limit,
             )
     for i, via in enumerate(via_points):
-        if via.norm != "box":
-            raise InvalidInputError("minimum_jerk_constrained takes 'box' via-points only")
-        point = _per_dof("position", via.position, n_dofs)
-        tolerance = _per_dof("tolerance", via.tolerance, n_dofs)
+        point = _per_dof(f"via_points[{i}].position", via.position, n_dofs)
+        tolerance = _per_dof(f"via_points[{i}].tolerance", via.tolerance, n_dofs)
         one = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
         add(f"via_point[{i}]", 0, one, start[None, :], point - tolerance, point + tolerance)
 

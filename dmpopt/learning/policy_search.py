@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._arguments import budget, integer, real, real_array
 from ..exceptions import InvalidInputError, MissingDependency, ShapeError
 
 __all__ = [
@@ -81,7 +82,9 @@ class Exploration:
 
 
 def _as_returns(rewards, n_rollouts: int) -> np.ndarray:
-    rewards = np.asarray(rewards, dtype=float)
+    rewards = real_array(
+        "rewards", rewards, fix="a failed roll-out needs a finite (e.g. very low) reward"
+    )
     if rewards.ndim == 2:
         rewards = rewards.sum(axis=1)
     if rewards.shape != (n_rollouts,):
@@ -90,8 +93,41 @@ def _as_returns(rewards, n_rollouts: int) -> np.ndarray:
             f"({n_rollouts}, n_steps) per-step rewards for the {n_rollouts} roll-outs asked"
         )
     if not np.all(np.isfinite(rewards)):
-        raise InvalidInputError("rewards contain non-finite values")
+        raise InvalidInputError("rewards overflow when summed over the steps; rescale them")
     return rewards
+
+
+def _initial_weights(value) -> np.ndarray:
+    weights = np.atleast_2d(real_array("initial_weights", value))
+    if weights.ndim != 2:
+        raise ShapeError(f"initial_weights has shape {weights.shape}, expected (n_dofs, n_basis)")
+    return weights
+
+
+def _check_sizes(n_rollouts: int, n_per_rollout: int, n_params: int, covariance: bool) -> None:
+    """Refuse batches (and covariance matrices) beyond the allocation bound."""
+    budget(
+        f"{n_rollouts} roll-outs of {n_per_rollout} values each",
+        n_rollouts * n_per_rollout,
+        "lower n_rollouts",
+    )
+    if covariance:
+        budget(
+            f"a covariance over {n_params} weights",
+            n_params**2,
+            "learn fewer weights (fewer basis functions or DOFs)",
+        )
+
+
+def _scores_and_returns(scores, returns) -> tuple[np.ndarray, np.ndarray]:
+    scores = real_array("scores", scores, ndim=2)
+    returns = real_array("returns", returns, ndim=1)
+    if returns.shape != (scores.shape[0],):
+        raise ShapeError(
+            f"returns has shape {returns.shape}, expected ({scores.shape[0]},): one per row "
+            "of scores"
+        )
+    return scores, returns
 
 
 def enac_gradient(scores, returns) -> tuple[np.ndarray, float]:
@@ -110,9 +146,9 @@ def enac_gradient(scores, returns) -> tuple[np.ndarray, float]:
     natural_gradient : ndarray, shape (n_params,)
     baseline : float
     """
-    scores = np.asarray(scores, dtype=float)
+    scores, returns = _scores_and_returns(scores, returns)
     design = np.column_stack([scores, np.ones(scores.shape[0])])
-    solution = np.linalg.lstsq(design, np.asarray(returns, dtype=float), rcond=None)[0]
+    solution = np.linalg.lstsq(design, returns, rcond=None)[0]
     return solution[:-1], float(solution[-1])
 
 
@@ -124,8 +160,7 @@ def reinforce_gradient(scores, returns) -> np.ndarray:
 
     (Williams 1992; the variance-minimising baseline of Peters & Schaal 2008.)
     """
-    scores = np.asarray(scores, dtype=float)
-    returns = np.asarray(returns, dtype=float)
+    scores, returns = _scores_and_returns(scores, returns)
     squared = scores**2
     baseline = (squared * returns[:, None]).sum(axis=0) / np.maximum(squared.sum(axis=0), 1e-300)
     return np.mean(scores * (returns[:, None] - baseline), axis=0)
@@ -155,20 +190,17 @@ class PolicySearch(ABC):
     def tell(self, rewards) -> None:
         """Rewards of the last batch asked: (K,) returns or (K, n_steps) per-step rewards."""
 
-    def _check_pending(self):
+    def _pending_returns(self, rewards) -> tuple[np.ndarray, np.ndarray]:
+        """The pending batch and the checked returns; the batch stays pending on an error."""
         if getattr(self, "_pending", None) is None:
             raise InvalidInputError("tell() called without a pending ask(); call ask() first")
+        returns = _as_returns(rewards, self._pending.shape[0])
+        pending, self._pending = self._pending, None
+        return pending, returns
 
 
-def _check_common(n_rollouts, step_size, decay, step_rule=None):
-    if int(n_rollouts) != n_rollouts or n_rollouts < 2:
-        raise InvalidInputError(f"n_rollouts must be an integer >= 2, got {n_rollouts!r}")
-    if not np.isfinite(step_size) or step_size <= 0:
-        raise InvalidInputError(f"step_size must be positive, got {step_size!r}")
-    if not np.isfinite(decay) or decay < 0:
-        raise InvalidInputError(f"decay must be >= 0, got {decay!r}")
-    if step_rule is not None and step_rule not in STEP_RULES:
-        raise InvalidInputError(f"step_rule must be one of {STEP_RULES}, got {step_rule!r}")
+def _check_exploration_std(value) -> float:
+    return real("exploration_std", value, minimum=0.0, open_minimum=True)
 
 
 class _ActionSpaceGradient(PolicySearch):
@@ -186,23 +218,26 @@ class _ActionSpaceGradient(PolicySearch):
         learn_exploration: bool = False,
         seed=None,
     ):
-        features = np.asarray(features, dtype=float)
-        weights = np.atleast_2d(np.asarray(initial_weights, dtype=float))
+        features = real_array("features", features)
+        weights = _initial_weights(initial_weights)
         if features.ndim != 2 or features.shape[1] != weights.shape[1]:
             raise ShapeError(
                 f"features has shape {features.shape}, expected (n_actions, {weights.shape[1]}) "
                 f"to match initial_weights {weights.shape}"
             )
-        if not np.isfinite(exploration_std) or exploration_std <= 0:
-            raise InvalidInputError(f"exploration_std must be positive, got {exploration_std!r}")
-        _check_common(n_rollouts, step_size, decay, step_rule)
+        exploration_std = _check_exploration_std(exploration_std)
+        n_rollouts = integer("n_rollouts", n_rollouts, minimum=2)
+        if not isinstance(step_rule, str) or step_rule not in STEP_RULES:
+            raise InvalidInputError(f"step_rule must be one of {STEP_RULES}, got {step_rule!r}")
+        n_params = weights.size + 1
+        _check_sizes(n_rollouts, features.shape[0] * weights.shape[0], n_params, True)
         self.features = features
         self._weights = weights.copy()
         self.log_std = float(np.log(exploration_std))
-        self.n_rollouts = int(n_rollouts)
-        self.step_size = float(step_size)
+        self.n_rollouts = n_rollouts
+        self.step_size = real("step_size", step_size, minimum=0.0, open_minimum=True)
         self.step_rule = step_rule
-        self.decay = float(decay)
+        self.decay = real("decay", decay, minimum=0.0)
         self.learn_exploration = bool(learn_exploration)
         self.rng = np.random.default_rng(seed)
         self.n_trials = 0
@@ -256,9 +291,7 @@ class _ActionSpaceGradient(PolicySearch):
         """Ascent direction in the layout of :meth:`scores`."""
 
     def tell(self, rewards) -> None:
-        self._check_pending()
-        noise, self._pending = self._pending, None
-        returns = _as_returns(rewards, noise.shape[0])
+        noise, returns = self._pending_returns(rewards)
         direction = self.direction(self.scores(noise), returns)
         if self.step_rule == "kl":
             curvature = float(direction @ self.fisher() @ direction)
@@ -340,21 +373,20 @@ class PIBB(PolicySearch):
         covariance_rate: float = 0.5,
         seed=None,
     ):
-        weights = np.atleast_2d(np.asarray(initial_weights, dtype=float))
-        _check_common(n_rollouts, 1.0, 0.0)
-        if not np.isfinite(exploration_std) or exploration_std <= 0:
-            raise InvalidInputError(f"exploration_std must be positive, got {exploration_std!r}")
-        if not 0 < decay <= 1:
-            raise InvalidInputError(f"decay must be in (0, 1], got {decay!r}")
+        weights = _initial_weights(initial_weights)
+        n_rollouts = integer("n_rollouts", n_rollouts, minimum=2)
+        exploration_std = _check_exploration_std(exploration_std)
+        decay = real("decay", decay, minimum=0.0, maximum=1.0, open_minimum=True)
+        _check_sizes(n_rollouts, weights.size, weights.size, True)
         self.shape = weights.shape
         self._mean = weights.ravel().copy()
         self.covariance = np.eye(self._mean.size) * exploration_std**2
         self._floor = 1e-6 * exploration_std**2
-        self.n_rollouts = int(n_rollouts)
-        self.eliteness = float(eliteness)
-        self.decay = float(decay)
+        self.n_rollouts = n_rollouts
+        self.eliteness = real("eliteness", eliteness, minimum=0.0, open_minimum=True)
+        self.decay = decay
         self.adapt_covariance = bool(adapt_covariance)
-        self.covariance_rate = float(covariance_rate)
+        self.covariance_rate = real("covariance_rate", covariance_rate, minimum=0.0, maximum=1.0)
         self.rng = np.random.default_rng(seed)
         self.n_trials = 0
         self.n_updates = 0
@@ -370,9 +402,7 @@ class PIBB(PolicySearch):
         return Exploration(weights=samples.reshape((-1,) + self.shape))
 
     def tell(self, rewards) -> None:
-        self._check_pending()
-        samples, self._pending = self._pending, None
-        returns = _as_returns(rewards, samples.shape[0])
+        samples, returns = self._pending_returns(rewards)
         spread = returns.max() - returns.min()
         scaled = (returns - returns.max()) / spread if spread > 0 else np.zeros_like(returns)
         probabilities = np.exp(self.eliteness * scaled)
@@ -412,8 +442,14 @@ class CMAES(PolicySearch):
             raise MissingDependency(
                 "CMAES needs the 'cma' package: pip install 'dmpopt[rl]'"
             ) from error
-        weights = np.atleast_2d(np.asarray(initial_weights, dtype=float))
-        _check_common(n_rollouts, 1.0, 0.0)
+        weights = _initial_weights(initial_weights)
+        n_rollouts = integer("n_rollouts", n_rollouts, minimum=2)
+        exploration_std = _check_exploration_std(exploration_std)
+        if options is not None and not isinstance(options, dict):
+            raise InvalidInputError(
+                f"options must be a dict of cma options, got {type(options).__name__}"
+            )
+        _check_sizes(n_rollouts, weights.size, weights.size, True)
         self.shape = weights.shape
         seed = int(np.random.default_rng(seed).integers(1, 2**31 - 1))  # cma: 0 means "random"
         settings = {
@@ -428,7 +464,10 @@ class CMAES(PolicySearch):
             "maxiter": 10**9,
         }
         settings.update(options or {})
-        self.strategy = cma.CMAEvolutionStrategy(weights.ravel(), float(exploration_std), settings)
+        try:
+            self.strategy = cma.CMAEvolutionStrategy(weights.ravel(), exploration_std, settings)
+        except ValueError as error:  # cma refuses unknown or malformed options
+            raise InvalidInputError(f"options were refused by cma: {error}") from error
         self.n_rollouts = int(n_rollouts)
         self.n_trials = 0
         self.n_updates = 0
@@ -444,9 +483,7 @@ class CMAES(PolicySearch):
         return Exploration(weights=samples.reshape((-1,) + self.shape))
 
     def tell(self, rewards) -> None:
-        self._check_pending()
-        samples, self._pending = self._pending, None
-        returns = _as_returns(rewards, samples.shape[0])
+        samples, returns = self._pending_returns(rewards)
         self.strategy.tell(list(samples), list(-returns))
         self.n_trials += samples.shape[0]
         self.n_updates += 1
@@ -462,15 +499,20 @@ def make_method(name: str, task, seed=None, **options) -> PolicySearch:
     ``"pibb"`` and ``"cmaes"`` take ``initial_weights``. ``options`` go to the constructor
     (``exploration_std`` is required).
     """
+    if not isinstance(name, str) or name not in METHODS:
+        raise InvalidInputError(f"method must be one of {METHODS}, got {name!r}")
+    if "exploration_std" not in options:
+        raise InvalidInputError(
+            f"make_method({name!r}, ...) needs exploration_std=..., the initial exploration "
+            "standard deviation"
+        )
     if name == "enac":
         return EpisodicNAC(task.policy_features, task.initial_weights, seed=seed, **options)
     if name == "ereinforce":
         return EpisodicReinforce(task.policy_features, task.initial_weights, seed=seed, **options)
     if name == "pibb":
         return PIBB(task.initial_weights, seed=seed, **options)
-    if name == "cmaes":
-        return CMAES(task.initial_weights, seed=seed, **options)
-    raise InvalidInputError(f"method must be one of {METHODS}, got {name!r}")
+    return CMAES(task.initial_weights, seed=seed, **options)
 
 
 @dataclass(frozen=True, eq=False)
@@ -501,10 +543,12 @@ class LearningCurve:
 
     def weights_at(self, trials: float) -> np.ndarray:
         """Mean weights after the last update that used at most ``trials`` roll-outs."""
+        trials = real("trials", trials, minimum=float(self.trials[0]))
         return self.weights[int(np.searchsorted(self.trials, trials, side="right")) - 1]
 
     def trials_to(self, fraction: float) -> float:
         """First trial count at which ``improvement >= fraction`` (``inf`` if never)."""
+        fraction = real("fraction", fraction)
         reached = np.nonzero(self.improvement >= fraction)[0]
         return float(self.trials[reached[0]]) if reached.size else float("inf")
 
@@ -514,6 +558,16 @@ def optimise(method: PolicySearch, task, n_trials: int) -> LearningCurve:
 
     After every update the noise-free plan of ``method.mean`` is scored on ``task``.
     """
+    if not isinstance(method, PolicySearch):
+        raise InvalidInputError(
+            f"method must be a PolicySearch (e.g. from make_method), got {type(method).__name__}"
+        )
+    if not all(hasattr(task, name) for name in ("evaluate", "returns", "initial_return")):
+        raise InvalidInputError(
+            f"task must be a RewardTask (evaluate, returns, initial_return), got "
+            f"{type(task).__name__}"
+        )
+    n_trials = integer("n_trials", n_trials, minimum=0)
     means = [method.mean]
     trials = [method.n_trials]
     while method.n_trials + method.n_rollouts <= n_trials:

@@ -60,6 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import basis, symbolic
+from .._arguments import budget, real, real_array, sequence_of
 from ..dmp import AffinePlan, DiscreteDMP
 from ..exceptions import InvalidInputError, ShapeError
 
@@ -174,25 +175,31 @@ class RewardTask:
                 "perturbs the acceleration command of eq. (10))"
             )
         for name in ("goal_weight", "velocity_weight", "acceleration_weight", "jerk_weight"):
-            value = float(getattr(self, name))
-            if not np.isfinite(value) or value < 0.0:
-                raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
-        plan = self.dmp.affine_plan(self.duration, self.dt)
+            object.__setattr__(self, name, real(name, getattr(self, name), minimum=0.0))
+        duration = real("duration", self.duration, minimum=0.0, open_minimum=True)
+        dt = real("dt", self.dt, minimum=0.0, maximum=duration / 2, open_minimum=True)
+        estimate = duration / dt + 1  # samples; H holds 3 n^2 values
+        budget(
+            f"a task of {duration:g} s with dt = {dt:g} s ({estimate:.3g} steps)",
+            max(3 * estimate**2, (self.n_dofs * self.n_basis + 1) * 3 * estimate * self.n_dofs),
+            "raise dt (the paper uses 1 ms over 0.5 s) or shorten the duration",
+        )
+        if not isinstance(self.delayed, (bool, np.bool_)):
+            raise InvalidInputError(f"delayed must be True or False, got {self.delayed!r}")
+        plan = self.dmp.affine_plan(duration, dt)
         object.__setattr__(self, "plan", plan)
         n_steps = plan.times.size
         via = []
-        for point in self.via_points:
-            position = np.atleast_1d(np.asarray(point.position, dtype=float))
+        for i, point in enumerate(sequence_of("via_points", self.via_points, ViaPoint)):
+            name = f"via_points[{i}]"
+            time = real(f"{name}.time", point.time, minimum=0.0, maximum=duration)
+            position = np.atleast_1d(real_array(f"{name}.position", point.position))
             if position.shape != (self.n_dofs,):
                 raise ShapeError(
-                    f"via point position has shape {position.shape}, expected ({self.n_dofs},)"
+                    f"{name}.position has shape {position.shape}, expected ({self.n_dofs},)"
                 )
-            index = int(round(point.time / self.dt))
-            if not 0 <= index < n_steps:
-                raise InvalidInputError(
-                    f"via point time {point.time} is outside the horizon [0, {self.duration}]"
-                )
-            via.append((index, position, float(point.weight)))
+            index = min(int(round(time / dt)), n_steps - 1)
+            via.append((index, position, real(f"{name}.weight", point.weight, minimum=0.0)))
         object.__setattr__(self, "_via", tuple(via))
         response = _noise_response(self.dmp, n_steps, self.dt)
         object.__setattr__(self, "noise_response", response)
@@ -247,12 +254,17 @@ class RewardTask:
         """
         weights = self._batch_weights(weights)
         k = weights.shape[0]
+        budget(
+            f"plans of {k} roll-outs",
+            k * 3 * self.n_steps * self.n_dofs,
+            "evaluate the batch in smaller chunks",
+        )
         flat = weights.transpose(2, 0, 1).reshape(self.n_basis, k * self.n_dofs)
         response = self.plan.weight_response.reshape(3 * self.n_steps, self.n_basis)
         forced = (response @ flat).reshape(3, self.n_steps, k, self.n_dofs)
         plans = self.plan.free[None] + forced.transpose(2, 0, 1, 3)
         if acceleration_noise is not None:
-            noise = np.asarray(acceleration_noise, dtype=float)
+            noise = real_array("acceleration_noise", acceleration_noise)
             expected = (weights.shape[0], self.n_actions, self.n_dofs)
             if noise.shape != expected:
                 raise ShapeError(
@@ -274,7 +286,12 @@ class RewardTask:
 
         With ``delayed=True`` all but the last column are zero.
         """
-        plans = np.asarray(plans, dtype=float)
+        plans = real_array("plans", plans)
+        if plans.ndim != 4 or plans.shape[1:] != (3, self.n_steps, self.n_dofs):
+            raise ShapeError(
+                f"plans has shape {plans.shape}, expected (K, 3, {self.n_steps}, {self.n_dofs}) "
+                "as returned by rollouts()"
+            )
         positions, velocities, accelerations = plans[:, 0], plans[:, 1], plans[:, 2]
         dt = self.dt
         rewards = np.zeros(positions.shape[:2])
@@ -300,6 +317,11 @@ class RewardTask:
         ``exploration`` has ``weights`` (K, n_dofs, n_basis) and ``acceleration_noise``
         (K, n_steps - 1, n_dofs) or None (see :class:`dmpopt.learning.Exploration`).
         """
+        if not hasattr(exploration, "weights") or not hasattr(exploration, "acceleration_noise"):
+            raise InvalidInputError(
+                f"exploration must be an Exploration (from an optimiser's ask()), got "
+                f"{type(exploration).__name__}"
+            )
         return self.rewards(self.rollouts(exploration.weights, exploration.acceleration_noise))
 
     def returns(self, weights, acceleration_noise=None) -> np.ndarray:
@@ -313,7 +335,7 @@ class RewardTask:
     # -- exact optimum -----------------------------------------------------------------------
 
     def _batch_weights(self, weights) -> np.ndarray:
-        weights = np.asarray(weights, dtype=float)
+        weights = real_array("weights", weights)
         if weights.ndim == 2:
             weights = weights[None]
         if weights.ndim != 3 or weights.shape[1:] != (self.n_dofs, self.n_basis):
@@ -380,7 +402,12 @@ def _dmp(start, goal, duration: float, n_basis: int) -> DiscreteDMP:
 
     ``tau = duration / convergence_time(tau = 1)`` (Section 3.4's choice of ``tau``).
     """
-    start = np.atleast_1d(np.asarray(start, dtype=float))
+    start = np.atleast_1d(real_array("start", start))
+    goal = np.atleast_1d(real_array("goal", goal))
+    if start.ndim != 1 or goal.shape != start.shape:
+        raise ShapeError(f"goal has shape {goal.shape}, expected {start.shape}: one per DOF")
+    duration = real("duration", duration, minimum=0.0, open_minimum=True)
+    n_basis = basis.check_n_basis(n_basis)
     template = DiscreteDMP(
         weights=np.zeros((start.size, n_basis)),
         start=start,
@@ -421,7 +448,9 @@ def multi_dof_reaching_task(
     delayed: bool = False,
 ) -> RewardTask:
     """Several DOFs from 0 to different goals on one canonical system (default 6 DOFs)."""
-    goals = np.atleast_1d(np.asarray(goals, dtype=float))
+    goals = np.atleast_1d(real_array("goals", goals))
+    if goals.ndim != 1:
+        raise ShapeError(f"goals has shape {goals.shape}, expected (n_dofs,)")
     return RewardTask(
         _dmp(np.zeros(goals.size), goals, duration, n_basis),
         duration=duration,
@@ -443,7 +472,7 @@ def via_point_task(
 
     The unforced plan goes straight; the via point (weight 1000) makes the learner bend it.
     """
-    goal = np.asarray(goal, dtype=float)
+    goal = np.atleast_1d(real_array("goal", goal))
     return RewardTask(
         _dmp(np.zeros(goal.size), goal, duration, n_basis),
         duration=duration,

@@ -148,7 +148,11 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int) -> 
             break
         done += 1
     if done and refresh_report:
-        path = write_report(out)  # from the folders on disk, so it matches them
+        try:
+            path = write_report(out)  # from the folders on disk, so it matches them
+        except (OSError, ValueError) as error:
+            print(f"dmpopt: {out / 'report.html'} not written: {error}", file=sys.stderr)
+            return code or 1
         if not code:
             print(f"report: {path}")
     return code

@@ -31,22 +31,29 @@ def _previous(target: Path) -> Path:
     return target.with_name(f".{target.name}.previous")
 
 
+def _remove(path: Path) -> None:
+    if path.is_symlink() or path.is_file():
+        path.unlink()
+    else:
+        shutil.rmtree(path, ignore_errors=True)
+
+
 def _recover(target: Path) -> None:
     """Undo what a run killed outright (no Python cleanup) left next to ``target``."""
     previous = _previous(target)
     if previous.exists() and not target.exists():
         previous.rename(target)  # killed between the two renames of _swap
     for leftover in (_partial(target), previous):
-        shutil.rmtree(leftover, ignore_errors=True)
+        _remove(leftover)
 
 
 def _swap(staged: Path, target: Path) -> None:
     """Put ``staged`` in place of ``target`` (two renames, then the old one is deleted)."""
     previous = _previous(target)
-    if target.exists():
+    if target.exists() or target.is_symlink():
         target.rename(previous)
     staged.rename(target)
-    shutil.rmtree(previous, ignore_errors=True)
+    _remove(previous)
 
 
 @contextmanager

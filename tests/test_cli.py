@@ -206,6 +206,38 @@ def test_killed_run_leftovers_are_cleaned(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rl"]
 
 
+def test_symlinked_target_is_replaced_and_its_folder_kept(tmp_path):
+    """A target that links to a folder elsewhere becomes the new output; the linked folder
+    is not touched and no link is left beside the target."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "metrics.json").write_text("old")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "rl").symlink_to(elsewhere)
+    with staged_output(out / "rl") as folder:
+        (folder / "metrics.json").write_text("new")
+    assert not (out / "rl").is_symlink() and contents(out / "rl") == {"metrics.json": "new"}
+    assert contents(elsewhere) == {"metrics.json": "old"}
+    assert [p.name for p in out.iterdir()] == ["rl"]
+
+
+def test_unwritable_report_is_one_line(capsys, monkeypatch, tmp_path):
+    """report.html that cannot be replaced (here a folder): one line, exit code 1; the
+    study's own folder is complete."""
+    studies = cli.available_studies()
+    for module in studies.values():
+        monkeypatch.setattr(module, "run", fake_run([]))
+    (tmp_path / "report.html").mkdir()
+    code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))
+    assert code == 1 and err.count("\n") == 1
+    assert err.startswith(f"dmpopt: {tmp_path / 'report.html'} not written: ")
+    assert contents(tmp_path / "imitation") == {
+        "figure.png": "figure of seed 0",
+        "metrics.json": '{"seed": 0}',
+    }
+
+
 @settings(max_examples=15, deadline=None)
 @given(st.lists(st.booleans(), min_size=1, max_size=6))
 def test_target_always_holds_the_last_complete_run(outcomes):

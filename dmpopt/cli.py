@@ -1,14 +1,33 @@
-"""The ``dmpopt`` command: list and run the studies that reproduce the paper."""
+"""The ``dmpopt`` command: list and run the studies that reproduce the paper.
+
+Each study writes into a temporary folder that replaces ``OUT/<study>`` only when the study
+is done, so an interrupted or failed run leaves the previous output as it was. Bad arguments,
+failures and Ctrl-C end with one line on stderr and a non-zero exit code (2: bad arguments,
+1: a study failed, 130: interrupted).
+"""
 
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+import tempfile
 import time
+import warnings
 from pathlib import Path
 
 STUDIES = ("imitation", "constrained", "rl", "recognition", "humanoid", "biped")
+
+
+class UsageError(Exception):
+    """A command-line value that cannot be used."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """Reports argument errors as a UsageError (one line), not a usage block."""
+
+    def error(self, message):
+        raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
 def available_studies() -> dict:
@@ -27,66 +46,156 @@ def _summary(module) -> str:
     return (module.__doc__ or "").strip().splitlines()[0]
 
 
+def _seconds(module, quick: bool) -> float:
+    return getattr(module, "EXPECTED_SECONDS", {}).get("quick" if quick else "full", 0)
+
+
 def _expected(module, quick: bool) -> str:
-    seconds = getattr(module, "EXPECTED_SECONDS", {}).get("quick" if quick else "full")
-    return f"~{seconds / 60:.0f} min" if seconds and seconds >= 90 else f"~{seconds or '?'} s"
+    seconds = _seconds(module, quick)
+    if not seconds:
+        return "?"
+    return f"~{seconds / 60:.0f} min" if seconds >= 90 else f"~{seconds:.0f} s"
 
 
 def _list(studies: dict) -> int:
+    print(f"{'study':12s} {'--quick':>8s} {'full':>8s}  what it reproduces")
     for name, module in studies.items():
-        print(f"{name:12s} {_expected(module, False):>8s}  {_summary(module)}")
+        quick, full = _expected(module, True), _expected(module, False)
+        print(f"{name:12s} {quick:>8s} {full:>8s}  {_summary(module)}")
+    return 0
+
+
+def _seed(text: str) -> int:
+    try:
+        seed = int(text)
+    except ValueError:
+        seed = None
+    if seed is None or seed < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return seed
+
+
+def _writable_folder(text: str) -> Path:
+    """The folder ``text``, created if needed, after checking that files can be written in it."""
+    if not text.strip():
+        raise UsageError("--out is empty; give the folder for the results, e.g. --out results")
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file, not a folder; choose a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except (OSError, ValueError) as error:
+        reason = getattr(error, "strerror", None) or str(error)
+        raise UsageError(
+            f"--out {out}: cannot write there ({reason}); choose a writable folder"
+        ) from None
+    return out
+
+
+def _check_targets(out: Path, names: list[str]) -> None:
+    for name in names:
+        if (out / name).exists() and not (out / name).is_dir():
+            raise UsageError(
+                f"--out {out}: {out / name} is a file, not a study folder; "
+                "move it away or choose another --out"
+            )
+
+
+def _left(target: Path, existed: bool) -> str:
+    return f"{target} left unchanged" if existed else f"{target} not written"
+
+
+def _run_one(name: str, module, target: Path, quick: bool, seed: int) -> int:
+    """Run one study into a staged folder that replaces ``target``; return the exit code."""
+    from threadpoolctl import threadpool_limits
+
+    from studies.common import staged_output
+
+    from .exceptions import DmpoptError
+
+    start, existed = time.perf_counter(), target.exists()
+    print(f"== {name}: {_summary(module)}")
+    try:
+        # the studies multiply small matrices: one BLAS thread is faster, and on a loaded
+        # machine several threads per product cost milliseconds each
+        with staged_output(target) as folder, threadpool_limits(limits=1, user_api="blas"):
+            module.run(folder, quick=quick, seed=seed)
+    except KeyboardInterrupt:
+        print(f"interrupted: {_left(target, existed)}", file=sys.stderr)
+        return 130
+    except (DmpoptError, OSError) as error:
+        print(f"dmpopt: {name} failed: {error}; {_left(target, existed)}", file=sys.stderr)
+        return 1
+    print(f"== {name} done in {time.perf_counter() - start:.1f} s -> {target}")
     return 0
 
 
 def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int) -> int:
-    total = sum(
-        getattr(studies[n], "EXPECTED_SECONDS", {}).get("quick" if quick else "full", 0)
-        for n in names
-    )
+    from studies.report import write_report
+
+    total = sum(_seconds(studies[n], quick) for n in names)
     print(
         f"running {', '.join(names)} ({'quick' if quick else 'full'}): "
         f"expected about {total / 60:.1f} min on 2 cores; results in {out}"
     )
-    from threadpoolctl import threadpool_limits
-
-    results = {}
+    refresh_report = len(names) > 1 or (out / "report.html").exists()
+    code, done = 0, 0
     for name in names:
-        start = time.perf_counter()
-        print(f"== {name}: {_summary(studies[name])}")
-        # the studies multiply small matrices: one BLAS thread is faster, and on a loaded
-        # machine several threads per product cost milliseconds each
-        with threadpool_limits(limits=1, user_api="blas"):
-            results[name] = studies[name].run(out / name, quick=quick, seed=seed)
-        print(f"== {name} done in {time.perf_counter() - start:.1f} s -> {out / name}")
-    if len(names) > 1:
-        from studies.report import write_report
+        code = _run_one(name, studies[name], out / name, quick, seed)
+        if code:
+            break
+        done += 1
+    if done and refresh_report:
+        try:
+            path = write_report(out)  # from the folders on disk, so it matches them
+        except (OSError, ValueError) as error:
+            print(f"dmpopt: {out / 'report.html'} not written: {error}", file=sys.stderr)
+            return code or 1
+        if not code:
+            print(f"report: {path}")
+    return code
 
-        print(f"report: {write_report(out, results)}")
-    return 0
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"warning: {message}", file=sys.stderr if file is None else file)
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``dmpopt`` command."""
-    parser = argparse.ArgumentParser(prog="dmpopt", description=__doc__)
+    """Entry point of the ``dmpopt`` command; returns the exit code."""
+    from . import __version__
+
+    parser = _Parser(prog="dmpopt", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"dmpopt {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
     study = commands.add_parser("study", help="list or run the studies")
     actions = study.add_subparsers(dest="action", required=True)
-    actions.add_parser("list", help="each study, what it shows and how long it takes")
+    actions.add_parser("list", help="each study, how long it takes, what it reproduces")
     run = actions.add_parser("run", help="run one study, or all")
     run.add_argument("name", help="a study name from 'dmpopt study list', or 'all'")
-    run.add_argument("--out", default="results", type=Path, help="output folder (default: results)")
+    run.add_argument("--out", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="a reduced run (about a minute each)")
-    run.add_argument("--seed", default=0, type=int, help="random seed (default: 0)")
-    args = parser.parse_args(argv)
-
-    studies = available_studies()
-    if args.action == "list":
-        return _list(studies)
-    names = list(studies) if args.name == "all" else [args.name]
-    unknown = [n for n in names if n not in studies]
-    if unknown:
-        parser.error(f"unknown study {unknown[0]!r}; choose from {', '.join(studies)} or 'all'")
-    return _run(studies, names, args.out, args.quick, args.seed)
+    run.add_argument("--seed", default=0, type=_seed, help="random seed, >= 0 (default: 0)")
+    try:
+        args = parser.parse_args(argv)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            studies = available_studies()
+            if args.action == "list":
+                return _list(studies)
+            if args.name not in studies and args.name != "all":
+                run.error(f"unknown study {args.name!r}; choose from {', '.join(studies)} or 'all'")
+            names = list(studies) if args.name == "all" else [args.name]
+            out = _writable_folder(args.out)
+            _check_targets(out, names)
+            return _run(studies, names, out, args.quick, args.seed)
+    except UsageError as error:
+        print(f"dmpopt: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

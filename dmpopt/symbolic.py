@@ -28,8 +28,18 @@ sample (accelerations by automatic differentiation along the flow).
 
 from __future__ import annotations
 
+import hashlib
+import os
+import platform
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import warnings
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -431,47 +441,93 @@ def simulate(signature: Signature, n_steps: int, initial_state, dt: float, param
     return states, plan[0], plan[1], plan[2]
 
 
+def cache_dir() -> Path:
+    r"""The folder of dmpopt's on-disk caches (compiled C, numba kernels), never the package's.
+
+    ``$DMPOPT_CACHE`` if set; else ``dmpopt`` in the user's cache folder: ``$XDG_CACHE_HOME``
+    (if absolute) or ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%``
+    on Windows.
+    """
+    if os.environ.get("DMPOPT_CACHE"):
+        return Path(os.environ["DMPOPT_CACHE"]).expanduser()
+    if sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or "~/.cache").expanduser()
+        if not base.is_absolute():  # the XDG specification ignores relative paths
+            base = Path.home() / ".cache"
+    return base / "dmpopt"
+
+
+def c_compiler() -> list[str] | None:
+    """The command that compiles generated C: ``$CC`` if set, else ``cc`` or ``gcc`` on PATH.
+
+    ``None`` if that program is not found.
+    """
+    command = shlex.split(os.environ.get("CC", "")) or [shutil.which("cc") or "gcc"]
+    program = shutil.which(command[0])
+    return None if program is None else [program, *command[1:]]
+
+
 def compiled(function: ca.Function) -> ca.Function:
     """The same function generated as C and compiled with the system's C compiler.
 
-    The shared library is cached on disk (``$DMPOPT_CACHE`` or ``~/.cache/dmpopt``) under a
-    hash of the generated code, so each system compiles once per machine (a few seconds).
+    The shared library is cached in :func:`cache_dir` under a hash of the generated code and
+    the compiler, so each system compiles once per machine (a few seconds). Without a working
+    compiler (see :func:`c_compiler`) this warns once and returns ``function`` itself, which
+    CasADi's virtual machine evaluates to the same numbers, a few times more slowly.
     """
-    import hashlib
-    import os
-    import shutil
-    import subprocess
-    import tempfile
-    from pathlib import Path
-
-    from .exceptions import MissingDependency
-
-    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
-        raise MissingDependency(
-            "compiling a DMP needs a C compiler (cc or gcc on PATH, or $CC); "
-            "install one (e.g. apt-get install gcc) or use compile=False"
-        )
-    cache = Path(os.environ.get("DMPOPT_CACHE", Path.home() / ".cache" / "dmpopt"))
-    cache.mkdir(parents=True, exist_ok=True)
+    command = c_compiler()
+    if command is None:
+        requested = os.environ.get("CC")
+        missing = f"$CC={requested!r} was not found" if requested else "no cc or gcc on PATH"
+        return _uncompiled(function, f"{missing} (install gcc, or set CC to a C compiler)")
     with tempfile.TemporaryDirectory() as scratch:
-        source = Path(scratch) / "dmp_function.c"
-        generator = ca.CodeGenerator(source.name, {"with_header": False})
+        generator = ca.CodeGenerator("dmp_function.c", {"with_header": False})
         generator.add(function)
-        current = os.getcwd()
-        try:
-            os.chdir(scratch)
-            generator.generate()
-        finally:
-            os.chdir(current)
-        code = source.read_bytes()
-        library = cache / f"{function.name()}_{hashlib.sha1(code).hexdigest()[:16]}.so"
+        source = Path(generator.generate(scratch + os.sep))
+        key = source.read_bytes() + " ".join([*command, platform.machine()]).encode()
+        library = cache_dir() / f"{function.name()}_{hashlib.sha1(key).hexdigest()[:16]}.so"
         if not library.exists():
-            partial = library.with_suffix(f".{os.getpid()}.tmp")
-            subprocess.run(
-                [compiler, "-O1", "-fPIC", "-shared", str(source), "-o", str(partial)],
-                check=True,
-                capture_output=True,
-            )
-            partial.replace(library)
+            try:
+                _build(command, source, library)
+            except (OSError, subprocess.CalledProcessError) as error:
+                reason = f"{command[0]} could not build it in {library.parent}: {_why(error)}"
+                return _uncompiled(function, reason)
     return ca.external(function.name(), str(library))
+
+
+def _build(command: list[str], source: Path, library: Path) -> None:
+    """Compile ``source`` into ``library``, which appears whole or not at all."""
+    library.parent.mkdir(parents=True, exist_ok=True)
+    partial = library.with_suffix(f".{os.getpid()}.tmp")
+    try:
+        subprocess.run(
+            [*command, "-O1", "-fPIC", "-shared", str(source), "-o", str(partial)],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        partial.replace(library)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def _why(error: Exception) -> str:
+    """One line on why a build failed: the compiler's first message, or the system's."""
+    if isinstance(error, subprocess.CalledProcessError):
+        lines = (error.stderr or "").strip().splitlines()
+        return lines[0] if lines else f"exit status {error.returncode}"
+    return f"{error.strerror or error}: {error.filename}" if error.filename else str(error)
+
+
+def _uncompiled(function: ca.Function, reason: str) -> ca.Function:
+    warnings.warn(
+        f"{function.name()} is not compiled to C: {reason}; it runs on the CasADi VM instead, "
+        "with identical results, a few times more slowly per call",
+        RuntimeWarning,
+        stacklevel=3,
+    )
+    return function

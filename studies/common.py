@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
 import platform
+import shutil
 import time
+from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
 
@@ -17,6 +20,74 @@ def output_dir(out_dir) -> Path:
     """Create (if needed) and return the study's output folder."""
     path = Path(out_dir)
     path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _partial(target: Path) -> Path:
+    return target.with_name(f".{target.name}.partial")
+
+
+def _previous(target: Path) -> Path:
+    return target.with_name(f".{target.name}.previous")
+
+
+def _remove(path: Path) -> None:
+    if path.is_symlink() or path.is_file():
+        path.unlink()
+    else:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def _recover(target: Path) -> None:
+    """Undo what a run killed outright (no Python cleanup) left next to ``target``."""
+    previous = _previous(target)
+    if previous.exists() and not target.exists():
+        previous.rename(target)  # killed between the two renames of _swap
+    for leftover in (_partial(target), previous):
+        _remove(leftover)
+
+
+def _swap(staged: Path, target: Path) -> None:
+    """Put ``staged`` in place of ``target`` (two renames, then the old one is deleted)."""
+    previous = _previous(target)
+    if target.exists() or target.is_symlink():
+        target.rename(previous)
+    staged.rename(target)
+    _remove(previous)
+
+
+@contextmanager
+def staged_output(target):
+    """A fresh folder to write a study's output into; it replaces ``target`` on success.
+
+    The folder is ``.<name>.partial`` next to ``target``. If the block raises (an error or
+    Ctrl-C), it is deleted and ``target`` is left as it was, so ``target`` always holds one
+    complete run. Leftovers of a run that was killed outright are cleaned on the next run.
+    One output folder takes one run at a time.
+
+    >>> with staged_output("results/rl") as folder:     # doctest: +SKIP
+    ...     metrics = rl.run(folder)
+    """
+    target = Path(target)
+    _recover(target)
+    staged = _partial(target)
+    staged.mkdir(parents=True)
+    try:
+        yield staged
+        _swap(staged, target)
+    finally:
+        shutil.rmtree(staged, ignore_errors=True)
+
+
+def write_text_atomic(path, text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file: readers see the old or new file."""
+    path = Path(path)
+    partial = path.with_name(f".{path.name}.partial")
+    try:
+        partial.write_text(text)
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
     return path
 
 

@@ -7,17 +7,35 @@ import importlib
 import json
 from pathlib import Path
 
+from .common import write_text_atomic
+
 
 def _claim(name: str) -> str:
     module = importlib.import_module(f"studies.{name}")
     return (module.__doc__ or "").strip()
 
 
-def write_report(out_dir, results: dict) -> Path:
-    """Write ``report.html`` in ``out_dir`` for the studies in ``results`` (name -> metrics)."""
+def write_report(out_dir, names=None) -> Path:
+    """Write ``report.html`` in ``out_dir`` from the study folders in it.
+
+    Parameters
+    ----------
+    out_dir : path
+        The folder holding one sub-folder per study (``<name>/metrics.json`` and figures).
+    names : list of str, optional
+        The studies to show; by default every study whose folder holds a ``metrics.json``.
+
+    Figures and metrics are read from the same folders, so the page always matches them;
+    it replaces the previous page in one step.
+    """
+    from dmpopt.cli import STUDIES
+
     out = Path(out_dir)
+    if names is None:
+        names = [name for name in STUDIES if (out / name / "metrics.json").is_file()]
     sections = []
-    for name, metrics in results.items():
+    for name in names:
+        metrics = json.loads((out / name / "metrics.json").read_text())
         figures = sorted((out / name).glob("*.png"))
         images = "\n".join(
             f'<figure><img src="{html.escape(f"{name}/{f.name}")}" alt="{html.escape(f.stem)}">'
@@ -41,6 +59,4 @@ def write_report(out_dir, results: dict) -> Path:
         + "".join(sections)
         + "</body></html>\n"
     )
-    path = out / "report.html"
-    path.write_text(page)
-    return path
+    return write_text_atomic(out / "report.html", page)

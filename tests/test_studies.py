@@ -1,10 +1,8 @@
-"""Quick runs of the studies and the command line (the full runs are marked slow)."""
+"""Quick runs of the studies and their report (the full runs are marked slow)."""
 
 import json
 
 import pytest
-
-from dmpopt import cli
 
 
 def test_imitation_quick(tmp_path):
@@ -80,18 +78,6 @@ def test_biped_quick(tmp_path):
     assert len(_figures(tmp_path)) >= 3
 
 
-def test_cli_lists_studies(capsys):
-    assert cli.main(["study", "list"]) == 0
-    out = capsys.readouterr().out
-    assert out.splitlines()[0].startswith("imitation")
-
-
-def test_cli_rejects_unknown_study(capsys):
-    with pytest.raises(SystemExit):
-        cli.main(["study", "run", "nonsense"])
-    assert "unknown study 'nonsense'" in capsys.readouterr().err
-
-
 def test_report_links_every_figure(tmp_path):
     """report.html names each study, embeds each figure it links, and renders if a browser
     is installed (headless Chromium from the Debian package)."""
@@ -102,8 +88,8 @@ def test_report_links_every_figure(tmp_path):
     from studies import imitation
     from studies.report import write_report
 
-    metrics = imitation.run(tmp_path / "imitation", quick=True)
-    page = write_report(tmp_path, {"imitation": metrics}).read_text()
+    imitation.run(tmp_path / "imitation", quick=True)
+    page = write_report(tmp_path).read_text()
     assert page.startswith("<!DOCTYPE html>") and page.rstrip().endswith("</html>")
     assert '<section id="imitation">' in page and "rmse_mm" in page
     images = re.findall(r'<img src="([^"]+)"', page)

@@ -10,9 +10,25 @@
 >>> tau = controller.compute_torques(q, v)
 """
 
-from dmpopt.control.computed_torque import ComputedTorqueController
-from dmpopt.control.inverse_dynamics import ControllerStats, InverseDynamicsController
-from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, SoleContact, Task
+import os
+import sys
+
+from dmpopt.symbolic import cache_dir
+
+# numba caches compiled kernels next to their source unless told otherwise: in an installed
+# package that is site-packages, where the files outlive an uninstall. Set the user's cache
+# folder before numba reads its configuration (at import, and again when it compiles).
+if not os.environ.get("NUMBA_CACHE_DIR"):
+    os.environ["NUMBA_CACHE_DIR"] = str(cache_dir() / "numba")
+    if "numba" in sys.modules:
+        sys.modules["numba"].core.config.reload_config()
+
+from dmpopt.control.computed_torque import ComputedTorqueController  # noqa: E402
+from dmpopt.control.inverse_dynamics import (  # noqa: E402
+    ControllerStats,
+    InverseDynamicsController,
+)
+from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, SoleContact, Task  # noqa: E402
 
 __all__ = [
     "ComTask",

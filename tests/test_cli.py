@@ -1,0 +1,410 @@
+"""The ``dmpopt`` command, staged study output, and where caches go (never into the package)."""
+
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import dmpopt
+from dmpopt import Trajectory, cli, fit_discrete, symbolic
+from dmpopt.exceptions import FittingFailed
+from studies.common import staged_output, write_text_atomic
+from studies.report import write_report
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_cli(capsys, *argv):
+    """Exit code, stdout and stderr of ``dmpopt argv``."""
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def fake_run(seed_box, fail_with=None):
+    """A study run that writes a figure and metrics; raises ``fail_with`` between the two."""
+
+    def run(out_dir, quick=False, seed=0):
+        (Path(out_dir) / "figure.png").write_text(f"figure of seed {seed}")
+        seed_box.append(seed)
+        if fail_with is not None:
+            raise fail_with
+        (Path(out_dir) / "metrics.json").write_text(json.dumps({"seed": seed}))
+        return {"seed": seed}
+
+    return run
+
+
+def contents(folder: Path) -> dict:
+    return {p.name: p.read_text() for p in sorted(folder.iterdir())}
+
+
+# ------------------------------------------------------------------ one-line errors
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["study", "run", "nonsense"],
+            r"unknown study 'nonsense'; choose from imitation, .* 'all'",
+        ),
+        (["study", "run", "rl", "--seed", "-1"], r"--seed: expected an integer >= 0, got '-1'"),
+        (["study", "run", "rl", "--seed", "abc"], r"--seed: expected an integer >= 0, got 'abc'"),
+        (["study", "run", "rl", "--seed", "1.5"], r"--seed: expected an integer >= 0, got '1.5'"),
+        (["study", "run", "rl", "--out", ""], r"--out is empty; give the folder"),
+        (["study", "run", "rl", "--bogus"], r"unrecognized arguments: --bogus"),
+        (["study"], r"required: action .*'dmpopt study --help'"),
+        ([], r"required: command"),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_code_2(capsys, argv, message):
+    """Each bad value: one line on stderr naming the argument, exit code 2, nothing run."""
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("dmpopt: error: ")
+    assert re.search(message, err)
+
+
+def test_unwritable_out_is_one_line(capsys, tmp_path):
+    """--out under a file, or naming a file, is refused before any study runs."""
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for out, message in [
+        (blocker / "results", r"--out .*/file/results: cannot write there \(Not a directory\)"),
+        (blocker, r"--out .*/file is a file, not a folder"),
+    ]:
+        code, stdout, err = run_cli(capsys, "study", "run", "imitation", "--out", str(out))
+        assert (code, stdout, err.count("\n")) == (2, "", 1)
+        assert re.search(message, err)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes everywhere")
+def test_read_only_out_is_one_line(capsys, tmp_path):
+    tmp_path.chmod(0o500)
+    try:
+        code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))
+    finally:
+        tmp_path.chmod(0o700)
+    assert code == 2 and "cannot write there (Permission denied)" in err
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.one_of(st.integers(-(10**30), 10**30).map(str), st.text(max_size=8)))
+def test_seed_accepts_exactly_the_non_negative_integers(text):
+    try:
+        expected = int(text)
+    except ValueError:
+        expected = -1
+    if expected >= 0:
+        assert cli._seed(text) == expected
+    else:
+        with pytest.raises(Exception, match="expected an integer >= 0"):
+            cli._seed(text)
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out == f"dmpopt {dmpopt.__version__}\n"
+
+
+def test_list_shows_quick_and_full_times(capsys):
+    """One row per study with the times the study module declares."""
+    code, out, _ = run_cli(capsys, "study", "list")
+    rows = out.splitlines()
+    assert code == 0 and rows[0].split()[:3] == ["study", "--quick", "full"]
+    studies = cli.available_studies()
+    assert [row.split()[0] for row in rows[1:]] == list(studies)
+    for row, module in zip(rows[1:], studies.values()):
+        shown = [
+            [f"~{round(seconds / 60)}", "min"] if seconds >= 90 else [f"~{seconds}", "s"]
+            for seconds in (module.EXPECTED_SECONDS["quick"], module.EXPECTED_SECONDS["full"])
+        ]
+        assert row.split()[1:5] == shown[0] + shown[1]
+
+
+# ------------------------------------------------------------------ nothing lost
+
+
+def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path):
+    """Ctrl-C midway: one line, exit 130, the previous complete output intact, no leftovers."""
+    from studies import imitation
+
+    seeds = []
+    monkeypatch.setattr(imitation, "run", fake_run(seeds))
+    assert (
+        run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path), "--seed", "1")[0] == 0
+    )
+    before = contents(tmp_path / "imitation")
+    assert before == {"figure.png": "figure of seed 1", "metrics.json": '{"seed": 1}'}
+
+    monkeypatch.setattr(imitation, "run", fake_run(seeds, KeyboardInterrupt()))
+    code, _, err = run_cli(
+        capsys, "study", "run", "imitation", "--out", str(tmp_path), "--seed", "2"
+    )
+    assert seeds == [1, 2]  # the second run did start writing
+    assert (code, err) == (130, f"interrupted: {tmp_path / 'imitation'} left unchanged\n")
+    assert contents(tmp_path / "imitation") == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["imitation"]
+
+
+@pytest.mark.parametrize(
+    "error", [FittingFailed("no fit for demo 3"), OSError(28, "No space left on device")]
+)
+def test_failed_study_leaves_nothing(capsys, monkeypatch, tmp_path, error):
+    """A study that fails on its first run: one line, exit 1, no folder at all."""
+    from studies import imitation
+
+    monkeypatch.setattr(imitation, "run", fake_run([], error))
+    code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))
+    assert code == 1 and err.count("\n") == 1
+    assert err.startswith(f"dmpopt: imitation failed: {error}")
+    assert err.endswith(f"{tmp_path / 'imitation'} not written\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupted_all_keeps_report_consistent(capsys, monkeypatch, tmp_path):
+    """Interrupted at the second study of 'all': the first is replaced, the others kept, and
+    report.html shows exactly the metrics now in the folders."""
+    studies = cli.available_studies()
+    for module in studies.values():
+        monkeypatch.setattr(module, "run", fake_run([]))
+    assert run_cli(capsys, "study", "run", "all", "--out", str(tmp_path), "--seed", "1")[0] == 0
+    names = list(studies)
+    monkeypatch.setattr(studies[names[1]], "run", fake_run([], KeyboardInterrupt()))
+    code, _, err = run_cli(capsys, "study", "run", "all", "--out", str(tmp_path), "--seed", "7")
+    assert code == 130 and err == f"interrupted: {tmp_path / names[1]} left unchanged\n"
+    seeds = {n: json.loads((tmp_path / n / "metrics.json").read_text())["seed"] for n in names}
+    assert seeds == {n: 7 if n == names[0] else 1 for n in names}
+    page = (tmp_path / "report.html").read_text()
+    assert page.count("&quot;seed&quot;: 7") == 1 and page.count("&quot;seed&quot;: 1") == 5
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "report.html"])
+
+
+def test_killed_run_leftovers_are_cleaned(tmp_path):
+    """A run killed outright (no cleanup) leaves .<name>.partial; the next run removes it,
+    and restores the previous output if the kill fell between the two renames."""
+    target = tmp_path / "rl"
+    (tmp_path / ".rl.partial").mkdir()
+    (tmp_path / ".rl.partial" / "half.png").write_text("half")
+    (tmp_path / ".rl.previous").mkdir()
+    (tmp_path / ".rl.previous" / "metrics.json").write_text("old")
+    with pytest.raises(KeyboardInterrupt), staged_output(target) as folder:
+        assert list(folder.iterdir()) == []
+        raise KeyboardInterrupt
+    assert contents(target) == {"metrics.json": "old"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rl"]
+
+
+def test_symlinked_target_is_replaced_and_its_folder_kept(tmp_path):
+    """A target that links to a folder elsewhere becomes the new output; the linked folder
+    is not touched and no link is left beside the target."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "metrics.json").write_text("old")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "rl").symlink_to(elsewhere)
+    with staged_output(out / "rl") as folder:
+        (folder / "metrics.json").write_text("new")
+    assert not (out / "rl").is_symlink() and contents(out / "rl") == {"metrics.json": "new"}
+    assert contents(elsewhere) == {"metrics.json": "old"}
+    assert [p.name for p in out.iterdir()] == ["rl"]
+
+
+def test_unwritable_report_is_one_line(capsys, monkeypatch, tmp_path):
+    """report.html that cannot be replaced (here a folder): one line, exit code 1; the
+    study's own folder is complete."""
+    studies = cli.available_studies()
+    for module in studies.values():
+        monkeypatch.setattr(module, "run", fake_run([]))
+    (tmp_path / "report.html").mkdir()
+    code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))
+    assert code == 1 and err.count("\n") == 1
+    assert err.startswith(f"dmpopt: {tmp_path / 'report.html'} not written: ")
+    assert contents(tmp_path / "imitation") == {
+        "figure.png": "figure of seed 0",
+        "metrics.json": '{"seed": 0}',
+    }
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.booleans(), min_size=1, max_size=6))
+def test_target_always_holds_the_last_complete_run(outcomes):
+    """Whatever the sequence of completed (True) and interrupted runs, the target holds the
+    files of the last completed run only, and nothing else is left beside it."""
+    with tempfile.TemporaryDirectory() as scratch:
+        target = Path(scratch) / "study"
+        last = None
+        for run, completes in enumerate(outcomes):
+            try:
+                with staged_output(target) as folder:
+                    (folder / f"figure_{run}.png").write_text(str(run))
+                    if not completes:
+                        raise KeyboardInterrupt
+                    (folder / "metrics.json").write_text(str(run))
+                last = run
+            except KeyboardInterrupt:
+                pass
+            if last is None:
+                assert not target.exists()
+            else:
+                expected = {f"figure_{last}.png": str(last), "metrics.json": str(last)}
+                assert contents(target) == expected
+            assert [p.name for p in Path(scratch).iterdir()] == ([] if last is None else ["study"])
+
+
+def test_report_written_whole_or_not(monkeypatch, tmp_path):
+    """An interrupt while report.html is replaced leaves the old page and no partial file."""
+    page = tmp_path / "report.html"
+    page.write_text("old page")
+
+    def interrupted(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_text_atomic(page, "new page")
+    assert [p.name for p in tmp_path.iterdir()] == ["report.html"]
+    assert page.read_text() == "old page"
+    monkeypatch.undo()
+    assert write_text_atomic(page, "new page").read_text() == "new page"
+
+
+def test_report_reads_the_folders(tmp_path):
+    """The page shows the metrics.json on disk, for the study folders that hold one."""
+    (tmp_path / "rl").mkdir()
+    (tmp_path / "rl" / "metrics.json").write_text(json.dumps({"trials_to_95": {"enac": 140}}))
+    (tmp_path / "biped").mkdir()  # no metrics.json: not a complete study folder
+    page = write_report(tmp_path).read_text()
+    assert '<section id="rl">' in page and "&quot;enac&quot;: 140" in page
+    assert 'id="biped"' not in page
+
+
+# ------------------------------------------------------------------ caches and compilers
+
+
+def test_cache_dir_follows_the_platform(monkeypatch, tmp_path):
+    monkeypatch.delenv("DMPOPT_CACHE", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.setattr(sys, "platform", "linux")
+    assert symbolic.cache_dir() == tmp_path / "xdg" / "dmpopt"
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative/ignored")
+    assert symbolic.cache_dir() == tmp_path / ".cache" / "dmpopt"
+    monkeypatch.setattr(sys, "platform", "darwin")
+    assert symbolic.cache_dir() == tmp_path / "Library" / "Caches" / "dmpopt"
+    monkeypatch.setattr(sys, "platform", "win32")
+    monkeypatch.setenv("LOCALAPPDATA", str(tmp_path / "local"))
+    assert symbolic.cache_dir() == tmp_path / "local" / "dmpopt"
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path / "mine"))
+    assert symbolic.cache_dir() == tmp_path / "mine"
+
+
+NUMBA_PROBE = """
+import sys
+{first}
+import dmpopt.control.kernels as kernels
+import numba.core.config as config
+print(config.CACHE_DIR)
+print(kernels.all_finite._cache._cache_path)
+"""
+
+
+@pytest.mark.parametrize("numba_first", [False, True])
+def test_numba_cache_is_outside_the_package(tmp_path, numba_first):
+    """In a fresh interpreter (numba imported before dmpopt or not), numba's cache folder is
+    $XDG_CACHE_HOME/dmpopt/numba, outside the installed package."""
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "DMPOPT_CACHE")}
+    env["XDG_CACHE_HOME"] = str(tmp_path)
+    code = NUMBA_PROBE.format(first="import numba" if numba_first else "")
+    lines = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True
+    ).stdout.splitlines()
+    assert lines[0] == str(tmp_path / "dmpopt" / "numba")
+    assert Path(lines[1]).is_relative_to(tmp_path / "dmpopt" / "numba")
+    assert not Path(lines[1]).is_relative_to(Path(dmpopt.__file__).parent)
+
+
+def test_user_numba_cache_dir_is_kept(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "own")}
+    code = "import dmpopt.control, numba.core.config as c; print(c.CACHE_DIR)"
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == str(tmp_path / "own")
+
+
+@pytest.fixture(scope="module")
+def small_dmp():
+    times = np.linspace(0.0, 1.0, 200)
+    demo = Trajectory.from_positions(times, np.c_[np.sin(np.pi * times), times**2])
+    return fit_discrete(demo, n_basis=8)
+
+
+def steps(dmp, compile_):
+    stepper = dmp.stepper(dt=0.002, compile=compile_)
+    stepper.step()
+    stepper.set_goal([1.5, -0.5])
+    return np.array([np.concatenate(stepper.step()) for _ in range(300)])
+
+
+def test_compiled_step_is_cached_by_content(monkeypatch, tmp_path, small_dmp):
+    """Generated C compiles into the dmpopt cache folder, once: a second stepper reuses it."""
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path))
+    monkeypatch.delenv("CC", raising=False)
+    if symbolic.c_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    first = steps(small_dmp, True)
+    libraries = list(tmp_path.iterdir())
+    assert len(libraries) == 1 and libraries[0].suffix == ".so"
+    mtime = libraries[0].stat().st_mtime_ns
+    np.testing.assert_array_equal(steps(small_dmp, True), first)
+    assert list(tmp_path.iterdir()) == libraries and libraries[0].stat().st_mtime_ns == mtime
+
+
+@pytest.fixture(scope="module")
+def compiled_steps(tmp_path_factory, small_dmp):
+    """Steps of the small DMP through C compiled with the system compiler."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.delenv("CC", raising=False)
+        patch.setenv("DMPOPT_CACHE", str(tmp_path_factory.mktemp("reference")))
+        if symbolic.c_compiler() is None:
+            pytest.skip("no C compiler on this machine to compare with")
+        return steps(small_dmp, True)
+
+
+@pytest.mark.parametrize(
+    ("cc", "cache", "message"),
+    [
+        ("/nonexistent/cc", "cache", r"\$CC='/nonexistent/cc' was not found"),
+        ("false", "cache", r"false could not build it in .*: exit status 1"),
+        (None, "file/cache", r"could not build it in .*file/cache: Not a directory"),
+    ],
+)
+def test_without_a_compiler_the_vm_gives_identical_steps(
+    monkeypatch, tmp_path, small_dmp, compiled_steps, cc, cache, message
+):
+    """No compiler, a failing one, or an unusable cache folder: one warning, then the CasADi
+    VM steps exactly as the compiled C."""
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path / cache))
+    monkeypatch.delenv("CC", raising=False)
+    if cc is not None:
+        monkeypatch.setenv("CC", cc)
+    with pytest.warns(RuntimeWarning, match=message + r".*runs on the CasADi VM") as caught:
+        fallback = steps(small_dmp, True)
+    assert len(caught) == 1
+    np.testing.assert_array_equal(fallback, compiled_steps)
+    leftovers = list((tmp_path / cache).glob("*")) if (tmp_path / cache).is_dir() else []
+    assert leftovers == []

@@ -33,6 +33,7 @@ are lost, and catching it stops a simulation before the state diverges numerical
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -150,7 +151,7 @@ class FallDetector:
         spin : float
             Norm of the base's angular velocity [rad/s].
         """
-        if not np.isfinite(time + height + tilt + flight_time + spin):
+        if not math.isfinite(time + height + tilt + flight_time + spin):
             for name, value in zip(
                 ("time", "height", "tilt", "flight_time", "spin"),
                 (time, height, tilt, flight_time, spin),
@@ -200,4 +201,4 @@ def base_tilt(rotation) -> float:
     rotation : array_like, shape (3, 3)
         Orientation of the frame in the world.
     """
-    return float(np.arccos(np.clip(rotation[2, 2], -1.0, 1.0)))
+    return math.acos(min(1.0, max(-1.0, float(rotation[2, 2]))))

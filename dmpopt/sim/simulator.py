@@ -22,6 +22,7 @@ refuses to go on until :meth:`Simulator.reset`. A state that is non-finite or fa
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -268,17 +269,7 @@ class Simulator:
                     f"root joint with all {self.n_base_dofs} base dofs; pass falls=False"
                 )
             return None
-        self._root = self.model.joints[1]
-        self._root_data = self._root.createData()
-        self._fall_placement = pin.SE3.Identity()
-        if fall_frame is not None:
-            frame = self.model.frames[self._frame_id(fall_frame, "fall_frame")]
-            if frame.parentJoint != 1:
-                raise InvalidInputError(
-                    f"fall_frame {fall_frame!r} is not on the base body (joint "
-                    f"{self.model.names[1]!r}); pass a frame of the base, e.g. the pelvis"
-                )
-            self._fall_placement = frame.placement
+        self._watch_base(fall_frame)
         if fall_height is not None:
             fall_height = real("fall_height", fall_height, "a finite height [m] above the ground")
         if isinstance(falls, FallDetector):
@@ -297,15 +288,28 @@ class Simulator:
             return FallDetector(min_height=fall_height, max_tilt=np.inf)
         return None
 
+    def _watch_base(self, fall_frame: str | None) -> None:
+        """Root joint and placement of the watched frame on the base body."""
+        self._root = self.model.joints[1]
+        self._root_data = self._root.createData()
+        self._root_placement = self.model.jointPlacements[1]
+        self._fall_placement = pin.SE3.Identity()
+        if fall_frame is not None:
+            frame = self.model.frames[self._frame_id(fall_frame, "fall_frame")]
+            if frame.parentJoint != 1:
+                raise InvalidInputError(
+                    f"fall_frame {fall_frame!r} is not on the base body (joint "
+                    f"{self.model.names[1]!r}); pass a frame of the base, e.g. the pelvis"
+                )
+            self._fall_placement = frame.placement
+
     def _standing_height(self) -> float:
         """Height of the watched base frame above the lowest contact point, neutral ``q``."""
         q = pin.neutral(self.model)
         pin.computeJointJacobians(self.model, self.data, q)
         points, _ = self._point_jacobians(self._point_list, self._point_placements)
         self._root.calc(self._root_data, q)
-        base = (
-            self.model.jointPlacements[1] * self._root_data.M * self._fall_placement
-        ).translation
+        base = (self._root_placement * self._root_data.M * self._fall_placement).translation
         height = float(np.max((base - points) @ self.ground.normal))
         if not height > 0:
             raise InvalidInputError(
@@ -492,15 +496,7 @@ class Simulator:
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         tau_full = self._tau
-        tau_full[self.n_base_dofs :] = vector(
-            "tau", tau, self.n_actuated, self._tau_expected, self._tau_names
-        )
-        if base_force is None:
-            tau_full[: self.n_base_dofs] = 0.0
-        else:
-            tau_full[: self.n_base_dofs] = vector(
-                "base_force", base_force, self.n_base_dofs, "generalised force on the base dofs"
-            )
+        self._set_forces(tau_full, tau, base_force)
         model, data = self.model, self.data
         pin.computeJointJacobians(model, data, self.q)
         generalized = tau_full
@@ -515,6 +511,7 @@ class Simulator:
             self._in_contact, self._forces, self._positions = touching, forces, positions
             if touching.any():
                 generalized = tau_full + np.einsum("pkn,pk->n", jacobians, forces)
+                self._last_contact_time = self.t + self.dt  # end of a step with contact
             if started.size:
                 touchdowns = tuple(
                     TouchdownEvent(self.t + self.dt, int(i), self.contact_frames[i], positions[i])
@@ -525,7 +522,7 @@ class Simulator:
         acceleration = pin.aba(model, data, self.q, self.v, generalized)
         v = self.v + self.dt * acceleration
         q = pin.integrate(model, self.q, self.dt * v)
-        self._check_finite(q, v, self.t + self.dt)
+        self._check_finite(v, self.t + self.dt)
         self.q, self.v, self.t = q, v, self.t + self.dt
         self._last_touchdowns = touchdowns
         if touchdowns:
@@ -533,6 +530,23 @@ class Simulator:
         if self.fall_detector is not None:
             self._check_fall()
         return self.state
+
+    def _set_forces(self, tau_full: np.ndarray, tau, base_force) -> None:
+        """Copy ``base_force`` and ``tau`` into ``tau_full``; errors name the bad entry."""
+        n_base = self.n_base_dofs
+        try:
+            valid = np.shape(tau) == (self.n_actuated,) and (
+                base_force is None or np.shape(base_force) == (n_base,)
+            )
+            if valid:
+                tau_full[n_base:] = tau
+                tau_full[:n_base] = 0.0 if base_force is None else base_force
+        except (TypeError, ValueError):  # entries that are not numbers
+            valid = False
+        if valid and np.isfinite(tau_full).all():
+            return
+        vector("tau", tau, self.n_actuated, self._tau_expected, self._tau_names)
+        vector("base_force", base_force, n_base, "generalised force on the base dofs")
 
     def _push_forces(self) -> np.ndarray:
         """Generalised force of the active pushes; drops the finished ones."""
@@ -545,39 +559,37 @@ class Simulator:
         forces = np.array([p.force for p in self._pushes])
         return np.einsum("pkn,pk->n", jacobians, forces)
 
-    def _check_finite(self, q: np.ndarray, v: np.ndarray, t: float) -> None:
-        """Raise SimulationDiverged naming the first non-finite or too fast coordinate."""
+    def _check_finite(self, v: np.ndarray, t: float) -> None:
+        """Raise SimulationDiverged naming the first non-finite or too fast speed.
+
+        ``q`` needs no check: integrating finite speeds from a finite ``q`` keeps it finite.
+        """
         speeds = np.abs(v)
-        fastest = int(np.argmax(speeds)) if v.size else 0
-        if not np.isfinite(speeds.sum() + q.sum()):
-            bad_v, bad_q = np.flatnonzero(~np.isfinite(v)), np.flatnonzero(~np.isfinite(q))
-            what = (
-                f"v[{bad_v[0]}] ({self._v_names[bad_v[0]]})"
-                if bad_v.size
-                else f"q[{bad_q[0]}] ({self._q_names[bad_q[0]]})"
-            )
+        if v.size == 0 or speeds.max() <= self.max_speed:  # False for NaN
+            return
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
             raise SimulationDiverged(
-                f"{what} became non-finite at t = {t:.4f} s; reduce dt or the contact stiffness"
+                f"v[{bad[0]}] ({self._v_names[bad[0]]}) became non-finite at t = {t:.4f} s; "
+                "reduce dt or the contact stiffness"
             )
-        if v.size and speeds[fastest] > self.max_speed:
-            raise SimulationDiverged(
-                f"|v[{fastest}]| ({self._v_names[fastest]}) reached {speeds[fastest]:.3g} > "
-                f"max_speed = {self.max_speed:.3g} at t = {t:.4f} s; reduce dt or the contact "
-                "stiffness, or look for torques that spin the joint up"
-            )
+        fastest = int(np.argmax(speeds))
+        raise SimulationDiverged(
+            f"|v[{fastest}]| ({self._v_names[fastest]}) reached {speeds[fastest]:.3g} > "
+            f"max_speed = {self.max_speed:.3g} at t = {t:.4f} s; reduce dt or the contact "
+            "stiffness, or look for torques that spin the joint up"
+        )
 
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
         self._root.calc(self._root_data, self.q, self.v)
-        base = self.model.jointPlacements[1] * self._root_data.M * self._fall_placement
+        base = self._root_placement * self._root_data.M * self._fall_placement
         if self._n_points:
-            height = float(base.translation @ self.ground.normal - self.ground.height)
-            if self._in_contact.any():
-                self._last_contact_time = self.t
+            height = float(base.translation @ self.ground.normal) - self.ground.height
         else:
             height = float(base.translation[2])
         flight_time = 0.0 if self._last_contact_time is None else self.t - self._last_contact_time
-        spin = float(np.linalg.norm(self._root_data.v.angular))
+        spin = math.hypot(*self._root_data.v.angular)
         self.fall = self.fall_detector.check(
             self.t, height, base_tilt(base.rotation), flight_time, spin
         )

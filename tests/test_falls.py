@@ -25,6 +25,28 @@ def test_thresholds_derived_from_the_standing_height():
     assert detector.max_tilt == pytest.approx(np.pi / 4)
 
 
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (dict(min_height=float("nan")), "min_height must be a height"),
+        (dict(min_height=np.inf), "min_height must be below"),
+        (dict(min_height=0.5, max_tilt=0.0), "max_tilt must be a bound > 0"),
+        (dict(min_height=0.5, max_flight_time=-1.0), "max_flight_time must be a bound > 0"),
+        (dict(min_height=0.5, max_spin="fast"), "max_spin must be a bound > 0"),
+    ],
+)
+def test_bad_thresholds_are_named(arguments, message):
+    with pytest.raises(InvalidInputError, match=message):
+        FallDetector(**arguments)
+
+
+def test_bad_check_inputs_and_standing_height_are_named():
+    with pytest.raises(InvalidInputError, match="height must be a finite number"):
+        FallDetector(0.5).check(0.1, float("nan"), 0.0, 0.0, 0.0)
+    with pytest.raises(InvalidInputError, match="standing_height must be a height"):
+        FallDetector.for_standing_height(-1.0)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     values=st.tuples(*[st.floats(0.0, 2.0) for _ in range(4)]),

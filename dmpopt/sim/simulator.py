@@ -179,7 +179,7 @@ class Simulator:
         self.ground = ground
         self.contact_frames = [name for name, _ in contact_points]
         located = [
-            self._locate(name, offset, f"contact_points[{i}]")
+            self._locate(name, offset, f"contact_points[{i}]", f"contact_points[{i}] offset")
             for i, (name, offset) in enumerate(contact_points)
         ]
         self._point_list = [int(j) for j, _ in located]
@@ -218,7 +218,7 @@ class Simulator:
         self._tau_names = self._v_names[self.n_base_dofs :]
         self._tau_expected = (
             f"one torque [N m] or force [N] per actuated joint (model.nv = {model.nv} minus "
-            f"{self.n_base_dofs} base dofs), finite"
+            f"{self.n_base_dofs} base dofs)"
         )
 
     def _check_contact_points(self, contact_points) -> list:
@@ -244,10 +244,10 @@ class Simulator:
             )
         return self.model.getFrameId(name)
 
-    def _locate(self, frame_name, offset, argument: str) -> tuple[int, np.ndarray]:
+    def _locate(self, frame_name, offset, frame_argument: str, offset_argument: str):
         """Parent joint of a frame and the point's position in that joint's frame."""
-        offset = vector(f"{argument} offset", offset, 3, "x, y, z in the frame [m]")
-        frame = self.model.frames[self._frame_id(frame_name, argument)]
+        offset = vector(offset_argument, offset, 3, "x, y, z in the frame [m]")
+        frame = self.model.frames[self._frame_id(frame_name, frame_argument)]
         return frame.parentJoint, frame.placement.act(offset)
 
     def _make_fall_detector(self, falls, fall_frame, fall_height) -> FallDetector | None:
@@ -423,7 +423,7 @@ class Simulator:
         """
         force = vector("force", force, 3, "a world-frame force [N]")
         n_steps = self._push_steps(duration)
-        joint, point = self._locate(frame_name, offset, "frame_name")
+        joint, point = self._locate(frame_name, offset, "frame_name", "offset")
         self._pushes.append(_Push(joint, point, force, self.t + (n_steps - 0.5) * self.dt))
 
     def push_impulse(self, frame_name: str, impulse, duration: float = 0.05, offset=(0, 0, 0)):

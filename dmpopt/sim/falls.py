@@ -29,6 +29,13 @@ that a body toppling about its feet from standing reaches when it hits the groun
 :math:`m g h = \tfrac12 I \omega^2` with :math:`I \ge m h^2`, taking the centre of mass at
 the base height). A base turning faster is not toppling but thrown around: balance and control
 are lost, and catching it stops a simulation before the state diverges numerically.
+
+A backend calls, after each step (:class:`dmpopt.sim.Simulator` does exactly this, then refuses
+to step on until ``reset``)::
+
+    fall = detector.check(t, height, base_tilt(base_rotation), t - last_contact_time, spin)
+    if fall is not None:
+        ...  # stop; fall.reason says why, e.g. "base height 0.31 m below 0.54 m"
 """
 
 from __future__ import annotations
@@ -99,7 +106,11 @@ class FallDetector:
         object.__setattr__(self, "min_height", height)
         for name in ("max_tilt", "max_flight_time", "max_spin"):
             bound = real(
-                name, getattr(self, name), "a bound > 0, or np.inf to disable", True, False
+                name,
+                getattr(self, name),
+                "a bound > 0, or np.inf to disable",
+                positive=True,
+                finite=False,
             )
             object.__setattr__(self, name, bound)
 
@@ -123,7 +134,10 @@ class FallDetector:
             ``max_spin = sqrt(2 g / h)`` (module docstring), ``g = 9.81 m/s^2``.
         """
         standing_height = real(
-            "standing_height", standing_height, "a height [m] > 0 of the base above the feet", True
+            "standing_height",
+            standing_height,
+            "a height [m] > 0 of the base above the feet",
+            positive=True,
         )
         min_height = 0.5 * standing_height
         return cls(

@@ -566,21 +566,23 @@ def _closed_loop(robot, q_start, v_start, controller, reference, measure, durati
             base[k, 3:] = pin.rpy.matrixToRpy(pin.Quaternion(state.q[3:7]).toRotationMatrix())
             com[k] = pin.centerOfMass(robot.model, data, state.q)
         state = simulator.step(tau)
-        fell = fell or bool(getattr(state, "fallen", False))
         if progress is not None and (k % 100 == 99 or k == n - 1):
             progress.update(k % 100 + 1)
+        if state.fallen:  # the simulator stops at a fall: keep the ticks run so far
+            fell, n = True, k + 1
+            break
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     return RunLog(
         times=np.arange(n) * DT,
-        desired=desired,
-        actual=actual,
+        desired=desired[:n],
+        actual=actual[:n],
         elbow_phase=np.zeros(n),
-        base=base,
-        com=com,
+        base=base[:n],
+        com=com[:n],
         torque_use=torque_use,
-        torque_peak=torque_peak,
-        tick_wall_us=tick_wall / 1e3,
-        tick_cpu_us=tick_cpu / 1e3,
+        torque_peak=torque_peak[:n],
+        tick_wall_us=tick_wall[:n] / 1e3,
+        tick_cpu_us=tick_cpu[:n] / 1e3,
         wall_time=wall,
         cpu_time=cpu,
         fell=fell,

@@ -3,9 +3,11 @@
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dmpopt.exceptions import InvalidInputError, ShapeError, SimulationDiverged
-from dmpopt.sim import GroundContact, Simulator
+from dmpopt.sim import FallDetector, GroundContact, Simulator
 
 GRAVITY = 9.81
 
@@ -165,47 +167,183 @@ def test_box_on_slope_sticks_or_slides(slope_deg, sticks):
 
 
 def test_fall_flag_and_no_pulling():
-    """The fall flag rises when the frame drops below the height; ground never pulls."""
+    """The fall flag rises at the first step below fall_height; the ground never pulls."""
     model = free_box()
     ground = GroundContact(stiffness=2e4, damping=5e3, friction=0.8)
     sim = Simulator(
         model, 1e-3, contact_points=box_corners(), ground=ground, fall_frame="box", fall_height=0.25
     )
     sim.reset(box_at(0.3, model), [0, 0, -3.0, 0, 0, 0])
-    fell, min_force = False, np.inf
+    min_force = np.inf
     for _ in range(300):
         state = sim.step(np.zeros(0))
-        fell |= state.fallen
         min_force = min(min_force, state.contact_forces[:, 2].min())
-    assert fell and state.fallen
+        if state.fallen:
+            break
+    assert state.fall.cause == "height"
+    assert state.q[2] < 0.25 <= state.q[2] + 3.0 * 1e-3  # first step below (speed <= 3 m/s)
     assert min_force >= 0.0
 
 
 def test_divergence_is_reported():
-    """A far too stiff ground at a coarse step blows up and raises SimulationDiverged."""
+    """A far too stiff ground at a coarse step blows up and raises SimulationDiverged naming
+    the coordinate and the time; the simulator keeps the last finite state."""
     model = free_box(mass=0.01)
     ground = GroundContact(stiffness=1e8, damping=0.0, friction=0.8)
-    sim = Simulator(model, 1e-2, contact_points=box_corners(), ground=ground)
+    sim = Simulator(model, 1e-2, contact_points=box_corners(), ground=ground, falls=False)
     sim.reset(box_at(0.09, model))
-    with pytest.raises(SimulationDiverged, match="reduce dt"):
+    with pytest.raises(
+        SimulationDiverged, match=r"\|v\[\d\]\| \(root\[\d\]\) .* at t = .*reduce dt"
+    ):
         for _ in range(100):
             sim.step(np.zeros(0))
+    assert np.abs(sim.v).max() <= 1e3 and np.isfinite(sim.q).all()
 
 
-def test_bad_arguments_are_named():
+def test_non_finite_state_names_the_coordinate():
+    """An acceleration that overflows names the first joint; the state stays the last one."""
+    sim = Simulator(double_pendulum(), 1e-3)
+    sim.reset([0.1, 0.2])
+    with pytest.raises(SimulationDiverged, match=r"v\[0\] \(joint 'joint_0'\) became non-finite"):
+        sim.step([1e308, -1e308])
+    assert sim.t == 0.0 and sim.q == pytest.approx([0.1, 0.2])
+
+
+def test_near_unit_quaternion_is_renormalised_others_refused():
+    """|quat| = 1 + 1.25e-4 is renormalised; norms 0 and 2 are refused naming q[3:7]."""
     model = free_box()
-    with pytest.raises(InvalidInputError, match="dt must be"):
-        Simulator(model, 0.0)
-    with pytest.raises(InvalidInputError, match="frame 'nope'"):
-        Simulator(model, 1e-3, [("nope", (0, 0, 0))], GroundContact(1e4, 10, 1))
-    with pytest.raises(InvalidInputError, match="pass ground="):
-        Simulator(model, 1e-3, [("box", (0, 0, 0))])
-    with pytest.raises(ShapeError, match=r"q has shape \(3,\)"):
-        Simulator(model, 1e-3).reset(np.zeros(3))
-    with pytest.raises(ShapeError, match=r"tau has shape \(2,\), expected \(0,\)"):
-        Simulator(model, 1e-3).step(np.zeros(2))
-    with pytest.raises(InvalidInputError, match="stiffness must be"):
-        GroundContact(stiffness=-1.0, damping=1.0, friction=1.0)
+    sim = Simulator(model, 1e-3)
+    q = box_at(1.0, model)
+    q[3:7] = [0.0, 0.0, 0.6 * (1 + 1.25e-4), 0.8 * (1 + 1.25e-4)]
+    assert np.linalg.norm(sim.reset(q).q[3:7]) == pytest.approx(1.0, abs=1e-15)
+    for norm in (0.0, 2.0):
+        q[3:7] = [0.0, 0.0, 0.6 * norm, 0.8 * norm]
+        with pytest.raises(InvalidInputError, match=rf"q\[3:7\] of joint 'root' has norm {norm:g}"):
+            sim.reset(q)
+
+
+NAN = float("nan")
+
+
+BAD_SIMULATOR_ARGUMENTS = [
+    # (keyword arguments of Simulator, error, message)
+    (dict(dt=0.0), InvalidInputError, "dt must be a positive finite time step"),
+    (dict(dt=NAN), InvalidInputError, "dt must be .* got nan"),
+    (dict(dt="1e-3"), InvalidInputError, "dt must be .* got '1e-3'"),
+    (dict(max_speed=NAN), InvalidInputError, "max_speed must be a positive finite bound"),
+    (dict(max_speed=np.inf), InvalidInputError, "max_speed must be"),
+    (dict(max_speed=-1.0), InvalidInputError, "max_speed must be"),
+    (dict(n_base_dofs=7), InvalidInputError, r"n_base_dofs must be an integer in \[0, 6\]"),
+    (dict(n_base_dofs=2.5), InvalidInputError, "n_base_dofs must be an integer"),
+    (dict(contact_points=[("nope", (0, 0, 0))]), InvalidInputError, "frame 'nope' is not in"),
+    (dict(contact_points=["box"]), InvalidInputError, r"contact_points\[0\] must be a"),
+    (dict(contact_points=[("box", (0, 0))]), ShapeError, r"contact_points\[0\] offset has shape"),
+    (dict(contact_points=[("box", (0, NAN, 0))]), InvalidInputError, r"offset\[1\] is nan"),
+    (dict(contact_points=[("box", (0, 0, 0))], ground=None), InvalidInputError, "pass ground="),
+    (dict(fall_height=NAN), InvalidInputError, "fall_height must be a finite height"),
+    (dict(fall_frame="universe"), InvalidInputError, "fall_frame 'universe' is not on the base"),
+    (dict(falls="yes"), InvalidInputError, "falls must be True, False or a FallDetector"),
+    (dict(falls=False, fall_height=0.1), InvalidInputError, "fall_height given with falls=False"),
+    (
+        dict(falls=FallDetector(0.1), fall_height=0.2),
+        InvalidInputError,
+        "set min_height in the FallDetector",
+    ),
+]
+
+
+@pytest.mark.parametrize("kwargs, error, message", BAD_SIMULATOR_ARGUMENTS)
+def test_bad_constructor_arguments_are_named(kwargs, error, message):
+    arguments = dict(model=free_box(), dt=1e-3) | kwargs
+    if "contact_points" in kwargs and "ground" not in kwargs:
+        arguments["ground"] = GroundContact(1e4, 10, 1)
+    with pytest.raises(error, match=message):
+        Simulator(**arguments)
+
+
+def test_fall_detection_on_a_fixed_base_is_refused():
+    with pytest.raises(InvalidInputError, match="fall detection needs a floating base"):
+        Simulator(double_pendulum(), 1e-3, falls=FallDetector(0.1))
+    assert Simulator(double_pendulum(), 1e-3).fall_detector is None
+
+
+def _box_sim():
+    return Simulator(free_box(), 1e-3, box_corners(), GroundContact(2e4, 300, 0.8))
+
+
+BAD_CALLS = [
+    # (method, arguments, error, message)
+    ("reset", (np.zeros(3),), ShapeError, r"q has shape \(3,\), expected \(7,\)"),
+    ("reset", ([0, 0, NAN, 0, 0, 0, 1],), InvalidInputError, r"q\[2\] \(root\[2\]\) is nan"),
+    ("reset", ([0, 0, 1, 0, 0, 0, 0],), InvalidInputError, r"q\[3:7\] .* norm 0, expected a unit"),
+    ("reset", (box_at(1, free_box()), np.zeros(7)), ShapeError, r"v has shape \(7,\)"),
+    ("reset", (box_at(1, free_box()), [0, 0, np.inf, 0, 0, 0]), InvalidInputError, r"v\[2\]"),
+    ("reset", (box_at(1, free_box()), None, NAN), InvalidInputError, "t must be a finite time"),
+    ("step", (np.zeros(2),), ShapeError, r"tau has shape \(2,\), expected \(0,\)"),
+    ("step", (np.zeros(0), [0, 0, NAN, 0, 0, 0]), InvalidInputError, r"base_force\[2\] is nan"),
+    ("step", (np.zeros(0), np.zeros(3)), ShapeError, r"base_force has shape \(3,\), expected \(6,"),
+    ("step", ("abc",), InvalidInputError, "tau must be an array of 0 numbers"),
+    ("push", ("box", [NAN, 0, 0], 0.1), InvalidInputError, r"force\[0\] is nan"),
+    ("push", ("box", [1, 0], 0.1), ShapeError, r"force has shape \(2,\), expected \(3,\)"),
+    ("push", ("box", [1, 0, 0], 0.0), InvalidInputError, "duration must be a positive finite"),
+    ("push", ("box", [1, 0, 0], NAN), InvalidInputError, "duration must be .* got nan"),
+    ("push", ("box", [1, 0, 0], np.inf), InvalidInputError, "duration must be .* got inf"),
+    ("push", ("box", [1, 0, 0], 4e-4), InvalidInputError, "shorter than half the time step"),
+    ("push", ("nope", [1, 0, 0], 0.1), InvalidInputError, "frame_name: frame 'nope' is not in"),
+    ("push", (3, [1, 0, 0], 0.1), InvalidInputError, "frame_name: frame 3 is not in"),
+    ("push", ("box", [1, 0, 0], 0.1, (0, 0, NAN)), InvalidInputError, r"^offset\[2\] is nan"),
+    ("push_impulse", ("box", [0, NAN, 0]), InvalidInputError, r"impulse\[1\] is nan"),
+    ("push_impulse", ("box", [1, 0, 0], -0.1), InvalidInputError, "duration must be"),
+]
+
+
+@pytest.mark.parametrize("method, arguments, error, message", BAD_CALLS)
+def test_bad_call_arguments_are_named(method, arguments, error, message):
+    with pytest.raises(error, match=message):
+        getattr(_box_sim(), method)(*arguments)
+
+
+@settings(max_examples=20, deadline=None)
+@given(index=st.integers(0, 1), bad=st.sampled_from([NAN, np.inf, -np.inf]))
+def test_non_finite_torque_names_the_joint_and_leaves_the_state(index, bad):
+    sim = Simulator(double_pendulum(), 1e-3)
+    sim.reset([0.1, 0.2])
+    tau = [0.0, 0.0]
+    tau[index] = bad
+    with pytest.raises(InvalidInputError, match=rf"tau\[{index}\] \(joint 'joint_{index}'\) is"):
+        sim.step(tau)
+    assert sim.t == 0.0 and sim.q == pytest.approx([0.1, 0.2])
+
+
+def test_ground_contact_refuses_bad_values():
+    for kwargs, message in [
+        (dict(stiffness=-1.0), "stiffness must be"),
+        (dict(damping=NAN), "damping must be a finite number >= 0, got nan"),
+        (dict(friction=-0.1), "friction must be"),
+        (dict(height=NAN), "height must be a finite height"),
+        (dict(tangential_stiffness=0.0), "tangential_stiffness must be"),
+        (dict(tangential_damping=-1.0), "tangential_damping must be"),
+        (dict(normal=(0, 0, -1)), "normal must point up"),
+        (dict(normal=(0, NAN, 1)), r"normal\[1\] is nan"),
+    ]:
+        with pytest.raises(InvalidInputError, match=message):
+            GroundContact(**(dict(stiffness=1e4, damping=1.0, friction=1.0) | kwargs))
+
+
+def test_push_impulse_is_exact_for_any_duration():
+    """0.4 N s over 12.3 ms at dt = 1 ms: 12 steps of 0.4 / 0.012 N, dv = J / m exactly."""
+    mass = 2.0
+    model = free_box(mass)
+    model.gravity.linear[:] = 0.0
+    sim = Simulator(model, 1e-3)
+    sim.reset(box_at(1.0, model))
+    sim.push_impulse("box", [0.4, 0.0, 0.0], duration=0.0123)
+    for _ in range(11):
+        sim.step(np.zeros(0))
+    assert sim.v[0] == pytest.approx(0.4 / mass * 11 / 12, rel=1e-12)
+    sim.step(np.zeros(0))
+    sim.step(np.zeros(0))
+    assert sim.v[0] == pytest.approx(0.4 / mass, rel=1e-12)
 
 
 def test_push_through_point_jacobian_matches_newton_on_a_free_box():

@@ -5,18 +5,27 @@
 ...                 ground=GroundContact(stiffness=2e4, damping=300, friction=0.8))
 >>> sim.reset(q, v)
 >>> state = sim.step(tau)   # state.q, state.v, state.t, state.contact_forces, state.in_contact
+>>> state.fall              # None, or Fall(time, cause, value, threshold, reason)
+
+Fall checks (:mod:`dmpopt.sim.falls`) are backend-independent: :class:`FallDetector` holds the
+thresholds and :meth:`FallDetector.check` turns the base's height, tilt, time without contact
+and angular speed into a :class:`Fall`.
 """
 
 from dmpopt.sim.contact import GroundContact, ground_forces
+from dmpopt.sim.falls import Fall, FallDetector, base_tilt
 from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
 __all__ = [
+    "Fall",
+    "FallDetector",
     "GroundContact",
     "MujocoSimulator",
     "SimState",
     "Simulator",
     "TouchdownEvent",
+    "base_tilt",
     "ground_forces",
     "render_animation",
 ]

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dmpopt.exceptions import InvalidInputError
+from dmpopt.sim._checks import real, vector
 
 __all__ = ["GroundContact", "ground_forces"]
 
@@ -68,23 +69,27 @@ class GroundContact:
     normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
 
     def __post_init__(self):
-        for name in ("stiffness", "damping", "friction"):
-            value = getattr(self, name)
-            if not np.isfinite(value) or value < 0:
-                raise InvalidInputError(f"{name} must be finite and >= 0, got {value!r}")
-        if self.stiffness == 0:
-            raise InvalidInputError("stiffness must be > 0, got 0; the ground needs a spring")
-        if self.tangential_stiffness is None:
-            object.__setattr__(self, "tangential_stiffness", float(self.stiffness))
-        if self.tangential_damping is None:
-            object.__setattr__(self, "tangential_damping", float(self.damping))
-        if not self.tangential_stiffness > 0:
+        for name, default in (
+            ("tangential_stiffness", "stiffness"),
+            ("tangential_damping", "damping"),
+        ):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, getattr(self, default))
+        for name in ("stiffness", "tangential_stiffness"):
+            value = real(name, getattr(self, name), "a finite stiffness > 0 [N/m]", positive=True)
+            object.__setattr__(self, name, value)
+        for name in ("damping", "tangential_damping", "friction"):
+            value = real(name, getattr(self, name), "a finite number >= 0")
+            if value < 0:
+                raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "height", real("height", self.height, "a finite height [m]"))
+        normal = vector("normal", self.normal, 3, "the upward normal of the ground plane")
+        if not normal[2] > 0:
             raise InvalidInputError(
-                f"tangential_stiffness must be > 0, got {self.tangential_stiffness!r}"
+                f"normal must point up (positive z, the world's up axis), got {self.normal!r}; "
+                "e.g. (0, 0, 1) for flat ground"
             )
-        normal = np.asarray(self.normal, dtype=float).reshape(-1)
-        if normal.shape != (3,) or not np.linalg.norm(normal) > 0:
-            raise InvalidInputError(f"normal must be a non-zero 3-vector, got {self.normal!r}")
         normal = normal / np.linalg.norm(normal)
         helper = np.eye(3)[np.argmin(np.abs(normal))]
         tangent_1 = np.cross(helper, normal)

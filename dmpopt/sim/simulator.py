@@ -12,21 +12,32 @@ pushes, applied as generalised forces :math:`J^\top f` through the world-aligned
 Jacobians, and :math:`\oplus` is ``pinocchio.integrate``. Per step the simulator makes one
 ``computeJointJacobians`` call and one ``aba`` call; contact forces are computed for all points
 at once with NumPy.
+
+After each step a floating-base robot is checked for a fall (:mod:`dmpopt.sim.falls`): the
+first fall stops the simulation, ``state.fall`` says when and why, and :meth:`Simulator.step`
+refuses to go on until :meth:`Simulator.reset`. A state that is non-finite or faster than
+``max_speed`` raises :class:`~dmpopt.exceptions.SimulationDiverged` naming the coordinate.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from dmpopt.exceptions import InvalidInputError, ShapeError, SimulationDiverged
+from dmpopt.exceptions import InvalidInputError, SimulationDiverged
+from dmpopt.sim._checks import real, vector
 from dmpopt.sim.contact import GroundContact, ground_forces
+from dmpopt.sim.falls import Fall, FallDetector, base_tilt
 
 __all__ = ["SimState", "Simulator", "TouchdownEvent"]
 
 _BASE_DOFS = {"JointModelFreeFlyer": 6, "JointModelPlanar": 3}
+_QUATERNION_JOINTS = ("JointModelFreeFlyer", "JointModelSpherical")
+UNIT_NORM_TOLERANCE = 1e-3  # quaternions this close to unit norm are renormalised at reset
 
 
 @dataclass(frozen=True)
@@ -68,8 +79,8 @@ class SimState:
         World positions of the contact points at the start of the step [m].
     touchdowns : tuple of TouchdownEvent
         Touchdowns that happened during this step.
-    fallen : bool
-        True once the fall frame has gone below the fall height (stays True).
+    fall : Fall or None
+        The fall that ended the simulation (time, cause, reason), None while standing.
     """
 
     t: float
@@ -79,7 +90,12 @@ class SimState:
     in_contact: np.ndarray
     contact_positions: np.ndarray
     touchdowns: tuple
-    fallen: bool
+    fall: Fall | None
+
+    @property
+    def fallen(self) -> bool:
+        """True once the robot has fallen (``fall is not None``)."""
+        return self.fall is not None
 
 
 @dataclass
@@ -107,11 +123,26 @@ class Simulator:
     n_base_dofs : int, optional
         Number of unactuated base velocity coordinates (the first ones of ``v``).
     fall_frame : str, optional
-        Frame whose origin height is watched for falls.
+        Frame of the base body whose pose the fall checks watch; default: the root joint's
+        frame.
     fall_height : float, optional
-        The robot has fallen when ``fall_frame`` is below this world height [m].
+        Shortcut for the ``min_height`` of the fall checks [m above the ground]; the other
+        thresholds stay derived from the robot.
     max_speed : float
         Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s].
+    falls : bool or FallDetector
+        ``True`` (default): a floating-base robot with contact points gets the thresholds of
+        :meth:`FallDetector.for_standing_height`, with the height of the base above the
+        lowest contact point in the neutral configuration (straight legs) as standing height;
+        without contact points only ``fall_height``, if given, is checked; a fixed base never
+        falls. A :class:`FallDetector` sets the thresholds; ``False`` switches the checks off.
+
+    Attributes
+    ----------
+    fall_detector : FallDetector or None
+        The thresholds in use (None: no fall checks).
+    fall : Fall or None
+        The fall that stopped the simulation, if any.
     """
 
     def __init__(
@@ -124,60 +155,190 @@ class Simulator:
         fall_frame: str | None = None,
         fall_height: float | None = None,
         max_speed: float = 1e3,
+        falls: bool | FallDetector = True,
     ):
-        if not (np.isfinite(dt) and dt > 0):
-            raise InvalidInputError(f"dt must be a positive finite time step [s], got {dt!r}")
+        if not isinstance(model, pin.Model):
+            raise InvalidInputError(
+                f"model must be a pinocchio.Model, got {type(model).__name__}; pass robot.model"
+            )
         self.model = model
         self.data = model.createData()
-        self.dt = float(dt)
-        self.max_speed = float(max_speed)
-        if n_base_dofs is None:
-            n_base_dofs = _detect_base_dofs(model)
-        if not 0 <= n_base_dofs <= model.nv:
-            raise InvalidInputError(f"n_base_dofs must be in [0, {model.nv}], got {n_base_dofs}")
-        self.n_base_dofs = int(n_base_dofs)
+        self.dt = real("dt", dt, "a positive finite time step [s], e.g. 1e-3", positive=True)
+        self.max_speed = real(
+            "max_speed", max_speed, "a positive finite bound [m/s, rad/s], e.g. 1e3", positive=True
+        )
+        self.n_base_dofs = self._check_base_dofs(n_base_dofs)
         self.n_actuated = model.nv - self.n_base_dofs
-        contact_points = list(contact_points)
-        if contact_points and ground is None:
-            raise InvalidInputError("ground is None but contact_points were given; pass ground=")
+        self._name_coordinates()
+        contact_points = self._check_contact_points(contact_points)
+        if contact_points and not isinstance(ground, GroundContact):
+            raise InvalidInputError(
+                f"ground must be a GroundContact when contact_points are given, got {ground!r}; "
+                "pass ground=GroundContact(stiffness=..., damping=..., friction=...)"
+            )
         self.ground = ground
         self.contact_frames = [name for name, _ in contact_points]
-        located = [self._locate(name, offset) for name, offset in contact_points]
+        located = [
+            self._locate(name, offset, f"contact_points[{i}]", f"contact_points[{i}] offset")
+            for i, (name, offset) in enumerate(contact_points)
+        ]
         self._point_list = [int(j) for j, _ in located]
         self._n_points = len(located)
         self._point_placements = [pin.SE3(np.eye(3), p) for _, p in located]
-        self._fall_frame = None if fall_frame is None else self._frame_id(fall_frame)
-        if (fall_frame is None) != (fall_height is None):
-            raise InvalidInputError("fall_frame and fall_height must be given together")
-        self._fall_height = fall_height
+        self.fall_detector = self._make_fall_detector(falls, fall_frame, fall_height)
         self._tau = np.zeros(model.nv)
         self.touchdown_events: list[TouchdownEvent] = []
         self.reset(pin.neutral(model), np.zeros(model.nv))
 
     # ------------------------------------------------------------------ set-up helpers
-    def _frame_id(self, name: str) -> int:
-        if not self.model.existFrame(name):
-            raise InvalidInputError(f"frame {name!r} is not in the model {self.model.name!r}")
+    def _check_base_dofs(self, n_base_dofs) -> int:
+        if n_base_dofs is None:
+            return _detect_base_dofs(self.model)
+        if (
+            isinstance(n_base_dofs, (bool, np.bool_))
+            or not isinstance(n_base_dofs, (int, np.integer))
+            or not 0 <= n_base_dofs <= self.model.nv
+        ):
+            raise InvalidInputError(
+                f"n_base_dofs must be an integer in [0, {self.model.nv}] (model.nv), got "
+                f"{n_base_dofs!r}; omit it to detect the base from the root joint"
+            )
+        return int(n_base_dofs)
+
+    def _name_coordinates(self) -> None:
+        """Readable names of the entries of q and v, e.g. ``root_joint[3]``, for messages."""
+        model = self.model
+        self._q_names, self._v_names = [], []
+        for joint_id in range(1, model.njoints):
+            joint, name = model.joints[joint_id], model.names[joint_id]
+            for names, size in ((self._q_names, joint.nq), (self._v_names, joint.nv)):
+                names.extend(
+                    [f"joint {name!r}"] if size == 1 else [f"{name}[{k}]" for k in range(size)]
+                )
+        self._tau_names = self._v_names[self.n_base_dofs :]
+        self._tau_expected = (
+            f"one torque [N m] or force [N] per actuated joint (model.nv = {model.nv} minus "
+            f"{self.n_base_dofs} base dofs)"
+        )
+
+    def _check_contact_points(self, contact_points) -> list:
+        try:
+            points = list(contact_points)
+        except TypeError:
+            raise InvalidInputError(
+                f"contact_points must be a sequence of (frame_name, offset_xyz) pairs, got "
+                f"{contact_points!r}"
+            ) from None
+        for i, point in enumerate(points):
+            if not (isinstance(point, (tuple, list)) and len(point) == 2):
+                raise InvalidInputError(
+                    f"contact_points[{i}] must be a (frame_name, offset_xyz) pair, got {point!r}"
+                )
+        return points
+
+    def _frame_id(self, name, argument: str) -> int:
+        if not isinstance(name, str) or not self.model.existFrame(name):
+            raise InvalidInputError(
+                f"{argument}: frame {name!r} is not in the model {self.model.name!r}; pass one of "
+                f"the names in [f.name for f in model.frames]"
+            )
         return self.model.getFrameId(name)
 
-    def _locate(self, frame_name: str, offset) -> tuple[int, np.ndarray]:
+    def _locate(self, frame_name, offset, frame_argument: str, offset_argument: str):
         """Parent joint of a frame and the point's position in that joint's frame."""
-        offset = np.asarray(offset, dtype=float).reshape(-1)
-        if offset.shape != (3,):
-            raise ShapeError(f"offset of {frame_name!r} has shape {offset.shape}, expected (3,)")
-        frame = self.model.frames[self._frame_id(frame_name)]
+        offset = vector(offset_argument, offset, 3, "x, y, z in the frame [m]")
+        frame = self.model.frames[self._frame_id(frame_name, frame_argument)]
         return frame.parentJoint, frame.placement.act(offset)
+
+    def _make_fall_detector(self, falls, fall_frame, fall_height) -> FallDetector | None:
+        """Check the fall options; set the watched frame; return the thresholds or None."""
+        if not (falls is True or falls is False or isinstance(falls, FallDetector)):
+            raise InvalidInputError(f"falls must be True, False or a FallDetector, got {falls!r}")
+        asked = fall_frame is not None or fall_height is not None or falls is not True
+        if falls is False:
+            if fall_frame is not None or fall_height is not None:
+                raise InvalidInputError(
+                    "fall_frame or fall_height given with falls=False; drop them or the flag"
+                )
+            return None
+        root_is_base = self.model.njoints > 1 and self.model.joints[1].nv == self.n_base_dofs > 0
+        if not root_is_base:
+            if asked:
+                raise InvalidInputError(
+                    "fall detection needs a floating base: a free-flyer, planar or composite "
+                    f"root joint with all {self.n_base_dofs} base dofs; pass falls=False"
+                )
+            return None
+        self._watch_base(fall_frame)
+        if fall_height is not None:
+            fall_height = real("fall_height", fall_height, "a finite height [m] above the ground")
+        if isinstance(falls, FallDetector):
+            if fall_height is not None:
+                raise InvalidInputError(
+                    "fall_height given with falls=FallDetector(...); set min_height in the "
+                    "FallDetector instead"
+                )
+            return falls
+        if self._n_points:
+            detector = FallDetector.for_standing_height(self._standing_height())
+            if fall_height is None:
+                return detector
+            return dataclasses.replace(detector, min_height=fall_height)
+        if fall_height is not None:
+            return FallDetector(min_height=fall_height, max_tilt=np.inf)
+        return None
+
+    def _watch_base(self, fall_frame: str | None) -> None:
+        """Root joint and placement of the watched frame on the base body."""
+        self._root = self.model.joints[1]
+        self._root_data = self._root.createData()
+        self._root_placement = self.model.jointPlacements[1]
+        self._fall_placement = pin.SE3.Identity()
+        if fall_frame is not None:
+            frame = self.model.frames[self._frame_id(fall_frame, "fall_frame")]
+            if frame.parentJoint != 1:
+                raise InvalidInputError(
+                    f"fall_frame {fall_frame!r} is not on the base body (joint "
+                    f"{self.model.names[1]!r}); pass a frame of the base, e.g. the pelvis"
+                )
+            self._fall_placement = frame.placement
+
+    def _standing_height(self) -> float:
+        """Height of the watched base frame above the lowest contact point, neutral ``q``."""
+        q = pin.neutral(self.model)
+        pin.computeJointJacobians(self.model, self.data, q)
+        points, _ = self._point_jacobians(self._point_list, self._point_placements)
+        self._root.calc(self._root_data, q)
+        base = (self._root_placement * self._root_data.M * self._fall_placement).translation
+        height = float(np.max((base - points) @ self.ground.normal))
+        if not height > 0:
+            raise InvalidInputError(
+                f"the base is {height:.3g} m above the lowest contact point in the neutral "
+                "configuration, so fall thresholds cannot be derived from it; pass "
+                "falls=FallDetector(min_height=...) or falls=False"
+            )
+        return height
 
     # ------------------------------------------------------------------ state
     def reset(self, q, v=None, t: float = 0.0) -> SimState:
-        """Set the configuration ``q`` (nq,), velocity ``v`` (nv,) and time; clear contacts."""
-        q = np.array(q, dtype=float).reshape(-1)
-        v = np.zeros(self.model.nv) if v is None else np.array(v, dtype=float).reshape(-1)
-        if q.shape != (self.model.nq,):
-            raise ShapeError(f"q has shape {q.shape}, expected ({self.model.nq},)")
-        if v.shape != (self.model.nv,):
-            raise ShapeError(f"v has shape {v.shape}, expected ({self.model.nv},)")
-        self.q, self.v, self.t = q, v, float(t)
+        """Set the configuration, velocity and time; clear contacts, pushes and any fall.
+
+        Parameters
+        ----------
+        q : array_like, shape (nq,)
+            Configuration. Quaternions (free-flyer, spherical joints, order x, y, z, w) and
+            unit complex numbers must have unit norm; a norm within ``1e-3`` of 1 is
+            renormalised, anything else is refused.
+        v : array_like, shape (nv,), optional
+            Velocity; zero by default.
+        t : float
+            Time [s].
+        """
+        q = self._check_configuration(q)
+        v = np.zeros(self.model.nv) if v is None else v
+        v = vector("v", v, self.model.nv, "velocity: base twist then joint speeds", self._v_names)
+        t = real("t", t, "a finite time [s]")
+        self.q, self.v, self.t = q, v, t
         n_points = self._n_points
         self._anchors = np.zeros((n_points, 2))
         self._in_contact = np.zeros(n_points, dtype=bool)
@@ -186,13 +347,43 @@ class Simulator:
         self._pushes: list[_Push] = []
         self.touchdown_events = []
         self._last_touchdowns: tuple = ()
-        self.fallen = False
+        self.fall: Fall | None = None
+        self._last_contact_time: float | None = None
         if n_points:
             pin.computeJointJacobians(self.model, self.data, self.q)
             self._positions, _ = self._point_jacobians(self._point_list, self._point_placements)
             self._in_contact = self.ground.penetration(self._positions) > 0
             self._anchors = (self._positions @ self.ground.frame.T)[:, :2]
+            if self._in_contact.any():
+                self._last_contact_time = t
         return self.state
+
+    def _check_configuration(self, q) -> np.ndarray:
+        """``q`` as a finite array with unit quaternions (renormalised within tolerance)."""
+        model = self.model
+        q = vector("q", q, model.nq, "configuration: base pose then joint positions", self._q_names)
+        for joint_id in range(1, model.njoints):
+            joint = model.joints[joint_id]
+            if joint.nq == joint.nv or joint.shortname() == "JointModelComposite":
+                continue
+            size = 4 if joint.shortname() in _QUATERNION_JOINTS else 2
+            block = slice(joint.idx_q + joint.nq - size, joint.idx_q + joint.nq)
+            norm = np.linalg.norm(q[block])
+            if abs(norm - 1.0) > UNIT_NORM_TOLERANCE:
+                unit = "quaternion (x, y, z, w)" if size == 4 else "complex number (cos, sin)"
+                identity = "(0, 0, 0, 1)" if size == 4 else "(1, 0)"
+                raise InvalidInputError(
+                    f"q[{block.start}:{block.stop}] of joint {model.names[joint_id]!r} has norm "
+                    f"{norm:.4g}, expected a unit {unit}: pass e.g. {identity} for no rotation, "
+                    "or pinocchio.normalize(model, q) if the orientation is right but not scaled"
+                )
+            q[block] /= norm
+        if not pin.isNormalized(model, q, UNIT_NORM_TOLERANCE):
+            raise InvalidInputError(
+                "q has a non-unit quaternion or complex number inside a composite joint; pass a "
+                "normalised configuration (pinocchio.normalize(model, q))"
+            )
+        return q
 
     @property
     def state(self) -> SimState:
@@ -205,26 +396,55 @@ class Simulator:
             in_contact=self._in_contact.copy(),
             contact_positions=self._positions.copy(),
             touchdowns=self._last_touchdowns,
-            fallen=self.fallen,
+            fall=self.fall,
         )
+
+    @property
+    def fallen(self) -> bool:
+        """True once the robot has fallen (see :attr:`fall`)."""
+        return self.fall is not None
 
     # ------------------------------------------------------------------ pushes
     def push(self, frame_name: str, force, duration: float, offset=(0.0, 0.0, 0.0)) -> None:
-        """Apply a constant world-frame ``force`` [N] at a point of a frame for ``duration`` [s].
+        """Apply a constant world-frame ``force`` [N] at a point of a frame from now on.
 
-        The push starts now; several pushes add up.
+        The push acts during the next ``round(duration / dt)`` steps; several pushes add up.
+
+        Parameters
+        ----------
+        frame_name : str
+            Frame of the model the point is attached to.
+        force : array_like, shape (3,)
+            World-frame force [N].
+        duration : float
+            [s], at least ``dt / 2`` (one step).
+        offset : array_like, shape (3,)
+            Point in the frame [m].
         """
-        force = np.asarray(force, dtype=float).reshape(-1)
-        if force.shape != (3,):
-            raise ShapeError(f"force has shape {force.shape}, expected (3,)")
-        if not duration > 0:
-            raise InvalidInputError(f"duration must be > 0 [s], got {duration!r}")
-        joint, point = self._locate(frame_name, offset)
-        self._pushes.append(_Push(joint, point, force, self.t + duration - 0.5 * self.dt))
+        force = vector("force", force, 3, "a world-frame force [N]")
+        n_steps = self._push_steps(duration)
+        joint, point = self._locate(frame_name, offset, "frame_name", "offset")
+        self._pushes.append(_Push(joint, point, force, self.t + (n_steps - 0.5) * self.dt))
 
     def push_impulse(self, frame_name: str, impulse, duration: float = 0.05, offset=(0, 0, 0)):
-        """Apply a world-frame ``impulse`` [N s] spread evenly over ``duration`` [s]."""
-        self.push(frame_name, np.asarray(impulse, dtype=float) / duration, duration, offset)
+        """Apply a world-frame ``impulse`` [N s], spread evenly over ``duration`` [s].
+
+        The force is ``impulse / (n dt)`` over ``n = round(duration / dt)`` steps, so the
+        impulse is exact whatever ``duration``.
+        """
+        impulse = vector("impulse", impulse, 3, "a world-frame impulse [N s]")
+        n_steps = self._push_steps(duration)
+        self.push(frame_name, impulse / (n_steps * self.dt), n_steps * self.dt, offset)
+
+    def _push_steps(self, duration) -> int:
+        duration = real("duration", duration, "a positive finite time [s]", positive=True)
+        n_steps = round(duration / self.dt)
+        if n_steps < 1:
+            raise InvalidInputError(
+                f"duration = {duration:.3g} s is shorter than half the time step dt = "
+                f"{self.dt:.3g} s, so the push would never act; pass duration >= dt"
+            )
+        return n_steps
 
     # ------------------------------------------------------------------ dynamics
     def _point_jacobians(self, joints, placements) -> tuple[np.ndarray, np.ndarray]:
@@ -260,24 +480,23 @@ class Simulator:
         Returns
         -------
         SimState
+            With ``fall`` set if the robot fell during this step; the simulation stops there.
 
         Raises
         ------
+        InvalidInputError
+            For non-finite torques, and when called after a fall (``reset`` first).
         SimulationDiverged
-            When the state becomes non-finite or exceeds ``max_speed``.
+            When the state would become non-finite or exceed ``max_speed``; the simulator
+            keeps the last finite state.
         """
+        if self.fall is not None:
+            raise InvalidInputError(
+                f"step() after the robot fell at t = {self.fall.time:.3f} s ({self.fall.reason});"
+                " the simulation stopped there: check state.fall after each step, or reset()"
+            )
         tau_full = self._tau
-        try:
-            tau_full[self.n_base_dofs :] = tau
-        except ValueError:
-            raise ShapeError(
-                f"tau has shape {np.shape(tau)}, expected ({self.n_actuated},): one torque per "
-                f"actuated joint (model.nv = {self.model.nv} minus {self.n_base_dofs} base dofs)"
-            ) from None
-        if base_force is None:
-            tau_full[: self.n_base_dofs] = 0.0
-        else:
-            tau_full[: self.n_base_dofs] = base_force
+        self._set_forces(tau_full, tau, base_force)
         model, data = self.model, self.data
         pin.computeJointJacobians(model, data, self.q)
         generalized = tau_full
@@ -292,6 +511,7 @@ class Simulator:
             self._in_contact, self._forces, self._positions = touching, forces, positions
             if touching.any():
                 generalized = tau_full + np.einsum("pkn,pk->n", jacobians, forces)
+                self._last_contact_time = self.t + self.dt  # end of a step with contact
             if started.size:
                 touchdowns = tuple(
                     TouchdownEvent(self.t + self.dt, int(i), self.contact_frames[i], positions[i])
@@ -300,17 +520,33 @@ class Simulator:
         if self._pushes:
             generalized = generalized + self._push_forces()
         acceleration = pin.aba(model, data, self.q, self.v, generalized)
-        self.v = self.v + self.dt * acceleration
-        self.q = pin.integrate(model, self.q, self.dt * self.v)
-        self.t += self.dt
-        self._check_finite()
+        v = self.v + self.dt * acceleration
+        q = pin.integrate(model, self.q, self.dt * v)
+        self._check_finite(v, self.t + self.dt)
+        self.q, self.v, self.t = q, v, self.t + self.dt
         self._last_touchdowns = touchdowns
         if touchdowns:
             self.touchdown_events.extend(touchdowns)
-        if self._fall_frame is not None and not self.fallen:
-            pin.updateFramePlacement(model, data, self._fall_frame)
-            self.fallen = bool(data.oMf[self._fall_frame].translation[2] < self._fall_height)
+        if self.fall_detector is not None:
+            self._check_fall()
         return self.state
+
+    def _set_forces(self, tau_full: np.ndarray, tau, base_force) -> None:
+        """Copy ``base_force`` and ``tau`` into ``tau_full``; errors name the bad entry."""
+        n_base = self.n_base_dofs
+        try:
+            valid = np.shape(tau) == (self.n_actuated,) and (
+                base_force is None or np.shape(base_force) == (n_base,)
+            )
+            if valid:
+                tau_full[n_base:] = tau
+                tau_full[:n_base] = 0.0 if base_force is None else base_force
+        except (TypeError, ValueError):  # entries that are not numbers
+            valid = False
+        if valid and np.isfinite(tau_full).all():
+            return
+        vector("tau", tau, self.n_actuated, self._tau_expected, self._tau_names)
+        vector("base_force", base_force, n_base, "generalised force on the base dofs")
 
     def _push_forces(self) -> np.ndarray:
         """Generalised force of the active pushes; drops the finished ones."""
@@ -323,17 +559,40 @@ class Simulator:
         forces = np.array([p.force for p in self._pushes])
         return np.einsum("pkn,pk->n", jacobians, forces)
 
-    def _check_finite(self) -> None:
-        fastest = np.abs(self.v).max(initial=0.0)
-        if not np.isfinite(fastest + self.q.sum()):
+    def _check_finite(self, v: np.ndarray, t: float) -> None:
+        """Raise SimulationDiverged naming the first non-finite or too fast speed.
+
+        ``q`` needs no check: integrating finite speeds from a finite ``q`` keeps it finite.
+        """
+        speeds = np.abs(v)
+        if v.size == 0 or speeds.max() <= self.max_speed:  # False for NaN
+            return
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
             raise SimulationDiverged(
-                f"state became non-finite at t = {self.t:.4f} s; reduce dt or the contact stiffness"
+                f"v[{bad[0]}] ({self._v_names[bad[0]]}) became non-finite at t = {t:.4f} s; "
+                "reduce dt or the contact stiffness"
             )
-        if fastest > self.max_speed:
-            raise SimulationDiverged(
-                f"|v| reached {fastest:.3g} > max_speed = {self.max_speed:.3g} at "
-                f"t = {self.t:.4f} s; reduce dt or the contact stiffness"
-            )
+        fastest = int(np.argmax(speeds))
+        raise SimulationDiverged(
+            f"|v[{fastest}]| ({self._v_names[fastest]}) reached {speeds[fastest]:.3g} > "
+            f"max_speed = {self.max_speed:.3g} at t = {t:.4f} s; reduce dt or the contact "
+            "stiffness, or look for torques that spin the joint up"
+        )
+
+    def _check_fall(self) -> None:
+        """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
+        self._root.calc(self._root_data, self.q, self.v)
+        base = self._root_placement * self._root_data.M * self._fall_placement
+        if self._n_points:
+            height = float(base.translation @ self.ground.normal) - self.ground.height
+        else:
+            height = float(base.translation[2])
+        flight_time = 0.0 if self._last_contact_time is None else self.t - self._last_contact_time
+        spin = math.hypot(*self._root_data.v.angular)
+        self.fall = self.fall_detector.check(
+            self.t, height, base_tilt(base.rotation), flight_time, spin
+        )
 
 
 def _detect_base_dofs(model: pin.Model) -> int:

@@ -1,0 +1,218 @@
+r"""Fall detection from the base pose, the ground contacts and the base's rotation speed.
+
+Every simulation backend reports falls the same way: after each step it measures four numbers
+of the robot's base (the body of the unactuated root joint) and asks
+:meth:`FallDetector.check`, which returns a :class:`Fall` for the first threshold crossed:
+
+=================  ====================================================  =====================
+quantity           meaning                                               fall when
+=================  ====================================================  =====================
+``height``         base origin above the ground plane [m]                ``< min_height``
+``tilt``           angle between the base's z axis and the world z [rad] ``> max_tilt``
+``flight_time``    time since the last step with any contact point in    ``> max_flight_time``
+                   contact [s]; 0 before the first touchdown
+``spin``           norm of the base's angular velocity [rad/s]           ``> max_spin``
+=================  ====================================================  =====================
+
+A single foot lifting is normal, so only the loss of *all* contacts counts, and only for longer
+than a flight phase. :meth:`FallDetector.for_standing_height` derives every threshold from one
+length of the robot, the height :math:`h` of its base above its feet when standing straight:
+
+.. math::
+
+    h_{\min} = \tfrac12 h, \qquad
+    T_{\mathrm{flight}} = \sqrt{2 (h - h_{\min}) / g}, \qquad
+    \omega_{\max} = \sqrt{2 g / h}:
+
+the time to free-fall from standing height to the fall height, and the largest angular speed
+that a body toppling about its feet from standing reaches when it hits the ground (energy
+:math:`m g h = \tfrac12 I \omega^2` with :math:`I \ge m h^2`, taking the centre of mass at
+the base height). A base turning faster is not toppling but thrown around: balance and control
+are lost, and catching it stops a simulation before the state diverges numerically.
+
+A backend calls, after each step (:class:`dmpopt.sim.Simulator` does exactly this, then refuses
+to step on until ``reset``)::
+
+    fall = detector.check(t, height, base_tilt(base_rotation), t - last_contact_time, spin)
+    if fall is not None:
+        ...  # stop; fall.reason says why, e.g. "base height 0.31 m below 0.54 m"
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dmpopt.exceptions import InvalidInputError
+from dmpopt.sim._checks import real
+
+__all__ = ["Fall", "FallDetector", "base_tilt"]
+
+STANDARD_GRAVITY = 9.81  # [m/s^2]
+
+
+@dataclass(frozen=True)
+class Fall:
+    """The robot fell.
+
+    Attributes
+    ----------
+    time : float
+        Simulation time of the first state past a threshold [s].
+    cause : {"height", "tilt", "no contact", "spin"}
+        Which check of :class:`FallDetector` fired.
+    value, threshold : float
+        The measured quantity and its threshold, in the units of :class:`FallDetector`.
+    reason : str
+        Readable summary, e.g. ``"base tilted 62 deg > 45 deg"``.
+    """
+
+    time: float
+    cause: str
+    value: float
+    threshold: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class FallDetector:
+    """Thresholds of the fall checks; ``np.inf`` (``-np.inf`` for ``min_height``) disables one.
+
+    Parameters
+    ----------
+    min_height : float
+        Lowest base height above the ground [m].
+    max_tilt : float
+        Largest angle between the base's z axis and the world z axis [rad].
+    max_flight_time : float
+        Longest time with no contact point touching the ground [s].
+    max_spin : float
+        Largest angular speed of the base [rad/s].
+    """
+
+    min_height: float
+    max_tilt: float = np.radians(45.0)
+    max_flight_time: float = np.inf
+    max_spin: float = np.inf
+
+    def __post_init__(self):
+        height = real(
+            "min_height", self.min_height, "a height [m], or -np.inf to disable", finite=False
+        )
+        if height == np.inf:
+            raise InvalidInputError("min_height must be below +inf; pass -np.inf to disable")
+        object.__setattr__(self, "min_height", height)
+        for name in ("max_tilt", "max_flight_time", "max_spin"):
+            bound = real(
+                name,
+                getattr(self, name),
+                "a bound > 0, or np.inf to disable",
+                positive=True,
+                finite=False,
+            )
+            object.__setattr__(self, name, bound)
+
+    @classmethod
+    def for_standing_height(
+        cls, standing_height: float, max_tilt: float = np.radians(45.0)
+    ) -> FallDetector:
+        """Thresholds derived from the base height above the feet of the standing robot.
+
+        Parameters
+        ----------
+        standing_height : float
+            :math:`h`, base height above the feet with straight legs [m].
+        max_tilt : float
+            [rad]
+
+        Returns
+        -------
+        FallDetector
+            ``min_height = h / 2``, ``max_flight_time = sqrt(h / g)``,
+            ``max_spin = sqrt(2 g / h)`` (module docstring), ``g = 9.81 m/s^2``.
+        """
+        standing_height = real(
+            "standing_height",
+            standing_height,
+            "a height [m] > 0 of the base above the feet",
+            positive=True,
+        )
+        min_height = 0.5 * standing_height
+        return cls(
+            min_height=min_height,
+            max_tilt=max_tilt,
+            max_flight_time=np.sqrt(2.0 * (standing_height - min_height) / STANDARD_GRAVITY),
+            max_spin=np.sqrt(2.0 * STANDARD_GRAVITY / standing_height),
+        )
+
+    def check(
+        self, time: float, height: float, tilt: float, flight_time: float, spin: float
+    ) -> Fall | None:
+        """The first threshold crossed, in the order height, tilt, no contact, spin, or None.
+
+        Parameters
+        ----------
+        time : float
+            Time of the state [s], copied into the :class:`Fall`.
+        height : float
+            Base height above the ground [m].
+        tilt : float
+            Base tilt, e.g. :func:`base_tilt` [rad].
+        flight_time : float
+            Time since the last step with a contact [s]; 0 before the first touchdown.
+        spin : float
+            Norm of the base's angular velocity [rad/s].
+        """
+        if not math.isfinite(time + height + tilt + flight_time + spin):
+            for name, value in zip(
+                ("time", "height", "tilt", "flight_time", "spin"),
+                (time, height, tilt, flight_time, spin),
+            ):
+                real(name, value, "a finite number; the state diverged before the fall check")
+        if height < self.min_height:
+            return Fall(
+                time,
+                "height",
+                height,
+                self.min_height,
+                f"base height {height:.3f} m below {self.min_height:.3f} m",
+            )
+        if tilt > self.max_tilt:
+            return Fall(
+                time,
+                "tilt",
+                tilt,
+                self.max_tilt,
+                f"base tilted {np.degrees(tilt):.0f} deg > {np.degrees(self.max_tilt):.0f} deg",
+            )
+        if flight_time > self.max_flight_time:
+            return Fall(
+                time,
+                "no contact",
+                flight_time,
+                self.max_flight_time,
+                f"no contact for {flight_time:.2f} s > {self.max_flight_time:.2f} s",
+            )
+        if spin > self.max_spin:
+            return Fall(
+                time,
+                "spin",
+                spin,
+                self.max_spin,
+                f"base turning at {spin:.2f} rad/s > {self.max_spin:.2f} rad/s, faster than "
+                "a toppling robot: balance lost",
+            )
+        return None
+
+
+def base_tilt(rotation) -> float:
+    """Angle between the z axis of a frame and the world z axis [rad], in [0, pi].
+
+    Parameters
+    ----------
+    rotation : array_like, shape (3, 3)
+        Orientation of the frame in the world.
+    """
+    return math.acos(min(1.0, max(-1.0, float(rotation[2, 2]))))

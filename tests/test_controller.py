@@ -658,8 +658,9 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         monkeypatch.setattr(inverse_dynamics, "_MIN_PIVOT_RATIO", 2.0)
     regularization = {"acceleration_regularization": 1e-6, "force_regularization": 1e-6}
     controller, com = standing_controller(
-        robot, friction=friction, tolerance=1e-10, joint_limit_horizon=None, **regularization
-    )
+        robot, friction=friction, tolerance=1e-10, joint_limit_horizon=None,
+        max_iterations=10_000, time_budget=1.0, **regularization,
+    )  # fmt: skip
     com.set_target(com.target_position, acceleration=com_acceleration)
     statuses = []
     for _ in range(3):

@@ -113,6 +113,7 @@ def standing(robot, q_start, friction=0.7, **options):
     com = ComTask(robot, weight=10.0, stiffness=50.0)
     base = FrameTask(robot, "base_link", weight=1.0, stiffness=50.0, components="orientation")
     contacts = [SoleContact(robot, f, friction_coefficient=friction) for f in robot.foot_frames]
+    options.setdefault("time_budget", 1.0)  # a busy machine must not turn ticks into holds
     controller = InverseDynamicsController(robot, [posture, arm, com, base], contacts, **options)
     return controller, com, arm
 
@@ -186,7 +187,9 @@ def test_every_tick_is_optimal_fixed_base(upper_body):
     arms = [j for side in ("left", "right") for j in upper_body.joint_groups[f"{side}_arm"]]
     posture = PostureTask(upper_body, weight=1e-2, stiffness=10.0)
     arm = PostureTask(upper_body, arms, weight=1.0, stiffness=100.0)
-    controller = InverseDynamicsController(upper_body, [posture, arm], torque_limit_scale=0.3)
+    controller = InverseDynamicsController(
+        upper_body, [posture, arm], torque_limit_scale=0.3, time_budget=1.0
+    )
     simulator, q0 = simulator_for(upper_body)
     centre = arm.reference_position.copy()
     gaps = gaps_of_run(controller, simulator, q0, lambda t: wave(arm, centre, t), 150)
@@ -236,7 +239,7 @@ def test_infeasible_tick_gives_the_relaxed_answer(upper_body):
 
 def test_spent_time_budget_gives_the_hold_answer(upper_body):
     """With no time left after the failed solve, the tick holds the last valid torque, and
-    the iterations of that solve stay within max_iterations outer iterations of at most 20
+    the iterations of that solve stay within max_iterations outer iterations of at most 5
     inner ones."""
     controller, q, v = infeasible_tick(upper_body, time_budget=1e-12, max_iterations=30)
     first = controller.compute_torques(upper_body.reference_configuration, np.zeros(upper_body.nv))
@@ -244,7 +247,7 @@ def test_spent_time_budget_gives_the_hold_answer(upper_body):
     tau = controller.compute_torques(q, v)
     stats = controller.stats
     assert stats.last_answer == "hold" and stats.n_fallbacks == 1 and stats.n_relaxed == 0
-    assert stats.last_iterations <= 30 * 20
+    assert stats.last_iterations <= 30 * 5
     np.testing.assert_array_equal(tau, first)
 
 
@@ -310,7 +313,7 @@ def test_posture_target_beyond_limits_warns_and_is_stopped(upper_body):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # once per joint: no second warning
         posture.set_reference(reference)
-    controller = InverseDynamicsController(upper_body, [posture])
+    controller = InverseDynamicsController(upper_body, [posture], time_budget=1.0)
     worst_position, worst_velocity = run_fixed(upper_body, controller, 800)
     assert worst_position <= TOLERANCE
     assert worst_velocity <= 1e-3

@@ -19,7 +19,7 @@ sole contact (in the sole frame). Each tick solves
     \hphantom{\text{s.t.}\quad} C f \le u              \quad\text{(friction and CoP cones)}
 
     \hphantom{\text{s.t.}\quad} l(q, \dot q) \le \ddot q_a \le u(q, \dot q)
-                                \quad\text{(joint limits, optional)}
+                                \quad\text{(joint limits, on by default)}
 
 where the rows of :math:`M, h, J_c` are split into base (b) and actuated (a) coordinates, the
 task terms come from :mod:`dmpopt.control.tasks`, the acceleration bounds l, u keep the joints
@@ -61,9 +61,14 @@ Woodbury solve, torques, cone and torque checks) runs as one compiled call of
 operations would cost about a microsecond whatever its size, and a tick would make about 75.
 
 The wrenches enter the QP divided by the robot's weight, so that forces and accelerations have
-the same scale, and proxsuite's proximal parameter is lowered to 1e-8 (the Hessians are
-positive definite). Every proxsuite QP is sized once and warm-started from its previous
-primal and dual solution; the constant cone rows are passed to proxsuite once.
+the same scale. Every proxsuite QP is sized once and warm-started from its previous primal and
+dual solution; the constant cone rows are passed to proxsuite once. A warm start carries the
+previous tick's multipliers, so proxsuite's residuals can be small while its active set is
+stale: with a proximal parameter of 1e-8 it returned feasible points whose cost exceeded the
+optimum by up to 268 times it (Talos with weak motors). So proxsuite keeps its default
+proximal parameter, also checks the duality gap, and its answer is refined to the exact
+optimum of its active set (:func:`_refine`). A tick that cannot be solved gives a defined
+degraded answer (see :class:`InverseDynamicsController`).
 """
 
 from __future__ import annotations
@@ -101,7 +106,7 @@ _MIRRORED_SETTINGS = (
 JOINT_LIMIT_TOLERANCE = 1e-3
 # Inner iterations per outer iteration of proxsuite (its default 1500): with max_iter, the cap
 # on one solve's iterations.
-_MAX_INNER_ITERATIONS = 10
+_MAX_INNER_ITERATIONS = 5
 # Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
 _RELAXATION_WEIGHT = 1e4
 # Active-set refinement rounds after proxsuite (each one KKT solve).
@@ -325,14 +330,17 @@ class InverseDynamicsController:
     tolerance : float
         proxsuite absolute tolerance ``eps_abs`` on the KKT residuals and the duality gap;
         the acceleration bounds of the joint limits are met to it (a joint resting at its
-        limit would otherwise violate them by rounding errors).
+        limit would otherwise violate them by rounding errors). A much tighter tolerance needs
+        more iterations: raise ``max_iterations`` with it.
     max_iterations : int
-        proxsuite's outer iteration limit per solve (each of at most 10 inner iterations):
+        proxsuite's outer iteration limit per solve (each of at most 5 inner iterations):
         with ``time_budget``, what bounds a tick's time.
     time_budget : float
-        Seconds a tick may spend before it starts another solve (a cold restart, the relaxed
-        QP); once spent, a failed solve gives the hold answer. A solve already started runs
-        to its iteration limit, so a tick takes at most about the budget plus one solve.
+        CPU seconds (of the calling thread) a tick may spend before it starts another solve
+        (a cold restart, the relaxed QP); once spent, a failed solve gives the hold answer. A
+        solve already started runs to its iteration limit, so a tick takes at most about the
+        budget plus one solve. CPU time, not wall time, so that a busy machine does not change
+        the answers; on a dedicated real-time core they are the same.
     raise_on_failure : bool
         If True, a tick that would give the hold answer raises :class:`NoSolutionFound`.
     joint_limit_horizon : float or None
@@ -391,7 +399,7 @@ class InverseDynamicsController:
         acceleration_regularization: float = 1e-6,
         force_regularization: float = 1e-8,
         tolerance: float = 1e-6,
-        max_iterations: int = 50,
+        max_iterations: int = 100,
         time_budget: float = 5e-3,
         raise_on_failure: bool = False,
         joint_limit_horizon: float | None = 0.05,
@@ -783,7 +791,7 @@ class InverseDynamicsController:
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
-        self._deadline = time.perf_counter() + self.time_budget
+        self._deadline = time.thread_time() + self.time_budget
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
@@ -865,7 +873,7 @@ class InverseDynamicsController:
 
     def _time_left(self) -> bool:
         """Whether the tick's time budget allows another solve."""
-        return time.perf_counter() < self._deadline
+        return time.thread_time() < self._deadline
 
     def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
         r"""Fixed base, posture tasks on every joint plus frame tasks: the QP without torque

@@ -239,7 +239,7 @@ def test_infeasible_tick_gives_the_relaxed_answer(upper_body):
 
 def test_spent_time_budget_gives_the_hold_answer(upper_body):
     """With no time left after the failed solve, the tick holds the last valid torque, and
-    the iterations of that solve stay within max_iterations outer iterations of at most 5
+    the iterations of that solve stay within max_iterations outer iterations of at most 10
     inner ones."""
     controller, q, v = infeasible_tick(upper_body, time_budget=1e-12, max_iterations=30)
     first = controller.compute_torques(upper_body.reference_configuration, np.zeros(upper_body.nv))
@@ -247,7 +247,7 @@ def test_spent_time_budget_gives_the_hold_answer(upper_body):
     tau = controller.compute_torques(q, v)
     stats = controller.stats
     assert stats.last_answer == "hold" and stats.n_fallbacks == 1 and stats.n_relaxed == 0
-    assert stats.last_iterations <= 30 * 5
+    assert stats.last_iterations <= 30 * 10
     np.testing.assert_array_equal(tau, first)
 
 

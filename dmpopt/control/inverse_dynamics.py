@@ -106,7 +106,7 @@ _MIRRORED_SETTINGS = (
 JOINT_LIMIT_TOLERANCE = 1e-3
 # Inner iterations per outer iteration of proxsuite (its default 1500): with max_iter, the cap
 # on one solve's iterations.
-_MAX_INNER_ITERATIONS = 5
+_MAX_INNER_ITERATIONS = 10
 # Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
 _RELAXATION_WEIGHT = 1e4
 # Active-set refinement rounds after proxsuite (each one KKT solve).
@@ -225,7 +225,8 @@ def _check_items(robot, tasks, contacts) -> None:
                 raise InvalidInputError(
                     f"{name} holds {type(item).__name__!s}, expected {kind.__name__} objects"
                 )
-            if item.model.nv != robot.nv or item.model.nq != robot.model.nq:
+            model = getattr(item, "model", robot.model)  # a user's Task may have none
+            if model.nv != robot.nv or model.nq != robot.model.nq:
                 raise ShapeError(
                     f"{name}: a {type(item).__name__} was built for another robot than "
                     f"{robot.name!r} (nq={robot.model.nq}, nv={robot.nv}); build it with "
@@ -333,7 +334,7 @@ class InverseDynamicsController:
         limit would otherwise violate them by rounding errors). A much tighter tolerance needs
         more iterations: raise ``max_iterations`` with it.
     max_iterations : int
-        proxsuite's outer iteration limit per solve (each of at most 5 inner iterations):
+        proxsuite's outer iteration limit per solve (each of at most 10 inner iterations):
         with ``time_budget``, what bounds a tick's time.
     time_budget : float
         CPU seconds (of the calling thread) a tick may spend before it starts another solve
@@ -399,7 +400,7 @@ class InverseDynamicsController:
         acceleration_regularization: float = 1e-6,
         force_regularization: float = 1e-8,
         tolerance: float = 1e-6,
-        max_iterations: int = 100,
+        max_iterations: int = 50,
         time_budget: float = 5e-3,
         raise_on_failure: bool = False,
         joint_limit_horizon: float | None = 0.05,

@@ -50,7 +50,11 @@ def test_torques_reproduce_rnea_fixed_base(upper_body):
     rng = np.random.default_rng(0)
     posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
     controller = InverseDynamicsController(
-        upper_body, [posture], acceleration_regularization=1e-12, tolerance=1e-10
+        upper_body,
+        [posture],
+        acceleration_regularization=1e-12,
+        tolerance=1e-10,
+        joint_limit_horizon=None,  # random states sit at limits; this checks the formula
     )
     data = upper_body.create_data()
     for _ in range(5):
@@ -71,7 +75,11 @@ def test_posture_pd_law(upper_body):
     kp, kd = 25.0, 7.0
     posture = PostureTask(upper_body, weight=1.0, stiffness=kp, damping=kd)
     controller = InverseDynamicsController(
-        upper_body, [posture], acceleration_regularization=1e-12, tolerance=1e-10
+        upper_body,
+        [posture],
+        acceleration_regularization=1e-12,
+        tolerance=1e-10,
+        joint_limit_horizon=None,  # random states sit at limits; this checks the formula
     )
     q, v = random_state(upper_body, rng)
     q_ref, v_ref, a_ref = random_state(upper_body, rng) + (rng.normal(size=upper_body.nv),)
@@ -168,7 +176,10 @@ def test_fixed_base_woodbury_solve_matches_the_cholesky_solve(upper_body, compon
             stiffness=100.0,
             components=components,
         )
-        return InverseDynamicsController(upper_body, [posture, arm, hand]), hand
+        controller = InverseDynamicsController(
+            upper_body, [posture, arm, hand], joint_limit_horizon=None
+        )
+        return controller, hand
 
     woodbury, hand_w = controller()
     cholesky, hand_c = controller()
@@ -195,7 +206,9 @@ def test_torque_limits_hold(upper_body):
     """An aggressive reference saturates some joints; no torque leaves its limit."""
     rng = np.random.default_rng(3)
     posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
-    controller = InverseDynamicsController(upper_body, [posture], tolerance=1e-9)
+    controller = InverseDynamicsController(
+        upper_body, [posture], tolerance=1e-9, joint_limit_horizon=None
+    )
     q, v = random_state(upper_body, rng)
     posture.set_reference(q, v, 500.0 * rng.normal(size=upper_body.nv))
     tau = controller.compute_torques(q, v)
@@ -221,7 +234,9 @@ def test_contact_wrenches_satisfy_friction_cones(talos):
     cone (||f_t|| <= mu f_z), its CoP in the sole and f_z >= f_min; some row is active."""
     rng = np.random.default_rng(4)
     mu = 0.2
-    controller, com = standing_controller(talos, friction=mu, tolerance=1e-9)
+    controller, com = standing_controller(  # random states sit at joint limits
+        talos, friction=mu, tolerance=1e-9, joint_limit_horizon=None
+    )
     active = False
     for _ in range(4):
         q, v = random_state(talos, rng, spread=0.02, speed=0.1)
@@ -532,9 +547,9 @@ def test_joint_limits_standing(talos):
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
     q[i_q], v[i_v] = talos.position_upper[i_q] - 0.05, 1.5
     controller.compute_torques(q, v)
-    h = 0.05
+    h, margin = 0.05, 1e-3  # the bounds aim 1e-3 rad past the limit (JOINT_LIMIT_TOLERANCE)
     bound = min(
-        (talos.position_upper[i_q] - q[i_q]) / h**2 - 2 * v[i_v] / h,
+        (talos.position_upper[i_q] + margin - q[i_q]) / h**2 - 2 * v[i_v] / h,
         (talos.velocity_limit[i_v] - v[i_v]) / h,
     )
     assert controller.stats.n_torque_limited == 1 and controller.stats.n_fallbacks == 0
@@ -558,7 +573,9 @@ def test_acceleration_bounds_formula(upper_body):
     with pytest.raises(InvalidInputError, match="joint_limit_horizon must be finite and > 0"):
         InverseDynamicsController(upper_body, [posture], joint_limit_horizon=0.0)
     with pytest.raises(InvalidInputError, match="limited_joints is given without"):
-        InverseDynamicsController(upper_body, [posture], limited_joints="left_arm")
+        InverseDynamicsController(
+            upper_body, [posture], joint_limit_horizon=None, limited_joints="left_arm"
+        )
     with pytest.raises(InvalidInputError, match="limited_joints: joint 'elbow'"):
         InverseDynamicsController(
             upper_body, [posture], joint_limit_horizon=0.05, limited_joints=["elbow"]
@@ -641,8 +658,9 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         monkeypatch.setattr(inverse_dynamics, "_MIN_PIVOT_RATIO", 2.0)
     regularization = {"acceleration_regularization": 1e-6, "force_regularization": 1e-6}
     controller, com = standing_controller(
-        robot, friction=friction, tolerance=1e-10, **regularization
-    )
+        robot, friction=friction, tolerance=1e-10, joint_limit_horizon=None,
+        max_iterations=10_000, time_budget=1.0, **regularization,
+    )  # fmt: skip
     com.set_target(com.target_position, acceleration=com_acceleration)
     statuses = []
     for _ in range(3):

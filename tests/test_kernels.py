@@ -14,6 +14,27 @@ def _spd(rng, n: int) -> np.ndarray:
 
 
 @settings(max_examples=40, deadline=None)
+@given(n=st.integers(1, 40), n_rows=st.integers(0, 20), seed=st.integers(0, 2**16))
+def test_solve_in_place_solves_kkt_systems(n, n_rows, seed):
+    """A KKT matrix [[H, E^T], [E, 0]] (indefinite: pivoting needed) is solved as by NumPy;
+    a singular one (a repeated row of E) is refused."""
+    rng = np.random.default_rng(seed)
+    n_rows = min(n_rows, n)
+    rows = rng.normal(size=(n_rows, n))
+    kkt = np.block([[_spd(rng, n), rows.T], [rows, np.zeros((n_rows, n_rows))]])
+    rhs = rng.normal(size=n + n_rows)
+    expected = np.linalg.solve(kkt, rhs)
+    solution, matrix = rhs.copy(), kkt.copy()
+    assert kernels.solve_in_place(matrix, solution)
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(solution, expected, atol=1e-9 * np.linalg.cond(kkt) * scale)
+    if n_rows >= 2:
+        kkt[-1, :] = kkt[n, :]  # the last constraint row repeats the first
+        kkt[:, -1] = kkt[:, n]
+        assert not kernels.solve_in_place(kkt, rhs.copy())
+
+
+@settings(max_examples=40, deadline=None)
 @given(n=st.integers(1, 40), seed=st.integers(0, 2**16))
 def test_cholesky_solve_matches_numpy(n, seed):
     rng = np.random.default_rng(seed)

@@ -29,6 +29,13 @@ class ComputedTorqueController:
         :math:`K_d` [N m s/rad].
     clip_to_limits : bool
         Clip the torques to ``robot.torque_limit``.
+
+    Notes
+    -----
+    Gains must be finite and >= 0 (checked here). At run time a non-finite state or reference
+    (NaN, inf) raises :class:`~dmpopt.exceptions.InvalidInputError` naming the argument,
+    as :class:`~dmpopt.control.InverseDynamicsController` does for its state: there is no
+    torque to return that would be right, and a NaN torque would reach the motors.
     """
 
     def __init__(self, robot, stiffness=100.0, damping=20.0, clip_to_limits: bool = True):
@@ -40,10 +47,9 @@ class ComputedTorqueController:
         self.robot = robot
         self.model = robot.model
         self.data = robot.create_data()
-        nv = robot.nv
-        self.stiffness = np.broadcast_to(np.asarray(stiffness, dtype=float), (nv,)).copy()
-        self.damping = np.broadcast_to(np.asarray(damping, dtype=float), (nv,)).copy()
-        self.clip_to_limits = clip_to_limits
+        self.stiffness = _gain(stiffness, robot.nv, "stiffness")
+        self.damping = _gain(damping, robot.nv, "damping")
+        self.clip_to_limits = bool(clip_to_limits)
 
     def compute_torques(
         self, q, v, reference_position, reference_velocity=None, reference_acceleration=None
@@ -77,9 +83,14 @@ class ComputedTorqueController:
         }
         values = {}
         for name, (value, size) in arrays.items():
-            value = np.asarray(value, dtype=float)
+            value = _numbers(value, name)
             if value.shape != (size,):
                 raise ShapeError(f"{name} has shape {value.shape}, expected ({size},)")
+            if not np.isfinite(value).all():
+                raise InvalidInputError(
+                    f"{name} must be finite; it holds NaN or inf at indices "
+                    f"{np.flatnonzero(~np.isfinite(value)).tolist()}"
+                )
             values[name] = value
         tau = pin.rnea(
             self.model, self.data, values["q"], values["v"], values["reference_acceleration"]
@@ -88,6 +99,28 @@ class ComputedTorqueController:
             self.model, values["q"], values["reference_position"]
         )
         tau += self.damping * (values["reference_velocity"] - values["v"])
+        if not np.isfinite(tau).all():
+            raise InvalidInputError(
+                "the torques overflow (not finite) for these inputs; check the magnitudes of "
+                "q, v, the reference and the gains"
+            )
         if self.clip_to_limits:
             np.clip(tau, -self.robot.torque_limit, self.robot.torque_limit, out=tau)
         return tau
+
+
+def _numbers(value, name: str) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be numbers, got {value!r}") from None
+
+
+def _gain(value, size: int, name: str) -> np.ndarray:
+    """A scalar broadcast to (size,), or a vector of that size; finite and >= 0."""
+    array = _numbers(value, name)
+    if array.shape not in ((), (size,)):
+        raise ShapeError(f"{name} has shape {array.shape}, expected () or ({size},)")
+    if not (np.isfinite(array).all() and (array >= 0).all()):
+        raise InvalidInputError(f"{name} must be finite and >= 0, got {value!r}")
+    return np.broadcast_to(array, (size,)).copy()

@@ -19,7 +19,7 @@ sole contact (in the sole frame). Each tick solves
     \hphantom{\text{s.t.}\quad} C f \le u              \quad\text{(friction and CoP cones)}
 
     \hphantom{\text{s.t.}\quad} l(q, \dot q) \le \ddot q_a \le u(q, \dot q)
-                                \quad\text{(joint limits, optional)}
+                                \quad\text{(joint limits, on by default)}
 
 where the rows of :math:`M, h, J_c` are split into base (b) and actuated (a) coordinates, the
 task terms come from :mod:`dmpopt.control.tasks`, the acceleration bounds l, u keep the joints
@@ -61,14 +61,20 @@ Woodbury solve, torques, cone and torque checks) runs as one compiled call of
 operations would cost about a microsecond whatever its size, and a tick would make about 75.
 
 The wrenches enter the QP divided by the robot's weight, so that forces and accelerations have
-the same scale, and proxsuite's proximal parameter is lowered to 1e-8 (the Hessians are
-positive definite). Every proxsuite QP is sized once and warm-started from its previous
-primal and dual solution; the constant cone rows are passed to proxsuite once.
+the same scale. Every proxsuite QP is sized once and warm-started from its previous primal and
+dual solution; the constant cone rows are passed to proxsuite once. A warm start carries the
+previous tick's multipliers, so proxsuite's residuals can be small while its active set is
+stale: with a proximal parameter of 1e-8 it returned feasible points whose cost exceeded the
+optimum by up to 268 times it (Talos with weak motors). So proxsuite keeps its default
+proximal parameter, also checks the duality gap, and its answer is refined to the exact
+optimum of its active set (:func:`_refine`). A tick that cannot be solved gives a defined
+degraded answer (see :class:`InverseDynamicsController`).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -83,7 +89,7 @@ from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 from . import kernels
 from .tasks import FrameTask, PostureTask, SoleContact, Task
 
-__all__ = ["ControllerStats", "InverseDynamicsController"]
+__all__ = ["JOINT_LIMIT_TOLERANCE", "ControllerStats", "InverseDynamicsController"]
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
@@ -92,11 +98,19 @@ _DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without ine
 _NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
 _RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
 _BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
-_MIRRORED_SETTINGS = ("eps_abs", "eps_rel", "max_iter", "verbose")
-# proxsuite's primal proximal parameter (default 1e-6). The Hessians here are positive definite
-# (eps_a, eps_f > 0), so a smaller rho is safe; on the drumming benchmark it cut the
-# warm-started iterations from 4.2 to 1.3 on average (full Talos).
-_PROXIMAL_RHO = 1e-8
+_MIRRORED_SETTINGS = (
+    "eps_abs", "eps_rel", "eps_duality_gap_abs", "max_iter", "max_iter_in", "verbose",
+)  # fmt: skip
+# [rad] how far past a position limit the acceleration bounds let a joint go: a joint resting
+# exactly at its limit then leaves its bound slack.
+JOINT_LIMIT_TOLERANCE = 1e-3
+# Inner iterations per outer iteration of proxsuite (its default 1500): with max_iter, the cap
+# on one solve's iterations.
+_MAX_INNER_ITERATIONS = 10
+# Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
+_RELAXATION_WEIGHT = 1e4
+# Active-set refinement rounds after proxsuite (each one KKT solve).
+_REFINEMENT_ROUNDS = 10
 # Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
 _CONE_RELEASE_MARGIN = 1e-3
 # Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
@@ -105,24 +119,33 @@ _MIN_PIVOT_RATIO = 1e-9
 
 @dataclass
 class ControllerStats:
-    """Counters of the controller's solver health since construction or :meth:`reset`.
+    """Counters of the controller's answers and solver health since construction or
+    :meth:`~InverseDynamicsController.reset`.
+
+    Every tick gives one of four answers (see :class:`InverseDynamicsController`, Notes),
+    counted in ``n_direct``, ``n_solved``, ``n_relaxed`` and ``n_fallbacks``.
 
     Attributes
     ----------
     n_ticks : int
         Calls to :meth:`InverseDynamicsController.compute_torques`.
-    n_cold_restarts : int
-        Warm-started solves that failed (status not solved, or non-finite values) and were
-        solved again from scratch.
-    n_fallbacks : int
-        Ticks where the cold solve failed too and the fallback torque was returned.
-    n_torque_limited : int
-        Ticks that needed the QP with torque-limit rows (and acceleration bounds, if the
-        joint limits are on).
     n_direct : int
         Ticks solved without proxsuite: no inequality row was active, so the QP reduced to a
         least-squares problem (one Cholesky factorisation, or closed form for posture tasks
         on a fixed base).
+    n_solved : int
+        Ticks whose QP with its active inequality rows was solved by proxsuite.
+    n_relaxed : int
+        Ticks whose QP could not be solved (infeasible, or out of iterations) and that
+        returned the solution of the relaxed QP.
+    n_fallbacks : int
+        Ticks that returned the hold torque (relaxed QP failed too, or out of time).
+    n_cold_restarts : int
+        Warm-started solves that failed and were solved again from scratch.
+    n_torque_limited : int
+        Ticks that needed the QP with torque-limit and acceleration-bound rows.
+    last_answer : str
+        ``"direct"``, ``"solved"``, ``"relaxed"`` or ``"hold"``.
     last_status : str
         proxsuite status of the last solve, ``"CHOLESKY_SOLVED"`` for a direct one, or
         ``"NON_FINITE_PROBLEM"`` for a QP refused before proxsuite (a NaN in a task).
@@ -131,28 +154,40 @@ class ControllerStats:
     """
 
     n_ticks: int = 0
-    n_cold_restarts: int = 0
-    n_fallbacks: int = 0
-    n_torque_limited: int = 0
     n_direct: int = 0
+    n_solved: int = 0
+    n_relaxed: int = 0
+    n_fallbacks: int = 0
+    n_cold_restarts: int = 0
+    n_torque_limited: int = 0
+    last_answer: str = "not run"
     last_status: str = "not run"
     last_iterations: int = 0
 
 
 class _Stage:
-    """One proxsuite QP with its own warm start and the (preallocated) arrays it reads."""
+    """One proxsuite QP with its own warm start and the (preallocated) arrays it reads.
 
-    __slots__ = ("qp", "initialized", "init_arguments", "update_arguments")
+    ``problem`` is (H, g, A, b, C, l, u), None for absent blocks: what the active-set
+    refinement reads.
+    """
+
+    __slots__ = ("qp", "initialized", "init_arguments", "update_arguments", "problem")
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
         dense = proxsuite.proxqp.dense
         self.qp = dense.QP(n, n_eq, n_in, False, dense.HessianType.Dense, backend)
-        self.qp.settings.verbose = False
-        self.qp.settings.initial_guess = _WARM
-        self.qp.settings.default_rho = _PROXIMAL_RHO
+        settings = self.qp.settings
+        settings.verbose = False
+        settings.initial_guess = _WARM
+        settings.max_iter_in = _MAX_INNER_ITERATIONS
+        # Stop on a small duality gap too, not only on small residuals: a warm start from the
+        # previous tick's multipliers can have small residuals with a stale active set.
+        settings.check_duality_gap = True
         self.initialized = False
         self.init_arguments = init_arguments
         self.update_arguments = update_arguments
+        self.problem = (init_arguments + (None,) * 5)[:7]
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -165,6 +200,92 @@ def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
     if inequalities is not None:
         arguments += inequalities
     return arguments
+
+
+def _check_positive(name: str, value) -> None:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if isinstance(value, bool) or not (math.isfinite(number) and number > 0):
+        raise InvalidInputError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def _check_items(robot, tasks, contacts) -> None:
+    """Tasks and contacts of the right types, built for this robot."""
+    if isinstance(tasks, Task) or isinstance(contacts, SoleContact):
+        raise InvalidInputError(
+            "tasks and contacts must be sequences; wrap a single one in a list: [task]"
+        )
+    if not tasks:
+        raise InvalidInputError("tasks is empty; give at least one task (e.g. PostureTask)")
+    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, SoleContact)):
+        for item in items:
+            if not isinstance(item, kind):
+                raise InvalidInputError(
+                    f"{name} holds {type(item).__name__!s}, expected {kind.__name__} objects"
+                )
+            model = getattr(item, "model", robot.model)  # a user's Task may have none
+            if model.nv != robot.nv or model.nq != robot.model.nq:
+                raise ShapeError(
+                    f"{name}: a {type(item).__name__} was built for another robot than "
+                    f"{robot.name!r} (nq={robot.model.nq}, nv={robot.nv}); build it with "
+                    "the controller's robot"
+                )
+
+
+def _refine(problem: tuple, x: np.ndarray, z: np.ndarray, tolerance: float) -> np.ndarray:
+    r"""proxsuite's solution made exact on its active set, if that set is optimal.
+
+    proxsuite stops on small residuals (and duality gap) to ``tolerance``; its active set
+    (rows with a nonzero multiplier z) is usually the optimal one, and the QP restricted to it
+    as equalities is one linear KKT solve,
+
+    .. math:: \begin{bmatrix} H & E^\top \\ E & 0 \end{bmatrix}
+              \begin{bmatrix} x \\ \nu \end{bmatrix} = \begin{bmatrix} -g \\ e
+              \end{bmatrix}.
+
+    Its solution is the optimum if every inequality row holds (to ``tolerance``) and the
+    multipliers have the sign of their side (:math:`\nu \ge 0` at an upper bound,
+    :math:`\le 0` at a lower one): the KKT conditions then hold exactly. Otherwise the rows
+    of the wrong sign leave the set, or else the most violated row enters it (active-set
+    steps), for at most ``_REFINEMENT_ROUNDS`` solves; if none verifies, proxsuite's x is
+    returned.
+    """
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    if in_matrix is None or not in_matrix.shape[0]:
+        return x
+    n = x.size
+    noise = 1e-12 * max(1.0, float(np.abs(z).max()))  # proxsuite's zeros are ~1e-19
+    at_upper, at_lower = z > noise, z < -noise
+    for _ in range(_REFINEMENT_ROUNDS):
+        rows = np.flatnonzero(at_upper | at_lower)
+        bounds = np.where(at_upper, upper, lower)[rows]
+        matrix, target = in_matrix[rows], bounds
+        if eq_matrix is not None:
+            matrix, target = np.vstack([eq_matrix, matrix]), np.concatenate([eq_vector, bounds])
+        m = matrix.shape[0]
+        kkt = np.zeros((n + m, n + m))
+        kkt[:n, :n], kkt[:n, n:], kkt[n:, :n] = hessian, matrix.T, matrix
+        solution = np.concatenate([-gradient, target])
+        if not kernels.solve_in_place(kkt, solution):  # dependent active rows
+            return x
+        candidate, multipliers = solution[:n], solution[n + m - rows.size :]
+        slack = 1e-9 * max(1.0, float(np.abs(multipliers).max(initial=0.0)))
+        wrong = np.zeros_like(at_upper)
+        wrong[rows] = np.where(at_upper[rows], multipliers < -slack, multipliers > slack)
+        if wrong.any():  # these rows leave the active set
+            at_upper &= ~wrong
+            at_lower &= ~wrong
+            continue
+        values = in_matrix @ candidate
+        violation = np.maximum(values - upper, lower - values)
+        worst = int(np.argmax(violation))
+        if violation[worst] <= tolerance:
+            return candidate
+        at_upper[worst] = values[worst] > upper[worst]
+        at_lower[worst] = values[worst] < lower[worst]
+    return x
 
 
 def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
@@ -208,23 +329,35 @@ class InverseDynamicsController:
         of times larger than accelerations, so it is small: 1e-5 would already let Talos sag
         by 0.02 m/s^2 to save force.
     tolerance : float
-        proxsuite absolute tolerance ``eps_abs`` on the KKT residuals; the acceleration
-        bounds of the joint limits are met to it (a joint resting at its limit would
-        otherwise violate them by rounding errors).
+        proxsuite absolute tolerance ``eps_abs`` on the KKT residuals and the duality gap;
+        the acceleration bounds of the joint limits are met to it (a joint resting at its
+        limit would otherwise violate them by rounding errors). A much tighter tolerance needs
+        more iterations: raise ``max_iterations`` with it.
     max_iterations : int
-        proxsuite iteration limit per solve.
+        proxsuite's outer iteration limit per solve (each of at most 10 inner iterations):
+        with ``time_budget``, what bounds a tick's time.
+    time_budget : float
+        CPU seconds (of the calling thread) a tick may spend before it starts another solve
+        (a cold restart, the relaxed QP); once spent, a failed solve gives the hold answer. A
+        solve already started runs to its iteration limit, so a tick takes at most about the
+        budget plus one solve. CPU time, not wall time, so that a busy machine does not change
+        the answers; on a dedicated real-time core they are the same.
     raise_on_failure : bool
-        If True, a tick whose warm and cold solves both fail raises :class:`NoSolutionFound`
-        instead of returning the fallback torque.
-    joint_limit_horizon : float, optional
-        h [s]: bound the actuated joints' accelerations so that they stay within the robot's
-        position and velocity limits (see :func:`kernels.acceleration_bounds`: a joint brakes
-        no later than a critically damped approach of time constant h). None (default): no
-        such bounds, torque limits only.
+        If True, a tick that would give the hold answer raises :class:`NoSolutionFound`.
+    joint_limit_horizon : float or None
+        h [s]: bound the accelerations of ``limited_joints`` so that they stay within the
+        robot's position and velocity limits (see :func:`kernels.acceleration_bounds`: a joint
+        brakes no later than a critically damped approach of time constant h). None: no such
+        bounds, torque limits only.
     limited_joints : str or sequence of str, optional
         The joints so bounded: a joint group (``"right_arm"``) or joint names; default all
-        actuated joints. Joints that rest at a limit (Talos's closed grippers) keep their
-        bound active, and every tick then goes through proxsuite: leave them out.
+        actuated joints with finite position limits. A joint may end up to
+        ``JOINT_LIMIT_TOLERANCE`` (1e-3 rad) past its limit: the bounds aim at the limit plus
+        that margin, so that a joint resting exactly at its limit (Talos's closed grippers)
+        leaves its bound inactive.
+    torque_limit_scale : float
+        The torque limits used are ``torque_limit_scale * robot.torque_limit`` (> 0; e.g.
+        0.3 to test a controller with weak motors).
     dense_backend : proxsuite.proxqp.dense.DenseBackend
         Factorisation used by proxsuite. ``PrimalDualLDLT`` (the KKT system) is the default:
         ``PrimalLDLT`` factorises :math:`H + C^\top C/\mu` and stalls at tight tolerances on
@@ -240,12 +373,22 @@ class InverseDynamicsController:
 
     Notes
     -----
-    A failed solve (status other than solved, or any non-finite value) is re-solved once
-    without initial guess; if that fails too, the controller returns the last valid torque
-    (gravity and Coriolis compensation :math:`h_a` on the first tick), clipped to the torque
-    limits, and counts the event in :attr:`stats`. It never returns NaN. A Cholesky
-    factorisation that fails (not expected: the Hessians are positive definite) hands its tick
-    to the QP with all inequality rows.
+    Each tick gives one of four answers, counted in :attr:`stats`:
+
+    - ``direct``: no inequality row active; the least-squares optimum (exact).
+    - ``solved``: the QP with its inequality rows, by proxsuite (warm-started, retried cold
+      once on failure), refined to the exact optimum of its active set when that set
+      verifies (:func:`_refine`).
+    - ``relaxed``: if that QP fails (infeasible, e.g. torque limits too weak to hold the
+      robot, or out of iterations), the QP with every inequality row in which the contact
+      rows and the acceleration bounds get slacks weighted by 1e4 in the cost; the torque
+      and cone rows stay hard. It is always feasible (the contact wrenches can sit inside
+      their cones, and the joint accelerations can produce any torque).
+    - ``hold``: if that fails too or the time budget is spent, the last valid torque
+      (gravity and Coriolis compensation :math:`h_a` on the first tick), clipped to the
+      torque limits.
+
+    The torques are always finite and within the torque limits.
     """
 
     def __init__(
@@ -257,21 +400,31 @@ class InverseDynamicsController:
         acceleration_regularization: float = 1e-6,
         force_regularization: float = 1e-8,
         tolerance: float = 1e-6,
-        max_iterations: int = 1000,
+        max_iterations: int = 50,
+        time_budget: float = 5e-3,
         raise_on_failure: bool = False,
-        joint_limit_horizon: float | None = None,
+        joint_limit_horizon: float | None = 0.05,
         limited_joints: str | Sequence[str] | None = None,
+        torque_limit_scale: float = 1.0,
         dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
     ):
-        if not tasks:
-            raise InvalidInputError("tasks is empty; give at least one task (e.g. PostureTask)")
+        _check_items(robot, tasks, contacts)
         for name, value in (
             ("acceleration_regularization", acceleration_regularization),
             ("force_regularization", force_regularization),
             ("tolerance", tolerance),
+            ("time_budget", time_budget),
+            ("torque_limit_scale", torque_limit_scale),
         ):
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidInputError(f"{name} must be finite and > 0, got {value!r}")
+            _check_positive(name, value)
+        if isinstance(max_iterations, bool) or not (
+            isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1
+        ):
+            raise InvalidInputError(
+                f"max_iterations must be an integer >= 1, got {max_iterations!r}"
+            )
+        self.time_budget = float(time_budget)
+        self._deadline = 0.0
         self.robot = robot
         self.model = robot.model
         self.data = robot.create_data()
@@ -287,7 +440,12 @@ class InverseDynamicsController:
         n = n_act + n_force  # unknowns y = (qdd_a, f / force_scale), base rows eliminated
         n_cone = SoleContact.n_wrench_rows * n_c
         self._nv, self._n_base, self._n_act, self._n = nv, n_base, n_act, n
-        self.torque_limit = np.asarray(robot.torque_limit, dtype=float).copy()
+        self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
+        if not (self.torque_limit > 0).all():  # NaN too
+            raise InvalidInputError(
+                f"robot.torque_limit must be > 0 for every actuated joint, got "
+                f"{robot.torque_limit!r}; fix the robot model's effort limits"
+            )
         self._release_limit = _RELEASE_MARGIN * self.torque_limit
         self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
         # Arguments of kernels.acceleration_bounds (no joints without limits).
@@ -410,6 +568,27 @@ class InverseDynamicsController:
             _arguments(self._hessian, self._gradient, equalities, everything),
         )
 
+        # The relaxed QP over (y, s_c, s_b): slacks on the contact rows, A y - s_c = b, and on
+        # the acceleration bounds, l <= qdd_j + s_b <= u, weighted in the cost; torque and
+        # cone rows kept. Its Hessian, gradient and matrices are filled when it is used.
+        n_relaxed = n + n_force + n_bound
+        hessian = np.zeros((n_relaxed, n_relaxed))
+        hessian.reshape(-1)[(n * (n_relaxed + 1)) :: n_relaxed + 1] = _RELAXATION_WEIGHT
+        relaxed_equalities = None
+        if n_force:
+            relaxed_equalities = (np.zeros((n_force, n_relaxed)), self._eq_vector)
+            relaxed_equalities[0][:, n : n + n_force] = -np.eye(n_force)
+        relaxed_rows = np.zeros((n_limit + n_cone, n_relaxed))
+        relaxed_rows[n_act + np.arange(n_bound), n + n_force + np.arange(n_bound)] = 1.0
+        relaxed = _arguments(
+            hessian, np.zeros(n_relaxed), relaxed_equalities,
+            (relaxed_rows, self._in_lower, self._in_upper),
+        )  # fmt: skip
+        n_in = n_limit + n_cone
+        self._relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, relaxed, relaxed)
+        # Feasible by construction: an infeasibility report would be a false alarm.
+        self._relaxed.qp.settings.eps_primal_inf = 1e-14
+
         # ---- QPs over z = x_N (nonbasic): the base and contact rows [G | t] solved for the
         # basic accelerations, x_B = U_c - U_N z with [U_N | U_c] = G_B^-1 [G_N | t]; without
         # inequality rows (primary) and with the cone rows.
@@ -464,12 +643,15 @@ class InverseDynamicsController:
         self._y_factor = np.zeros((n, n))  # for the Cholesky factor of the Hessian over y
         self._y_solution = np.zeros(n)
         self._stages = tuple(
-            s for s in (self._eliminated_cones, self._free, self._limited) if s is not None
+            s
+            for s in (self._eliminated_cones, self._free, self._limited, self._relaxed)
+            if s is not None
         )
         self.qp = self._primary.qp
         self.qp.settings.eps_abs = tolerance
         self.qp.settings.eps_rel = 0.0
-        self.qp.settings.max_iter = max_iterations
+        self.qp.settings.max_iter = int(max_iterations)
+        self.qp.settings.eps_duality_gap_abs = tolerance
         self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
 
         self.stats = ControllerStats()
@@ -499,6 +681,7 @@ class InverseDynamicsController:
             self._assemble_eliminated()
             self._accept(self._z_solution, eliminated=True)
         self._solve_direct()
+        kernels.solve_in_place(np.eye(1), np.ones(1))  # of _refine
         self.reset()
         for contact, reference in zip(self.contacts, references):
             contact.reference_placement = reference
@@ -519,8 +702,15 @@ class InverseDynamicsController:
                 f"joint_limit_horizon must be finite and > 0 [s], got {horizon!r}; "
                 "None disables the joint limits"
             )
-        elif joints is None:
-            joints = robot.actuated_joint_names
+        elif joints is None:  # every actuated joint with a finite position limit
+            lower, upper = robot.position_lower, robot.position_upper
+            joints = [
+                name
+                for name in robot.actuated_joint_names
+                if model.joints[model.getJointId(name)].nq == 1
+                and np.isfinite(lower[model.joints[model.getJointId(name)].idx_q])
+                and np.isfinite(upper[model.joints[model.getJointId(name)].idx_q])
+            ]
         try:
             q_index = robot.configuration_indices(joints).astype(np.int64)
         except InvalidInputError as error:
@@ -534,8 +724,9 @@ class InverseDynamicsController:
                     "leave it out"
                 )
         return (
-            q_index, v_index, np.asarray(robot.position_lower, dtype=float)[q_index],
-            np.asarray(robot.position_upper, dtype=float)[q_index],
+            q_index, v_index,
+            np.asarray(robot.position_lower, dtype=float)[q_index] - JOINT_LIMIT_TOLERANCE,
+            np.asarray(robot.position_upper, dtype=float)[q_index] + JOINT_LIMIT_TOLERANCE,
             np.asarray(robot.velocity_limit, dtype=float)[v_index],
             1.0 if horizon is None else float(horizon),
             np.full(v_index.size, -np.inf), np.full(v_index.size, np.inf),
@@ -601,6 +792,7 @@ class InverseDynamicsController:
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
+        self._deadline = time.thread_time() + self.time_budget
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
@@ -630,17 +822,17 @@ class InverseDynamicsController:
                 self._assemble_y()
                 mapped = True
                 solved = self._solve_direct()
-                if not solved:
-                    level = 2
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
                 self._assemble_y()
                 mapped = True
                 solved = self._solve(self._free)
                 level = min(level, 1)
-        # A NaN torque (from a NaN written into a task) fails the check too.
-        if solved and level < 2 and not checked:
-            if not self._feasible(self.torque_limit, self._bound_tolerance, q, v):
+        # A failed solve, or a NaN torque (from a NaN written into a task), goes to the QP
+        # with every inequality row.
+        if not solved or (level < 2 and not checked):
+            if not (solved and self._feasible(self.torque_limit, self._bound_tolerance, q, v)):
                 level = 2
+        answer = "direct" if self.stats.last_status is _DIRECT else "solved"
         if level == 2:
             self.stats.n_torque_limited += 1
             if not assembled:
@@ -649,22 +841,40 @@ class InverseDynamicsController:
                 self._assemble_y()
             kernels.acceleration_bounds(self._bounds, q, v)
             self._assemble_torque_rows()
+            answer = "solved"
             solved = self._solve(self._limited)
             if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
                 level = 1 if self.contacts else 0  # without contacts there are no cone rows
+            elif not solved:
+                answer = "relaxed"
+                solved = self._time_left() and self._solve_relaxed()
         self._level = level
-        if solved:
-            self._has_valid_torque = True
-            self._solution, self._candidate = self._candidate, self._solution
-            if self.stats.last_status is _DIRECT:  # its torques were checked against the limits
-                self.stats.n_direct += 1
-                np.copyto(self._torques, self._tau)
-            else:  # proxsuite meets the limit rows only to its tolerance
-                np.minimum(self._tau, self.torque_limit, out=self._torques)
-                np.maximum(self._torques, -self.torque_limit, out=self._torques)
-        else:
+        if not solved:
             self._fall_back()
+            return self._torques.copy()
+        self._count(answer)
+        self._has_valid_torque = True
+        self._solution, self._candidate = self._candidate, self._solution
+        if answer == "direct":  # its torques were checked against the limits
+            np.copyto(self._torques, self._tau)
+        else:  # proxsuite meets the limit rows only to its tolerance
+            np.minimum(self._tau, self.torque_limit, out=self._torques)
+            np.maximum(self._torques, -self.torque_limit, out=self._torques)
         return self._torques.copy()
+
+    def _count(self, answer: str) -> None:
+        stats = self.stats
+        stats.last_answer = answer
+        if answer == "direct":
+            stats.n_direct += 1
+        elif answer == "solved":
+            stats.n_solved += 1
+        else:
+            stats.n_relaxed += 1
+
+    def _time_left(self) -> bool:
+        """Whether the tick's time budget allows another solve."""
+        return time.thread_time() < self._deadline
 
     def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
         r"""Fixed base, posture tasks on every joint plus frame tasks: the QP without torque
@@ -831,7 +1041,8 @@ class InverseDynamicsController:
 
     # ------------------------------------------------------------------ solve
     def _solve(self, stage: _Stage) -> bool:
-        """Solve one stage warm (cold on its first use); on failure once more cold.
+        """Solve one stage warm (cold on its first use); on failure once more cold, if the
+        tick's time budget allows.
 
         A non-finite Hessian or gradient (a NaN written into a task) fails without a solve:
         proxsuite can report such a problem solved.
@@ -852,7 +1063,8 @@ class InverseDynamicsController:
         else:
             qp.update(*stage.update_arguments)
             solved = self._run(stage, cold=False)
-            if not solved:
+            # proxsuite can also report a feasible QP infeasible from a stale warm start.
+            if not solved and self._time_left():
                 self.stats.n_cold_restarts += 1
                 solved = self._run(stage, cold=True)
         stage.initialized = solved
@@ -873,11 +1085,26 @@ class InverseDynamicsController:
         stats.last_iterations = info.iter
         if info.status != _SOLVED:
             return False
-        solution = results.x
+        solution = _refine(stage.problem, results.x, results.z, qp.settings.eps_abs)
         if not math.isfinite(solution.sum()):
             return False
+        if stage is self._relaxed:  # (y, slacks)
+            solution = solution[: self._n]
         self._accept(solution, eliminated=stage is self._eliminated_cones)
         return True
+
+    def _solve_relaxed(self) -> bool:
+        """The QP with every inequality row, with slacks on its contact and acceleration-bound
+        rows (assembled by the caller): always feasible (see the class notes)."""
+        stage, n = self._relaxed, self._n
+        hessian, gradient, equality, _, inequality = stage.problem[:5]
+        hessian[:n, :n] = self._hessian
+        gradient[:n] = self._gradient
+        if equality is not None:
+            equality[:, :n] = self._mapped[self._n_cost :, :n]
+        inequality[:, :n] = self._in_matrix
+        stage.initialized = False  # solved from scratch: its last problem is unrelated
+        return self._solve(stage)
 
     def _solve_direct(self) -> bool:
         """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
@@ -906,12 +1133,15 @@ class InverseDynamicsController:
         )  # fmt: skip
 
     def _fall_back(self) -> None:
+        """The hold answer: the last valid torque (h_a on the first tick), clipped."""
         self.stats.n_fallbacks += 1
+        self.stats.last_answer = "hold"
         if self.raise_on_failure:
             raise NoSolutionFound(
-                f"inverse-dynamics QP failed twice (warm and cold) with status "
+                f"inverse-dynamics QP and its relaxation failed with status "
                 f"{self.stats.last_status} after {self.stats.last_iterations} iterations; "
-                "check that the tasks and contacts are compatible with the torque limits",
+                "check that the tasks and contacts are compatible with the torque limits, or "
+                "raise max_iterations or time_budget",
                 stats=self.stats,
             )
         if not self._has_valid_torque:

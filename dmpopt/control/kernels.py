@@ -33,6 +33,7 @@ __all__ = [
     "posture_law",
     "pd_task_rows",
     "reduce_costs",
+    "solve_in_place",
     "torques",
 ]
 
@@ -185,6 +186,40 @@ def cholesky_solve(matrix, factor, rhs, solution) -> bool:
             value -= factor[m, i] * solution[m]
         solution[i] = value / factor[i, i]
         total += solution[i]
+    return math.isfinite(total)
+
+
+@_compile
+def solve_in_place(matrix, rhs) -> bool:
+    """``rhs`` := ``matrix``^-1 ``rhs`` by Gaussian elimination with partial pivoting,
+    overwriting ``matrix``; False if a pivot is zero or the result not finite. Compiled and
+    single-threaded: LAPACK's threads cost more than such a small system on a busy machine.
+    """
+    n = rhs.size
+    for k in range(n):
+        pivot = k
+        for i in range(k + 1, n):
+            if abs(matrix[i, k]) > abs(matrix[pivot, k]):
+                pivot = i
+        if not abs(matrix[pivot, k]) > 0.0:  # also NaN
+            return False
+        if pivot != k:
+            for j in range(k, n):
+                matrix[k, j], matrix[pivot, j] = matrix[pivot, j], matrix[k, j]
+            rhs[k], rhs[pivot] = rhs[pivot], rhs[k]
+        for i in range(k + 1, n):
+            factor = matrix[i, k] / matrix[k, k]
+            if factor != 0.0:
+                for j in range(k + 1, n):
+                    matrix[i, j] -= factor * matrix[k, j]
+                rhs[i] -= factor * rhs[k]
+    total = 0.0
+    for k in range(n - 1, -1, -1):
+        value = rhs[k]
+        for j in range(k + 1, n):
+            value -= matrix[k, j] * rhs[j]
+        rhs[k] = value / matrix[k, k]
+        total += rhs[k]
     return math.isfinite(total)
 
 

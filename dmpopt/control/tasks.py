@@ -23,6 +23,7 @@ bounds.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Sequence
 
 import numpy as np
@@ -40,9 +41,17 @@ _SPATIAL = np.arange(6)
 _ZERO_MOTION = np.zeros(6)
 
 
+def _array(value, name: str) -> np.ndarray:
+    """``value`` as a float array, or the named error (not numpy's)."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be numbers, got {value!r}") from None
+
+
 def _vector(value, size: int, name: str) -> np.ndarray:
     """Broadcast a scalar or check a vector of length ``size``; all entries finite."""
-    array = np.asarray(value, dtype=float)
+    array = _array(value, name)
     if array.ndim == 0:
         array = np.full(size, float(array))
     elif array.shape != (size,):
@@ -71,9 +80,10 @@ def _gain(value: float, name: str) -> float:
 
 
 def _check_weight(weight: float) -> float:
-    if not (np.isfinite(weight) and weight > 0):
-        raise InvalidInputError(f"weight must be finite and > 0, got {weight!r}")
-    return float(weight)
+    number = _array(weight, "weight")
+    if number.shape != () or not (np.isfinite(number) and number > 0):
+        raise InvalidInputError(f"weight must be a finite number > 0, got {weight!r}")
+    return float(number)
 
 
 class Task:
@@ -121,6 +131,8 @@ def _posture_row(index: int, name: str, doc: str, nonnegative: bool = False) -> 
         value = _vector(value, self._state.shape[1], name)
         if nonnegative and not (np.isfinite(value).all() and (value >= 0).all()):
             raise InvalidInputError(f"{name} must be finite and >= 0")
+        if index == 0:
+            self._warn_outside_limits(value)
         self._state[index] = value
 
     return property(get, set, doc=doc)
@@ -178,6 +190,10 @@ class PostureTask(Task):
         self.weight = _check_weight(weight)
         self._state = np.zeros((7, size))
         self.stiffness, self.damping = _gains(stiffness, damping, size)
+        self.model = robot.model
+        self._lower = np.asarray(robot.position_lower, float)[self.configuration_indices]
+        self._upper = np.asarray(robot.position_upper, float)[self.configuration_indices]
+        self._warned: set[str] = set()
         self.reference_position = robot.reference_configuration[self.configuration_indices]
 
     def set_reference(self, positions, velocities=None, accelerations=None) -> None:
@@ -199,7 +215,7 @@ class PostureTask(Task):
             if value is None:
                 slot[:] = 0.0
                 continue
-            value = np.asarray(value, dtype=float)
+            value = _array(value, name)
             if value.shape != (size,):
                 raise ShapeError(
                     f"{name} has shape {value.shape}, expected ({size},) for the joints "
@@ -207,7 +223,26 @@ class PostureTask(Task):
                 )
             if not math.isfinite(value.sum()) and not np.isfinite(value).all():
                 raise InvalidInputError(f"{name} must be finite; it holds NaN or inf")
+            if name == "positions":
+                self._warn_outside_limits(value)
             slot[:] = value
+
+    def _warn_outside_limits(self, positions: np.ndarray) -> None:
+        """Warn, once per joint, of a reference outside the joint's position limits: the
+        controller's joint limits (on by default) stop the joint at its limit."""
+        outside = (positions < self._lower) | (positions > self._upper)
+        if not outside.any():
+            return
+        for j in np.flatnonzero(outside):
+            name = self.joint_names[j]
+            if name not in self._warned:
+                self._warned.add(name)
+                warnings.warn(
+                    f"PostureTask: reference {positions[j]:.4g} rad of {name!r} is outside its "
+                    f"position limits [{self._lower[j]:.4g}, {self._upper[j]:.4g}]; the joint "
+                    "stops at its limit (clip the reference to silence this)",
+                    stacklevel=3,
+                )
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the desired joint accelerations of the PD law above."""
@@ -290,9 +325,17 @@ class FrameTask(Task):
             omitted.
         """
         if isinstance(placement, pin.SE3):
+            if not (
+                np.isfinite(placement.homogeneous).all()
+                and np.allclose(placement.rotation.T @ placement.rotation, np.eye(3), atol=1e-6)
+            ):
+                raise InvalidInputError(
+                    "placement must be finite with a rotation matrix (R^T R = I); it holds "
+                    "NaN, inf or a non-orthonormal rotation"
+                )
             self.target_placement = placement.copy()
         else:
-            position = np.asarray(placement, dtype=float)
+            position = _array(placement, "placement")
             if position.shape != (3,):
                 raise ShapeError(
                     f"placement has shape {position.shape}, expected a pinocchio.SE3 or (3,)"
@@ -422,13 +465,15 @@ class SoleContact:
                 f"frame={frame!r} is not a foot frame of {robot.name!r}; "
                 f"expected one of {robot.foot_frames}"
             )
-        if not (np.isfinite(friction_coefficient) and friction_coefficient > 0):
+        mu = _array(friction_coefficient, "friction_coefficient")
+        if mu.shape != () or not (np.isfinite(mu) and mu > 0):
             raise InvalidInputError(
                 f"friction_coefficient must be finite and > 0, got {friction_coefficient!r}"
             )
-        if not 0 <= min_normal_force < max_normal_force:
+        forces = _array([min_normal_force, max_normal_force], "min_normal_force/max_normal_force")
+        if forces.shape != (2,) or not 0 <= forces[0] < forces[1] < np.inf:
             raise InvalidInputError(
-                "expected 0 <= min_normal_force < max_normal_force, got "
+                "expected finite 0 <= min_normal_force < max_normal_force, got "
                 f"{min_normal_force!r} and {max_normal_force!r}"
             )
         self.model = robot.model

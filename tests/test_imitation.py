@@ -58,10 +58,14 @@ def test_closed_movement_uses_translation_and_stays_finite():
 
 
 def test_paper_scaling_refuses_degenerate_axis():
+    """DOF 1 ends where it starts: the paper's (g - y0) factor would amplify its goal
+    changes without bound."""
     times = np.linspace(0, 1, 300)
     demo = Trajectory.from_positions(times, np.c_[times, np.sin(np.pi * times)])
     with pytest.raises(
-        InvalidInputError, match=r"zero for DOF\(s\) \[1\]; use goal_scaling='rotation'"
+        InvalidInputError,
+        match=r"goal_scaling='paper' would amplify goal changes of DOF\(s\) \[1\] .*"
+        r"use goal_scaling='auto'",
     ):
         fit_discrete(demo, 10, goal_scaling="paper")
 

@@ -24,9 +24,9 @@ plan to a new start :math:`y_0'` and goal :math:`g'` is the original plan mapped
     :math:`M = I`: new start and goal translate the shape; the unforced system takes up
     the rest. For closed or nearly closed movements.
 
-Amplification: a goal moved by :math:`\delta` moves every point of the plan by
-:math:`|\delta|\, \max_t |y(t) - y_0| / |d|` under ``"rotation"`` (per DOF under
-``"paper"``) and by at most :math:`|\delta|` under ``"translation"``. The ratio
+Amplification: a goal moved by :math:`\delta` moves no point of the plan by more than
+:math:`|\delta|\, \max_t |y(t) - y_0| / |d|` under ``"rotation"`` (:math:`|M - I| = |\delta|
+/ |d|`; per DOF under ``"paper"``) and :math:`|\delta|` under ``"translation"``. The ratio
 :math:`\max_t |y(t) - y_0| / |d| \ge 1` is large when start and goal nearly coincide;
 :func:`dmpopt.fit_discrete` keeps it at most
 :data:`dmpopt.fitting.imitation.MAX_GOAL_AMPLIFICATION`. A DMP built by hand in

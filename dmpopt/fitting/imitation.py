@@ -99,6 +99,10 @@ def goal_amplification(demo: Trajectory) -> tuple[float, np.ndarray]:
     return float(rotation), paper
 
 
+def _fold(amplification: float) -> str:
+    return f"{amplification:.3g}-fold" if np.isfinite(amplification) else "without bound"
+
+
 def _goal_scaling(demo: Trajectory, goal_scaling: str) -> str:
     """The scaling to fit with: ``"auto"`` resolved, explicit choices checked against the
     amplification bound."""
@@ -112,7 +116,7 @@ def _goal_scaling(demo: Trajectory, goal_scaling: str) -> str:
         return "rotation" if rotation <= bound else "translation"
     if goal_scaling == "rotation" and rotation > bound:
         raise InvalidInputError(
-            f"goal_scaling='rotation' would amplify goal changes {rotation:.3g}-fold, more than "
+            f"goal_scaling='rotation' would amplify goal changes {_fold(rotation)}, more than "
             f"the bound {bound:g} (MAX_GOAL_AMPLIFICATION): the demo's start-goal distance is "
             f"small against its extent; use goal_scaling='translation' (or 'auto', which picks "
             "it for such demos)"
@@ -120,8 +124,8 @@ def _goal_scaling(demo: Trajectory, goal_scaling: str) -> str:
     if goal_scaling == "paper" and np.any(paper > bound):
         dofs = np.nonzero(paper > bound)[0].tolist()
         raise InvalidInputError(
-            f"goal_scaling='paper' would amplify goal changes of DOF(s) {dofs} up to "
-            f"{paper.max():.3g}-fold, more than the bound {bound:g} (MAX_GOAL_AMPLIFICATION): "
+            f"goal_scaling='paper' would amplify goal changes of DOF(s) {dofs} (largest: "
+            f"{_fold(paper.max())}) more than the bound {bound:g} (MAX_GOAL_AMPLIFICATION): "
             "their start-goal distance is small (or zero) against their excursion; use "
             "goal_scaling='auto' (rotation or translation)"
         )

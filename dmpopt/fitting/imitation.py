@@ -213,12 +213,13 @@ def fit_discrete(
         else:
             forcing = _local_regression(unit, states[:, :2], targets)
 
-    reference = goal - start if scaling == "rotation" else None
-    fitted = unit.replace(goal_scaling=scaling, reference_displacement=reference)
-    transform = fitted.goal_map()  # the identity, or diag(goal - start) for "paper"
-    return fitted.replace(
-        weights=np.linalg.solve(transform, forcing),
-        scaled_start_velocity=np.linalg.solve(transform, tau * demo.velocities[0]),
+    # stored per unit of the goal map at the demo's start and goal: diag(goal - start) or I
+    per_unit = goal - start if scaling == "paper" else np.ones(demo.n_dofs)
+    return unit.replace(
+        weights=forcing / per_unit[:, None],
+        scaled_start_velocity=tau * demo.velocities[0] / per_unit,
+        goal_scaling=scaling,
+        reference_displacement=goal - start if scaling == "rotation" else None,
     )
 
 

@@ -201,3 +201,15 @@ def test_default_plan_reproduces_a_demo_that_starts_moving(goal_scaling):
     np.testing.assert_allclose(plan.velocities[0], demo.velocities[0], rtol=1e-12)
     np.testing.assert_allclose(plan.positions[-1], positions[-1], atol=1e-4)
     np.testing.assert_allclose(plan.velocities[-1], 0.0, atol=1e-3)
+
+
+def test_still_demo_is_translated_and_paper_refused():
+    """A demo that does not move has no start-goal vector to rotate or divide by."""
+    times = np.linspace(0.0, 1.0, 100)
+    demo = Trajectory.from_positions(times, np.tile([0.3, -1.0], (100, 1)))
+    dmp = fit_discrete(demo, 10)
+    assert dmp.goal_scaling == "translation"
+    plan = dmp.rollout(dt=0.01).positions
+    np.testing.assert_allclose(plan, np.tile([0.3, -1.0], (len(plan), 1)), atol=1e-12)
+    with pytest.raises(InvalidInputError, match=r"DOF\(s\) \[0, 1\] \(largest: without bound\)"):
+        fit_discrete(demo, 10, goal_scaling="paper")

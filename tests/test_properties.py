@@ -131,9 +131,8 @@ def test_explicit_scalings_are_refused_exactly_beyond_the_bound(case, scale):
     demo, n_basis = case
     start, end = demo.positions[0], demo.positions[-1]
     per_dof = np.abs(demo.positions - start).max(axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        paper_amplification = np.where(per_dof > 0, per_dof / np.abs(end - start), 0.0)
-    paper_amplification = np.nan_to_num(paper_amplification, nan=np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):  # x / 0 = inf, 0 / 0 = nan: inf
+        paper_amplification = np.nan_to_num(per_dof / np.abs(end - start), nan=np.inf)
     if np.all(paper_amplification <= BOUND):
         dmp = fit_discrete(demo, n_basis, goal_scaling="paper")
         factors = np.full(dmp.n_dofs, 10.0**scale)

@@ -70,10 +70,8 @@ def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, las
 
 
 def _ratio(excursion, gap):
-    """``excursion / gap``, infinite where the gap is zero (0 for no movement at all)."""
-    excursion, gap = np.broadcast_arrays(excursion, gap)
-    ratio = np.where(excursion > 0.0, np.inf, 0.0)
-    return np.divide(excursion, gap, out=ratio, where=gap > 0.0)
+    """``excursion / gap``, infinite where the gap is zero."""
+    return np.divide(excursion, gap, out=np.full(np.shape(gap), np.inf), where=gap > 0.0)
 
 
 def goal_amplification(demo: Trajectory) -> tuple[float, np.ndarray]:
@@ -91,7 +89,7 @@ def goal_amplification(demo: Trajectory) -> tuple[float, np.ndarray]:
     rotation : float
         :math:`\kappa` (infinite if the demonstration ends where it starts).
     paper : ndarray, shape (n_dofs,)
-        :math:`\kappa_d` (infinite for a DOF that moves and ends where it starts).
+        :math:`\kappa_d` (infinite for a DOF that ends where it starts).
     """
     offsets = demo.positions - demo.positions[0]
     rotation = _ratio(np.linalg.norm(offsets, axis=1).max(), np.linalg.norm(offsets[-1]))

@@ -45,8 +45,8 @@ def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRAC
     if outside.size == 0 or outside[-1] == n_steps - 1:
         raise InvalidInputError(f"the unforced {form} system with gains {gains} does not converge")
     k = outside[-1]  # interpolate the crossing between samples k and k + 1
-    fraction = (error[k] - (1.0 - fraction)) / (error[k] - error[k + 1])
-    return float((k + fraction) * dt)
+    part = (error[k] - (1.0 - fraction)) / (error[k] - error[k + 1])
+    return float((k + part) * dt)
 
 
 @lru_cache(maxsize=16)

@@ -26,8 +26,9 @@ def check_n_basis(n_basis) -> int:
 
 
 @lru_cache(maxsize=16)
-def convergence_time(form: str, gains: tuple) -> float:
-    """Time, for ``tau = 1``, after which the unforced system stays within 5 % of its goal.
+def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRACTION) -> float:
+    """Time, for ``tau = 1``, after which the unforced system stays ``fraction`` of the way to
+    its goal (95 % by default).
 
     Computed from the symbolic definition (a 1-DOF rollout from 0 to 1 with zero weights),
     so it holds for any gains. Rollouts scale in time with ``tau``, so the convergence
@@ -40,12 +41,12 @@ def convergence_time(form: str, gains: tuple) -> float:
     parameters = [1.0, 1.0, 1.0, np.zeros((1, 1)), 0.0, 1.0, np.array(gains), 0.0, 0.0]
     positions = symbolic.simulate(signature, n_steps, initial, dt, parameters)[1][:, 0]
     error = np.abs(1.0 - positions)
-    outside = np.nonzero(error > 1.0 - CONVERGENCE_FRACTION)[0]
+    outside = np.nonzero(error > 1.0 - fraction)[0]
     if outside.size == 0 or outside[-1] == n_steps - 1:
         raise InvalidInputError(f"the unforced {form} system with gains {gains} does not converge")
     k = outside[-1]  # interpolate the crossing between samples k and k + 1
-    fraction = (error[k] - (1.0 - CONVERGENCE_FRACTION)) / (error[k] - error[k + 1])
-    return float((k + fraction) * dt)
+    part = (error[k] - (1.0 - fraction)) / (error[k] - error[k + 1])
+    return float((k + part) * dt)
 
 
 @lru_cache(maxsize=16)

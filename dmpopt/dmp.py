@@ -7,21 +7,30 @@ transformation state, the goal and the weights. The response matrices are evalua
 from the symbolic rollout (:mod:`dmpopt.symbolic`) and cached, so a rollout of any number of
 DOFs is one matrix product.
 
-Goal generalisation of discrete DMPs (``goal_scaling``):
+Goal generalisation of discrete DMPs (``goal_scaling``). The forcing weights and the
+scaled start velocity :math:`\tau \dot y(0)` are mapped by the same matrix :math:`M`, so each
+plan to a new start :math:`y_0'` and goal :math:`g'` is the original plan mapped by :math:`M`:
 
 ``"paper"``
-    eq. (7) per DOF: the forcing term of DOF ``d`` is scaled by ``g_d - y0_d``. Weights are
-    stored per unit of that distance. A DOF whose demonstration starts and ends at the
-    same value has no defined weights: fitting raises an error.
+    eq. (7) per DOF: :math:`M = \mathrm{diag}(g - y_0)`, weights stored per unit of that
+    distance. Per DOF, :math:`y_d' - y_{0,d}' = (y_d - y_{0,d})\,(g_d' - y_{0,d}') / (g_d -
+    y_{0,d})`.
 ``"rotation"``
-    The forcing vector is mapped by the rotation and uniform scaling that carry the
-    demonstrated start-goal vector onto the new one. Since the transformation system is
-    linear and isotropic, the plan to a new goal is then exactly the reproduction of the
-    demonstration, rotated and scaled about the start. Needs a non-zero demonstrated
-    start-goal vector.
+    :math:`M` is the rotation and uniform scaling that carry the demonstrated start-goal
+    vector :math:`d` (``reference_displacement``) onto the new one :math:`d'`. The
+    transformation system is linear and isotropic, so :math:`y' - y_0' = M (y - y_0)`: the
+    reproduction of the demonstration, rotated and scaled about the start.
 ``"translation"``
-    The forcing vector is used as learned: new start and goal translate the shape. Used
-    for closed movements whose start and goal coincide.
+    :math:`M = I`: new start and goal translate the shape; the unforced system takes up
+    the rest. For closed or nearly closed movements.
+
+Amplification: a goal moved by :math:`\delta` moves no point of the plan by more than
+:math:`|\delta|\, \max_t |y(t) - y_0| / |d|` under ``"rotation"`` (:math:`|M - I| = |\delta|
+/ |d|`; per DOF under ``"paper"``) and :math:`|\delta|` under ``"translation"``. The ratio
+:math:`\max_t |y(t) - y_0| / |d| \ge 1` is large when start and goal nearly coincide;
+:func:`dmpopt.fit_discrete` keeps it at most
+:data:`dmpopt.fitting.imitation.MAX_GOAL_AMPLIFICATION`. A DMP built by hand in
+``"rotation"`` mode trusts its ``reference_displacement``.
 """
 
 from __future__ import annotations
@@ -37,6 +46,9 @@ from .exceptions import InvalidInputError, ShapeError
 from .trajectory import Trajectory, as_finite_array
 
 GOAL_SCALINGS = ("paper", "rotation", "translation")
+SETTLING_FRACTION = 0.9999
+"""Fraction of the way to its goal that the unforced system covers, from rest, in the time
+a default plan lasts beyond the convergence time (:attr:`DiscreteDMP.settling_time`)."""
 
 
 def _positive(name: str, value) -> float:
@@ -300,6 +312,11 @@ class DiscreteDMP(_DmpCommon):
         How the forcing term follows a new start or goal (module docstring).
     reference_displacement : ndarray, shape (n_dofs,), optional
         Demonstrated ``goal - start``; needed by ``"rotation"``.
+    scaled_start_velocity : ndarray, shape (n_dofs,)
+        :math:`\tau \dot y(0)` of the demonstration (default 0: start at rest), stored like
+        ``weights`` (per unit of ``goal - start`` under ``"paper"``). Plans start with
+        :attr:`start_velocity`, this mapped to the current start and goal and divided by
+        :math:`\tau`.
     stiffness, damping : float
         :math:`\alpha_z` and :math:`\beta_z` (default :math:`\alpha_z / 4`).
     phase_stiffness, phase_damping : float
@@ -317,6 +334,7 @@ class DiscreteDMP(_DmpCommon):
     form: str = "velocity"
     goal_scaling: str = "rotation"
     reference_displacement: np.ndarray | None = None
+    scaled_start_velocity: np.ndarray | float = 0.0
     stiffness: float = 25.0
     damping: float | None = None
     phase_stiffness: float = 25.0
@@ -339,7 +357,7 @@ class DiscreteDMP(_DmpCommon):
         n_dofs, n_basis = weights.shape
         object.__setattr__(self, "weights", _frozen(weights))
         self._check_basis(n_basis)
-        for name in ("start", "goal"):
+        for name in ("start", "goal", "scaled_start_velocity"):
             value = _vector(name, getattr(self, name), n_dofs, f"weights {weights.shape}")
             object.__setattr__(self, name, _frozen(value))
         if self.goal_scaling == "rotation":
@@ -380,16 +398,27 @@ class DiscreteDMP(_DmpCommon):
     def _canonical_target(self) -> float:
         return 1.0
 
-    def forcing_weights(self, start=None, goal=None) -> np.ndarray:
-        """Weights mapped to the current (or given) start and goal, shape (n_dofs, n_basis)."""
+    def goal_map(self, start=None, goal=None) -> np.ndarray:
+        """Matrix :math:`M` that maps the stored weights to the current (or given) start and
+        goal (module docstring), shape (n_dofs, n_dofs)."""
         start = self.start if start is None else start
         goal = self.goal if goal is None else goal
         displacement = np.asarray(goal) - np.asarray(start)
         if self.goal_scaling == "paper":
-            return displacement[:, None] * self.weights
+            return np.diag(displacement)
         if self.goal_scaling == "rotation":
-            return similarity_transform(self.reference_displacement, displacement) @ self.weights
-        return np.asarray(self.weights)
+            return similarity_transform(self.reference_displacement, displacement)
+        return np.eye(self.n_dofs)
+
+    def forcing_weights(self, start=None, goal=None) -> np.ndarray:
+        """Weights mapped to the current (or given) start and goal, shape (n_dofs, n_basis)."""
+        return self.goal_map(start, goal) @ self.weights
+
+    @property
+    def start_velocity(self) -> np.ndarray:
+        r"""Initial velocity [units/s] of plans by default: ``scaled_start_velocity`` mapped to
+        the current start and goal, divided by :math:`\tau`, shape (n_dofs,)."""
+        return self.goal_map() @ self.scaled_start_velocity / self.time_constant
 
     def with_goal(self, goal) -> DiscreteDMP:
         """Same movement towards a new goal."""
@@ -405,6 +434,17 @@ class DiscreteDMP(_DmpCommon):
         gains = self.gains[:4] + ((self.goal_rate,) if self.form == "acceleration" else ())
         return self.time_constant * basis.convergence_time(self.form, gains)
 
+    @property
+    def settling_time(self) -> float:
+        """Default plan length [s]: :attr:`convergence_time` (the demonstration's duration
+        for a fitted DMP), then the time the unforced system needs from rest to come within
+        0.01 % of its goal (:data:`SETTLING_FRACTION`). The margin lets a movement still
+        under way at the end of its demonstration come to rest: the README's quickstart demo
+        ends at 3.7 units/s and its plan ends within 0.1 % of its extent from the goal."""
+        gains = self.gains[:4] + ((self.goal_rate,) if self.form == "acceleration" else ())
+        settle = basis.convergence_time(self.form, gains, SETTLING_FRACTION)
+        return self.convergence_time + self.time_constant * settle
+
     def phase_features(self, n_steps: int, dt: float) -> np.ndarray:
         """Regressors of the forcing term, eq. (7), at ``k dt`` for ``k < n_steps``.
 
@@ -418,6 +458,7 @@ class DiscreteDMP(_DmpCommon):
             goal=[0.0],
             goal_scaling="translation",
             reference_displacement=None,
+            scaled_start_velocity=0.0,
         )
         states = symbolic.simulate(
             signature, n_steps, np.zeros(signature.n_states), dt, unforced.parameter_values()
@@ -425,39 +466,45 @@ class DiscreteDMP(_DmpCommon):
         features = symbolic.feature_function(signature).map(n_steps)
         return features(states[:, :2].T, self.centres, self.widths).full().T
 
-    def rollout(self, duration: float | None = None, dt: float = 0.001, start_velocity=0.0):
-        """The whole plan from ``start`` at rest (or ``start_velocity``).
+    def rollout(self, duration: float | None = None, dt: float = 0.001, start_velocity=None):
+        """The whole plan from ``start``.
 
         Parameters
         ----------
         duration : float, optional
-            Length of the plan [s]; defaults to :attr:`convergence_time`.
+            Length of the plan [s]; defaults to :attr:`settling_time`.
         dt : float
             Sample (and integration) step [s].
-        start_velocity : array_like, shape (n_dofs,)
-            Initial velocity.
+        start_velocity : array_like, shape (n_dofs,), optional
+            Initial velocity [units/s]; defaults to :attr:`start_velocity` (the demonstrated
+            one, mapped to the current start and goal, for a fitted DMP).
 
         Returns
         -------
         Trajectory
             Samples at ``0, dt, ..., duration``.
         """
-        duration = self.convergence_time if duration is None else duration
-        return self._rollout(duration, dt, self.start, start_velocity, (0.0, 0.0))
+        duration = self.settling_time if duration is None else duration
+        velocity = self.start_velocity if start_velocity is None else start_velocity
+        return self._rollout(duration, dt, self.start, velocity, (0.0, 0.0))
 
-    def affine_plan(self, duration=None, dt: float = 0.001, start_velocity=0.0) -> AffinePlan:
+    def affine_plan(self, duration=None, dt: float = 0.001, start_velocity=None) -> AffinePlan:
         """The plan as an affine function of the forcing weights (see :class:`AffinePlan`).
 
-        ``self.rollout(...)`` equals ``self.affine_plan(...).trajectory(self.forcing_weights())``.
+        ``self.rollout(...)`` equals ``self.affine_plan(...).trajectory(self.forcing_weights())``;
+        the arguments and their defaults are those of :meth:`rollout`.
         """
-        duration = self.convergence_time if duration is None else duration
-        return self._affine(duration, dt, self.start, start_velocity, (0.0, 0.0))
+        duration = self.settling_time if duration is None else duration
+        velocity = self.start_velocity if start_velocity is None else start_velocity
+        return self._affine(duration, dt, self.start, velocity, (0.0, 0.0))
 
-    def stepper(self, dt: float = 0.001, start_velocity=0.0, compile: bool = False):
-        """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`)."""
+    def stepper(self, dt: float = 0.001, start_velocity=None, compile: bool = False):
+        """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`),
+        starting with ``start_velocity`` (default :attr:`start_velocity`)."""
         from .stepper import Stepper
 
-        return Stepper(self, dt, self.start, start_velocity, compile=compile)
+        velocity = self.start_velocity if start_velocity is None else start_velocity
+        return Stepper(self, dt, self.start, velocity, compile=compile)
 
 
 @dataclass(frozen=True, eq=False)

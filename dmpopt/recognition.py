@@ -233,7 +233,7 @@ def plan_metric_factor(
     unit = dmp.with_time_constant(1.0)
     duration = unit.convergence_time
     dt = duration / (n_samples - 1)
-    plan = unit.affine_plan(duration, dt)
+    plan = unit.affine_plan(duration, dt, start_velocity=0.0)
     response = plan.weight_response[0][:n_samples]
     if start_velocity:
         push = np.zeros(dmp.n_dofs)

@@ -53,9 +53,11 @@ def test_goal_scaling_from_zero_start_scales_plan(form):
 
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
-def test_time_constant_scaling_stretches_time_exactly(form):
-    """tau -> c tau with dt -> c dt gives the same positions at times scaled by c."""
-    dmp = random_discrete(seed=4, form=form)
+@pytest.mark.parametrize("scaled_start_velocity", [0.0, [1.5, -0.7]])
+def test_time_constant_scaling_stretches_time_exactly(form, scaled_start_velocity):
+    """tau -> c tau with dt -> c dt gives the same positions at times scaled by c, also for a
+    plan that starts moving (its start velocity is divided by c)."""
+    dmp = random_discrete(seed=4, form=form, scaled_start_velocity=scaled_start_velocity)
     c = 1.9
     plan = dmp.rollout(0.5, 0.001)
     slow = dmp.with_time_constant(c * dmp.time_constant).rollout(c * 0.5, c * 0.001)
@@ -82,14 +84,77 @@ def test_translation_translates_plan():
 @settings(max_examples=20, deadline=None)
 @given(angle=st.floats(-np.pi, np.pi), scale=st.floats(0.05, 20.0))
 def test_rotation_scaling_maps_plan(angle, scale):
-    """In rotation mode the plan to a rotated, scaled goal is the plan rotated and scaled."""
-    dmp = random_discrete(seed=7)
+    """In rotation mode the plan to a rotated, scaled goal is the plan rotated and scaled,
+    its start velocity included."""
+    dmp = random_discrete(seed=7, scaled_start_velocity=[0.8, -0.5])
     rotation = scale * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-    plan = dmp.rollout(0.6).positions
+    plan = dmp.rollout(0.6)
     goal = dmp.start + rotation @ (dmp.goal - dmp.start)
+    moved = dmp.with_goal(goal).rollout(0.6)
+    expected = dmp.start + (plan.positions - dmp.start) @ rotation.T
+    np.testing.assert_allclose(moved.positions, expected, atol=1e-9 * max(1.0, scale))
+    np.testing.assert_allclose(moved.velocities[0], rotation @ [0.8, -0.5] / dmp.time_constant)
+
+
+def test_paper_scaling_scales_each_dof():
+    """Paper mode: y_d' - y0_d = (y_d - y0_d) (g_d' - y0_d) / (g_d - y0_d), start velocity
+    included (the invariance of Section 3.3, per DOF)."""
+    dmp = random_discrete(
+        seed=14, goal_scaling="paper", reference_displacement=None, scaled_start_velocity=[2, 1]
+    )
+    plan = dmp.rollout(0.6).positions
+    goal = dmp.start + np.array([-0.3, 2.5]) * (dmp.goal - dmp.start)
     moved = dmp.with_goal(goal).rollout(0.6).positions
-    expected = dmp.start + (plan - dmp.start) @ rotation.T
-    np.testing.assert_allclose(moved, expected, atol=1e-9 * max(1.0, scale))
+    expected = dmp.start + (plan - dmp.start) * np.array([-0.3, 2.5])
+    np.testing.assert_allclose(moved, expected, atol=1e-12 * np.abs(plan).max())
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_translation_moves_plan_by_at_most_the_goal_change(form):
+    """Translation mode: y' - y = e(t) delta, the unforced response from rest to a goal step
+    delta; for the velocity form, critically damped, e = 1 - (1 + s) exp(-s), s = alpha t / 2 tau.
+    """
+    dmp = random_discrete(
+        seed=15,
+        form=form,
+        goal_scaling="translation",
+        reference_displacement=None,
+        scaled_start_velocity=[3.0, -1.0],
+    )
+    delta = np.array([0.4, -1.1])
+    plan = dmp.rollout(1.0).positions
+    change = dmp.with_goal(dmp.goal + delta).rollout(1.0).positions - plan
+    response = change @ delta / (delta @ delta)
+    np.testing.assert_allclose(change, np.outer(response, delta), atol=1e-12)
+    assert np.all(response >= -1e-12) and np.all(response <= 1 + 1e-12)
+    if form == "velocity":
+        s = dmp.stiffness * np.arange(len(plan)) * 0.001 / (2 * dmp.time_constant)
+        np.testing.assert_allclose(response, 1 - (1 + s) * np.exp(-s), atol=1e-8)
+
+
+def test_default_duration_is_the_settling_time():
+    """Closed form, velocity form critically damped from rest: 1 - (1 + s) exp(-s) reaches
+    95 % at the convergence time and 99.99 % a settling time later (s = alpha t / 2 tau)."""
+    from scipy.optimize import brentq
+
+    dmp = random_discrete(seed=16)
+    rate = dmp.stiffness / (2 * dmp.time_constant)
+    reached = [brentq(lambda s: (1 + s) * np.exp(-s) - (1 - f), 0.1, 50) for f in (0.95, 0.9999)]
+    assert dmp.convergence_time == pytest.approx(reached[0] / rate, rel=1e-5)
+    assert dmp.settling_time == pytest.approx(sum(reached) / rate, rel=1e-5)
+    assert dmp.rollout(dt=0.002).times[-1] == pytest.approx(dmp.settling_time, abs=0.002)
+
+
+def test_stepper_and_affine_plan_start_like_the_rollout():
+    """Their default start velocity is the DMP's, as for rollout()."""
+    dmp = random_discrete(seed=17, scaled_start_velocity=[-2.0, 0.5])
+    plan = dmp.rollout(0.1, 0.001)
+    stepper = dmp.stepper(0.001)
+    stepped = [stepper.position] + [stepper.step()[0] for _ in range(100)]
+    np.testing.assert_allclose(stepped, plan.positions, atol=1e-12)
+    np.testing.assert_allclose(plan.velocities[0], [-2.0 / 0.4, 0.5 / 0.4], rtol=1e-12)
+    affine = dmp.affine_plan(0.1, 0.001).evaluate(dmp.forcing_weights())[0]
+    np.testing.assert_allclose(affine, plan.positions, atol=1e-12)
 
 
 @settings(max_examples=15, deadline=None)
@@ -202,6 +267,8 @@ def test_affine_plan_matches_rollout():
         ({"form": "jerk"}, "form must be one of"),
         ({"goal_scaling": "bogus"}, "goal_scaling must be one of"),
         ({"reference_displacement": np.zeros(2)}, "reference_displacement is zero"),
+        ({"scaled_start_velocity": np.zeros(3)}, r"scaled_start_velocity has shape \(3,\)"),
+        ({"scaled_start_velocity": [np.inf, 0.0]}, "scaled_start_velocity contains"),
     ],
 )
 def test_bad_parameters_name_the_argument(changes, message):

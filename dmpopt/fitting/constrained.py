@@ -270,17 +270,13 @@ class FittingProblem:
         return np.asarray(forcing_weights) / (self.length_scale * self.scale[None, :])
 
     def dmp_for(self, forcing_weights: np.ndarray) -> DiscreteDMP:
-        """The DMP that, at the problem's start, goal and tau, has these forcing weights."""
+        """The DMP that, at the problem's start, goal and tau, has these forcing weights and
+        starts with the problem's start velocity."""
         dmp = self.dmp
-        displacement = dmp.goal - dmp.start
-        if dmp.goal_scaling == "paper":
-            weights = forcing_weights / displacement[:, None]
-        elif dmp.goal_scaling == "rotation":
-            transform = similarity_transform(dmp.reference_displacement, displacement)
-            weights = np.linalg.solve(transform, forcing_weights)
-        else:
-            weights = forcing_weights
-        return dmp.replace(weights=weights)
+        transform = dmp.goal_map()
+        weights = np.linalg.solve(transform, forcing_weights)
+        scaled_velocity = np.linalg.solve(transform, dmp.time_constant * self.start_velocity)
+        return dmp.replace(weights=weights, scaled_start_velocity=scaled_velocity)
 
     def rollout(self, dmp: DiscreteDMP) -> Trajectory:
         """Plan of ``dmp`` on the problem's time grid, from the problem's start velocity."""

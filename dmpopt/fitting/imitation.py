@@ -24,8 +24,10 @@ from ..exceptions import InvalidInputError
 from ..trajectory import Trajectory
 
 METHODS = ("position", "least_squares", "lwr")
-DEGENERATE_DISPLACEMENT = 1e-6
-"""Start-goal distances below this fraction of the demonstration's extent count as zero."""
+GOAL_SCALINGS = ("auto", "paper", "rotation", "translation")
+MAX_GOAL_AMPLIFICATION = 10.0
+"""Largest factor by which a fitted DMP may amplify a goal change (:func:`goal_amplification`):
+a goal moved by ``delta`` moves no point of the plan by more than this times ``|delta|``."""
 
 
 def _check_demo(demo) -> Trajectory:
@@ -67,20 +69,64 @@ def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, las
     return solution + np.outer(row, value - row @ solution) / (row @ row)
 
 
+def _ratio(excursion, gap):
+    """``excursion / gap``, infinite where the gap is zero."""
+    return np.divide(excursion, gap, out=np.full(np.shape(gap), np.inf), where=gap > 0.0)
+
+
+def goal_amplification(demo: Trajectory) -> tuple[float, np.ndarray]:
+    r"""How much ``"rotation"`` and ``"paper"`` goal scaling amplify goal changes of ``demo``.
+
+    Under ``"rotation"`` a goal moved by :math:`\delta` moves every point of the plan by
+    :math:`\kappa |\delta|` at most, with :math:`\kappa = \max_t |y(t) - y_0| / |g - y_0|`
+    (module docstring of :mod:`dmpopt.dmp`); under ``"paper"`` DOF :math:`d` moves by
+    :math:`\kappa_d |\delta_d|`, :math:`\kappa_d = \max_t |y_d(t) - y_{0,d}| / |g_d -
+    y_{0,d}|`; under ``"translation"`` by :math:`|\delta|` at most. :math:`\kappa \ge 1`;
+    it is large when start and goal nearly coincide against the movement's extent.
+
+    Returns
+    -------
+    rotation : float
+        :math:`\kappa` (infinite if the demonstration ends where it starts).
+    paper : ndarray, shape (n_dofs,)
+        :math:`\kappa_d` (infinite for a DOF that ends where it starts).
+    """
+    offsets = demo.positions - demo.positions[0]
+    rotation = _ratio(np.linalg.norm(offsets, axis=1).max(), np.linalg.norm(offsets[-1]))
+    paper = _ratio(np.abs(offsets).max(axis=0), np.abs(offsets[-1]))
+    return float(rotation), paper
+
+
+def _fold(amplification: float) -> str:
+    return f"{amplification:.3g}-fold" if np.isfinite(amplification) else "without bound"
+
+
 def _goal_scaling(demo: Trajectory, goal_scaling: str) -> str:
-    displacement = demo.positions[-1] - demo.positions[0]
-    extent = max(float(np.ptp(demo.positions, axis=0).max()), 1e-300)
+    """The scaling to fit with: ``"auto"`` resolved, explicit choices checked against the
+    amplification bound."""
+    if goal_scaling not in GOAL_SCALINGS:
+        raise InvalidInputError(
+            f"goal_scaling must be one of {GOAL_SCALINGS}, got {goal_scaling!r}"
+        )
+    rotation, paper = goal_amplification(demo)
+    bound = MAX_GOAL_AMPLIFICATION
     if goal_scaling == "auto":
-        small = np.linalg.norm(displacement) <= DEGENERATE_DISPLACEMENT * extent
-        return "translation" if small else "rotation"
-    if goal_scaling == "paper":
-        small = np.abs(displacement) <= DEGENERATE_DISPLACEMENT * extent
-        if np.any(small):
-            dofs = np.nonzero(small)[0].tolist()
-            raise InvalidInputError(
-                f"goal_scaling='paper' divides by goal - start, which is zero for DOF(s) "
-                f"{dofs}; use goal_scaling='rotation' (or 'auto')"
-            )
+        return "rotation" if rotation <= bound else "translation"
+    if goal_scaling == "rotation" and rotation > bound:
+        raise InvalidInputError(
+            f"goal_scaling='rotation' would amplify goal changes {_fold(rotation)}, more than "
+            f"the bound {bound:g} (MAX_GOAL_AMPLIFICATION): the demo's start-goal distance is "
+            f"small against its extent; use goal_scaling='translation' (or 'auto', which picks "
+            "it for such demos)"
+        )
+    if goal_scaling == "paper" and np.any(paper > bound):
+        dofs = np.nonzero(paper > bound)[0].tolist()
+        raise InvalidInputError(
+            f"goal_scaling='paper' would amplify goal changes of DOF(s) {dofs} (largest: "
+            f"{_fold(paper.max())}) more than the bound {bound:g} (MAX_GOAL_AMPLIFICATION): "
+            "their start-goal distance is small (or zero) against their excursion; use "
+            "goal_scaling='auto' (rotation or translation)"
+        )
     return goal_scaling
 
 
@@ -98,7 +144,9 @@ def fit_discrete(
     """Fit a discrete DMP to a point-to-point demonstration (Section 3.4).
 
     ``tau`` is chosen so that the unforced system is 95 % converged at the end of the
-    demonstration; start and goal are the first and last samples.
+    demonstration; start and goal are the first and last samples. The DMP keeps the
+    demonstrated start velocity (``scaled_start_velocity``), so that its default
+    ``rollout()`` reproduces the demonstration and then comes to rest at the goal.
 
     Parameters
     ----------
@@ -112,7 +160,10 @@ def fit_discrete(
     method : {"position", "least_squares", "lwr"}
         See the module docstring.
     goal_scaling : {"auto", "rotation", "paper", "translation"}
-        ``"auto"`` picks ``"rotation"``, or ``"translation"`` when start and goal coincide.
+        ``"auto"`` picks ``"rotation"`` if it amplifies goal changes at most
+        :data:`MAX_GOAL_AMPLIFICATION`-fold (:func:`goal_amplification`), else
+        ``"translation"`` (closed or nearly closed movements). An explicit ``"rotation"`` or
+        ``"paper"`` beyond that bound is refused.
     regularization : float
         Ridge weight relative to the mean diagonal of the normal equations.
     stiffness, phase_stiffness : float
@@ -160,12 +211,14 @@ def fit_discrete(
         else:
             forcing = _local_regression(unit, states[:, :2], targets)
 
-    if scaling == "paper":
-        weights = forcing / (goal - start)[:, None]
-    else:
-        weights = forcing
-    reference = goal - start if scaling == "rotation" else None
-    return unit.replace(weights=weights, goal_scaling=scaling, reference_displacement=reference)
+    # stored per unit of the goal map at the demo's start and goal: diag(goal - start) or I
+    per_unit = goal - start if scaling == "paper" else np.ones(demo.n_dofs)
+    return unit.replace(
+        weights=forcing / per_unit[:, None],
+        scaled_start_velocity=tau * demo.velocities[0] / per_unit,
+        goal_scaling=scaling,
+        reference_displacement=goal - start if scaling == "rotation" else None,
+    )
 
 
 def _initial_state(dmp, demo: Trajectory) -> np.ndarray:

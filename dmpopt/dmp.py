@@ -35,15 +35,13 @@ import numpy as np
 from . import basis, symbolic
 from .exceptions import InvalidInputError, ShapeError
 from .trajectory import Trajectory, as_finite_array
+from .validation import check_resources, positive_number, real_number
 
 GOAL_SCALINGS = ("paper", "rotation", "translation")
 
 
 def _positive(name: str, value) -> float:
-    value = float(value)
-    if not np.isfinite(value) or value <= 0.0:
-        raise InvalidInputError(f"{name} must be a positive finite number, got {value!r}")
-    return value
+    return positive_number(name, value)
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
@@ -163,10 +161,15 @@ class _DmpCommon:
     """Fields and behaviour shared by discrete and rhythmic DMPs."""
 
     def _check_basis(self, n_basis: int):
+        if 0 in self.weights.shape:
+            raise ShapeError(
+                f"weights has shape {self.weights.shape}: a DMP needs at least one DOF and one "
+                "basis function"
+            )
         centres = _vector("centres", self.centres, n_basis, f"{n_basis} basis functions")
         widths = _vector("widths", self.widths, n_basis, f"{n_basis} basis functions")
         if np.any(widths <= 0):
-            raise InvalidInputError("widths must all be positive")
+            raise InvalidInputError(f"widths must all be positive, got {widths.min()!r}")
         object.__setattr__(self, "centres", _frozen(centres))
         object.__setattr__(self, "widths", _frozen(widths))
         object.__setattr__(self, "time_constant", _positive("time_constant", self.time_constant))
@@ -194,6 +197,31 @@ class _DmpCommon:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    @property
+    def max_step(self) -> float:
+        """Largest step [s] at which the RK4 integration is stable (:func:`basis.stable_step`)."""
+        return self.time_constant * basis.stable_step(
+            self.form, tuple(self.gains), float(self._canonical_target()), self._cycle_states()
+        )
+
+    def _cycle_states(self) -> tuple:
+        """Canonical states at which the system is linearised for its stability limit."""
+        if isinstance(self, RhythmicDMP):
+            angles = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
+            return tuple(self.canonical_state(angle) for angle in angles)
+        return ((0.0, 0.0),)
+
+    def check_step(self, dt, name: str = "dt") -> float:
+        """Return ``dt`` if it is a positive step within :attr:`max_step`, else raise."""
+        dt = _positive(name, dt)
+        if dt > self.max_step:
+            raise InvalidInputError(
+                f"{name} = {dt:.4g} s is beyond the stability limit {self.max_step:.4g} s of the "
+                f"RK4 integration for time_constant {self.time_constant:.4g} s and these gains "
+                "(the plan would grow without bound); use a smaller step"
+            )
+        return dt
+
     def with_time_constant(self, time_constant: float):
         """Same movement, time scaled: ``tau -> time_constant`` (Section 3.3)."""
         return self.replace(time_constant=time_constant)
@@ -214,12 +242,20 @@ class _DmpCommon:
 
     def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):
         duration = _positive("duration", duration)
-        dt = _positive("dt", dt)
+        dt = self.check_step(dt)
         n_steps = int(round(duration / dt)) + 1
         if n_steps < 3:
             raise InvalidInputError(
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
+        n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
+        check_resources(
+            f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
+            n_steps,
+            8.0 * n_steps * (9 * n_inputs + 6 * self.n_dofs + 2),
+            "raise dt or shorten duration (by default the convergence time or three periods, "
+            "both proportional to time_constant)",
+        )
         key = (
             self.form,
             self.kernel,
@@ -545,8 +581,9 @@ class RhythmicDMP(_DmpCommon):
 
     def canonical_state(self, phase: float = 0.0) -> tuple[float, float]:
         """The oscillator's state on its limit cycle at ``phase`` [rad]."""
+        phase = real_number("phase", phase)
         if self.form == "phase":
-            return (float(phase), self.amplitude)
+            return (phase, self.amplitude)
         # x = A cos(theta), v = A k sin(theta) gives atan2(v, x) = theta for k = 1
         return (
             self.amplitude * float(np.cos(phase)),

@@ -20,12 +20,16 @@ import numpy as np
 
 from .. import basis, symbolic
 from ..dmp import DiscreteDMP, RhythmicDMP
-from ..exceptions import InvalidInputError
+from ..exceptions import FittingFailed, InvalidInputError
 from ..trajectory import Trajectory
+from ..validation import flag, integer, non_negative_number, positive_number
 
 METHODS = ("position", "least_squares", "lwr")
 DEGENERATE_DISPLACEMENT = 1e-6
 """Start-goal distances below this fraction of the demonstration's extent count as zero."""
+PERIODICITY_TOLERANCE = 0.05
+"""Default largest mismatch of a rhythmic demonstration with itself one period later,
+relative to its extent (see :func:`periodicity_mismatch`)."""
 
 
 def _check_demo(demo) -> Trajectory:
@@ -37,6 +41,15 @@ def _check_demo(demo) -> Trajectory:
     if not demo.is_uniform:
         demo = demo.resampled(demo.n_steps)
     return demo
+
+
+def _check_size(demo: Trajectory, n_features: int, n_basis: int) -> None:
+    if n_features > demo.n_steps:
+        raise InvalidInputError(
+            f"n_basis = {n_basis} gives {n_features} weights per DOF but demo has only "
+            f"{demo.n_steps} samples, so the fit is underdetermined; lower n_basis or "
+            "resample the demonstration (demo.resampled(n_steps))"
+        )
 
 
 def _check_method(method: str) -> str:
@@ -55,14 +68,20 @@ def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, las
     n = gram.shape[0]
     lam = regularization * np.trace(gram) / n
     rhs = features.T @ targets
-    if last_row is None:
-        return np.linalg.solve(gram + lam * np.eye(n), rhs)
-    row, value = last_row
-    kkt = np.zeros((n + 1, n + 1))
-    kkt[:n, :n] = gram + lam * np.eye(n)
-    kkt[:n, n] = row
-    kkt[n, :n] = row
-    solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
+    try:
+        if last_row is None:
+            return np.linalg.solve(gram + lam * np.eye(n), rhs)
+        row, value = last_row
+        kkt = np.zeros((n + 1, n + 1))
+        kkt[:n, :n] = gram + lam * np.eye(n)
+        kkt[:n, n] = row
+        kkt[n, :n] = row
+        solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
+    except np.linalg.LinAlgError as error:
+        raise FittingFailed(
+            f"the least-squares problem is singular with regularization = {regularization!r}; "
+            "raise regularization (e.g. 1e-9) or lower n_basis"
+        ) from error
     # the KKT system is ill-conditioned: restore the equality to rounding precision
     return solution + np.outer(row, value - row @ solution) / (row @ row)
 
@@ -121,6 +140,8 @@ def fit_discrete(
     demo = _check_demo(demo)
     method = _check_method(method)
     n_basis = basis.check_n_basis(n_basis)
+    _check_size(demo, n_basis, n_basis)
+    regularization = non_negative_number("regularization", regularization)
     scaling = _goal_scaling(demo, goal_scaling)
     start, goal = demo.positions[0], demo.positions[-1]
     template = DiscreteDMP(
@@ -264,9 +285,11 @@ def fit_to_accuracy(
     ``rhythmic`` selects :func:`fit_rhythmic` instead of :func:`fit_discrete`; ``options``
     are passed on. Raises :class:`InvalidInputError` if no candidate reaches the tolerance.
     """
-    if not tolerance > 0:
-        raise InvalidInputError(f"tolerance must be positive, got {tolerance!r}")
-    fit = fit_rhythmic if rhythmic else fit_discrete
+    tolerance = positive_number("tolerance", tolerance)
+    candidates = [basis.check_n_basis(n) for n in _sequence("candidates", candidates)]
+    if not candidates:
+        raise InvalidInputError("candidates is empty; give at least one number of basis functions")
+    fit = fit_rhythmic if flag("rhythmic", rhythmic) else fit_discrete
     errors = []
     for n_basis in candidates:
         dmp = fit(demo, n_basis, **options)
@@ -277,6 +300,32 @@ def fit_to_accuracy(
         f"no number of basis functions in {tuple(candidates)} reaches tolerance {tolerance}; "
         f"the best RMSE was {min(errors):.3g}: raise the tolerance or add candidates"
     )
+
+
+def _sequence(name: str, value) -> list:
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise InvalidInputError(f"{name} must be a sequence of integers, got {value!r}")
+    return list(value)
+
+
+def periodicity_mismatch(demo: Trajectory, period: float) -> tuple[float, float]:
+    """How far ``demo`` is from repeating itself after ``period``, relative to its extent.
+
+    Compares the positions and velocities at ``t`` and ``t + period`` over the overlap (for a
+    demonstration of one period or a bit less: its end against its start) and returns the
+    root-mean-square differences divided by the peak-to-peak range of the positions and of
+    the velocities, the largest over the DOFs. Both are zero for a periodic demonstration.
+    """
+    shift = min(period, demo.duration)
+    times = demo.times[demo.times + shift <= demo.times[-1] + 1e-12 * demo.duration]
+    mismatch = []
+    for values in (demo.positions, demo.velocities):
+        later = np.column_stack([np.interp(times + shift, demo.times, v) for v in values.T])
+        earlier = np.column_stack([np.interp(times, demo.times, v) for v in values.T])
+        rms = np.sqrt(np.mean((later - earlier) ** 2, axis=0))
+        extent = np.maximum(np.ptp(values, axis=0), 1e-300)
+        mismatch.append(float(np.max(rms / extent)))
+    return mismatch[0], mismatch[1]
 
 
 def estimate_period(demo: Trajectory) -> float:
@@ -327,6 +376,7 @@ def fit_rhythmic(
     regularization: float = 1e-9,
     stiffness: float = 25.0,
     warm_up_periods: int = 2,
+    periodicity_tolerance: float = PERIODICITY_TOLERANCE,
 ) -> RhythmicDMP:
     """Fit a rhythmic DMP to a periodic demonstration (Section 3.4, rhythmic case).
 
@@ -350,17 +400,38 @@ def fit_rhythmic(
     kernel : {"von_mises", "paper"}
     amplitude : float
         Amplitude the weights are learned at; scaling it later scales the movement.
+    regularization : float
+        Ridge weight (zero or positive) relative to the mean diagonal of the normal equations.
+    warm_up_periods : int
+        Periods integrated before the fitted window (``"position"`` method).
+    periodicity_tolerance : float
+        A demonstration that does not repeat itself after one period cannot be reproduced
+        by a limit cycle: if :func:`periodicity_mismatch` of its positions or velocities
+        exceeds this fraction of their extent, the fit is refused (``np.inf`` disables).
     """
     demo = _check_demo(demo)
     method = _check_method(method)
     n_basis = basis.check_n_basis(n_basis)
-    period = estimate_period(demo) if period is None else period
-    if not (np.isfinite(period) and period > 0):
-        raise InvalidInputError(f"period must be a positive number of seconds, got {period!r}")
+    _check_size(demo, 2 * n_basis, n_basis)
+    regularization = non_negative_number("regularization", regularization)
+    warm_up_periods = integer("warm_up_periods", warm_up_periods, 0)
+    tolerance = periodicity_tolerance
+    if tolerance != np.inf:
+        tolerance = positive_number("periodicity_tolerance", tolerance)
+    period = estimate_period(demo) if period is None else positive_number("period", period)
     if demo.duration < 0.95 * period:
         raise InvalidInputError(
             f"demo lasts {demo.duration:.4g} s, less than one period ({period:.4g} s); "
             "demonstrate at least one full cycle"
+        )
+    position_mismatch, velocity_mismatch = periodicity_mismatch(demo, period)
+    if max(position_mismatch, velocity_mismatch) > tolerance:
+        raise InvalidInputError(
+            f"demo is not periodic with period {period:.4g} s: one period later its positions "
+            f"differ by {position_mismatch:.2%} and its velocities by {velocity_mismatch:.2%} "
+            f"of their extent (RMS), above periodicity_tolerance = {tolerance:.2%}; a rhythmic "
+            "DMP would reproduce it wrongly. Trim the demonstration to whole cycles, fix "
+            "period, or fit a discrete DMP"
         )
     centres, widths = basis.rhythmic_basis(n_basis, kernel)
     template = RhythmicDMP(

@@ -238,3 +238,10 @@ def test_non_periodic_demo_is_refused_with_the_numbers():
         fit_rhythmic(jumping, 15, period=0.8)
     fit_rhythmic(_drifting_sine(0.3), 15, period=0.8, periodicity_tolerance=np.inf)
     fit_rhythmic(_drifting_sine(0.0), 15, period=0.8)
+
+
+def test_fit_beyond_the_memory_budget_is_refused_before_any_work(monkeypatch):
+    """The regressors alone take 201 x 30 x 8 bytes = 48 kB: refused under a 40 kB budget."""
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 4e4)
+    with pytest.raises(ResourceLimitError, match="a fit of 30 basis functions to 201 samples"):
+        fit_discrete(DEMO, 30)

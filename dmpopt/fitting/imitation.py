@@ -22,7 +22,13 @@ from .. import basis, symbolic
 from ..dmp import DiscreteDMP, RhythmicDMP
 from ..exceptions import FittingFailed, InvalidInputError
 from ..trajectory import Trajectory
-from ..validation import flag, integer, non_negative_number, positive_number
+from ..validation import (
+    check_resources,
+    flag,
+    integer,
+    non_negative_number,
+    positive_number,
+)
 
 METHODS = ("position", "least_squares", "lwr")
 DEGENERATE_DISPLACEMENT = 1e-6
@@ -44,12 +50,19 @@ def _check_demo(demo) -> Trajectory:
 
 
 def _check_size(demo: Trajectory, n_features: int, n_basis: int) -> None:
+    """Refuse underdetermined fits and fits whose regressors exceed the resource bounds."""
     if n_features > demo.n_steps:
         raise InvalidInputError(
             f"n_basis = {n_basis} gives {n_features} weights per DOF but demo has only "
             f"{demo.n_steps} samples, so the fit is underdetermined; lower n_basis or "
             "resample the demonstration (demo.resampled(n_steps))"
         )
+    check_resources(
+        f"a fit of {n_basis} basis functions to {demo.n_steps} samples",
+        demo.n_steps,
+        8.0 * (12 * demo.n_steps * (n_features + 3 + demo.n_dofs) + 3 * (n_features + 1) ** 2),
+        "lower n_basis or resample the demonstration to fewer samples",
+    )
 
 
 def _check_method(method: str) -> str:

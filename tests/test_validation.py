@@ -162,7 +162,11 @@ def test_time_constant_change_that_makes_the_step_unstable_is_refused():
 
 
 def test_stable_energy_oscillator_stays_on_its_cycle():
+    """At peak speed v = k A (x = 0) eq. (13) linearises to [[0, 1], [-k^2, -alpha_E v^2]]:
+    its fast eigenvalue, the pull back onto the cycle, sets the limit."""
     dmp = random_rhythmic(form="energy", amplitude=3.0, frequency=2.0)
+    fast = (10.0 * 36.0 + np.sqrt((10.0 * 36.0) ** 2 - 4 * 4.0)) / 2
+    assert dmp.max_step == pytest.approx(RK4_REAL_LIMIT * dmp.time_constant / fast, rel=1e-9)
     stepper = dmp.stepper(0.99 * dmp.max_step)
     for _ in range(5000):
         stepper.step()

@@ -13,11 +13,12 @@ from dmpopt import (
     fit_rhythmic,
     fit_to_accuracy,
     load,
+    reproduction_error,
     save,
     validation,
 )
 from dmpopt.basis import discrete_basis
-from dmpopt.fitting.imitation import periodicity_mismatch
+from dmpopt.fitting.imitation import estimate_period, periodicity_mismatch
 
 DISCRETE = random_discrete()
 RHYTHMIC = random_rhythmic()
@@ -92,6 +93,9 @@ BAD_INPUTS = [
     (lambda: fit_to_accuracy(DEMO, 0.1, candidates=()), "candidates is empty"),
     (lambda: fit_to_accuracy(DEMO, 0.1, candidates="ab"), "candidates must be a sequence"),
     (lambda: fit_to_accuracy(DEMO, 0.1, rhythmic="yes"), "rhythmic must be True or False"),
+    (lambda: reproduction_error(None, DEMO), "dmp must be a DiscreteDMP or RhythmicDMP"),
+    (lambda: reproduction_error(random_discrete(n_dofs=1), DEMO), "demo has 2 DOFs but dmp has 1"),
+    (lambda: estimate_period(PERIODIC.positions), "demo must be a Trajectory"),
     # files
     (lambda: save(DISCRETE, None), "path must be a str or os.PathLike"),
     (lambda: load(None), "path must be a str or os.PathLike"),
@@ -249,3 +253,14 @@ def test_fit_beyond_the_memory_budget_is_refused_before_any_work(monkeypatch):
     monkeypatch.setattr(validation, "MEMORY_BUDGET", 4e4)
     with pytest.raises(ResourceLimitError, match="a fit of 30 basis functions to 201 samples"):
         fit_discrete(DEMO, 30)
+
+
+def test_reproduction_error_of_a_non_uniform_demo_compares_equal_times():
+    """A DMP's own plan sampled on a non-uniform grid reproduces itself to interpolation error."""
+    dmp = random_discrete(seed=2)
+    plan = dmp.rollout(1.0, 0.001)
+    keep = np.r_[0:500:5, 500:1001]  # coarse then fine
+    demo = Trajectory(
+        plan.times[keep], *(a[keep] for a in (plan.positions, plan.velocities, plan.accelerations))
+    )
+    assert reproduction_error(dmp, demo) < 1e-3 * np.ptp(plan.positions)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import basis, symbolic
 from ..dmp import DiscreteDMP, RhythmicDMP
-from ..exceptions import FittingFailed, InvalidInputError
+from ..exceptions import FittingFailed, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
 from ..validation import (
     check_resources,
@@ -276,7 +276,19 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
 
 
 def reproduction_error(dmp, demo: Trajectory) -> float:
-    """Root-mean-square Euclidean position error of the DMP's plan against ``demo``."""
+    """Root-mean-square Euclidean position error of the DMP's plan against ``demo``.
+
+    A demonstration on a non-uniform grid is compared after resampling to a uniform one.
+    """
+    if not isinstance(dmp, (DiscreteDMP, RhythmicDMP)):
+        raise InvalidInputError(
+            f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
+        )
+    demo = _check_demo(demo)
+    if demo.n_dofs != dmp.n_dofs:
+        raise ShapeError(
+            f"demo has {demo.n_dofs} DOFs but dmp has {dmp.n_dofs}; compare the same DOFs"
+        )
     dt = demo.duration / (demo.n_steps - 1)
     if isinstance(dmp, DiscreteDMP):
         plan = dmp.rollout(demo.duration, dt, start_velocity=demo.velocities[0])
@@ -348,6 +360,7 @@ def estimate_period(demo: Trajectory) -> float:
     minimises the mean squared difference between ``y(t)`` and ``y(t + P)``, found on a
     fine grid and refined by a parabola. The demonstration must cover more than 1.3 cycles.
     """
+    demo = _check_demo(demo)
     centred = demo.positions - demo.positions.mean(axis=0)
     power = (np.abs(np.fft.rfft(centred, axis=0)) ** 2).sum(axis=1)
     power[0] = 0.0

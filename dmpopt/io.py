@@ -1,7 +1,10 @@
 """Saving and loading DMPs: a versioned ``.npz`` file with an exact round trip.
 
 The file holds one JSON header (format name, version, class, scalar fields) and the arrays
-in binary float64, so that ``load(save(dmp))`` reproduces every parameter bit for bit.
+in binary float64, so that ``load(save(dmp))`` reproduces every parameter bit for bit. The
+fields are those of the DMP's dataclass, whatever they are, so a new field needs no change
+here. Both functions append ``.npz`` to a path without it; saving writes a temporary file
+beside the target and renames it, so a failed save never destroys an earlier file.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from . import basis, symbolic
+from . import basis, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
 from .trajectory import Trajectory, as_finite_array
 from .validation import check_resources, positive_number, real_number
@@ -87,24 +87,27 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _affine_maps(signature: symbolic.Signature) -> ca.Function:
-    """Jacobians of one RK4 step and of the outputs of one DOF with respect to its inputs.
+def _affine_step(signature: symbolic.Signature) -> ca.Function:
+    """One RK4 step of one DOF and its Jacobians with respect to the DOF's inputs.
 
-    ``(state, dt, *parameters) -> (step, outputs)``: ``step`` (n_transformation, n_inputs) is
-    the derivative of the next transformation state, ``outputs`` (3, n_inputs) that of
-    position, velocity and acceleration at ``state``, with respect to the inputs
-    (transformation state, goal, forcing weights). Both are affine in these inputs, so the
-    Jacobians depend only on the canonical part of ``state``.
+    ``(state, dt, *parameters) -> (next_state, step, outputs)``: ``step`` (n_transformation,
+    n_inputs) is the derivative of the next transformation state and ``outputs`` (3,
+    n_inputs) that of position, velocity and acceleration at ``state``, with respect to the
+    inputs (transformation state, goal, forcing weights). Both are affine in these inputs,
+    so the Jacobians depend only on the canonical part of ``state``.
     """
     s = symbolic.make_symbols(signature)
-    n_canonical = 2
-    inputs = ca.vertcat(s.state[n_canonical:], s.goal, ca.vec(s.forcing_weights))
+    inputs = ca.vertcat(s.state[2:], s.goal, ca.vec(s.forcing_weights))
     next_state = symbolic.step_function(signature)(s.state, s.dt, *s.parameters())[0]
     outputs = ca.vertcat(*symbolic.output_function(signature)(s.state, *s.parameters()))
     return ca.Function(
-        "dmp_affine_maps",
+        "dmp_affine_step",
         [s.state, s.dt, *s.parameters()],
-        [ca.jacobian(next_state[n_canonical:], inputs), ca.jacobian(outputs, inputs)],
+        [
+            next_state,
+            ca.densify(ca.jacobian(next_state[2:], inputs)),
+            ca.densify(ca.jacobian(outputs, inputs)),
+        ],
     )
 
 
@@ -113,40 +116,42 @@ def _response(key: tuple) -> np.ndarray:
     """Response matrices of one DOF, in time normalised by ``tau``.
 
     Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
-    responses to each input (initial transformation states, goal, weights). The canonical
-    system is integrated once; each RK4 step is then affine in the inputs, with Jacobians
-    from :func:`_affine_maps`, and the responses follow from the affine recurrence. The cost
-    grows linearly with the number of basis functions (a system with one DOF per input, as
-    integrated before, grew quadratically: about a minute for 400 basis functions).
+    responses to each input (initial transformation states, goal, weights). Each RK4 step
+    is affine in the inputs, with Jacobians from :func:`_affine_step` along the canonical
+    trajectory, so the responses follow from the affine recurrence. The cost grows linearly
+    with the number of basis functions (integrating one DOF per input, as before, grew
+    quadratically: over a minute for 400 basis functions).
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     signature = symbolic.Signature(form, 1, n_basis, kernel)
     n_transformation = symbolic.n_transformation_states(form)
-    parameters = [
+    n_inputs = n_transformation + 1 + signature.n_features
+    function = symbolic.NumericFunction(_affine_step(signature))
+    function.set_inputs(
+        np.concatenate([canonical0, np.zeros(n_transformation)]),
+        dt,
         1.0,
         0.0,
         target,
-        np.zeros((1, signature.n_features)),
+        np.zeros(signature.n_features),
         np.array(centres),
         np.array(widths),
         np.array(gains),
         0.0,
         0.0,
-    ]
-    initial = np.concatenate([canonical0, np.zeros(n_transformation)])
-    states = symbolic.simulate(signature, n_steps, initial, dt, parameters)[0]
-    maps = _affine_maps(signature).map(n_steps)(states.T, dt, *parameters)
-    step = maps[0].full().reshape(n_transformation, n_steps, -1)
-    outputs = maps[1].full().reshape(3, n_steps, -1)
-    n_inputs = step.shape[2]
+    )
+    state, (next_state, step, outputs) = function.inputs[0], function.outputs
+    step = step.reshape((n_transformation, n_inputs), order="F")  # views of the buffers
+    outputs = outputs.reshape((3, n_inputs), order="F")
     transformation = np.eye(n_transformation, n_inputs)  # d(transformation state)/d(inputs)
     response = np.empty((3, n_steps, n_inputs))
     for k in range(n_steps):
-        response[:, k] = outputs[:, k, :n_transformation] @ transformation
-        response[:, k, n_transformation:] += outputs[:, k, n_transformation:]
-        propagated = step[:, k, :n_transformation] @ transformation
-        propagated[:, n_transformation:] += step[:, k, n_transformation:]
-        transformation = propagated
+        function.evaluate()
+        response[:, k] = outputs[:, :n_transformation] @ transformation
+        response[:, k, n_transformation:] += outputs[:, n_transformation:]
+        transformation = step[:, :n_transformation] @ transformation
+        transformation[:, n_transformation:] += step[:, n_transformation:]
+        state[:] = next_state
     response.setflags(write=False)
     return response
 
@@ -282,7 +287,7 @@ class _DmpCommon:
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
             n_steps,
-            8.0 * n_steps * (9 * n_inputs + 6 * self.n_dofs + 2),
+            8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs),
             "raise dt or shorten duration (by default the convergence time or three periods, "
             "both proportional to time_constant)",
         )
@@ -299,7 +304,10 @@ class _DmpCommon:
             tuple(self.gains),
         )
         times = np.arange(n_steps) * dt
-        return times, _response(key), self._response_inputs(start, start_velocity, canonical0)
+        # the cache keeps 16 entries: keep out those that would hold over 1/16 of the budget
+        small = 24.0 * n_steps * n_inputs <= validation.MEMORY_BUDGET / 16
+        response = _response(key) if small else _response.__wrapped__(key)
+        return times, response, self._response_inputs(start, start_velocity, canonical0)
 
     def _affine(self, duration, dt, start, start_velocity, canonical0) -> AffinePlan:
         times, response, inputs = self._response_and_inputs(

@@ -485,6 +485,14 @@ class DiscreteDMP(_DmpCommon):
         The canonical system (6) is integrated from rest as in a rollout; the result does not
         depend on the weights, start or goal. Shape (n_steps, n_basis).
         """
+        n_steps = validation.integer("n_steps", n_steps, 1)
+        dt = self.check_step(dt)
+        check_resources(
+            f"phase_features({n_steps}, {dt:.4g})",
+            n_steps,
+            8.0 * n_steps * (2 * self.n_basis + 8),
+            "ask for fewer samples",
+        )
         signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
         unforced = self.replace(
             weights=np.zeros((1, self.n_basis)),

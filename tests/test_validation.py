@@ -63,6 +63,8 @@ BAD_INPUTS = [
     (lambda: DISCRETE.rollout("1", 0.001), "duration must be a real number"),
     (lambda: DISCRETE.rollout(0.5, None), "dt must be a real number"),
     (lambda: DISCRETE.affine_plan(0.5, True), "dt must be a real number"),
+    (lambda: DISCRETE.phase_features(10.5, 0.001), "n_steps must be a positive integer"),
+    (lambda: DISCRETE.phase_features(10, 1.0), "dt = 1 s is beyond the stability limit"),
     (lambda: DISCRETE.stepper("0.001"), "dt must be a real number"),
     (lambda: DISCRETE.stepper(0.001, compile="no"), "compile must be True or False"),
     (lambda: DISCRETE.stepper().set_time_constant(None), "time_constant must be a real number"),

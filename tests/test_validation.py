@@ -266,3 +266,11 @@ def test_reproduction_error_of_a_non_uniform_demo_compares_equal_times():
         plan.times[keep], *(a[keep] for a in (plan.positions, plan.velocities, plan.accelerations))
     )
     assert reproduction_error(dmp, demo) < 1e-3 * np.ptp(plan.positions)
+
+
+def test_a_dof_at_rest_beside_a_periodic_one_is_periodic():
+    """Mismatch is relative to the largest extent: rounding on a constant DOF does not count."""
+    demo = _drifting_sine(0.0)
+    beside = Trajectory.from_positions(demo.times, np.c_[demo.positions, np.full(801, 0.3)])
+    assert max(periodicity_mismatch(beside, 0.8)) < 1e-3
+    fit_rhythmic(beside, 15, period=0.8)

@@ -338,8 +338,9 @@ def periodicity_mismatch(demo: Trajectory, period: float) -> tuple[float, float]
 
     Compares the positions and velocities at ``t`` and ``t + period`` over the overlap (for a
     demonstration of one period or a bit less: its end against its start) and returns the
-    root-mean-square differences divided by the peak-to-peak range of the positions and of
-    the velocities, the largest over the DOFs. Both are zero for a periodic demonstration.
+    largest root-mean-square difference over the DOFs, divided by the largest peak-to-peak
+    range of the positions (and of the velocities) over the DOFs, so that a DOF at rest does
+    not count as non-periodic. Both are zero for a periodic demonstration.
     """
     shift = min(period, demo.duration)
     times = demo.times[demo.times + shift <= demo.times[-1] + 1e-12 * demo.duration]
@@ -348,8 +349,8 @@ def periodicity_mismatch(demo: Trajectory, period: float) -> tuple[float, float]
         later = np.column_stack([np.interp(times + shift, demo.times, v) for v in values.T])
         earlier = np.column_stack([np.interp(times, demo.times, v) for v in values.T])
         rms = np.sqrt(np.mean((later - earlier) ** 2, axis=0))
-        extent = np.maximum(np.ptp(values, axis=0), 1e-300)
-        mismatch.append(float(np.max(rms / extent)))
+        extent = max(float(np.ptp(values, axis=0).max()), 1e-300)
+        mismatch.append(float(np.max(rms) / extent))
     return mismatch[0], mismatch[1]
 
 

@@ -152,7 +152,9 @@ class Stepper:
             Additive term on the canonical system (``tau * vdot`` or ``tau * phidot``).
         """
         if coupling is not None:
-            coupling = as_finite_array("coupling", coupling)
+            coupling = np.asarray(coupling)
+            if coupling.dtype != np.float64 or not np.isfinite(coupling).all():
+                coupling = as_finite_array("coupling", coupling)  # converts or names the fault
             if coupling.shape not in ((), (1,), (self.dmp.n_dofs,)):
                 raise ShapeError(
                     f"coupling has shape {coupling.shape}, expected ({self.dmp.n_dofs},) "

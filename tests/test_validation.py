@@ -70,6 +70,7 @@ BAD_INPUTS = [
     (lambda: DISCRETE.stepper().set_time_constant(None), "time_constant must be a real number"),
     (lambda: DISCRETE.stepper().step(canonical_coupling=None), "canonical_coupling must be"),
     (lambda: DISCRETE.stepper().step(coupling="ab"), "coupling must be numeric"),
+    (lambda: DISCRETE.stepper().step(coupling=[np.nan, 0.0]), "coupling contains 1 NaN"),
     (lambda: RHYTHMIC.stepper().reset_phase(np.nan), "phase must be finite"),
     (lambda: RHYTHMIC.stepper().reset_phase(None), "phase must be a real number"),
     (lambda: RHYTHMIC.stepper().set_amplitude("2"), "amplitude must be a real number"),

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 
 from . import symbolic
 from .exceptions import InvalidInputError
+from .validation import integer
 
 CONVERGENCE_FRACTION = 0.95
 """Imitation picks ``tau`` so that the system with ``f = 0`` is this close to its goal at the
@@ -19,10 +21,67 @@ end of the demonstration (Section 3.4)."""
 
 
 def check_n_basis(n_basis) -> int:
-    """Validate a number of basis functions."""
-    if isinstance(n_basis, bool) or not isinstance(n_basis, (int, np.integer)) or n_basis < 1:
-        raise InvalidInputError(f"n_basis must be a positive integer, got {n_basis!r}")
-    return int(n_basis)
+    """Validate a number of basis functions (one or more)."""
+    return integer("n_basis", n_basis, 1)
+
+
+RK4_STABILITY_RADII = np.linspace(0.0, 3.0, 3001)[1:]
+"""Values of ``|h lambda|`` scanned for the edge of the RK4 stability region (which lies
+below 2.9 in every direction of the left half-plane); the crossing is then bisected."""
+
+
+def _rk4_growth(z):
+    """``|R(z)|`` with ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``, RK4's amplification."""
+    return np.abs(1 + z * (1 + z / 2 * (1 + z / 3 * (1 + z / 4))))
+
+
+def _rk4_limit(eigenvalue: complex) -> float:
+    """Largest ``h`` with ``|R(h lambda)| <= 1`` on all of ``(0, h]``."""
+    if eigenvalue == 0:
+        return np.inf
+    direction = eigenvalue / abs(eigenvalue)
+    outside = np.nonzero(_rk4_growth(RK4_STABILITY_RADII * direction) > 1.0 + 1e-12)[0]
+    if outside.size == 0:
+        return np.inf
+    k = outside[0]
+    low, high = (RK4_STABILITY_RADII[k - 1] if k > 0 else 0.0), RK4_STABILITY_RADII[k]
+    for _ in range(40):
+        middle = 0.5 * (low + high)
+        if _rk4_growth(middle * direction) > 1.0 + 1e-12:
+            high = middle
+        else:
+            low = middle
+    return low / abs(eigenvalue)
+
+
+@lru_cache(maxsize=64)
+def stable_step(form: str, gains: tuple, canonical_target: float, canonical_states: tuple) -> float:
+    r"""Largest integration step, for ``tau = 1``, at which the RK4 discretisation is stable.
+
+    An RK4 step :math:`h` multiplies each mode of a linear system by :math:`R(h\lambda) = 1 +
+    h\lambda + \dots + (h\lambda)^4/24`, so it is stable while :math:`|R(h\lambda)| \le 1` for
+    every eigenvalue :math:`\lambda` of its Jacobian (e.g. :math:`h \le 2.785 / (\alpha_z / 2)`
+    for a critically damped system). The Jacobian :math:`J` of eqs. (5)-(14) (the forcing
+    term is an input that does not feed back) is taken at ``canonical_states``: one state for
+    the linear discrete and phase forms, points along the limit cycle for the energy form.
+    There :math:`J` rotates with the oscillation, so the limit uses the eigenvalues of its
+    mean over the cycle (the oscillation) and the decaying eigenvalues at each point (the
+    stiff pull back onto the cycle). Time scales with ``tau``: the limit for time constant
+    ``tau`` is ``tau`` times this value. Accurate plans need steps well below the limit.
+    """
+    signature = symbolic.Signature(form, 1, 1, "gaussian")
+    s = symbolic.make_symbols(signature)
+    rate = symbolic.system_rhs(signature, s, s.state)
+    jacobian = ca.Function("jacobian", [s.state, *s.parameters()], [ca.jacobian(rate, s.state)])
+    parameters = [1.0, 0.0, canonical_target, 0.0, 0.0, 1.0, np.array(gains), 0.0, 0.0]
+    padding = np.zeros(signature.n_states - 2)
+    matrices = [
+        jacobian(np.concatenate([canonical, padding]), *parameters).full()
+        for canonical in canonical_states
+    ]
+    frozen = [value for m in matrices for value in np.linalg.eigvals(m) if value.real < 0.0]
+    eigenvalues = [*np.linalg.eigvals(np.mean(matrices, axis=0)), *frozen]
+    return float(min(_rk4_limit(value) for value in eigenvalues))
 
 
 @lru_cache(maxsize=16)
@@ -67,12 +126,16 @@ def discrete_basis(n_basis: int, gains: tuple) -> tuple[np.ndarray, np.ndarray]:
     so that each basis covers an equal share of the movement's duration; neighbouring
     Gaussians cross at :math:`1/\\sqrt{2}` of their height (wide enough for smooth fits:
     measured on LASA, it lowers the reproduction error by a quarter against half height).
+    One basis function is allowed: its normalised activation is 1 whatever its width, so
+    the forcing term is :math:`w v` (its width is set as if the spacing were the whole phase).
     """
     n_basis = check_n_basis(n_basis)
     end = convergence_time("velocity", gains[:4])
     times = tuple(np.linspace(0.0, end, n_basis)) if n_basis > 1 else (0.5 * end,)
     centres = discrete_phase(tuple(gains[:4]), times)
-    spacing = np.diff(centres) if n_basis > 1 else np.array([1.0])
+    if n_basis == 1:  # its normalised activation is 1 whatever the width: span the phase
+        return centres, np.full(1, 2.0 * np.log(2.0))
+    spacing = np.diff(centres)
     spacing = np.append(spacing, spacing[-1])
     widths = 2.0 * np.log(2.0) / spacing**2
     return centres, widths

@@ -39,11 +39,13 @@ import dataclasses
 from dataclasses import dataclass
 from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 
-from . import basis, symbolic
+from . import basis, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
 from .trajectory import Trajectory, as_finite_array
+from .validation import check_resources, positive_number, real_number
 
 GOAL_SCALINGS = ("paper", "rotation", "translation")
 SETTLING_FRACTION = 0.9999
@@ -52,10 +54,7 @@ a default plan lasts beyond the convergence time (:attr:`DiscreteDMP.settling_ti
 
 
 def _positive(name: str, value) -> float:
-    value = float(value)
-    if not np.isfinite(value) or value <= 0.0:
-        raise InvalidInputError(f"{name} must be a positive finite number, got {value!r}")
-    return value
+    return positive_number(name, value)
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
@@ -99,38 +98,72 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
+@lru_cache(maxsize=16)
+def _affine_step(signature: symbolic.Signature) -> ca.Function:
+    """One RK4 step of one DOF and its Jacobians with respect to the DOF's inputs.
+
+    ``(state, dt, *parameters) -> (next_state, step, outputs)``: ``step`` (n_transformation,
+    n_inputs) is the derivative of the next transformation state and ``outputs`` (3,
+    n_inputs) that of position, velocity and acceleration at ``state``, with respect to the
+    inputs (transformation state, goal, forcing weights). Both are affine in these inputs,
+    so the Jacobians depend only on the canonical part of ``state``.
+    """
+    s = symbolic.make_symbols(signature)
+    inputs = ca.vertcat(s.state[2:], s.goal, ca.vec(s.forcing_weights))
+    next_state = symbolic.step_function(signature)(s.state, s.dt, *s.parameters())[0]
+    outputs = ca.vertcat(*symbolic.output_function(signature)(s.state, *s.parameters()))
+    return ca.Function(
+        "dmp_affine_step",
+        [s.state, s.dt, *s.parameters()],
+        [
+            next_state,
+            ca.densify(ca.jacobian(next_state[2:], inputs)),
+            ca.densify(ca.jacobian(outputs, inputs)),
+        ],
+    )
+
+
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
 def _response(key: tuple) -> np.ndarray:
     """Response matrices of one DOF, in time normalised by ``tau``.
 
     Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
-    responses to each input (initial transformation states, goal, weights). Columns come
-    from one integration of the symbolic system in which input ``j`` is set to one for DOF ``j``.
+    responses to each input (initial transformation states, goal, weights). Each RK4 step
+    is affine in the inputs, with Jacobians from :func:`_affine_step` along the canonical
+    trajectory, so the responses follow from the affine recurrence. The cost grows linearly
+    with the number of basis functions (integrating one DOF per input, as before, grew
+    quadratically: over a minute for 400 basis functions).
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
+    signature = symbolic.Signature(form, 1, n_basis, kernel)
     n_transformation = symbolic.n_transformation_states(form)
-    n_feat = symbolic.n_features(form, n_basis)
-    n_inputs = n_transformation + 1 + n_feat
-    unit = np.eye(n_inputs)
-    initial = np.concatenate([canonical0, unit[:n_transformation].ravel()])
-    goal = unit[n_transformation]
-    forcing_weights = unit[n_transformation + 1 :].T
-    signature = symbolic.Signature(form, n_inputs, n_basis, kernel)
-    parameters = [
+    n_inputs = n_transformation + 1 + signature.n_features
+    function = symbolic.NumericFunction(_affine_step(signature))
+    function.set_inputs(
+        np.concatenate([canonical0, np.zeros(n_transformation)]),
+        dt,
         1.0,
-        goal,
+        0.0,
         target,
-        forcing_weights,
+        np.zeros(signature.n_features),
         np.array(centres),
         np.array(widths),
         np.array(gains),
-        np.zeros(n_inputs),
         0.0,
-    ]
-    _, positions, velocities, accelerations = symbolic.simulate(
-        signature, n_steps, initial, dt, parameters
+        0.0,
     )
-    response = np.stack([positions, velocities, accelerations])
+    state, (next_state, step, outputs) = function.inputs[0], function.outputs
+    step = step.reshape((n_transformation, n_inputs), order="F")  # views of the buffers
+    outputs = outputs.reshape((3, n_inputs), order="F")
+    transformation = np.eye(n_transformation, n_inputs)  # d(transformation state)/d(inputs)
+    response = np.empty((3, n_steps, n_inputs))
+    for k in range(n_steps):
+        function.evaluate()
+        response[:, k] = outputs[:, :n_transformation] @ transformation
+        response[:, k, n_transformation:] += outputs[:, n_transformation:]
+        transformation = step[:, :n_transformation] @ transformation
+        transformation[:, n_transformation:] += step[:, n_transformation:]
+        state[:] = next_state
     response.setflags(write=False)
     return response
 
@@ -175,10 +208,15 @@ class _DmpCommon:
     """Fields and behaviour shared by discrete and rhythmic DMPs."""
 
     def _check_basis(self, n_basis: int):
+        if 0 in self.weights.shape:
+            raise ShapeError(
+                f"weights has shape {self.weights.shape}: a DMP needs at least one DOF and one "
+                "basis function"
+            )
         centres = _vector("centres", self.centres, n_basis, f"{n_basis} basis functions")
         widths = _vector("widths", self.widths, n_basis, f"{n_basis} basis functions")
         if np.any(widths <= 0):
-            raise InvalidInputError("widths must all be positive")
+            raise InvalidInputError(f"widths must all be positive, got {widths.min()!r}")
         object.__setattr__(self, "centres", _frozen(centres))
         object.__setattr__(self, "widths", _frozen(widths))
         object.__setattr__(self, "time_constant", _positive("time_constant", self.time_constant))
@@ -206,6 +244,31 @@ class _DmpCommon:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    @property
+    def max_step(self) -> float:
+        """Largest step [s] at which the RK4 integration is stable (:func:`basis.stable_step`)."""
+        return self.time_constant * basis.stable_step(
+            self.form, tuple(self.gains), float(self._canonical_target()), self._cycle_states()
+        )
+
+    def _cycle_states(self) -> tuple:
+        """Canonical states at which the system is linearised for its stability limit."""
+        if isinstance(self, RhythmicDMP):
+            angles = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
+            return tuple(self.canonical_state(angle) for angle in angles)
+        return ((0.0, 0.0),)
+
+    def check_step(self, dt, name: str = "dt") -> float:
+        """Return ``dt`` if it is a positive step within :attr:`max_step`, else raise."""
+        dt = _positive(name, dt)
+        if dt > self.max_step:
+            raise InvalidInputError(
+                f"{name} = {dt:.4g} s is beyond the stability limit {self.max_step:.4g} s of the "
+                f"RK4 integration for time_constant {self.time_constant:.4g} s and these gains "
+                "(the plan would grow without bound); use a smaller step"
+            )
+        return dt
+
     def with_time_constant(self, time_constant: float):
         """Same movement, time scaled: ``tau -> time_constant`` (Section 3.3)."""
         return self.replace(time_constant=time_constant)
@@ -226,12 +289,20 @@ class _DmpCommon:
 
     def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):
         duration = _positive("duration", duration)
-        dt = _positive("dt", dt)
+        dt = self.check_step(dt)
         n_steps = int(round(duration / dt)) + 1
         if n_steps < 3:
             raise InvalidInputError(
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
+        n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
+        check_resources(
+            f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
+            n_steps,
+            8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs),
+            "raise dt or shorten duration (by default the convergence time or three periods, "
+            "both proportional to time_constant)",
+        )
         key = (
             self.form,
             self.kernel,
@@ -245,7 +316,10 @@ class _DmpCommon:
             tuple(self.gains),
         )
         times = np.arange(n_steps) * dt
-        return times, _response(key), self._response_inputs(start, start_velocity, canonical0)
+        # the cache keeps 16 entries: keep out those that would hold over 1/16 of the budget
+        small = 24.0 * n_steps * n_inputs <= validation.MEMORY_BUDGET / 16
+        response = _response(key) if small else _response.__wrapped__(key)
+        return times, response, self._response_inputs(start, start_velocity, canonical0)
 
     def _affine(self, duration, dt, start, start_velocity, canonical0) -> AffinePlan:
         times, response, inputs = self._response_and_inputs(
@@ -451,6 +525,14 @@ class DiscreteDMP(_DmpCommon):
         The canonical system (6) is integrated from rest as in a rollout; the result does not
         depend on the weights, start or goal. Shape (n_steps, n_basis).
         """
+        n_steps = validation.integer("n_steps", n_steps, 1)
+        dt = self.check_step(dt)
+        check_resources(
+            f"phase_features({n_steps}, {dt:.4g})",
+            n_steps,
+            8.0 * n_steps * (2 * self.n_basis + 8),
+            "ask for fewer samples",
+        )
         signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
         unforced = self.replace(
             weights=np.zeros((1, self.n_basis)),
@@ -592,8 +674,9 @@ class RhythmicDMP(_DmpCommon):
 
     def canonical_state(self, phase: float = 0.0) -> tuple[float, float]:
         """The oscillator's state on its limit cycle at ``phase`` [rad]."""
+        phase = real_number("phase", phase)
         if self.form == "phase":
-            return (float(phase), self.amplitude)
+            return (phase, self.amplitude)
         # x = A cos(theta), v = A k sin(theta) gives atan2(v, x) = theta for k = 1
         return (
             self.amplitude * float(np.cos(phase)),

@@ -1,13 +1,18 @@
 """Saving and loading DMPs: a versioned ``.npz`` file with an exact round trip.
 
 The file holds one JSON header (format name, version, class, scalar fields) and the arrays
-in binary float64, so that ``load(save(dmp))`` reproduces every parameter bit for bit.
+in binary float64, so that ``load(save(dmp))`` reproduces every parameter bit for bit. The
+fields are those of the DMP's dataclass, whatever they are, so a new field needs no change
+here. Both functions append ``.npz`` to a path without it; saving writes a temporary file
+beside the target and renames it, so a failed save never destroys an earlier file.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import os
+import secrets
 import zipfile
 from pathlib import Path
 
@@ -18,45 +23,84 @@ from .exceptions import FileFormatError, InvalidInputError
 
 FORMAT = "dmpopt-dmp"
 VERSION = 1
+"""Written by :func:`save`; :func:`load` reads this version and every older one. A file
+lacking a field (written before the field existed) gets the field's default."""
 CLASSES = {"DiscreteDMP": DiscreteDMP, "RhythmicDMP": RhythmicDMP}
+SCALAR_TYPES = (type(None), bool, int, float, str)
+
+
+def _file_path(path) -> Path:
+    """``path`` with ``.npz`` appended if missing: the same rule for save and load."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidInputError(f"path must be a str or os.PathLike, got {type(path).__name__}")
+    path = Path(path)
+    return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
+def _split_fields(dmp) -> tuple[dict, dict]:
+    """Every constructor field of ``dmp``: arrays (binary) and scalars (JSON)."""
+    arrays, scalars = {}, {}
+    for field in dataclasses.fields(dmp):
+        if not field.init:
+            continue
+        value = getattr(dmp, field.name)
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, np.ndarray):
+            arrays[field.name] = value
+        elif isinstance(value, SCALAR_TYPES):
+            scalars[field.name] = value
+        else:
+            raise InvalidInputError(
+                f"field {field.name} of {type(dmp).__name__} holds a {type(value).__name__}, "
+                "which a DMP file cannot store (arrays, numbers, strings, None)"
+            )
+    return arrays, scalars
 
 
 def save(dmp, path) -> Path:
-    """Write ``dmp`` to ``path`` (``.npz`` is appended if missing); return the path."""
+    """Write every field of ``dmp`` to ``path`` (``.npz`` appended if missing); return the path.
+
+    The file is written beside the target and then renamed over it, so an interrupted or
+    failed save leaves any previous file at ``path`` intact.
+    """
     if type(dmp).__name__ not in CLASSES:
         raise InvalidInputError(
             f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
         )
-    path = Path(path)
-    if path.suffix != ".npz":
-        path = path.with_name(path.name + ".npz")
-    arrays, scalars = {}, {}
-    for field in dataclasses.fields(dmp):
-        value = getattr(dmp, field.name)
-        if isinstance(value, np.ndarray):
-            arrays[field.name] = value
-        elif field.init:
-            scalars[field.name] = value
+    path = _file_path(path)
+    if not path.parent.is_dir():
+        raise InvalidInputError(f"path {path}: folder {path.parent} does not exist; create it")
+    arrays, scalars = _split_fields(dmp)
     header = {
         "format": FORMAT,
         "version": VERSION,
         "class": type(dmp).__name__,
         "scalars": scalars,
     }
-    with open(path, "wb") as stream:
-        np.savez(stream, header=np.array(json.dumps(header)), **arrays)
+    partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+    try:  # 0o666 and the umask: the permissions of a plain new file
+        with os.fdopen(os.open(partial, flags, 0o666), "wb") as stream:
+            np.savez(stream, header=np.array(json.dumps(header)), **arrays)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
     return path
 
 
 def load(path):
-    """Read a DMP written by :func:`save`.
+    """Read a DMP written by :func:`save` (``.npz`` appended to ``path`` if missing).
 
     Raises
     ------
     FileFormatError
         If the file is missing, corrupt, not written by dmpopt, or of a newer version.
     """
-    path = Path(path)
+    path = _file_path(path)
     if not path.is_file():
         raise FileFormatError(f"no DMP file at {path}")
     try:
@@ -71,15 +115,23 @@ def load(path):
         raise FileFormatError(f"{path} is corrupt or not a dmpopt DMP file: {error}") from error
     if not isinstance(header, dict) or header.get("format") != FORMAT:
         raise FileFormatError(f"{path} is not a dmpopt DMP file (format {header!r})")
-    if header.get("version") != VERSION:
+    version = header.get("version")
+    if not isinstance(version, int) or not 1 <= version <= VERSION:
         raise FileFormatError(
-            f"{path} has format version {header.get('version')!r}; this dmpopt reads "
-            f"version {VERSION}: upgrade dmpopt"
+            f"{path} has format version {version!r}; this dmpopt reads version {VERSION} "
+            "and older: upgrade dmpopt"
         )
     cls = CLASSES.get(header.get("class"))
     if cls is None:
         raise FileFormatError(f"{path} holds an unknown class {header.get('class')!r}")
+    values = {**header.get("scalars", {}), **arrays}
+    known = {field.name for field in dataclasses.fields(cls) if field.init}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise FileFormatError(
+            f"{path} has fields {unknown} that this dmpopt's {cls.__name__} lacks: upgrade dmpopt"
+        )
     try:
-        return cls(**header["scalars"], **arrays)
+        return cls(**values)
     except (TypeError, ValueError, KeyError) as error:
         raise FileFormatError(f"{path} has inconsistent contents: {error}") from error

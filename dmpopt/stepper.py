@@ -12,6 +12,7 @@ import numpy as np
 from . import symbolic
 from .dmp import DiscreteDMP, RhythmicDMP, _positive, _vector
 from .exceptions import InvalidInputError, ShapeError
+from .validation import as_finite_array, flag, real_number
 
 _INPUT = {name: 2 + i for i, name in enumerate(symbolic.PARAMETER_NAMES)}
 
@@ -24,7 +25,7 @@ class Stepper:
     dmp : DiscreteDMP or RhythmicDMP
         The movement; its parameters are copied, later changes go through the setters.
     dt : float
-        Step [s].
+        Step [s], at most ``dmp.max_step`` (the stability limit of the integration).
     start, start_velocity : array_like, shape (n_dofs,)
         Initial position and velocity.
     phase : float
@@ -43,9 +44,15 @@ class Stepper:
     """
 
     def __init__(self, dmp, dt: float, start, start_velocity=0.0, phase=0.0, compile=False):
+        if not isinstance(dmp, (DiscreteDMP, RhythmicDMP)):
+            raise InvalidInputError(
+                f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
+            )
         self.dmp = dmp
-        self.dt = _positive("dt", dt)
+        self.dt = dmp.check_step(dt)
+        self._max_step_per_tau = dmp.max_step / dmp.time_constant
         step = symbolic.step_function(dmp.signature)
+        compile = flag("compile", compile)
         self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
         self._function.set_inputs(
             np.zeros(dmp.signature.n_states), self.dt, *dmp.parameter_values()
@@ -80,20 +87,39 @@ class Stepper:
     set_setpoint = set_goal
 
     def set_time_constant(self, time_constant: float) -> None:
-        """New ``tau``: the rest of the movement runs faster (smaller) or slower."""
-        self._write("time_constant", _positive("time_constant", time_constant))
+        """New ``tau``: the rest of the movement runs faster (smaller) or slower.
+
+        Refused if it puts the step ``dt`` beyond the stability limit, which is
+        proportional to ``tau`` (:attr:`DiscreteDMP.max_step`).
+        """
+        time_constant = _positive("time_constant", time_constant)
+        self._check_stable(time_constant, self._max_step_per_tau)
+        self._write("time_constant", time_constant)
+
+    def _check_stable(self, time_constant: float, max_step_per_tau: float) -> None:
+        limit = time_constant * max_step_per_tau
+        if self.dt > limit:
+            raise InvalidInputError(
+                f"time_constant = {time_constant:.4g} s puts the step dt = {self.dt:.4g} s beyond "
+                f"the stability limit {limit:.4g} s of the integration; keep time_constant >= "
+                f"{self.dt / max_step_per_tau:.4g} s or build a stepper with a smaller dt"
+            )
 
     def set_amplitude(self, amplitude: float) -> None:
         """New oscillation amplitude (rhythmic DMPs); the oscillator converges to it."""
         if not isinstance(self.dmp, RhythmicDMP):
             raise InvalidInputError("set_amplitude applies to rhythmic DMPs; use set_goal")
-        amplitude = _positive("amplitude", amplitude)
-        self._write("canonical_target", self.dmp.replace(amplitude=amplitude)._canonical_target())
+        scaled = self.dmp.replace(amplitude=_positive("amplitude", amplitude))
+        per_tau = scaled.max_step / scaled.time_constant
+        self._check_stable(self._function.inputs[_INPUT["time_constant"]][0], per_tau)
+        self._max_step_per_tau = per_tau
+        self._write("canonical_target", scaled._canonical_target())
 
     def reset_phase(self, phase: float) -> None:
         """Jump the oscillator to ``phase`` [rad], keeping its amplitude (eq. (21))."""
         if not isinstance(self.dmp, RhythmicDMP):
             raise InvalidInputError("reset_phase applies to rhythmic DMPs")
+        phase = real_number("phase", phase)
         first, second = self._state[0], self._state[1]
         if self.dmp.form == "phase":
             self._state[0] = phase
@@ -126,13 +152,16 @@ class Stepper:
             Additive term on the canonical system (``tau * vdot`` or ``tau * phidot``).
         """
         if coupling is not None:
-            coupling = np.asarray(coupling, dtype=float)
+            coupling = np.asarray(coupling)
+            if coupling.dtype != np.float64 or not np.isfinite(coupling).all():
+                coupling = as_finite_array("coupling", coupling)  # converts or names the fault
             if coupling.shape not in ((), (1,), (self.dmp.n_dofs,)):
                 raise ShapeError(
                     f"coupling has shape {coupling.shape}, expected ({self.dmp.n_dofs},) "
                     "(one term per DOF) or a scalar"
                 )
             self._write("coupling", coupling)
+        canonical_coupling = real_number("canonical_coupling", canonical_coupling)
         self._function.inputs[_INPUT["canonical_coupling"]][0] = canonical_coupling
         self._function.evaluate()
         next_state, position, velocity, acceleration = self._function.outputs

@@ -7,34 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .exceptions import InvalidInputError, ShapeError
+from .validation import as_finite_array, check_resources, integer
 
 MIN_SAMPLES = 3
-
-
-def as_finite_array(name: str, value, ndim: int | None = None) -> np.ndarray:
-    """Return ``value`` as a float64 array, raising a clear error if it is not finite.
-
-    Parameters
-    ----------
-    name : str
-        Argument name used in the error message.
-    value : array_like
-        The value to check.
-    ndim : int, optional
-        Required number of dimensions.
-    """
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError) as error:
-        raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from error
-    if ndim is not None and array.ndim != ndim:
-        raise ShapeError(f"{name} has {array.ndim} dimensions {array.shape}, expected {ndim}")
-    if not np.all(np.isfinite(array)):
-        bad = int(np.size(array) - np.count_nonzero(np.isfinite(array)))
-        raise InvalidInputError(
-            f"{name} contains {bad} NaN or infinite value(s); clean or interpolate them first"
-        )
-    return array
 
 
 def check_times(times: np.ndarray, name: str = "times") -> np.ndarray:
@@ -58,9 +33,9 @@ def _as_2d(name: str, value, n_samples: int) -> np.ndarray:
     array = as_finite_array(name, value)
     if array.ndim == 1:
         array = array[:, None]
-    if array.ndim != 2 or array.shape[0] != n_samples:
+    if array.ndim != 2 or array.shape[0] != n_samples or array.shape[1] == 0:
         raise ShapeError(
-            f"{name} has shape {array.shape}, expected ({n_samples}, n_dofs) "
+            f"{name} has shape {array.shape}, expected ({n_samples}, n_dofs) with n_dofs >= 1 "
             f"to match {n_samples} time samples"
         )
     return array
@@ -128,6 +103,7 @@ class Trajectory:
         """
         times = check_times(times)
         positions = _as_2d("positions", positions, times.size)
+        smoothing_window = integer("smoothing_window", smoothing_window, 0)
         if smoothing_window:
             positions = _smooth(times, positions, smoothing_window)
         velocities = differentiate(times, positions)
@@ -157,8 +133,13 @@ class Trajectory:
 
     def resampled(self, n_steps: int) -> Trajectory:
         """Return the trajectory on ``n_steps`` equally spaced times (cubic Hermite)."""
-        if n_steps < MIN_SAMPLES:
-            raise InvalidInputError(f"n_steps must be at least {MIN_SAMPLES}, got {n_steps}")
+        n_steps = integer("n_steps", n_steps, MIN_SAMPLES)
+        check_resources(
+            f"resampled({n_steps})",
+            n_steps,
+            8.0 * n_steps * (1 + 6 * self.n_dofs),
+            "ask for fewer samples",
+        )
         from scipy.interpolate import CubicHermiteSpline
 
         new_times = np.linspace(self.times[0], self.times[-1], n_steps)

@@ -1,13 +1,19 @@
 """Saving and loading DMPs: exact round trip, clear errors."""
 
 import dataclasses
+import errno
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import FileFormatError, load, save
+from dmpopt import DiscreteDMP, FileFormatError, io, load, save
+
+DISCRETE = random_discrete(seed=5)
 
 
 @pytest.mark.parametrize(
@@ -53,3 +59,118 @@ def test_newer_version_is_refused(tmp_path):
     np.savez(path, **contents)
     with pytest.raises(FileFormatError, match="format version 99; this dmpopt reads version 1"):
         load(path)
+
+
+def _every_field_non_default():
+    """A DMP whose every constructor field differs from its default."""
+    dmp = random_discrete(
+        seed=4,
+        form="acceleration",
+        goal_scaling="paper",
+        reference_displacement=np.array([0.25, -1.5]),
+        stiffness=30.0,
+        damping=7.0,
+        phase_stiffness=20.0,
+        phase_damping=4.0,
+        goal_rate=11.0,
+    )
+    for field in dataclasses.fields(dmp):
+        if field.init and field.default is not dataclasses.MISSING:
+            assert getattr(dmp, field.name) is not field.default, field.name
+            assert not np.array_equal(getattr(dmp, field.name), field.default), field.name
+    return dmp
+
+
+def _assert_same_fields(a, b):
+    assert type(a) is type(b)
+    for field in dataclasses.fields(a):
+        x, y = getattr(a, field.name), getattr(b, field.name)
+        if isinstance(x, np.ndarray):
+            assert x.dtype == y.dtype and np.array_equal(x, y), field.name
+        else:
+            assert type(x) is type(y) and x == y, field.name
+
+
+def test_every_field_set_to_a_non_default_value_round_trips_exactly(tmp_path):
+    dmp = _every_field_non_default()
+    _assert_same_fields(dmp, load(save(dmp, tmp_path / "all_fields")))
+
+
+def test_a_field_added_later_is_saved_without_changing_io(tmp_path, monkeypatch):
+    """io iterates the dataclass fields: a new array or scalar field is carried as it is."""
+
+    @dataclasses.dataclass(frozen=True, eq=False)
+    class ExtendedDMP(DiscreteDMP):
+        demonstrated_velocity: np.ndarray | None = None
+        label: str = "none"
+
+    monkeypatch.setitem(io.CLASSES, "ExtendedDMP", ExtendedDMP)
+    fields = {f.name: getattr(DISCRETE, f.name) for f in dataclasses.fields(DISCRETE) if f.init}
+    dmp = ExtendedDMP(**fields, demonstrated_velocity=np.array([0.5, -0.25]), label="reach")
+    _assert_same_fields(dmp, load(save(dmp, tmp_path / "extended")))
+
+
+def test_an_older_file_without_a_later_field_loads_with_its_default(tmp_path):
+    path = save(DISCRETE, tmp_path / "old")
+    with np.load(path) as archive:
+        contents = dict(archive)
+    header = json.loads(str(contents["header"]))
+    del header["scalars"]["goal_rate"]  # as written before goal_rate existed
+    contents["header"] = np.array(json.dumps(header))
+    np.savez(path, **contents)
+    assert load(path).goal_rate == DISCRETE.stiffness / 2
+
+
+def test_a_file_with_unknown_fields_asks_for_an_upgrade(tmp_path):
+    path = save(DISCRETE, tmp_path / "new")
+    with np.load(path) as archive:
+        contents = dict(archive)
+    np.savez(path, **contents, start_acceleration=np.zeros(2))
+    with pytest.raises(FileFormatError, match=r"fields \['start_acceleration'\] .* upgrade"):
+        load(path)
+
+
+def test_save_and_load_apply_the_same_suffix_rule(tmp_path):
+    written = save(DISCRETE, tmp_path / "reach")
+    assert written == tmp_path / "reach.npz"
+    _assert_same_fields(load(tmp_path / "reach"), load(str(written)))
+
+
+def test_failed_overwrite_keeps_the_previous_file(tmp_path, monkeypatch):
+    """The writer dies midway: the old file is intact and no partial file is left behind."""
+    path = save(DISCRETE, tmp_path / "dmp")
+
+    def dying_writer(stream, **arrays):
+        stream.write(b"PK\x03\x04 half a zip")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(io.np, "savez", dying_writer)
+    with pytest.raises(OSError, match="disk full"):
+        save(random_discrete(seed=9), path)
+    monkeypatch.undo()
+    _assert_same_fields(DISCRETE, load(path))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dmp.npz"]
+
+
+def test_file_size_limit_during_overwrite_keeps_the_previous_file(tmp_path):
+    """Reproduces issue 13: an overwrite beyond RLIMIT_FSIZE used to destroy the old file."""
+    path = save(DISCRETE, tmp_path / "dmp")
+    script = (
+        "import resource, signal, sys\n"
+        "sys.path.insert(0, sys.argv[2])\n"
+        "from problems import random_discrete\n"
+        "from dmpopt import save\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (2000, 2000))\n"
+        "try:\n"
+        "    save(random_discrete(n_basis=400), sys.argv[1])\n"
+        "except OSError as error:\n"
+        "    print(error.errno)\n"
+    )
+    tests = str(Path(__file__).parent)
+    result = subprocess.run(
+        [sys.executable, "-c", script, str(path), tests], capture_output=True, text=True
+    )
+    assert result.stdout.strip() == str(errno.EFBIG), result.stderr
+    _assert_same_fields(DISCRETE, load(path))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dmp.npz"]

@@ -20,14 +20,24 @@ import numpy as np
 
 from .. import basis, symbolic
 from ..dmp import DiscreteDMP, RhythmicDMP
-from ..exceptions import InvalidInputError
+from ..exceptions import FittingFailed, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
+from ..validation import (
+    check_resources,
+    flag,
+    integer,
+    non_negative_number,
+    positive_number,
+)
 
 METHODS = ("position", "least_squares", "lwr")
 GOAL_SCALINGS = ("auto", "paper", "rotation", "translation")
 MAX_GOAL_AMPLIFICATION = 10.0
 """Largest factor by which a fitted DMP may amplify a goal change (:func:`goal_amplification`):
 a goal moved by ``delta`` moves no point of the plan by more than this times ``|delta|``."""
+PERIODICITY_TOLERANCE = 0.05
+"""Default largest mismatch of a rhythmic demonstration with itself one period later,
+relative to its extent (see :func:`periodicity_mismatch`)."""
 
 
 def _check_demo(demo) -> Trajectory:
@@ -39,6 +49,22 @@ def _check_demo(demo) -> Trajectory:
     if not demo.is_uniform:
         demo = demo.resampled(demo.n_steps)
     return demo
+
+
+def _check_size(demo: Trajectory, n_features: int, n_basis: int) -> None:
+    """Refuse underdetermined fits and fits whose regressors exceed the resource bounds."""
+    if n_features > demo.n_steps:
+        raise InvalidInputError(
+            f"n_basis = {n_basis} gives {n_features} weights per DOF but demo has only "
+            f"{demo.n_steps} samples, so the fit is underdetermined; lower n_basis or "
+            "resample the demonstration (demo.resampled(n_steps))"
+        )
+    check_resources(
+        f"a fit of {n_basis} basis functions to {demo.n_steps} samples",
+        demo.n_steps,
+        8.0 * (12 * demo.n_steps * (n_features + 3 + demo.n_dofs) + 3 * (n_features + 1) ** 2),
+        "lower n_basis or resample the demonstration to fewer samples",
+    )
 
 
 def _check_method(method: str) -> str:
@@ -57,14 +83,20 @@ def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, las
     n = gram.shape[0]
     lam = regularization * np.trace(gram) / n
     rhs = features.T @ targets
-    if last_row is None:
-        return np.linalg.solve(gram + lam * np.eye(n), rhs)
-    row, value = last_row
-    kkt = np.zeros((n + 1, n + 1))
-    kkt[:n, :n] = gram + lam * np.eye(n)
-    kkt[:n, n] = row
-    kkt[n, :n] = row
-    solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
+    try:
+        if last_row is None:
+            return np.linalg.solve(gram + lam * np.eye(n), rhs)
+        row, value = last_row
+        kkt = np.zeros((n + 1, n + 1))
+        kkt[:n, :n] = gram + lam * np.eye(n)
+        kkt[:n, n] = row
+        kkt[n, :n] = row
+        solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
+    except np.linalg.LinAlgError as error:
+        raise FittingFailed(
+            f"the least-squares problem is singular with regularization = {regularization!r}; "
+            "raise regularization (e.g. 1e-9) or lower n_basis"
+        ) from error
     # the KKT system is ill-conditioned: restore the equality to rounding precision
     return solution + np.outer(row, value - row @ solution) / (row @ row)
 
@@ -172,6 +204,8 @@ def fit_discrete(
     demo = _check_demo(demo)
     method = _check_method(method)
     n_basis = basis.check_n_basis(n_basis)
+    _check_size(demo, n_basis, n_basis)
+    regularization = non_negative_number("regularization", regularization)
     scaling = _goal_scaling(demo, goal_scaling)
     start, goal = demo.positions[0], demo.positions[-1]
     template = DiscreteDMP(
@@ -295,7 +329,19 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
 
 
 def reproduction_error(dmp, demo: Trajectory) -> float:
-    """Root-mean-square Euclidean position error of the DMP's plan against ``demo``."""
+    """Root-mean-square Euclidean position error of the DMP's plan against ``demo``.
+
+    A demonstration on a non-uniform grid is compared after resampling to a uniform one.
+    """
+    if not isinstance(dmp, (DiscreteDMP, RhythmicDMP)):
+        raise InvalidInputError(
+            f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
+        )
+    demo = _check_demo(demo)
+    if demo.n_dofs != dmp.n_dofs:
+        raise ShapeError(
+            f"demo has {demo.n_dofs} DOFs but dmp has {dmp.n_dofs}; compare the same DOFs"
+        )
     dt = demo.duration / (demo.n_steps - 1)
     if isinstance(dmp, DiscreteDMP):
         plan = dmp.rollout(demo.duration, dt, start_velocity=demo.velocities[0])
@@ -317,9 +363,11 @@ def fit_to_accuracy(
     ``rhythmic`` selects :func:`fit_rhythmic` instead of :func:`fit_discrete`; ``options``
     are passed on. Raises :class:`InvalidInputError` if no candidate reaches the tolerance.
     """
-    if not tolerance > 0:
-        raise InvalidInputError(f"tolerance must be positive, got {tolerance!r}")
-    fit = fit_rhythmic if rhythmic else fit_discrete
+    tolerance = positive_number("tolerance", tolerance)
+    candidates = [basis.check_n_basis(n) for n in _sequence("candidates", candidates)]
+    if not candidates:
+        raise InvalidInputError("candidates is empty; give at least one number of basis functions")
+    fit = fit_rhythmic if flag("rhythmic", rhythmic) else fit_discrete
     errors = []
     for n_basis in candidates:
         dmp = fit(demo, n_basis, **options)
@@ -332,6 +380,33 @@ def fit_to_accuracy(
     )
 
 
+def _sequence(name: str, value) -> list:
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise InvalidInputError(f"{name} must be a sequence of integers, got {value!r}")
+    return list(value)
+
+
+def periodicity_mismatch(demo: Trajectory, period: float) -> tuple[float, float]:
+    """How far ``demo`` is from repeating itself after ``period``, relative to its extent.
+
+    Compares the positions and velocities at ``t`` and ``t + period`` over the overlap (for a
+    demonstration of one period or a bit less: its end against its start) and returns the
+    largest root-mean-square difference over the DOFs, divided by the largest peak-to-peak
+    range of the positions (and of the velocities) over the DOFs, so that a DOF at rest does
+    not count as non-periodic. Both are zero for a periodic demonstration.
+    """
+    shift = min(period, demo.duration)
+    times = demo.times[demo.times + shift <= demo.times[-1] + 1e-12 * demo.duration]
+    mismatch = []
+    for values in (demo.positions, demo.velocities):
+        later = np.column_stack([np.interp(times + shift, demo.times, v) for v in values.T])
+        earlier = np.column_stack([np.interp(times, demo.times, v) for v in values.T])
+        rms = np.sqrt(np.mean((later - earlier) ** 2, axis=0))
+        extent = max(float(np.ptp(values, axis=0).max()), 1e-300)
+        mismatch.append(float(np.max(rms) / extent))
+    return mismatch[0], mismatch[1]
+
+
 def estimate_period(demo: Trajectory) -> float:
     """Period of a periodic demonstration [s].
 
@@ -339,6 +414,7 @@ def estimate_period(demo: Trajectory) -> float:
     minimises the mean squared difference between ``y(t)`` and ``y(t + P)``, found on a
     fine grid and refined by a parabola. The demonstration must cover more than 1.3 cycles.
     """
+    demo = _check_demo(demo)
     centred = demo.positions - demo.positions.mean(axis=0)
     power = (np.abs(np.fft.rfft(centred, axis=0)) ** 2).sum(axis=1)
     power[0] = 0.0
@@ -380,6 +456,7 @@ def fit_rhythmic(
     regularization: float = 1e-9,
     stiffness: float = 25.0,
     warm_up_periods: int = 2,
+    periodicity_tolerance: float = PERIODICITY_TOLERANCE,
 ) -> RhythmicDMP:
     """Fit a rhythmic DMP to a periodic demonstration (Section 3.4, rhythmic case).
 
@@ -403,17 +480,38 @@ def fit_rhythmic(
     kernel : {"von_mises", "paper"}
     amplitude : float
         Amplitude the weights are learned at; scaling it later scales the movement.
+    regularization : float
+        Ridge weight (zero or positive) relative to the mean diagonal of the normal equations.
+    warm_up_periods : int
+        Periods integrated before the fitted window (``"position"`` method).
+    periodicity_tolerance : float
+        A demonstration that does not repeat itself after one period cannot be reproduced
+        by a limit cycle: if :func:`periodicity_mismatch` of its positions or velocities
+        exceeds this fraction of their extent, the fit is refused (``np.inf`` disables).
     """
     demo = _check_demo(demo)
     method = _check_method(method)
     n_basis = basis.check_n_basis(n_basis)
-    period = estimate_period(demo) if period is None else period
-    if not (np.isfinite(period) and period > 0):
-        raise InvalidInputError(f"period must be a positive number of seconds, got {period!r}")
+    _check_size(demo, 2 * n_basis, n_basis)
+    regularization = non_negative_number("regularization", regularization)
+    warm_up_periods = integer("warm_up_periods", warm_up_periods, 0)
+    tolerance = periodicity_tolerance
+    if tolerance != np.inf:
+        tolerance = positive_number("periodicity_tolerance", tolerance)
+    period = estimate_period(demo) if period is None else positive_number("period", period)
     if demo.duration < 0.95 * period:
         raise InvalidInputError(
             f"demo lasts {demo.duration:.4g} s, less than one period ({period:.4g} s); "
             "demonstrate at least one full cycle"
+        )
+    position_mismatch, velocity_mismatch = periodicity_mismatch(demo, period)
+    if max(position_mismatch, velocity_mismatch) > tolerance:
+        raise InvalidInputError(
+            f"demo is not periodic with period {period:.4g} s: one period later its positions "
+            f"differ by {position_mismatch:.2%} and its velocities by {velocity_mismatch:.2%} "
+            f"of their extent (RMS), above periodicity_tolerance = {tolerance:.2%}; a rhythmic "
+            "DMP would reproduce it wrongly. Trim the demonstration to whole cycles, fix "
+            "period, or fit a discrete DMP"
         )
     centres, widths = basis.rhythmic_basis(n_basis, kernel)
     template = RhythmicDMP(

@@ -31,6 +31,7 @@ def demonstrations(draw):
     n_dofs = draw(st.integers(1, 5))
     n_samples = draw(st.integers(50, 2000))
     n_basis = draw(st.integers(2, 100))
+    assume(n_basis <= n_samples)  # more weights than samples is refused (tested elsewhere)
     assume(n_samples * (n_basis + 3) <= 30_000)
     duration = draw(st.floats(0.1, 20.0))
     size = 10.0 ** draw(st.floats(-3.0, 3.0))

@@ -19,8 +19,7 @@ figures are the ones to compare on a loaded machine).
 
 Then the planar biped of the walking study (:func:`studies.biped.walk`: DMP gait, PD, boom,
 frequency adaptation) walks ``--biped-seconds`` on each backend: distance, heel strikes, the
-adapted frequency, falls. ``walk`` builds its simulator itself, so the MuJoCo run swaps the
-module's ``Simulator`` for a MuJoCo factory (the study integration will make this a switch).
+adapted frequency, falls (``walk(..., backend=...)``).
 
 First, the model agreement (the answer key of ``tests/test_mujoco.py`` as numbers): over
 ``--states`` random states, the largest differences between Pinocchio and MuJoCo on the same
@@ -108,20 +107,7 @@ def walk_biped(backend: str, seconds: float) -> dict:
     """The walking study's biped on ``backend`` for ``seconds``."""
     biped = load_biped()
     _, dmp = biped_study.learn_gait()
-
-    def mujoco_simulator(model, dt, contact_points, ground, n_base_dofs, fall_frame, fall_height):
-        fall = FallCriteria(fall_frame, fall_height / biped.leg_length, max_tilt=np.pi / 2)
-        return MujocoSimulator(
-            model, BIPED_URDF, dt, contact_points, friction=ground.friction, fall=fall
-        )
-
-    native = biped_study.Simulator
-    if backend == "mujoco":
-        biped_study.Simulator = mujoco_simulator
-    try:
-        log = biped_study.walk(biped, dmp, seconds, biped_study.DEMO_FREQUENCY)
-    finally:
-        biped_study.Simulator = native
+    log = biped_study.walk(biped, dmp, seconds, biped_study.DEMO_FREQUENCY, backend=backend)
     return {
         "distance_m": log.distance,
         "heel_strikes": len(log.strikes),

@@ -9,9 +9,26 @@ and t = 7 s makes the pattern converge quickly to the new limit cycle, with the 
 
 Set-up (all choices are ours):
 
-* robot: Talos (full URDF, 30+ DOFs, nv = 50) standing on its two feet on a compliant ground
-  (:mod:`dmpopt.sim`, 1 ms semi-implicit Euler), floating base; and the fixed-base upper body
-  (legs and pelvis locked in half-sitting) for comparison;
+* robot: Talos (full URDF, 30+ DOFs, nv = 50) standing on its two feet, floating base, 1 ms
+  steps, simulated by ``backend``: MuJoCo (default; :class:`dmpopt.sim.MujocoSimulator` from
+  the same URDF, a 5 mm sphere at each sole corner on the floor, friction 1, CoM target at
+  the start posture) or the native compliant ground (``"native"``: :mod:`dmpopt.sim`,
+  semi-implicit Euler, 20 kN/m per sole corner, CoM target lowered by the static
+  compression); and the fixed-base upper body (legs and pelvis locked in half-sitting) for
+  comparison;
+* where the native simulator stays, and why: the fixed-base upper body (a reduced model with
+  no URDF of its own, and the controller's timing reference), and one nominal drumming run
+  beside MuJoCo's (``native`` in the metrics: tracking, falls and real-time factor of the
+  same loop on the other plant, the check that the results do not hang on one contact model);
+* MuJoCo scenarios (``mujoco`` in the metrics; each from the drumming start, no change of
+  the plan): every link mass and inertia of the controller's model x 0.9 and x 1.1
+  (``LINK_MASS_SCALES``); floor friction 0.4 and 0.7 (``FRICTIONS``; the controller's cone
+  at ``min(0.7, floor)``); torque limits of the controller at ``TIGHT_TORQUE`` of the
+  nominal run's peak use, so that the QP's torque rows bind; forward pushes on the pelvis
+  of increasing impulse (``PUSH_LADDER``, then two bisections) until the first fall;
+* videos (MuJoCo's offscreen renderer, animated WebP of ``VIDEO_SECONDS``): drumming,
+  figure-8 and the largest survived push; skipped in quick mode and without an OpenGL
+  context, with the reason in ``videos_skipped``;
 * controller: :class:`dmpopt.control.InverseDynamicsController` at 1 kHz (a least-squares
   solve per tick, proxsuite when a friction, CoP or torque row is active) with the
   DMP-driven arm joints as a posture task (plan acceleration as feed-forward, low-gain PD
@@ -41,8 +58,9 @@ Set-up (all choices are ours):
   and the controller otherwise share the exact model, so tracking is near-perfect), and the
   pelvis orientation task left out.
 
-Quick mode simulates about 27 s in total (3 s of drumming, Fig. 4 runs of 4 s with the change
-between 1 s and 3 s).
+Quick mode simulates about 40 s in total (3 s of drumming, Fig. 4 runs of 4 s with the change
+between 1 s and 3 s, MuJoCo scenarios of 1.5 s, pushes of 10 and 60 N s) and renders no
+video.
 
 Run: ``python -m studies.humanoid OUT_DIR [--quick]`` or ``dmpopt study run humanoid``.
 """
@@ -65,10 +83,11 @@ from dmpopt.control import (
     PostureTask,
     SoleContact,
 )
+from dmpopt.exceptions import InvalidInputError, MissingDependency, SimulationDiverged
 from dmpopt.sim import GroundContact, Simulator
 from robots import load_talos
 
-EXPECTED_SECONDS = {"full": 35, "quick": 15}  # measured on the 2-core machine
+EXPECTED_SECONDS = {"full": 120, "quick": 40}  # CPU seconds on the 2-core machine (MuJoCo)
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)
@@ -110,6 +129,25 @@ POSTURE_WEIGHT = 1e-2
 COM_WEIGHT, BASE_WEIGHT = 10.0, 1.0
 GROUND_STIFFNESS = 2e4  # [N/m] per sole corner
 MASS_ERROR = 1.1  # the controller's arms (and hands) are 10 % heavier than the simulated ones
+
+BACKENDS = ("mujoco", "native")
+MUJOCO_FRICTION = 1.0  # floor-sole friction coefficient of the nominal MuJoCo runs
+CONTROLLER_FRICTION = (
+    0.7  # the controller's friction cone (SoleContact default), at most the floor's
+)
+FRICTIONS = (0.4, 0.7)  # floor friction of the low-friction scenarios (1.0 is the nominal run)
+LINK_MASS_SCALES = (0.9, 1.1)  # every link of the controller's model, mass and inertia
+TIGHT_TORQUE = 0.8  # torque limits at this fraction of the nominal run's peak torque use
+PUSH_TIME = 0.5  # [s] when the push on the pelvis starts
+PUSH_DURATION = 0.1  # [s] the impulse is spread over this time
+PUSH_LADDER = (10.0, 20.0, 30.0, 40.0, 60.0, 80.0)  # [N s] forward impulses tried, in order
+PUSH_LADDER_QUICK = (10.0, 60.0)
+PUSH_BISECTIONS = 2  # halvings after the ladder (none in quick mode)
+SCENARIO_SECONDS = {"quick": 1.5, "full": 4.0}  # [s] each MuJoCo scenario run
+PUSH_RUN_SECONDS = {"quick": 1.5, "full": 2.5}  # [s] each push run (push at PUSH_TIME)
+VIDEO_FPS = 20.0
+VIDEO_SECONDS = 3.0  # [s] of each clip (from the start of its run)
+VIDEO_SIZE = (320, 240)  # [pixels]
 
 
 # ----------------------------------------------------------------------------------- robot
@@ -429,7 +467,13 @@ def settle_time(times, actual, ideal, start, end, tolerance) -> float | None:
 
 # ------------------------------------------------------------------------ closed loop
 def build_controller(
-    robot, q_start: np.ndarray, arm_joints=DRUM_JOINTS, hand=None, base_task: bool = True
+    robot,
+    q_start: np.ndarray,
+    arm_joints=DRUM_JOINTS,
+    hand=None,
+    base_task: bool = True,
+    com_sink: float | None = None,
+    friction: float = CONTROLLER_FRICTION,
 ):
     """Inverse-dynamics controller holding ``q_start``; returns it and the DMP-driven task.
 
@@ -437,6 +481,8 @@ def build_controller(
     a frame name, a position :class:`FrameTask` on that hand (figure-8). ``base_task=False``
     leaves out the pelvis orientation task (to show why it is needed). The driven joints (the
     hand's arm for the figure-8) are kept within their position and velocity limits.
+    ``com_sink`` [m] lowers the CoM target (default: the compliant ground's static
+    compression, :func:`_sink`); ``friction`` is the soles' friction coefficient.
     """
     actuated = np.sort(
         np.concatenate([robot.configuration_indices([n]) for n in robot.actuated_joint_names])
@@ -462,14 +508,13 @@ def build_controller(
     if robot.floating_base:
         com = ComTask(robot, weight=COM_WEIGHT, stiffness=50.0)
         # The simulation starts with the soles pressed into the compliant ground.
-        com.set_target(
-            pin.centerOfMass(robot.model, robot.create_data(), q_start) - [0, 0, _sink(robot)]
-        )
+        sink = _sink(robot) if com_sink is None else com_sink
+        com.set_target(pin.centerOfMass(robot.model, robot.create_data(), q_start) - [0, 0, sink])
         base = FrameTask(
             robot, "base_link", weight=BASE_WEIGHT, stiffness=50.0, components="orientation"
         )
         tasks += [com, base] if base_task else [com]
-        contacts = [SoleContact(robot, f) for f in robot.foot_frames]
+        contacts = [SoleContact(robot, f, friction_coefficient=friction) for f in robot.foot_frames]
     controller = InverseDynamicsController(
         robot, tasks, contacts, joint_limit_horizon=JOINT_LIMIT_HORIZON, limited_joints=limited
     )
@@ -500,6 +545,45 @@ def _sink(robot) -> float:
     return pin.computeTotalMass(robot.model) * 9.81 / n_points / GROUND_STIFFNESS
 
 
+def mujoco_plant(friction: float = MUJOCO_FRICTION):
+    """A ``plant(robot, q_start) -> (simulator, q0)`` simulating in MuJoCo.
+
+    MuJoCo's floor touches a 5 mm sphere at each sole corner (the URDF collision meshes touch
+    nothing), with Coulomb ``friction``; falls as in :func:`make_simulator` (pelvis below 70 %
+    of its start height, tilted more than 45 deg, or no foot contact for 0.5 s). The robot
+    starts with the soles on the floor: MuJoCo's contacts sink by about a millimetre.
+    """
+    from dmpopt.sim import MujocoSimulator
+    from dmpopt.sim.mujoco_backend import FallCriteria
+
+    def plant(robot, q_start):
+        if not robot.floating_base:
+            return MujocoSimulator(robot.model, robot.source, DT), q_start.copy()
+        points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
+        fall = FallCriteria("base_link")
+        simulator = MujocoSimulator(robot.model, robot.source, DT, points, friction, fall=fall)
+        return simulator, q_start.copy()
+
+    return plant
+
+
+def with_scaled_masses(robot, scale: float):
+    """A copy of ``robot`` whose every link (pelvis included) has mass and inertia x ``scale``."""
+    model = pin.Model(robot.model)
+    for joint_id in range(1, model.njoints):
+        inertia = model.inertias[joint_id]
+        model.inertias[joint_id] = pin.Inertia(
+            inertia.mass * scale, inertia.lever, inertia.inertia * scale
+        )
+    return dataclasses.replace(robot, model=model, name=f"{robot.name}_all_mass_x{scale:g}")
+
+
+def with_scaled_torque_limits(robot, scale: float):
+    """A copy of ``robot`` whose torque limits are multiplied by ``scale``."""
+    limit = np.asarray(robot.torque_limit, dtype=float) * scale
+    return dataclasses.replace(robot, torque_limit=limit, name=f"{robot.name}_torque_x{scale:.3g}")
+
+
 @dataclass
 class RunLog:
     """What one closed-loop run produced (every tick)."""
@@ -520,6 +604,7 @@ class RunLog:
     n_cold_restarts: int
     n_fallbacks: int
     n_direct: int  # ticks solved without proxsuite (no inequality row active)
+    n_torque_limited: int = 0  # ticks whose QP needed the torque-limit rows
     extras: dict = field(default_factory=dict)
 
     @property
@@ -527,15 +612,39 @@ class RunLog:
         """Simulated time [s]."""
         return float(self.times.size * DT)
 
+    @property
+    def qp_active_fraction(self) -> float:
+        """Fraction of the ticks with an active inequality row (solved by proxsuite)."""
+        return 1.0 - self.n_direct / self.times.size
 
-def _closed_loop(robot, q_start, v_start, controller, reference, measure, duration, progress):
-    """Run ``duration`` seconds from ``(q_start, v_start)``.
+
+def _closed_loop(
+    robot,
+    q_start,
+    v_start,
+    controller,
+    reference,
+    measure,
+    duration,
+    progress,
+    plant=None,
+    push=None,
+    record_every: int = 0,
+):
+    """Run ``duration`` seconds from ``(q_start, v_start)``; stop early at a fall.
 
     ``reference()`` advances the plan (not on the first tick), sets the task targets and
-    returns the plan; ``measure(q, data)`` returns the tracked quantity.
+    returns the plan; ``measure(q, data)`` returns the tracked quantity. ``plant(robot,
+    q_start)`` makes the simulator and its start configuration (default
+    :func:`make_simulator`); ``push = (time, impulse)`` pushes the pelvis with a world-frame
+    impulse [N s] spread over ``PUSH_DURATION``; with ``record_every`` > 0 the configuration
+    of every ``record_every``-th tick goes to ``extras["frames"]`` (and the simulator to
+    ``extras["simulator"]``, for rendering). A diverging simulation counts as a fall.
     """
-    simulator, q0 = make_simulator(robot, q_start)
+    simulator, q0 = (plant or make_simulator)(robot, q_start)
     state = simulator.reset(q0, v_start)
+    push_tick = -1 if push is None else int(round(push[0] / DT))
+    frames = []
     n = int(round(duration / DT))
     data = robot.create_data()
     first = reference()
@@ -552,6 +661,10 @@ def _closed_loop(robot, q_start, v_start, controller, reference, measure, durati
     fell = False
     wall0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(n):
+        if k == push_tick:
+            simulator.push_impulse("base_link", push[1], duration=PUSH_DURATION)
+        if record_every and k % record_every == 0:
+            frames.append(state.q.copy())
         desired[k] = reference() if k else first
         begin, cpu_begin = time.perf_counter_ns(), time.thread_time_ns()
         tau = controller.compute_torques(state.q, state.v)
@@ -565,11 +678,15 @@ def _closed_loop(robot, q_start, v_start, controller, reference, measure, durati
             base[k, :3] = state.q[:3]
             base[k, 3:] = pin.rpy.matrixToRpy(pin.Quaternion(state.q[3:7]).toRotationMatrix())
             com[k] = pin.centerOfMass(robot.model, data, state.q)
-        state = simulator.step(tau)
-        if progress is not None and (k % 100 == 99 or k == n - 1):
+        try:
+            state = simulator.step(tau)
+            fell = bool(getattr(state, "fallen", False))
+        except SimulationDiverged:
+            fell = True
+        if progress is not None and (k % 100 == 99 or k == n - 1 or fell):
             progress.update(k % 100 + 1)
-        if state.fallen:  # the simulator stops at a fall: keep the ticks run so far
-            fell, n = True, k + 1
+        if fell:
+            n = k + 1
             break
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     return RunLog(
@@ -589,6 +706,8 @@ def _closed_loop(robot, q_start, v_start, controller, reference, measure, durati
         n_cold_restarts=controller.stats.n_cold_restarts,
         n_fallbacks=controller.stats.n_fallbacks,
         n_direct=controller.stats.n_direct,
+        n_torque_limited=controller.stats.n_torque_limited,
+        extras={"frames": frames, "simulator": simulator} if record_every else {},
     )
 
 
@@ -602,20 +721,26 @@ def run_drumming(
     controller_robot=None,
     base_task: bool = True,
     build=build_controller,
+    build_options=None,
+    **loop,
 ) -> RunLog:
     """Drum for ``duration`` [s] with the learned DMPs on ``robot`` (floating or fixed base).
 
     ``controller_robot`` (default ``robot``) is the model the controller believes in, e.g.
     :func:`with_mass_error` of ``robot``; the simulator always uses ``robot``. ``build`` makes
     the controller and its driven task, with :func:`build_controller`'s signature (another
-    controller can be compared on the same loop).
+    controller can be compared on the same loop), and extra keywords ``build_options``.
+    ``loop`` (``plant``, ``push``, ``record_every``) goes to the closed loop, see
+    :func:`_closed_loop`.
     """
     q_start = drumming_posture(robot)
     q_indices = robot.configuration_indices(list(DRUM_JOINTS))
     q_start[q_indices] = dmps.start
     v_start = np.zeros(robot.nv)
     v_start[robot.velocity_indices(list(DRUM_JOINTS))] = dmps.start_velocity
-    controller, task = build(controller_robot or robot, q_start, base_task=base_task)
+    controller, task = build(
+        controller_robot or robot, q_start, base_task=base_task, **(build_options or {})
+    )
     plan = DrumPlan(dmps, DT, modification, compile=compile)
     phases = []
 
@@ -629,7 +754,9 @@ def run_drumming(
     def measure(q, data):
         return q[q_indices]
 
-    log = _closed_loop(robot, q_start, v_start, controller, reference, measure, duration, progress)
+    log = _closed_loop(
+        robot, q_start, v_start, controller, reference, measure, duration, progress, **loop
+    )
     log.elbow_phase = np.array(phases[: log.times.size])
     return log
 
@@ -660,11 +787,19 @@ def figure8_demonstration(center: np.ndarray, n_per_period: int = 400, periods: 
     return Trajectory.from_positions(times, positions)
 
 
-def run_figure8(robot, duration: float, progress=None, compile=False, build=build_controller):
+def run_figure8(
+    robot,
+    duration: float,
+    progress=None,
+    compile=False,
+    build=build_controller,
+    build_options=None,
+    **loop,
+):
     """Draw the figure-8 with the right hand: task-space DMP tracked by a hand position task.
 
-    Returns the run log (desired and actual hand positions) and the fitted DMP. ``build`` as
-    in :func:`run_drumming`.
+    Returns the run log (desired and actual hand positions) and the fitted DMP. ``build``,
+    ``build_options`` and ``loop`` as in :func:`run_drumming`.
     """
     hand = robot.hand_frames[1]
     q_start = drumming_posture(robot)
@@ -684,7 +819,7 @@ def run_figure8(robot, duration: float, progress=None, compile=False, build=buil
     )[:3, arm]
     v_start = np.zeros(robot.nv)
     v_start[arm] = np.linalg.pinv(jacobian) @ start_velocity
-    controller, task = build(robot, q_start, hand=hand)
+    controller, task = build(robot, q_start, hand=hand, **(build_options or {}))
     ticks = []
 
     def reference():
@@ -701,7 +836,9 @@ def run_figure8(robot, duration: float, progress=None, compile=False, build=buil
         pin.framesForwardKinematics(robot.model, data, q)
         return data.oMf[frame_id].translation.copy()
 
-    log = _closed_loop(robot, q_start, v_start, controller, reference, measure, duration, progress)
+    log = _closed_loop(
+        robot, q_start, v_start, controller, reference, measure, duration, progress, **loop
+    )
     return log, dmp
 
 
@@ -752,16 +889,146 @@ def _frequency_settle(plan: dict, modification: Modification) -> float | None:
     return float(times[inside][far[-1] + 1] - modification.start)
 
 
-def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
+def check_backend(backend) -> str:
+    """``backend`` if it is one of ``BACKENDS``, else :class:`InvalidInputError`."""
+    if backend not in BACKENDS:
+        raise InvalidInputError(
+            f"backend must be one of {BACKENDS}, got {backend!r}; pass backend='mujoco' "
+            "(default) or backend='native' (the compliant-ground simulator of dmpopt.sim)"
+        )
+    return backend
+
+
+def _summary(log: RunLog) -> dict:
+    """Fall, tracking and solver activity of one drumming run."""
+    return {
+        "fell": log.fell,
+        "simulated_s": log.duration,
+        "tracking_rms_rad": float(_rms(log.actual - log.desired)),
+        "tracking_max_rad": float(np.abs(log.actual - log.desired).max()),
+        "qp_active_fraction": log.qp_active_fraction,
+        "torque_limited_fraction": log.n_torque_limited / log.times.size,
+        "torque_limit_use_max": float(log.torque_use.max()),
+    }
+
+
+def push_search(drum, ladder, bisections: int) -> dict:
+    """Largest forward impulse on the pelvis [N s] survived while drumming.
+
+    ``drum(push=(time, impulse))`` runs one pushed drumming run. The impulses of ``ladder``
+    (increasing) are tried until the first fall, then ``bisections`` halvings between the
+    largest survived and the smallest fatal impulse. Assumes survival is monotonic in the
+    impulse (checked only at the points tried). Returns the bounds, every impulse tried and
+    the run of the largest survived push (or of the first fall if none was survived).
+    """
+    tried, survived, fatal, shown = [], 0.0, None, None
+    for impulse in ladder:
+        log = drum(push=(PUSH_TIME, np.array([impulse, 0.0, 0.0])))
+        tried.append({"impulse_ns": impulse, "fell": log.fell})
+        if log.fell:
+            fatal, shown = impulse, shown or log
+            break
+        survived, shown = impulse, log
+    for _ in range(bisections if fatal is not None else 0):
+        impulse = 0.5 * (survived + fatal)
+        log = drum(push=(PUSH_TIME, np.array([impulse, 0.0, 0.0])))
+        tried.append({"impulse_ns": impulse, "fell": log.fell})
+        if log.fell:
+            fatal = impulse
+        else:
+            survived, shown = impulse, log
+    return {"survived_ns": survived, "fell_ns": fatal, "tried": tried, "log": shown}
+
+
+def mujoco_scenarios(robot, dmps, nominal: RunLog, quick: bool, compile: bool, bar) -> dict:
+    """Model mismatch, friction, tight torque limits and pushes, all in MuJoCo.
+
+    ``nominal`` is the unmodified MuJoCo drumming run (its peak torque use sets the tight
+    torque limits). Returns the scenario summaries, the push search and the push run.
+    """
+    mode = "quick" if quick else "full"
+    duration = SCENARIO_SECONDS[mode]
+    record = int(round(1.0 / (VIDEO_FPS * DT)))
+
+    def drum(plant=None, controller_robot=None, friction=CONTROLLER_FRICTION, **loop):
+        return run_drumming(
+            robot,
+            dmps,
+            loop.pop("duration", duration),
+            None,
+            bar,
+            compile=compile,
+            controller_robot=controller_robot,
+            build_options={"com_sink": 0.0, "friction": friction},
+            plant=plant or mujoco_plant(),
+            **loop,
+        )
+
+    scenarios = {}
+    for scale in LINK_MASS_SCALES:
+        log = drum(controller_robot=with_scaled_masses(robot, scale))
+        scenarios[f"link_masses_x{scale:g}"] = _summary(log)
+    for friction in FRICTIONS:
+        log = drum(plant=mujoco_plant(friction), friction=min(CONTROLLER_FRICTION, friction))
+        scenarios[f"friction_{friction:g}"] = _summary(log)
+    tight = TIGHT_TORQUE * float(nominal.torque_use.max())
+    scenarios["tight_torque_limits"] = {
+        "scale_of_urdf_limits": tight,
+        **_summary(drum(controller_robot=with_scaled_torque_limits(robot, tight))),
+    }
+    push = push_search(
+        lambda push: drum(push=push, duration=PUSH_RUN_SECONDS[mode], record_every=record),
+        PUSH_LADDER_QUICK if quick else PUSH_LADDER,
+        bisections=0 if quick else PUSH_BISECTIONS,
+    )
+    scenarios["push_largest_survived"] = {
+        "impulse_ns": push["survived_ns"],
+        **_summary(push["log"]),
+    }
+    return {"scenarios": scenarios, "push": push}
+
+
+def write_videos(out, clips: dict, skip_reason: str | None = None) -> tuple[list, str | None]:
+    """Render ``clips`` (name -> (MujocoSimulator, configurations, camera distance [m])).
+
+    Each becomes ``out / (name + ".webp")`` (at most 5 MB). Returns the file names written
+    and why the others were skipped: ``skip_reason`` if given (nothing is rendered), or the
+    :class:`MissingDependency` message (no OpenGL context, no Pillow), else None.
+    """
+    if skip_reason is not None:
+        return [], skip_reason
+    from dmpopt.sim import render_animation
+
+    written = []
+    width, height = VIDEO_SIZE
+    for name, (simulator, frames, distance) in clips.items():
+        try:
+            path = render_animation(
+                simulator, frames, out / f"{name}.webp", VIDEO_FPS, width, height, distance
+            )
+        except MissingDependency as error:
+            return written, str(error)
+        written.append(path.name)
+    return written, None
+
+
+def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") -> dict:
     """Run the study, write the figures and ``metrics.json`` into ``out_dir``; return metrics.
 
-    The study is deterministic; ``seed`` is recorded only.
+    ``backend`` simulates the standing robot: "mujoco" (default; also runs the model-mismatch,
+    friction, torque-limit and push scenarios, a native run for comparison, and the videos)
+    or "native". The study is deterministic; ``seed`` is recorded only.
     """
     from tqdm import tqdm
 
     from .common import output_dir, write_metrics
 
+    backend = check_backend(backend)
     out = output_dir(out_dir)
+    on_mujoco = backend == "mujoco"
+    plant = mujoco_plant() if on_mujoco else None
+    options = {"com_sink": 0.0} if on_mujoco else None
+    record = int(round(1.0 / (VIDEO_FPS * DT))) if on_mujoco else 0
     drum_duration, fixed_duration, figure8_duration = (3.0, 2.0, 4.0) if quick else (10.0,) * 3
     window = (1.0, 3.0) if quick else (CHANGE_START, CHANGE_END)
     fig4_duration = 4.0 if quick else 10.0
@@ -780,6 +1047,10 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     fixed = load_talos("full", fixed_base=True)
     modifications = [Modification(m.name, *window) for m in MODIFICATIONS]
     total = fig4_duration * 3 + 3 * drum_duration + fixed_duration + figure8_duration
+    if on_mujoco:  # the native comparison, five scenarios, at most this many pushes
+        mode = "quick" if quick else "full"
+        pushes = len(PUSH_LADDER_QUICK) if quick else len(PUSH_LADDER) + PUSH_BISECTIONS
+        total += drum_duration + 5 * SCENARIO_SECONDS[mode] + pushes * PUSH_RUN_SECONDS[mode]
     runs, plans = {}, {}
     bar_format = "{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} simulated s [{elapsed}]"
     ticks = int(round(total / DT))
@@ -788,8 +1059,18 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
             duration = drum_duration if modification.name == "none" else fig4_duration
             plans[modification.name] = plan_rollout(dmps, fig4_duration, modification)
             runs[modification.name] = run_drumming(
-                floating, dmps, duration, modification, bar, compile=compile
+                floating,
+                dmps,
+                duration,
+                modification,
+                bar,
+                compile=compile,
+                build_options=options,
+                plant=plant,
+                record_every=record if modification.name == "none" else 0,
             )
+        # The fixed-base upper body is a reduced model with locked legs (no URDF of its own):
+        # it stays on the native simulator, as the controller's timing reference.
         fixed_log = run_drumming(fixed, dmps, fixed_duration, None, bar, compile=compile)
         # Ablations: a controller model with heavier arms, and no pelvis orientation task.
         wrong_model = run_drumming(
@@ -800,11 +1081,33 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
             bar,
             compile=compile,
             controller_robot=with_mass_error(floating, MASS_ERROR),
+            build_options=options,
+            plant=plant,
         )
         no_base_task = run_drumming(
-            floating, dmps, drum_duration, None, bar, compile=compile, base_task=False
+            floating,
+            dmps,
+            drum_duration,
+            None,
+            bar,
+            compile=compile,
+            base_task=False,
+            build_options=options,
+            plant=plant,
         )
-        figure8_log, figure8_dmp = run_figure8(floating, figure8_duration, bar, compile=compile)
+        figure8_log, figure8_dmp = run_figure8(
+            floating,
+            figure8_duration,
+            bar,
+            compile=compile,
+            build_options=options,
+            plant=plant,
+            record_every=record,
+        )
+        native = runs["none"]
+        if on_mujoco:
+            native = run_drumming(floating, dmps, drum_duration, None, bar, compile=compile)
+            mujoco = mujoco_scenarios(floating, dmps, runs["none"], quick, compile, bar)
 
     # ------------------------------------------------------------------ metrics
     drum = runs["none"]
@@ -950,10 +1253,66 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "figure8_size_m": FIGURE8_SIZE,
         "figure8_period_s": FIGURE8_PERIOD,
     }
+    metrics["backend"] = backend
+    metrics["native"] = _loop_summary(native)
+    clips = {}
+    if on_mujoco:
+        metrics["mujoco"] = _mujoco_metrics(runs["none"], mujoco)
+        frames = int(VIDEO_SECONDS * VIDEO_FPS)
+        push_log = mujoco["push"]["log"]
+        clips = {
+            "humanoid_drumming": (
+                runs["none"].extras["simulator"],
+                runs["none"].extras["frames"][:frames],
+                3.0,
+            ),
+            "humanoid_figure8": (
+                figure8_log.extras["simulator"],
+                figure8_log.extras["frames"][:frames],
+                3.0,
+            ),
+            "humanoid_push": (push_log.extras["simulator"], push_log.extras["frames"], 3.5),
+        }
+    skip = "quick run" if quick else None if on_mujoco else "native backend (videos need MuJoCo)"
+    metrics["videos"], metrics["videos_skipped"] = write_videos(out, clips, skip)
+    if metrics["videos_skipped"]:
+        print(f"videos skipped: {metrics['videos_skipped']}")
     _plot(out, dmps, demo, modifications, plans, runs, fixed_log, figure8_log, no_base_task)
     metrics["cpu_seconds"] = time.process_time() - start_cpu
     metrics["wall_seconds"] = time.perf_counter() - start_wall
     return write_metrics(out, "humanoid", metrics, parameters, seed, quick)
+
+
+def _loop_summary(log: RunLog) -> dict:
+    """Tracking, falls, solver activity and real-time factor of a nominal drumming run."""
+    return {
+        **_summary(log),
+        "real_time_factor": log.duration / log.wall_time,
+        "real_time_factor_cpu": log.duration / log.cpu_time,
+    }
+
+
+def _mujoco_metrics(nominal: RunLog, mujoco: dict) -> dict:
+    """The ``mujoco`` object of ``metrics.json``: nominal run, pushes, QP activity, scenarios."""
+    push, scenarios = mujoco["push"], mujoco["scenarios"]
+    binding = "tight_torque_limits"
+    return {
+        **_loop_summary(nominal),
+        "floor_friction": MUJOCO_FRICTION,
+        "push_survived_ns": push["survived_ns"],
+        "push_fell_ns": push["fell_ns"],
+        "push_tried_ns": push["tried"],
+        "push_note": f"forward impulse on the pelvis spread over {PUSH_DURATION} s from "
+        f"t = {PUSH_TIME} s while drumming; ladder, then bisection. push_fell_ns null: no "
+        "impulse tried was fatal and push_survived_ns is only a lower bound (search capped)",
+        "qp_active_fraction_nominal": nominal.qp_active_fraction,
+        "qp_active_fraction": scenarios[binding]["qp_active_fraction"],
+        "qp_active_scenario": binding,
+        "qp_active_note": "fraction of controller ticks with an active inequality row "
+        "(torque limit, friction cone, centre of pressure, joint limit), solved by proxsuite; "
+        "the others are direct least-squares solves (ControllerStats.n_direct)",
+        "scenarios": scenarios,
+    }
 
 
 # ----------------------------------------------------------------------------- figures
@@ -1101,8 +1460,9 @@ def main(argv=None) -> None:
     parser.add_argument("out_dir", nargs="?", default="results/humanoid")
     parser.add_argument("--quick", action="store_true", help="a few simulated seconds")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--backend", choices=BACKENDS, default="mujoco")
     args = parser.parse_args(argv)
-    metrics = run(args.out_dir, quick=args.quick, seed=args.seed)
+    metrics = run(args.out_dir, quick=args.quick, seed=args.seed, backend=args.backend)
     keys = (
         "tick_us_median",
         "tick_us_p99",
@@ -1119,8 +1479,11 @@ def main(argv=None) -> None:
         "n_cold_restarts",
         "n_fallbacks",
         "direct_solve_fraction",
+        "native",
+        "mujoco",
+        "videos",
     )
-    print(json.dumps({k: metrics[k] for k in keys}, indent=1))
+    print(json.dumps({k: metrics[k] for k in keys if k in metrics}, indent=1))
 
 
 if __name__ == "__main__":

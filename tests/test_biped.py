@@ -58,13 +58,14 @@ def test_standing_biped_rests_at_spring_height_with_weight_on_feet(biped):
     assert np.abs(state.v).max() < 1e-2
 
 
-def test_short_walk_does_not_fall_and_strikes_alternate(biped, gait):
-    """Seeded 6 s walk: no fall, forward progress, alternating heel strikes with the phase
-    reset to 0 (right) or pi (left) as eq. (21) says."""
+@pytest.mark.parametrize("backend", ["mujoco", "native"])
+def test_short_walk_does_not_fall_and_strikes_alternate(biped, gait, backend):
+    """Seeded 6 s walk on each simulator: no fall, forward progress, alternating heel strikes
+    with the phase reset to 0 (right) or pi (left) as eq. (21) says."""
     from studies.biped import walk
 
     _, dmp = gait
-    log = walk(biped, dmp, duration=6.0, frequency=5.0, adapt=True, seed=0)
+    log = walk(biped, dmp, duration=6.0, frequency=5.0, adapt=True, seed=0, backend=backend)
     assert not log.fell, log.diverged
     assert log.distance > 1.5
     assert log.positive_work > 0 and log.absolute_work >= log.positive_work
@@ -128,3 +129,39 @@ def test_push_survival_needs_continued_stepping(biped, gait):
     _, dmp = gait
     assert survives_push(biped, dmp, 2.4, True, 2.0, seed=0)
     assert largest_survived_push(biped, dmp, 2.4, True, 0, upper=5.0, tolerance=10.0) == 5.0
+
+
+def test_unknown_backend_is_refused(biped, gait):
+    from dmpopt.exceptions import InvalidInputError
+    from studies.biped import walk
+
+    with pytest.raises(InvalidInputError, match="backend must be one of .*'native2'"):
+        walk(biped, gait[1], duration=1.0, frequency=5.0, backend="native2")
+
+
+def test_mujoco_fall_height_matches_the_native_one(biped):
+    """MuJoCo's relative fall height, times the torso height at reset, is FALL_HEIGHT [m]."""
+    from studies.biped import FALL_HEIGHT, make_simulator
+
+    q = biped.configuration(0.0, 0.55, 0.0, [0.2, 0.1, -0.2, 0.1])
+    sim = make_simulator(biped, "mujoco", q)
+    sim.reset(q)
+    torso = sim.mj_data.xpos[sim.mj_model.body(biped.torso_frame).id][2]
+    assert sim._fall.height_fraction * torso == pytest.approx(FALL_HEIGHT, rel=1e-9)
+
+
+def test_quick_study_walks_in_mujoco(tmp_path):
+    """Quick study, MuJoCo by default: walks without falling, native numbers side by side."""
+    from studies import biped as study
+
+    metrics = study.run(tmp_path, quick=True)
+    mujoco, native = metrics["mujoco"], metrics["native"]
+    assert metrics["backend"] == "mujoco"
+    assert mujoco["fell"] is False and mujoco["steps_walked"] >= 10
+    assert mujoco["steps_walked"] == metrics["steps_walked"]
+    assert native["fell"] is False and native["steps_walked"] >= 10
+    assert mujoco["real_time_factor"] > 0 and native["real_time_factor"] > 0
+    # 20 s of walking at the adapted ~4 rad/s: pi / omega s per step, about 25 steps.
+    expected = 20.0 * mujoco["frequency_final"] / np.pi
+    assert abs(mujoco["steps_walked"] - expected) < 0.25 * expected
+    assert metrics["videos"] == [] and metrics["videos_skipped"] == "quick run"

@@ -1,8 +1,12 @@
 """Drumming on Talos with rhythmic DMPs and QP inverse dynamics (studies/humanoid.py, Fig. 4)."""
 
+import json
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
+from dmpopt.exceptions import InvalidInputError, MissingDependency
 from robots import load_talos
 from studies import humanoid
 
@@ -93,8 +97,9 @@ def test_standing_drumming_tracks_and_stays_up(dmps):
 
 
 def test_quick_study_writes_metrics_and_figures(tmp_path):
-    """The quick study runs end to end and reports the required metrics."""
+    """The quick study runs end to end in MuJoCo (default) and reports its headline claims."""
     metrics = humanoid.run(tmp_path, quick=True)
+    assert metrics["backend"] == "mujoco"
     for key in ("tick_us_median", "tick_us_p99", "tracking_rms_rad", "real_time_factor"):
         assert metrics[key] > 0
     assert metrics["fell"] is False
@@ -102,6 +107,80 @@ def test_quick_study_writes_metrics_and_figures(tmp_path):
     # the drumming joints stay inside their position limits, by a margin below a half-turn
     assert 0.0 < metrics["position_limit_margin_rad"] < np.pi
     assert metrics["position_limit_margin_joint"] in humanoid.DRUM_JOINTS
-    assert (tmp_path / "metrics.json").exists()
     for figure in ("fig4_elbow", "drumming_tracking", "figure8", "base_com", "tick_times"):
         assert (tmp_path / f"{figure}.png").stat().st_size > 10_000
+
+    mujoco, native = metrics["mujoco"], metrics["native"]
+    # Nominal MuJoCo drumming: standing, tracking within 5 mrad RMS, as on the native ground.
+    assert mujoco["fell"] is False and native["fell"] is False
+    assert mujoco["tracking_rms_rad"] < 0.005 and native["tracking_rms_rad"] < 0.005
+    assert mujoco["real_time_factor"] > 0 and native["real_time_factor"] > 0
+    # The push ladder of the quick run is (10, 60) N s: 10 N s forward is survived.
+    tried = [row["impulse_ns"] for row in mujoco["push_tried_ns"]]
+    assert tried[0] == 10.0 and mujoco["push_survived_ns"] >= 10.0
+    assert mujoco["push_fell_ns"] in (None, 60.0)
+    # Tight torque limits bind: the QP's torque rows are active on some ticks, and the
+    # torques stay within the tightened limits (a fraction of the URDF limits).
+    tight = mujoco["scenarios"]["tight_torque_limits"]
+    assert mujoco["qp_active_scenario"] == "tight_torque_limits"
+    assert mujoco["qp_active_fraction"] == tight["qp_active_fraction"] > 0
+    assert tight["torque_limited_fraction"] > 0
+    assert tight["torque_limit_use_max"] <= tight["scale_of_urdf_limits"] + 1e-6
+    assert tight["scale_of_urdf_limits"] < mujoco["torque_limit_use_max"]
+    for name in ("link_masses_x0.9", "link_masses_x1.1", "friction_0.4", "friction_0.7"):
+        scenario = mujoco["scenarios"][name]
+        assert scenario["fell"] is False and scenario["tracking_rms_rad"] < 0.01, name
+    assert metrics["videos"] == [] and metrics["videos_skipped"] == "quick run"
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    assert written["mujoco"]["push_survived_ns"] == mujoco["push_survived_ns"]
+
+
+def test_unknown_backend_is_refused(tmp_path):
+    with pytest.raises(InvalidInputError, match="backend must be one of .*'bullet'"):
+        humanoid.run(tmp_path, quick=True, backend="bullet")
+
+
+def test_push_search_brackets_the_threshold():
+    """Against a robot that falls above 33 N s: ladder up to the first fall, then bisection."""
+
+    def drum(push):
+        time, impulse = push
+        assert time == humanoid.PUSH_TIME and impulse[1:].tolist() == [0.0, 0.0]
+        return SimpleNamespace(fell=impulse[0] > 33.0, impulse=impulse[0])
+
+    result = humanoid.push_search(drum, (10.0, 20.0, 40.0, 80.0), bisections=2)
+    assert [row["impulse_ns"] for row in result["tried"]] == [10.0, 20.0, 40.0, 30.0, 35.0]
+    assert (result["survived_ns"], result["fell_ns"]) == (30.0, 35.0)
+    assert result["log"].impulse == 30.0
+    capped = humanoid.push_search(drum, (10.0, 20.0), bisections=2)
+    assert (capped["survived_ns"], capped["fell_ns"]) == (20.0, None)
+
+
+def test_scaled_masses_and_torque_limits():
+    """Every link x scale (total mass x scale); torque limits x scale; the original untouched."""
+    import pinocchio as pin
+
+    robot = load_talos("full")
+    mass = pin.computeTotalMass(robot.model)
+    heavier = humanoid.with_scaled_masses(robot, 1.1)
+    assert pin.computeTotalMass(heavier.model) == pytest.approx(1.1 * mass, rel=1e-12)
+    assert pin.computeTotalMass(robot.model) == pytest.approx(mass, rel=1e-12)
+    tight = humanoid.with_scaled_torque_limits(robot, 0.5)
+    np.testing.assert_allclose(tight.torque_limit, 0.5 * np.asarray(robot.torque_limit))
+
+
+def test_videos_skipped_with_the_reason(tmp_path, monkeypatch):
+    """No OpenGL context: nothing written, the MissingDependency message is the reason."""
+    import dmpopt.sim
+
+    def no_gl(*args, **kwargs):
+        raise MissingDependency("no OpenGL context for offscreen rendering")
+
+    monkeypatch.setattr(dmpopt.sim, "render_animation", no_gl)
+    clips = {"clip": (None, np.zeros((2, 3)), 3.0)}
+    assert humanoid.write_videos(tmp_path, clips) == (
+        [],
+        "no OpenGL context for offscreen rendering",
+    )
+    assert humanoid.write_videos(tmp_path, clips, "quick run") == ([], "quick run")
+    assert list(tmp_path.iterdir()) == []

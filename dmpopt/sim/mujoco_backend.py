@@ -357,6 +357,19 @@ class MujocoSimulator:
         spec.compiler.discardvisual = False  # keep the non-colliding geometry below
         for geom in spec.geoms:  # URDF collision geometry: drawn, never in contact
             geom.contype = geom.conaffinity = 0
+        for body in spec.bodies[1:]:  # links without geometry (the planar biped): sticks
+            if body.geoms or not body.explicitinertial:  # no mass from geometry
+                continue
+            for child in body.bodies:
+                if np.linalg.norm(child.pos) > 1e-6:
+                    body.add_geom(
+                        type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                        fromto=[0.0, 0.0, 0.0, *child.pos],
+                        size=[0.02, 0.0, 0.0],
+                        contype=0,
+                        conaffinity=0,
+                        rgba=[0.45, 0.5, 0.6, 1.0],
+                    )
         return spec
 
     def _set_joint_dynamics(self, spec, values) -> None:

@@ -42,11 +42,18 @@ def write_report(out_dir, names=None) -> Path:
             f"<figcaption>{html.escape(f.stem)}</figcaption></figure>"
             for f in figures
         )
+        videos = "\n".join(
+            f'<figure><img src="{html.escape(f"{name}/{video}")}" alt="{html.escape(video)}">'
+            f"<figcaption>{html.escape(video)} (MuJoCo, rendered offscreen)</figcaption></figure>"
+            for video in metrics.get("videos") or []
+        )
+        if metrics.get("videos_skipped"):
+            videos += f"<p>videos skipped: {html.escape(str(metrics['videos_skipped']))}</p>"
         shown = {k: v for k, v in metrics.items() if k not in ("versions", "parameters")}
         sections.append(
             f'<section id="{html.escape(name)}"><h2>{html.escape(name)}</h2>'
-            f'<pre class="claim">{html.escape(_claim(name))}</pre>{images}'
-            f"<details open><summary>metrics</summary><pre>"
+            f'<pre class="claim">{html.escape(_claim(name))}</pre>{images}{videos}'
+            f"<details><summary>metrics</summary><pre>"
             f"{html.escape(json.dumps(shown, indent=2))}</pre></details></section>"
         )
     page = (

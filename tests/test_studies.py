@@ -120,3 +120,20 @@ def test_report_links_every_figure(tmp_path):
         timeout=120,
     )
     assert shot.stat().st_size > 50_000  # a blank page compresses to a few kB
+
+
+def test_report_embeds_listed_videos_and_says_why_they_were_skipped(tmp_path):
+    """Each video a study lists under ``videos`` is embedded; ``videos_skipped`` is shown."""
+    import json
+    import re
+
+    from studies.report import write_report
+
+    for name, videos, skipped in (("humanoid", ["drumming.webp"], None), ("biped", [], "no GL")):
+        (tmp_path / name).mkdir()
+        metrics = {"videos": videos, "videos_skipped": skipped}
+        (tmp_path / name / "metrics.json").write_text(json.dumps(metrics))
+    page = write_report(tmp_path).read_text()
+    assert re.findall(r'<img src="([^"]+)"', page) == ["humanoid/drumming.webp"]
+    assert "videos skipped: no GL" in page
+    assert "<details open>" not in page  # metrics collapsed by default

@@ -124,6 +124,8 @@ _EXACT_SHARE = 0.5
 # Share of the time left that a solve's first proxsuite call may use at its estimated
 # iteration cost (a margin for that estimate); it then goes on one outer iteration per call.
 _FIRST_SHARE = 0.5
+# Factor by which the estimate of an outer iteration's cost decays per solve below a peak.
+_COST_MEMORY = 0.9
 # Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
 _CONE_RELEASE_MARGIN = 1e-3
 # Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
@@ -191,7 +193,7 @@ class _Stage:
 
     __slots__ = (
         "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known", "iteration_cost", "base_cost",
+        "at_lower", "known", "outer_cost",
     )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
@@ -211,14 +213,14 @@ class _Stage:
         self.at_upper = np.zeros(n_in, dtype=bool)
         self.at_lower = np.zeros(n_in, dtype=bool)
         self.known = False
-        # [s] CPU time of one inner iteration: measured here, then by each long enough solve
-        self.base_cost = _iteration_cost(n, n_eq, n_in, backend)
-        self.iteration_cost = self.base_cost
+        # [s] CPU time of one outer iteration: measured here, then by the solves
+        self.outer_cost = _outer_iteration_cost(n, n_eq, n_in, backend)
 
 
-def _iteration_cost(n: int, n_eq: int, n_in: int, backend) -> float:
-    """CPU time [s] of one proxsuite inner iteration on a QP of this size, measured on
-    three outer iterations of a random QP that cannot converge (tolerance 1e-30)."""
+def _outer_iteration_cost(n: int, n_eq: int, n_in: int, backend) -> float:
+    """CPU time [s] of one proxsuite outer iteration on a QP of this size, measured on
+    three outer iterations (of 10 inner ones) of a random QP that cannot converge
+    (tolerance 1e-30)."""
     dense = proxsuite.proxqp.dense
     qp = dense.QP(n, n_eq, n_in, False, dense.HessianType.Dense, backend)
     settings = qp.settings
@@ -231,7 +233,7 @@ def _iteration_cost(n: int, n_eq: int, n_in: int, backend) -> float:
     qp.init(np.eye(n), 10.0 * rng.standard_normal(n), *equalities, *inequalities)
     begin = time.thread_time()
     qp.solve()
-    return (time.thread_time() - begin) / max(int(qp.results.info.iter), 1)
+    return (time.thread_time() - begin) / max(int(qp.results.info.iter_ext), 1)
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -1138,25 +1140,26 @@ class InverseDynamicsController:
         iterations from its active set.
 
         The first call runs as many outer iterations (of at most 10 inner ones) as half the
-        time left affords at the stage's iteration cost (:func:`_iteration_cost`, or the last
-        solve's, whichever is larger): a solve that ends within them is proxsuite's ordinary
-        solve. Past them it goes on one outer iteration per call, warm from its own result,
+        time left affords at the stage's cost of an outer iteration (measured at construction,
+        then the largest of the recent solves'): a solve that ends within them is proxsuite's
+        ordinary solve. Past them it goes on one outer iteration per call, warm from its own result,
         while time is left: a solve ends at most one outer iteration after ``deadline``.
         """
         qp = stage.qp
         settings = qp.settings
         limit, done = settings.max_iter, 0
         begin = time.thread_time()
-        cost = _MAX_INNER_ITERATIONS * max(stage.iteration_cost, stage.base_cost)
-        chunk = int(min(limit, max(1.0, _FIRST_SHARE * (deadline - begin) / cost)))
+        affordable = _FIRST_SHARE * (deadline - begin) / stage.outer_cost
+        chunk = int(min(limit, max(1.0, affordable)))
         settings.initial_guess = _COLD if cold else _WARM
         while True:
             settings.max_iter = chunk
             qp.solve()
             settings.initial_guess = _WARM  # any next call goes on from this result
             info = qp.results.info
-            if done == 0 and info.iter >= _MAX_INNER_ITERATIONS:  # enough to measure
-                stage.iteration_cost = (time.thread_time() - begin) / info.iter
+            if done == 0 and info.iter_ext >= 2:  # enough to measure; peaks kept a while
+                cost = (time.thread_time() - begin) / info.iter_ext
+                stage.outer_cost = max(cost, _COST_MEMORY * stage.outer_cost)
             done += chunk
             if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
                 break

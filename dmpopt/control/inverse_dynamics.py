@@ -121,11 +121,9 @@ _REFINEMENT_ROUNDS = 10
 _WARM_ROUNDS = 5
 # Share of the time budget the exact QP may use; the rest is left to the relaxed QP.
 _EXACT_SHARE = 0.5
-# Share of the time left that a solve's first proxsuite call may use at its estimated
-# iteration cost (a margin for that estimate); it then goes on one outer iteration per call.
-_FIRST_SHARE = 0.5
-# Factor by which the estimate of an outer iteration's cost decays per solve below a peak.
-_COST_MEMORY = 0.9
+# proxsuite runs in calls of this many outer iterations, the time budget checked between
+# (always the same calls, so that the time taken does not change the answer).
+_CHUNK_ITERATIONS = 3
 # Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
 _CONE_RELEASE_MARGIN = 1e-3
 # Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
@@ -193,7 +191,7 @@ class _Stage:
 
     __slots__ = (
         "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known", "outer_cost",
+        "at_lower", "known",
     )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
@@ -213,27 +211,6 @@ class _Stage:
         self.at_upper = np.zeros(n_in, dtype=bool)
         self.at_lower = np.zeros(n_in, dtype=bool)
         self.known = False
-        # [s] CPU time of one outer iteration: measured here, then by the solves
-        self.outer_cost = _outer_iteration_cost(n, n_eq, n_in, backend)
-
-
-def _outer_iteration_cost(n: int, n_eq: int, n_in: int, backend) -> float:
-    """CPU time [s] of one proxsuite outer iteration on a QP of this size, measured on
-    three outer iterations (of 10 inner ones) of a random QP that cannot converge
-    (tolerance 1e-30)."""
-    dense = proxsuite.proxqp.dense
-    qp = dense.QP(n, n_eq, n_in, False, dense.HessianType.Dense, backend)
-    settings = qp.settings
-    settings.verbose, settings.max_iter, settings.max_iter_in = False, 3, _MAX_INNER_ITERATIONS
-    settings.eps_abs, settings.eps_rel = 1e-30, 0.0
-    rng = np.random.default_rng(0)
-    equalities = (rng.standard_normal((n_eq, n)), np.zeros(n_eq)) if n_eq else (None, None)
-    bounds = np.ones(n_in)
-    inequalities = (rng.standard_normal((n_in, n)), -bounds, bounds) if n_in else (None,) * 3
-    qp.init(np.eye(n), 10.0 * rng.standard_normal(n), *equalities, *inequalities)
-    begin = time.thread_time()
-    qp.solve()
-    return (time.thread_time() - begin) / max(int(qp.results.info.iter_ext), 1)
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -385,15 +362,15 @@ class InverseDynamicsController:
         proxsuite's outer iteration limit per solve (each of at most 10 inner iterations):
         with ``time_budget``, what bounds a tick's time.
     time_budget : float
-        CPU seconds (of the calling thread) per tick. The exact QP may use the first half
-        (proxsuite stops when it is spent), the relaxed QP the rest; a tick that runs out of
-        it gives the hold answer. A proxsuite solve stops at most one outer iteration (at
-        most 10 inner ones, a few hundred microseconds for Talos) after its deadline, unless
-        its first call, sized from the measured cost of an iteration with a factor 2 margin,
-        overruns. A tick whose budget is not spent gives the same answer whatever the time
-        it took: the budget only decides when to stop. CPU time, not wall time, so that a
-        busy machine changes the answers less; on a dedicated real-time core they are the
-        same.
+        CPU seconds (of the calling thread) per tick. The exact QP may use the first half,
+        the relaxed QP the rest; a tick that runs out of it gives the hold answer. proxsuite
+        runs in calls of 3 outer iterations (at most 30 inner ones) with the time checked
+        between, so a tick ends at most about one such call after its budget (for Talos on a
+        busy 2-core machine: at most 6.4 ms CPU for the default 5 ms,
+        ``benchmarks/bench_qp_stress.py``). The calls do not depend on the time: a tick whose
+        budget is not spent gives the same answer for the same inputs and history. CPU time,
+        not wall time, so that a busy machine changes the answers less; on a dedicated
+        real-time core they are the same.
     raise_on_failure : bool
         If True, a tick that would give the hold answer raises :class:`NoSolutionFound`.
     joint_limit_horizon : float or None
@@ -1136,34 +1113,27 @@ class InverseDynamicsController:
         return solved
 
     def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:
-        """proxsuite on one stage within ``deadline``; its answer refined by active-set
+        """proxsuite on one stage until ``deadline``; its answer refined by active-set
         iterations from its active set.
 
-        The first call runs as many outer iterations (of at most 10 inner ones) as half the
-        time left affords at the stage's cost of an outer iteration (measured at construction,
-        then the largest of the recent solves'): a solve that ends within them is proxsuite's
-        ordinary solve. Past them it goes on one outer iteration per call, warm from its own result,
-        while time is left: a solve ends at most one outer iteration after ``deadline``.
+        proxsuite runs in calls of ``_CHUNK_ITERATIONS`` outer iterations (of at most 10
+        inner ones), each warm from the last, up to ``max_iter`` while time is left: a solve
+        ends at most one call after ``deadline``, and the calls do not depend on the time.
         """
         qp = stage.qp
         settings = qp.settings
         limit, done = settings.max_iter, 0
-        begin = time.thread_time()
-        affordable = _FIRST_SHARE * (deadline - begin) / stage.outer_cost
-        chunk = int(min(limit, max(1.0, affordable)))
+        chunk = min(limit, _CHUNK_ITERATIONS)
         settings.initial_guess = _COLD if cold else _WARM
         while True:
             settings.max_iter = chunk
             qp.solve()
             settings.initial_guess = _WARM  # any next call goes on from this result
             info = qp.results.info
-            if done == 0 and info.iter_ext >= 2:  # enough to measure; peaks kept a while
-                cost = (time.thread_time() - begin) / info.iter_ext
-                stage.outer_cost = max(cost, _COST_MEMORY * stage.outer_cost)
             done += chunk
             if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
                 break
-            chunk = 1
+            chunk = min(_CHUNK_ITERATIONS, limit - done)
         settings.max_iter = limit
         stats = self.stats
         stats.last_status = info.status.name

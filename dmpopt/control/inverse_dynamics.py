@@ -1122,7 +1122,7 @@ class InverseDynamicsController:
         """
         qp = stage.qp
         settings = qp.settings
-        limit, done = settings.max_iter, 0
+        limit, done, iterations = settings.max_iter, 0, 0
         chunk = min(limit, _CHUNK_ITERATIONS)
         settings.initial_guess = _COLD if cold else _WARM
         while True:
@@ -1130,14 +1130,14 @@ class InverseDynamicsController:
             qp.solve()
             settings.initial_guess = _WARM  # any next call goes on from this result
             info = qp.results.info
-            done += chunk
+            done, iterations = done + chunk, iterations + int(info.iter)
             if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
                 break
             chunk = min(_CHUNK_ITERATIONS, limit - done)
         settings.max_iter = limit
         stats = self.stats
         stats.last_status = info.status.name
-        stats.last_iterations = int(info.iter)
+        stats.last_iterations = iterations
         if info.status != _SOLVED:
             return False
         results = qp.results

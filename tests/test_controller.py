@@ -675,9 +675,13 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         np.testing.assert_allclose(tau, tau_ref, atol=1e-4)
     stats = controller.stats
     assert stats.n_fallbacks == 0 and stats.n_cold_restarts == 0
-    # Without active inequalities the tick is solved by Cholesky, with them by proxsuite.
-    expected = "CHOLESKY_SOLVED" if case == "free" else "PROXQP_SOLVED"
-    assert statuses == [expected] * 3
+    # Without active inequalities the tick is solved by Cholesky, with them by proxsuite on
+    # the first tick, then by proxsuite or active-set iterations from the last active set.
+    if case == "free":
+        assert statuses == ["CHOLESKY_SOLVED"] * 3
+    else:
+        assert statuses[0] == "PROXQP_SOLVED"
+        assert set(statuses) <= {"PROXQP_SOLVED", "ACTIVE_SET_SOLVED"}
     if case == "cones":
         margins = [c.cone_margin(w) for c, w in zip(controller.contacts, wrenches)]
         assert min(m.min() for m in margins) < 1e-6, "a cone row should be active"

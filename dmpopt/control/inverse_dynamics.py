@@ -67,8 +67,12 @@ previous tick's multipliers, so proxsuite's residuals can be small while its act
 stale: with a proximal parameter of 1e-8 it returned feasible points whose cost exceeded the
 optimum by up to 268 times it (Talos with weak motors). So proxsuite keeps its default
 proximal parameter, also checks the duality gap, and its answer is refined to the exact
-optimum of its active set (:func:`_refine`). A tick that cannot be solved gives a defined
-degraded answer (see :class:`InverseDynamicsController`).
+optimum of its active set (:func:`_active_set`). Before proxsuite, each QP is tried by
+active-set iterations from its previous tick's active set: in a closed loop that set is
+usually still optimal, and the tick costs one KKT solve. Either way the answer carries the
+KKT certificate of :func:`_active_set` (when no active set verifies after proxsuite,
+proxsuite's answer to its tolerance is kept). A tick that cannot be solved gives a defined
+degraded answer within its time budget (see :class:`InverseDynamicsController`).
 """
 
 from __future__ import annotations
@@ -92,9 +96,11 @@ from .tasks import FrameTask, PostureTask, SoleContact, Task
 __all__ = ["JOINT_LIMIT_TOLERANCE", "ControllerStats", "InverseDynamicsController"]
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+_MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 _COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
 _DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
+_ACTIVE_SET = "ACTIVE_SET_SOLVED"  # ... of a QP solved by active-set iterations alone
 _NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
 _RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
 _BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
@@ -111,6 +117,13 @@ _MAX_INNER_ITERATIONS = 10
 _RELAXATION_WEIGHT = 1e4
 # Active-set refinement rounds after proxsuite (each one KKT solve).
 _REFINEMENT_ROUNDS = 10
+# Active-set rounds from the previous tick's active set before proxsuite is called.
+_WARM_ROUNDS = 5
+# Share of the time budget the exact QP may use; the rest is left to the relaxed QP.
+_EXACT_SHARE = 0.5
+# proxsuite runs in calls of this many outer iterations, the time budget checked between
+# (always the same calls, so that the time taken does not change the answer).
+_CHUNK_ITERATIONS = 3
 # Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
 _CONE_RELEASE_MARGIN = 1e-3
 # Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
@@ -134,7 +147,8 @@ class ControllerStats:
         least-squares problem (one Cholesky factorisation, or closed form for posture tasks
         on a fixed base).
     n_solved : int
-        Ticks whose QP with its active inequality rows was solved by proxsuite.
+        Ticks whose QP with its active inequality rows was solved, by active-set iterations
+        from the last tick's active set or by proxsuite.
     n_relaxed : int
         Ticks whose QP could not be solved (infeasible, or out of iterations) and that
         returned the solution of the relaxed QP.
@@ -147,10 +161,11 @@ class ControllerStats:
     last_answer : str
         ``"direct"``, ``"solved"``, ``"relaxed"`` or ``"hold"``.
     last_status : str
-        proxsuite status of the last solve, ``"CHOLESKY_SOLVED"`` for a direct one, or
+        proxsuite status of the last solve, ``"CHOLESKY_SOLVED"`` for a direct one,
+        ``"ACTIVE_SET_SOLVED"`` for one solved by active-set iterations alone, or
         ``"NON_FINITE_PROBLEM"`` for a QP refused before proxsuite (a NaN in a task).
     last_iterations : int
-        Iterations of the last solve.
+        Iterations of the last solve (proxsuite's inner iterations, or KKT solves).
     """
 
     n_ticks: int = 0
@@ -166,13 +181,18 @@ class ControllerStats:
 
 
 class _Stage:
-    """One proxsuite QP with its own warm start and the (preallocated) arrays it reads.
+    """One QP with its proxsuite solver, its own warm start and the (preallocated) arrays it
+    reads.
 
     ``problem`` is (H, g, A, b, C, l, u), None for absent blocks: what the active-set
-    refinement reads.
+    iterations read. ``at_upper`` and ``at_lower`` mark the rows active at the last solution
+    (``known``): the next tick starts from them.
     """
 
-    __slots__ = ("qp", "initialized", "init_arguments", "update_arguments", "problem")
+    __slots__ = (
+        "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
+        "at_lower", "known",
+    )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
         dense = proxsuite.proxqp.dense
@@ -188,6 +208,9 @@ class _Stage:
         self.init_arguments = init_arguments
         self.update_arguments = update_arguments
         self.problem = (init_arguments + (None,) * 5)[:7]
+        self.at_upper = np.zeros(n_in, dtype=bool)
+        self.at_lower = np.zeros(n_in, dtype=bool)
+        self.known = False
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -234,31 +257,33 @@ def _check_items(robot, tasks, contacts) -> None:
                 )
 
 
-def _refine(problem: tuple, x: np.ndarray, z: np.ndarray, tolerance: float) -> np.ndarray:
-    r"""proxsuite's solution made exact on its active set, if that set is optimal.
+def _active_set(
+    problem: tuple, at_upper: np.ndarray, at_lower: np.ndarray, tolerance: float, rounds: int
+) -> tuple[np.ndarray | None, int]:
+    r"""Primal-dual active-set iterations from the active set ``at_upper | at_lower``.
 
-    proxsuite stops on small residuals (and duality gap) to ``tolerance``; its active set
-    (rows with a nonzero multiplier z) is usually the optimal one, and the QP restricted to it
-    as equalities is one linear KKT solve,
+    The QP restricted to its active rows as equalities is one linear KKT solve,
 
     .. math:: \begin{bmatrix} H & E^\top \\ E & 0 \end{bmatrix}
               \begin{bmatrix} x \\ \nu \end{bmatrix} = \begin{bmatrix} -g \\ e
               \end{bmatrix}.
 
-    Its solution is the optimum if every inequality row holds (to ``tolerance``) and the
-    multipliers have the sign of their side (:math:`\nu \ge 0` at an upper bound,
-    :math:`\le 0` at a lower one): the KKT conditions then hold exactly. Otherwise the rows
-    of the wrong sign leave the set, or else the most violated row enters it (active-set
-    steps), for at most ``_REFINEMENT_ROUNDS`` solves; if none verifies, proxsuite's x is
-    returned.
+    Its solution is the optimum (the certificate) if every inactive row holds to
+    ``tolerance`` and every multiplier has the sign of its side (:math:`\nu \ge 0` at an
+    upper bound, :math:`\le 0` at a lower one): the KKT conditions then hold exactly.
+    Otherwise the rows of the wrong sign leave the set, or else the most violated row enters
+    it, for at most ``rounds`` solves. ``at_upper`` and ``at_lower`` are updated in place.
+
+    Returns
+    -------
+    (x, solves) : the certified optimum, or None if no set verified (or the active rows are
+    dependent); and the number of KKT solves made.
     """
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
-    if in_matrix is None or not in_matrix.shape[0]:
-        return x
-    n = x.size
-    noise = 1e-12 * max(1.0, float(np.abs(z).max()))  # proxsuite's zeros are ~1e-19
-    at_upper, at_lower = z > noise, z < -noise
-    for _ in range(_REFINEMENT_ROUNDS):
+    n = hessian.shape[0]
+    if in_matrix is None:  # no inequality rows
+        in_matrix, lower, upper = np.zeros((0, n)), np.zeros(0), np.zeros(0)
+    for solves in range(1, rounds + 1):
         rows = np.flatnonzero(at_upper | at_lower)
         bounds = np.where(at_upper, upper, lower)[rows]
         matrix, target = in_matrix[rows], bounds
@@ -269,7 +294,7 @@ def _refine(problem: tuple, x: np.ndarray, z: np.ndarray, tolerance: float) -> n
         kkt[:n, :n], kkt[:n, n:], kkt[n:, :n] = hessian, matrix.T, matrix
         solution = np.concatenate([-gradient, target])
         if not kernels.solve_in_place(kkt, solution):  # dependent active rows
-            return x
+            return None, solves
         candidate, multipliers = solution[:n], solution[n + m - rows.size :]
         slack = 1e-9 * max(1.0, float(np.abs(multipliers).max(initial=0.0)))
         wrong = np.zeros_like(at_upper)
@@ -280,12 +305,12 @@ def _refine(problem: tuple, x: np.ndarray, z: np.ndarray, tolerance: float) -> n
             continue
         values = in_matrix @ candidate
         violation = np.maximum(values - upper, lower - values)
+        if not violation.size or violation.max() <= tolerance:
+            return candidate, solves
         worst = int(np.argmax(violation))
-        if violation[worst] <= tolerance:
-            return candidate
         at_upper[worst] = values[worst] > upper[worst]
         at_lower[worst] = values[worst] < lower[worst]
-    return x
+    return None, rounds
 
 
 def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
@@ -337,11 +362,15 @@ class InverseDynamicsController:
         proxsuite's outer iteration limit per solve (each of at most 10 inner iterations):
         with ``time_budget``, what bounds a tick's time.
     time_budget : float
-        CPU seconds (of the calling thread) a tick may spend before it starts another solve
-        (a cold restart, the relaxed QP); once spent, a failed solve gives the hold answer. A
-        solve already started runs to its iteration limit, so a tick takes at most about the
-        budget plus one solve. CPU time, not wall time, so that a busy machine does not change
-        the answers; on a dedicated real-time core they are the same.
+        CPU seconds (of the calling thread) per tick. The exact QP may use the first half,
+        the relaxed QP the rest; a tick that runs out of it gives the hold answer. proxsuite
+        runs in calls of 3 outer iterations (at most 30 inner ones) with the time checked
+        between, so a tick ends at most about one such call after its budget (for Talos on a
+        busy 2-core machine: at most 6.4 ms CPU for the default 5 ms,
+        ``benchmarks/bench_qp_stress.py``). The calls do not depend on the time: a tick whose
+        budget is not spent gives the same answer for the same inputs and history. CPU time,
+        not wall time, so that a busy machine changes the answers less; on a dedicated
+        real-time core they are the same.
     raise_on_failure : bool
         If True, a tick that would give the hold answer raises :class:`NoSolutionFound`.
     joint_limit_horizon : float or None
@@ -376,15 +405,17 @@ class InverseDynamicsController:
     Each tick gives one of four answers, counted in :attr:`stats`:
 
     - ``direct``: no inequality row active; the least-squares optimum (exact).
-    - ``solved``: the QP with its inequality rows, by proxsuite (warm-started, retried cold
-      once on failure), refined to the exact optimum of its active set when that set
-      verifies (:func:`_refine`).
+    - ``solved``: the QP with its inequality rows: by at most 5 active-set iterations from
+      the last tick's active set, else by proxsuite (warm-started, retried cold once on
+      failure, within the first half of the time budget) refined to the exact optimum of
+      its active set when that set verifies (:func:`_active_set`).
     - ``relaxed``: if that QP fails (infeasible, e.g. torque limits too weak to hold the
-      robot, or out of iterations), the QP with every inequality row in which the contact
-      rows and the acceleration bounds get slacks weighted by 1e4 in the cost; the torque
-      and cone rows stay hard. It is always feasible (the contact wrenches can sit inside
-      their cones, and the joint accelerations can produce any torque).
-    - ``hold``: if that fails too or the time budget is spent, the last valid torque
+      robot, or out of iterations or of its half of the budget), the QP with every
+      inequality row in which the contact rows and the acceleration bounds get slacks
+      weighted by 1e4 in the cost; the torque and cone rows stay hard. It is always
+      feasible (the contact wrenches can sit inside their cones, and the joint
+      accelerations can produce any torque).
+    - ``hold``: if that fails too or the whole time budget is spent, the last valid torque
       (gravity and Coriolis compensation :math:`h_a` on the first tick), clipped to the
       torque limits.
 
@@ -424,7 +455,7 @@ class InverseDynamicsController:
                 f"max_iterations must be an integer >= 1, got {max_iterations!r}"
             )
         self.time_budget = float(time_budget)
-        self._deadline = 0.0
+        self._deadline = self._exact_deadline = 0.0
         self.robot = robot
         self.model = robot.model
         self.data = robot.create_data()
@@ -611,6 +642,7 @@ class InverseDynamicsController:
             self._z_cone_matrix = np.ascontiguousarray(cone_matrix[:, nonbasic])
             self._z_cone_release = cone_upper - _CONE_RELEASE_MARGIN * scale
             self._z_cone_values = np.zeros(n_cone)
+            self._z_accepted = np.zeros(n_z)  # the last accepted solution over z
             self._z_solution = np.zeros(n_z)
             self._z_factor = np.zeros((n_z, n_z))
             # Arguments of the compiled stages (persistent arrays, filled in place).
@@ -681,7 +713,7 @@ class InverseDynamicsController:
             self._assemble_eliminated()
             self._accept(self._z_solution, eliminated=True)
         self._solve_direct()
-        kernels.solve_in_place(np.eye(1), np.ones(1))  # of _refine
+        kernels.solve_in_place(np.eye(1), np.ones(1))  # of _active_set
         self.reset()
         for contact, reference in zip(self.contacts, references):
             contact.reference_placement = reference
@@ -761,7 +793,7 @@ class InverseDynamicsController:
     def reset(self) -> None:
         """Forget the warm start, the contact reference placements and the counters."""
         for stage in self._stages:
-            stage.initialized = False
+            stage.initialized = stage.known = False
         self._level = 0
         self._has_valid_torque = False
         self.stats = ControllerStats()
@@ -792,7 +824,9 @@ class InverseDynamicsController:
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
-        self._deadline = time.thread_time() + self.time_budget
+        start = time.thread_time()
+        self._deadline = start + self.time_budget
+        self._exact_deadline = start + _EXACT_SHARE * self.time_budget
         # Inequality rows are added only when the solution without them violates them; a
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
@@ -816,7 +850,7 @@ class InverseDynamicsController:
             elif outcome == kernels.CHOLESKY_FAILED:
                 solved, level = False, 2
             elif outcome == kernels.CONES_VIOLATED:
-                solved = self._solve(self._eliminated_cones)
+                solved = self._solve(self._eliminated_cones, self._exact_deadline)
                 level = 0 if solved and self._cones_released() else 1
             elif not self.contacts:  # fixed base: no equality rows
                 self._assemble_y()
@@ -825,7 +859,7 @@ class InverseDynamicsController:
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
                 self._assemble_y()
                 mapped = True
-                solved = self._solve(self._free)
+                solved = self._solve(self._free, self._exact_deadline)
                 level = min(level, 1)
         # A failed solve, or a NaN torque (from a NaN written into a task), goes to the QP
         # with every inequality row.
@@ -842,7 +876,7 @@ class InverseDynamicsController:
             kernels.acceleration_bounds(self._bounds, q, v)
             self._assemble_torque_rows()
             answer = "solved"
-            solved = self._solve(self._limited)
+            solved = self._solve(self._limited, self._exact_deadline)
             if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
                 level = 1 if self.contacts else 0  # without contacts there are no cone rows
             elif not solved:
@@ -984,9 +1018,7 @@ class InverseDynamicsController:
 
     def _cones_released(self) -> bool:
         """Whether all cone rows are slack by the release margin."""
-        values = np.dot(
-            self._z_cone_matrix, self._eliminated_cones.qp.results.x, out=self._z_cone_values
-        )
+        values = np.dot(self._z_cone_matrix, self._z_accepted, out=self._z_cone_values)
         return bool((values < self._z_cone_release).all())
 
     def _assemble_y(self) -> None:
@@ -1040,18 +1072,28 @@ class InverseDynamicsController:
         np.clip(upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][: upper.size])
 
     # ------------------------------------------------------------------ solve
-    def _solve(self, stage: _Stage) -> bool:
-        """Solve one stage warm (cold on its first use); on failure once more cold, if the
-        tick's time budget allows.
+    def _solve(self, stage: _Stage, deadline: float) -> bool:
+        """Solve one stage: active-set iterations from its last active set, else proxsuite
+        warm (cold on its first use), then once more cold if ``deadline`` (thread CPU time)
+        allows.
 
         A non-finite Hessian or gradient (a NaN written into a task) fails without a solve:
         proxsuite can report such a problem solved.
         """
         hessian, gradient = stage.update_arguments[:2]
+        stats = self.stats
         if not math.isfinite(hessian.sum() + gradient.sum()):
-            self.stats.last_status, self.stats.last_iterations = "NON_FINITE_PROBLEM", 0
-            stage.initialized = False
+            stats.last_status, stats.last_iterations = "NON_FINITE_PROBLEM", 0
+            stage.initialized = stage.known = False
             return False
+        if stage.known:
+            solution, solves = _active_set(
+                stage.problem, stage.at_upper, stage.at_lower, self.qp.settings.eps_abs,
+                _WARM_ROUNDS,
+            )  # fmt: skip
+            stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
+            if solution is not None and self._take(stage, solution):
+                return True
         qp = stage.qp
         if stage is not self._primary:
             settings, source = qp.settings, self.qp.settings
@@ -1059,37 +1101,67 @@ class InverseDynamicsController:
                 setattr(settings, name, getattr(source, name))
         if not stage.initialized:
             qp.init(*stage.init_arguments)
-            solved = self._run(stage, cold=True)
+            solved = self._run(stage, True, deadline)
         else:
             qp.update(*stage.update_arguments)
-            solved = self._run(stage, cold=False)
+            solved = self._run(stage, False, deadline)
             # proxsuite can also report a feasible QP infeasible from a stale warm start.
-            if not solved and self._time_left():
-                self.stats.n_cold_restarts += 1
-                solved = self._run(stage, cold=True)
-        stage.initialized = solved
+            if not solved and time.thread_time() < deadline:
+                stats.n_cold_restarts += 1
+                solved = self._run(stage, True, deadline)
+        stage.initialized = stage.known = solved
         return solved
 
-    def _run(self, stage: _Stage, cold: bool) -> bool:
+    def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:
+        """proxsuite on one stage until ``deadline``; its answer refined by active-set
+        iterations from its active set.
+
+        proxsuite runs in calls of ``_CHUNK_ITERATIONS`` outer iterations (of at most 10
+        inner ones), each warm from the last, up to ``max_iter`` while time is left: a solve
+        ends at most one call after ``deadline``, and the calls do not depend on the time.
+        """
         qp = stage.qp
-        if cold:
-            qp.settings.initial_guess = _COLD
+        settings = qp.settings
+        limit, done, iterations = settings.max_iter, 0, 0
+        chunk = min(limit, _CHUNK_ITERATIONS)
+        settings.initial_guess = _COLD if cold else _WARM
+        while True:
+            settings.max_iter = chunk
             qp.solve()
-            qp.settings.initial_guess = _WARM
-        else:
-            qp.solve()
-        results = qp.results
-        info = results.info
+            settings.initial_guess = _WARM  # any next call goes on from this result
+            info = qp.results.info
+            done, iterations = done + chunk, iterations + int(info.iter)
+            if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
+                break
+            chunk = min(_CHUNK_ITERATIONS, limit - done)
+        settings.max_iter = limit
         stats = self.stats
         stats.last_status = info.status.name
-        stats.last_iterations = info.iter
+        stats.last_iterations = iterations
         if info.status != _SOLVED:
             return False
-        solution = _refine(stage.problem, results.x, results.z, qp.settings.eps_abs)
+        results = qp.results
+        z = results.z
+        noise = 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))  # its zeros are ~1e-19
+        np.greater(z, noise, out=stage.at_upper)
+        np.less(z, -noise, out=stage.at_lower)
+        solution, _ = _active_set(
+            stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS
+        )
+        if solution is None:  # no active set verified: proxsuite's answer, to its tolerance
+            solution = results.x
+            np.greater(z, noise, out=stage.at_upper)
+            np.less(z, -noise, out=stage.at_lower)
+        return self._take(stage, solution)
+
+    def _take(self, stage: _Stage, solution: np.ndarray) -> bool:
+        """Accept a stage's solution as the tick's candidate, if finite."""
         if not math.isfinite(solution.sum()):
             return False
         if stage is self._relaxed:  # (y, slacks)
             solution = solution[: self._n]
+        if stage is self._eliminated_cones:
+            self._z_accepted[:] = solution
         self._accept(solution, eliminated=stage is self._eliminated_cones)
         return True
 
@@ -1104,7 +1176,7 @@ class InverseDynamicsController:
             equality[:, :n] = self._mapped[self._n_cost :, :n]
         inequality[:, :n] = self._in_matrix
         stage.initialized = False  # solved from scratch: its last problem is unrelated
-        return self._solve(stage)
+        return self._solve(stage, self._deadline)
 
     def _solve_direct(self) -> bool:
         """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""

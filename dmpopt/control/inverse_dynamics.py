@@ -365,8 +365,9 @@ class InverseDynamicsController:
         CPU seconds (of the calling thread) per tick. The exact QP may use the first half,
         the relaxed QP the rest; a tick that runs out of it gives the hold answer. proxsuite
         runs in calls of 3 outer iterations (at most 30 inner ones) with the time checked
-        between, so a tick ends at most about one such call after its budget (for Talos on a
-        busy 2-core machine: at most 6.4 ms CPU for the default 5 ms,
+        between, so a tick overruns its budget by about one such call plus the active-set
+        rounds, which are not interrupted (the bound is soft: for Talos with infeasible torque
+        limits on a busy 2-core machine, at most 6.6 ms CPU for the default 5 ms,
         ``benchmarks/bench_qp_stress.py``). The calls do not depend on the time: a tick whose
         budget is not spent gives the same answer for the same inputs and history. CPU time,
         not wall time, so that a busy machine changes the answers less; on a dedicated

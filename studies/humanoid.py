@@ -128,6 +128,7 @@ JOINT_LIMIT_HORIZON = 0.05  # [s] the DMP-driven joints brake for their position
 POSTURE_WEIGHT = 1e-2
 COM_WEIGHT, BASE_WEIGHT = 10.0, 1.0
 GROUND_STIFFNESS = 2e4  # [N/m] per sole corner
+FALL_HEIGHT = 0.7  # [m] the pelvis (base_link) has fallen when lower, on either backend
 MASS_ERROR = 1.1  # the controller's arms (and hands) are 10 % heavier than the simulated ones
 
 BACKENDS = ("mujoco", "native")
@@ -532,7 +533,7 @@ def make_simulator(robot, q_start: np.ndarray):
         contact_points=points,
         ground=GroundContact(stiffness=GROUND_STIFFNESS, damping=300.0, friction=1.0),
         fall_frame="base_link",
-        fall_height=0.7,
+        fall_height=FALL_HEIGHT,
     )
     q0 = q_start.copy()
     q0[2] -= _sink(robot)
@@ -549,19 +550,25 @@ def mujoco_plant(friction: float = MUJOCO_FRICTION):
     """A ``plant(robot, q_start) -> (simulator, q0)`` simulating in MuJoCo.
 
     MuJoCo's floor touches a 5 mm sphere at each sole corner (the URDF collision meshes touch
-    nothing), with Coulomb ``friction``; falls as in :func:`make_simulator` (pelvis below 70 %
-    of its start height, tilted more than 45 deg, or no foot contact for 0.5 s). The robot
-    starts with the soles on the floor: MuJoCo's contacts sink by about a millimetre.
+    nothing), with Coulomb ``friction``; the same fall options as :func:`make_simulator`, so
+    the same thresholds (:mod:`dmpopt.sim.falls`). The robot starts with the soles on the
+    floor: MuJoCo's contacts sink by about a millimetre.
     """
     from dmpopt.sim import MujocoSimulator
-    from dmpopt.sim.mujoco_backend import FallCriteria
 
     def plant(robot, q_start):
         if not robot.floating_base:
             return MujocoSimulator(robot.model, robot.source, DT), q_start.copy()
         points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
-        fall = FallCriteria("base_link")
-        simulator = MujocoSimulator(robot.model, robot.source, DT, points, friction, fall=fall)
+        simulator = MujocoSimulator(
+            robot.model,
+            robot.source,
+            DT,
+            points,
+            friction,
+            fall_frame="base_link",
+            fall_height=FALL_HEIGHT,
+        )
         return simulator, q_start.copy()
 
     return plant

@@ -37,7 +37,6 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.sim import MujocoSimulator
-from dmpopt.sim.mujoco_backend import FallCriteria
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
 from studies import biped as biped_study
@@ -47,14 +46,10 @@ DT = humanoid.DT
 
 
 def make_plant(backend: str, robot, q_start: np.ndarray):
-    """The simulator of ``backend`` and its start configuration."""
+    """The simulator of ``backend`` (same fall thresholds on both) and its start configuration."""
     if backend == "native":
         return humanoid.make_simulator(robot, q_start)
-    points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
-    simulator = MujocoSimulator(
-        robot.model, robot.source, DT, points, friction=1.0, fall=FallCriteria("base_link")
-    )
-    return simulator, q_start.copy()
+    return humanoid.mujoco_plant(friction=1.0)(robot, q_start)
 
 
 def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict:
@@ -84,16 +79,18 @@ def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict
         sim_cpu += time.thread_time() - step_cpu
         sim_wall += time.perf_counter() - step_begin
         vertical[k] = state.contact_forces[:, 2].sum()
-        fell = fell or state.fallen
         if video_every and k % video_every == 0:
             frames.append(state.q)
+        if state.fallen:  # the simulation stops at a fall
+            fell, n = True, k + 1
+            break
     wall, cpu = time.perf_counter() - begin, time.process_time() - cpu_begin
     weight = pin.computeTotalMass(robot.model) * 9.81
     return {
-        "tracking_rms_rad": float(np.sqrt(np.mean(error**2))),
-        "tracking_max_rad": float(np.abs(error).max()),
-        "fell": bool(fell),
-        "vertical_force_over_weight": float(vertical.mean() / weight),
+        "tracking_rms_rad": float(np.sqrt(np.mean(error[:n] ** 2))),
+        "tracking_max_rad": float(np.abs(error[:n]).max()),
+        "fell": fell,
+        "vertical_force_over_weight": float(vertical[:n].mean() / weight),
         "real_time_factor": n * DT / wall,
         "real_time_factor_cpu": n * DT / cpu,
         "simulator_real_time_factor": n * DT / sim_wall,

@@ -48,7 +48,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
 from dmpopt import Trajectory, fit_rhythmic
@@ -200,7 +199,7 @@ def walk(
     stepper.set_time_constant(1.0 / frequency)
     q = biped.configuration(0.0, biped.leg_length, 0.0, stepper.position)
     q[1] -= biped.foot_positions(q)[:, 1].min()
-    sim = make_simulator(biped, backend, q)
+    sim = make_simulator(biped, backend)
     v = np.zeros(biped.model.nv)
     v[0] = 0.35 + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
@@ -278,11 +277,11 @@ def walk(
     return log
 
 
-def make_simulator(biped: Biped, backend: str, q_start: np.ndarray):
+def make_simulator(biped: Biped, backend: str):
     """The walker's simulator on ``backend``: "mujoco" or "native" (compliant ``GROUND``).
 
-    Both flag a fall when the torso is below ``FALL_HEIGHT``; MuJoCo's fall criteria are
-    relative to the height at reset, so the fraction is taken from ``q_start``.
+    Both take the same fall options, so both flag a fall when the torso is below
+    ``FALL_HEIGHT`` (the other thresholds derived from the biped, :mod:`dmpopt.sim.falls`).
     """
     from .humanoid import check_backend
 
@@ -297,16 +296,16 @@ def make_simulator(biped: Biped, backend: str, q_start: np.ndarray):
             fall_height=FALL_HEIGHT,
         )
     from dmpopt.sim import MujocoSimulator
-    from dmpopt.sim.mujoco_backend import FallCriteria
     from robots.biped import BIPED_URDF
 
-    data = biped.model.createData()
-    pin.framesForwardKinematics(biped.model, data, q_start)
-    height = data.oMf[biped.model.getFrameId(biped.torso_frame)].translation[2]
-    # The boom holds the pitch: only the height (and a lost ground contact) mark a fall.
-    fall = FallCriteria(biped.torso_frame, FALL_HEIGHT / height, max_tilt=np.pi)
     return MujocoSimulator(
-        biped.model, BIPED_URDF, DT, biped.contact_points, friction=GROUND.friction, fall=fall
+        biped.model,
+        BIPED_URDF,
+        DT,
+        biped.contact_points,
+        friction=GROUND.friction,
+        fall_frame=biped.torso_frame,
+        fall_height=FALL_HEIGHT,
     )
 
 
@@ -526,7 +525,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         every = max(1, int(round(1.0 / (VIDEO_FPS * DT * LOG_EVERY))))
         shown = int(VIDEO_SECONDS_WALK * VIDEO_FPS)
         frames = np.asarray(adapted.q)[::every][-shown:]
-        clips["biped_walking"] = (make_simulator(biped, "mujoco", frames[0]), frames, 2.0)
+        clips["biped_walking"] = (make_simulator(biped, "mujoco"), frames, 2.0)
     skip = "quick run" if quick else None if backend == "mujoco" else "native backend"
     metrics["videos"], metrics["videos_skipped"] = write_videos(out_dir, clips, skip)
     if metrics["videos_skipped"]:

@@ -128,6 +128,7 @@ JOINT_LIMIT_HORIZON = 0.05  # [s] the DMP-driven joints brake for their position
 POSTURE_WEIGHT = 1e-2
 COM_WEIGHT, BASE_WEIGHT = 10.0, 1.0
 GROUND_STIFFNESS = 2e4  # [N/m] per sole corner
+FALL_HEIGHT = 0.7  # [m] the pelvis (base_link) has fallen when lower, on either backend
 MASS_ERROR = 1.1  # the controller's arms (and hands) are 10 % heavier than the simulated ones
 
 BACKENDS = ("mujoco", "native")
@@ -532,7 +533,7 @@ def make_simulator(robot, q_start: np.ndarray):
         contact_points=points,
         ground=GroundContact(stiffness=GROUND_STIFFNESS, damping=300.0, friction=1.0),
         fall_frame="base_link",
-        fall_height=0.7,
+        fall_height=FALL_HEIGHT,
     )
     q0 = q_start.copy()
     q0[2] -= _sink(robot)
@@ -549,19 +550,25 @@ def mujoco_plant(friction: float = MUJOCO_FRICTION):
     """A ``plant(robot, q_start) -> (simulator, q0)`` simulating in MuJoCo.
 
     MuJoCo's floor touches a 5 mm sphere at each sole corner (the URDF collision meshes touch
-    nothing), with Coulomb ``friction``; falls as in :func:`make_simulator` (pelvis below 70 %
-    of its start height, tilted more than 45 deg, or no foot contact for 0.5 s). The robot
-    starts with the soles on the floor: MuJoCo's contacts sink by about a millimetre.
+    nothing), with Coulomb ``friction``; the same fall options as :func:`make_simulator`, so
+    the same thresholds (:mod:`dmpopt.sim.falls`). The robot starts with the soles on the
+    floor: MuJoCo's contacts sink by about a millimetre.
     """
     from dmpopt.sim import MujocoSimulator
-    from dmpopt.sim.mujoco_backend import FallCriteria
 
     def plant(robot, q_start):
         if not robot.floating_base:
             return MujocoSimulator(robot.model, robot.source, DT), q_start.copy()
         points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
-        fall = FallCriteria("base_link")
-        simulator = MujocoSimulator(robot.model, robot.source, DT, points, friction, fall=fall)
+        simulator = MujocoSimulator(
+            robot.model,
+            robot.source,
+            DT,
+            points,
+            friction,
+            fall_frame="base_link",
+            fall_height=FALL_HEIGHT,
+        )
         return simulator, q_start.copy()
 
     return plant
@@ -605,6 +612,7 @@ class RunLog:
     n_fallbacks: int
     n_direct: int  # ticks solved without proxsuite (no inequality row active)
     n_torque_limited: int = 0  # ticks whose QP needed the torque-limit rows
+    diverged: str | None = None  # SimulationDiverged message: the run stopped, not a fall
     extras: dict = field(default_factory=dict)
 
     @property
@@ -639,7 +647,8 @@ def _closed_loop(
     :func:`make_simulator`); ``push = (time, impulse)`` pushes the pelvis with a world-frame
     impulse [N s] spread over ``PUSH_DURATION``; with ``record_every`` > 0 the configuration
     of every ``record_every``-th tick goes to ``extras["frames"]`` (and the simulator to
-    ``extras["simulator"]``, for rendering). A diverging simulation counts as a fall.
+    ``extras["simulator"]``, for rendering). A diverging simulation also stops the run but is
+    no fall: ``RunLog.diverged`` keeps its message.
     """
     simulator, q0 = (plant or make_simulator)(robot, q_start)
     state = simulator.reset(q0, v_start)
@@ -658,7 +667,7 @@ def _closed_loop(
     torque_peak = np.empty(n)
     ratio = np.empty(robot.n_actuated)
     limit = np.asarray(robot.torque_limit)
-    fell = False
+    fell, diverged = False, None
     wall0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(n):
         if k == push_tick:
@@ -680,12 +689,13 @@ def _closed_loop(
             com[k] = pin.centerOfMass(robot.model, data, state.q)
         try:
             state = simulator.step(tau)
-            fell = bool(getattr(state, "fallen", False))
-        except SimulationDiverged:
-            fell = True
-        if progress is not None and (k % 100 == 99 or k == n - 1 or fell):
+            fell = state.fallen
+        except SimulationDiverged as error:
+            diverged = str(error)
+        stop = fell or diverged is not None
+        if progress is not None and (k % 100 == 99 or k == n - 1 or stop):
             progress.update(k % 100 + 1)
-        if fell:
+        if stop:
             n = k + 1
             break
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
@@ -707,6 +717,7 @@ def _closed_loop(
         n_fallbacks=controller.stats.n_fallbacks,
         n_direct=controller.stats.n_direct,
         n_torque_limited=controller.stats.n_torque_limited,
+        diverged=diverged,
         extras={"frames": frames, "simulator": simulator} if record_every else {},
     )
 
@@ -903,6 +914,7 @@ def _summary(log: RunLog) -> dict:
     """Fall, tracking and solver activity of one drumming run."""
     return {
         "fell": log.fell,
+        "diverged": log.diverged,
         "simulated_s": log.duration,
         "tracking_rms_rad": float(_rms(log.actual - log.desired)),
         "tracking_max_rad": float(np.abs(log.actual - log.desired).max()),
@@ -917,23 +929,29 @@ def push_search(drum, ladder, bisections: int) -> dict:
 
     ``drum(push=(time, impulse))`` runs one pushed drumming run. The impulses of ``ladder``
     (increasing) are tried until the first fall, then ``bisections`` halvings between the
-    largest survived and the smallest fatal impulse. Assumes survival is monotonic in the
-    impulse (checked only at the points tried). Returns the bounds, every impulse tried and
-    the run of the largest survived push (or of the first fall if none was survived).
+    largest survived and the smallest fatal impulse. A run that diverged did not survive and
+    bounds the search like a fall, but is reported as ``diverged``, not as a fall. Assumes
+    survival is monotonic in the impulse (checked only at the points tried). Returns the
+    bounds, every impulse tried and the run of the largest survived push (or of the first
+    failure if none was survived).
     """
     tried, survived, fatal, shown = [], 0.0, None, None
-    for impulse in ladder:
+
+    def attempt(impulse):
         log = drum(push=(PUSH_TIME, np.array([impulse, 0.0, 0.0])))
-        tried.append({"impulse_ns": impulse, "fell": log.fell})
-        if log.fell:
+        tried.append({"impulse_ns": impulse, "fell": log.fell, "diverged": log.diverged})
+        return log, log.fell or log.diverged is not None
+
+    for impulse in ladder:
+        log, failed = attempt(impulse)
+        if failed:
             fatal, shown = impulse, shown or log
             break
         survived, shown = impulse, log
     for _ in range(bisections if fatal is not None else 0):
         impulse = 0.5 * (survived + fatal)
-        log = drum(push=(PUSH_TIME, np.array([impulse, 0.0, 0.0])))
-        tried.append({"impulse_ns": impulse, "fell": log.fell})
-        if log.fell:
+        log, failed = attempt(impulse)
+        if failed:
             fatal = impulse
         else:
             survived, shown = impulse, log
@@ -1201,6 +1219,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         "limit; the controller bounds their accelerations to keep them within their position "
         f"and velocity limits (joint_limit_horizon {JOINT_LIMIT_HORIZON} s)",
         "fell": any(log.fell for log in standing),
+        "diverged": [log.diverged for log in everything if log.diverged],
         "base_roll_pitch_yaw_ptp_deg": np.degrees(np.ptp(drum.base[:, 3:], axis=0)),
         "com_excursion_mm": 1e3 * np.ptp(drum.com, axis=0),
         "without_base_task": {
@@ -1304,7 +1323,9 @@ def _mujoco_metrics(nominal: RunLog, mujoco: dict) -> dict:
         "push_tried_ns": push["tried"],
         "push_note": f"forward impulse on the pelvis spread over {PUSH_DURATION} s from "
         f"t = {PUSH_TIME} s while drumming; ladder, then bisection. push_fell_ns null: no "
-        "impulse tried was fatal and push_survived_ns is only a lower bound (search capped)",
+        "impulse tried was fatal and push_survived_ns is only a lower bound (search capped); "
+        "a run that diverged (push_tried_ns[].diverged, the message) ends the search like a "
+        "fall but is not counted as one",
         "qp_active_fraction_nominal": nominal.qp_active_fraction,
         "qp_active_fraction": scenarios[binding]["qp_active_fraction"],
         "qp_active_scenario": binding,

@@ -146,7 +146,7 @@ def test_push_search_brackets_the_threshold():
     def drum(push):
         time, impulse = push
         assert time == humanoid.PUSH_TIME and impulse[1:].tolist() == [0.0, 0.0]
-        return SimpleNamespace(fell=impulse[0] > 33.0, impulse=impulse[0])
+        return SimpleNamespace(fell=impulse[0] > 33.0, diverged=None, impulse=impulse[0])
 
     result = humanoid.push_search(drum, (10.0, 20.0, 40.0, 80.0), bisections=2)
     assert [row["impulse_ns"] for row in result["tried"]] == [10.0, 20.0, 40.0, 30.0, 35.0]
@@ -154,6 +154,20 @@ def test_push_search_brackets_the_threshold():
     assert result["log"].impulse == 30.0
     capped = humanoid.push_search(drum, (10.0, 20.0), bisections=2)
     assert (capped["survived_ns"], capped["fell_ns"]) == (20.0, None)
+
+
+def test_push_search_reports_divergence_apart_from_falls():
+    """A run that diverges above 33 N s bounds the search but is no fall in the rows tried."""
+
+    def drum(push):
+        diverged = "|v| reached 2e3" if push[1][0] > 33.0 else None
+        return SimpleNamespace(fell=False, diverged=diverged, impulse=push[1][0])
+
+    result = humanoid.push_search(drum, (10.0, 20.0, 40.0), bisections=1)
+    rows = {row["impulse_ns"]: row for row in result["tried"]}
+    assert not any(row["fell"] for row in rows.values())
+    assert rows[40.0]["diverged"] == "|v| reached 2e3" and rows[30.0]["diverged"] is None
+    assert result["survived_ns"] == 30.0 and result["fell_ns"] == 40.0
 
 
 def test_scaled_masses_and_torque_limits():

@@ -23,8 +23,7 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from dmpopt.sim import MujocoSimulator, render_animation
-from dmpopt.sim.mujoco_backend import FallCriteria
+from dmpopt.sim import GroundContact, MujocoSimulator, Simulator, render_animation
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
 
@@ -205,11 +204,9 @@ def test_push_impulse_changes_momentum_by_the_impulse(talos_sim):
 
 def test_touchdown_at_free_fall_time_then_fall(talos, talos_sim):
     """Dropped 2 cm with zero torque, each sole corner touches down at sqrt(2 h / g) for its
-    height h (one step of tolerance); the limp robot then falls (height criterion)."""
+    height h (one step of tolerance); the limp robot then falls, and stepping on is refused."""
     points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
-    sim = MujocoSimulator(
-        talos.model, talos.source, contact_points=points, fall=FallCriteria("base_link")
-    )
+    sim = MujocoSimulator(talos.model, talos.source, contact_points=points)
     q = np.array(talos.reference_configuration)
     q[2] += 0.02
     state = sim.reset(q)
@@ -225,7 +222,81 @@ def test_touchdown_at_free_fall_time_then_fall(talos, talos_sim):
     np.testing.assert_allclose(touchdown, expected, atol=1.5 * sim.dt)
     while not state.fallen and state.t < 2.0:
         state = sim.step(np.zeros(sim.n_actuated))
-    assert state.fallen and "base_link at" in sim.fall_reason
+    assert state.fallen and state.fall.time == state.t
+    with pytest.raises(InvalidInputError, match=r"step\(\) after the robot fell at t = "):
+        sim.step(np.zeros(sim.n_actuated))
+    assert not sim.reset(q).fallen
+
+
+# ------------------------------------------------------------------------- falls, both backends
+def both_backends(talos, points, **falls):
+    """The native simulator (compliant ground if there are points) and MuJoCo, same options."""
+    ground = GroundContact(stiffness=2e4, damping=300.0, friction=1.0) if points else None
+    return {
+        "native": Simulator(talos.model, 1e-3, points, ground, **falls),
+        "mujoco": MujocoSimulator(talos.model, talos.source, 1e-3, points, **falls),
+    }
+
+
+def fall_of(sim, q, limit=3.0):
+    state = sim.reset(q)
+    while not state.fallen and state.t < limit:
+        state = sim.step(np.zeros(sim.n_actuated))
+    return state.fall
+
+
+def test_both_backends_derive_the_same_thresholds(talos):
+    """Base 1.083 m above the lowest sole corner with straight legs (the answer key, computed
+    here from the frame placements): min height h / 2, flight sqrt(h / g), spin sqrt(2 g / h)."""
+    points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
+    data = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, data, pin.neutral(talos.model))
+    corners = [data.oMf[talos.model.getFrameId(f)].act(np.array(c)) for f, c in points]
+    height = data.oMi[1].translation[2] - min(c[2] for c in corners)
+    expected = (0.5 * height, np.pi / 4, np.sqrt(height / GRAVITY), np.sqrt(2 * GRAVITY / height))
+    for sim in both_backends(talos, points).values():
+        detector = sim.fall_detector
+        thresholds = (
+            detector.min_height,
+            detector.max_tilt,
+            detector.max_flight_time,
+            detector.max_spin,
+        )
+        np.testing.assert_allclose(thresholds, expected, rtol=1e-9)
+    for sim in both_backends(talos, points, fall_frame="base_link", fall_height=0.7).values():
+        assert sim.fall_detector.min_height == 0.7
+        assert sim.fall_detector.max_spin == pytest.approx(expected[3])
+
+
+@pytest.mark.parametrize("drop", [0.1, 0.5])
+def test_both_backends_flag_a_free_fall_at_the_free_fall_time(talos, drop):
+    """No contact points (nothing to land on), ``fall_height`` = start height - d: both flag a
+    height fall after sqrt(2 d / g), within a step and a half."""
+    q = np.array(talos.reference_configuration)
+    q[2] = 2.0
+    for name, sim in both_backends(talos, [], fall_height=2.0 - drop).items():
+        fall = fall_of(sim, q)
+        assert fall is not None and fall.cause == "height", name
+        assert fall.time == pytest.approx(np.sqrt(2 * drop / GRAVITY), abs=1.5e-3), name
+
+
+@pytest.mark.parametrize("lift", [0.0, 0.5])
+def test_limp_talos_falls_the_same_way_on_both_backends(talos, lift):
+    """Zero torques from the standing posture (or dropped ``lift`` metres onto its soles): the
+    knees give way, the base sinks below h / 2 on both backends, within 20 ms of each other;
+    then both refuse to step on."""
+    points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
+    q = np.array(talos.reference_configuration)
+    q[2] += lift
+    falls = {}
+    for name, sim in both_backends(talos, points).items():
+        falls[name] = fall_of(sim, q)
+        assert falls[name] is not None, name
+        assert falls[name].value < falls[name].threshold == sim.fall_detector.min_height
+        with pytest.raises(InvalidInputError, match=r"step\(\) after the robot fell"):
+            sim.step(np.zeros(sim.n_actuated))
+    assert falls["native"].cause == falls["mujoco"].cause == "height"
+    assert falls["mujoco"].time == pytest.approx(falls["native"].time, abs=0.02)
 
 
 # ------------------------------------------------------------------------- closed loop
@@ -245,9 +316,7 @@ def stand_and_drum(talos, humanoid, dmps, seconds):
     controller, task = humanoid.build_controller(talos, q0)
     plan = humanoid.DrumPlan(dmps, humanoid.DT)
     points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
-    sim = MujocoSimulator(
-        talos.model, talos.source, humanoid.DT, points, fall=FallCriteria("base_link")
-    )
+    sim = MujocoSimulator(talos.model, talos.source, humanoid.DT, points, fall_frame="base_link")
     state = sim.reset(q0, v0)
     joints = talos.configuration_indices(list(humanoid.DRUM_JOINTS))
     errors, vertical, fell = [], [], False
@@ -339,12 +408,18 @@ def test_bad_simulator_arguments(talos, talos_sim):
         MujocoSimulator(model, "/no/such.urdf")
     with pytest.raises(InvalidInputError, match="model must be a pinocchio.Model.*robot.model"):
         MujocoSimulator(talos, urdf)
-    with pytest.raises(InvalidInputError, match="fall must be a FallCriteria"):
-        MujocoSimulator(model, urdf, fall="base_link")
-    with pytest.raises(InvalidInputError, match="max_tilt must be"):
-        FallCriteria("base_link", max_tilt=0)
-    with pytest.raises(InvalidInputError, match="max_airborne must be a number"):
-        FallCriteria("base_link", max_airborne="long")
+    with pytest.raises(InvalidInputError, match="falls must be True, False or a FallDetector"):
+        MujocoSimulator(model, urdf, falls="base_link")
+    with pytest.raises(
+        InvalidInputError, match="fall_frame: frame 'no_such_frame' is not in the model"
+    ):
+        MujocoSimulator(model, urdf, fall_frame="no_such_frame")
+    with pytest.raises(InvalidInputError, match="fall_frame 'left_sole_link' is not on the base"):
+        MujocoSimulator(model, urdf, fall_frame="left_sole_link")
+    with pytest.raises(InvalidInputError, match="fall_height must be a finite height"):
+        MujocoSimulator(model, urdf, fall_height=float("nan"))
+    with pytest.raises(InvalidInputError, match="fall_frame or fall_height given with falls=Fa"):
+        MujocoSimulator(model, urdf, falls=False, fall_height=0.5)
 
 
 def test_model_and_urdf_must_be_the_same_robot(talos):
@@ -420,7 +495,7 @@ def test_missing_mujoco_names_the_extra(talos, monkeypatch):
         MujocoSimulator(talos.model, talos.source)
 
 
-def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator(monkeypatch):
+def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator():
     """The walking study's gait (DMPs, PD, boom, frequency adaptation) on MuJoCo for 4 s: no
     fall, and distance and heel strikes within 15 % / one strike of the native simulator's."""
     from studies import biped as study
@@ -428,16 +503,8 @@ def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator(monkeypatch):
     biped = load_biped()
     _, dmp = study.learn_gait()
 
-    def mujoco_simulator(model, dt, contact_points, ground, n_base_dofs, fall_frame, fall_height):
-        assert n_base_dofs == 3
-        fall = FallCriteria(fall_frame, fall_height / biped.leg_length, max_tilt=np.pi / 2)
-        return MujocoSimulator(
-            model, BIPED_URDF, dt, contact_points, friction=ground.friction, fall=fall
-        )
-
-    native = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY)
-    monkeypatch.setattr(study, "Simulator", mujoco_simulator)
-    on_mujoco = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY)
+    native = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY, backend="native")
+    on_mujoco = study.walk(biped, dmp, 4.0, study.DEMO_FREQUENCY, backend="mujoco")
     assert not native.fell and not on_mujoco.fell, on_mujoco.diverged
     assert native.distance > 1.0
     assert abs(on_mujoco.distance / native.distance - 1) < 0.15

@@ -30,25 +30,32 @@ that a body toppling about its feet from standing reaches when it hits the groun
 the base height). A base turning faster is not toppling but thrown around: balance and control
 are lost, and catching it stops a simulation before the state diverges numerically.
 
-A backend calls, after each step (:class:`dmpopt.sim.Simulator` does exactly this, then refuses
-to step on until ``reset``)::
+Both backends (:class:`dmpopt.sim.Simulator`, :class:`dmpopt.sim.MujocoSimulator`) take the
+same options (``falls``, ``fall_frame``, ``fall_height``) and turn them into thresholds and a
+watched frame with :func:`fall_checks`, so the same robot with the same contact points falls
+at the same thresholds on either. After each step a backend does::
 
-    fall = detector.check(t, height, base_tilt(base_rotation), t - last_contact_time, spin)
+    placement, spin = watched.measure(q, v)  # Pinocchio coordinates
+    fall = detector.check(t, height, base_tilt(placement.rotation), t - last_contact_time, spin)
     if fall is not None:
         ...  # stop; fall.reason says why, e.g. "base height 0.31 m below 0.54 m"
+
+and refuses to step on until ``reset``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim._checks import real
 
-__all__ = ["Fall", "FallDetector", "base_tilt"]
+__all__ = ["BaseFrame", "Fall", "FallDetector", "base_tilt", "fall_checks", "standing_height"]
 
 STANDARD_GRAVITY = 9.81  # [m/s^2]
 
@@ -216,3 +223,152 @@ def base_tilt(rotation) -> float:
         Orientation of the frame in the world.
     """
     return math.acos(min(1.0, max(-1.0, float(rotation[2, 2]))))
+
+
+def _frame_id(model: pin.Model, name, argument: str) -> int:
+    if not isinstance(name, str) or not model.existFrame(name):
+        raise InvalidInputError(
+            f"{argument}: frame {name!r} is not in the model {model.name!r}; pass one of "
+            f"the names in [f.name for f in model.frames]"
+        )
+    return model.getFrameId(name)
+
+
+class BaseFrame:
+    """A frame on the base body (the body of the root joint), measured from ``(q, v)`` alone.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        Robot whose root joint (``model.joints[1]``) is its floating base.
+    frame : str, optional
+        A frame of the base body, e.g. the pelvis; default: the root joint's frame.
+    """
+
+    def __init__(self, model: pin.Model, frame: str | None = None):
+        self._joint = model.joints[1]
+        self._data = self._joint.createData()
+        self._placement = model.jointPlacements[1]
+        self._offset = pin.SE3.Identity()
+        if frame is not None:
+            placed = model.frames[_frame_id(model, frame, "fall_frame")]
+            if placed.parentJoint != 1:
+                raise InvalidInputError(
+                    f"fall_frame {frame!r} is not on the base body (joint "
+                    f"{model.names[1]!r}); pass a frame of the base, e.g. the pelvis"
+                )
+            self._offset = placed.placement
+
+    def measure(self, q: np.ndarray, v: np.ndarray) -> tuple[pin.SE3, float]:
+        """World placement of the frame and the norm of the base's angular velocity [rad/s]."""
+        self._joint.calc(self._data, q, v)
+        spin = math.hypot(*self._data.v.angular)
+        return self._placement * self._data.M * self._offset, spin
+
+
+def standing_height(
+    model: pin.Model, contact_points, base: BaseFrame, normal=(0.0, 0.0, 1.0)
+) -> float:
+    """Height of the watched base frame above the lowest contact point, neutral configuration.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    contact_points : sequence of (str, array_like)
+        ``(frame_name, offset_xyz)`` pairs, offset in the frame [m]; at least one.
+    base : BaseFrame
+        The watched frame.
+    normal : array_like, shape (3,)
+        Upward unit normal of the ground [-].
+
+    Returns
+    -------
+    float
+        Largest ``normal @ (base - point)`` over the points, at ``pinocchio.neutral(model)``
+        (straight legs) [m].
+    """
+    q = pin.neutral(model)
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    points = np.array(
+        [
+            data.oMf[_frame_id(model, name, f"contact_points[{i}]")].act(np.asarray(offset, float))
+            for i, (name, offset) in enumerate(contact_points)
+        ]
+    )
+    origin = base.measure(q, np.zeros(model.nv))[0].translation
+    height = float(np.max((origin - points) @ np.asarray(normal, dtype=float)))
+    if not height > 0:
+        raise InvalidInputError(
+            f"the base is {height:.3g} m above the lowest contact point in the neutral "
+            "configuration, so fall thresholds cannot be derived from it; pass "
+            "falls=FallDetector(min_height=...) or falls=False"
+        )
+    return height
+
+
+def fall_checks(
+    model: pin.Model,
+    n_base_dofs: int,
+    contact_points,
+    falls,
+    fall_frame,
+    fall_height,
+    normal=(0.0, 0.0, 1.0),
+) -> tuple[FallDetector | None, BaseFrame | None]:
+    """Thresholds and watched frame of a backend's fall options (checked), or ``(None, None)``.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    n_base_dofs : int
+        Unactuated velocity coordinates; falls need them to be all of the root joint's.
+    contact_points : sequence of (str, array_like)
+        The backend's (already checked) ``(frame_name, offset_xyz)`` pairs.
+    falls : bool or FallDetector
+        ``True``: :meth:`FallDetector.for_standing_height` of :func:`standing_height` when there
+        are contact points, else only ``fall_height`` if given; ``False``: no checks; a
+        :class:`FallDetector`: these thresholds.
+    fall_frame : str or None
+        Watched frame of the base body (default: the root joint's frame).
+    fall_height : float or None
+        Replaces ``min_height`` of the derived thresholds [m above the ground].
+    normal : array_like, shape (3,)
+        Upward unit normal of the ground [-].
+    """
+    if not (falls is True or falls is False or isinstance(falls, FallDetector)):
+        raise InvalidInputError(f"falls must be True, False or a FallDetector, got {falls!r}")
+    asked = fall_frame is not None or fall_height is not None or falls is not True
+    if falls is False:
+        if fall_frame is not None or fall_height is not None:
+            raise InvalidInputError(
+                "fall_frame or fall_height given with falls=False; drop them or the flag"
+            )
+        return None, None
+    if not (model.njoints > 1 and model.joints[1].nv == n_base_dofs > 0):
+        if asked:
+            raise InvalidInputError(
+                "fall detection needs a floating base: a free-flyer, planar or composite "
+                f"root joint with all {n_base_dofs} base dofs; pass falls=False"
+            )
+        return None, None
+    base = BaseFrame(model, fall_frame)
+    if fall_height is not None:
+        fall_height = real("fall_height", fall_height, "a finite height [m] above the ground")
+    if isinstance(falls, FallDetector):
+        if fall_height is not None:
+            raise InvalidInputError(
+                "fall_height given with falls=FallDetector(...); set min_height in the "
+                "FallDetector instead"
+            )
+        return falls, base
+    if len(contact_points):
+        detector = FallDetector.for_standing_height(
+            standing_height(model, contact_points, base, normal)
+        )
+        if fall_height is not None:
+            detector = dataclasses.replace(detector, min_height=fall_height)
+        return detector, base
+    if fall_height is not None:
+        return FallDetector(min_height=fall_height, max_tilt=np.inf), base
+    return None, None

@@ -40,10 +40,10 @@ depends on :math:`q`, MuJoCo's base linear acceleration is Pinocchio's plus
 :math:`R\,(\omega \times v_{lin})` (:math:`v_{lin}` the local linear velocity), and its bias
 forces are :math:`T^{-\top}` of Pinocchio's minus :math:`M_{mj} \dot T v`.
 
-Falls (a stand-in for the shared fall detector, with the same meaning): the robot has fallen,
-for good until the next reset, when the watched frame is below ``height_fraction`` of its
-height at reset, or tilted more than ``max_tilt`` from vertical, or when no contact point has
-touched the floor for longer than ``max_airborne`` (see :class:`FallCriteria`).
+Falls: the options ``falls``, ``fall_frame`` and ``fall_height`` of :class:`dmpopt.sim.Simulator`
+give the same thresholds (:func:`dmpopt.sim.falls.fall_checks`, standing height above the lowest
+contact point in the neutral configuration) and the same checks after each step; the first
+fall sets ``state.fall`` and ``step`` refuses to go on until ``reset``.
 
 The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
 defaults to ``egl`` (headless rendering) when unset at that moment.
@@ -67,9 +67,10 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
+from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
 from dmpopt.sim.simulator import SimState, TouchdownEvent
 
-__all__ = ["FallCriteria", "MujocoSimulator", "render_animation"]
+__all__ = ["MujocoSimulator", "render_animation"]
 
 _PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
 _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
@@ -89,47 +90,6 @@ def _import_mujoco():
             "install it with `pip install 'dmpopt[mujoco]'`"
         ) from None
     return mujoco
-
-
-@dataclass(frozen=True)
-class FallCriteria:
-    """When the simulated robot counts as fallen.
-
-    Parameters
-    ----------
-    frame : str
-        Frame watched (the pelvis or torso), a frame of the Pinocchio model.
-    height_fraction : float
-        Fallen when the frame's height is below this fraction of its height at reset, in (0, 1).
-    max_tilt : float
-        Fallen when the frame's z axis is more than this from the vertical [rad], in (0, pi].
-    max_airborne : float
-        Fallen when no contact point has touched the floor for longer than this [s].
-    """
-
-    frame: str
-    height_fraction: float = 0.7
-    max_tilt: float = np.pi / 4
-    max_airborne: float = 0.5
-
-    def __post_init__(self):
-        for name in ("height_fraction", "max_tilt", "max_airborne"):
-            try:
-                object.__setattr__(self, name, float(getattr(self, name)))
-            except (TypeError, ValueError):
-                raise InvalidInputError(
-                    f"FallCriteria {name} must be a number, got {getattr(self, name)!r}"
-                ) from None
-        checks = (
-            ("height_fraction", 0.0 < self.height_fraction < 1.0, "in (0, 1)"),
-            ("max_tilt", 0.0 < self.max_tilt <= np.pi, "in (0, pi] [rad]"),
-            ("max_airborne", 0.0 < self.max_airborne < np.inf, "a positive finite time [s]"),
-        )
-        for name, ok, expected in checks:
-            if not ok:
-                raise InvalidInputError(
-                    f"FallCriteria {name} must be {expected}, got {getattr(self, name)!r}"
-                )
 
 
 @dataclass
@@ -236,8 +196,11 @@ class MujocoSimulator:
     package_dirs : sequence of path, optional
         Where ``package://NAME/...`` is looked up as ``DIR/NAME/...``; defaults to the URDF's
         parent directories.
-    fall : FallCriteria, optional
-        When to flag a fall; no fall detection without it.
+    fall_frame, fall_height, falls
+        Fall checks, as in :class:`dmpopt.sim.Simulator` (same thresholds for the same robot
+        and contact points): ``fall_frame`` is the watched frame of the base body,
+        ``fall_height`` replaces the derived ``min_height`` [m above the floor], ``falls`` is
+        True (derived thresholds), False (no checks) or a :class:`FallDetector`.
     max_speed : float
         Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s].
 
@@ -248,9 +211,10 @@ class MujocoSimulator:
     n_base_dofs, n_actuated : int
     contact_frames : list of str
     touchdown_events : list of TouchdownEvent
-    fallen : bool
-    fall_reason : str or None
-        Which criterion flagged the fall.
+    fall_detector : FallDetector or None
+        The thresholds in use (None: no fall checks).
+    fall : Fall or None
+        The fall that stopped the simulation, if any.
     """
 
     def __init__(
@@ -265,7 +229,9 @@ class MujocoSimulator:
         damping: float | None = 0.0,
         joint_friction: float | None = 0.0,
         package_dirs=None,
-        fall: FallCriteria | None = None,
+        fall_frame: str | None = None,
+        fall_height: float | None = None,
+        falls: bool | FallDetector = True,
         max_speed: float = 1e3,
     ):
         mujoco = _import_mujoco()
@@ -286,8 +252,6 @@ class MujocoSimulator:
                 "joint_friction", joint_friction, allow_none=True, allow_zero=True
             ),
         }
-        if fall is not None and not isinstance(fall, FallCriteria):
-            raise InvalidInputError(f"fall must be a FallCriteria or None, got {fall!r}")
         urdf = Path(urdf)
         if not urdf.is_file():
             raise InvalidInputError(f"urdf {str(urdf)!r} is not a file; pass the robot's URDF path")
@@ -308,6 +272,9 @@ class MujocoSimulator:
         self.contact_frames = [name for name, _ in contact_points]
         for index, (name, offset) in enumerate(contact_points):
             self._add_contact_point(spec, index, name, offset, contact_radius)
+        self.fall_detector, self._watched = fall_checks(
+            model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height
+        )
         try:
             self.mj_model = spec.compile()
         except ValueError as error:
@@ -324,10 +291,6 @@ class MujocoSimulator:
         names = [f"contact_point_{i}" for i in range(self._n_points)]
         self._point_of_geom[[self.mj_model.geom(n).id for n in names]] = np.arange(self._n_points)
         self._point_sites = np.array([self.mj_model.site(n).id for n in names], dtype=int)
-        self._fall = fall
-        if fall is not None:
-            self._fall_body, self._fall_point = self._locate(fall.frame, np.zeros(3))
-            self._fall_rotation = self._frame(fall.frame).placement.rotation
         self.reset(pin.neutral(model), np.zeros(model.nv))
 
     # ------------------------------------------------------------------ model building
@@ -568,11 +531,9 @@ class MujocoSimulator:
         self._pushes: list[_Push] = []
         self.touchdown_events: list[TouchdownEvent] = []
         self._last_touchdowns: tuple = ()
-        self.fallen, self.fall_reason = False, None
+        self.fall: Fall | None = None
         self._read_contacts()
-        self._last_contact_time = t
-        if self._fall is not None:
-            self._standing_height = self._fall_pose()[0][2]
+        self._last_contact_time = t if self._in_contact.any() else None
         return self.state
 
     @property
@@ -602,8 +563,13 @@ class MujocoSimulator:
             in_contact=self._in_contact.copy(),
             contact_positions=self._positions.copy(),
             touchdowns=self._last_touchdowns,
-            fallen=self.fallen,
+            fall=self.fall,
         )
+
+    @property
+    def fallen(self) -> bool:
+        """True once the robot has fallen (see :attr:`fall`)."""
+        return self.fall is not None
 
     # ------------------------------------------------------------------ pushes
     def push(self, frame_name: str, force, duration: float, offset=(0.0, 0.0, 0.0)) -> None:
@@ -646,12 +612,20 @@ class MujocoSimulator:
         Returns
         -------
         SimState
+            With ``fall`` set if the robot fell during this step; the simulation stops there.
 
         Raises
         ------
+        InvalidInputError
+            For non-finite torques, and when called after a fall (``reset`` first).
         SimulationDiverged
             When MuJoCo reports an unstable acceleration or the state exceeds ``max_speed``.
         """
+        if self.fall is not None:
+            raise InvalidInputError(
+                f"step() after the robot fell at t = {self.fall.time:.3f} s ({self.fall.reason});"
+                " the simulation stopped there: check state.fall after each step, or reset()"
+            )
         mujoco, model, data = self._mj, self.mj_model, self.mj_data
         force = np.zeros(self.model.nv)
         force[self.n_base_dofs :] = _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
@@ -673,7 +647,9 @@ class MujocoSimulator:
             for i in started
         )
         self.touchdown_events.extend(self._last_touchdowns)
-        if self._fall is not None and not self.fallen:
+        if self._in_contact.any():
+            self._last_contact_time = self.t  # end of a step with contact
+        if self.fall_detector is not None:
             self._check_fall()
         return self.state
 
@@ -714,29 +690,17 @@ class MujocoSimulator:
             )
 
     # ------------------------------------------------------------------ falls
-    def _fall_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """World position of the fall frame and its z axis (current kinematics)."""
-        data, body = self.mj_data, self._fall_body
-        rotation = data.xmat[body].reshape(3, 3)
-        frame_rotation = rotation @ self._fall_rotation
-        return data.xpos[body] + rotation @ self._fall_point, frame_rotation[:, 2]
-
     def _check_fall(self) -> None:
-        criteria = self._fall
-        position, z_axis = self._fall_pose()
-        if self._in_contact.any():
-            self._last_contact_time = self.t
-        tilt = float(np.arccos(np.clip(z_axis[2], -1.0, 1.0)))
-        if position[2] < criteria.height_fraction * self._standing_height:
-            self.fall_reason = (
-                f"{criteria.frame} at {position[2]:.3f} m < {criteria.height_fraction:g} x "
-                f"{self._standing_height:.3f} m"
-            )
-        elif tilt > criteria.max_tilt:
-            self.fall_reason = f"{criteria.frame} tilted {np.degrees(tilt):.1f} deg"
-        elif self.t - self._last_contact_time > criteria.max_airborne:
-            self.fall_reason = f"no contact for {self.t - self._last_contact_time:.3f} s"
-        self.fallen = self.fall_reason is not None
+        """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
+        base, spin = self._watched.measure(*self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel))
+        last = self._last_contact_time
+        self.fall = self.fall_detector.check(
+            self.t,
+            float(base.translation[2]),
+            base_tilt(base.rotation),
+            0.0 if last is None else self.t - last,
+            spin,
+        )
 
 
 def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:

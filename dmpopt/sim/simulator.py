@@ -21,8 +21,6 @@ refuses to go on until :meth:`Simulator.reset`. A state that is non-finite or fa
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +29,7 @@ import pinocchio as pin
 from dmpopt.exceptions import InvalidInputError, SimulationDiverged
 from dmpopt.sim._checks import real, vector
 from dmpopt.sim.contact import GroundContact, ground_forces
-from dmpopt.sim.falls import Fall, FallDetector, base_tilt
+from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
 
 __all__ = ["SimState", "Simulator", "TouchdownEvent"]
 
@@ -185,7 +183,10 @@ class Simulator:
         self._point_list = [int(j) for j, _ in located]
         self._n_points = len(located)
         self._point_placements = [pin.SE3(np.eye(3), p) for _, p in located]
-        self.fall_detector = self._make_fall_detector(falls, fall_frame, fall_height)
+        normal = (0.0, 0.0, 1.0) if ground is None else ground.normal
+        self.fall_detector, self._watched = fall_checks(
+            model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height, normal
+        )
         self._tau = np.zeros(model.nv)
         self.touchdown_events: list[TouchdownEvent] = []
         self.reset(pin.neutral(model), np.zeros(model.nv))
@@ -249,75 +250,6 @@ class Simulator:
         offset = vector(offset_argument, offset, 3, "x, y, z in the frame [m]")
         frame = self.model.frames[self._frame_id(frame_name, frame_argument)]
         return frame.parentJoint, frame.placement.act(offset)
-
-    def _make_fall_detector(self, falls, fall_frame, fall_height) -> FallDetector | None:
-        """Check the fall options; set the watched frame; return the thresholds or None."""
-        if not (falls is True or falls is False or isinstance(falls, FallDetector)):
-            raise InvalidInputError(f"falls must be True, False or a FallDetector, got {falls!r}")
-        asked = fall_frame is not None or fall_height is not None or falls is not True
-        if falls is False:
-            if fall_frame is not None or fall_height is not None:
-                raise InvalidInputError(
-                    "fall_frame or fall_height given with falls=False; drop them or the flag"
-                )
-            return None
-        root_is_base = self.model.njoints > 1 and self.model.joints[1].nv == self.n_base_dofs > 0
-        if not root_is_base:
-            if asked:
-                raise InvalidInputError(
-                    "fall detection needs a floating base: a free-flyer, planar or composite "
-                    f"root joint with all {self.n_base_dofs} base dofs; pass falls=False"
-                )
-            return None
-        self._watch_base(fall_frame)
-        if fall_height is not None:
-            fall_height = real("fall_height", fall_height, "a finite height [m] above the ground")
-        if isinstance(falls, FallDetector):
-            if fall_height is not None:
-                raise InvalidInputError(
-                    "fall_height given with falls=FallDetector(...); set min_height in the "
-                    "FallDetector instead"
-                )
-            return falls
-        if self._n_points:
-            detector = FallDetector.for_standing_height(self._standing_height())
-            if fall_height is None:
-                return detector
-            return dataclasses.replace(detector, min_height=fall_height)
-        if fall_height is not None:
-            return FallDetector(min_height=fall_height, max_tilt=np.inf)
-        return None
-
-    def _watch_base(self, fall_frame: str | None) -> None:
-        """Root joint and placement of the watched frame on the base body."""
-        self._root = self.model.joints[1]
-        self._root_data = self._root.createData()
-        self._root_placement = self.model.jointPlacements[1]
-        self._fall_placement = pin.SE3.Identity()
-        if fall_frame is not None:
-            frame = self.model.frames[self._frame_id(fall_frame, "fall_frame")]
-            if frame.parentJoint != 1:
-                raise InvalidInputError(
-                    f"fall_frame {fall_frame!r} is not on the base body (joint "
-                    f"{self.model.names[1]!r}); pass a frame of the base, e.g. the pelvis"
-                )
-            self._fall_placement = frame.placement
-
-    def _standing_height(self) -> float:
-        """Height of the watched base frame above the lowest contact point, neutral ``q``."""
-        q = pin.neutral(self.model)
-        pin.computeJointJacobians(self.model, self.data, q)
-        points, _ = self._point_jacobians(self._point_list, self._point_placements)
-        self._root.calc(self._root_data, q)
-        base = (self._root_placement * self._root_data.M * self._fall_placement).translation
-        height = float(np.max((base - points) @ self.ground.normal))
-        if not height > 0:
-            raise InvalidInputError(
-                f"the base is {height:.3g} m above the lowest contact point in the neutral "
-                "configuration, so fall thresholds cannot be derived from it; pass "
-                "falls=FallDetector(min_height=...) or falls=False"
-            )
-        return height
 
     # ------------------------------------------------------------------ state
     def reset(self, q, v=None, t: float = 0.0) -> SimState:
@@ -582,14 +514,12 @@ class Simulator:
 
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
-        self._root.calc(self._root_data, self.q, self.v)
-        base = self._root_placement * self._root_data.M * self._fall_placement
+        base, spin = self._watched.measure(self.q, self.v)
         if self._n_points:
             height = float(base.translation @ self.ground.normal) - self.ground.height
         else:
             height = float(base.translation[2])
         flight_time = 0.0 if self._last_contact_time is None else self.t - self._last_contact_time
-        spin = math.hypot(*self._root_data.v.angular)
         self.fall = self.fall_detector.check(
             self.t, height, base_tilt(base.rotation), flight_time, spin
         )

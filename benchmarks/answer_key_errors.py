@@ -15,6 +15,8 @@ import sys
 
 import numpy as np
 
+from dmpopt import DiscreteDMP
+
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 from test_answer_keys import (  # noqa: E402
@@ -53,6 +55,47 @@ def random_discrete_constants(n_draws=40, dt=2e-3):
     return worst
 
 
+def unforced_constants(n_draws=60):
+    """Worst error / ((|e0| + |e0'| / w) (w dt)^4 w^k) of the unforced velocity form, and
+    worst error / (|e0| w^k) of the unforced acceleration form (first 30 draws)."""
+    rng = np.random.default_rng(0)
+    worst_velocity, worst_acceleration = np.zeros(3), np.zeros(3)
+    for i in range(n_draws):
+        tau, start, goal = rng.uniform(0.2, 3), rng.uniform(-5, 5), rng.uniform(-5, 5)
+        v0, k = rng.uniform(-3, 3), rng.uniform(5, 60)
+        v0 = 0.0 if i % 3 == 0 else v0
+        goal = start if i % 3 == 1 else goal
+        dt, e0 = 1e-3 * tau, start - goal
+        dmp = DiscreteDMP(
+            np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
+            goal_scaling="translation", stiffness=k,
+        )  # fmt: skip
+        plan = plan_of(dmp.rollout(2.0 * tau, dt, start_velocity=v0))[:, :, 0]
+        w = k / (2 * tau)
+        t = np.arange(plan.shape[1]) * dt
+        e = (e0 + (v0 + w * e0) * t) * np.exp(-w * t)
+        de = (v0 - w * (v0 + w * e0) * t) * np.exp(-w * t)
+        key = np.array([e + goal, de, -2 * w * de - w**2 * e])
+        scale = (abs(e0) + abs(v0) / w) * (w * dt) ** 4 * w ** np.arange(3)
+        worst_velocity = np.maximum(worst_velocity, np.abs(plan - key).max(axis=1) / scale)
+        if i < 30 and goal != start:
+            dmp = DiscreteDMP(
+                np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
+                form="acceleration", goal_scaling="translation",
+            )  # fmt: skip
+            plan = plan_of(dmp.rollout(2.0 * tau, dt))[:, :, 0]
+            w = 12.5 / tau
+            decay = np.exp(-w * t)
+            key = e0 * np.array(
+                [(1 + w * t + (w * t) ** 2 / 2), -(w**3) * t**2 / 2, -(w**3) * (t - w * t**2 / 2)]
+            ) * decay + np.array([[goal], [0], [0]])
+            scale = abs(e0) * w ** np.arange(3)
+            worst_acceleration = np.maximum(
+                worst_acceleration, np.abs(plan - key).max(axis=1) / scale
+            )
+    return worst_velocity, worst_acceleration
+
+
 def main():
     np.set_printoptions(precision=2)
     for name, (forms, measure) in CASES.items():
@@ -64,6 +107,7 @@ def main():
                 f"0.5ms {errors[5e-4]}  ratio 1ms/0.5ms {ratio}"
             )
     print("random discrete systems, worst C:", random_discrete_constants())
+    print("unforced velocity form C, acceleration form relative:", *unforced_constants())
 
 
 if __name__ == "__main__":

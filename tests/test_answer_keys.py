@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from dmpopt import DiscreteDMP, RhythmicDMP, Trajectory
+from dmpopt import DiscreteDMP, InvalidInputError, RhythmicDMP, Trajectory
 from dmpopt.basis import convergence_time, discrete_basis, discrete_phase, rhythmic_basis
 from dmpopt.fitting import fit_discrete, minimum_jerk, minimum_jerk_via_points
 
@@ -462,6 +462,26 @@ def test_basis_centres_sit_at_the_phase_of_equally_spaced_times():
     times = np.linspace(0, 0.5, 11)
     phases = discrete_phase(GAINS, tuple(times))
     np.testing.assert_allclose(phases, canonical_phase(times, 1.0), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("kernel", ["von_mises", "paper"])
+def test_rhythmic_basis_neighbours_cross_at_half_height(kernel):
+    """Centres 2 pi i / N; halfway between neighbours (pi / N away) each kernel is 1/2:
+    exp(h (cos(pi / N) - 1)) (von Mises) or exp(-h (pi / N)^2) (eq. 12 as printed)."""
+    centres, widths = rhythmic_basis(8, kernel)
+    np.testing.assert_allclose(centres, 2 * np.pi * np.arange(8) / 8, rtol=0, atol=1e-15)
+    half = np.pi / 8
+    height = (
+        np.exp(widths * (np.cos(half) - 1)) if kernel == "von_mises" else np.exp(-widths * half**2)
+    )
+    np.testing.assert_allclose(height, 0.5, rtol=1e-12)
+
+
+def test_rhythmic_basis_names_the_kernels_it_knows():
+    with pytest.raises(
+        InvalidInputError, match="kernel must be 'von_mises' or 'paper', got 'gauss'"
+    ):
+        rhythmic_basis(8, "gauss")
 
 
 def test_acceleration_form_convergence_time_is_the_triple_pole_crossing():

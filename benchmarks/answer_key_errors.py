@@ -21,12 +21,14 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 from test_answer_keys import (  # noqa: E402
     FORMS,
+    affine_errors,
     coupling_errors,
     discrete_case,
     goal_change_errors,
     grid,
     initial_state,
     integrate,
+    paper_kernel_errors,
     phase_reset_errors,
     plan_of,
     relative_error,
@@ -39,6 +41,8 @@ CASES = {
     "coupling": (FORMS, coupling_errors),
     "goal": (["velocity", "acceleration"], goal_change_errors),
     "reset": (["phase", "energy"], lambda form, dt: phase_reset_errors(form, dt)[1]),
+    "affine": (FORMS, affine_errors),
+    "paper": (["phase", "energy"], paper_kernel_errors),
 }
 
 

@@ -10,6 +10,7 @@ measured differences scale as dt^4, the signature of RK4's discretisation error
 (`python benchmarks/answer_key_errors.py`).
 """
 
+import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,9 +20,18 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from dmpopt import DiscreteDMP, InvalidInputError, RhythmicDMP, Trajectory
+from dmpopt import (
+    DiscreteDMP,
+    FileFormatError,
+    InvalidInputError,
+    RhythmicDMP,
+    ShapeError,
+    Trajectory,
+)
+from dmpopt import io as dmpopt_io
 from dmpopt.basis import convergence_time, discrete_basis, discrete_phase, rhythmic_basis
 from dmpopt.fitting import fit_discrete, minimum_jerk, minimum_jerk_via_points
+from dmpopt.stepper import Stepper
 
 ALPHA = 25.0  # alpha_z = alpha_v, the paper's typical value
 GAINS = (ALPHA, ALPHA / 4, ALPHA, ALPHA / 4)
@@ -58,6 +68,7 @@ class Equations:
     target: float = 1.0
     coupling: np.ndarray = field(default_factory=lambda: np.zeros(1))
     canonical_coupling: float = 0.0
+    kernel: str = "von_mises"  # rhythmic forms: or "paper", eq. (12) as printed
 
     @property
     def n(self) -> int:
@@ -65,8 +76,8 @@ class Equations:
 
 
 def forcing(eq: Equations, canonical) -> np.ndarray:
-    """f of every DOF: eq. (7) on the normalised phase, eqs. (12) and (14) with a
-    von Mises kernel exp(h (cos(angle - c) - 1))."""
+    """f of every DOF: eq. (7) on the normalised phase, eqs. (12) and (14) with the kernel
+    exp(h (cos(angle - c) - 1)) or, as printed, exp(-h (mod(angle, 2 pi) - c)^2)."""
     first, second = canonical
     if eq.form in ("velocity", "acceleration"):
         psi = np.exp(-eq.widths * (first - eq.centres) ** 2)
@@ -75,7 +86,10 @@ def forcing(eq: Equations, canonical) -> np.ndarray:
         angle, carrier = first, second * np.array([np.cos(first), np.sin(first)])
     else:
         angle, carrier = np.arctan2(second, first), np.array([first, second])
-    psi = np.exp(eq.widths * (np.cos(angle - eq.centres) - 1.0))
+    if eq.kernel == "paper":
+        psi = np.exp(-eq.widths * (np.mod(angle, 2 * np.pi) - eq.centres) ** 2)
+    else:
+        psi = np.exp(eq.widths * (np.cos(angle - eq.centres) - 1.0))
     return (eq.weights @ carrier) @ psi / psi.sum()
 
 
@@ -185,19 +199,20 @@ def discrete_case(form, seed=0, n_basis=10, tau=0.5, scale=20.0, n_dofs=2):
     return dmp, eq
 
 
-def rhythmic_case(form, seed=0, n_basis=8, tau=0.15, amplitude=1.3, n_dofs=2):
-    """A RhythmicDMP (von Mises kernel, k = 1.5) and its equations."""
+def rhythmic_case(form, seed=0, n_basis=8, tau=0.15, amplitude=1.3, n_dofs=2, kernel="von_mises"):
+    """A RhythmicDMP (k = 1.5) and its equations."""
     rng = np.random.default_rng(seed)
-    centres, widths = rhythmic_basis(n_basis, "von_mises")
+    centres, widths = rhythmic_basis(n_basis, kernel)
     weights = 3.0 * rng.normal(size=(n_dofs, n_basis, 2))
     setpoint = rng.normal(size=n_dofs)
     dmp = RhythmicDMP(
-        weights, setpoint, tau, centres, widths, form=form, amplitude=amplitude, frequency=1.5
-    )
+        weights, setpoint, tau, centres, widths, form=form, amplitude=amplitude,
+        kernel=kernel, frequency=1.5,
+    )  # fmt: skip
     target = amplitude if form == "phase" else 0.5 * (1.5 * amplitude) ** 2
     eq = Equations(
         form, tau, setpoint, weights, centres, widths, k=1.5, target=target,
-        coupling=np.zeros(n_dofs),
+        coupling=np.zeros(n_dofs), kernel=kernel,
     )  # fmt: skip
     return dmp, eq
 
@@ -291,6 +306,35 @@ def phase_reset_errors(form, dt):
     return reset_error, relative_error(run_stepper(stepper, len(times))[:, 1:], key[:, 1:])
 
 
+def affine_errors(form, dt):
+    """affine_plan(...).trajectory(forcing weights) against the key of rollout_errors."""
+    dmp, eq, canonical, phase = case(form, seed=1)
+    start = (dmp.start if form in ("velocity", "acceleration") else dmp.setpoint) + 0.2
+    times = grid(0.8, dt)
+    _, key = integrate(eq, initial_state(eq, start, -0.4, canonical), times)
+    if form in ("velocity", "acceleration"):
+        dmp = dmp.with_start(start)
+        plan = dmp.affine_plan(times[-1], dt, start_velocity=-0.4)
+    else:
+        plan = dmp.affine_plan(times[-1], dt, start, -0.4, **phase)
+    trajectory = plan.trajectory(dmp.forcing_weights())
+    np.testing.assert_allclose(trajectory.times, times, rtol=0, atol=1e-15)
+    return relative_error(plan_of(trajectory), key)
+
+
+def paper_kernel_errors(form, dt):
+    """Eq. (12)/(14) with the printed kernel exp(-h (mod(angle, 2 pi) - c)^2), over a
+    stretch that does not cross the kernel's jump at angle 0 (phase 0.7 -> 4.7, or the
+    energy oscillator's angle 6.0 -> 1.0, which turns clockwise)."""
+    phase, duration = (0.7, 0.6) if form == "phase" else (6.0, 0.5)
+    dmp, eq = rhythmic_case(form, seed=6, kernel="paper")
+    times = grid(duration, dt)
+    canonical = rhythmic_canonical(form, dmp.amplitude, 1.5, phase)
+    _, key = integrate(eq, initial_state(eq, dmp.setpoint, 0.3, canonical), times)
+    plan = dmp.rollout(times[-1], dt, dmp.setpoint, 0.3, phase)
+    return relative_error(plan_of(plan), key)
+
+
 # Errors relative to the key's peak (positions, velocities, accelerations) measured at
 # dt = 1 ms by `python benchmarks/answer_key_errors.py`, which also shows that halving dt
 # divides them by about 16: they are RK4's discretisation error, nothing else. The tests
@@ -308,6 +352,8 @@ MEASURED = {  # the stepper's errors equal the rollout's to every printed digit
     ("goal", "acceleration"): [3.6e-9, 2.7e-8, 6.1e-8],
     ("reset", "phase"): [1.2e-7, 5.5e-7, 1.7e-6],
     ("reset", "energy"): [1.2e-7, 4.6e-7, 1.0e-6],
+    ("paper", "phase"): [3.0e-7, 1.9e-6, 8.2e-7],
+    ("paper", "energy"): [1.6e-7, 1.3e-6, 7.0e-7],
 }
 FACTOR = 4.0
 
@@ -342,6 +388,42 @@ def test_phase_reset_matches_plain_equations_restarted_at_the_new_phase(form):
     reset_error, errors = phase_reset_errors(form, 1e-3)
     assert reset_error < 1e-14
     assert np.all(errors < FACTOR * np.array(MEASURED["reset", form])), errors
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_affine_plan_matches_plain_equations(form):
+    """The affine plan F + G W^T, at the DMP's forcing weights, is the plan of the plain
+    equations (same samples, same errors as the rollout)."""
+    errors = affine_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["rollout", form])), errors
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_printed_kernel_matches_plain_equations(form):
+    """kernel="paper": eqs. (12) and (14) with the kernel as printed."""
+    errors = paper_kernel_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["paper", form])), errors
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="Stepper(dmp, dt, start) with start != dmp.start scales the forcing term by "
+    "goal - dmp.start (dmp.parameter_values() at construction) until the first set_goal, "
+    "which rescales by goal - start: eq. (7) asks for the movement's own start throughout, "
+    "and set_goal(unchanged goal) changes the plan",
+)
+@pytest.mark.parametrize("goal_scaling", ["paper", "rotation"])
+def test_stepper_from_another_start_scales_forcing_by_its_own_start(goal_scaling):
+    """Eq. (7): from start y0 the forcing weights are those of (y0, g), as in a rollout of
+    dmp.with_start(y0)."""
+    dmp, eq = discrete_case("velocity", seed=7)
+    dmp = dmp.replace(goal_scaling=goal_scaling, reference_displacement=dmp.goal - dmp.start)
+    start = dmp.start + np.array([0.5, -0.3])
+    eq.weights = dmp.forcing_weights(start, dmp.goal)
+    times = grid(0.5, 1e-3)
+    _, key = integrate(eq, initial_state(eq, start, 0.0, np.zeros(2)), times)
+    errors = relative_error(run_stepper(Stepper(dmp, 1e-3, start), len(times)), key)
+    assert np.all(errors < FACTOR * np.array(MEASURED["rollout", "velocity"])), errors
 
 
 @HYPOTHESIS
@@ -549,3 +631,65 @@ def test_lwr_weights_are_per_basis_weighted_least_squares():
         key[:, i] = np.linalg.lstsq(rows, root_psi[:, None] * targets, rcond=None)[0][0]
     # measured 1.3e-11 of the largest weight (the library's phase is RK4 at 0.5 ms / tau)
     np.testing.assert_allclose(dmp.weights, key, rtol=0, atol=5e-11 * np.abs(key).max())
+
+
+# ---------------------------------------------------------------------------------------
+# Documented defaults and messages (found untested by mutation testing, docs/mutation.md)
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_discrete_defaults_sample_every_millisecond_until_convergence(form):
+    """rollout() and affine_plan() last the convergence time tau T (T in closed form), at
+    dt = 1 ms; stepper() steps 1 ms."""
+    dmp, _ = discrete_case(form, seed=8)
+    w = ALPHA / 2
+    poles = (lambda s: 1 + s) if form == "velocity" else (lambda s: 1 + s + s**2 / 2)
+    end = dmp.time_constant * brentq(lambda t: poles(w * t) * np.exp(-w * t) - 0.05, 1e-3, 9)
+    for times in (dmp.rollout().times, dmp.affine_plan().times):
+        assert times[1] - times[0] == pytest.approx(1e-3, rel=1e-12)
+        assert times[-1] == pytest.approx(end, abs=0.5e-3 + 1e-7)
+    assert dmp.stepper().dt == 1e-3
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_rhythmic_defaults_are_three_periods_from_the_setpoint_at_phase_zero(form):
+    """Period 2 pi tau (phase) or 2 pi tau / k (energy); the default plan starts at rest at
+    the setpoint with the oscillator at phase 0: (0, A) or (A, 0)."""
+    dmp, _ = rhythmic_case(form, seed=8)
+    period = 2 * np.pi * dmp.time_constant / (1.0 if form == "phase" else 1.5)
+    for plan in (dmp.rollout(), dmp.affine_plan().trajectory(dmp.forcing_weights())):
+        assert plan.times[1] - plan.times[0] == pytest.approx(1e-3, rel=1e-12)
+        assert plan.times[-1] == pytest.approx(3 * period, abs=0.5e-3 + 1e-9)
+        np.testing.assert_allclose(plan.positions[0], dmp.setpoint, rtol=0, atol=1e-15)
+    stepper = dmp.stepper()
+    assert stepper.dt == 1e-3
+    expected = (0.0, dmp.amplitude) if form == "phase" else (dmp.amplitude, 0.0)
+    np.testing.assert_allclose(stepper.state[:2], expected, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(stepper.position, dmp.setpoint, rtol=0, atol=1e-15)
+
+
+def test_online_setters_name_their_argument():
+    dmp, _ = discrete_case("velocity", seed=9)
+    with pytest.raises(ShapeError, match=r"goal has shape \(3,\), expected \(2,\)"):
+        dmp.stepper().set_goal([1.0, 2.0, 3.0])
+    rhythmic, _ = rhythmic_case("phase", seed=9)
+    with pytest.raises(InvalidInputError, match="amplitude must be a positive"):
+        rhythmic.stepper().set_amplitude(-1.0)
+    with pytest.raises(InvalidInputError, match="weights"):
+        rhythmic.replace(weights=np.full((2, 8, 2), np.nan))
+
+
+def test_save_keeps_an_npz_name_and_load_refuses_a_foreign_header(tmp_path):
+    """save(dmp, "a.npz") writes a.npz (not a.npz.npz), save(dmp, "b") writes b.npz; a file
+    whose header names another format is refused whatever its version."""
+    dmp, _ = rhythmic_case("energy", seed=10, kernel="paper")
+    assert dmpopt_io.save(dmp, tmp_path / "a.npz") == tmp_path / "a.npz"
+    assert dmpopt_io.save(dmp, tmp_path / "b") == tmp_path / "b.npz"
+    loaded = dmpopt_io.load(tmp_path / "a.npz")
+    assert loaded.kernel == "paper"
+    np.testing.assert_array_equal(loaded.weights, dmp.weights)
+    header = {"format": "other", "version": 1, "class": "RhythmicDMP", "scalars": {}}
+    np.savez(tmp_path / "c.npz", header=np.array(json.dumps(header)))
+    with pytest.raises(FileFormatError, match="not a dmpopt DMP file"):
+        dmpopt_io.load(tmp_path / "c.npz")

@@ -28,6 +28,7 @@ from test_answer_keys import (  # noqa: E402
     grid,
     initial_state,
     integrate,
+    kick_errors,
     paper_kernel_errors,
     phase_reset_errors,
     plan_of,
@@ -43,6 +44,7 @@ CASES = {
     "reset": (["phase", "energy"], lambda form, dt: phase_reset_errors(form, dt)[1]),
     "affine": (FORMS, affine_errors),
     "paper": (["phase", "energy"], paper_kernel_errors),
+    "kick": (["velocity", "acceleration"], kick_errors),
 }
 
 

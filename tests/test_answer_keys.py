@@ -335,6 +335,21 @@ def paper_kernel_errors(form, dt):
     return relative_error(plan_of(plan), key)
 
 
+def kick_errors(form, dt):
+    """One step(coupling=C, canonical_coupling=C_c), then plain steps: the key integrates
+    [0, dt] with the coupling and the rest without."""
+    dmp, eq, canonical, _ = case(form, seed=12)
+    times = grid(0.3, dt)
+    eq.coupling, eq.canonical_coupling = np.array([3.0, -2.0]) / dt, 0.2 / dt
+    state, _ = integrate(eq, initial_state(eq, dmp.start, 0.0, canonical), times[:2])
+    stepper = dmp.stepper(dt)
+    stepper.step(coupling=eq.coupling, canonical_coupling=eq.canonical_coupling)
+    eq.coupling, eq.canonical_coupling = np.zeros(2), 0.0
+    _, key = integrate(eq, state, times[1:])
+    # sample 0 is the kick step's own output, evaluated with the coupling still applied
+    return relative_error(run_stepper(stepper, len(times) - 1)[:, 1:], key[:, 1:])
+
+
 # Errors relative to the key's peak (positions, velocities, accelerations) measured at
 # dt = 1 ms by `python benchmarks/answer_key_errors.py`, which also shows that halving dt
 # divides them by about 16: they are RK4's discretisation error, nothing else. The tests
@@ -354,6 +369,8 @@ MEASURED = {  # the stepper's errors equal the rollout's to every printed digit
     ("reset", "energy"): [1.2e-7, 4.6e-7, 1.0e-6],
     ("paper", "phase"): [3.0e-7, 1.9e-6, 8.2e-7],
     ("paper", "energy"): [1.6e-7, 1.3e-6, 7.0e-7],
+    ("kick", "velocity"): [3.3e-8, 3.0e-8, 4.6e-8],
+    ("kick", "acceleration"): [7.8e-9, 4.0e-8, 4.8e-8],
 }
 FACTOR = 4.0
 
@@ -669,9 +686,59 @@ def test_rhythmic_defaults_are_three_periods_from_the_setpoint_at_phase_zero(for
     np.testing.assert_allclose(stepper.position, dmp.setpoint, rtol=0, atol=1e-15)
 
 
+def test_stepper_constructed_directly_has_the_documented_defaults():
+    """Stepper(dmp, dt, start): at rest (start_velocity 0), phase 0, interpreted, time 0;
+    time advances by dt per step."""
+    dmp, _ = discrete_case("velocity", seed=11)
+    stepper = Stepper(dmp, 1e-3, dmp.start)
+    np.testing.assert_array_equal(stepper.state, np.concatenate([[0, 0], dmp.start, [0, 0]]))
+    rhythmic, _ = rhythmic_case("phase", seed=11)
+    oscillator = Stepper(rhythmic, 1e-3, rhythmic.setpoint)
+    np.testing.assert_allclose(oscillator.state[:2], [0.0, rhythmic.amplitude], atol=1e-15)
+    np.testing.assert_allclose(oscillator.velocity, 0.0, atol=1e-12)
+    assert stepper._function.function.class_name() == "SXFunction" and stepper.time == 0.0
+    for _ in range(7):
+        stepper.step()
+    assert stepper.time == pytest.approx(7e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_coupling_lasts_one_step(form):
+    """step(coupling=C) holds C over that step only."""
+    errors = kick_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["kick", form])), errors
+
+
+def test_compiled_stepper_matches_plain_equations():
+    """compile=True generates and compiles C for the same step: same plan as the key."""
+    dmp, eq = discrete_case("velocity", seed=1)
+    times = grid(0.3, 1e-3)
+    _, key = integrate(eq, initial_state(eq, dmp.start, 0.0, np.zeros(2)), times)
+    stepper = dmp.stepper(1e-3, compile=True)
+    assert stepper._function.function.class_name() == "External"
+    errors = relative_error(run_stepper(stepper, len(times)), key)
+    assert np.all(errors < FACTOR * np.array(MEASURED["rollout", "velocity"])), errors
+
+
+@pytest.mark.parametrize("n_basis", [0, -3, 2.5, True, "4"])
+def test_basis_counts_must_be_positive_integers(n_basis):
+    with pytest.raises(InvalidInputError, match="n_basis must be a positive integer"):
+        discrete_basis(n_basis, GAINS)
+
+
 def test_online_setters_name_their_argument():
     dmp, _ = discrete_case("velocity", seed=9)
-    with pytest.raises(ShapeError, match=r"goal has shape \(3,\), expected \(2,\)"):
+    with pytest.raises(InvalidInputError, match="dt must be a positive finite number"):
+        Stepper(dmp, 0.0, dmp.start)
+    with pytest.raises(
+        ShapeError, match=r"start has shape \(3,\), expected \(2,\) to match 2 DOFs"
+    ):
+        Stepper(dmp, 1e-3, [1.0, 2.0, 3.0])
+    with pytest.raises(
+        ShapeError, match=r"start_velocity has shape \(3,\), expected \(2,\) to match 2 DOFs"
+    ):
+        Stepper(dmp, 1e-3, dmp.start, [1.0, 2.0, 3.0])
+    with pytest.raises(ShapeError, match=r"goal has shape \(3,\), expected \(2,\) to match 2 DOFs"):
         dmp.stepper().set_goal([1.0, 2.0, 3.0])
     rhythmic, _ = rhythmic_case("phase", seed=9)
     with pytest.raises(InvalidInputError, match="amplitude must be a positive"):

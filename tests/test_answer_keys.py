@@ -760,3 +760,24 @@ def test_save_keeps_an_npz_name_and_load_refuses_a_foreign_header(tmp_path):
     np.savez(tmp_path / "c.npz", header=np.array(json.dumps(header)))
     with pytest.raises(FileFormatError, match="not a dmpopt DMP file"):
         dmpopt_io.load(tmp_path / "c.npz")
+
+
+def test_rhythmic_weights_accept_the_flat_feature_layout_and_are_frozen_copies():
+    """Weights (n_dofs, 2 n_basis), the layout of the features, mean (n_dofs, n_basis, 2);
+    the DMP keeps a read-only copy; other shapes are refused naming the argument."""
+    dmp, _ = rhythmic_case("phase", seed=13)
+    flat = np.array(dmp.weights).reshape(2, 16)
+    same = dmp.replace(weights=flat)
+    assert same.weights.shape == (2, 8, 2) and not same.weights.flags.writeable
+    np.testing.assert_array_equal(same.weights, dmp.weights)
+    flat[0, 0] += 1.0
+    np.testing.assert_array_equal(same.weights, dmp.weights)
+    for shape in [(2, 15), (2, 8, 3), (16,)]:
+        with pytest.raises(
+            ShapeError, match=r"weights has shape .*expected \(n_dofs, n_basis, 2\)"
+        ):
+            dmp.replace(weights=np.ones(shape))
+    with pytest.raises(
+        ShapeError, match=r"setpoint has shape \(3,\), expected \(2,\) to match weights \(2, 8, 2\)"
+    ):
+        dmp.replace(setpoint=[0.0, 1.0, 2.0])

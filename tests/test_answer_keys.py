@@ -781,3 +781,11 @@ def test_rhythmic_weights_accept_the_flat_feature_layout_and_are_frozen_copies()
         ShapeError, match=r"setpoint has shape \(3,\), expected \(2,\) to match weights \(2, 8, 2\)"
     ):
         dmp.replace(setpoint=[0.0, 1.0, 2.0])
+
+
+def test_narrow_bases_do_not_underflow():
+    """Eq. (7)'s ratio psi_i / sum_j psi_j stays defined where every psi_j underflows
+    (widths 1e7: between centres exp(-h (x - c)^2) < 1e-300); the plan is finite."""
+    dmp, _ = discrete_case("velocity", seed=14)
+    narrow = dmp.replace(widths=np.full(dmp.n_basis, 1e7))
+    assert np.isfinite(plan_of(narrow.rollout(0.5, 1e-3))).all()

@@ -789,3 +789,12 @@ def test_narrow_bases_do_not_underflow():
     dmp, _ = discrete_case("velocity", seed=14)
     narrow = dmp.replace(widths=np.full(dmp.n_basis, 1e7))
     assert np.isfinite(plan_of(narrow.rollout(0.5, 1e-3))).all()
+
+
+def test_a_one_element_coupling_applies_to_every_dof():
+    dmp, _ = discrete_case("velocity", seed=15)
+    one, each = dmp.stepper(1e-3), dmp.stepper(1e-3)
+    for _ in range(50):
+        np.testing.assert_array_equal(
+            one.step(coupling=[5.0])[0], each.step(coupling=[5.0, 5.0])[0]
+        )

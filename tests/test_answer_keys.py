@@ -1,0 +1,800 @@
+"""Independent answer keys: the paper's equations written plainly here, against the library.
+
+Nothing in this file evaluates :mod:`dmpopt.symbolic`: the keys are the equations of
+/work/shared/paper/EQUATIONS.md (eqs. (5)-(7), (10), (11)-(12), (13)-(14)) in numpy,
+integrated by scipy's DOP853 at rtol = atol = 1e-12, or closed-form solutions.
+
+The library integrates with classical RK4 at the sample step (inputs held over the step).
+Tolerances are 4x the difference measured at the step used (noted beside each); the
+measured differences scale as dt^4, the signature of RK4's discretisation error
+(`python benchmarks/answer_key_errors.py`).
+"""
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from dmpopt import (
+    DiscreteDMP,
+    FileFormatError,
+    InvalidInputError,
+    RhythmicDMP,
+    ShapeError,
+    Trajectory,
+)
+from dmpopt import io as dmpopt_io
+from dmpopt.basis import convergence_time, discrete_basis, discrete_phase, rhythmic_basis
+from dmpopt.fitting import fit_discrete, minimum_jerk, minimum_jerk_via_points
+from dmpopt.stepper import Stepper
+
+ALPHA = 25.0  # alpha_z = alpha_v, the paper's typical value
+GAINS = (ALPHA, ALPHA / 4, ALPHA, ALPHA / 4)
+HYPOTHESIS = settings(max_examples=8, deadline=None)
+FORMS = ["velocity", "acceleration", "phase", "energy"]
+
+
+# ---------------------------------------------------------------------------------------
+# The equations, plainly
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class Equations:
+    """Constants and inputs of one system; ``weights`` are the forcing weights.
+
+    Discrete forms: ``weights`` (n_dofs, n_basis) multiply eq. (7)'s features directly.
+    Rhythmic forms: ``weights`` (n_dofs, n_basis, 2), ``target`` is A (eq. 11) or E0 (13).
+    """
+
+    form: str
+    tau: float
+    goal: np.ndarray
+    weights: np.ndarray
+    centres: np.ndarray
+    widths: np.ndarray
+    alpha_z: float = ALPHA
+    beta_z: float = ALPHA / 4
+    alpha_v: float = ALPHA  # canonical system (6)
+    beta_v: float = ALPHA / 4
+    alpha_g: float = ALPHA / 2  # goal filter (10)
+    rate: float = 10.0  # alpha_r (11) or alpha_E (13)
+    k: float = 1.0  # frequency of (13)
+    target: float = 1.0
+    coupling: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    canonical_coupling: float = 0.0
+    kernel: str = "von_mises"  # rhythmic forms: or "paper", eq. (12) as printed
+
+    @property
+    def n(self) -> int:
+        return len(self.goal)
+
+
+def forcing(eq: Equations, canonical) -> np.ndarray:
+    """f of every DOF: eq. (7) on the normalised phase, eqs. (12) and (14) with the kernel
+    exp(h (cos(angle - c) - 1)) or, as printed, exp(-h (mod(angle, 2 pi) - c)^2)."""
+    first, second = canonical
+    if eq.form in ("velocity", "acceleration"):
+        psi = np.exp(-eq.widths * (first - eq.centres) ** 2)
+        return eq.weights @ psi * second / psi.sum()
+    if eq.form == "phase":
+        angle, carrier = first, second * np.array([np.cos(first), np.sin(first)])
+    else:
+        angle, carrier = np.arctan2(second, first), np.array([first, second])
+    if eq.kernel == "paper":
+        psi = np.exp(-eq.widths * (np.mod(angle, 2 * np.pi) - eq.centres) ** 2)
+    else:
+        psi = np.exp(eq.widths * (np.cos(angle - eq.centres) - 1.0))
+    return (eq.weights @ carrier) @ psi / psi.sum()
+
+
+def rate(eq: Equations, state: np.ndarray) -> np.ndarray:
+    """d(state)/dt; state = [canonical (2), y (n), z (n), r (n, acceleration form)]."""
+    n, tau = eq.n, eq.tau
+    first, second = state[0], state[1]
+    y, z = state[2 : 2 + n], state[2 + n : 2 + 2 * n]
+    f = forcing(eq, (first, second))
+    cc = eq.canonical_coupling
+    if eq.form in ("velocity", "acceleration"):  # eq. (6) with start 0, goal 1
+        canonical = [second, eq.alpha_v * (eq.beta_v * (1.0 - first) - second) + cc]
+    elif eq.form == "phase":  # eq. (11)
+        canonical = [1.0 + cc, eq.rate * (eq.target - second)]
+    else:  # eq. (13)
+        energy = 0.5 * (second**2 + eq.k**2 * first**2)
+        canonical = [second, -eq.rate * (energy - eq.target) * second - eq.k**2 * first + cc]
+    if eq.form == "acceleration":  # eq. (10)
+        r = state[2 + 2 * n :]
+        transformation = [
+            z,
+            eq.alpha_z * (eq.beta_z * (r - y) - z) + f + eq.coupling,
+            eq.alpha_g * (eq.goal - r),
+        ]
+    else:  # eq. (5)
+        transformation = [z + f, eq.alpha_z * (eq.beta_z * (eq.goal - y) - z) + eq.coupling]
+    return np.concatenate([canonical, *transformation]) / tau
+
+
+def outputs(eq: Equations, state: np.ndarray):
+    """Position, velocity and acceleration; the acceleration is the derivative of the
+    velocity along the flow, by a fourth-order central difference."""
+    n = eq.n
+    direction = rate(eq, state)
+
+    def velocity(s):
+        return rate(eq, s)[2 : 2 + n]
+
+    h = 1e-4 * eq.tau
+    acceleration = (
+        -velocity(state + 2 * h * direction)
+        + 8 * velocity(state + h * direction)
+        - 8 * velocity(state - h * direction)
+        + velocity(state - 2 * h * direction)
+    ) / (12 * h)
+    return state[2 : 2 + n], direction[2 : 2 + n], acceleration
+
+
+def initial_state(eq, start, start_velocity, canonical) -> np.ndarray:
+    """z(0) gives the requested velocity (tau yd = z + f); r(0) = y(0) (eq. 10)."""
+    start = np.broadcast_to(np.asarray(start, float), (eq.n,))
+    z = eq.tau * np.broadcast_to(start_velocity, (eq.n,))
+    if eq.form != "acceleration":
+        z = z - forcing(eq, canonical)
+    rows = [canonical, start, z] + ([start] if eq.form == "acceleration" else [])
+    return np.concatenate(rows)
+
+
+def integrate(eq: Equations, state0, times):
+    """DOP853 at rtol = atol = 1e-12; returns the final state and (3, n_times, n) outputs."""
+    solution = solve_ivp(
+        lambda t, s: rate(eq, s),
+        (times[0], times[-1]),
+        state0,
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=times,
+    )
+    assert solution.success, solution.message
+    plan = np.array([np.stack(o) for o in zip(*(outputs(eq, s) for s in solution.y.T))])
+    return solution.y[:, -1], plan
+
+
+def run_stepper(stepper, n_steps, **inputs):
+    """Outputs at 0, dt, ..., (n_steps - 1) dt, shape (3, n_steps, n_dofs)."""
+    first = (stepper.position, stepper.velocity, stepper.acceleration)
+    rest = [stepper.step(**inputs) for _ in range(n_steps - 1)]
+    return np.array([np.stack(o) for o in zip(first, *rest)])
+
+
+def relative_error(actual, key) -> np.ndarray:
+    """Max error of positions, velocities, accelerations, each relative to its key's peak."""
+    actual, key = np.asarray(actual), np.asarray(key)
+    return np.array([np.abs(a - k).max() / np.abs(k).max() for a, k in zip(actual, key)])
+
+
+def plan_of(trajectory: Trajectory) -> np.ndarray:
+    return np.array([trajectory.positions, trajectory.velocities, trajectory.accelerations])
+
+
+# ---------------------------------------------------------------------------------------
+# Systems with seeded random non-zero weights
+# ---------------------------------------------------------------------------------------
+
+
+def discrete_case(form, seed=0, n_basis=10, tau=0.5, scale=20.0, n_dofs=2):
+    """A DiscreteDMP with forcing weights = weights (translation) and its equations."""
+    rng = np.random.default_rng(seed)
+    centres, widths = discrete_basis(n_basis, GAINS)
+    weights = scale * rng.normal(size=(n_dofs, n_basis))
+    start, goal = rng.normal(size=n_dofs), rng.normal(size=n_dofs)
+    dmp = DiscreteDMP(
+        weights, start, goal, tau, centres, widths, form=form, goal_scaling="translation"
+    )
+    eq = Equations(form, tau, goal, weights, centres, widths, coupling=np.zeros(n_dofs))
+    return dmp, eq
+
+
+def rhythmic_case(form, seed=0, n_basis=8, tau=0.15, amplitude=1.3, n_dofs=2, kernel="von_mises"):
+    """A RhythmicDMP (k = 1.5) and its equations."""
+    rng = np.random.default_rng(seed)
+    centres, widths = rhythmic_basis(n_basis, kernel)
+    weights = 3.0 * rng.normal(size=(n_dofs, n_basis, 2))
+    setpoint = rng.normal(size=n_dofs)
+    dmp = RhythmicDMP(
+        weights, setpoint, tau, centres, widths, form=form, amplitude=amplitude,
+        kernel=kernel, frequency=1.5,
+    )  # fmt: skip
+    target = amplitude if form == "phase" else 0.5 * (1.5 * amplitude) ** 2
+    eq = Equations(
+        form, tau, setpoint, weights, centres, widths, k=1.5, target=target,
+        coupling=np.zeros(n_dofs), kernel=kernel,
+    )  # fmt: skip
+    return dmp, eq
+
+
+def case(form, seed):
+    """A system of either kind and the canonical state of its rollouts from phase 0.7."""
+    if form in ("velocity", "acceleration"):
+        dmp, eq = discrete_case(form, seed)
+        return dmp, eq, np.zeros(2), {}
+    dmp, eq = rhythmic_case(form, seed)
+    return dmp, eq, rhythmic_canonical(form, dmp.amplitude, 1.5, 0.7), {"phase": 0.7}
+
+
+def rhythmic_canonical(form, amplitude, k, phase):
+    """Library convention: (phi, A) or, on the energy limit cycle, (A cos p, A k sin p)."""
+    if form == "phase":
+        return np.array([phase, amplitude])
+    return np.array([amplitude * np.cos(phase), amplitude * k * np.sin(phase)])
+
+
+def grid(duration, dt):
+    return np.arange(int(round(duration / dt)) + 1) * dt
+
+
+def rollout_errors(form, dt):
+    """Rollout and stepper against the key, from an offset start with a start velocity."""
+    dmp, eq, canonical, phase = case(form, seed=1)
+    start = (dmp.start if form in ("velocity", "acceleration") else dmp.setpoint) + 0.2
+    times = grid(0.8, dt)
+    _, key = integrate(eq, initial_state(eq, start, -0.4, canonical), times)
+    if form in ("velocity", "acceleration"):
+        dmp = dmp.with_start(start)
+        rollout = dmp.rollout(times[-1], dt, start_velocity=-0.4)
+        stepper = dmp.stepper(dt, start_velocity=-0.4)
+    else:
+        rollout = dmp.rollout(times[-1], dt, start, -0.4, **phase)
+        stepper = dmp.stepper(dt, start, -0.4, **phase)
+    stepped = run_stepper(stepper, len(times))
+    return relative_error(plan_of(rollout), key), relative_error(stepped, key)
+
+
+def coupling_errors(form, dt):
+    """Constant coupling on the transformation (tau zdot += C) and canonical
+    (tau vdot or tau phidot += C_c) systems; sample 0 precedes any coupling."""
+    dmp, eq, canonical, phase = case(form, seed=3)
+    eq.coupling, eq.canonical_coupling = np.array([4.0, -7.0]), 0.6
+    start = dmp.start if form in ("velocity", "acceleration") else dmp.setpoint
+    times = grid(0.6, dt)
+    _, key = integrate(eq, initial_state(eq, start, 0.0, canonical), times)
+    stepper = dmp.stepper(dt, **phase)
+    stepped = run_stepper(stepper, len(times), coupling=eq.coupling, canonical_coupling=0.6)
+    return relative_error(stepped[:, 1:], key[:, 1:])
+
+
+def goal_change_errors(form, dt):
+    """set_goal after 0.2 s against the key with g and the forcing weights of eq. (7),
+    (g - y0) w, switched at the same time; compared after the switch."""
+    dmp, eq, canonical, _ = case(form, seed=4)
+    dmp = dmp.replace(goal_scaling="paper")
+    new_goal = dmp.goal + np.array([1.3, -0.8])
+    times, switch = grid(0.7, dt), int(round(0.2 / dt))
+    eq.weights = (dmp.goal - dmp.start)[:, None] * dmp.weights
+    state0 = initial_state(eq, dmp.start, 0.0, canonical)
+    state, _ = integrate(eq, state0, times[: switch + 1])
+    eq.goal, eq.weights = new_goal, (new_goal - dmp.start)[:, None] * dmp.weights
+    _, key = integrate(eq, state, times[switch:])
+    stepper = dmp.stepper(dt)
+    run_stepper(stepper, switch + 1)
+    stepper.set_goal(new_goal)
+    stepped = run_stepper(stepper, len(times) - switch)
+    return relative_error(stepped[:, 1:], key[:, 1:])
+
+
+def phase_reset_errors(form, dt):
+    """reset_phase(2) after 0.3 s, eq. (21): returns the error of the reset state against
+    (phi, r) -> (2, r), or (x, v) -> (a cos 2, a k sin 2) with a = sqrt(x^2 + v^2 / k^2),
+    and the errors of the next 0.3 s against the key started from that state."""
+    dmp, eq, _, phase = case(form, seed=5)
+    stepper = dmp.stepper(dt, **phase)
+    times = grid(0.3, dt)
+    run_stepper(stepper, len(times))
+    state = stepper.state
+    stepper.reset_phase(2.0)
+    if form == "phase":
+        state[0] = 2.0
+    else:
+        amplitude = np.hypot(state[0], state[1] / 1.5)
+        state[:2] = amplitude * np.cos(2.0), amplitude * 1.5 * np.sin(2.0)
+    reset_error = np.abs(stepper.state - state).max()
+    _, key = integrate(eq, state, times)
+    return reset_error, relative_error(run_stepper(stepper, len(times))[:, 1:], key[:, 1:])
+
+
+def affine_errors(form, dt):
+    """affine_plan(...).trajectory(forcing weights) against the key of rollout_errors."""
+    dmp, eq, canonical, phase = case(form, seed=1)
+    start = (dmp.start if form in ("velocity", "acceleration") else dmp.setpoint) + 0.2
+    times = grid(0.8, dt)
+    _, key = integrate(eq, initial_state(eq, start, -0.4, canonical), times)
+    if form in ("velocity", "acceleration"):
+        dmp = dmp.with_start(start)
+        plan = dmp.affine_plan(times[-1], dt, start_velocity=-0.4)
+    else:
+        plan = dmp.affine_plan(times[-1], dt, start, -0.4, **phase)
+    trajectory = plan.trajectory(dmp.forcing_weights())
+    np.testing.assert_allclose(trajectory.times, times, rtol=0, atol=1e-15)
+    return relative_error(plan_of(trajectory), key)
+
+
+def paper_kernel_errors(form, dt):
+    """Eq. (12)/(14) with the printed kernel exp(-h (mod(angle, 2 pi) - c)^2), over a
+    stretch that does not cross the kernel's jump at angle 0 (phase 0.7 -> 4.7, or the
+    energy oscillator's angle 6.0 -> 1.0, which turns clockwise)."""
+    phase, duration = (0.7, 0.6) if form == "phase" else (6.0, 0.5)
+    dmp, eq = rhythmic_case(form, seed=6, kernel="paper")
+    times = grid(duration, dt)
+    canonical = rhythmic_canonical(form, dmp.amplitude, 1.5, phase)
+    _, key = integrate(eq, initial_state(eq, dmp.setpoint, 0.3, canonical), times)
+    plan = dmp.rollout(times[-1], dt, dmp.setpoint, 0.3, phase)
+    return relative_error(plan_of(plan), key)
+
+
+def kick_errors(form, dt):
+    """One step(coupling=C, canonical_coupling=C_c), then plain steps: the key integrates
+    [0, dt] with the coupling and the rest without."""
+    dmp, eq, canonical, _ = case(form, seed=12)
+    times = grid(0.3, dt)
+    eq.coupling, eq.canonical_coupling = np.array([3.0, -2.0]) / dt, 0.2 / dt
+    state, _ = integrate(eq, initial_state(eq, dmp.start, 0.0, canonical), times[:2])
+    stepper = dmp.stepper(dt)
+    stepper.step(coupling=eq.coupling, canonical_coupling=eq.canonical_coupling)
+    eq.coupling, eq.canonical_coupling = np.zeros(2), 0.0
+    _, key = integrate(eq, state, times[1:])
+    # sample 0 is the kick step's own output, evaluated with the coupling still applied
+    return relative_error(run_stepper(stepper, len(times) - 1)[:, 1:], key[:, 1:])
+
+
+# Errors relative to the key's peak (positions, velocities, accelerations) measured at
+# dt = 1 ms by `python benchmarks/answer_key_errors.py`, which also shows that halving dt
+# divides them by about 16: they are RK4's discretisation error, nothing else. The tests
+# allow 4x these.
+MEASURED = {  # the stepper's errors equal the rollout's to every printed digit
+    ("rollout", "velocity"): [3.9e-8, 3.5e-8, 3.6e-8],
+    ("rollout", "acceleration"): [7.9e-9, 6.2e-8, 9.0e-8],
+    ("rollout", "phase"): [9.0e-8, 1.6e-6, 8.3e-7],  # dt / tau = 1 / 150
+    ("rollout", "energy"): [9.9e-8, 1.0e-6, 7.9e-7],
+    ("coupling", "velocity"): [1.9e-7, 3.8e-8, 7.0e-8],
+    ("coupling", "acceleration"): [1.0e-8, 1.1e-7, 2.9e-7],
+    ("coupling", "phase"): [8.1e-8, 6.7e-7, 1.0e-6],
+    ("coupling", "energy"): [9.3e-8, 6.1e-7, 9.6e-7],
+    ("goal", "velocity"): [6.1e-9, 1.1e-8, 4.6e-9],
+    ("goal", "acceleration"): [3.6e-9, 2.7e-8, 6.1e-8],
+    ("reset", "phase"): [1.2e-7, 5.5e-7, 1.7e-6],
+    ("reset", "energy"): [1.2e-7, 4.6e-7, 1.0e-6],
+    ("paper", "phase"): [3.0e-7, 1.9e-6, 8.2e-7],
+    ("paper", "energy"): [1.6e-7, 1.3e-6, 7.0e-7],
+    ("kick", "velocity"): [3.3e-8, 3.0e-8, 4.6e-8],
+    ("kick", "acceleration"): [7.8e-9, 4.0e-8, 4.8e-8],
+}
+FACTOR = 4.0
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_rollout_and_stepper_match_plain_equations(form):
+    """Eqs. (5)-(7), (10), (11)-(12), (13)-(14) with non-zero weights, goal filter, an
+    offset start and a start velocity: rollout and stepper equal the plain equations."""
+    rollout, stepped = rollout_errors(form, 1e-3)
+    tolerance = FACTOR * np.array(MEASURED["rollout", form])
+    assert np.all(rollout < tolerance), rollout
+    assert np.all(stepped < tolerance), stepped
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_stepper_coupling_terms_match_plain_equations(form):
+    """Coupling terms enter tau zdot and the canonical system as in the plain equations."""
+    errors = coupling_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["coupling", form])), errors
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_online_goal_change_matches_plain_equations_with_switched_goal(form):
+    """Stepper.set_goal switches the goal and the goal-scaled forcing weights together."""
+    errors = goal_change_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["goal", form])), errors
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_phase_reset_matches_plain_equations_restarted_at_the_new_phase(form):
+    """reset_phase keeps the amplitude and jumps to the new phase (eq. 21)."""
+    reset_error, errors = phase_reset_errors(form, 1e-3)
+    assert reset_error < 1e-14
+    assert np.all(errors < FACTOR * np.array(MEASURED["reset", form])), errors
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_affine_plan_matches_plain_equations(form):
+    """The affine plan F + G W^T, at the DMP's forcing weights, is the plan of the plain
+    equations (same samples, same errors as the rollout)."""
+    errors = affine_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["rollout", form])), errors
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_printed_kernel_matches_plain_equations(form):
+    """kernel="paper": eqs. (12) and (14) with the kernel as printed."""
+    errors = paper_kernel_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["paper", form])), errors
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="Stepper(dmp, dt, start) with start != dmp.start scales the forcing term by "
+    "goal - dmp.start (dmp.parameter_values() at construction) until the first set_goal, "
+    "which rescales by goal - start: eq. (7) asks for the movement's own start throughout, "
+    "and set_goal(unchanged goal) changes the plan",
+)
+@pytest.mark.parametrize("goal_scaling", ["paper", "rotation"])
+def test_stepper_from_another_start_scales_forcing_by_its_own_start(goal_scaling):
+    """Eq. (7): from start y0 the forcing weights are those of (y0, g), as in a rollout of
+    dmp.with_start(y0)."""
+    dmp, eq = discrete_case("velocity", seed=7)
+    dmp = dmp.replace(goal_scaling=goal_scaling, reference_displacement=dmp.goal - dmp.start)
+    start = dmp.start + np.array([0.5, -0.3])
+    eq.weights = dmp.forcing_weights(start, dmp.goal)
+    times = grid(0.5, 1e-3)
+    _, key = integrate(eq, initial_state(eq, start, 0.0, np.zeros(2)), times)
+    errors = relative_error(run_stepper(Stepper(dmp, 1e-3, start), len(times)), key)
+    assert np.all(errors < FACTOR * np.array(MEASURED["rollout", "velocity"])), errors
+
+
+@HYPOTHESIS
+@given(
+    seed=st.integers(0, 2**16),
+    tau=st.floats(0.3, 2.0),
+    scale=st.floats(1.0, 50.0),
+    form=st.sampled_from(["velocity", "acceleration"]),
+)
+def test_random_discrete_systems_match_plain_equations(seed, tau, scale, form):
+    """Random weights, starts, goals and time constants (a coarser grid keeps it cheap)."""
+    dmp, eq = discrete_case(form, seed=seed, tau=tau, scale=scale, n_basis=6)
+    dt = 2e-3
+    times = grid(1.5 * tau, dt)
+    _, key = integrate(eq, initial_state(eq, dmp.start, 0.0, np.zeros(2)), times)
+    errors = relative_error(plan_of(dmp.rollout(times[-1], dt)), key)
+    # RK4: error = C (dt / tau)^4; the worst C of 40 random draws was 3.2e3, 9.4e3, 1.35e4
+    assert np.all(errors < FACTOR * np.array([3.2e3, 9.4e3, 1.35e4]) * (dt / tau) ** 4), errors
+
+
+# ---------------------------------------------------------------------------------------
+# Closed forms
+# ---------------------------------------------------------------------------------------
+
+
+@HYPOTHESIS
+@given(
+    tau=st.floats(0.2, 3.0),
+    start=st.floats(-5, 5),
+    goal=st.floats(-5, 5),
+    start_velocity=st.floats(-3, 3),
+    stiffness=st.floats(5.0, 60.0),
+)
+def test_unforced_velocity_form_is_critically_damped(tau, start, goal, start_velocity, stiffness):
+    """w = 0, eq. (5): e = y - g solves e'' + 2 w e' + w^2 e = 0, w = alpha_z / (2 tau),
+    so e(t) = (e0 + (e0' + w e0) t) exp(-w t)."""
+    dmp = DiscreteDMP(
+        np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
+        goal_scaling="translation", stiffness=stiffness,
+    )  # fmt: skip
+    dt = 1e-3 * tau
+    plan = dmp.rollout(2.0 * tau, dt, start_velocity=start_velocity)
+    t, w, e0, de0 = plan.times, stiffness / (2 * tau), start - goal, start_velocity
+    decay = np.exp(-w * t)
+    e = (e0 + (de0 + w * e0) * t) * decay
+    de = (de0 - w * (de0 + w * e0) * t) * decay
+    dde = -2 * w * de - w**2 * e
+    # RK4: error = C (|e0| + |e0'| / w) (w dt)^4 w^k for the k-th derivative; the worst C
+    # over 60 draws was 0.013, 0.016, 0.019 (w dt up to 0.03), plus rounding
+    bound = (abs(e0) + abs(de0) / w) * (w * dt) ** 4
+    rounding = 1e-13 * (1 + abs(start) + abs(goal))
+    for k, (actual, key) in enumerate(zip(plan_of(plan), (e + goal, de, dde))):
+        atol = (4 * (0.013, 0.016, 0.019)[k] * bound + rounding) * w**k
+        np.testing.assert_allclose(actual[:, 0], key, rtol=0, atol=atol)
+
+
+@HYPOTHESIS
+@given(tau=st.floats(0.2, 3.0), start=st.floats(-5, 5), goal=st.floats(-5, 5))
+def test_unforced_acceleration_form_has_a_triple_pole(tau, start, goal):
+    """w = 0, eq. (10) with alpha_g = alpha_z / 2 from rest: the goal filter and the
+    transformation system make a triple pole at -w, w = alpha_z / (2 tau), so
+    e(t) = e0 (1 + w t + (w t)^2 / 2) exp(-w t)."""
+    dmp = DiscreteDMP(
+        np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
+        form="acceleration", goal_scaling="translation",
+    )  # fmt: skip
+    dt = 1e-3 * tau
+    plan = dmp.rollout(2.0 * tau, dt)
+    t, w, e0 = plan.times, ALPHA / (2 * tau), start - goal
+    decay = np.exp(-w * t)
+    e = e0 * (1 + w * t + (w * t) ** 2 / 2) * decay
+    de = -e0 * w**3 * t**2 / 2 * decay
+    dde = -e0 * w**3 * (t - w * t**2 / 2) * decay
+    # RK4 at w dt = 0.0125: worst error over 30 draws 2.6e-10, 4.9e-10, 7.9e-10 |e0| w^k
+    rounding = 1e-13 * (1 + abs(start) + abs(goal))
+    for k, (actual, key) in enumerate(zip(plan_of(plan), (e + goal, de, dde))):
+        atol = (4 * (2.6e-10, 4.9e-10, 7.9e-10)[k] * abs(e0) + rounding) * w**k
+        np.testing.assert_allclose(actual[:, 0], key, rtol=0, atol=atol)
+
+
+def canonical_phase(t, tau, alpha_v=ALPHA):
+    """Eq. (6) normalised with beta_v = alpha_v / 4, from rest at 0:
+    x(t) = 1 - (1 + w t) exp(-w t), w = alpha_v / (2 tau)."""
+    w = alpha_v / (2 * tau)
+    return 1.0 - (1.0 + w * t) * np.exp(-w * t)
+
+
+@HYPOTHESIS
+@given(tau=st.floats(0.1, 3.0), start=st.floats(-3, 3), goal=st.floats(-3, 3))
+def test_stepper_phase_is_the_closed_form_canonical_solution(tau, start, goal):
+    """The stepper's phase follows the canonical closed form whatever the start and goal
+    (the phase is goal-independent, Section 3.6)."""
+    dmp, _ = discrete_case("velocity", seed=0, tau=tau)
+    stepper = dmp.replace(start=[start, start], goal=[goal, goal]).stepper(1e-3)
+    phases = [stepper.phase] + [(stepper.step(), stepper.phase)[1] for _ in range(400)]
+    key = canonical_phase(np.arange(401) * 1e-3, tau)
+    # RK4: measured error 2.4e2-2.7e2 (dt / tau)^4 for tau in [0.1, 3]
+    np.testing.assert_allclose(phases, key, rtol=0, atol=1.1e3 * (1e-3 / tau) ** 4)
+
+
+def test_basis_centres_sit_at_the_phase_of_equally_spaced_times():
+    """Centres c_i = x(t_i) at t_i = i T / (N - 1), T the 95 % convergence time of the
+    unforced eq. (5) from rest (closed form: (1 + w T) exp(-w T) = 0.05); widths
+    h_i = 2 ln 2 / (c_{i+1} - c_i)^2 (the last repeats the last spacing)."""
+    w = ALPHA / 2
+    end = brentq(lambda t: (1 + w * t) * np.exp(-w * t) - 0.05, 1e-3, 10.0)
+    # the library interpolates an RK4 run at 0.1 ms: measured 4.1e-9 off
+    assert convergence_time("velocity", GAINS) == pytest.approx(end, abs=1.6e-8)
+    for n_basis in (1, 2, 7, 20):
+        centres, widths = discrete_basis(n_basis, GAINS)
+        times = np.linspace(0.0, end, n_basis) if n_basis > 1 else np.array([end / 2])
+        key_centres = canonical_phase(times, 1.0)
+        spacing = np.diff(key_centres) if n_basis > 1 else np.array([1.0])
+        key_widths = 2 * np.log(2) / np.append(spacing, spacing[-1]) ** 2
+        # linear interpolation on the 0.1 ms grid: measured 8.8e-8 and 6.7e-6 (N = 20)
+        np.testing.assert_allclose(centres, key_centres, rtol=0, atol=3.5e-7)
+        np.testing.assert_allclose(widths, key_widths, rtol=2.7e-5)
+    times = np.linspace(0, 0.5, 11)
+    phases = discrete_phase(GAINS, tuple(times))
+    np.testing.assert_allclose(phases, canonical_phase(times, 1.0), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("kernel", ["von_mises", "paper"])
+def test_rhythmic_basis_neighbours_cross_at_half_height(kernel):
+    """Centres 2 pi i / N; halfway between neighbours (pi / N away) each kernel is 1/2:
+    exp(h (cos(pi / N) - 1)) (von Mises) or exp(-h (pi / N)^2) (eq. 12 as printed)."""
+    centres, widths = rhythmic_basis(8, kernel)
+    np.testing.assert_allclose(centres, 2 * np.pi * np.arange(8) / 8, rtol=0, atol=1e-15)
+    half = np.pi / 8
+    height = (
+        np.exp(widths * (np.cos(half) - 1)) if kernel == "von_mises" else np.exp(-widths * half**2)
+    )
+    np.testing.assert_allclose(height, 0.5, rtol=1e-12)
+
+
+def test_rhythmic_basis_names_the_kernels_it_knows():
+    with pytest.raises(
+        InvalidInputError, match="kernel must be 'von_mises' or 'paper', got 'gauss'"
+    ):
+        rhythmic_basis(8, "gauss")
+
+
+def test_acceleration_form_convergence_time_is_the_triple_pole_crossing():
+    """(1 + wT + (wT)^2 / 2) exp(-wT) = 0.05, w = alpha_z / 2, for tau = 1."""
+    w = ALPHA / 2
+    end = brentq(lambda t: (1 + w * t + (w * t) ** 2 / 2) * np.exp(-w * t) - 0.05, 1e-3, 10)
+    gains = GAINS + (ALPHA / 2,)
+    # measured 9.9e-9 off (RK4 at 0.1 ms, linear interpolation of the crossing)
+    assert convergence_time("acceleration", gains) == pytest.approx(end, abs=4e-8)
+
+
+def quintic(start, goal, duration, t):
+    """Minimum jerk: y = y0 + (g - y0)(10 s^3 - 15 s^4 + 6 s^5), s = t / T, and derivatives."""
+    s, d = t / duration, goal - start
+    return (
+        start + d * (10 * s**3 - 15 * s**4 + 6 * s**5),
+        d * (30 * s**2 - 60 * s**3 + 30 * s**4) / duration,
+        d * (60 * s - 180 * s**2 + 120 * s**3) / duration**2,
+    )
+
+
+@HYPOTHESIS
+@given(start=st.floats(-5, 5), goal=st.floats(-5, 5), duration=st.floats(0.2, 5.0))
+def test_minimum_jerk_is_the_quintic(start, goal, duration):
+    """Closed form and the via-point solver without via-points both give the quintic."""
+    key = quintic(start, goal, duration, np.linspace(0, duration, 201))
+    for trajectory in (
+        minimum_jerk([start], [goal], duration, n_samples=201),
+        minimum_jerk_via_points([start], [goal], duration, [], n_samples=201),
+    ):
+        for actual, expected in zip(plan_of(trajectory), key):
+            scale = (abs(goal - start) + 1e-9) * max(1.0, duration**-2)
+            np.testing.assert_allclose(actual[:, 0], expected, atol=1e-9 * scale)
+
+
+# ---------------------------------------------------------------------------------------
+# Locally weighted regression
+# ---------------------------------------------------------------------------------------
+
+
+def test_lwr_weights_are_per_basis_weighted_least_squares():
+    """Eq. (16) targets on a minimum-jerk demo, regressed per basis i on f ~ w_i v with
+    weights psi_i: lstsq on rows sqrt(psi_i) v, sqrt(psi_i) f. Phase, goal filter and
+    tau come from closed forms (tau: triple-pole 95 % crossing at the demo's end)."""
+    duration, n = 1.0, 1001
+    t = np.linspace(0, duration, n)
+    start, goal = np.array([0.3, -1.0]), np.array([1.5, 0.5])
+    y, yd, ydd = (np.outer(q, goal - start) for q in quintic(0.0, 1.0, duration, t))
+    y = y + start
+    demo = Trajectory(t, y, yd, ydd)
+    dmp = fit_discrete(demo, 12, form="acceleration", method="lwr", goal_scaling="translation")
+
+    w = ALPHA / 2
+    crossing = brentq(lambda s: (1 + w * s + (w * s) ** 2 / 2) * np.exp(-w * s) - 0.05, 1e-3, 9)
+    assert dmp.time_constant == pytest.approx(duration / crossing, rel=8e-8)  # measured 2e-8
+    tau = dmp.time_constant  # the regression is sensitive to tau: isolate it
+    phase = canonical_phase(t, tau)
+    phase_velocity = (ALPHA / 2) ** 2 * (t / tau) * np.exp(-(ALPHA / 2) * t / tau)
+    r = goal + (start - goal) * np.exp(-(ALPHA / 2) * t / tau)[:, None]
+    targets = tau**2 * ydd - ALPHA * (ALPHA / 4 * (r - y) - tau * yd)
+    key = np.empty((2, 12))
+    for i, (c, h) in enumerate(zip(dmp.centres, dmp.widths)):
+        root_psi = np.sqrt(np.exp(-h * (phase - c) ** 2))
+        rows = (root_psi * phase_velocity)[:, None]
+        key[:, i] = np.linalg.lstsq(rows, root_psi[:, None] * targets, rcond=None)[0][0]
+    # measured 1.3e-11 of the largest weight (the library's phase is RK4 at 0.5 ms / tau)
+    np.testing.assert_allclose(dmp.weights, key, rtol=0, atol=5e-11 * np.abs(key).max())
+
+
+# ---------------------------------------------------------------------------------------
+# Documented defaults and messages (found untested by mutation testing, docs/mutation.md)
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_discrete_defaults_sample_every_millisecond_until_convergence(form):
+    """rollout() and affine_plan() last the convergence time tau T (T in closed form), at
+    dt = 1 ms; stepper() steps 1 ms."""
+    dmp, _ = discrete_case(form, seed=8)
+    w = ALPHA / 2
+    poles = (lambda s: 1 + s) if form == "velocity" else (lambda s: 1 + s + s**2 / 2)
+    end = dmp.time_constant * brentq(lambda t: poles(w * t) * np.exp(-w * t) - 0.05, 1e-3, 9)
+    for times in (dmp.rollout().times, dmp.affine_plan().times):
+        assert times[1] - times[0] == pytest.approx(1e-3, rel=1e-12)
+        assert times[-1] == pytest.approx(end, abs=0.5e-3 + 1e-7)
+    assert dmp.stepper().dt == 1e-3
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_rhythmic_defaults_are_three_periods_from_the_setpoint_at_phase_zero(form):
+    """Period 2 pi tau (phase) or 2 pi tau / k (energy); the default plan starts at rest at
+    the setpoint with the oscillator at phase 0: (0, A) or (A, 0)."""
+    dmp, _ = rhythmic_case(form, seed=8)
+    period = 2 * np.pi * dmp.time_constant / (1.0 if form == "phase" else 1.5)
+    for plan in (dmp.rollout(), dmp.affine_plan().trajectory(dmp.forcing_weights())):
+        assert plan.times[1] - plan.times[0] == pytest.approx(1e-3, rel=1e-12)
+        assert plan.times[-1] == pytest.approx(3 * period, abs=0.5e-3 + 1e-9)
+        np.testing.assert_allclose(plan.positions[0], dmp.setpoint, rtol=0, atol=1e-15)
+    stepper = dmp.stepper()
+    assert stepper.dt == 1e-3
+    expected = (0.0, dmp.amplitude) if form == "phase" else (dmp.amplitude, 0.0)
+    np.testing.assert_allclose(stepper.state[:2], expected, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(stepper.position, dmp.setpoint, rtol=0, atol=1e-15)
+
+
+def test_stepper_constructed_directly_has_the_documented_defaults():
+    """Stepper(dmp, dt, start): at rest (start_velocity 0), phase 0, interpreted, time 0;
+    time advances by dt per step."""
+    dmp, _ = discrete_case("velocity", seed=11)
+    stepper = Stepper(dmp, 1e-3, dmp.start)
+    np.testing.assert_array_equal(stepper.state, np.concatenate([[0, 0], dmp.start, [0, 0]]))
+    rhythmic, _ = rhythmic_case("phase", seed=11)
+    oscillator = Stepper(rhythmic, 1e-3, rhythmic.setpoint)
+    np.testing.assert_allclose(oscillator.state[:2], [0.0, rhythmic.amplitude], atol=1e-15)
+    np.testing.assert_allclose(oscillator.velocity, 0.0, atol=1e-12)
+    assert stepper._function.function.class_name() == "SXFunction" and stepper.time == 0.0
+    for _ in range(7):
+        stepper.step()
+    assert stepper.time == pytest.approx(7e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_coupling_lasts_one_step(form):
+    """step(coupling=C) holds C over that step only."""
+    errors = kick_errors(form, 1e-3)
+    assert np.all(errors < FACTOR * np.array(MEASURED["kick", form])), errors
+
+
+def test_compiled_stepper_matches_plain_equations():
+    """compile=True generates and compiles C for the same step: same plan as the key."""
+    dmp, eq = discrete_case("velocity", seed=1)
+    times = grid(0.3, 1e-3)
+    _, key = integrate(eq, initial_state(eq, dmp.start, 0.0, np.zeros(2)), times)
+    stepper = dmp.stepper(1e-3, compile=True)
+    assert stepper._function.function.class_name() == "External"
+    errors = relative_error(run_stepper(stepper, len(times)), key)
+    assert np.all(errors < FACTOR * np.array(MEASURED["rollout", "velocity"])), errors
+
+
+@pytest.mark.parametrize("n_basis", [0, -3, 2.5, True, "4"])
+def test_basis_counts_must_be_positive_integers(n_basis):
+    with pytest.raises(InvalidInputError, match="n_basis must be a positive integer"):
+        discrete_basis(n_basis, GAINS)
+
+
+def test_online_setters_name_their_argument():
+    dmp, _ = discrete_case("velocity", seed=9)
+    with pytest.raises(InvalidInputError, match="dt must be a positive finite number"):
+        Stepper(dmp, 0.0, dmp.start)
+    with pytest.raises(
+        ShapeError, match=r"start has shape \(3,\), expected \(2,\) to match 2 DOFs"
+    ):
+        Stepper(dmp, 1e-3, [1.0, 2.0, 3.0])
+    with pytest.raises(
+        ShapeError, match=r"start_velocity has shape \(3,\), expected \(2,\) to match 2 DOFs"
+    ):
+        Stepper(dmp, 1e-3, dmp.start, [1.0, 2.0, 3.0])
+    with pytest.raises(ShapeError, match=r"goal has shape \(3,\), expected \(2,\) to match 2 DOFs"):
+        dmp.stepper().set_goal([1.0, 2.0, 3.0])
+    rhythmic, _ = rhythmic_case("phase", seed=9)
+    with pytest.raises(InvalidInputError, match="amplitude must be a positive"):
+        rhythmic.stepper().set_amplitude(-1.0)
+    with pytest.raises(InvalidInputError, match="weights"):
+        rhythmic.replace(weights=np.full((2, 8, 2), np.nan))
+
+
+def test_save_keeps_an_npz_name_and_load_refuses_a_foreign_header(tmp_path):
+    """save(dmp, "a.npz") writes a.npz (not a.npz.npz), save(dmp, "b") writes b.npz; a file
+    whose header names another format is refused whatever its version."""
+    dmp, _ = rhythmic_case("energy", seed=10, kernel="paper")
+    assert dmpopt_io.save(dmp, tmp_path / "a.npz") == tmp_path / "a.npz"
+    assert dmpopt_io.save(dmp, tmp_path / "b") == tmp_path / "b.npz"
+    loaded = dmpopt_io.load(tmp_path / "a.npz")
+    assert loaded.kernel == "paper"
+    np.testing.assert_array_equal(loaded.weights, dmp.weights)
+    header = {"format": "other", "version": 1, "class": "RhythmicDMP", "scalars": {}}
+    np.savez(tmp_path / "c.npz", header=np.array(json.dumps(header)))
+    with pytest.raises(FileFormatError, match="not a dmpopt DMP file"):
+        dmpopt_io.load(tmp_path / "c.npz")
+
+
+def test_rhythmic_weights_accept_the_flat_feature_layout_and_are_frozen_copies():
+    """Weights (n_dofs, 2 n_basis), the layout of the features, mean (n_dofs, n_basis, 2);
+    the DMP keeps a read-only copy; other shapes are refused naming the argument."""
+    dmp, _ = rhythmic_case("phase", seed=13)
+    flat = np.array(dmp.weights).reshape(2, 16)
+    same = dmp.replace(weights=flat)
+    assert same.weights.shape == (2, 8, 2) and not same.weights.flags.writeable
+    np.testing.assert_array_equal(same.weights, dmp.weights)
+    flat[0, 0] += 1.0
+    np.testing.assert_array_equal(same.weights, dmp.weights)
+    for shape in [(2, 15), (2, 8, 3), (16,)]:
+        with pytest.raises(
+            ShapeError, match=r"weights has shape .*expected \(n_dofs, n_basis, 2\)"
+        ):
+            dmp.replace(weights=np.ones(shape))
+    with pytest.raises(
+        ShapeError, match=r"setpoint has shape \(3,\), expected \(2,\) to match weights \(2, 8, 2\)"
+    ):
+        dmp.replace(setpoint=[0.0, 1.0, 2.0])
+
+
+def test_narrow_bases_do_not_underflow():
+    """Eq. (7)'s ratio psi_i / sum_j psi_j stays defined where every psi_j underflows
+    (widths 1e7: between centres exp(-h (x - c)^2) < 1e-300); the plan is finite."""
+    dmp, _ = discrete_case("velocity", seed=14)
+    narrow = dmp.replace(widths=np.full(dmp.n_basis, 1e7))
+    assert np.isfinite(plan_of(narrow.rollout(0.5, 1e-3))).all()
+
+
+def test_a_one_element_coupling_applies_to_every_dof():
+    dmp, _ = discrete_case("velocity", seed=15)
+    one, each = dmp.stepper(1e-3), dmp.stepper(1e-3)
+    for _ in range(50):
+        np.testing.assert_array_equal(
+            one.step(coupling=[5.0])[0], each.step(coupling=[5.0, 5.0])[0]
+        )

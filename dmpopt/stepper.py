@@ -31,8 +31,9 @@ class Stepper:
     phase : float
         Initial oscillator phase [rad] (rhythmic DMPs).
     compile : bool
-        Generate C code for the step and compile it (cached on disk; about five times
-        faster per step, a few seconds once per system). Needs a C compiler.
+        Generate C code for the step and compile it (cached in the user's cache folder; about
+        five times faster per step, a few seconds once per system). Without a C compiler it
+        warns once and runs on CasADi's virtual machine, with identical results.
 
     Examples
     --------
@@ -54,11 +55,13 @@ class Stepper:
         step = symbolic.step_function(dmp.signature)
         compile = flag("compile", compile)
         self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
-        self._function.set_inputs(
-            np.zeros(dmp.signature.n_states), self.dt, *dmp.parameter_values()
-        )
         self.time = 0.0
         self._start = _vector("start", start, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
+        # eq. (7): the forcing term scales by the movement's own start
+        parameters = (
+            dmp.with_start(self._start) if isinstance(dmp, DiscreteDMP) else dmp
+        ).parameter_values()
+        self._function.set_inputs(np.zeros(dmp.signature.n_states), self.dt, *parameters)
         self._goal = np.array(dmp._goal_input(), dtype=float)
         if isinstance(dmp, RhythmicDMP):
             canonical = dmp.canonical_state(phase)
@@ -70,7 +73,7 @@ class Stepper:
             rows.append(self._start)
         self._state = self._function.inputs[0]
         self._state[:] = np.concatenate([canonical, *rows])
-        initial = symbolic.output_function(dmp.signature)(self._state, *dmp.parameter_values())
+        initial = symbolic.output_function(dmp.signature)(self._state, *parameters)
         self.position, self.velocity, self.acceleration = (o.full().ravel() for o in initial)
 
     # -- inputs -------------------------------------------------------------------------

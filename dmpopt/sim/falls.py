@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.sim._checks import real
+from dmpopt.validation import real
 
 __all__ = ["Fall", "FallDetector", "base_tilt"]
 
@@ -99,7 +99,10 @@ class FallDetector:
 
     def __post_init__(self):
         height = real(
-            "min_height", self.min_height, "a height [m], or -np.inf to disable", finite=False
+            "min_height",
+            self.min_height,
+            finite=False,
+            expected="a height [m], or -np.inf to disable",
         )
         if height == np.inf:
             raise InvalidInputError("min_height must be below +inf; pass -np.inf to disable")
@@ -108,9 +111,10 @@ class FallDetector:
             bound = real(
                 name,
                 getattr(self, name),
-                "a bound > 0, or np.inf to disable",
-                positive=True,
+                minimum=0.0,
+                open_minimum=True,
                 finite=False,
+                expected="a bound > 0, or np.inf to disable",
             )
             object.__setattr__(self, name, bound)
 
@@ -136,8 +140,9 @@ class FallDetector:
         standing_height = real(
             "standing_height",
             standing_height,
-            "a height [m] > 0 of the base above the feet",
-            positive=True,
+            minimum=0.0,
+            open_minimum=True,
+            expected="a height [m] > 0 of the base above the feet",
         )
         min_height = 0.5 * standing_height
         return cls(
@@ -170,7 +175,11 @@ class FallDetector:
                 ("time", "height", "tilt", "flight_time", "spin"),
                 (time, height, tilt, flight_time, spin),
             ):
-                real(name, value, "a finite number; the state diverged before the fall check")
+                real(
+                    name,
+                    value,
+                    expected="a finite number; the state diverged before the fall check",
+                )
         if height < self.min_height:
             return Fall(
                 time,

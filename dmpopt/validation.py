@@ -231,4 +231,4 @@ def check_resources(what: str, n_bytes: float, remedy: str, n_samples: int | Non
         if n_samples is not None:
             bounds = f"{MAX_SAMPLES:.3g} samples (dmpopt.validation.MAX_SAMPLES) and {bounds}"
             needs = f"{n_samples:.3g} samples and {needs}"
-        raise ResourceLimitError(f"{what} needs {needs}; the bounds are {bounds}: {remedy}")
+        raise ResourceLimitError(f"{what} needs {needs}; dmpopt allows at most {bounds}: {remedy}")

@@ -10,6 +10,7 @@ from the arguments (a rollout's samples, a fit's matrices) is estimated with
 
 from __future__ import annotations
 
+import decimal
 import numbers
 
 import numpy as np
@@ -34,7 +35,7 @@ def _is_real_scalar(value) -> bool:
         return False
     if isinstance(value, np.ndarray):
         return value.ndim == 0 and value.dtype.kind in "iuf"
-    return isinstance(value, numbers.Real)
+    return isinstance(value, (numbers.Real, decimal.Decimal))
 
 
 def _bounds(minimum, maximum, open_minimum: bool) -> str:
@@ -61,7 +62,8 @@ def real(
     name : str
         Argument name used in the error message.
     value : object
-        An int or float (also NumPy scalars and 0-d arrays); not bool, str, None or complex.
+        An int, float or Decimal (also NumPy scalars and 0-d arrays); not bool, str, None or
+        complex.
     minimum, maximum : float, optional
         Bounds; ``open_minimum`` excludes ``minimum`` itself.
     finite : bool

@@ -1,5 +1,7 @@
 """Bad inputs at every public DMP entry point: a named error, never a silently wrong result."""
 
+from decimal import Decimal
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -336,6 +338,7 @@ def test_real_refuses_what_float_would_silently_convert(value):
 def test_real_states_the_expected_value_infinity_and_the_fix():
     assert validation.real("bound", np.inf, finite=False) == np.inf
     assert validation.real("bound", np.array(2)) == 2.0
+    assert validation.real("bound", Decimal("0.5")) == 0.5
     with pytest.raises(
         InvalidInputError, match=r"^bound must be a height \[m\], got nan; raise it$"
     ):

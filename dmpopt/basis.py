@@ -22,7 +22,7 @@ end of the demonstration (Section 3.4)."""
 
 def check_n_basis(n_basis) -> int:
     """Validate a number of basis functions (one or more)."""
-    return integer("n_basis", n_basis, 1)
+    return integer("n_basis", n_basis, minimum=1)
 
 
 RK4_STABILITY_RADII = np.linspace(0.0, 3.0, 3001)[1:]

@@ -44,8 +44,8 @@ import numpy as np
 
 from . import basis, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
-from .trajectory import Trajectory, as_finite_array
-from .validation import check_resources, positive_number, real_number
+from .trajectory import Trajectory
+from .validation import check_resources, real, real_array
 
 GOAL_SCALINGS = ("paper", "rotation", "translation")
 SETTLING_FRACTION = 0.9999
@@ -54,7 +54,7 @@ a default plan lasts beyond the convergence time (:attr:`DiscreteDMP.settling_ti
 
 
 def _positive(name: str, value) -> float:
-    return positive_number(name, value)
+    return real(name, value, minimum=0.0, open_minimum=True)
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
@@ -64,7 +64,7 @@ def _frozen(array: np.ndarray) -> np.ndarray:
 
 
 def _vector(name: str, value, size: int, reference: str) -> np.ndarray:
-    array = np.atleast_1d(as_finite_array(name, value))
+    array = np.atleast_1d(real_array(name, value, empty=True))
     if array.shape == (1,) and size > 1:
         array = np.full(size, array[0])
     if array.shape != (size,):
@@ -298,10 +298,10 @@ class _DmpCommon:
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
-            n_steps,
             8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs),
             "raise dt or shorten duration (by default the convergence time or three periods, "
             "both proportional to time_constant)",
+            n_samples=n_steps,
         )
         key = (
             self.form,
@@ -425,7 +425,7 @@ class DiscreteDMP(_DmpCommon):
             raise InvalidInputError(
                 f"goal_scaling must be one of {GOAL_SCALINGS}, got {self.goal_scaling!r}"
             )
-        weights = np.atleast_2d(as_finite_array("weights", self.weights))
+        weights = np.atleast_2d(real_array("weights", self.weights, empty=True))
         if weights.ndim != 2:
             raise ShapeError(f"weights has shape {weights.shape}, expected (n_dofs, n_basis)")
         n_dofs, n_basis = weights.shape
@@ -525,13 +525,13 @@ class DiscreteDMP(_DmpCommon):
         The canonical system (6) is integrated from rest as in a rollout; the result does not
         depend on the weights, start or goal. Shape (n_steps, n_basis).
         """
-        n_steps = validation.integer("n_steps", n_steps, 1)
+        n_steps = validation.integer("n_steps", n_steps, minimum=1)
         dt = self.check_step(dt)
         check_resources(
             f"phase_features({n_steps}, {dt:.4g})",
-            n_steps,
             8.0 * n_steps * (2 * self.n_basis + 8),
             "ask for fewer samples",
+            n_samples=n_steps,
         )
         signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
         unforced = self.replace(
@@ -639,7 +639,7 @@ class RhythmicDMP(_DmpCommon):
             )
         if self.kernel not in ("von_mises", "paper"):
             raise InvalidInputError(f"kernel must be 'von_mises' or 'paper', got {self.kernel!r}")
-        weights = as_finite_array("weights", self.weights)
+        weights = real_array("weights", self.weights, empty=True)
         if weights.ndim == 2 and weights.shape[1] % 2 == 0:
             weights = weights.reshape(weights.shape[0], -1, 2)
         if weights.ndim != 3 or weights.shape[2] != 2:
@@ -674,7 +674,7 @@ class RhythmicDMP(_DmpCommon):
 
     def canonical_state(self, phase: float = 0.0) -> tuple[float, float]:
         """The oscillator's state on its limit cycle at ``phase`` [rad]."""
-        phase = real_number("phase", phase)
+        phase = real("phase", phase)
         if self.form == "phase":
             return (phase, self.amplitude)
         # x = A cos(theta), v = A k sin(theta) gives atan2(v, x) = theta for k = 1

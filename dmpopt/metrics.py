@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arguments import MAX_ELEMENTS, real_array
+from . import validation
 from .exceptions import InvalidInputError, ResourceLimitError, ShapeError
 from .trajectory import Trajectory
+from .validation import real_array
 
 MAX_PAIRS = 1e9
 """Largest ``n * m`` (sample pairs) that :func:`path_distance` accepts (its time grows with it)."""
@@ -103,7 +104,8 @@ def _closest_distances(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     segment = end - start
     length2 = np.maximum(np.sum(segment**2, axis=1), 1e-300)
     best = np.full(points.shape[0], np.inf)
-    rows = max(1, MAX_ELEMENTS // (4 * polyline.size))  # temporaries stay within the bound
+    # four temporaries of rows x polyline.size float64 values, within 1/16 of the budget
+    rows = max(1, int(validation.MEMORY_BUDGET // (16 * 32 * polyline.size)))
     for chunk in np.array_split(np.arange(points.shape[0]), -(-points.shape[0] // rows)):
         offset = points[chunk, None, :] - start[None]
         fraction = np.clip(np.sum(offset * segment[None], axis=2) / length2, 0.0, 1.0)

@@ -58,10 +58,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ._arguments import budget, integer, real, real_array
 from .dmp import DiscreteDMP, similarity_transform
 from .exceptions import InvalidInputError, ShapeError
 from .trajectory import Trajectory
+from .validation import check_resources, integer, real, real_array
 
 METRICS = ("plan", "euclidean")
 MAX_SAMPLES = 100_000
@@ -502,9 +502,9 @@ class ShrinkageLdaClassifier:
         """Class means and the whitening of the shrunk pooled covariance; returns ``self``."""
         shrinkage = real("shrinkage", self.shrinkage, minimum=0.0, maximum=1.0, open_minimum=True)
         features = _check_features(features)
-        budget(
+        check_resources(
             f"the covariance of {features.shape[1]} features",
-            features.shape[1] ** 2,
+            8.0 * (features.shape[1] ** 2),
             "reduce the features (e.g. fewer basis functions or path samples)",
         )
         labels = _check_labels(labels, features.shape[0])

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._arguments import budget, integer, real, real_array
 from .exceptions import InvalidInputError, NoSolutionFound, ShapeError
 from .trajectory import Trajectory
+from .validation import check_resources, integer, real, real_array
 
 _TOLERANCE = 1e-9
 MAX_GRIDPOINTS = 100_000
@@ -175,9 +175,9 @@ def _shortest_duration(trajectory: Trajectory, velocity_limit, acceleration_limi
 
 
 def _check_output_size(duration: float, dt: float, n_dofs: int = 1) -> None:
-    budget(
+    check_resources(
         f"the retimed trajectory ({duration:.4g} s sampled every {dt:g} s, {n_dofs} DOFs)",
-        4 * (duration / dt + 1) * n_dofs,
+        8.0 * (4 * (duration / dt + 1) * n_dofs),
         "raise dt or the limits",
     )
 

@@ -12,7 +12,7 @@ import numpy as np
 from . import symbolic
 from .dmp import DiscreteDMP, RhythmicDMP, _positive, _vector
 from .exceptions import InvalidInputError, ShapeError
-from .validation import as_finite_array, flag, real_number
+from .validation import flag, real, real_array
 
 _INPUT = {name: 2 + i for i, name in enumerate(symbolic.PARAMETER_NAMES)}
 
@@ -122,7 +122,7 @@ class Stepper:
         """Jump the oscillator to ``phase`` [rad], keeping its amplitude (eq. (21))."""
         if not isinstance(self.dmp, RhythmicDMP):
             raise InvalidInputError("reset_phase applies to rhythmic DMPs")
-        phase = real_number("phase", phase)
+        phase = real("phase", phase)
         first, second = self._state[0], self._state[1]
         if self.dmp.form == "phase":
             self._state[0] = phase
@@ -157,14 +157,16 @@ class Stepper:
         if coupling is not None:
             coupling = np.asarray(coupling)
             if coupling.dtype != np.float64 or not np.isfinite(coupling).all():
-                coupling = as_finite_array("coupling", coupling)  # converts or names the fault
+                coupling = real_array(
+                    "coupling", coupling, empty=True
+                )  # converts or names the fault
             if coupling.shape not in ((), (1,), (self.dmp.n_dofs,)):
                 raise ShapeError(
                     f"coupling has shape {coupling.shape}, expected ({self.dmp.n_dofs},) "
                     "(one term per DOF) or a scalar"
                 )
             self._write("coupling", coupling)
-        canonical_coupling = real_number("canonical_coupling", canonical_coupling)
+        canonical_coupling = real("canonical_coupling", canonical_coupling)
         self._function.inputs[_INPUT["canonical_coupling"]][0] = canonical_coupling
         self._function.evaluate()
         next_state, position, velocity, acceleration = self._function.outputs

@@ -7,14 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .exceptions import InvalidInputError, ShapeError
-from .validation import as_finite_array, check_resources, integer
+from .validation import check_resources, integer, real_array
 
 MIN_SAMPLES = 3
 
 
 def check_times(times: np.ndarray, name: str = "times") -> np.ndarray:
     """Validate sample times: finite, 1-D, at least three, strictly increasing."""
-    times = as_finite_array(name, times, ndim=1)
+    times = real_array(name, times, ndim=1, empty=True)
     if times.size < MIN_SAMPLES:
         raise InvalidInputError(
             f"{name} has {times.size} samples, at least {MIN_SAMPLES} are needed"
@@ -30,7 +30,7 @@ def check_times(times: np.ndarray, name: str = "times") -> np.ndarray:
 
 
 def _as_2d(name: str, value, n_samples: int) -> np.ndarray:
-    array = as_finite_array(name, value)
+    array = real_array(name, value, empty=True)
     if array.ndim == 1:
         array = array[:, None]
     if array.ndim != 2 or array.shape[0] != n_samples or array.shape[1] == 0:
@@ -103,7 +103,7 @@ class Trajectory:
         """
         times = check_times(times)
         positions = _as_2d("positions", positions, times.size)
-        smoothing_window = integer("smoothing_window", smoothing_window, 0)
+        smoothing_window = integer("smoothing_window", smoothing_window, minimum=0)
         if smoothing_window:
             positions = _smooth(times, positions, smoothing_window)
         velocities = differentiate(times, positions)
@@ -133,12 +133,12 @@ class Trajectory:
 
     def resampled(self, n_steps: int) -> Trajectory:
         """Return the trajectory on ``n_steps`` equally spaced times (cubic Hermite)."""
-        n_steps = integer("n_steps", n_steps, MIN_SAMPLES)
+        n_steps = integer("n_steps", n_steps, minimum=MIN_SAMPLES)
         check_resources(
             f"resampled({n_steps})",
-            n_steps,
             8.0 * n_steps * (1 + 6 * self.n_dofs),
             "ask for fewer samples",
+            n_samples=n_steps,
         )
         from scipy.interpolate import CubicHermiteSpline
 

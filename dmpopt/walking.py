@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dmpopt._arguments import real, real_array
 from dmpopt.exceptions import InvalidInputError, ShapeError
+from dmpopt.validation import real, real_array
 
 __all__ = [
     "FrequencyAdaptation",

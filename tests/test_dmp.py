@@ -260,8 +260,8 @@ def test_affine_plan_matches_rollout():
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"time_constant": 0.0}, "time_constant must be a positive"),
-        ({"time_constant": -1.0}, "time_constant must be a positive"),
+        ({"time_constant": 0.0}, "time_constant must be a finite number > 0, got"),
+        ({"time_constant": -1.0}, "time_constant must be a finite number > 0, got"),
         ({"goal": np.zeros(3)}, r"goal has shape \(3,\), expected \(2,\)"),
         ({"weights": np.full((2, 20), np.nan)}, "weights contains 40 NaN"),
         ({"form": "jerk"}, "form must be one of"),
@@ -279,7 +279,7 @@ def test_bad_parameters_name_the_argument(changes, message):
 
 def test_bad_rollout_arguments():
     dmp = random_discrete()
-    with pytest.raises(InvalidInputError, match="dt must be a positive"):
+    with pytest.raises(InvalidInputError, match="dt must be a finite number > 0, got"):
         dmp.rollout(1.0, dt=0.0)
     with pytest.raises(InvalidInputError, match="duration 0.001 is shorter than two steps"):
         dmp.rollout(0.001, dt=0.001)

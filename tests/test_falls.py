@@ -32,7 +32,10 @@ def test_thresholds_derived_from_the_standing_height():
         (dict(min_height=np.inf), "min_height must be below"),
         (dict(min_height=0.5, max_tilt=0.0), "max_tilt must be a bound > 0"),
         (dict(min_height=0.5, max_flight_time=-1.0), "max_flight_time must be a bound > 0"),
-        (dict(min_height=0.5, max_spin="fast"), "max_spin must be a bound > 0"),
+        (
+            dict(min_height=0.5, max_spin="fast"),
+            r"max_spin must be a real number \(a bound > 0, or np.inf to disable\), got 'fast'",
+        ),
     ],
 )
 def test_bad_thresholds_are_named(arguments, message):

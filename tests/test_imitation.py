@@ -109,11 +109,14 @@ def test_period_estimate():
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda d: fit_discrete(d, 0), "n_basis must be a positive integer, got 0"),
-        (lambda d: fit_discrete(d, 2.5), "n_basis must be a positive integer"),
+        (lambda d: fit_discrete(d, 0), "n_basis must be an integer >= 1, got 0"),
+        (lambda d: fit_discrete(d, 2.5), "n_basis must be an integer >= 1, got 2.5"),
         (lambda d: fit_discrete(d.positions, 10), "demo must be a Trajectory"),
         (lambda d: fit_discrete(d, 10, method="magic"), "method must be one of"),
-        (lambda d: fit_rhythmic(d, 10, period=-1.0), "period must be a positive"),
+        (
+            lambda d: fit_rhythmic(d, 10, period=-1.0),
+            "period must be a finite number > 0, got -1.0",
+        ),
         (lambda d: fit_rhythmic(d, 10, period=5.0), "less than one period"),
     ],
 )

@@ -367,7 +367,8 @@ def test_error_classifier_inputs():
         fitted.predict(np.zeros((1, 2)))
     with _raises(
         InvalidInputError,
-        "features contains 1 NaN or infinite value(s); clean or interpolate them first",
+        "features[0, 0] is nan: features contains 1 NaN or infinite value(s); "
+        "clean or interpolate them first",
     ):
         fitted.predict([[np.nan, 0.0, 0.0]])
     with _raises(InvalidInputError, "shrinkage must be a finite number > 0 and <= 1, got 0.0"):

@@ -82,7 +82,7 @@ def test_errors():
     stepper = random_discrete().stepper()
     with pytest.raises(InvalidInputError, match="set_amplitude applies to rhythmic"):
         stepper.set_amplitude(2.0)
-    with pytest.raises(InvalidInputError, match="time_constant must be a positive"):
+    with pytest.raises(InvalidInputError, match="time_constant must be a finite number > 0, got"):
         stepper.set_time_constant(0.0)
     with pytest.raises(InvalidInputError, match="reset_phase applies to rhythmic"):
         stepper.reset_phase(0.0)

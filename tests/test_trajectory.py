@@ -37,7 +37,7 @@ def test_resampled_keeps_the_curve():
             ShapeError,
             r"positions has shape \(2, 2\), expected \(3, n_dofs\)",
         ),
-        ([[0, 1, 2]], [0, 1, 2], ShapeError, "times has 2 dimensions"),
+        ([[0, 1, 2]], [0, 1, 2], ShapeError, r"times has shape \(1, 3\), expected 1 dimension"),
     ],
 )
 def test_bad_input_names_the_argument(times, positions, error, message):

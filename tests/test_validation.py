@@ -1,7 +1,11 @@
 """Bad inputs at every public DMP entry point: a named error, never a silently wrong result."""
 
+from decimal import Decimal
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from problems import minimum_jerk_demo, periodic_demo, random_discrete, random_rhythmic
 
 from dmpopt import (
@@ -63,36 +67,57 @@ BAD_INPUTS = [
     (lambda: DISCRETE.rollout("1", 0.001), "duration must be a real number"),
     (lambda: DISCRETE.rollout(0.5, None), "dt must be a real number"),
     (lambda: DISCRETE.affine_plan(0.5, True), "dt must be a real number"),
-    (lambda: DISCRETE.phase_features(10.5, 0.001), "n_steps must be a positive integer"),
+    (lambda: DISCRETE.phase_features(10.5, 0.001), "n_steps must be an integer >= 1, got 10.5"),
     (lambda: DISCRETE.phase_features(10, 1.0), "dt = 1 s is beyond the stability limit"),
     (lambda: DISCRETE.stepper("0.001"), "dt must be a real number"),
     (lambda: DISCRETE.stepper(0.001, compile="no"), "compile must be True or False"),
     (lambda: DISCRETE.stepper().set_time_constant(None), "time_constant must be a real number"),
     (lambda: DISCRETE.stepper().step(canonical_coupling=None), "canonical_coupling must be"),
-    (lambda: DISCRETE.stepper().step(coupling="ab"), "coupling must be numeric"),
+    (
+        lambda: DISCRETE.stepper().step(coupling="ab"),
+        "coupling must be an array of real numbers, got 'ab'",
+    ),
     (lambda: DISCRETE.stepper().step(coupling=[np.nan, 0.0]), "coupling contains 1 NaN"),
-    (lambda: RHYTHMIC.stepper().reset_phase(np.nan), "phase must be finite"),
+    (lambda: RHYTHMIC.stepper().reset_phase(np.nan), "phase must be a finite number, got"),
     (lambda: RHYTHMIC.stepper().reset_phase(None), "phase must be a real number"),
     (lambda: RHYTHMIC.stepper().set_amplitude("2"), "amplitude must be a real number"),
-    (lambda: RHYTHMIC.rollout(0.5, phase=np.inf), "phase must be finite"),
+    (lambda: RHYTHMIC.rollout(0.5, phase=np.inf), "phase must be a finite number, got"),
     (lambda: RHYTHMIC.with_amplitude(None), "amplitude must be a real number"),
-    (lambda: Trajectory.from_positions(TIMES, TIMES > 0.5), "positions must be numeric"),
-    (lambda: Trajectory.from_positions(None, None), "times must be numeric"),
+    (
+        lambda: Trajectory.from_positions(TIMES, TIMES > 0.5),
+        "positions must be an array of real numbers, got booleans",
+    ),
+    (
+        lambda: Trajectory.from_positions(None, None),
+        "times must be an array of real numbers, got None",
+    ),
     (lambda: Trajectory.from_positions(TIMES, TIMES, smoothing_window=7.5), "smoothing_window"),
     (lambda: DEMO.resampled("100"), "n_steps must be"),
     # fits
-    (lambda: fit_discrete(DEMO, 10, regularization=-1e-3), "regularization must be zero or"),
-    (lambda: fit_discrete(DEMO, 10, regularization=np.nan), "regularization must be finite"),
+    (
+        lambda: fit_discrete(DEMO, 10, regularization=-1e-3),
+        "regularization must be a finite number >= 0, got -",
+    ),
+    (
+        lambda: fit_discrete(DEMO, 10, regularization=np.nan),
+        "regularization must be a finite number >= 0, got nan",
+    ),
     (lambda: fit_discrete(DEMO, 10, regularization="1e-9"), "regularization must be a real"),
-    (lambda: fit_rhythmic(PERIODIC, 8, regularization=-1.0), "regularization must be zero or"),
+    (
+        lambda: fit_rhythmic(PERIODIC, 8, regularization=-1.0),
+        "regularization must be a finite number >= 0, got -",
+    ),
     (lambda: fit_discrete(DEMO, 300), "n_basis = 300 gives 300 weights per DOF but demo has"),
     (lambda: fit_rhythmic(PERIODIC, 401), "n_basis = 401 gives 802 weights per DOF"),
     (lambda: fit_rhythmic(PERIODIC, 8, period="0.8"), "period must be a real number"),
     (lambda: fit_rhythmic(PERIODIC, 8, amplitude=None), "amplitude must be a real number"),
-    (lambda: fit_rhythmic(PERIODIC, 8, warm_up_periods=-1), "warm_up_periods must be a non-n"),
+    (
+        lambda: fit_rhythmic(PERIODIC, 8, warm_up_periods=-1),
+        "warm_up_periods must be an integer >= 0, got -1",
+    ),
     (lambda: fit_rhythmic(PERIODIC, 8, warm_up_periods=np.nan), "warm_up_periods must be"),
     (lambda: fit_to_accuracy(DEMO, "0.1"), "tolerance must be a real number"),
-    (lambda: fit_to_accuracy(DEMO, np.inf), "tolerance must be finite"),
+    (lambda: fit_to_accuracy(DEMO, np.inf), "tolerance must be a finite number > 0, got inf"),
     (lambda: fit_to_accuracy(DEMO, 0.1, candidates=()), "candidates is empty"),
     (lambda: fit_to_accuracy(DEMO, 0.1, candidates="ab"), "candidates must be a sequence"),
     (lambda: fit_to_accuracy(DEMO, 0.1, rhythmic="yes"), "rhythmic must be True or False"),
@@ -275,3 +300,128 @@ def test_a_dof_at_rest_beside_a_periodic_one_is_periodic():
     beside = Trajectory.from_positions(demo.times, np.c_[demo.positions, np.full(801, 0.3)])
     assert max(periodicity_mismatch(beside, 0.8)) < 1e-3
     fit_rhythmic(beside, 15, period=0.8)
+
+
+# The checks themselves: each answer key is the rule written plainly.
+
+NOT_REAL = [True, np.bool_(False), "1.5", b"1", None, 1 + 0j, [1.0], np.array([1.0])]
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    x=st.floats(allow_nan=True, allow_infinity=True),
+    low=st.floats(-10, 10),
+    width=st.floats(0, 10),
+    open_minimum=st.booleans(),
+)
+def test_real_accepts_exactly_the_finite_numbers_within_the_bounds(x, low, width, open_minimum):
+    high = low + width
+    inside = np.isfinite(x) and (x > low if open_minimum else x >= low) and x <= high
+    if inside:
+        assert validation.real("gain", x, minimum=low, maximum=high, open_minimum=open_minimum) == x
+    else:
+        with pytest.raises(
+            InvalidInputError,
+            match=f"^gain must be a finite number {'>' if open_minimum else '>='} ",
+        ):
+            validation.real("gain", x, minimum=low, maximum=high, open_minimum=open_minimum)
+
+
+@pytest.mark.parametrize("value", NOT_REAL, ids=repr)
+def test_real_refuses_what_float_would_silently_convert(value):
+    with pytest.raises(
+        InvalidInputError, match=r"^gain must be a real number \(a finite number >= 0\), got "
+    ):
+        validation.real("gain", value, minimum=0.0, fix="e.g. 0.5")
+
+
+def test_real_states_the_expected_value_infinity_and_the_fix():
+    assert validation.real("bound", np.inf, finite=False) == np.inf
+    assert validation.real("bound", np.array(2)) == 2.0
+    assert validation.real("bound", Decimal("0.5")) == 0.5
+    with pytest.raises(
+        InvalidInputError, match=r"^bound must be a height \[m\], got nan; raise it$"
+    ):
+        validation.real("bound", np.nan, finite=False, expected="a height [m]", fix="raise it")
+
+
+@pytest.mark.parametrize("value, result", [(3, 3), (np.int64(4), 4), (5.0, 5), (np.float32(6), 6)])
+def test_integer_accepts_integral_values(value, result):
+    number = validation.integer("n_basis", value, minimum=1)
+    assert number == result and type(number) is int
+
+
+@pytest.mark.parametrize("value", [0, 2.5, True, "3", None, np.nan, 1j, [3]], ids=repr)
+def test_integer_refuses_non_integers_and_values_below_the_minimum(value):
+    with pytest.raises(InvalidInputError, match=r"^n_basis must be an integer >= 1, got "):
+        validation.integer("n_basis", value, minimum=1)
+
+
+def test_integer_above_its_bound_is_a_resource_error_with_the_fix():
+    assert validation.integer("n", 10, minimum=1, maximum=10) == 10
+    with pytest.raises(ResourceLimitError, match=r"^n = 11 exceeds the bound 10 .*; use fewer$"):
+        validation.integer("n", 11, minimum=1, maximum=10, fix="use fewer")
+
+
+BAD_ARRAYS = [
+    # (value, keyword arguments, error, message)
+    ([1.0, 2j], {}, InvalidInputError, r"^x is complex; .*\(np\.real\)"),
+    ([True, False], {}, InvalidInputError, r"^x must be an array of real numbers, got booleans"),
+    ("ab", {}, InvalidInputError, r"^x must be an array of real numbers, got 'ab'"),
+    (None, {}, InvalidInputError, r"^x must be an array of real numbers, got None"),
+    ([[1.0], [1.0, 2.0]], {}, ShapeError, r"^x must be a regular array of real numbers"),
+    ([1.0, 2.0], {"ndim": 2}, ShapeError, r"^x has shape \(2,\), expected 2 dimension"),
+    ([1.0, 2.0], {"shape": (3,)}, ShapeError, r"^x has shape \(2,\), expected \(3,\)"),
+    ([], {}, ShapeError, r"^x is empty \(shape \(0,\)\)"),
+    (
+        [[0.0, 1.0], [2.0, np.inf]],
+        {},
+        InvalidInputError,
+        r"^x\[1, 1\] is inf: x contains 1 NaN or infinite value\(s\); clean",
+    ),
+    (
+        [0.0, np.nan, np.nan],
+        {"labels": ["a", "b", "c"], "fix": "drop them"},
+        InvalidInputError,
+        r"^x\[1\] \(b\) is nan: x contains 2 NaN or infinite value\(s\); drop them$",
+    ),
+]
+
+
+@pytest.mark.parametrize("value, keywords, error, message", BAD_ARRAYS)
+def test_real_array_names_the_argument_and_the_fault(value, keywords, error, message):
+    with pytest.raises(error, match=message):
+        validation.real_array("x", value, **keywords)
+
+
+def test_real_array_returns_a_new_float_array():
+    source = np.arange(3)
+    array = validation.real_array("x", source, shape=(3,))
+    array[0] = 7.0
+    assert array.dtype == float and source[0] == 0
+    assert validation.real_array("x", [], empty=True).shape == (0,)
+    assert validation.real_array("x", np.zeros(0), shape=(0,)).shape == (0,)
+
+
+def test_sequence_of_wants_an_iterable_of_the_kind():
+    assert validation.sequence_of("points", [1, 2], int) == (1, 2)
+    with pytest.raises(InvalidInputError, match=r"^points must be a sequence of int, got a single"):
+        validation.sequence_of("points", 1, int)
+    with pytest.raises(InvalidInputError, match=r"^points must be a sequence of int, got NoneType"):
+        validation.sequence_of("points", None, int)
+    with pytest.raises(InvalidInputError, match=r"^points\[1\] must be a int, got str"):
+        validation.sequence_of("points", [1, "2"], int)
+
+
+def test_check_resources_has_one_budget_in_bytes_and_one_sample_bound():
+    validation.check_resources("a request", validation.MEMORY_BUDGET, "shrink it")
+    validation.check_resources("a request", 1.0, "shrink it", n_samples=validation.MAX_SAMPLES)
+    for n_bytes, n_samples in [
+        (validation.MEMORY_BUDGET + 1, None),
+        (np.nan, None),
+        (1.0, validation.MAX_SAMPLES + 1),
+    ]:
+        with pytest.raises(
+            ResourceLimitError, match=r"^a request needs .*MEMORY_BUDGET\): shrink it$"
+        ):
+            validation.check_resources("a request", n_bytes, "shrink it", n_samples=n_samples)

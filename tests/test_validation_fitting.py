@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dmpopt import metrics, recognition, walking
+from dmpopt import metrics, recognition, validation, walking
 from dmpopt.exceptions import InvalidInputError, ResourceLimitError, ShapeError
 from dmpopt.fitting.constrained import (
     Bounds,
@@ -422,5 +422,5 @@ def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):
         return np.mean(best)
 
     expected = 0.5 * (brute(points, polyline) + brute(polyline, points))
-    monkeypatch.setattr(metrics, "MAX_ELEMENTS", 200)
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 200 * 8 * 16)  # two rows per chunk
     assert metrics.path_distance(points, polyline) == pytest.approx(expected, rel=1e-12)

@@ -43,7 +43,6 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .._arguments import budget, integer, real, real_array, sequence_of
 from ..dmp import AffinePlan, DiscreteDMP, similarity_transform
 from ..exceptions import (
     FittingFailed,
@@ -53,6 +52,7 @@ from ..exceptions import (
     ShapeError,
 )
 from ..trajectory import Trajectory
+from ..validation import check_resources, integer, real, real_array, sequence_of
 from .imitation import _check_demo, fit_discrete
 
 OBJECTIVES = ("position", "forcing")
@@ -392,7 +392,7 @@ def _end_tolerances(*values) -> tuple:
 
 
 def _check_problem_size(n_steps, n_basis, n_dofs, bounds, n_via_points) -> None:
-    """Refuse up front a problem whose matrices would exceed ``dmpopt._arguments.MAX_ELEMENTS``."""
+    """Refuse up front a problem whose matrices would exceed ``dmpopt.validation.MEMORY_BUDGET``."""
     n_basis = integer("n_basis", n_basis, minimum=1)
     if n_via_points > MAX_VIA_POINTS:
         raise ResourceLimitError(
@@ -402,10 +402,10 @@ def _check_problem_size(n_steps, n_basis, n_dofs, bounds, n_via_points) -> None:
         )
     n_limits = 0 if bounds is None else 4
     rows = n_limits * n_steps + n_via_points + 3
-    budget(
+    check_resources(
         f"a constrained fit with {n_steps} samples, {n_basis} basis functions, {n_dofs} DOFs and "
         f"{n_via_points} via-points",
-        max(3 * n_steps * n_basis, rows * n_basis, n_steps * n_dofs, n_basis**2),
+        8.0 * (max(3 * n_steps * n_basis, rows * n_basis, n_steps * n_dofs, n_basis**2)),
         "lower n_samples (constraints hold at every sample; a few hundred suffice), "
         "n_basis or the number of via-points",
     )

@@ -22,13 +22,7 @@ from .. import basis, symbolic
 from ..dmp import DiscreteDMP, RhythmicDMP
 from ..exceptions import FittingFailed, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
-from ..validation import (
-    check_resources,
-    flag,
-    integer,
-    non_negative_number,
-    positive_number,
-)
+from ..validation import check_resources, flag, integer, real
 
 METHODS = ("position", "least_squares", "lwr")
 GOAL_SCALINGS = ("auto", "paper", "rotation", "translation")
@@ -61,9 +55,9 @@ def _check_size(demo: Trajectory, n_features: int, n_basis: int) -> None:
         )
     check_resources(
         f"a fit of {n_basis} basis functions to {demo.n_steps} samples",
-        demo.n_steps,
         8.0 * (12 * demo.n_steps * (n_features + 3 + demo.n_dofs) + 3 * (n_features + 1) ** 2),
         "lower n_basis or resample the demonstration to fewer samples",
+        n_samples=demo.n_steps,
     )
 
 
@@ -205,7 +199,7 @@ def fit_discrete(
     method = _check_method(method)
     n_basis = basis.check_n_basis(n_basis)
     _check_size(demo, n_basis, n_basis)
-    regularization = non_negative_number("regularization", regularization)
+    regularization = real("regularization", regularization, minimum=0.0)
     scaling = _goal_scaling(demo, goal_scaling)
     start, goal = demo.positions[0], demo.positions[-1]
     template = DiscreteDMP(
@@ -363,7 +357,7 @@ def fit_to_accuracy(
     ``rhythmic`` selects :func:`fit_rhythmic` instead of :func:`fit_discrete`; ``options``
     are passed on. Raises :class:`InvalidInputError` if no candidate reaches the tolerance.
     """
-    tolerance = positive_number("tolerance", tolerance)
+    tolerance = real("tolerance", tolerance, minimum=0.0, open_minimum=True)
     candidates = [basis.check_n_basis(n) for n in _sequence("candidates", candidates)]
     if not candidates:
         raise InvalidInputError("candidates is empty; give at least one number of basis functions")
@@ -493,12 +487,16 @@ def fit_rhythmic(
     method = _check_method(method)
     n_basis = basis.check_n_basis(n_basis)
     _check_size(demo, 2 * n_basis, n_basis)
-    regularization = non_negative_number("regularization", regularization)
-    warm_up_periods = integer("warm_up_periods", warm_up_periods, 0)
+    regularization = real("regularization", regularization, minimum=0.0)
+    warm_up_periods = integer("warm_up_periods", warm_up_periods, minimum=0)
     tolerance = periodicity_tolerance
     if tolerance != np.inf:
-        tolerance = positive_number("periodicity_tolerance", tolerance)
-    period = estimate_period(demo) if period is None else positive_number("period", period)
+        tolerance = real("periodicity_tolerance", tolerance, minimum=0.0, open_minimum=True)
+    period = (
+        estimate_period(demo)
+        if period is None
+        else real("period", period, minimum=0.0, open_minimum=True)
+    )
     if demo.duration < 0.95 * period:
         raise InvalidInputError(
             f"demo lasts {demo.duration:.4g} s, less than one period ({period:.4g} s); "

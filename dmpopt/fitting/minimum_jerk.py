@@ -27,9 +27,9 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .._arguments import MAX_ELEMENTS, budget, integer, real, real_array, sequence_of
 from ..exceptions import InfeasibleProblem, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
+from ..validation import MEMORY_BUDGET, check_resources, integer, real, real_array, sequence_of
 from .constrained import (
     Bounds,
     ViaPoint,
@@ -57,9 +57,9 @@ def _grid(duration, dt, n_samples, n_dofs: int) -> np.ndarray:
             fix="or give n_samples",
         )
         estimate = duration / dt + 1
-        budget(
+        check_resources(
             f"sampling {duration:g} s every {dt:g} s ({n_dofs} DOFs)",
-            4 * estimate * n_dofs,
+            8.0 * (4 * estimate * n_dofs),
             "raise dt or shorten the duration",
         )
         n_samples = int(round(duration / dt)) + 1
@@ -68,7 +68,7 @@ def _grid(duration, dt, n_samples, n_dofs: int) -> np.ndarray:
             "n_samples",
             n_samples,
             minimum=3,
-            maximum=MAX_ELEMENTS // (4 * n_dofs),
+            maximum=MEMORY_BUDGET // (32 * n_dofs),
             fix="sample more coarsely",
         )
     return np.linspace(0.0, duration, n_samples)
@@ -223,9 +223,9 @@ def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
     """
     times = real_array("times", times, ndim=1)
     n_segments = integer("n_segments", n_segments, minimum=1)
-    budget(
+    check_resources(
         f"jerk responses at {times.size} times for {n_segments} segments",
-        3 * times.size * n_segments,
+        8.0 * (3 * times.size * n_segments),
         "lower n_segments or use fewer times",
     )
     knots = np.linspace(0.0, times[-1], n_segments + 1)
@@ -282,9 +282,9 @@ def minimum_jerk_constrained(
                 f"via_points[{i}].time = {via.time:g} s is after the end ({duration:g} s); "
                 "give a time within the duration"
             )
-    budget(
+    check_resources(
         f"a minimum-jerk QP with {times.size} samples and {n_segments} jerk segments",
-        (3 + 4) * times.size * n_segments,
+        8.0 * ((3 + 4) * times.size * n_segments),
         "lower n_segments or sample more coarsely (raise dt)",
     )
     response = jerk_response(times, n_segments)

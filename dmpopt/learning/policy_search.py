@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._arguments import budget, integer, real, real_array
 from ..exceptions import InvalidInputError, MissingDependency, ShapeError
+from ..validation import check_resources, integer, real, real_array
 
 __all__ = [
     "CMAES",
@@ -106,15 +106,15 @@ def _initial_weights(value) -> np.ndarray:
 
 def _check_sizes(n_rollouts: int, n_per_rollout: int, n_params: int, covariance: bool) -> None:
     """Refuse batches (and covariance matrices) beyond the allocation bound."""
-    budget(
+    check_resources(
         f"{n_rollouts} roll-outs of {n_per_rollout} values each",
-        n_rollouts * n_per_rollout,
+        8.0 * (n_rollouts * n_per_rollout),
         "lower n_rollouts",
     )
     if covariance:
-        budget(
+        check_resources(
             f"a covariance over {n_params} weights",
-            n_params**2,
+            8.0 * (n_params**2),
             "learn fewer weights (fewer basis functions or DOFs)",
         )
 

@@ -60,9 +60,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import basis, symbolic
-from .._arguments import budget, real, real_array, sequence_of
 from ..dmp import AffinePlan, DiscreteDMP
 from ..exceptions import InvalidInputError, ShapeError
+from ..validation import check_resources, real, real_array, sequence_of
 
 __all__ = [
     "RewardTask",
@@ -179,9 +179,10 @@ class RewardTask:
         duration = real("duration", self.duration, minimum=0.0, open_minimum=True)
         dt = real("dt", self.dt, minimum=0.0, maximum=duration / 2, open_minimum=True)
         estimate = duration / dt + 1  # samples; H holds 3 n^2 values
-        budget(
+        check_resources(
             f"a task of {duration:g} s with dt = {dt:g} s ({estimate:.3g} steps)",
-            max(3 * estimate**2, (self.n_dofs * self.n_basis + 1) * 3 * estimate * self.n_dofs),
+            8.0
+            * (max(3 * estimate**2, (self.n_dofs * self.n_basis + 1) * 3 * estimate * self.n_dofs)),
             "raise dt (the paper uses 1 ms over 0.5 s) or shorten the duration",
         )
         if not isinstance(self.delayed, (bool, np.bool_)):
@@ -254,9 +255,9 @@ class RewardTask:
         """
         weights = self._batch_weights(weights)
         k = weights.shape[0]
-        budget(
+        check_resources(
             f"plans of {k} roll-outs",
-            k * 3 * self.n_steps * self.n_dofs,
+            8.0 * (k * 3 * self.n_steps * self.n_dofs),
             "evaluate the batch in smaller chunks",
         )
         flat = weights.transpose(2, 0, 1).reshape(self.n_basis, k * self.n_dofs)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.sim._checks import real, vector
+from dmpopt.validation import real, real_array
 
 __all__ = ["GroundContact", "ground_forces"]
 
@@ -76,15 +76,26 @@ class GroundContact:
             if getattr(self, name) is None:
                 object.__setattr__(self, name, getattr(self, default))
         for name in ("stiffness", "tangential_stiffness"):
-            value = real(name, getattr(self, name), "a finite stiffness > 0 [N/m]", positive=True)
+            value = real(
+                name,
+                getattr(self, name),
+                minimum=0.0,
+                open_minimum=True,
+                expected="a finite stiffness > 0 [N/m]",
+            )
             object.__setattr__(self, name, value)
         for name in ("damping", "tangential_damping", "friction"):
-            value = real(name, getattr(self, name), "a finite number >= 0")
-            if value < 0:
-                raise InvalidInputError(f"{name} must be a finite number >= 0, got {value!r}")
+            value = real(name, getattr(self, name), minimum=0.0)
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "height", real("height", self.height, "a finite height [m]"))
-        normal = vector("normal", self.normal, 3, "the upward normal of the ground plane")
+        object.__setattr__(
+            self, "height", real("height", self.height, expected="a finite height [m]")
+        )
+        normal = real_array(
+            "normal",
+            self.normal,
+            shape=(3,),
+            expected="the upward normal of the ground plane",
+        )
         if not normal[2] > 0:
             raise InvalidInputError(
                 f"normal must point up (positive z, the world's up axis), got {self.normal!r}; "

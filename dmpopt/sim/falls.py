@@ -53,7 +53,7 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.sim._checks import real
+from dmpopt.validation import real
 
 __all__ = ["BaseFrame", "Fall", "FallDetector", "base_tilt", "fall_checks", "standing_height"]
 
@@ -106,7 +106,10 @@ class FallDetector:
 
     def __post_init__(self):
         height = real(
-            "min_height", self.min_height, "a height [m], or -np.inf to disable", finite=False
+            "min_height",
+            self.min_height,
+            finite=False,
+            expected="a height [m], or -np.inf to disable",
         )
         if height == np.inf:
             raise InvalidInputError("min_height must be below +inf; pass -np.inf to disable")
@@ -115,9 +118,10 @@ class FallDetector:
             bound = real(
                 name,
                 getattr(self, name),
-                "a bound > 0, or np.inf to disable",
-                positive=True,
+                minimum=0.0,
+                open_minimum=True,
                 finite=False,
+                expected="a bound > 0, or np.inf to disable",
             )
             object.__setattr__(self, name, bound)
 
@@ -143,8 +147,9 @@ class FallDetector:
         standing_height = real(
             "standing_height",
             standing_height,
-            "a height [m] > 0 of the base above the feet",
-            positive=True,
+            minimum=0.0,
+            open_minimum=True,
+            expected="a height [m] > 0 of the base above the feet",
         )
         min_height = 0.5 * standing_height
         return cls(
@@ -177,7 +182,11 @@ class FallDetector:
                 ("time", "height", "tilt", "flight_time", "spin"),
                 (time, height, tilt, flight_time, spin),
             ):
-                real(name, value, "a finite number; the state diverged before the fall check")
+                real(
+                    name,
+                    value,
+                    expected="a finite number; the state diverged before the fall check",
+                )
         if height < self.min_height:
             return Fall(
                 time,
@@ -354,7 +363,7 @@ def fall_checks(
         return None, None
     base = BaseFrame(model, fall_frame)
     if fall_height is not None:
-        fall_height = real("fall_height", fall_height, "a finite height [m] above the ground")
+        fall_height = real("fall_height", fall_height, expected="a finite height [m] above the ground")
     if isinstance(falls, FallDetector):
         if fall_height is not None:
             raise InvalidInputError(

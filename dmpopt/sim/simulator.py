@@ -27,9 +27,9 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError, SimulationDiverged
-from dmpopt.sim._checks import real, vector
 from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
+from dmpopt.validation import real, real_array
 
 __all__ = ["SimState", "Simulator", "TouchdownEvent"]
 
@@ -161,9 +161,19 @@ class Simulator:
             )
         self.model = model
         self.data = model.createData()
-        self.dt = real("dt", dt, "a positive finite time step [s], e.g. 1e-3", positive=True)
+        self.dt = real(
+            "dt",
+            dt,
+            minimum=0.0,
+            open_minimum=True,
+            expected="a positive finite time step [s], e.g. 1e-3",
+        )
         self.max_speed = real(
-            "max_speed", max_speed, "a positive finite bound [m/s, rad/s], e.g. 1e3", positive=True
+            "max_speed",
+            max_speed,
+            minimum=0.0,
+            open_minimum=True,
+            expected="a positive finite bound [m/s, rad/s], e.g. 1e3",
         )
         self.n_base_dofs = self._check_base_dofs(n_base_dofs)
         self.n_actuated = model.nv - self.n_base_dofs
@@ -247,7 +257,9 @@ class Simulator:
 
     def _locate(self, frame_name, offset, frame_argument: str, offset_argument: str):
         """Parent joint of a frame and the point's position in that joint's frame."""
-        offset = vector(offset_argument, offset, 3, "x, y, z in the frame [m]")
+        offset = real_array(
+            offset_argument, offset, shape=(3,), expected="x, y, z in the frame [m]"
+        )
         frame = self.model.frames[self._frame_id(frame_name, frame_argument)]
         return frame.parentJoint, frame.placement.act(offset)
 
@@ -268,8 +280,14 @@ class Simulator:
         """
         q = self._check_configuration(q)
         v = np.zeros(self.model.nv) if v is None else v
-        v = vector("v", v, self.model.nv, "velocity: base twist then joint speeds", self._v_names)
-        t = real("t", t, "a finite time [s]")
+        v = real_array(
+            "v",
+            v,
+            shape=(self.model.nv,),
+            expected="velocity: base twist then joint speeds",
+            labels=self._v_names,
+        )
+        t = real("t", t, expected="a finite time [s]")
         self.q, self.v, self.t = q, v, t
         n_points = self._n_points
         self._anchors = np.zeros((n_points, 2))
@@ -293,7 +311,13 @@ class Simulator:
     def _check_configuration(self, q) -> np.ndarray:
         """``q`` as a finite array with unit quaternions (renormalised within tolerance)."""
         model = self.model
-        q = vector("q", q, model.nq, "configuration: base pose then joint positions", self._q_names)
+        q = real_array(
+            "q",
+            q,
+            shape=(model.nq,),
+            expected="configuration: base pose then joint positions",
+            labels=self._q_names,
+        )
         for joint_id in range(1, model.njoints):
             joint = model.joints[joint_id]
             if joint.nq == joint.nv or joint.shortname() == "JointModelComposite":
@@ -353,7 +377,7 @@ class Simulator:
         offset : array_like, shape (3,)
             Point in the frame [m].
         """
-        force = vector("force", force, 3, "a world-frame force [N]")
+        force = real_array("force", force, shape=(3,), expected="a world-frame force [N]")
         n_steps = self._push_steps(duration)
         joint, point = self._locate(frame_name, offset, "frame_name", "offset")
         self._pushes.append(_Push(joint, point, force, self.t + (n_steps - 0.5) * self.dt))
@@ -364,12 +388,18 @@ class Simulator:
         The force is ``impulse / (n dt)`` over ``n = round(duration / dt)`` steps, so the
         impulse is exact whatever ``duration``.
         """
-        impulse = vector("impulse", impulse, 3, "a world-frame impulse [N s]")
+        impulse = real_array("impulse", impulse, shape=(3,), expected="a world-frame impulse [N s]")
         n_steps = self._push_steps(duration)
         self.push(frame_name, impulse / (n_steps * self.dt), n_steps * self.dt, offset)
 
     def _push_steps(self, duration) -> int:
-        duration = real("duration", duration, "a positive finite time [s]", positive=True)
+        duration = real(
+            "duration",
+            duration,
+            minimum=0.0,
+            open_minimum=True,
+            expected="a positive finite time [s]",
+        )
         n_steps = round(duration / self.dt)
         if n_steps < 1:
             raise InvalidInputError(
@@ -477,8 +507,19 @@ class Simulator:
             valid = False
         if valid and np.isfinite(tau_full).all():
             return
-        vector("tau", tau, self.n_actuated, self._tau_expected, self._tau_names)
-        vector("base_force", base_force, n_base, "generalised force on the base dofs")
+        real_array(
+            "tau",
+            tau,
+            shape=(self.n_actuated,),
+            expected=self._tau_expected,
+            labels=self._tau_names,
+        )
+        real_array(
+            "base_force",
+            base_force,
+            shape=(n_base,),
+            expected="generalised force on the base dofs",
+        )
 
     def _push_forces(self) -> np.ndarray:
         """Generalised force of the active pushes; drops the finished ones."""

@@ -363,7 +363,9 @@ def fall_checks(
         return None, None
     base = BaseFrame(model, fall_frame)
     if fall_height is not None:
-        fall_height = real("fall_height", fall_height, expected="a finite height [m] above the ground")
+        fall_height = real(
+            "fall_height", fall_height, expected="a finite height [m] above the ground"
+        )
     if isinstance(falls, FallDetector):
         if fall_height is not None:
             raise InvalidInputError(

@@ -126,7 +126,8 @@ def _via_knots(via_points, duration: float) -> tuple:
     vias = sorted(sequence_of("via_points", via_points, ViaPoint), key=lambda via: via.time)
     knots = np.array([0.0] + [via.time for via in vias] + [duration])
     gap = MIN_SEGMENT_FRACTION * duration
-    too_close = np.nonzero(np.diff(knots) < gap)[0]
+    # a gap of exactly MIN_SEGMENT_FRACTION of the duration passes, whatever its rounding
+    too_close = np.nonzero(np.diff(knots) < gap * (1 - 1e-9))[0]
     if too_close.size:
         k = int(too_close[0])
         raise InvalidInputError(

@@ -720,13 +720,13 @@ def test_compiled_stepper_matches_plain_equations():
 
 @pytest.mark.parametrize("n_basis", [0, -3, 2.5, True, "4"])
 def test_basis_counts_must_be_positive_integers(n_basis):
-    with pytest.raises(InvalidInputError, match="n_basis must be a positive integer"):
+    with pytest.raises(InvalidInputError, match="n_basis must be an integer >= 1"):
         discrete_basis(n_basis, GAINS)
 
 
 def test_online_setters_name_their_argument():
     dmp, _ = discrete_case("velocity", seed=9)
-    with pytest.raises(InvalidInputError, match="dt must be a positive finite number"):
+    with pytest.raises(InvalidInputError, match="dt must be a finite number > 0"):
         Stepper(dmp, 0.0, dmp.start)
     with pytest.raises(
         ShapeError, match=r"start has shape \(3,\), expected \(2,\) to match 2 DOFs"
@@ -739,7 +739,7 @@ def test_online_setters_name_their_argument():
     with pytest.raises(ShapeError, match=r"goal has shape \(3,\), expected \(2,\) to match 2 DOFs"):
         dmp.stepper().set_goal([1.0, 2.0, 3.0])
     rhythmic, _ = rhythmic_case("phase", seed=9)
-    with pytest.raises(InvalidInputError, match="amplitude must be a positive"):
+    with pytest.raises(InvalidInputError, match="amplitude must be a finite number > 0"):
         rhythmic.stepper().set_amplitude(-1.0)
     with pytest.raises(InvalidInputError, match="weights"):
         rhythmic.replace(weights=np.full((2, 8, 2), np.nan))

@@ -69,6 +69,7 @@ from dmpopt.exceptions import (
 )
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
 from dmpopt.sim.simulator import SimState, TouchdownEvent
+from dmpopt.validation import real, real_array
 
 __all__ = ["MujocoSimulator", "render_animation"]
 
@@ -101,30 +102,22 @@ class _Push:
 
 
 def _positive(name: str, value, allow_none=False, allow_zero=False) -> float | None:
+    """A finite number > 0 (>= 0 with ``allow_zero``; None kept with ``allow_none``)."""
     if value is None and allow_none:
         return None
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        value = np.nan
-    if not (np.isfinite(value) and (value >= 0 if allow_zero else value > 0)):
-        bound = ">= 0" if allow_zero else "> 0"
-        extra = " or None (keep the URDF value)" if allow_none else ""
-        raise InvalidInputError(f"{name} must be a finite number {bound}{extra}, got {value!r}")
-    return value
+    bound = ">= 0" if allow_zero else "> 0"
+    extra = " or None (keep the URDF value)" if allow_none else ""
+    return real(
+        name,
+        value,
+        minimum=0.0,
+        open_minimum=not allow_zero,
+        expected=f"a finite number {bound}{extra}",
+    )
 
 
 def _vector(name: str, value, size: int) -> np.ndarray:
-    try:
-        array = np.array(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be numbers, got {value!r}") from None
-    if array.shape != (size,):
-        raise ShapeError(f"{name} has shape {np.shape(value)}, expected ({size},)")
-    if not np.isfinite(array).all():
-        bad = np.flatnonzero(~np.isfinite(array)).tolist()
-        raise InvalidInputError(f"{name} must be finite; entries {bad} are not")
-    return array
+    return real_array(name, value, shape=(size,))
 
 
 def _pairs(contact_points) -> list[tuple[str, object]]:

@@ -76,6 +76,11 @@ class Stepper:
         initial = symbolic.output_function(dmp.signature)(self._state, *parameters)
         self.position, self.velocity, self.acceleration = (o.full().ravel() for o in initial)
 
+    @property
+    def compiled(self) -> bool:
+        """True if the step runs as generated C (``compile=True`` and a C compiler found)."""
+        return self._function.function.class_name() == "External"
+
     # -- inputs -------------------------------------------------------------------------
     def _write(self, name: str, value) -> None:
         self._function.inputs[_INPUT[name]][:] = np.ravel(value, order="F")

@@ -860,11 +860,7 @@ def _rms(error: np.ndarray, axis=None):
 
 def _stepper_compiles(dmps: DrumDmps) -> bool:
     """Whether the compiled DMP step is available (needs a C compiler)."""
-    try:
-        dmps.elbow.stepper(DT, start=dmps.start[[dmps.elbow_index]], compile=True)
-    except Exception:  # noqa: BLE001 - any build failure: use the CasADi VM instead
-        return False
-    return True
+    return dmps.elbow.stepper(DT, start=dmps.start[[dmps.elbow_index]], compile=True).compiled
 
 
 def _settling(dmps, modification, times, actual, phase, end_time) -> dict:

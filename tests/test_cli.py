@@ -408,3 +408,16 @@ def test_without_a_compiler_the_vm_gives_identical_steps(
     np.testing.assert_array_equal(fallback, compiled_steps)
     leftovers = list((tmp_path / cache).glob("*")) if (tmp_path / cache).is_dir() else []
     assert leftovers == []
+
+
+def test_stepper_says_whether_its_step_is_compiled(monkeypatch, tmp_path, small_dmp):
+    """``Stepper.compiled``: False on the VM fallback (what the studies report), True with C."""
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    with pytest.warns(RuntimeWarning, match="runs on the CasADi VM"):
+        assert small_dmp.stepper(1e-3, compile=True).compiled is False
+    assert small_dmp.stepper(1e-3).compiled is False
+    monkeypatch.delenv("CC")
+    if symbolic.c_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    assert small_dmp.stepper(1e-3, compile=True).compiled is True

@@ -87,7 +87,7 @@ from dmpopt.exceptions import InvalidInputError, MissingDependency, SimulationDi
 from dmpopt.sim import GroundContact, Simulator
 from robots import load_talos
 
-EXPECTED_SECONDS = {"full": 165, "quick": 40}  # CPU seconds on the 2-core machine (MuJoCo)
+EXPECTED_SECONDS = {"full": 165, "quick": 90}  # CPU seconds on the 2-core machine (MuJoCo)
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)

@@ -1318,9 +1318,13 @@ def _mujoco_metrics(nominal: RunLog, mujoco: dict) -> dict:
         "push_fell_ns": push["fell_ns"],
         "push_tried_ns": push["tried"],
         "push_note": f"forward impulse on the pelvis spread over {PUSH_DURATION} s from "
-        f"t = {PUSH_TIME} s while drumming; ladder, then bisection. push_fell_ns null: no "
-        "impulse tried was fatal and push_survived_ns is only a lower bound (search capped); "
-        "a run that diverged (push_tried_ns[].diverged, the message) ends the search like a "
+        f"t = {PUSH_TIME} s while drumming; ladder, then bisection. "
+        + (
+            "No impulse tried was fatal: push_survived_ns is only a lower bound (search capped). "
+            if push["fell_ns"] is None
+            else ""
+        )
+        + "A run that diverged (push_tried_ns[].diverged, the message) ends the search like a "
         "fall but is not counted as one",
         "qp_active_fraction_nominal": nominal.qp_active_fraction,
         "qp_active_fraction": scenarios[binding]["qp_active_fraction"],

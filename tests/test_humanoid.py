@@ -119,6 +119,8 @@ def test_quick_study_writes_metrics_and_figures(tmp_path):
     tried = [row["impulse_ns"] for row in mujoco["push_tried_ns"]]
     assert tried[0] == 10.0 and mujoco["push_survived_ns"] >= 10.0
     assert mujoco["push_fell_ns"] in (None, 60.0)
+    capped = "only a lower bound" in mujoco["push_note"]
+    assert capped == (mujoco["push_fell_ns"] is None)  # the note says so only when capped
     # Tight torque limits bind: the QP's torque rows are active on some ticks, and the
     # torques stay within the tightened limits (a fraction of the URDF limits).
     tight = mujoco["scenarios"]["tight_torque_limits"]

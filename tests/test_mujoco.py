@@ -202,6 +202,16 @@ def test_push_impulse_changes_momentum_by_the_impulse(talos_sim):
     np.testing.assert_allclose(momentum, expected, atol=0.3)
 
 
+@pytest.mark.parametrize("duration", [4e-4, 0.0])
+def test_a_push_too_short_to_act_is_refused_as_natively(talos_sim, duration):
+    """One push rule for both backends: a push must last at least half a step, else it would
+    never act (MuJoCo used to drop a 0.4 ms push silently)."""
+    talos_sim.reset(np.array(load_talos("full").reference_configuration))
+    with pytest.raises(InvalidInputError, match="duration"):
+        talos_sim.push_impulse("torso_2_link", [1.0, 0.0, 0.0], duration=duration)
+    assert talos_sim._pushes == []
+
+
 def test_touchdown_at_free_fall_time_then_fall(talos, talos_sim):
     """Dropped 2 cm with zero torque, each sole corner touches down at sqrt(2 h / g) for its
     height h (one step of tolerance); the limp robot then falls, and stepping on is refused."""

@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +67,7 @@ from dmpopt.exceptions import (
     SimulationDiverged,
 )
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
-from dmpopt.sim.simulator import SimState, TouchdownEvent
+from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
 
 __all__ = ["MujocoSimulator", "render_animation"]
@@ -91,14 +90,6 @@ def _import_mujoco():
             "install it with `pip install 'dmpopt[mujoco]'`"
         ) from None
     return mujoco
-
-
-@dataclass
-class _Push:
-    body: int
-    point_in_body: np.ndarray
-    force: np.ndarray
-    end_time: float
 
 
 def _positive(name: str, value, allow_none=False, allow_zero=False) -> float | None:
@@ -164,7 +155,7 @@ def _urdf_for_mujoco(urdf: Path, package_dirs) -> str:
     return _ROBOT_TAG.sub(lambda m: m.group(0) + compiler, text, count=1)
 
 
-class MujocoSimulator:
+class MujocoSimulator(Backend):
     """A Pinocchio-described robot simulated by MuJoCo from the same URDF.
 
     Parameters
@@ -544,51 +535,18 @@ class MujocoSimulator:
         """Velocity in Pinocchio coordinates, shape (nv,)."""
         return self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)[1]
 
-    @property
-    def state(self) -> SimState:
-        """The current :class:`~dmpopt.sim.SimState` (arrays are copies)."""
-        q, v = self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)
-        return SimState(
-            t=self.t,
-            q=q,
-            v=v,
-            contact_forces=self._forces.copy(),
-            in_contact=self._in_contact.copy(),
-            contact_positions=self._positions.copy(),
-            touchdowns=self._last_touchdowns,
-            fall=self.fall,
-        )
-
-    @property
-    def fallen(self) -> bool:
-        """True once the robot has fallen (see :attr:`fall`)."""
-        return self.fall is not None
+    def _q_v(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)
 
     # ------------------------------------------------------------------ pushes
-    def push(self, frame_name: str, force, duration: float, offset=(0.0, 0.0, 0.0)) -> None:
-        """Apply a constant world-frame ``force`` [N] at a point of a frame for ``duration`` [s].
-
-        The push starts now; several pushes add up.
-        """
-        force = _vector("force", force, 3)
-        duration = _positive("duration", duration)
-        body, point = self._locate(frame_name, offset)
-        self._pushes.append(_Push(body, point, force, self.t + duration - 0.5 * self.dt))
-
-    def push_impulse(self, frame_name: str, impulse, duration: float = 0.05, offset=(0, 0, 0)):
-        """Apply a world-frame ``impulse`` [N s] spread evenly over ``duration`` [s]."""
-        impulse = _vector("impulse", impulse, 3)
-        duration = _positive("duration", duration)
-        self.push(frame_name, impulse / duration, duration, offset)
-
     def _apply_pushes(self) -> None:
         """Add the active pushes to ``qfrc_applied``; needs the current kinematics."""
         self._pushes = [p for p in self._pushes if p.end_time > self.t]
         data = self.mj_data
         for p in self._pushes:
-            point = data.xpos[p.body] + data.xmat[p.body].reshape(3, 3) @ p.point_in_body
+            point = data.xpos[p.anchor] + data.xmat[p.anchor].reshape(3, 3) @ p.point
             self._mj.mj_applyFT(
-                self.mj_model, data, p.force, np.zeros(3), point, p.body, data.qfrc_applied
+                self.mj_model, data, p.force, np.zeros(3), point, p.anchor, data.qfrc_applied
             )
 
     # ------------------------------------------------------------------ dynamics

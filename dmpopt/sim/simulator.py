@@ -31,7 +31,7 @@ from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
 from dmpopt.validation import real, real_array
 
-__all__ = ["SimState", "Simulator", "TouchdownEvent"]
+__all__ = ["Backend", "SimState", "Simulator", "TouchdownEvent"]
 
 _BASE_DOFS = {"JointModelFreeFlyer": 6, "JointModelPlanar": 3}
 _QUATERNION_JOINTS = ("JointModelFreeFlyer", "JointModelSpherical")
@@ -98,13 +98,89 @@ class SimState:
 
 @dataclass
 class _Push:
-    joint: int
-    point_in_joint: np.ndarray
-    force: np.ndarray
+    anchor: int  # the backend's index of the body the point moves with
+    point: np.ndarray  # in that body's frame [m]
+    force: np.ndarray  # world frame [N]
     end_time: float
 
 
-class Simulator:
+class Backend:
+    """What both simulation backends share: the state snapshot, falls and the push rules.
+
+    A backend sets ``t``, ``dt``, ``fall``, ``_forces``, ``_in_contact``, ``_positions``,
+    ``_last_touchdowns`` and ``_pushes``, and implements ``_q_v()`` (Pinocchio's q, v) and
+    ``_locate(frame_name, offset)`` (the body a frame's point moves with, and the point in it).
+    """
+
+    @property
+    def state(self) -> SimState:
+        """The current :class:`SimState` (arrays are copies)."""
+        q, v = self._q_v()
+        return SimState(
+            t=self.t,
+            q=q,
+            v=v,
+            contact_forces=self._forces.copy(),
+            in_contact=self._in_contact.copy(),
+            contact_positions=self._positions.copy(),
+            touchdowns=self._last_touchdowns,
+            fall=self.fall,
+        )
+
+    @property
+    def fallen(self) -> bool:
+        """True once the robot has fallen (see :attr:`fall`)."""
+        return self.fall is not None
+
+    def push(self, frame_name: str, force, duration: float, offset=(0.0, 0.0, 0.0)) -> None:
+        """Apply a constant world-frame ``force`` [N] at a point of a frame from now on.
+
+        The push acts during the next ``round(duration / dt)`` steps; several pushes add up.
+
+        Parameters
+        ----------
+        frame_name : str
+            Frame of the model the point is attached to.
+        force : array_like, shape (3,)
+            World-frame force [N].
+        duration : float
+            [s], at least ``dt / 2`` (one step).
+        offset : array_like, shape (3,)
+            Point in the frame [m].
+        """
+        force = real_array("force", force, shape=(3,), expected="a world-frame force [N]")
+        n_steps = self._push_steps(duration)
+        anchor, point = self._locate(frame_name, offset)
+        self._pushes.append(_Push(anchor, point, force, self.t + (n_steps - 0.5) * self.dt))
+
+    def push_impulse(self, frame_name: str, impulse, duration: float = 0.05, offset=(0, 0, 0)):
+        """Apply a world-frame ``impulse`` [N s], spread evenly over ``duration`` [s].
+
+        The force is ``impulse / (n dt)`` over ``n = round(duration / dt)`` steps, so the
+        impulse is exact whatever ``duration``.
+        """
+        impulse = real_array("impulse", impulse, shape=(3,), expected="a world-frame impulse [N s]")
+        n_steps = self._push_steps(duration)
+        self.push(frame_name, impulse / (n_steps * self.dt), n_steps * self.dt, offset)
+
+    def _push_steps(self, duration) -> int:
+        duration = real(
+            "duration",
+            duration,
+            minimum=0.0,
+            open_minimum=True,
+            expected="a positive finite time [s]",
+        )
+        n_steps = round(duration / self.dt)
+        if n_steps < 1:
+            raise InvalidInputError(
+                f"duration = {duration:.3g} s is shorter than half the time step dt = "
+                f"{self.dt:.3g} s, so the push would never act; pass duration >= dt"
+            )
+        return n_steps
+
+
+class Simulator(Backend):
     """Fixed- or floating-base robot on a compliant ground.
 
     Parameters
@@ -255,7 +331,7 @@ class Simulator:
             )
         return self.model.getFrameId(name)
 
-    def _locate(self, frame_name, offset, frame_argument: str, offset_argument: str):
+    def _locate(self, frame_name, offset, frame_argument="frame_name", offset_argument="offset"):
         """Parent joint of a frame and the point's position in that joint's frame."""
         offset = real_array(
             offset_argument, offset, shape=(3,), expected="x, y, z in the frame [m]"
@@ -341,72 +417,8 @@ class Simulator:
             )
         return q
 
-    @property
-    def state(self) -> SimState:
-        """The current :class:`SimState` (arrays are copies)."""
-        return SimState(
-            t=self.t,
-            q=self.q.copy(),
-            v=self.v.copy(),
-            contact_forces=self._forces.copy(),
-            in_contact=self._in_contact.copy(),
-            contact_positions=self._positions.copy(),
-            touchdowns=self._last_touchdowns,
-            fall=self.fall,
-        )
-
-    @property
-    def fallen(self) -> bool:
-        """True once the robot has fallen (see :attr:`fall`)."""
-        return self.fall is not None
-
-    # ------------------------------------------------------------------ pushes
-    def push(self, frame_name: str, force, duration: float, offset=(0.0, 0.0, 0.0)) -> None:
-        """Apply a constant world-frame ``force`` [N] at a point of a frame from now on.
-
-        The push acts during the next ``round(duration / dt)`` steps; several pushes add up.
-
-        Parameters
-        ----------
-        frame_name : str
-            Frame of the model the point is attached to.
-        force : array_like, shape (3,)
-            World-frame force [N].
-        duration : float
-            [s], at least ``dt / 2`` (one step).
-        offset : array_like, shape (3,)
-            Point in the frame [m].
-        """
-        force = real_array("force", force, shape=(3,), expected="a world-frame force [N]")
-        n_steps = self._push_steps(duration)
-        joint, point = self._locate(frame_name, offset, "frame_name", "offset")
-        self._pushes.append(_Push(joint, point, force, self.t + (n_steps - 0.5) * self.dt))
-
-    def push_impulse(self, frame_name: str, impulse, duration: float = 0.05, offset=(0, 0, 0)):
-        """Apply a world-frame ``impulse`` [N s], spread evenly over ``duration`` [s].
-
-        The force is ``impulse / (n dt)`` over ``n = round(duration / dt)`` steps, so the
-        impulse is exact whatever ``duration``.
-        """
-        impulse = real_array("impulse", impulse, shape=(3,), expected="a world-frame impulse [N s]")
-        n_steps = self._push_steps(duration)
-        self.push(frame_name, impulse / (n_steps * self.dt), n_steps * self.dt, offset)
-
-    def _push_steps(self, duration) -> int:
-        duration = real(
-            "duration",
-            duration,
-            minimum=0.0,
-            open_minimum=True,
-            expected="a positive finite time [s]",
-        )
-        n_steps = round(duration / self.dt)
-        if n_steps < 1:
-            raise InvalidInputError(
-                f"duration = {duration:.3g} s is shorter than half the time step dt = "
-                f"{self.dt:.3g} s, so the push would never act; pass duration >= dt"
-            )
-        return n_steps
+    def _q_v(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.q.copy(), self.v.copy()
 
     # ------------------------------------------------------------------ dynamics
     def _point_jacobians(self, joints, placements) -> tuple[np.ndarray, np.ndarray]:
@@ -526,8 +538,8 @@ class Simulator:
         self._pushes = [p for p in self._pushes if p.end_time > self.t]
         if not self._pushes:
             return np.zeros(self.model.nv)
-        joints = [p.joint for p in self._pushes]
-        points = [pin.SE3(np.eye(3), p.point_in_joint) for p in self._pushes]
+        joints = [p.anchor for p in self._pushes]
+        points = [pin.SE3(np.eye(3), p.point) for p in self._pushes]
         _, jacobians = self._point_jacobians(joints, points)
         forces = np.array([p.force for p in self._pushes])
         return np.einsum("pkn,pk->n", jacobians, forces)

@@ -1,0 +1,240 @@
+"""The study: which runs, in which order, and what it writes (``run``, ``main``)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from dmpopt.exceptions import InvalidInputError
+from robots import load_talos
+
+from ..common import output_dir, write_metrics
+from .controller import mujoco_plant, with_mass_error
+from .demos import DRUM_JOINTS, demonstrate_drumming
+from .figures import plot, video_clips, write_videos
+from .loop import run_drumming, run_figure8
+from .metrics import StudyRuns, fit_error, study_metrics
+from .parameters import (
+    ARM_STIFFNESS,
+    BACKENDS,
+    CHANGE_END,
+    CHANGE_START,
+    DT,
+    FIGURE8_PERIOD,
+    FIGURE8_SIZE,
+    HAND_STIFFNESS,
+    MASS_ERROR,
+    N_BASIS,
+    PERIOD,
+    PUSH_BISECTIONS,
+    PUSH_LADDER,
+    PUSH_LADDER_QUICK,
+    PUSH_RUN_SECONDS,
+    SCENARIO_SECONDS,
+    SETPOINT_SHIFT,
+    STROKE_HEIGHT,
+    STROKE_LOOP,
+    VIDEO_FPS,
+    WRIST_FLICK,
+)
+from .plan import MODIFICATIONS, Modification, learn_drumming, plan_rollout, stepper_compiles
+from .robustness import loop_summary, mujoco_metrics, mujoco_scenarios
+
+
+@dataclass(frozen=True)
+class Durations:
+    """Simulated seconds of each run and the Fig. 4 modification window [s]."""
+
+    drum: float
+    fixed: float
+    figure8: float
+    fig4: float
+    window: tuple
+
+    @classmethod
+    def of(cls, quick: bool) -> Durations:
+        """The quick run's (about 40 s simulated in all) or the full run's."""
+        if quick:
+            return cls(3.0, 2.0, 4.0, 4.0, (1.0, 3.0))
+        return cls(10.0, 10.0, 10.0, 10.0, (CHANGE_START, CHANGE_END))
+
+
+def check_backend(backend) -> str:
+    """``backend`` if it is one of ``BACKENDS``, else :class:`InvalidInputError`."""
+    if backend not in BACKENDS:
+        raise InvalidInputError(
+            f"backend must be one of {BACKENDS}, got {backend!r}; pass backend='mujoco' "
+            "(default) or backend='native' (the compliant-ground simulator of dmpopt.sim)"
+        )
+    return backend
+
+
+def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") -> dict:
+    """Run the study, write the figures and ``metrics.json`` into ``out_dir``; return metrics.
+
+    ``backend`` simulates the standing robot: "mujoco" (default; also runs the model-mismatch,
+    friction, torque-limit and push scenarios, a native run for comparison, and the videos)
+    or "native". The study is deterministic; ``seed`` is recorded only.
+    """
+    backend = check_backend(backend)
+    out = output_dir(out_dir)
+    durations = Durations.of(quick)
+    start_wall, start_cpu = time.perf_counter(), time.process_time()
+
+    demo = demonstrate_drumming()
+    dmps = learn_drumming(demo)
+    compile = stepper_compiles(dmps)
+    floating = load_talos("full")
+    study = simulate(floating, dmps, durations, backend, quick, compile)
+
+    metrics = study_metrics(floating, dmps, study)
+    metrics.update(demo_ik_error=demo.ik_error, dmp_fit_error_rad=fit_error(dmps, demo))
+    metrics.update(dmp_step_compiled=compile, backend=backend)
+    metrics["native"] = loop_summary(study.native)
+    on_mujoco = backend == "mujoco"
+    if on_mujoco:
+        metrics["mujoco"] = mujoco_metrics(study.runs["none"], study.mujoco)
+    # The one place for Talos walking (studies/talos_walk.py, not imported yet), as
+    # metrics["walk"] = run_walk(out / "walk", quick)
+    skip = "quick run" if quick else None if on_mujoco else "native backend (videos need MuJoCo)"
+    clips = video_clips(study) if on_mujoco else {}
+    metrics["videos"], metrics["videos_skipped"] = write_videos(out, clips, skip)
+    if metrics["videos_skipped"]:
+        print(f"videos skipped: {metrics['videos_skipped']}")
+    plot(out, dmps, demo, study)
+    metrics["cpu_seconds"] = time.process_time() - start_cpu
+    metrics["wall_seconds"] = time.perf_counter() - start_wall
+    return write_metrics(out, "humanoid", metrics, _parameters(durations), seed, quick)
+
+
+def simulate(robot, dmps, durations: Durations, backend: str, quick: bool, compile: bool):
+    """Every closed-loop run of the study on the standing ``robot``, as :class:`StudyRuns`."""
+    from tqdm import tqdm
+
+    on_mujoco = backend == "mujoco"
+    standing = {
+        "compile": compile,
+        "build_options": {"com_sink": 0.0} if on_mujoco else None,
+        "plant": mujoco_plant() if on_mujoco else None,
+    }
+    record = int(round(1.0 / (VIDEO_FPS * DT))) if on_mujoco else 0
+    modifications = [Modification(m.name, *durations.window) for m in MODIFICATIONS]
+    bar_format = "{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} simulated s [{elapsed}]"
+    ticks = int(round(_simulated_seconds(durations, on_mujoco, quick) / DT))
+    with tqdm(total=ticks, desc="humanoid", bar_format=bar_format, unit_scale=DT) as bar:
+        runs, plans = {}, {}
+        for modification in modifications:
+            name = modification.name
+            duration = durations.drum if name == "none" else durations.fig4
+            plans[name] = plan_rollout(dmps, durations.fig4, modification)
+            runs[name] = run_drumming(
+                robot,
+                dmps,
+                duration,
+                modification,
+                bar,
+                record_every=record if name == "none" else 0,
+                **standing,
+            )
+        # The fixed-base upper body is a reduced model with locked legs (no URDF of its own):
+        # it stays on the native simulator, as the controller's timing reference.
+        fixed = load_talos("full", fixed_base=True)
+        fixed_log = run_drumming(fixed, dmps, durations.fixed, None, bar, compile=compile)
+        # Ablations: a controller model with heavier arms, and no pelvis orientation task.
+        heavier_arms = with_mass_error(robot, MASS_ERROR)
+        wrong_model = run_drumming(
+            robot, dmps, durations.drum, None, bar, controller_robot=heavier_arms, **standing
+        )
+        no_base_task = run_drumming(
+            robot, dmps, durations.drum, None, bar, base_task=False, **standing
+        )
+        figure8, _ = run_figure8(robot, durations.figure8, bar, record_every=record, **standing)
+        native, mujoco = runs["none"], None
+        if on_mujoco:
+            native = run_drumming(robot, dmps, durations.drum, None, bar, compile=compile)
+            mujoco = mujoco_scenarios(robot, dmps, runs["none"], quick, compile, bar)
+    return StudyRuns(
+        modifications,
+        plans,
+        runs,
+        fixed_log,
+        wrong_model,
+        no_base_task,
+        figure8,
+        native,
+        mujoco,
+        durations.fig4,
+    )
+
+
+def _simulated_seconds(durations: Durations, on_mujoco: bool, quick: bool) -> float:
+    """Simulated time of all the runs (the pushes: at most this many), for the progress bar."""
+    total = 3 * durations.fig4 + 3 * durations.drum + durations.fixed + durations.figure8
+    if on_mujoco:  # the native comparison, five scenarios, the pushes
+        mode = "quick" if quick else "full"
+        pushes = len(PUSH_LADDER_QUICK) if quick else len(PUSH_LADDER) + PUSH_BISECTIONS
+        total += durations.drum + 5 * SCENARIO_SECONDS[mode] + pushes * PUSH_RUN_SECONDS[mode]
+    return total
+
+
+def _parameters(durations: Durations) -> dict:
+    """The set-up recorded in ``metrics.json``."""
+    return {
+        "robot": "talos full (example-robot-data), floating base + fixed-base upper body",
+        "dt_s": DT,
+        "period_s": PERIOD,
+        "n_basis": N_BASIS,
+        "drum_joints": DRUM_JOINTS,
+        "modification_window_s": durations.window,
+        "setpoint_shift_rad": SETPOINT_SHIFT,
+        "arm_stiffness": ARM_STIFFNESS,
+        "hand_stiffness": HAND_STIFFNESS,
+        "durations_s": {
+            "drumming": durations.drum,
+            "fig4_each": durations.fig4,
+            "fixed_base": durations.fixed,
+            "figure8": durations.figure8,
+        },
+        "stroke": {"height_m": STROKE_HEIGHT, "loop_m": STROKE_LOOP, "wrist_rad": WRIST_FLICK},
+        "figure8_size_m": FIGURE8_SIZE,
+        "figure8_period_s": FIGURE8_PERIOD,
+    }
+
+
+def main(argv=None) -> None:
+    """Command line: ``python -m studies.humanoid OUT_DIR [--quick] [--seed N]``."""
+    import argparse
+    import json
+
+    from . import __doc__ as claim
+
+    parser = argparse.ArgumentParser(description=claim.splitlines()[0])
+    parser.add_argument("out_dir", nargs="?", default="results/humanoid")
+    parser.add_argument("--quick", action="store_true", help="a few simulated seconds")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--backend", choices=BACKENDS, default="mujoco")
+    args = parser.parse_args(argv)
+    metrics = run(args.out_dir, quick=args.quick, seed=args.seed, backend=args.backend)
+    print(json.dumps({k: metrics[k] for k in SUMMARY_KEYS if k in metrics}, indent=1))
+
+
+SUMMARY_KEYS = (  # what main() prints
+    "tick_us_median",
+    "tick_us_p99",
+    "tick_us_fixed_base_median",
+    "tick_us_fixed_base_p99",
+    "real_time_factor",
+    "real_time_factor_cpu",
+    "tracking_rms_rad",
+    "figure8_rms_mm",
+    "settle_time_s",
+    "torque_limit_use_max",
+    "position_limit_margin_rad",
+    "fell",
+    "n_cold_restarts",
+    "n_fallbacks",
+    "direct_solve_fraction",
+    "native",
+    "mujoco",
+    "videos",
+)

@@ -1,0 +1,38 @@
+"""The Talos walk in MuJoCo (quick mode: one step in place, three forward, one closing).
+
+Answer key: the footstep arithmetic written here (three forward steps of STEP_LENGTH put both
+feet 3 x STEP_LENGTH ahead, so the CoM ends that far ahead, centred between them), not the
+library's plan.
+"""
+
+import os
+
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+pytest.importorskip("mujoco")
+
+from studies import talos_walk  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def quick_walk(tmp_path_factory):
+    out = tmp_path_factory.mktemp("walk")
+    return out, talos_walk.run_walk(out, quick=True)
+
+
+def test_quick_walk_takes_every_step_without_falling(quick_walk):
+    out, metrics = quick_walk
+    n_in_place, n_forward = talos_walk.STEPS["quick"]
+    assert not metrics["fell"] and metrics["diverged"] is None
+    assert metrics["steps_planned"] == n_in_place + n_forward + 1
+    assert metrics["steps_taken"] == metrics["steps_planned"]
+    assert metrics["distance_m"] == pytest.approx(n_forward * talos_walk.STEP_LENGTH, abs=0.02)
+    assert metrics["foothold_error_max_mm"] < 10.0
+    assert metrics["foot_slip_max_mm"] < 10.0
+    assert metrics["com_error_max_mm"] < 10.0
+    assert metrics["dcm_error_max_mm"] < 20.0
+    assert metrics["stance_normal_force_min_n"] > 0.0
+    assert 0.0 < metrics["tick_us_median"] <= metrics["tick_us_p99"]
+    assert (out / metrics["figure"]).stat().st_size > 10_000
+

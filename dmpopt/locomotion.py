@@ -119,6 +119,14 @@ class Footstep:
     goal: np.ndarray
     stance: np.ndarray
 
+    def __post_init__(self):
+        if self.side not in SIDES:
+            raise InvalidInputError(f"side must be 'left' or 'right', got {self.side!r}")
+        for name in ("start", "goal", "stance"):
+            point = _point(name, getattr(self, name))
+            point.setflags(write=False)
+            object.__setattr__(self, name, point)
+
     @property
     def length(self) -> float:
         """Forward (x) displacement of the moving foot [m]."""
@@ -222,7 +230,8 @@ class WalkPlan:
     def _segment(self, t):
         """Times clipped to the plan, and the index of the segment each lies on (never a
         zero-length one: at a ZMP jump, the segment after it)."""
-        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        t = real_array("t", t)
+        t = np.clip(t, 0.0, self.duration)
         last = len(self.knot_times) - 2
         k = np.clip(np.searchsorted(self.knot_times, t, side="right") - 1, 0, last)
         return t, k
@@ -258,6 +267,7 @@ class WalkPlan:
     def phase(self, t: float) -> tuple[str, int]:
         """``("double", i)`` before the lift-off of step ``i`` (``i = n_steps`` after the last
         touchdown) or ``("single", i)`` during step ``i``'s swing."""
+        t = real("t", t)
         i = int(np.searchsorted(self.touchdown, t, side="right"))
         if i < len(self.footsteps) and t >= self.lift_off[i]:
             return "single", i

@@ -230,6 +230,22 @@ def test_bad_swing_footholds_are_refused(swing_dmps):
         swing_reference(swing_dmps, [np.nan, 0, 0], LEFT)
 
 
-def test_footstep_is_a_plain_value():
+def test_footstep_is_a_checked_read_only_value():
     step = Footstep("left", LEFT, LEFT + [0.2, 0, 0], RIGHT)
     assert step.length == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="read-only"):
+        step.goal[0] = 1.0
+    with pytest.raises(InvalidInputError, match="side"):
+        Footstep("middle", LEFT, LEFT, RIGHT)
+    with pytest.raises(ShapeError, match="stance"):
+        Footstep("left", LEFT, LEFT, RIGHT[:2])
+    with pytest.raises(InvalidInputError, match="goal"):
+        Footstep("left", LEFT, [0.0, np.nan, 0.0], RIGHT)
+
+
+@pytest.mark.parametrize("t", [np.nan, np.inf, "1.0", None])
+def test_plan_refuses_times_that_are_not_finite_numbers(t):
+    plan = walk()
+    for query in (plan.com, plan.dcm, plan.zmp, plan.phase):
+        with pytest.raises(InvalidInputError, match="t must|t "):
+            query(t)

@@ -390,9 +390,26 @@ def plot_walk(log: WalkLog, plan, robot, path) -> None:
     plt.close(fig)
 
 
+def keyframes(animation, path, n: int = 5) -> None:
+    """Side by side, ``n`` frames evenly spread over a rendered animation."""
+    from PIL import Image
+
+    with Image.open(animation) as video:
+        frames = []
+        for index in np.linspace(0, video.n_frames - 1, n).round().astype(int):
+            video.seek(int(index))
+            frames.append(video.convert("RGB"))
+    width, height = frames[0].size
+    strip = Image.new("RGB", (n * width, height))
+    for k, frame in enumerate(frames):
+        strip.paste(frame, (k * width, 0))
+    strip.save(path)
+
+
 def run_walk(out_dir, quick: bool = False) -> dict:
     """Plan and simulate the walk; write ``talos_walk.png`` (and, unless ``quick``, a rendered
-    ``talos_walk.webp`` when an OpenGL context exists) into ``out_dir``; return the metrics."""
+    ``talos_walk.webp`` and its ``talos_walk_keyframes.png`` when an OpenGL context exists)
+    into ``out_dir``; return the metrics."""
     out = output_dir(out_dir)
     robot, q0 = _robot_and_start()
     plan, swing_dmps = build_plan(robot, q0, quick)
@@ -413,6 +430,8 @@ def run_walk(out_dir, quick: bool = False) -> dict:
             render_animation(simulator, frames, out / "talos_walk.webp", fps=VIDEO_FPS,
                              width=320, height=240, distance=2.5)  # fmt: skip
             metrics["video"] = "talos_walk.webp"
+            keyframes(out / "talos_walk.webp", out / "talos_walk_keyframes.png")
+            metrics["keyframes"] = "talos_walk_keyframes.png"
         except MissingDependency as error:
             metrics["video_skipped"] = str(error)
     return metrics

@@ -100,7 +100,8 @@ class Walker:
             f: FrameTask(robot, f, weight=SWING_WEIGHT, stiffness=SWING_STIFFNESS)
             for f in robot.foot_frames
         }
-        self.controller = _StandIn(robot, [posture, self.com_task, base], self.swing_tasks)
+        contacts = [SoleContact(robot, f) for f in robot.foot_frames]
+        self.controller = InverseDynamicsController(robot, [posture, self.com_task, base], contacts)
         self._step = -1  # the step whose swing is under way or done
         self._released = -1  # the step whose foot's contact has been removed
         self._swing = None  # the swing reference (Trajectory) of the current step
@@ -215,45 +216,6 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0):
         fell, diverged,
     )  # fmt: skip
     return log, simulator, frames
-
-
-class _StandIn:
-    """Contact switching by one controller per contact set (until the controller has it)."""
-
-    def __init__(self, robot, tasks, swing_tasks):
-        feet = robot.foot_frames
-        self.both = InverseDynamicsController(robot, tasks, [SoleContact(robot, f) for f in feet])
-        self.single = {
-            f: InverseDynamicsController(robot, tasks + [swing_tasks[o]], [SoleContact(robot, f)])
-            for f, o in ((feet[0], feet[1]), (feet[1], feet[0]))
-        }
-        self.current = self.both
-        self.stats = self.both.stats
-
-    def remove_contact(self, frame, transition_time=0.0):
-        pass
-
-    def add_task(self, task):
-        stance = [f for f in self.single if f != task.frame][0]
-        index = list(self.single).index(stance)
-        self.single[stance].contacts[0].reference_placement = self.both.contacts[
-            index
-        ].reference_placement
-        self.current = self.single[stance]
-
-    def remove_task(self, task):
-        pass
-
-    def add_contact(self, frame, reference=None):
-        stance = self.current.contacts[0]
-        for contact in self.both.contacts:
-            contact.reference_placement = (
-                stance.reference_placement if contact.frame == stance.frame else reference
-            )
-        self.current = self.both
-
-    def compute_torques(self, q, v, t=None):
-        return self.current.compute_torques(q, v)
 
 
 # ------------------------------------------------------------------------------- the study

@@ -32,7 +32,11 @@ def test_quick_walk_takes_every_step_without_falling(quick_walk):
     assert metrics["foot_slip_max_mm"] < 10.0
     assert metrics["com_error_max_mm"] < 10.0
     assert metrics["dcm_error_max_mm"] < 20.0
-    assert metrics["stance_normal_force_min_n"] > 0.0
+    # the weight moves over in double support (contact ramp), so in single support the whole
+    # weight rests on the stance sole with its CoP well inside it, and the swing foot is free
+    assert metrics["stance_normal_force_min_fraction"] > 0.8
+    assert metrics["stance_cop_margin_min_mm"] > 10.0
+    assert metrics["swing_foot_normal_force_max_n"] < 1.0
     assert 0.0 < metrics["tick_us_median"] <= metrics["tick_us_p99"]
     assert (out / metrics["figure"]).stat().st_size > 10_000
 

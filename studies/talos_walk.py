@@ -76,8 +76,8 @@ def _sole_positions(robot, data) -> np.ndarray:
 class Walker:
     """The tasks, the controller and the contact switching of one walk plan.
 
-    ``references(t)`` sets the task targets for time ``t`` and switches the contacts at the
-    plan's lift-offs and touchdowns.
+    ``references(tick)`` sets the task targets and switches the contacts at the plan's
+    lift-offs and touchdowns.
     """
 
     def __init__(self, robot, q0, plan, swing_dmps):
@@ -102,44 +102,44 @@ class Walker:
         }
         contacts = [SoleContact(robot, f) for f in robot.foot_frames]
         self.controller = InverseDynamicsController(robot, [posture, self.com_task, base], contacts)
-        self._step = -1  # the step whose swing is under way or done
-        self._released = -1  # the step whose foot's contact has been removed
-        self._swing = None  # the swing reference (Trajectory) of the current step
+        self._lift_off = np.round(plan.lift_off / DT).astype(int)  # ticks
+        self._touchdown = np.round(plan.touchdown / DT).astype(int)
+        self._transfer = int(round(DOUBLE_SUPPORT / DT))  # ticks of a double support
+        self._next = 0  # the step under way or next
+        self._swing = None  # the swing reference (Trajectory) of the step under way
 
     def _frame(self, step) -> str:
         return f"{step.side}_sole_link"
 
-    def references(self, t: float) -> None:
-        """Targets at time ``t`` [s]; contact and task switches when the plan says."""
-        plan, controller = self.plan, self.controller
-        position, velocity, acceleration = plan.com(t)
+    def references(self, tick: int) -> None:
+        """Targets at tick ``tick`` (time ``tick * DT``); contact and task switches at the
+        plan's ticks of release (start of a double support), lift-off and touchdown."""
+        plan, controller, steps = self.plan, self.controller, self.plan.footsteps
+        position, velocity, acceleration = plan.com(tick * DT)
         self.com_task.set_target(position, velocity, acceleration)
-        phase, i = plan.phase(t)
-        steps = plan.footsteps
-        if i < len(steps) and i > self._released and t >= plan.lift_off[i] - DOUBLE_SUPPORT:
-            controller.remove_contact(self._frame(steps[i]), transition_time=DOUBLE_SUPPORT)
-            self._released = i
-        if phase == "single" and i > self._step:
+        i = self._next
+        if i < len(steps) and tick == self._touchdown[i]:
             step = steps[i]
-            self._swing = swing_reference(self.swing_dmps, step.start, step.goal, DT)
-            controller.add_task(self.swing_tasks[self._frame(step)])
-            self._step = i
-        if phase == "double" and self._swing is not None:  # touchdown of step i - 1
-            step = steps[self._step]
             frame = self._frame(step)
             controller.remove_task(self.swing_tasks[frame])
             controller.add_contact(frame, pin.SE3(self.sole_rotation[frame], step.goal))
-            self._swing = None
+            self._swing, self._next = None, i + 1
+        i = self._next  # a double support starts at the touchdown before it
+        if i < len(steps) and tick == self._lift_off[i] - self._transfer:
+            # The ramp ends half a tick early, so that the controller drops the contact at
+            # the lift-off tick, when the swing task comes in (no tick with neither).
+            controller.remove_contact(self._frame(steps[i]), max(self._transfer - 0.5, 0.0) * DT)
+        if i < len(steps) and tick == self._lift_off[i]:
+            step = steps[i]
+            self._swing = swing_reference(self.swing_dmps, step.start, step.goal, DT)
+            controller.add_task(self.swing_tasks[self._frame(step)])
         if self._swing is not None:
-            step = steps[self._step]
-            k = min(int(round((t - plan.lift_off[self._step]) / DT)), self._swing.n_steps - 1)
-            task = self.swing_tasks[self._frame(step)]
-            linear = np.zeros(6)
-            accel = np.zeros(6)
-            linear[:3], accel[:3] = self._swing.velocities[k], self._swing.accelerations[k]
-            task.set_target(
-                pin.SE3(self.sole_rotation[task.frame], self._swing.positions[k]), linear, accel
-            )
+            k = tick - self._lift_off[i]
+            task = self.swing_tasks[self._frame(steps[i])]
+            velocity, acceleration = np.zeros(6), np.zeros(6)
+            velocity[:3], acceleration[:3] = self._swing.velocities[k], self._swing.accelerations[k]
+            placement = pin.SE3(self.sole_rotation[task.frame], self._swing.positions[k])
+            task.set_target(placement, velocity, acceleration)
 
 
 def make_simulator(robot):
@@ -192,7 +192,7 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0):
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
-        walker.references(t)
+        walker.references(k)
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q, state.v, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3

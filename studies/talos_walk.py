@@ -276,6 +276,7 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
         swing_force.append(log.normal_force[a + 50 : b - 50, swing].max(initial=0.0))
     weight = pin.computeTotalMass(robot.model) * 9.81
     forward = [s.length for s in plan.footsteps if s.length > 0]
+    single = np.array([plan.phase(time)[0] == "single" for time in t])
     return {
         "steps_planned": len(plan.footsteps),
         "steps_taken": int(landed),
@@ -287,6 +288,9 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
         "tick_us_median": float(np.median(log.tick_cpu_us)),
         "tick_us_p99": float(np.percentile(log.tick_cpu_us, 99)),
         "tick_us_max": float(log.tick_cpu_us.max()),
+        "tick_us_single_support_median": float(np.median(log.tick_cpu_us[single])),
+        "tick_us_single_support_p99": float(np.percentile(log.tick_cpu_us[single], 99)),
+        "ticks_over_2ms": int(np.count_nonzero(log.tick_cpu_us > 2000)),
         "real_time_factor": float((t[-1] + DT) / wall),
         "step_length_m": STEP_LENGTH,
         "stride_m": float(max(forward, default=0.0)),
@@ -381,6 +385,13 @@ def run_walk(out_dir, quick: bool = False) -> dict:
     log, simulator, frames = simulate(robot, q0, walker, plan.duration, record)
     wall = time.perf_counter() - wall
     metrics = walk_metrics(log, plan, robot, wall)
+    stats = walker.controller.stats  # how each tick was answered
+    metrics.update(
+        qp_answers={
+            "direct": stats.n_direct, "solved": stats.n_solved, "relaxed": stats.n_relaxed,
+            "hold": stats.n_fallbacks,
+        }
+    )  # fmt: skip
     plot_walk(log, plan, robot, out / "talos_walk.png")
     metrics["figure"] = "talos_walk.png"
     metrics["video"], metrics["video_skipped"] = None, "quick run" if quick else None

@@ -37,6 +37,7 @@ def test_quick_walk_takes_every_step_without_falling(quick_walk):
     assert metrics["stance_normal_force_min_fraction"] > 0.8
     assert metrics["stance_cop_margin_min_mm"] > 10.0
     assert metrics["swing_foot_normal_force_max_n"] < 1.0
+    assert metrics["qp_answers"]["hold"] == 0  # no tick without a QP answer
     assert 0.0 < metrics["tick_us_median"] <= metrics["tick_us_p99"]
     assert (out / metrics["figure"]).stat().st_size > 10_000
 

@@ -30,6 +30,7 @@ import pinocchio as pin
 from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
 from dmpopt.exceptions import SimulationDiverged
 from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk, swing_reference
+from dmpopt.validation import flag
 from robots import load_talos
 
 from .common import output_dir, pyplot, write_metrics
@@ -244,13 +245,31 @@ def _contact_runs(log: WalkLog, plan, foot: int):
 
 
 def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
-    """What a reader needs to judge the walk (see the module docstring of the metrics)."""
+    r"""What a reader needs to judge the walk.
+
+    - ``steps_taken``: steps whose sole is within 5 cm of its planned foothold 0.1 s after
+      the planned touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest
+      such distance.
+    - ``distance_m``: forward displacement of the measured CoM from start to end.
+    - ``tick_us_*``: CPU time of the calling thread per ``compute_torques`` [us], over the
+      whole walk and over the single-support ticks (one foot in the air); ``ticks_over_2ms``
+      counts the ticks in which the controller built the QP of a new contact set.
+    - ``com_error_*``, ``dcm_error_*``: horizontal distance of the measured CoM and DCM
+      (:math:`c + \dot c / \omega`) from the plan [mm].
+    - ``foot_slip_max_mm``: largest horizontal drift of a sole while it stands (from 50 ms
+      after it is set down until it lifts off).
+    - ``stance_normal_force_min_*``, ``stance_cop_margin_min_mm``: the smallest measured
+      (MuJoCo) normal force on the stance sole in single support [N and fraction of the
+      weight], and the smallest distance of its centre of pressure to the sole's edge.
+    - ``swing_foot_normal_force_max_n``: largest force on the swinging sole, 50 ms after
+      lift-off until 50 ms before touchdown (0: it does not scuff).
+    """
     t = log.times
     planned_com = plan.com(t)[0]
     com_error = np.linalg.norm(log.com[:, :2] - planned_com[:, :2], axis=1)
     dcm_error = np.linalg.norm(log.dcm - plan.dcm(t), axis=1)
     landed, foothold_errors = 0, []
-    for i, (step, touchdown) in enumerate(zip(plan.footsteps, plan.touchdown)):
+    for step, touchdown in zip(plan.footsteps, plan.touchdown):
         k = int(round((touchdown + 0.1) / DT))
         if k >= t.size:
             break
@@ -266,7 +285,7 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
             if b > a_settled:
                 moved = log.feet[a_settled:b, foot, :2] - log.feet[a_settled, foot, :2]
                 slip.append(np.linalg.norm(moved, axis=1).max())
-    for i, (step, start, end) in enumerate(zip(plan.footsteps, plan.lift_off, plan.touchdown)):
+    for step, start, end in zip(plan.footsteps, plan.lift_off, plan.touchdown):
         a, b = int(round(start / DT)), min(int(round(end / DT)), t.size)
         if b <= a:
             break
@@ -376,6 +395,7 @@ def run_walk(out_dir, quick: bool = False) -> dict:
     """Plan and simulate the walk; write ``talos_walk.png`` (and, unless ``quick``, a rendered
     ``talos_walk.webp`` and its ``talos_walk_keyframes.png`` when an OpenGL context exists)
     into ``out_dir``; return the metrics."""
+    quick = flag("quick", quick)
     out = output_dir(out_dir)
     robot, q0 = _robot_and_start()
     plan, swing_dmps = build_plan(robot, q0, quick)

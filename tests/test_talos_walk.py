@@ -12,6 +12,7 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 pytest.importorskip("mujoco")
 
+from dmpopt.exceptions import InvalidInputError  # noqa: E402
 from studies import talos_walk  # noqa: E402
 
 
@@ -41,3 +42,8 @@ def test_quick_walk_takes_every_step_without_falling(quick_walk):
     assert 0.0 < metrics["tick_us_median"] <= metrics["tick_us_p99"]
     assert (out / metrics["figure"]).stat().st_size > 10_000
 
+
+
+def test_run_walk_refuses_a_quick_that_is_not_a_bool(tmp_path):
+    with pytest.raises(InvalidInputError, match="quick"):
+        talos_walk.run_walk(tmp_path, quick="yes")

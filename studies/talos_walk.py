@@ -36,9 +36,9 @@ from robots import load_talos
 from .common import output_dir, pyplot, write_metrics
 
 DT = 1e-3  # [s] control and simulation period
-STEP_LENGTH = 0.1  # [m] the moving foot lands this far ahead of the stance foot
-SINGLE_SUPPORT = 0.8  # [s]
-DOUBLE_SUPPORT = 0.3  # [s] weight transfer: the ZMP moves over, the contact ramps down
+STEP_LENGTH = 0.2  # [m] the moving foot lands this far ahead of the stance foot
+SINGLE_SUPPORT = 0.6  # [s]
+DOUBLE_SUPPORT = 0.2  # [s] weight transfer: the ZMP moves over, the contact ramps down
 FOOT_LIFT = 0.05  # [m] peak swing height
 VIDEO_FPS = 10.0
 INITIAL_HOLD, FINAL_HOLD = 1.0, 1.0  # [s]

@@ -335,8 +335,10 @@ def plot_walk(log: WalkLog, plan, robot, path) -> None:
     plt = pyplot()
     t = log.times
     com, dcm, zmp = plan.com(t)[0], plan.dcm(t), plan.zmp(t)
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7))
-    top = axes[0, 0]
+    fig = plt.figure(figsize=(13, 7.5))
+    grid = fig.add_gridspec(2, 3, height_ratios=(1.0, 1.2))
+    top = fig.add_subplot(grid[0, :])
+    axes = [fig.add_subplot(grid[1, k]) for k in range(3)]
     corners = np.asarray(robot.sole_corners)
     x0, x1 = corners[:, 0].min(), corners[:, 0].max()
     y0, y1 = corners[:, 1].min(), corners[:, 1].max()
@@ -354,16 +356,15 @@ def plot_walk(log: WalkLog, plan, robot, path) -> None:
     top.plot(log.dcm[:, 0], log.dcm[:, 1], "--", c="tab:purple", label="DCM measured")
     top.set(xlabel="x [m]", ylabel="y [m]", title="From above (soles: planned footholds)")
     top.set_aspect("equal")
-    top.legend(fontsize=7, loc="upper left")
-    for ax, axis, name in ((axes[0, 1], 0, "x"), (axes[1, 0], 1, "y")):
+    top.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, -0.25))
+    for ax, axis, name in ((axes[0], 0, "x"), (axes[1], 1, "y")):
         ax.plot(t, zmp[:, axis], ":", c="grey", label="ZMP plan")
         ax.plot(t, com[:, axis], c="k", label="CoM plan")
         ax.plot(t, log.com[:, axis], "--", c="tab:green", label="CoM measured")
         ax.plot(t, dcm[:, axis], c="tab:orange", label="DCM plan")
         ax.plot(t, log.dcm[:, axis], "--", c="tab:purple", label="DCM measured")
         ax.set(xlabel="t [s]", ylabel=f"{name} [m]", title=f"{name} over time")
-        ax.legend(fontsize=7)
-    feet = axes[1, 1]
+    feet = axes[2]
     for foot, colour in ((0, "tab:blue"), (1, "tab:red")):
         feet.plot(t, 1e3 * log.feet[:, foot, 2], c=colour, label=f"{robot.foot_frames[foot]} z")
     for start, end in zip(plan.lift_off, plan.touchdown):

@@ -250,6 +250,8 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
     - ``steps_taken``: steps whose sole is within 5 cm of its planned foothold 0.1 s after
       the planned touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest
       such distance.
+    - ``steps_in_place``, ``steps_forward``: planned steps of zero and positive length (the
+      last forward one brings the feet side by side).
     - ``distance_m``: forward displacement of the measured CoM from start to end.
     - ``tick_us_*``: CPU time of the calling thread per ``compute_torques`` [us], over the
       whole walk and over the single-support ticks (one foot in the air); ``ticks_over_2ms``
@@ -298,6 +300,8 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
     single = np.array([plan.phase(time)[0] == "single" for time in t])
     return {
         "steps_planned": len(plan.footsteps),
+        "steps_in_place": sum(s.length == 0 for s in plan.footsteps),
+        "steps_forward": sum(s.length > 0 for s in plan.footsteps),
         "steps_taken": int(landed),
         "distance_m": float(log.com[-1, 0] - log.com[0, 0]),
         "distance_planned_m": float(plan.com(plan.duration)[0][0] - plan.com(0.0)[0][0]),

@@ -27,6 +27,7 @@ def test_quick_walk_takes_every_step_without_falling(quick_walk):
     n_in_place, n_forward = talos_walk.STEPS["quick"]
     assert not metrics["fell"] and metrics["diverged"] is None
     assert metrics["steps_planned"] == n_in_place + n_forward + 1
+    assert (metrics["steps_in_place"], metrics["steps_forward"]) == (n_in_place, n_forward + 1)
     assert metrics["steps_taken"] == metrics["steps_planned"]
     assert metrics["distance_m"] == pytest.approx(n_forward * talos_walk.STEP_LENGTH, abs=0.02)
     assert metrics["foothold_error_max_mm"] < 10.0
@@ -41,7 +42,6 @@ def test_quick_walk_takes_every_step_without_falling(quick_walk):
     assert metrics["qp_answers"]["hold"] == 0  # no tick without a QP answer
     assert 0.0 < metrics["tick_us_median"] <= metrics["tick_us_p99"]
     assert (out / metrics["figure"]).stat().st_size > 10_000
-
 
 
 def test_run_walk_refuses_a_quick_that_is_not_a_bool(tmp_path):

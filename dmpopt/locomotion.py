@@ -20,11 +20,11 @@ support. On a segment :math:`[t_a, t_b]` with ZMP slope :math:`m` the DCM that e
 .. math:: \xi(t) = p(t) + m/\omega + (\xi_b - p_b - m/\omega)\, e^{\omega (t - t_b)},
 
 so the DCM is computed backwards from the last segment, where it rests on the final ZMP
-(the recursion of Englsberger et al. 2015 with double support). Without double support
-and for a steady walk of step length :math:`L` and single-support time :math:`T` the
-end-of-step DCM lies :math:`L / (e^{\omega T} - 1)` ahead of the next footstep
-(:func:`steady_dcm_offset`). The CoM follows :math:`\dot x = \omega (\xi - x)` from its
-start, in closed form per segment.
+(the end-of-step recursion of Englsberger et al. 2015, with a linear ZMP in double
+support). Without double support and for a steady walk of step length :math:`L` and
+single-support time :math:`T` the end-of-step DCM lies :math:`L / (e^{\omega T} - 1)`
+ahead of the next footstep (:func:`steady_dcm_offset`). The CoM follows
+:math:`\dot x = \omega (\xi - x)` from its start, in closed form per segment.
 
 Swing foot. A demonstrated foot lift (minimum-jerk progress forward, a smooth bump up and
 down) is learnt once as two discrete DMPs: the horizontal motion (goal scaling

@@ -90,6 +90,8 @@ def test_plan_obeys_the_lipm_and_the_dcm_definition_everywhere():
     np.testing.assert_allclose(acceleration[:, :2], (position[:, :2] - zmp) / tc**2, atol=1e-9)
     numeric = np.gradient(velocity[:, :2], t, axis=0)
     away = np.min(np.abs(t[:, None] - plan.knot_times[None, :]), axis=1) > 2e-4
+    dcm_rate = np.gradient(plan.dcm(t), t, axis=0)  # xi' = (xi - p) / Tc
+    np.testing.assert_allclose(dcm_rate[away], (plan.dcm(t) - zmp)[away] / tc, atol=1e-5)
     np.testing.assert_allclose(numeric[away], acceleration[away, :2], atol=1e-5)
     np.testing.assert_allclose(
         np.gradient(position[:, :2], t, axis=0)[1:-1], velocity[1:-1, :2], atol=1e-6

@@ -53,7 +53,9 @@ from scipy.interpolate import CubicSpline
 from dmpopt import Trajectory, fit_rhythmic
 from dmpopt.sim import GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
-from robots.biped import Biped, load_biped
+from robots import biped as biped_model
+from robots.biped import load_biped
+from robots.model import RobotModel
 
 from .common import write_metrics
 
@@ -169,7 +171,7 @@ class WalkLog:
 
 
 def walk(
-    biped: Biped,
+    biped: RobotModel,
     dmp,
     duration: float,
     frequency: float,
@@ -197,15 +199,15 @@ def walk(
         CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
     )
     stepper.set_time_constant(1.0 / frequency)
-    q = biped.configuration(0.0, biped.leg_length, 0.0, stepper.position)
-    q[1] -= biped.foot_positions(q)[:, 1].min()
+    q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
+    q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
     sim = make_simulator(biped, backend)
     v = np.zeros(biped.model.nv)
     v[0] = 0.35 + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
     # Model order throughout the loop: the gait order is used only for the DMP.
-    order = biped.joint_velocity_indices - biped.n_base_dofs
-    index = np.sort(biped.joint_velocity_indices)
+    order = biped.velocity_indices("gait") - biped.n_base
+    index = np.sort(biped.velocity_indices("gait"))
     stiffness = np.empty(4)
     damping = np.empty(4)
     stiffness[order] = [gains.hip_stiffness, gains.knee_stiffness] * 2
@@ -216,8 +218,7 @@ def walk(
     swing_stiffness[hips] = gains.swing_hip_stiffness
     swing_damping[hips] = gains.swing_hip_damping
     contact = np.ones(2, dtype=bool)
-    limit = np.empty(4)
-    limit[order] = biped.torque_limit
+    limit = np.array(biped.torque_limit)
     detector = HeelStrikeDetector(min_swing_time=0.1)
     adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
     log = WalkLog(frequencies=[frequency])
@@ -277,7 +278,7 @@ def walk(
     return log
 
 
-def make_simulator(biped: Biped, backend: str):
+def make_simulator(biped: RobotModel, backend: str):
     """The walker's simulator on ``backend``: "mujoco" or "native" (compliant ``GROUND``).
 
     Both take the same fall options, so both flag a fall when the torso is below
@@ -457,8 +458,8 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
     )
     walked = [row for row in sweep if not row["fell"]]
     cheapest = min(walked, key=lambda row: row["cost_of_transport"])["frequency"]
-    natural_straight = biped.swing_leg_natural_frequency(0.0)
-    stance_pendulum = float(np.sqrt(9.81 / biped.leg_length))
+    natural_straight = biped_model.swing_leg_natural_frequency(biped, 0.0)
+    stance_pendulum = float(np.sqrt(9.81 / biped_model.leg_length(biped)))
     mass = biped.mass
 
     # After adaptation: the same walk restarted at the adapted frequency, adaptation off.
@@ -577,12 +578,12 @@ def _plot(out_dir, biped, adapted, others, final, natural, sweep, metrics) -> No
 
     # Joint trajectories, desired against actual, first and last seconds.
     times = np.asarray(adapted.times)
-    q = np.asarray(adapted.q)[:, biped.joint_velocity_indices]
+    q = np.asarray(adapted.q)[:, biped.velocity_indices("gait")]
     desired = np.asarray(adapted.desired)
     fig, axes = plt.subplots(4, 2, figsize=(9, 7), sharex="col")
     windows = [times <= times[0] + 4.0, times >= times[-1] - 4.0]
     for col, window in enumerate(windows):
-        for row, name in enumerate(biped.joint_names):
+        for row, name in enumerate(biped.joint_groups["gait"]):
             ax = axes[row, col]
             ax.plot(times[window], np.degrees(desired[window, row]), "--", label="DMP")
             ax.plot(times[window], np.degrees(q[window, row]), label="robot")

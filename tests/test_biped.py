@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from dmpopt.sim import GroundContact, Simulator
+from robots import biped as biped_model
 from robots.biped import load_biped
 
 GRAVITY = 9.81
@@ -24,17 +25,17 @@ def gait():
 def test_model_matches_its_documented_parameters(biped):
     """7 kg, 0.6 m legs, planar base (x, z, pitch) plus four actuated joints."""
     assert biped.mass == pytest.approx(7.0)
-    assert biped.leg_length == pytest.approx(0.6)
+    assert biped_model.leg_length(biped) == pytest.approx(0.6)
     assert biped.model.nq == biped.model.nv == 7
-    q = biped.configuration(0.0, 0.6, 0.0, [0.3, 0.0, 0.0, 0.0])
-    right, left = biped.foot_positions(q)
+    q = biped_model.configuration(biped, 0.0, 0.6, 0.0, [0.3, 0.0, 0.0, 0.0])
+    right, left = biped_model.foot_positions(biped, q)
     assert right == pytest.approx([0.6 * np.sin(0.3), 0.6 - 0.6 * np.cos(0.3)])
     assert left == pytest.approx([0.0, 0.0])
 
 
 def test_actuator_torques_follow_the_model_order(biped):
-    torques = biped.actuator_torques([1.0, 2.0, 3.0, 4.0])
-    assert torques[biped.joint_velocity_indices - 3] == pytest.approx([1, 2, 3, 4])
+    torques = biped_model.actuator_torques(biped, [1.0, 2.0, 3.0, 4.0])
+    assert torques[biped.velocity_indices("gait") - 3] == pytest.approx([1, 2, 3, 4])
 
 
 def test_standing_biped_rests_at_spring_height_with_weight_on_feet(biped):
@@ -43,14 +44,14 @@ def test_standing_biped_rests_at_spring_height_with_weight_on_feet(biped):
     sim = Simulator(biped.model, 1e-3, biped.contact_points, ground)
     assert sim.n_base_dofs == 3
     joints = np.array([0.15, 0.1, -0.15, 0.1])
-    q = biped.configuration(0.0, 0.0, 0.0, joints)
-    q[1] = 0.05 - biped.foot_positions(q)[:, 1].min()
+    q = biped_model.configuration(biped, 0.0, 0.0, 0.0, joints)
+    q[1] = 0.05 - biped_model.foot_positions(biped, q)[:, 1].min()
     state = sim.reset(q)
-    index = biped.joint_velocity_indices
+    index = biped.velocity_indices("gait")
     for _ in range(2500):
         torque = 200.0 * (joints - state.q[index]) - 2.0 * state.v[index]
         boom = [0.0, 0.0, -500.0 * state.q[2] - 30.0 * state.v[2]]
-        state = sim.step(biped.actuator_torques(torque), boom)
+        state = sim.step(biped_model.actuator_torques(biped, torque), boom)
     assert state.in_contact.all()
     assert state.contact_forces[:, 2].sum() == pytest.approx(biped.mass * GRAVITY, rel=2e-3)
     sink = -state.contact_positions[:, 2]

@@ -1,0 +1,480 @@
+"""Contact switching in the QP inverse-dynamics controller: transitions, point feet, and the
+answer keys (a reference QP written out here and solved by Clarabel; closed loops in both
+simulators)."""
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import qpsolvers
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dmpopt.control import (
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    PointContact,
+    PostureTask,
+    SoleContact,
+)
+from dmpopt.exceptions import InvalidInputError
+from robots import load_talos
+from robots.biped import foot_positions, load_biped
+
+GRAVITY = 9.81
+RIGHT, LEFT = "right_sole_link", "left_sole_link"
+
+
+@pytest.fixture(scope="module")
+def talos():
+    return load_talos("full")
+
+
+@pytest.fixture(scope="module")
+def biped():
+    return load_biped()
+
+
+def talos_controller(robot, **options):
+    """Posture, CoM and pelvis orientation; both soles (centre of pressure kept to 70 % of the
+    sole, maximum normal force 1500 N)."""
+    posture = PostureTask(robot, weight=0.1, stiffness=10.0)
+    com = ComTask(robot, weight=10.0, stiffness=50.0)
+    pelvis = FrameTask(robot, "base_link", weight=1.0, stiffness=50.0, components="orientation")
+    contacts = [
+        SoleContact(robot, f, max_normal_force=1500.0, cop_fraction=0.7) for f in robot.foot_frames
+    ]
+    controller = InverseDynamicsController(robot, [posture, com, pelvis], contacts, **options)
+    return controller, com
+
+
+def placement(robot, q, frame) -> pin.SE3:
+    data = robot.create_data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.model.getFrameId(frame)].copy()
+
+
+# ---------------------------------------------------------------- the answer key
+def kinematics(robot, q, v):
+    """Pinocchio data with joint Jacobians, frame placements and the kinematics of
+    (q, v, qdd = 0): the drifts J-dot v."""
+    model = robot.model
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
+    pin.updateFramePlacements(model, data)
+    return data
+
+
+def task_rows(robot, task, q, v):
+    """(J, b, w) of a task, w |J qdd - b|^2, from the PD law a* = a_ref + Kp e + Kd (v_ref - v)
+    of dmpopt.control.tasks, written out."""
+    model, nv = robot.model, robot.nv
+    if isinstance(task, PostureTask):
+        jacobian = np.eye(nv)[task.velocity_indices]
+        target = (
+            task.reference_acceleration
+            + task.stiffness * (task.reference_position - q[task.configuration_indices])
+            + task.damping * (task.reference_velocity - v[task.velocity_indices])
+        )
+        return jacobian, target, task.weight
+    data = kinematics(robot, q, v)
+    if isinstance(task, ComTask):
+        pin.centerOfMass(model, data, q, v, np.zeros(nv))
+        com, com_velocity, drift = data.com[0].copy(), data.vcom[0].copy(), data.acom[0].copy()
+        jacobian = pin.jacobianCenterOfMass(model, model.createData(), q)
+        target = (
+            task.target_acceleration
+            + task.stiffness * (task.target_position - com)
+            + task.damping * (task.target_velocity - com_velocity)
+            - drift
+        )
+        return jacobian, target, task.weight
+    frame = model.getFrameId(task.frame)  # FrameTask, world-aligned axes at the frame
+    jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+    drift = pin.getFrameClassicalAcceleration(model, data, frame, pin.LOCAL_WORLD_ALIGNED).vector
+    current = data.oMf[frame]
+    error = np.r_[
+        task.target_placement.translation - current.translation,
+        pin.log3(task.target_placement.rotation @ current.rotation.T),
+    ]
+    target = (
+        task.target_acceleration
+        + task.stiffness * error
+        + task.damping * (task.target_velocity - jacobian @ v)
+        - drift
+    )
+    return jacobian[task.rows], target[task.rows], task.weight
+
+
+def contact_rows(robot, contact, q, v):
+    """(J, b) of the rigid-contact rows J qdd = b, and the cone rows G f <= h."""
+    model = robot.model
+    data = kinematics(robot, q, v)
+    frame = model.getFrameId(contact.frame)
+    kp, kd, mu = contact.stiffness, contact.damping, contact.friction_coefficient
+    f_min, f_max = contact.min_normal_force, contact.max_normal_force
+    if isinstance(contact, SoleContact):  # LOCAL: a* = Kp log6(M^-1 M_ref) - Kd nu
+        jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL)
+        drift = pin.getFrameAcceleration(model, data, frame, pin.LOCAL).vector
+        error = pin.log6(data.oMf[frame].actInv(contact.reference_placement)).vector
+        target = kp * error - kd * (jacobian @ v) - drift
+        m = mu / np.sqrt(2.0)
+        corners = contact.cop_fraction * np.asarray(robot.sole_corners)
+        (x_min, y_min), (x_max, y_max) = corners[:, :2].min(0), corners[:, :2].max(0)
+        radius = min(-x_min, x_max, -y_min, y_max)
+        cone = np.array(  # over (fx, fy, fz, tx, ty, tz); CoP = (-ty / fz, tx / fz)
+            [
+                [1, 0, -m, 0, 0, 0], [-1, 0, -m, 0, 0, 0], [0, 1, -m, 0, 0, 0],
+                [0, -1, -m, 0, 0, 0], [0, 0, -x_max, 0, -1, 0], [0, 0, x_min, 0, 1, 0],
+                [0, 0, -y_max, 1, 0, 0], [0, 0, y_min, -1, 0, 0], [0, 0, -m * radius, 0, 0, 1],
+                [0, 0, -m * radius, 0, 0, -1], [0, 0, -1, 0, 0, 0], [0, 0, 1, 0, 0, 0],
+            ]
+        )  # fmt: skip
+        bound = np.r_[np.zeros(10), -f_min, f_max]
+        return jacobian, target, cone, bound
+    rows = [0, 2] if robot.base == "planar" else [0, 1, 2]  # a point foot, world axes
+    jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[rows]
+    drift = pin.getFrameClassicalAcceleration(model, data, frame, pin.LOCAL_WORLD_ALIGNED).linear
+    error = contact.reference_placement.translation - data.oMf[frame].translation
+    target = (kp * error - drift)[rows] - kd * (jacobian @ v)
+    m = mu if robot.base == "planar" else mu / np.sqrt(2.0)
+    n = len(rows)
+    tangential = np.hstack([np.eye(n - 1), np.full((n - 1, 1), -m)])
+    flip = np.hstack([-np.eye(n - 1), np.full((n - 1, 1), -m)])
+    normal = np.eye(n)[-1:]
+    cone = np.vstack([tangential, flip, -normal, normal])
+    return jacobian, target, cone, np.r_[np.zeros(2 * n - 2), -f_min, f_max]
+
+
+def reference_qp(robot, tasks, contacts, q, v, torque_limit, eps_a=1e-6, eps_f=1e-8):
+    """The QP over x = (qdd, f) as the controller's module docstring states it, solved by
+    Clarabel: min sum_k w_k |J_k qdd - b_k|^2 + eps_a |qdd|^2 + eps_f |f|^2 subject to the
+    base rows of M qdd + h = S^T tau + J_c^T f, the contact rows, the torque limits and the
+    cones."""
+    model, nv, n_base = robot.model, robot.nv, robot.n_base
+    data = model.createData()
+    pin.computeAllTerms(model, data, q, v)
+    mass, bias = data.M.copy(), data.nle.copy()
+    rows = [contact_rows(robot, c, q, v) for c in contacts]
+    n_f = sum(r[0].shape[0] for r in rows)
+    n = nv + n_f
+    hessian = np.diag(np.r_[np.full(nv, eps_a), np.full(n_f, eps_f)])
+    gradient = np.zeros(n)
+    for task in tasks:
+        jacobian, target, weight = task_rows(robot, task, q, v)
+        hessian[:nv, :nv] += weight * jacobian.T @ jacobian
+        gradient[:nv] -= weight * jacobian.T @ target
+    contact_jacobian = np.vstack([r[0] for r in rows])
+    equality = np.zeros((n_base + n_f, n))
+    equality[:n_base, :nv] = mass[:n_base]
+    equality[:n_base, nv:] = -contact_jacobian[:, :n_base].T
+    equality[n_base:, :nv] = contact_jacobian
+    equality_target = np.r_[-bias[:n_base], np.concatenate([r[1] for r in rows])]
+    torque = np.hstack([mass[n_base:], -contact_jacobian[:, n_base:].T])  # tau - h_a
+    cones = np.zeros((sum(r[2].shape[0] for r in rows), n))
+    column = row = 0
+    for _, _, cone, _ in rows:
+        cones[row : row + cone.shape[0], nv + column : nv + column + cone.shape[1]] = cone
+        row, column = row + cone.shape[0], column + cone.shape[1]
+    inequality = np.vstack([torque, -torque, cones])
+    bound = np.concatenate(
+        [torque_limit - bias[n_base:], torque_limit + bias[n_base:]] + [r[3] for r in rows]
+    )
+    x = qpsolvers.solve_qp(
+        hessian, gradient, inequality, bound, equality, equality_target, solver="clarabel",
+        tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10,
+    )  # fmt: skip
+    assert x is not None, "Clarabel found no solution"
+    return x[:nv], x[nv:]
+
+
+def random_targets(robot, rng, tasks, q):
+    """Targets of every task near the state, so that some bind and some not."""
+    for task in tasks:
+        if isinstance(task, PostureTask):
+            task.set_reference(
+                q[task.configuration_indices] + 0.1 * rng.normal(size=task.velocity_indices.size)
+            )
+        elif isinstance(task, ComTask):
+            com = pin.centerOfMass(robot.model, robot.create_data(), q)
+            task.set_target(com + 0.02 * rng.normal(size=3))
+        else:
+            current = placement(robot, q, task.frame)
+            task.set_target(current * pin.exp6(0.05 * rng.normal(size=6)))
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "biped"])
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**16))
+def test_one_foot_tick_equals_the_reference_qp(robot_name, seed, talos, biped):
+    """On random states with the left foot active and a swing task on the right, the
+    controller's answer is the optimum of the QP written out in reference_qp (Clarabel), to
+    1e-6 relative."""
+    rng = np.random.default_rng(seed)
+    robot = talos if robot_name == "talos" else biped
+    right, left = (RIGHT, LEFT) if robot is talos else robot.foot_frames
+    torso = "base_link" if robot is talos else "torso"
+    tasks = [
+        PostureTask(robot, weight=0.1, stiffness=10.0),
+        ComTask(robot, weight=10.0, stiffness=50.0),
+        FrameTask(robot, torso, weight=1.0, stiffness=50.0, components="orientation"),
+        FrameTask(
+            robot,
+            right,
+            weight=5.0,
+            stiffness=100.0,
+            components="all" if robot is talos else "position",
+        ),
+    ]
+    kind = SoleContact if robot is talos else PointContact
+    contacts = [kind(robot, f, friction_coefficient=0.5) for f in (right, left)]
+    controller = InverseDynamicsController(
+        robot, tasks, contacts, inactive=[right], tolerance=1e-10, max_iterations=10_000,
+        time_budget=1.0, joint_limit_horizon=None,
+    )  # fmt: skip
+    q = pin.integrate(robot.model, robot.reference_configuration, 0.1 * rng.normal(size=robot.nv))
+    v = 0.5 * rng.normal(size=robot.nv)
+    random_targets(robot, rng, tasks, q)
+    contacts[1].reference_placement = placement(robot, q, left) * pin.exp6(
+        0.01 * rng.normal(size=6)
+    )
+    controller.compute_torques(q, v)
+    assert controller.active_contacts == (left,)
+    assert controller.stats.last_answer in ("direct", "solved")
+    qdd, force = reference_qp(robot, tasks, [contacts[1]], q, v, controller.torque_limit)
+    x_controller = np.r_[controller.joint_accelerations, controller.contact_force(left)]
+    x_reference = np.r_[qdd, force]
+    assert np.linalg.norm(x_controller - x_reference) <= 1e-6 * np.linalg.norm(x_reference)
+
+
+# ---------------------------------------------------------------- transitions
+def test_removal_ramps_the_normal_force_bound_then_drops_the_contact(talos):
+    """During a 0.25 s transition the right sole's normal force stays under the linear bound
+    f0 (1 - (t - t0) / 0.25) every tick (and meets it: the QP wants more); from the end on the
+    contact is gone: no wrench, one contact row block."""
+    controller, _ = talos_controller(talos)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    controller.compute_torques(q, v, 0.0)
+    f0 = controller.contact_force(RIGHT)[2]
+    assert f0 > 300.0  # about half the weight
+    controller.remove_contact(RIGHT, transition_time=0.25)
+    with pytest.raises(InvalidInputError, match="t is required"):
+        controller.compute_torques(q, v)
+    start, met = 1e-3, 0
+    for k in range(1, 300):
+        t = 1e-3 * k
+        controller.compute_torques(q, v, t)
+        force = controller.contact_force(RIGHT)[2]
+        if t - start < 0.25 - 1e-12:
+            bound = f0 * (1.0 - (t - start) / 0.25)
+            assert controller.active_contacts == (LEFT, RIGHT)
+            assert force <= bound + 1e-6, (t, force, bound)
+            met += bool(abs(force - bound) < 1e-3)
+        else:
+            assert controller.active_contacts == (LEFT,)
+            assert force == 0.0 and controller.contact_wrenches.shape == (1, 6)
+    assert met > 200
+    assert controller.stats.n_fallbacks == controller.stats.n_relaxed == 0
+
+
+def test_swing_foot_follows_its_task_after_removal(talos):
+    """Once the right contact is dropped, a FrameTask on the right sole moves it: its
+    acceleration J qdd + J-dot v equals the task's PD law a* = Kp e - Kd J v (the task's
+    weight 1e4 dominates the others; 1e-3 relative). The soles are made 0.6 m wide so that
+    the left one alone carries the robot with no cone row binding, the torque limits raised
+    tenfold and the joint limits off: nothing binds."""
+    wide = dataclasses.replace(talos, sole_corners=3.0 * np.asarray(talos.sole_corners))
+    controller, _ = talos_controller(wide, joint_limit_horizon=None, torque_limit_scale=10.0)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    v[talos.velocity_indices("right_leg")] = 0.3 * np.random.default_rng(0).normal(size=6)
+    controller.remove_contact(RIGHT)
+    swing = FrameTask(talos, RIGHT, weight=1e4, stiffness=100.0, damping=20.0)
+    start = placement(talos, q, RIGHT)
+    swing.set_target(pin.SE3(start.rotation, start.translation + [0.0, 0.0, 0.05]))
+    controller.add_task(swing)
+    controller.compute_torques(q, v)
+    assert controller.active_contacts == (LEFT,) and controller.stats.last_answer == "direct"
+    data = kinematics(talos, q, v)
+    frame = talos.model.getFrameId(RIGHT)
+    jacobian = pin.getFrameJacobian(talos.model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+    drift = pin.getFrameClassicalAcceleration(
+        talos.model, data, frame, pin.LOCAL_WORLD_ALIGNED
+    ).vector
+    acceleration = jacobian @ controller.joint_accelerations + drift
+    law = 100.0 * np.r_[0.0, 0.0, 0.05, 0.0, 0.0, 0.0] - 20.0 * jacobian @ v
+    np.testing.assert_allclose(acceleration, law, rtol=0, atol=1e-3 * np.abs(law).max())
+
+
+def test_switching_back_reuses_the_contact_set_qp(talos):
+    """A contact set met before is not rebuilt; add_contact holds the given reference."""
+    controller, _ = talos_controller(talos)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    controller.compute_torques(q, v)
+    double = controller._current
+    controller.remove_contact(RIGHT)
+    controller.compute_torques(q, v)
+    single = controller._current
+    assert single is not double and single.contacts == (controller.contacts[0],)
+    reference = placement(talos, q, RIGHT)
+    controller.add_contact(RIGHT, reference)
+    controller.compute_torques(q, v)
+    assert controller._current is double
+    assert controller.contacts[1].reference_placement.isApprox(reference)
+
+
+def test_switching_input_errors(talos):
+    """Each bad request names its argument, what was expected and what arrived."""
+    controller, com = talos_controller(talos, inactive=[RIGHT])
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    cases = [
+        (lambda: controller.remove_contact("head_1_link"), "frame='head_1_link' is not the frame"),
+        (lambda: controller.add_contact(LEFT), "frame='left_sole_link' is already an active"),
+        (lambda: controller.remove_contact(RIGHT), "frame='right_sole_link' is not an active"),
+        (lambda: controller.remove_contact(LEFT, -0.1), "transition_time must be >= 0"),
+        (lambda: controller.remove_contact(LEFT, float("nan")), "transition_time must be a finite"),
+        (lambda: controller.add_contact(RIGHT, reference="here"), "reference must be a pinocchio"),
+        (lambda: controller.add_task(com), "task is already in use"),
+        (lambda: controller.remove_task(FrameTask(talos, RIGHT)), "task .FrameTask. is not in use"),
+        (lambda: controller.compute_torques(q, v, float("inf")), "t must be a finite"),
+        (
+            lambda: InverseDynamicsController(talos, [com], controller.contacts, inactive=LEFT),
+            "inactive must be a sequence of frame names",
+        ),
+        (
+            lambda: InverseDynamicsController(
+                talos, [com], [SoleContact(talos, LEFT), SoleContact(talos, LEFT)]
+            ),
+            "contacts holds 2 contacts on 'left_sole_link'",
+        ),
+        (
+            lambda: SoleContact(talos, LEFT, cop_fraction=1.5),
+            r"cop_fraction must be in \(0, 1\]",
+        ),
+    ]
+    for call, message in cases:
+        with pytest.raises(InvalidInputError, match=message):
+            call()
+    controller.add_contact(RIGHT)
+    controller.remove_contact(RIGHT, 0.2)
+    controller.compute_torques(q, v, 1.0)
+    with pytest.raises(InvalidInputError, match="t=0.5 is before the start"):
+        controller.compute_torques(q, v, 0.5)
+    with pytest.raises(InvalidInputError, match="already being removed"):
+        controller.remove_contact(RIGHT, 0.2)
+    controller.remove_contact(LEFT)
+    controller.remove_contact(RIGHT)
+    assert controller.active_contacts == ()
+    tau = controller.compute_torques(q, v)  # in the air: defined, finite
+    assert np.isfinite(tau).all()
+
+
+# ---------------------------------------------------------------- closed loops
+def talos_simulator(robot, backend):
+    """Talos on compliant ground (ours, 2e4 N/m per sole corner) or on MuJoCo's floor, and
+    its start state with the soles at rest."""
+    from dmpopt.sim import GroundContact, MujocoSimulator, Simulator
+
+    q0 = robot.reference_configuration.copy()
+    options = dict(fall_frame="base_link", fall_height=0.7)
+    if backend == "mujoco":
+        points = robot.contact_points
+        return MujocoSimulator(robot.model, robot.source, 1e-3, points, 1.0, **options), q0
+    stiffness = 2e4
+    ground = GroundContact(stiffness=stiffness, damping=300.0, friction=1.0)
+    q0[2] -= robot.mass * GRAVITY / len(robot.contact_points) / stiffness
+    return Simulator(robot.model, 1e-3, robot.contact_points, ground, **options), q0
+
+
+@pytest.mark.parametrize("backend", ["native", "mujoco"])
+def test_talos_lifts_a_foot_and_puts_it_back(talos, backend):
+    """The CoM moves over the left sole (1 s); the right contact is removed with a 0.25 s
+    transition; a swing task lifts the right sole 5 cm and puts it down (1.2 s); the contact
+    is added back with a 0.25 s transition and the CoM returns (1 s). No fall, no hold
+    answer; the right normal force never jumps by more than 20 N (2 % of the weight) per 1 ms
+    tick and stays under its removal bound; both soles end flat on the ground."""
+    simulator, q0 = talos_simulator(talos, backend)
+    controller, com = talos_controller(talos)
+    state = simulator.reset(q0)
+    c0 = pin.centerOfMass(talos.model, talos.create_data(), q0)
+    left, right0 = placement(talos, q0, LEFT).translation, placement(talos, q0, RIGHT)
+    swing = FrameTask(talos, RIGHT, weight=10.0, stiffness=400.0)
+    forces, heights = [], []
+    for k in range(4000):
+        t = 1e-3 * k
+        s = min(t, 1.0) if t < 2.8 else max(0.0, 3.8 - t)
+        s = s * s * (3.0 - 2.0 * s)
+        com.set_target(np.r_[c0[:2] + s * (left[:2] - c0[:2]), c0[2]])
+        if k == 1100:
+            f0 = controller.contact_force(RIGHT)[2]
+            controller.remove_contact(RIGHT, transition_time=0.25)
+        if k == 1400:
+            controller.add_task(swing)
+        if 1400 <= k < 2700:  # up 5 cm, then down to 4 mm below the start: pressed on landing
+            u = min((t - 1.4) / 1.2, 1.0)
+            lift = 0.05 if u < 0.5 else 0.054
+            swing.set_target(
+                right0.translation + [0, 0, lift * np.sin(np.pi * u) ** 2 + 0.05 - lift]
+            )
+        if k == 2700:
+            controller.remove_task(swing)
+            controller.add_contact(RIGHT, transition_time=0.25)
+        tau = controller.compute_torques(state.q, state.v, t)
+        forces.append(controller.contact_force(RIGHT)[2])
+        if k % 20 == 0:
+            heights.append(placement(talos, state.q, RIGHT).translation[2] - right0.translation[2])
+        state = simulator.step(tau)
+        assert not state.fallen, f"fell at t = {t:.3f} s"
+    forces = np.array(forces)
+    ramp = np.arange(1101, 1351)
+    assert (forces[ramp] <= f0 * (1.0 - (ramp - 1101) / 250) + 1e-6).all()
+    assert (forces[1351:2700] == 0.0).all()
+    assert np.abs(np.diff(forces)).max() < 20.0
+    assert max(heights) > 0.045
+    assert controller.stats.n_fallbacks == 0
+    for frame in talos.foot_frames:
+        sole = placement(talos, state.q, frame)
+        assert np.abs(pin.log3(sole.rotation)[:2]).max() < 0.02  # roll and pitch [rad]
+    corners = state.contact_positions[:, 2]
+    assert np.ptp(corners) < 5e-3 and state.in_contact.all()
+
+
+def test_planar_biped_stands_on_one_point_foot(biped):
+    """The planar biped on two point feet shifts its CoM over the left foot, removes the
+    right contact (0.2 s transition) and lifts the right foot 5 cm: no fall for 2 s."""
+    from dmpopt.sim import GroundContact, Simulator
+
+    ground = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
+    simulator = Simulator(
+        biped.model, 1e-3, biped.contact_points, ground, fall_frame="torso", fall_height=0.3
+    )
+    q0 = biped.reference_configuration.copy()
+    q0[1] -= biped.mass * GRAVITY / 2 / 1e4
+    state = simulator.reset(q0)
+    right, left = biped.foot_frames
+    posture = PostureTask(biped, weight=0.1, stiffness=10.0)
+    com = ComTask(biped, weight=10.0, stiffness=50.0)
+    torso = FrameTask(biped, "torso", weight=1.0, stiffness=5.0, components="orientation")
+    contacts = [PointContact(biped, f, friction_coefficient=0.8) for f in biped.foot_frames]
+    controller = InverseDynamicsController(biped, [posture, com, torso], contacts)
+    c0 = pin.centerOfMass(biped.model, biped.create_data(), q0)
+    left_x = foot_positions(biped, q0)[1, 0]
+    right0 = placement(biped, q0, right).translation
+    swing = FrameTask(biped, right, weight=100.0, stiffness=200.0, components="position")
+    for k in range(2000):
+        t = 1e-3 * k
+        s = min(t / 0.5, 1.0)
+        com.set_target([c0[0] + s * s * (3 - 2 * s) * (left_x - c0[0]), 0.0, c0[2]])
+        if k == 500:
+            controller.remove_contact(right, transition_time=0.2)
+        if k == 700:
+            controller.add_task(swing)
+        if k >= 700:
+            swing.set_target(right0 + [0.0, 0.0, 0.05 * min((t - 0.7) / 0.5, 1.0)])
+        state = simulator.step(controller.compute_torques(state.q, state.v, t))
+        assert not state.fallen, f"fell at t = {t:.3f} s"
+    assert controller.active_contacts == (left,)
+    assert foot_positions(biped, state.q)[0, 1] > 0.04  # the right foot is up
+    assert controller.stats.n_fallbacks == 0

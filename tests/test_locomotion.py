@@ -1,0 +1,253 @@
+"""Tests of the walking plans: footsteps, the LIPM / DCM CoM plan, the swing-foot DMPs.
+
+Answer keys: the LIPM's closed form written out here and a numerical integration of
+x'' = (g / z_c)(x - p) by scipy; the DCM recursion between footsteps written plainly
+(xi_i = p_{i+1} + exp(-T / T_c) (xi_{i+1} - p_{i+1})) and its steady-state offset
+L / (exp(T / T_c) - 1); the footholds themselves for the swing-foot references.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+
+from dmpopt.exceptions import InvalidInputError, ShapeError
+from dmpopt.locomotion import (
+    GRAVITY,
+    Footstep,
+    fit_swing_dmps,
+    footstep_plan,
+    lipm_state,
+    lipm_time_constant,
+    plan_walk,
+    steady_dcm_offset,
+    swing_reference,
+)
+
+LEFT, RIGHT = np.array([0.0, 0.085, 0.0]), np.array([0.0, -0.085, 0.0])
+COM = np.array([0.0, 0.0, 0.87])
+SINGLE, DOUBLE = 0.8, 0.3
+
+
+@pytest.fixture(scope="module")
+def swing_dmps():
+    return fit_swing_dmps(SINGLE, step_length=0.2, height=0.05)
+
+
+def walk(n_in_place=1, n_forward=4, length=0.1, double=DOUBLE):
+    steps = footstep_plan(LEFT, RIGHT, n_in_place, n_forward, length)
+    return plan_walk(steps, COM, COM[2], SINGLE, double, initial_hold=1.5, final_hold=1.0)
+
+
+# ------------------------------------------------------------------------------ LIPM
+@settings(max_examples=30, deadline=None)
+@given(
+    x0=st.floats(-0.2, 0.2),
+    v0=st.floats(-0.5, 0.5),
+    p=st.floats(-0.2, 0.2),
+    t=st.floats(0.0, 1.0),
+    height=st.floats(0.3, 1.2),
+)
+def test_lipm_state_solves_the_pendulum(x0, v0, p, t, height):
+    """Answer key: scipy integrates x'' = (g / z_c)(x - p) from (x0, v0)."""
+    tc = lipm_time_constant(height)
+    assert tc == pytest.approx(np.sqrt(height / 9.81))
+    position, velocity = lipm_state([x0], [v0], [p], t, tc)
+    ode = solve_ivp(
+        lambda _, y: [y[1], GRAVITY / height * (y[0] - p)],
+        (0.0, t),
+        [x0, v0],
+        rtol=1e-11,
+        atol=1e-13,
+    )
+    np.testing.assert_allclose([position[0], velocity[0]], ode.y[:, -1], atol=1e-8)
+
+
+def test_single_support_com_is_the_closed_form_about_the_stance_foot():
+    """In each single support the plan's CoM is x0 cosh(t/Tc) + Tc xd0 sinh(t/Tc) about the
+    stance foot (written here), from the plan's own state at lift-off."""
+    plan = walk()
+    tc = np.sqrt(COM[2] / 9.81)
+    for step, start in zip(plan.footsteps, plan.lift_off):
+        x0, v0, _ = plan.com(start)
+        p = step.stance[:2]
+        for t in np.linspace(0.0, SINGLE, 9):
+            expected = p + (x0[:2] - p) * np.cosh(t / tc) + tc * v0[:2] * np.sinh(t / tc)
+            np.testing.assert_allclose(plan.com(start + t)[0][:2], expected, atol=1e-9)
+
+
+def test_plan_obeys_the_lipm_and_the_dcm_definition_everywhere():
+    """x'' = (x - p) / Tc^2 (acceleration by finite differences of the velocity) and
+    xi = x + Tc x' on the whole plan, double supports included; the plan ends at rest on
+    the middle of the last two footholds."""
+    plan = walk()
+    tc = plan.time_constant
+    t = np.arange(0.0, plan.duration, 1e-4)
+    position, velocity, acceleration = plan.com(t)
+    zmp = plan.zmp(t)
+    np.testing.assert_allclose(plan.dcm(t), position[:, :2] + tc * velocity[:, :2], atol=1e-12)
+    np.testing.assert_allclose(acceleration[:, :2], (position[:, :2] - zmp) / tc**2, atol=1e-9)
+    numeric = np.gradient(velocity[:, :2], t, axis=0)
+    away = np.min(np.abs(t[:, None] - plan.knot_times[None, :]), axis=1) > 2e-4
+    dcm_rate = np.gradient(plan.dcm(t), t, axis=0)  # xi' = (xi - p) / Tc
+    np.testing.assert_allclose(dcm_rate[away], (plan.dcm(t) - zmp)[away] / tc, atol=1e-5)
+    np.testing.assert_allclose(numeric[away], acceleration[away, :2], atol=1e-5)
+    np.testing.assert_allclose(
+        np.gradient(position[:, :2], t, axis=0)[1:-1], velocity[1:-1, :2], atol=1e-6
+    )
+    last = plan.footsteps[-1]
+    middle = 0.5 * (last.goal[:2] + last.stance[:2])
+    np.testing.assert_allclose(plan.dcm(plan.duration), middle, atol=1e-12)
+    assert np.linalg.norm(plan.com(plan.duration)[0][:2] - middle) < 5e-3
+    assert np.abs(plan.com(0.0)[1]).max() < 0.01  # starts nearly at rest (long initial hold)
+    np.testing.assert_allclose(plan.com(0.0)[0], COM)
+
+
+def test_zmp_sits_on_the_stance_foot_in_single_support_and_moves_in_double_support():
+    plan = walk()
+    for i, (step, start, end) in enumerate(zip(plan.footsteps, plan.lift_off, plan.touchdown)):
+        for t in np.linspace(start, end, 5):
+            np.testing.assert_allclose(plan.zmp(t), step.stance[:2], atol=1e-12)
+            assert plan.phase(min(max(t, start + 1e-9), end - 1e-9)) == ("single", i)
+        assert plan.phase(start - 1e-9) == ("double", i)
+        middle = plan.zmp(start - DOUBLE / 2)  # half-way through the weight transfer
+        previous = plan.zmp(start - DOUBLE)
+        np.testing.assert_allclose(middle, 0.5 * (previous + step.stance[:2]), atol=1e-12)
+
+
+# ----------------------------------------------------------------------- DCM recursion
+def test_end_of_step_dcm_follows_the_recursion_and_its_steady_offset():
+    """No double support: xi at each touchdown equals p_next + e^(-T/Tc)(xi_next - p_next),
+    p_next the next stance foothold, from the final DCM on the middle of the feet; in the
+    middle of a long walk it lies L / (e^(T/Tc) - 1) ahead of the next foothold."""
+    length = 0.1
+    plan = walk(n_in_place=0, n_forward=16, length=length, double=0.0)
+    tc = np.sqrt(COM[2] / 9.81)
+    steps = plan.footsteps
+    decay = np.exp(-SINGLE / tc)
+    # Written plainly: the ZMP sits on stance_i during step i, on the middle at the end.
+    last = 0.5 * (steps[-1].goal[:2] + steps[-1].stance[:2])
+    # After the last touchdown the ZMP jumps to the middle and stays: the DCM rests there.
+    xi_end = [None] * len(steps)
+    xi_end[-1] = last
+    for i in range(len(steps) - 2, -1, -1):
+        p_next = steps[i + 1].stance[:2]
+        xi_end[i] = p_next + decay * (xi_end[i + 1] - p_next)
+    for i, t in enumerate(plan.touchdown):
+        np.testing.assert_allclose(plan.dcm(t), xi_end[i], atol=1e-12)
+    offset = length / (np.exp(SINGLE / tc) - 1.0)
+    assert steady_dcm_offset(length, SINGLE, tc) == pytest.approx(offset, rel=1e-12)
+    middle = len(steps) // 2
+    ahead = plan.dcm(plan.touchdown[middle])[0] - steps[middle + 1].stance[0]
+    assert ahead == pytest.approx(offset, abs=1e-6)
+
+
+# ----------------------------------------------------------------------------- footsteps
+def test_footsteps_alternate_and_close_side_by_side():
+    steps = footstep_plan(LEFT, RIGHT, n_in_place=2, n_forward=10, step_length=0.1)
+    assert len(steps) == 13
+    assert [s.side for s in steps[:4]] == ["right", "left", "right", "left"]
+    assert [s.length for s in steps] == pytest.approx([0, 0, 0.1] + [0.2] * 9 + [0.1])
+    final = {s.side: s.goal for s in steps}
+    np.testing.assert_allclose(final["left"], LEFT + [1.0, 0, 0])
+    np.testing.assert_allclose(final["right"], RIGHT + [1.0, 0, 0])
+    for before, after in zip(steps, steps[1:]):  # each step stands on the foot that just moved
+        np.testing.assert_allclose(after.stance, before.goal)
+
+
+# --------------------------------------------------------------------------- swing foot
+@settings(max_examples=12, deadline=None)
+@given(
+    forward=st.floats(0.0, 0.3),
+    lateral=st.floats(-0.05, 0.05),
+    rise=st.floats(-0.02, 0.02),
+)
+def test_swing_reference_starts_and_ends_at_the_footholds_at_rest(
+    swing_dmps, forward, lateral, rise
+):
+    start = np.array([0.3, -0.085, 0.0])
+    goal = start + [forward, lateral, rise]
+    reference = swing_reference(swing_dmps, start, goal)
+    assert reference.times[-1] == pytest.approx(SINGLE)
+    np.testing.assert_allclose(reference.positions[0], start, atol=1e-12)
+    np.testing.assert_allclose(reference.velocities[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(reference.positions[-1], goal, atol=1.5e-3)
+    np.testing.assert_allclose(reference.velocities[-1], 0.0, atol=0.02)
+    assert reference.positions[:, 2].max() > max(start[2], goal[2]) + 0.03  # the foot lifts
+
+
+def test_swing_reference_is_the_demonstration_re_targeted(swing_dmps):
+    """At the demonstrated step (0.2 m) the path is the demonstration, minimum-jerk forward and
+    64 h s^3 (1 - s)^3 up (written here); a step in place goes straight up and down."""
+    start = np.array([0.1, 0.085, 0.0])
+    reference = swing_reference(swing_dmps, start, start + [0.2, 0, 0])
+    s = reference.times / SINGLE
+    forward = 0.2 * (10 * s**3 - 15 * s**4 + 6 * s**5)
+    np.testing.assert_allclose(reference.positions[:, 0] - start[0], forward, atol=2e-3)
+    np.testing.assert_allclose(
+        reference.positions[:, 2], 0.05 * 64 * s**3 * (1 - s) ** 3, atol=2e-3
+    )
+    in_place = swing_reference(swing_dmps, start, start)
+    np.testing.assert_allclose(
+        in_place.positions[:, :2], np.tile(start[:2], (s.size, 1)), atol=1e-12
+    )
+    assert in_place.positions[:, 2].max() == pytest.approx(0.05, abs=2e-3)
+    half = swing_reference(swing_dmps, start, start + [0.1, 0, 0])  # goal change: half the length
+    np.testing.assert_allclose(half.positions[:, 0] - start[0], forward / 2, atol=2e-3)
+
+
+# ---------------------------------------------------------------------------- bad inputs
+@pytest.mark.parametrize(
+    ("call", "error", "match"),
+    [
+        (lambda: lipm_time_constant(-0.8), InvalidInputError, "com_height"),
+        (lambda: lipm_time_constant(float("nan")), InvalidInputError, "com_height"),
+        (lambda: lipm_state([0.0, 1.0], [0.0], [0.0, 0.0], 0.1, 0.3), ShapeError, "velocity"),
+        (lambda: lipm_state([0.0], [0.0], [0.0], -1.0, 0.3), InvalidInputError, "t must"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, float("nan")), InvalidInputError, "step_length"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, 1.0), InvalidInputError, "step_length"),
+        (lambda: footstep_plan(LEFT[:2], RIGHT, 0, 3, 0.1), ShapeError, "left"),
+        (lambda: footstep_plan(LEFT, RIGHT, -1, 3, 0.1), InvalidInputError, "n_in_place"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 2.5, 0.1), InvalidInputError, "n_forward"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, 0.1, "middle"), InvalidInputError, "first_side"),
+        (lambda: plan_walk([(0, 1)], COM, 0.87, 0.8, 0.3), InvalidInputError, r"footsteps\[0\]"),
+        (lambda: plan_walk([], COM, 0.87, 0.0, 0.3), InvalidInputError, "single_support"),
+        (lambda: plan_walk([], COM, 0.87, 0.8, -0.1), InvalidInputError, "double_support"),
+        (lambda: plan_walk([], [0, 0, np.inf], 0.87, 0.8, 0.1), InvalidInputError, "com"),
+        (lambda: fit_swing_dmps(0.0), InvalidInputError, "duration"),
+        (lambda: fit_swing_dmps(0.8, height=-0.05), InvalidInputError, "height"),
+        (lambda: swing_reference("dmps", LEFT, LEFT), InvalidInputError, "dmps"),
+    ],
+)
+def test_bad_inputs_are_refused_with_the_argument_named(call, error, match):
+    with pytest.raises(error, match=match):
+        call()
+
+
+def test_bad_swing_footholds_are_refused(swing_dmps):
+    with pytest.raises(ShapeError, match="goal"):
+        swing_reference(swing_dmps, LEFT, [0.1, 0.0])
+    with pytest.raises(InvalidInputError, match="start"):
+        swing_reference(swing_dmps, [np.nan, 0, 0], LEFT)
+
+
+def test_footstep_is_a_checked_read_only_value():
+    step = Footstep("left", LEFT, LEFT + [0.2, 0, 0], RIGHT)
+    assert step.length == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="read-only"):
+        step.goal[0] = 1.0
+    with pytest.raises(InvalidInputError, match="side"):
+        Footstep("middle", LEFT, LEFT, RIGHT)
+    with pytest.raises(ShapeError, match="stance"):
+        Footstep("left", LEFT, LEFT, RIGHT[:2])
+    with pytest.raises(InvalidInputError, match="goal"):
+        Footstep("left", LEFT, [0.0, np.nan, 0.0], RIGHT)
+
+
+@pytest.mark.parametrize("t", [np.nan, np.inf, "1.0", None])
+def test_plan_refuses_times_that_are_not_finite_numbers(t):
+    plan = walk()
+    for query in (plan.com, plan.dcm, plan.zmp, plan.phase):
+        with pytest.raises(InvalidInputError, match="t must|t "):
+            query(t)

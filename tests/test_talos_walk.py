@@ -1,0 +1,49 @@
+"""The Talos walk in MuJoCo (quick mode: one step in place, three forward, one closing).
+
+Answer key: the footstep arithmetic written here (three forward steps of STEP_LENGTH put both
+feet 3 x STEP_LENGTH ahead, so the CoM ends that far ahead, centred between them), not the
+library's plan.
+"""
+
+import os
+
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+pytest.importorskip("mujoco")
+
+from dmpopt.exceptions import InvalidInputError  # noqa: E402
+from studies import talos_walk  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def quick_walk(tmp_path_factory):
+    out = tmp_path_factory.mktemp("walk")
+    return out, talos_walk.run_walk(out, quick=True)
+
+
+def test_quick_walk_takes_every_step_without_falling(quick_walk):
+    out, metrics = quick_walk
+    n_in_place, n_forward = talos_walk.STEPS["quick"]
+    assert not metrics["fell"] and metrics["diverged"] is None
+    assert metrics["steps_planned"] == n_in_place + n_forward + 1
+    assert (metrics["steps_in_place"], metrics["steps_forward"]) == (n_in_place, n_forward + 1)
+    assert metrics["steps_taken"] == metrics["steps_planned"]
+    assert metrics["distance_m"] == pytest.approx(n_forward * talos_walk.STEP_LENGTH, abs=0.02)
+    assert metrics["foothold_error_max_mm"] < 10.0
+    assert metrics["foot_slip_max_mm"] < 10.0
+    assert metrics["com_error_max_mm"] < 10.0
+    assert metrics["dcm_error_max_mm"] < 20.0
+    # the weight moves over in double support (contact ramp), so in single support the whole
+    # weight rests on the stance sole with its CoP well inside it, and the swing foot is free
+    assert metrics["stance_normal_force_min_fraction"] > 0.8
+    assert metrics["stance_cop_margin_min_mm"] > 10.0
+    assert metrics["swing_foot_normal_force_max_n"] < 1.0
+    assert metrics["qp_answers"]["hold"] == 0  # no tick without a QP answer
+    assert 0.0 < metrics["tick_us_median"] <= metrics["tick_us_p99"]
+    assert (out / metrics["figure"]).stat().st_size > 10_000
+
+
+def test_run_walk_refuses_a_quick_that_is_not_a_bool(tmp_path):
+    with pytest.raises(InvalidInputError, match="quick"):
+        talos_walk.run_walk(tmp_path, quick="yes")

@@ -230,6 +230,16 @@ def test_quick_run_writes_its_outputs(quick):
     assert written["mujoco"]["push_survived_ns"] == metrics["mujoco"]["push_survived_ns"]
 
 
+def test_quick_run_walks_the_planned_steps(quick):
+    """The study's walk (the quick plan: one step in place, three forward of 0.2 m, one
+    closing step): every step taken, no fall, the CoM 3 x 0.2 m ahead within 2 cm."""
+    walk = quick[1]["walk"]
+    assert not walk["fell"]
+    assert walk["steps_taken"] == walk["steps_planned"] == 5
+    assert walk["distance_m"] == pytest.approx(3 * 0.2, abs=0.02)
+    assert 0.0 < walk["tick_us_median"] <= walk["tick_us_p99"]
+
+
 def test_module_runs_as_a_script():
     """``python -m studies.humanoid --help`` reaches the study's command line."""
     import subprocess

@@ -26,6 +26,10 @@ Set-up (all choices are ours):
   at ``min(0.7, floor)``); torque limits of the controller at ``TIGHT_TORQUE`` of the
   nominal run's peak use, so that the QP's torque rows bind; forward pushes on the pelvis
   of increasing impulse (``PUSH_LADDER``, then two bisections) until the first fall;
+* walking (MuJoCo backend only; :mod:`studies.talos_walk`, metrics under ``walk``): Talos
+  (``reduced`` model) steps in place, then walks forward on a LIPM/DCM CoM plan with
+  swing-foot references from discrete DMPs, through the same controller with contact
+  switching (a normal-force ramp over each double support);
 * videos (MuJoCo's offscreen renderer, animated WebP of ``VIDEO_SECONDS``): drumming,
   figure-8 and the largest survived push; skipped in quick mode and without an OpenGL
   context, with the reason in ``videos_skipped``;

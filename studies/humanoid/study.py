@@ -9,6 +9,7 @@ from dmpopt.exceptions import InvalidInputError
 from robots import load_talos
 
 from ..common import output_dir, write_metrics
+from ..talos_walk import run_walk
 from .controller import mujoco_plant, with_mass_error
 from .demos import DRUM_JOINTS, demonstrate_drumming
 from .figures import plot, video_clips, write_videos
@@ -94,8 +95,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
     on_mujoco = backend == "mujoco"
     if on_mujoco:
         metrics["mujoco"] = mujoco_metrics(study.runs["none"], study.mujoco)
-    # The one place for Talos walking (studies/talos_walk.py, not imported yet), as
-    # metrics["walk"] = run_walk(out / "walk", quick)
+        metrics["walk"] = run_walk(out, quick)  # Talos steps in place, then walks forward
     skip = "quick run" if quick else None if on_mujoco else "native backend (videos need MuJoCo)"
     clips = video_clips(study) if on_mujoco else {}
     metrics["videos"], metrics["videos_skipped"] = write_videos(out, clips, skip)

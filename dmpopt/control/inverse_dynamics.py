@@ -423,8 +423,6 @@ class ContactSetQP:
         # - base regularisation: qdd_b = 0, least squares with weight eps_a (used with y);
         # - contacts: J_c qdd = b_c;
         # - base dynamics: M_b qdd - J_cb^T f = -h_b (used for the elimination).
-        # The tasks and contacts write their `jacobian` and `target` straight into these rows
-        # (they are bound to views of them below).
         self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
         self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
         sizes = [task.target.size for task in self._stacked_tasks]
@@ -442,11 +440,15 @@ class ContactSetQP:
         self._contact_rows = tuple(
             slice(n_cost + a.start, n_cost + a.stop) for a in self._force_slices
         )
-        self._bound = tuple(
-            self._bind(item, rows)
-            for item, rows in zip(
-                self._stacked_tasks + self.contacts, self._task_rows + self._contact_rows
+        # Each tick the tasks and contacts compute their rows into their own arrays, which are
+        # copied here (the controller never rebinds a user's object), each group by one call.
+        self._row_groups = tuple(
+            (items, self._rows[block, :nv], self._rows[block, -1])
+            for items, block in (
+                (self._stacked_tasks, slice(0, n_task)),
+                (self.contacts, slice(n_cost, n_cost + n_force)),
             )
+            if items
         )
         self._dynamics_rows = slice(n_cost + n_force, n_cost + n_force + n_base)
 
@@ -456,7 +458,7 @@ class ContactSetQP:
         diagonal[:nv] = acceleration_regularization
         for task in self._posture_tasks:
             diagonal[np.asarray(task.velocity_indices, dtype=int)] += task.weight
-        self._bind_posture_tasks(n_x)
+        self._stack_posture_tasks(n_x)
         # Fixed base, posture tasks on every joint plus frame tasks: the Hessian is diagonal
         # plus a low-rank term, solved through the Woodbury identity without the mass matrix,
         # and the torques come from RNEA (see _solve_joint_space).
@@ -885,20 +887,13 @@ class ContactSetQP:
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.computeJointJacobians(model, data)
             self._update_rows(q, v)
+        self._stack_posture(q, v)
         if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
             return False
         self._tau[:] = pin.rnea(model, data, q, v, x)
         return True
 
     # ------------------------------------------------------------------ assembly
-    def _bind(self, item, rows: slice) -> tuple:
-        """Make a task's or contact's ``jacobian`` and ``target`` views of its rows."""
-        jacobian, target = self._rows[rows, : self._nv], self._rows[rows, -1]
-        jacobian[:] = item.jacobian
-        target[:] = item.target
-        item.jacobian, item.target = jacobian, target
-        return item, jacobian, rows
-
     def _assemble(self, q: np.ndarray, v: np.ndarray) -> None:
         """Model terms, then the task and contact rows and the posture gradient over x."""
         model, data = self.model, self.data
@@ -907,50 +902,47 @@ class ContactSetQP:
         self._update_posture(q, v)
 
     def _update_rows(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Let the tasks and contacts write their rows (copied if they were rebound since,
-        e.g. by another controller built on them)."""
-        rows, data, nv = self._rows, self.data, self._nv
-        for item, jacobian, block in self._bound:
-            item.update(q, v, data)
-            if item.jacobian is not jacobian:
-                rows[block, :nv] = item.jacobian
-                rows[block, -1] = item.target
+        """The tasks and contacts compute their rows; copy them into the QP's rows."""
+        data = self.data
+        for items, jacobians, targets in self._row_groups:
+            for item in items:
+                item.update(q, v, data)
+            np.concatenate([item.jacobian for item in items], out=jacobians)
+            np.concatenate([item.target for item in items], out=targets)
 
-    def _bind_posture_tasks(self, n_x: int) -> None:
-        """Stack the posture tasks' state blocks into one, which the tasks then view.
-
-        The PD laws of all posture tasks then run as one vectorised law, and their gradient
-        terms -w qdd* are scattered over x by one product with a constant matrix.
-        """
+    def _stack_posture_tasks(self, n_x: int) -> None:
+        """One block for the posture tasks' references, gains and targets, filled each tick
+        from the tasks: their gradient terms -w qdd* are then scattered over x by one
+        compiled call."""
         tasks = self._posture_tasks
-        sizes = [task._state.shape[1] for task in tasks]
+        sizes = [task.velocity_indices.size for task in tasks]
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
         self._posture_state = np.zeros((7, int(offsets[-1])))
-        self._posture_views = []
-        for task, start, stop in zip(tasks, offsets[:-1], offsets[1:]):
-            columns = slice(int(start), int(stop))
-            self._posture_state[:, columns] = task._state
-            task._state = self._posture_state[:, columns]
-            self._posture_views.append((task, task._state, columns))
+
         indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
         self._posture_arguments = (  # of kernels.posture_gradient, without q and v
             self._posture_state,
             np.concatenate(indices + [t.configuration_indices for t in tasks]),
             np.concatenate(indices + [t.velocity_indices for t in tasks]),
-            np.concatenate([[]] + [np.full(t._state.shape[1], t.weight) for t in tasks]),
+            np.concatenate([[]] + [np.full(size, t.weight) for t, size in zip(tasks, sizes)]),
             self._posture_gradient,
         )
 
     def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Posture targets (the PD law of :class:`PostureTask`, all tasks at once) and their
-        gradient terms -w qdd* over x."""
-        state = self._posture_state
-        for task, view, columns in self._posture_views:
-            if task._state is not view:  # rebound since (by another controller): take it back
-                state[:, columns] = task._state
-                task._state = view
+        """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
+        -w qdd* over x."""
+        self._stack_posture(q, v)
         kernels.posture_gradient(*self._posture_arguments, q, v)
+
+    def _stack_posture(self, q: np.ndarray, v: np.ndarray) -> None:
+        """The posture tasks update their targets; their blocks are copied into the stacked
+        block, from which one compiled call scatters the gradient terms."""
+        tasks = self._posture_tasks
+        if tasks:
+            for task in tasks:
+                task.update(q, v, self.data)
+            np.concatenate([task.state for task in tasks], axis=1, out=self._posture_state)
 
     def _eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
         """The tick without inequality rows over z, as one compiled call (an outcome of

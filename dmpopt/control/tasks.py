@@ -97,13 +97,10 @@ class Task:
     \dot J \dot q`, shape (m,)) in :meth:`update`, in place (``self.jacobian[:] = ...``); a
     :class:`PostureTask` has ``velocity_indices`` instead of a Jacobian.
 
-    An :class:`~dmpopt.control.InverseDynamicsController` makes ``jacobian`` and ``target``
-    views of its own QP rows when it is built, so that :meth:`update` writes straight into
-    them: read them through the attributes, not through references kept from before. (An
-    update that rebinds them instead, or a second controller sharing the task, is detected
-    and handled by copying.) :class:`SoleContact` is bound the same way, and a
-    :class:`PostureTask`'s references, gains and target are views of a block the controller
-    stacks for all its posture tasks (assigning to them writes into that block).
+    Tasks are pure: :meth:`update` computes the rows from the state into the task's own
+    arrays, which an :class:`~dmpopt.control.InverseDynamicsController` copies into its QP
+    each tick; a controller never rebinds or rewrites a task, so one task can serve several
+    controllers.
     """
 
     weight: float
@@ -171,8 +168,8 @@ class PostureTask(Task):
     acceleration.
     """
 
-    # The task's arrays are the rows of one block, shape (7, n_joints); a controller stacks the
-    # blocks of its posture tasks to run their PD laws as one vectorised law per tick.
+    # The task's arrays are the rows of one block, shape (7, n_joints), that a controller copies
+    # each tick into one block for all its posture tasks (one compiled call for their gradient).
     reference_position = _posture_row(0, "reference_position", "Desired joint positions [rad].")
     reference_velocity = _posture_row(1, "reference_velocity", "Desired joint velocities [rad/s].")
     reference_acceleration = _posture_row(
@@ -199,6 +196,12 @@ class PostureTask(Task):
         self._upper = np.asarray(robot.position_upper, float)[self.configuration_indices]
         self._warned: set[str] = set()
         self.reference_position = robot.reference_configuration[self.configuration_indices]
+
+    @property
+    def state(self) -> np.ndarray:
+        """The task's block, shape (7, n_joints), rows: reference position, velocity and
+        acceleration, stiffness, damping, target, error (a controller copies it each tick)."""
+        return self._state
 
     def set_reference(self, positions, velocities=None, accelerations=None) -> None:
         """Set the joint reference for the coming ticks (e.g. one DMP step).

@@ -326,7 +326,7 @@ def test_solution_satisfies_equations_of_motion(talos):
     """Forward dynamics of (tau, contact wrenches) gives back the QP's qdd, and the soles
     accelerate as the contact constraint asks."""
     rng = np.random.default_rng(5)
-    controller, _ = standing_controller(talos, tolerance=1e-10)
+    controller, _ = standing_controller(talos, tolerance=1e-10, time_budget=1.0)  # a busy machine
     q, v = random_state(talos, rng, spread=0.02, speed=0.2)
     tau = controller.compute_torques(q, v)
     model, data = talos.model, talos.create_data()
@@ -350,7 +350,7 @@ def test_solution_satisfies_equations_of_motion(talos):
 
 def test_weight_is_carried_by_the_feet(talos):
     """Standing still in half-sitting, the normal forces sum to the robot's weight."""
-    controller, _ = standing_controller(talos, tolerance=1e-10)
+    controller, _ = standing_controller(talos, tolerance=1e-10, time_budget=1.0)  # a busy machine
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
     controller.compute_torques(q, v)
     mass = pin.computeTotalMass(talos.model)

@@ -1,7 +1,9 @@
 r"""Weighted QP inverse dynamics on Pinocchio and proxsuite (the role TSID plays in C++).
 
-Unknowns :math:`x = (\ddot q, f_1, \dots, f_{n_c})`: joint accelerations and one 6-D wrench per
-sole contact (in the sole frame). Each tick solves
+Unknowns :math:`x = (\ddot q, f_1, \dots, f_{n_c})`: joint accelerations and, per active
+contact, a 6-D wrench (a sole, in the sole frame) or a force (a point foot, in world axes; its
+in-plane (x, z) components on a planar robot). This is the QP of one set of active contacts
+and tasks (:class:`ContactSetQP`); the controller keeps one per set it meets. Each tick solves
 
 .. math::
 
@@ -29,10 +31,11 @@ torque is read off the equations of motion, :math:`\tau = M_a \ddot q + h_a - J_
 
 The QP that proxsuite sees is smaller than this statement, with the same solution:
 
-- **Constraints eliminated.** The base rows and the contact rows are :math:`n_b + 6 n_c`
-  linear equations; they are solved each tick (one LU factorisation) for as many *basic*
-  accelerations: the base and, per contact, the joints that move that sole (chosen once by a
-  column-pivoted QR of the contact Jacobians; for Talos the 12 leg joints). The QP variables
+- **Constraints eliminated.** The base rows and the contact rows are :math:`n_b + \sum_c m_c`
+  linear equations (:math:`m_c` = 6 per sole, 3 or 2 per point foot); they are solved each
+  tick (one LU factorisation) for as many *basic* accelerations: the base and, per contact,
+  the joints that move that foot (chosen once by a column-pivoted QR of the contact
+  Jacobians; for Talos the 12 leg joints). The QP variables
   are the remaining accelerations and the wrenches, :math:`z`, with no equality rows: for the
   full Talos 44 variables instead of 62 and 18 equality rows, and the dynamics and contact
   equations hold to machine precision instead of the solver tolerance. If that basic block is

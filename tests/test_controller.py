@@ -113,6 +113,7 @@ def test_overlapping_posture_tasks_blend_by_weight(upper_body):
     expected = law_whole.copy()
     expected[joints] = (0.5 * law_whole[joints] + 2.0 * law_arm) / 2.5
     np.testing.assert_allclose(controller.joint_accelerations, expected, rtol=1e-9, atol=1e-9)
+    arm.update(q, v, None)  # the task's own law (the controller evaluates it in its copy)
     np.testing.assert_allclose(arm.target, law_arm, rtol=1e-12)
     with pytest.raises(InvalidInputError, match="stiffness"):
         arm.stiffness = -1.0
@@ -601,6 +602,7 @@ def reference_solution(controller, q, v, acceleration_regularization, force_regu
     gradient = np.zeros(n)
     for task in controller.tasks:
         if isinstance(task, PostureTask):
+            task.update(q, v, None)  # its PD law (the controller evaluates it in its copy)
             indices = task.velocity_indices
             hessian[indices, indices] += task.weight
             gradient[indices] -= task.weight * task.target

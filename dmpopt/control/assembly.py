@@ -70,6 +70,7 @@ class Assembly:
         sizes = [task.velocity_indices.size for task in tasks]
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
         self._posture_state = np.zeros((7, int(offsets[-1])))
+        self._posture_blocks = [task.state for task in tasks]  # the tasks' own arrays
 
         indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
@@ -88,13 +89,10 @@ class Assembly:
         kernels.posture_gradient(*self._posture_arguments, q, v)
 
     def _stack_posture(self, q: np.ndarray, v: np.ndarray) -> None:
-        """The posture tasks update their targets; their blocks are copied into the stacked
-        block, from which one compiled call scatters the gradient terms."""
-        tasks = self._posture_tasks
-        if tasks:
-            for task in tasks:
-                task.update(q, v, self.data)
-            np.concatenate([task.state for task in tasks], axis=1, out=self._posture_state)
+        """Copy the posture tasks' references and gains into the stacked block (one call);
+        their PD law is evaluated there, for all of them by one compiled call."""
+        if self._posture_blocks:
+            np.concatenate(self._posture_blocks, axis=1, out=self._posture_state)
 
     def _eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
         """The tick without inequality rows over z, as one compiled call (an outcome of

@@ -92,7 +92,9 @@ class Task:
     Tasks are pure: :meth:`update` computes the rows from the state into the task's own
     arrays, which an :class:`~dmpopt.control.InverseDynamicsController` copies into its QP
     each tick; a controller never rebinds or rewrites a task, so one task can serve several
-    controllers.
+    controllers. A :class:`PostureTask`'s references and gains are copied instead and its PD
+    law evaluated in the controller (for all posture tasks at once): its ``target`` and
+    :meth:`error` are those of its own last :meth:`update`.
     """
 
     weight: float
@@ -192,7 +194,8 @@ class PostureTask(Task):
     @property
     def state(self) -> np.ndarray:
         """The task's block, shape (7, n_joints), rows: reference position, velocity and
-        acceleration, stiffness, damping, target, error (a controller copies it each tick)."""
+        acceleration, stiffness, damping, target, error (a controller copies it each tick;
+        the array itself is never replaced)."""
         return self._state
 
     def set_reference(self, positions, velocities=None, accelerations=None) -> None:

@@ -19,14 +19,22 @@ machine) and wall time per tick, median and p99; the share of ticks solved witho
 With TSID importable, each case also runs TSID on the same loop with the same tasks
 (:mod:`tsid_baseline`) and prints dmpopt's median CPU time as a fraction of TSID's; the target
 is at most 0.5. dmpopt's controller also bounds the driven joints' accelerations for their
-position and velocity limits (never active in these runs); TSID's has no such rows. TSID's wheels crash with pin 4 (binary mismatch), so it runs in its own venv
-with a combination that runs, TSID 1.7.1 on pin 3.4.0::
+position and velocity limits (never active in these runs); TSID's has no such rows. TSID's
+wheels crash with pin 4 (binary mismatch), so it runs in its own venv with a combination that
+runs, TSID 1.7.1 on pin 3.4.0::
 
     python3.11 -m venv .venv-tsid
     .venv-tsid/bin/pip install -c benchmarks/tsid-constraints.txt -e ".[test]" tsid
     .venv-tsid/bin/python benchmarks/bench_controller.py
 
-Run: ``python benchmarks/bench_controller.py [--seconds 2] [--no-tsid]``.
+``--walking`` times instead a Talos tick with one foot in the air: the full Talos in
+:class:`dmpopt.sim.Simulator` moves its CoM over the left sole, removes the right contact
+(0.25 s transition) and lifts the right sole 5 cm with a swing FrameTask (CoM, pelvis
+orientation and posture tasks, left sole contact); the ticks with the right foot in the air are
+timed. TSID (:class:`tsid_baseline.TsidWalking`, the same tasks, weights and gains) is timed on
+the same recorded states and targets.
+
+Run: ``python benchmarks/bench_controller.py [--seconds 2] [--no-tsid] [--walking]``.
 """
 
 import argparse
@@ -39,9 +47,11 @@ from robots import load_talos
 from studies import humanoid
 
 try:
-    from tsid_baseline import build_tsid
+    from tsid_baseline import TsidWalking, build_tsid
 except ImportError as error:  # TSID is optional: only the reference column needs it
     build_tsid, tsid_missing = None, str(error)
+
+RIGHT, LEFT = "right_sole_link", "left_sole_link"
 
 
 def calibration():
@@ -57,11 +67,100 @@ def calibration():
     return np.median(samples) / 1e3
 
 
+def _placement(robot, q, frame) -> pin.SE3:
+    data = robot.create_data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.model.getFrameId(frame)].copy()
+
+
+def walking_ticks():
+    """dmpopt's one-foot ticks in closed loop: (CPU us per tick, states and targets)."""
+    from dmpopt.control import (
+        ComTask,
+        FrameTask,
+        InverseDynamicsController,
+        PostureTask,
+        SoleContact,
+    )
+    from dmpopt.sim import GroundContact, Simulator
+
+    robot = load_talos("full")
+    stiffness = 2e4
+    ground = GroundContact(stiffness=stiffness, damping=300.0, friction=1.0)
+    simulator = Simulator(robot.model, 1e-3, robot.contact_points, ground)
+    q0 = robot.reference_configuration.copy()
+    q0[2] -= robot.mass * 9.81 / len(robot.contact_points) / stiffness
+    state = simulator.reset(q0)
+    com = ComTask(robot, weight=10.0, stiffness=50.0)
+    tasks = [
+        PostureTask(robot, weight=0.1, stiffness=10.0),
+        com,
+        FrameTask(robot, "base_link", weight=1.0, stiffness=50.0, components="orientation"),
+    ]
+    contacts = [
+        SoleContact(robot, f, max_normal_force=1500.0, cop_fraction=0.7) for f in robot.foot_frames
+    ]
+    controller = InverseDynamicsController(robot, tasks, contacts)
+    swing = FrameTask(robot, RIGHT, weight=10.0, stiffness=400.0)
+    c0 = pin.centerOfMass(robot.model, robot.create_data(), q0)
+    left, right0 = _placement(robot, q0, LEFT).translation, _placement(robot, q0, RIGHT)
+    cpu, records = [], []
+    for k in range(2600):
+        t = 1e-3 * k
+        s = min(t, 1.0)
+        target = np.r_[c0[:2] + s * s * (3 - 2 * s) * (left[:2] - c0[:2]), c0[2]]
+        com.set_target(target)
+        if k == 1100:
+            controller.remove_contact(RIGHT, transition_time=0.25)
+        if k == 1400:
+            controller.add_task(swing)
+        if k >= 1400:
+            lift = 0.05 * np.sin(np.pi * min((t - 1.4) / 1.2, 1.0)) ** 2
+            swing.set_target(pin.SE3(right0.rotation, right0.translation + [0, 0, lift]))
+        begin = time.thread_time_ns()
+        tau = controller.compute_torques(state.q, state.v, t)
+        if k >= 1450:  # the swing task's contact set is built and warm
+            cpu.append((time.thread_time_ns() - begin) / 1e3)
+            records.append((state.q.copy(), state.v.copy(), t, target, swing.target_placement))
+        state = simulator.step(tau)
+        assert not state.fallen, f"fell at t = {t:.3f} s"
+    return robot, np.array(cpu), records, controller.stats
+
+
+def walking(with_tsid: bool) -> None:
+    robot, cpu, records, stats = walking_ticks()
+    print(f"pinocchio {pin.__version__}; computeAllTerms on full Talos: {calibration():.1f} us")
+    print(f"one-foot Talos tick, {cpu.size} ticks [CPU us]:")
+    print(
+        f"  dmpopt  median {np.median(cpu):6.1f}  p99 {np.percentile(cpu, 99):6.1f}  "
+        f"(fallbacks {stats.n_fallbacks}, direct {stats.n_direct}/{stats.n_ticks} ticks)"
+    )
+    if not with_tsid:
+        return
+    if build_tsid is None:
+        print(f"  TSID skipped: {tsid_missing}")
+        return
+    tsid_controller = TsidWalking(robot, records[0][0], 10.0, 400.0, 0.7)
+    times = []
+    for q, v, t, com_target, swing_target in records:
+        begin = time.thread_time_ns()
+        tsid_controller.compute_torques(q, v, t, com_target, swing_target)
+        times.append((time.thread_time_ns() - begin) / 1e3)
+    print(
+        f"  TSID    median {np.median(times):6.1f}  p99 {np.percentile(times, 99):6.1f}  "
+        f"(failed solves {tsid_controller.failures})"
+    )
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated time per case [s]")
     parser.add_argument("--no-tsid", action="store_true", help="skip the TSID reference runs")
+    parser.add_argument("--walking", action="store_true", help="time a one-foot tick instead")
     args = parser.parse_args()
+    if args.walking:
+        walking(not args.no_tsid)
+        return
     builders = [("dmpopt", humanoid.build_controller)]
     if build_tsid is not None and not args.no_tsid:
         builders.append(("TSID", build_tsid))

@@ -199,3 +199,57 @@ def build_tsid(robot, q_start, arm_joints=humanoid.DRUM_JOINTS, hand=None, base_
     formulation.addActuationTask(bounds, 1.0, 0, 0.0)
     parts.append(bounds)
     return TsidController(robot, wrapper, formulation, contacts, parts), driven
+
+
+class TsidWalking:
+    """TSID on the one-foot tick of ``bench_controller.py --walking``: left sole contact, right
+    sole swing task, CoM, pelvis orientation and posture; targets set per tick."""
+
+    def __init__(self, robot, q, swing_weight, swing_stiffness, cop_fraction):
+        model = robot.model
+        self.wrapper = wrapper = tsid.RobotWrapper(model, tsid.FLOATING_BASE_SYSTEM, False)
+        self.formulation = tsid.InverseDynamicsFormulationAccForce("walk", wrapper, False)
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, q)
+        self.posture = tsid.TaskJointPosture("posture", wrapper)
+        _gains(self.posture, 10.0, robot.n_actuated)
+        self.posture.setReference(_sample(robot.reference_configuration[7:]))
+        self.com = tsid.TaskComEquality("com", wrapper)
+        _gains(self.com, 50.0, 3)
+        self.pelvis = tsid.TaskSE3Equality("pelvis", wrapper, "base_link")
+        _gains(self.pelvis, 50.0, 6)
+        self.pelvis.setMask(np.array([0.0, 0, 0, 1, 1, 1]))
+        self.pelvis.setReference(
+            _sample(tsid.SE3ToVector(data.oMf[model.getFrameId("base_link")]), size=6)
+        )
+        self.swing = tsid.TaskSE3Equality("swing", wrapper, "right_sole_link")
+        _gains(self.swing, swing_stiffness, 6)
+        self.swing.useLocalFrame(False)
+        for task, weight in (
+            (self.posture, 0.1), (self.com, 10.0), (self.pelvis, 1.0), (self.swing, swing_weight)
+        ):  # fmt: skip
+            self.formulation.addMotionTask(task, weight, 1, 0.0)
+        self.contact = tsid.Contact6d(
+            "left", wrapper, "left_sole_link",
+            cop_fraction * np.asarray(robot.sole_corners).T.copy(), np.array([0.0, 0.0, 1.0]),
+            0.7, 1.0, 1500.0,
+        )  # fmt: skip
+        _gains(self.contact, 10.0, 6)
+        self.contact.setReference(data.oMf[model.getFrameId("left_sole_link")])
+        self.formulation.addRigidContact(self.contact, 1e-8, 1.0, 0)
+        self.bounds = tsid.TaskActuationBounds("torque-bounds", wrapper)
+        limit = np.asarray(robot.torque_limit, dtype=float)
+        self.bounds.setBounds(-limit, limit)
+        self.formulation.addActuationTask(self.bounds, 1.0, 0, 0.0)
+        self.solver = tsid.SolverHQuadProgFast("eiquadprog-fast")
+        self.solver.resize(self.formulation.nVar, self.formulation.nEq, self.formulation.nIn)
+        self.failures = 0
+
+    def compute_torques(self, q, v, t, com_target, swing_target: pin.SE3) -> np.ndarray:
+        """One tick: targets, ``computeProblemData``, ``solve``, ``getActuatorForces``."""
+        self.com.setReference(_sample(com_target))
+        self.swing.setReference(_sample(tsid.SE3ToVector(swing_target), size=6))
+        problem = self.formulation.computeProblemData(t, q, v)
+        solution = self.solver.solve(problem)
+        self.failures += solution.status != 0
+        return self.formulation.getActuatorForces(solution)

@@ -183,12 +183,17 @@ def reference_qp(robot, tasks, contacts, q, v, torque_limit, eps_a=1e-6, eps_f=1
     bound = np.concatenate(
         [torque_limit - bias[n_base:], torque_limit + bias[n_base:]] + [r[3] for r in rows]
     )
+    # Solved over (qdd, f / weight), for a Hessian Clarabel can factorise reliably.
+    weight = robot.mass * GRAVITY
+    scale = np.r_[np.ones(nv), np.full(n_f, weight)]
+    hessian, gradient = hessian * np.outer(scale, scale), gradient * scale
+    equality, inequality = equality * scale, inequality * scale
     x = qpsolvers.solve_qp(
         hessian, gradient, inequality, bound, equality, equality_target, solver="clarabel",
         tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10,
     )  # fmt: skip
     assert x is not None, "Clarabel found no solution"
-    return x[:nv], x[nv:]
+    return x[:nv], weight * x[nv:]
 
 
 def random_targets(robot, rng, tasks, q):

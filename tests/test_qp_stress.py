@@ -25,8 +25,8 @@ from dmpopt.control import (
     InverseDynamicsController,
     PostureTask,
     SoleContact,
-    inverse_dynamics,
     kernels,
+    qp_stages,
 )
 from dmpopt.control.inverse_dynamics import JOINT_LIMIT_TOLERANCE
 from dmpopt.exceptions import InvalidInputError, ShapeError, SimulationDiverged
@@ -255,9 +255,7 @@ def active_set_matches_clarabel(problem, at_upper) -> bool:
     """Active-set iterations from ``at_upper``; False if they refuse, else their answer
     checked against Clarabel (a wrong point fails the test)."""
     hessian, gradient, a, b, c, lower, upper = problem
-    solution, solves = inverse_dynamics._active_set(
-        problem, at_upper, np.zeros_like(at_upper), 1e-9, 30
-    )
+    solution, solves = qp_stages._active_set(problem, at_upper, np.zeros_like(at_upper), 1e-9, 30)
     assert solves <= 30
     if solution is None:
         return False

@@ -24,16 +24,10 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
         sys.modules["numba"].core.config.reload_config()
 
 from dmpopt.control.computed_torque import ComputedTorqueController  # noqa: E402
+from dmpopt.control.contacts import PointContact, SoleContact  # noqa: E402
 from dmpopt.control.controller import InverseDynamicsController  # noqa: E402
 from dmpopt.control.inverse_dynamics import ControllerStats  # noqa: E402
-from dmpopt.control.tasks import (  # noqa: E402
-    ComTask,
-    FrameTask,
-    PointContact,
-    PostureTask,
-    SoleContact,
-    Task,
-)
+from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, Task  # noqa: E402
 
 __all__ = [
     "ComTask",

@@ -1,7 +1,9 @@
 r"""Weighted QP inverse dynamics on Pinocchio and proxsuite (the role TSID plays in C++).
 
-Unknowns :math:`x = (\ddot q, f_1, \dots, f_{n_c})`: joint accelerations and one 6-D wrench per
-sole contact (in the sole frame). Each tick solves
+Unknowns :math:`x = (\ddot q, f_1, \dots, f_{n_c})`: joint accelerations and, per active
+contact, a 6-D wrench (a sole, in the sole frame) or a force (a point foot, in world axes; its
+in-plane (x, z) components on a planar robot). This is the QP of one set of active contacts
+and tasks (:class:`ContactSetQP`); the controller keeps one per set it meets. Each tick solves
 
 .. math::
 
@@ -29,10 +31,11 @@ torque is read off the equations of motion, :math:`\tau = M_a \ddot q + h_a - J_
 
 The QP that proxsuite sees is smaller than this statement, with the same solution:
 
-- **Constraints eliminated.** The base rows and the contact rows are :math:`n_b + 6 n_c`
-  linear equations; they are solved each tick (one LU factorisation) for as many *basic*
-  accelerations: the base and, per contact, the joints that move that sole (chosen once by a
-  column-pivoted QR of the contact Jacobians; for Talos the 12 leg joints). The QP variables
+- **Constraints eliminated.** The base rows and the contact rows are :math:`n_b + \sum_c m_c`
+  linear equations (:math:`m_c` = 6 per sole, 3 or 2 per point foot); they are solved each
+  tick (one LU factorisation) for as many *basic* accelerations: the base and, per contact,
+  the joints that move that foot (chosen once by a column-pivoted QR of the contact
+  Jacobians; for Talos the 12 leg joints). The QP variables
   are the remaining accelerations and the wrenches, :math:`z`, with no equality rows: for the
   full Talos 44 variables instead of 62 and 18 equality rows, and the dynamics and contact
   equations hold to machine precision instead of the solver tolerance. If that basic block is
@@ -78,155 +81,35 @@ degraded answer within its time budget (see :class:`InverseDynamicsController`).
 from __future__ import annotations
 
 import math
-import time
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
 import proxsuite
 import scipy.linalg
-from scipy.linalg import lapack
 
-from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
+from dmpopt.exceptions import InvalidInputError, ShapeError
 
 from . import kernels
-from .tasks import FrameTask, PointContact, PostureTask, SoleContact, Task
+from .assembly import Assembly
+from .contacts import PointContact, SoleContact
+from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _arguments, _Stage
+from .tasks import FrameTask, PostureTask, Task
+from .tick import _RELEASE_MARGIN, Tick
 
 CONTACT_TYPES = (SoleContact, PointContact)
 
 __all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 
-_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
-_MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
-_WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-_COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
-_DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
-_ACTIVE_SET = "ACTIVE_SET_SOLVED"  # ... of a QP solved by active-set iterations alone
-_NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
-_RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
-_BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
-_MIRRORED_SETTINGS = (
-    "eps_abs", "eps_rel", "eps_duality_gap_abs", "max_iter", "max_iter_in", "verbose",
-)  # fmt: skip
 # [rad] how far past a position limit the acceleration bounds let a joint go: a joint resting
 # exactly at its limit then leaves its bound slack.
 JOINT_LIMIT_TOLERANCE = 1e-3
-# Inner iterations per outer iteration of proxsuite (its default 1500): with max_iter, the cap
-# on one solve's iterations.
-_MAX_INNER_ITERATIONS = 10
 # Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
 _RELAXATION_WEIGHT = 1e4
-# Active-set refinement rounds after proxsuite (each one KKT solve).
-_REFINEMENT_ROUNDS = 10
-# Active-set rounds from the previous tick's active set before proxsuite is called.
-_WARM_ROUNDS = 5
-# Share of the time budget the exact QP may use; the rest is left to the relaxed QP.
-_EXACT_SHARE = 0.5
-# proxsuite runs in calls of this many outer iterations, the time budget checked between
-# (always the same calls, so that the time taken does not change the answer).
-_CHUNK_ITERATIONS = 3
 # Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
 _CONE_RELEASE_MARGIN = 1e-3
 # Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
 _MIN_PIVOT_RATIO = 1e-9
-
-
-@dataclass
-class ControllerStats:
-    """Counters of the controller's answers and solver health since construction or
-    :meth:`~InverseDynamicsController.reset`.
-
-    Every tick gives one of four answers (see :class:`InverseDynamicsController`, Notes),
-    counted in ``n_direct``, ``n_solved``, ``n_relaxed`` and ``n_fallbacks``.
-
-    Attributes
-    ----------
-    n_ticks : int
-        Calls to :meth:`InverseDynamicsController.compute_torques`.
-    n_direct : int
-        Ticks solved without proxsuite: no inequality row was active, so the QP reduced to a
-        least-squares problem (one Cholesky factorisation, or closed form for posture tasks
-        on a fixed base).
-    n_solved : int
-        Ticks whose QP with its active inequality rows was solved, by active-set iterations
-        from the last tick's active set or by proxsuite.
-    n_relaxed : int
-        Ticks whose QP could not be solved (infeasible, or out of iterations) and that
-        returned the solution of the relaxed QP.
-    n_fallbacks : int
-        Ticks that returned the hold torque (relaxed QP failed too, or out of time).
-    n_cold_restarts : int
-        Warm-started solves that failed and were solved again from scratch.
-    n_torque_limited : int
-        Ticks that needed the QP with torque-limit and acceleration-bound rows.
-    last_answer : str
-        ``"direct"``, ``"solved"``, ``"relaxed"`` or ``"hold"``.
-    last_status : str
-        proxsuite status of the last solve, ``"CHOLESKY_SOLVED"`` for a direct one,
-        ``"ACTIVE_SET_SOLVED"`` for one solved by active-set iterations alone, or
-        ``"NON_FINITE_PROBLEM"`` for a QP refused before proxsuite (a NaN in a task).
-    last_iterations : int
-        Iterations of the last solve (proxsuite's inner iterations, or KKT solves).
-    """
-
-    n_ticks: int = 0
-    n_direct: int = 0
-    n_solved: int = 0
-    n_relaxed: int = 0
-    n_fallbacks: int = 0
-    n_cold_restarts: int = 0
-    n_torque_limited: int = 0
-    last_answer: str = "not run"
-    last_status: str = "not run"
-    last_iterations: int = 0
-
-
-class _Stage:
-    """One QP with its proxsuite solver, its own warm start and the (preallocated) arrays it
-    reads.
-
-    ``problem`` is (H, g, A, b, C, l, u), None for absent blocks: what the active-set
-    iterations read. ``at_upper`` and ``at_lower`` mark the rows active at the last solution
-    (``known``): the next tick starts from them. ``stale``: inequality bounds changed (a
-    contact transition), so the next proxsuite update passes them too.
-    """
-
-    __slots__ = (
-        "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known", "stale",
-    )  # fmt: skip
-
-    def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
-        dense = proxsuite.proxqp.dense
-        self.qp = dense.QP(n, n_eq, n_in, False, dense.HessianType.Dense, backend)
-        settings = self.qp.settings
-        settings.verbose = False
-        settings.initial_guess = _WARM
-        settings.max_iter_in = _MAX_INNER_ITERATIONS
-        # Stop on a small duality gap too, not only on small residuals: a warm start from the
-        # previous tick's multipliers can have small residuals with a stale active set.
-        settings.check_duality_gap = True
-        self.initialized = False
-        self.init_arguments = init_arguments
-        self.update_arguments = update_arguments
-        self.problem = (init_arguments + (None,) * 5)[:7]
-        self.at_upper = np.zeros(n_in, dtype=bool)
-        self.at_lower = np.zeros(n_in, dtype=bool)
-        self.known = False
-        self.stale = False  # bounds changed since proxsuite last saw them: update with all
-
-
-def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
-    """Positional arguments of proxsuite's init/update, with None for absent blocks."""
-    arguments = (hessian, gradient)
-    if equalities is not None:
-        arguments += equalities
-    elif inequalities is not None:
-        arguments += (None, None)
-    if inequalities is not None:
-        arguments += inequalities
-    return arguments
 
 
 def _check_positive(name: str, value) -> None:
@@ -262,62 +145,6 @@ def _check_items(robot, tasks, contacts) -> None:
                 )
 
 
-def _active_set(
-    problem: tuple, at_upper: np.ndarray, at_lower: np.ndarray, tolerance: float, rounds: int
-) -> tuple[np.ndarray | None, int]:
-    r"""Primal-dual active-set iterations from the active set ``at_upper | at_lower``.
-
-    The QP restricted to its active rows as equalities is one linear KKT solve,
-
-    .. math:: \begin{bmatrix} H & E^\top \\ E & 0 \end{bmatrix}
-              \begin{bmatrix} x \\ \nu \end{bmatrix} = \begin{bmatrix} -g \\ e
-              \end{bmatrix}.
-
-    Its solution is the optimum (the certificate) if every inactive row holds to
-    ``tolerance`` and every multiplier has the sign of its side (:math:`\nu \ge 0` at an
-    upper bound, :math:`\le 0` at a lower one): the KKT conditions then hold exactly.
-    Otherwise the rows of the wrong sign leave the set, or else the most violated row enters
-    it, for at most ``rounds`` solves. ``at_upper`` and ``at_lower`` are updated in place.
-
-    Returns
-    -------
-    (x, solves) : the certified optimum, or None if no set verified (or the active rows are
-    dependent); and the number of KKT solves made.
-    """
-    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
-    n = hessian.shape[0]
-    if in_matrix is None:  # no inequality rows
-        in_matrix, lower, upper = np.zeros((0, n)), np.zeros(0), np.zeros(0)
-    for solves in range(1, rounds + 1):
-        rows = np.flatnonzero(at_upper | at_lower)
-        bounds = np.where(at_upper, upper, lower)[rows]
-        matrix, target = in_matrix[rows], bounds
-        if eq_matrix is not None:
-            matrix, target = np.vstack([eq_matrix, matrix]), np.concatenate([eq_vector, bounds])
-        m = matrix.shape[0]
-        kkt = np.zeros((n + m, n + m))
-        kkt[:n, :n], kkt[:n, n:], kkt[n:, :n] = hessian, matrix.T, matrix
-        solution = np.concatenate([-gradient, target])
-        if not kernels.solve_in_place(kkt, solution):  # dependent active rows
-            return None, solves
-        candidate, multipliers = solution[:n], solution[n + m - rows.size :]
-        slack = 1e-9 * max(1.0, float(np.abs(multipliers).max(initial=0.0)))
-        wrong = np.zeros_like(at_upper)
-        wrong[rows] = np.where(at_upper[rows], multipliers < -slack, multipliers > slack)
-        if wrong.any():  # these rows leave the active set
-            at_upper &= ~wrong
-            at_lower &= ~wrong
-            continue
-        values = in_matrix @ candidate
-        violation = np.maximum(values - upper, lower - values)
-        if not violation.size or violation.max() <= tolerance:
-            return candidate, solves
-        worst = int(np.argmax(violation))
-        at_upper[worst] = values[worst] > upper[worst]
-        at_lower[worst] = values[worst] < lower[worst]
-    return None, rounds
-
-
 def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     """Velocity indices of as many joints as contact rows that move the feet, or None.
 
@@ -338,7 +165,7 @@ def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     return np.sort(pivots[:n_rows]) + n_base
 
 
-class ContactSetQP:
+class ContactSetQP(Tick, Assembly, StageSolver):
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
     stages (see the module docstring). The controller builds one per set it meets and keeps
@@ -423,8 +250,6 @@ class ContactSetQP:
         # - base regularisation: qdd_b = 0, least squares with weight eps_a (used with y);
         # - contacts: J_c qdd = b_c;
         # - base dynamics: M_b qdd - J_cb^T f = -h_b (used for the elimination).
-        # The tasks and contacts write their `jacobian` and `target` straight into these rows
-        # (they are bound to views of them below).
         self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
         self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
         sizes = [task.target.size for task in self._stacked_tasks]
@@ -442,11 +267,15 @@ class ContactSetQP:
         self._contact_rows = tuple(
             slice(n_cost + a.start, n_cost + a.stop) for a in self._force_slices
         )
-        self._bound = tuple(
-            self._bind(item, rows)
-            for item, rows in zip(
-                self._stacked_tasks + self.contacts, self._task_rows + self._contact_rows
+        # Each tick the tasks and contacts compute their rows into their own arrays, which are
+        # copied here (the controller never rebinds a user's object), each group by one call.
+        self._row_groups = tuple(
+            (items, self._rows[block, :nv], self._rows[block, -1])
+            for items, block in (
+                (self._stacked_tasks, slice(0, n_task)),
+                (self.contacts, slice(n_cost, n_cost + n_force)),
             )
+            if items
         )
         self._dynamics_rows = slice(n_cost + n_force, n_cost + n_force + n_base)
 
@@ -456,7 +285,7 @@ class ContactSetQP:
         diagonal[:nv] = acceleration_regularization
         for task in self._posture_tasks:
             diagonal[np.asarray(task.velocity_indices, dtype=int)] += task.weight
-        self._bind_posture_tasks(n_x)
+        self._stack_posture_tasks(n_x)
         # Fixed base, posture tasks on every joint plus frame tasks: the Hessian is diagonal
         # plus a low-rank term, solved through the Woodbury identity without the mass matrix,
         # and the torques come from RNEA (see _solve_joint_space).
@@ -698,14 +527,6 @@ class ContactSetQP:
             np.full(v_index.size, -np.inf), np.full(v_index.size, np.inf),
         )  # fmt: skip
 
-    def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
-        """Whether the candidate's torques are within ``torque_limit`` and its accelerations
-        ``margin`` inside their bounds (kernels.feasible)."""
-        return kernels.feasible(
-            self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
-        )
-
-    # ------------------------------------------------------------------ results
     @property
     def joint_accelerations(self) -> np.ndarray:
         """Joint accelerations of the last solve, shape (nv,) (copy)."""
@@ -753,427 +574,3 @@ class ContactSetQP:
         self.stats = ControllerStats()
         for contact in self.contacts:
             contact.reference_placement = None
-
-    # ------------------------------------------------------------------ one tick
-    def compute_torques(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Joint torques for the state ``(q, v)``: one model update, QP assembly and solve.
-
-        Parameters
-        ----------
-        q : ndarray, shape (nq,)
-            Configuration (free-flyer position and unit quaternion first, if floating).
-        v : ndarray, shape (nv,)
-            Velocity (base twist in the base frame first, if floating).
-
-        Returns
-        -------
-        ndarray, shape (n_actuated,)
-            Torques of the actuated joints [N m], within the torque limits, always finite.
-        """
-        if q.shape != (self.model.nq,) or v.shape != (self._nv,):
-            raise ShapeError(
-                f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
-                f"({self._nv},) for {self.robot.name}"
-            )
-        if not kernels.all_finite(q, v):
-            raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
-        self.stats.n_ticks += 1
-        start = time.thread_time()
-        self._deadline = start + self.time_budget
-        self._exact_deadline = start + _EXACT_SHARE * self.time_budget
-        # Inequality rows are added only when the solution without them violates them; a
-        # level is kept until its rows are slack by a margin (hysteresis). Without inequality
-        # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
-        level, solved, mapped, checked = self._level, True, False, False
-        # Posture tasks on a fixed base need no model terms below the torque limits.
-        assembled = not (self._joint_space and level == 0)
-        if not assembled:
-            solved = self._solve_joint_space(q, v)
-            if not solved:  # not expected: W^-1 + J D^-1 J^T is positive definite
-                level = 2
-        else:
-            self._assemble(q, v)
-        if assembled and level < 2:
-            outcome = kernels.ILL_CONDITIONED
-            if self._basic is not None:
-                outcome = self._eliminated_tick(q, v) if level == 0 else self._assemble_eliminated()
-            if outcome == kernels.SOLVED:
-                checked = True  # cones, torques and acceleration bounds checked by the tick
-            elif outcome == kernels.LIMITS_VIOLATED:
-                level = 2
-            elif outcome == kernels.CHOLESKY_FAILED:
-                solved, level = False, 2
-            elif outcome == kernels.CONES_VIOLATED:
-                solved = self._solve(self._eliminated_cones, self._exact_deadline)
-                level = 0 if solved and self._cones_released() else 1
-            elif not self.contacts:  # fixed base: no equality rows
-                self._assemble_y()
-                mapped = True
-                solved = self._solve_direct()
-            else:  # ill-conditioned elimination: contact rows as equalities, with the cones
-                self._assemble_y()
-                mapped = True
-                solved = self._solve(self._free, self._exact_deadline)
-                level = min(level, 1)
-        # A failed solve, or a NaN torque (from a NaN written into a task), goes to the QP
-        # with every inequality row.
-        if not solved or (level < 2 and not checked):
-            if not (solved and self._feasible(self.torque_limit, self._bound_tolerance, q, v)):
-                level = 2
-        answer = "direct" if self.stats.last_status is _DIRECT else "solved"
-        if level == 2:
-            self.stats.n_torque_limited += 1
-            if not assembled:
-                self._assemble(q, v)
-            if not mapped:
-                self._assemble_y()
-            kernels.acceleration_bounds(self._bounds, q, v)
-            self._assemble_torque_rows()
-            answer = "solved"
-            solved = self._solve(self._limited, self._exact_deadline)
-            if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
-                level = 1 if self.contacts else 0  # without contacts there are no cone rows
-            elif not solved:
-                answer = "relaxed"
-                solved = self._time_left() and self._solve_relaxed()
-        self._level = level
-        if not solved:
-            self._fall_back()
-            return self._torques.copy()
-        self._count(answer)
-        self._has_valid_torque = True
-        self._solution, self._candidate = self._candidate, self._solution
-        if answer == "direct":  # its torques were checked against the limits
-            np.copyto(self._torques, self._tau)
-        else:  # proxsuite meets the limit rows only to its tolerance
-            np.minimum(self._tau, self.torque_limit, out=self._torques)
-            np.maximum(self._torques, -self.torque_limit, out=self._torques)
-        return self._torques.copy()
-
-    def _count(self, answer: str) -> None:
-        stats = self.stats
-        stats.last_answer = answer
-        if answer == "direct":
-            stats.n_direct += 1
-        elif answer == "solved":
-            stats.n_solved += 1
-        else:
-            stats.n_relaxed += 1
-
-    def _time_left(self) -> bool:
-        """Whether the tick's time budget allows another solve."""
-        return time.thread_time() < self._deadline
-
-    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
-        r"""Fixed base, posture tasks on every joint plus frame tasks: the QP without torque
-        rows, without the mass matrix.
-
-        Its Hessian is :math:`H = D + J^\top W J` (D the diagonal posture and regularisation
-        weights; J, t the frame-task rows, a few, with weights W), its gradient
-        :math:`p - J^\top W t`, so by the Woodbury identity
-
-        .. math:: \ddot q = H^{-1} r = D^{-1} r - D^{-1} J^\top (W^{-1} + J D^{-1} J^\top)^{-1}
-                  J D^{-1} r, \qquad r = J^\top W t - p,
-
-        with a factorisation of the small matrix only; posture tasks alone give
-        :math:`\ddot q = -p/d`. Then :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`.
-        """
-        model, data, x = self.model, self.data, self._candidate
-        stats = self.stats
-        stats.last_status, stats.last_iterations = _DIRECT, 0
-        if self._stacked_tasks:
-            pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
-            pin.computeJointJacobians(model, data)
-            self._update_rows(q, v)
-        if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
-            return False
-        self._tau[:] = pin.rnea(model, data, q, v, x)
-        return True
-
-    # ------------------------------------------------------------------ assembly
-    def _bind(self, item, rows: slice) -> tuple:
-        """Make a task's or contact's ``jacobian`` and ``target`` views of its rows."""
-        jacobian, target = self._rows[rows, : self._nv], self._rows[rows, -1]
-        jacobian[:] = item.jacobian
-        target[:] = item.target
-        item.jacobian, item.target = jacobian, target
-        return item, jacobian, rows
-
-    def _assemble(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Model terms, then the task and contact rows and the posture gradient over x."""
-        model, data = self.model, self.data
-        pin.computeAllTerms(model, data, q, v)
-        self._update_rows(q, v)
-        self._update_posture(q, v)
-
-    def _update_rows(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Let the tasks and contacts write their rows (copied if they were rebound since,
-        e.g. by another controller built on them)."""
-        rows, data, nv = self._rows, self.data, self._nv
-        for item, jacobian, block in self._bound:
-            item.update(q, v, data)
-            if item.jacobian is not jacobian:
-                rows[block, :nv] = item.jacobian
-                rows[block, -1] = item.target
-
-    def _bind_posture_tasks(self, n_x: int) -> None:
-        """Stack the posture tasks' state blocks into one, which the tasks then view.
-
-        The PD laws of all posture tasks then run as one vectorised law, and their gradient
-        terms -w qdd* are scattered over x by one product with a constant matrix.
-        """
-        tasks = self._posture_tasks
-        sizes = [task._state.shape[1] for task in tasks]
-        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
-        self._posture_state = np.zeros((7, int(offsets[-1])))
-        self._posture_views = []
-        for task, start, stop in zip(tasks, offsets[:-1], offsets[1:]):
-            columns = slice(int(start), int(stop))
-            self._posture_state[:, columns] = task._state
-            task._state = self._posture_state[:, columns]
-            self._posture_views.append((task, task._state, columns))
-        indices = [np.zeros(0, dtype=np.int64)]
-        self._posture_gradient = np.zeros(n_x)
-        self._posture_arguments = (  # of kernels.posture_gradient, without q and v
-            self._posture_state,
-            np.concatenate(indices + [t.configuration_indices for t in tasks]),
-            np.concatenate(indices + [t.velocity_indices for t in tasks]),
-            np.concatenate([[]] + [np.full(t._state.shape[1], t.weight) for t in tasks]),
-            self._posture_gradient,
-        )
-
-    def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Posture targets (the PD law of :class:`PostureTask`, all tasks at once) and their
-        gradient terms -w qdd* over x."""
-        state = self._posture_state
-        for task, view, columns in self._posture_views:
-            if task._state is not view:  # rebound since (by another controller): take it back
-                state[:, columns] = task._state
-                task._state = view
-        kernels.posture_gradient(*self._posture_arguments, q, v)
-
-    def _eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
-        """The tick without inequality rows over z, as one compiled call (an outcome of
-        :func:`kernels.eliminated_tick`)."""
-        stats = self.stats
-        stats.last_status, stats.last_iterations = _DIRECT, 0
-        return kernels.eliminated_tick(
-            self._elimination_arguments, self._reduction_arguments, self._solve_arguments,
-            q, v, self._candidate, self._tau,
-        )  # fmt: skip
-
-    def _assemble_eliminated(self) -> int:
-        """Hessian and gradient over z for the QP with cone rows: CONES_VIOLATED (to be
-        solved with them), or ILL_CONDITIONED if the basic block is."""
-        if not kernels.eliminate(*self._elimination_arguments):
-            return kernels.ILL_CONDITIONED
-        kernels.reduce_costs(*self._reduction_arguments)
-        return kernels.CONES_VIOLATED
-
-    def _cones_released(self) -> bool:
-        """Whether all cone rows are slack by the release margin."""
-        values = np.dot(self._z_cone_matrix, self._z_accepted, out=self._z_cone_values)
-        return bool((values < self._z_cone_release).all())
-
-    def _assemble_y(self) -> None:
-        """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
-        rows, n_base, n, n_cost = self._rows, self._n_base, self._n, self._n_cost
-        mapped, used = self._mapped, rows[: self._dynamics_rows.start]
-        if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
-            n_act, mass, rhs = self._n_act, self._mass, self._base_rhs
-            np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
-            np.multiply(used[n_cost:, :n_base].T, self._force_scale, out=rhs[:, n_act:n])
-            rhs[:, n] = self._bias[:n_base]
-            _, solution, info = lapack.dposv(mass[:n_base, :n_base], rhs)
-            if info != 0:  # M_bb not positive definite: only for a corrupted model
-                solution = np.linalg.lstsq(mass[:n_base, :n_base], rhs, rcond=None)[0]
-            self._base_map[:] = solution
-            # [A_b | A_y | t] -> [A_y + A_b X_y | t + A_b X_c]
-            np.dot(used[:, :n_base], self._base_map, out=mapped)
-            mapped += used[:, n_base:]
-            mapped[:n_cost] *= self._row_scale
-        else:
-            np.multiply(used[:n_cost], self._row_scale, out=mapped[:n_cost])
-            if used.shape[0] > n_cost:
-                mapped[n_cost:] = used[n_cost:]
-        cost = mapped[:n_cost, :n]
-        np.dot(cost.T, cost, out=self._hessian)
-        self._hessian_diagonal_view += self._hessian_diagonal
-        gradient = self._gradient
-        np.dot(cost.T, mapped[:n_cost, n], out=gradient)
-        if self._posture_tasks:  # g = p - A^T t
-            np.subtract(self._posture_gradient[n_base:], gradient, out=gradient)
-        else:
-            np.negative(gradient, out=gradient)
-
-    def _assemble_torque_rows(self) -> None:
-        """tau = M_a qdd + h_a - J_ca^T f as rows over y, and the torque-limit bounds."""
-        n_base, n_act, n = self._n_base, self._n_act, self._n
-        mass, torque = self._mass, self._torque_rows
-        if n_base:  # [M_ab X_y | M_ab X_c], qdd_b = X_y y - X_c
-            np.dot(mass[n_base:, :n_base], self._base_map, out=torque)
-        else:
-            torque[:] = 0.0
-        torque[:, :n_act] += mass[n_base:, n_base:]
-        contact = self._rows[self._n_cost : self._dynamics_rows.start, n_base : self._nv]
-        torque[:, n_act:n] -= self._force_scale * contact.T
-        np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
-        self._in_matrix[:n_act] = torque[:, :n]
-        np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
-        np.add(self.torque_limit, torque[:, n], out=self._in_upper[:n_act])
-        lower, upper = self._bounds[6:]  # proxsuite takes |bound| >= 1e20 as none
-        np.clip(lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][: lower.size])
-        np.clip(upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][: upper.size])
-
-    # ------------------------------------------------------------------ solve
-    def _solve(self, stage: _Stage, deadline: float) -> bool:
-        """Solve one stage: active-set iterations from its last active set, else proxsuite
-        warm (cold on its first use), then once more cold if ``deadline`` (thread CPU time)
-        allows.
-
-        A non-finite Hessian or gradient (a NaN written into a task) fails without a solve:
-        proxsuite can report such a problem solved.
-        """
-        hessian, gradient = stage.update_arguments[:2]
-        stats = self.stats
-        if not math.isfinite(hessian.sum() + gradient.sum()):
-            stats.last_status, stats.last_iterations = "NON_FINITE_PROBLEM", 0
-            stage.initialized = stage.known = False
-            return False
-        if stage.known:
-            solution, solves = _active_set(
-                stage.problem, stage.at_upper, stage.at_lower, self.qp.settings.eps_abs,
-                _WARM_ROUNDS,
-            )  # fmt: skip
-            stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
-            if solution is not None and self._take(stage, solution):
-                return True
-        qp = stage.qp
-        if qp is not self.qp:
-            settings, source = qp.settings, self.qp.settings
-            for name in _MIRRORED_SETTINGS:
-                setattr(settings, name, getattr(source, name))
-        if not stage.initialized:
-            qp.init(*stage.init_arguments)
-            solved = self._run(stage, True, deadline)
-        else:
-            qp.update(*(stage.init_arguments if stage.stale else stage.update_arguments))
-            solved = self._run(stage, False, deadline)
-            # proxsuite can also report a feasible QP infeasible from a stale warm start.
-            if not solved and time.thread_time() < deadline:
-                stats.n_cold_restarts += 1
-                solved = self._run(stage, True, deadline)
-        stage.initialized = stage.known = solved
-        stage.stale = False
-        return solved
-
-    def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:
-        """proxsuite on one stage until ``deadline``; its answer refined by active-set
-        iterations from its active set.
-
-        proxsuite runs in calls of ``_CHUNK_ITERATIONS`` outer iterations (of at most 10
-        inner ones), each warm from the last, up to ``max_iter`` while time is left: a solve
-        ends at most one call after ``deadline``, and the calls do not depend on the time.
-        """
-        qp = stage.qp
-        settings = qp.settings
-        limit, done, iterations = settings.max_iter, 0, 0
-        chunk = min(limit, _CHUNK_ITERATIONS)
-        settings.initial_guess = _COLD if cold else _WARM
-        while True:
-            settings.max_iter = chunk
-            qp.solve()
-            settings.initial_guess = _WARM  # any next call goes on from this result
-            info = qp.results.info
-            done, iterations = done + chunk, iterations + int(info.iter)
-            if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
-                break
-            chunk = min(_CHUNK_ITERATIONS, limit - done)
-        settings.max_iter = limit
-        stats = self.stats
-        stats.last_status = info.status.name
-        stats.last_iterations = iterations
-        if info.status != _SOLVED:
-            return False
-        results = qp.results
-        z = results.z
-        noise = 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))  # its zeros are ~1e-19
-        np.greater(z, noise, out=stage.at_upper)
-        np.less(z, -noise, out=stage.at_lower)
-        solution, _ = _active_set(
-            stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS
-        )
-        if solution is None:  # no active set verified: proxsuite's answer, to its tolerance
-            solution = results.x
-            np.greater(z, noise, out=stage.at_upper)
-            np.less(z, -noise, out=stage.at_lower)
-        return self._take(stage, solution)
-
-    def _take(self, stage: _Stage, solution: np.ndarray) -> bool:
-        """Accept a stage's solution as the tick's candidate, if finite."""
-        if not math.isfinite(solution.sum()):
-            return False
-        if stage is self._relaxed:  # (y, slacks)
-            solution = solution[: self._n]
-        if stage is self._eliminated_cones:
-            self._z_accepted[:] = solution
-        self._accept(solution, eliminated=stage is self._eliminated_cones)
-        return True
-
-    def _solve_relaxed(self) -> bool:
-        """The QP with every inequality row, with slacks on its contact and acceleration-bound
-        rows (assembled by the caller): always feasible (see the class notes)."""
-        stage, n = self._relaxed, self._n
-        hessian, gradient, equality, _, inequality = stage.problem[:5]
-        hessian[:n, :n] = self._hessian
-        gradient[:n] = self._gradient
-        if equality is not None:
-            equality[:, :n] = self._mapped[self._n_cost :, :n]
-        inequality[:, :n] = self._in_matrix
-        stage.initialized = False  # solved from scratch: its last problem is unrelated
-        return self._solve(stage, self._deadline)
-
-    def _solve_direct(self) -> bool:
-        """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
-        solution = self._y_solution
-        solved = kernels.cholesky_solve(self._hessian, self._y_factor, self._gradient, solution)
-        stats = self.stats
-        stats.last_status, stats.last_iterations = _DIRECT, 0
-        if solved:
-            self._accept(solution, eliminated=False)
-        return solved
-
-    def _accept(self, solution: np.ndarray, eliminated: bool) -> None:
-        """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
-        x, n_base = self._candidate, self._n_base
-        if eliminated:  # x_B = U_c - U_N z
-            kernels.expand(self._elimination, self._basic, self._nonbasic_constant, solution, x)
-        else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
-            x[n_base:] = solution
-            if n_base:
-                base_map, n = self._base_map, self._n
-                np.dot(base_map[:, :n], solution, out=x[:n_base])
-                x[:n_base] -= base_map[:, n]
-        kernels.torques(
-            self._mass, self._bias, self._rows, self._n_cost, n_base, self._force_scale, x,
-            self._tau,
-        )  # fmt: skip
-
-    def _fall_back(self) -> None:
-        """The hold answer: the last valid torque (h_a on the first tick), clipped."""
-        self.stats.n_fallbacks += 1
-        self.stats.last_answer = "hold"
-        if self.raise_on_failure:
-            raise NoSolutionFound(
-                f"inverse-dynamics QP and its relaxation failed with status "
-                f"{self.stats.last_status} after {self.stats.last_iterations} iterations; "
-                "check that the tasks and contacts are compatible with the torque limits, or "
-                "raise max_iterations or time_budget",
-                stats=self.stats,
-            )
-        if not self._has_valid_torque:
-            self._torques[:] = self.data.nle[self._n_base :]
-        np.clip(self._torques, -self.torque_limit, self.torque_limit, out=self._torques)
-        for stage in self._stages:
-            stage.initialized = False
-        self._level = 0

@@ -1,0 +1,295 @@
+"""The QP stages of the inverse-dynamics controller and their active-set certificate.
+
+Each QP the controller may solve on a tick (with cone rows, with torque and bound rows, the
+relaxed one; see :mod:`dmpopt.control.inverse_dynamics`) is a :class:`_Stage`: a proxsuite
+QP sized once, warm-started from its last solution, and the arrays it reads. A stage is solved
+first by active-set iterations from its last active set (:func:`_active_set`, one KKT solve
+when that set is still optimal), else by proxsuite in short calls within a time budget,
+refined to the exact optimum of its active set.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import proxsuite
+
+from . import kernels
+
+_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+_MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
+_WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+_COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+_DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
+_ACTIVE_SET = "ACTIVE_SET_SOLVED"  # ... of a QP solved by active-set iterations alone
+_NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
+_RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
+_BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
+_MIRRORED_SETTINGS = (
+    "eps_abs", "eps_rel", "eps_duality_gap_abs", "max_iter", "max_iter_in", "verbose",
+)  # fmt: skip
+# [rad] how far past a position limit the acceleration bounds let a joint go: a joint resting
+# exactly at its limit then leaves its bound slack.
+JOINT_LIMIT_TOLERANCE = 1e-3
+# Inner iterations per outer iteration of proxsuite (its default 1500): with max_iter, the cap
+# on one solve's iterations.
+_MAX_INNER_ITERATIONS = 10
+# Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
+_RELAXATION_WEIGHT = 1e4
+# Active-set refinement rounds after proxsuite (each one KKT solve).
+_REFINEMENT_ROUNDS = 10
+# Active-set rounds from the previous tick's active set before proxsuite is called.
+_WARM_ROUNDS = 5
+# Share of the time budget the exact QP may use; the rest is left to the relaxed QP.
+_EXACT_SHARE = 0.5
+# proxsuite runs in calls of this many outer iterations, the time budget checked between
+# (always the same calls, so that the time taken does not change the answer).
+_CHUNK_ITERATIONS = 3
+# Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
+_CONE_RELEASE_MARGIN = 1e-3
+# Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
+_MIN_PIVOT_RATIO = 1e-9
+
+
+@dataclass
+class ControllerStats:
+    """Counters of the controller's answers and solver health since construction or
+    :meth:`~InverseDynamicsController.reset`.
+
+    Every tick gives one of four answers (see :class:`InverseDynamicsController`, Notes),
+    counted in ``n_direct``, ``n_solved``, ``n_relaxed`` and ``n_fallbacks``.
+
+    Attributes
+    ----------
+    n_ticks : int
+        Calls to :meth:`InverseDynamicsController.compute_torques`.
+    n_direct : int
+        Ticks solved without proxsuite: no inequality row was active, so the QP reduced to a
+        least-squares problem (one Cholesky factorisation, or closed form for posture tasks
+        on a fixed base).
+    n_solved : int
+        Ticks whose QP with its active inequality rows was solved, by active-set iterations
+        from the last tick's active set or by proxsuite.
+    n_relaxed : int
+        Ticks whose QP could not be solved (infeasible, or out of iterations) and that
+        returned the solution of the relaxed QP.
+    n_fallbacks : int
+        Ticks that returned the hold torque (relaxed QP failed too, or out of time).
+    n_cold_restarts : int
+        Warm-started solves that failed and were solved again from scratch.
+    n_torque_limited : int
+        Ticks that needed the QP with torque-limit and acceleration-bound rows.
+    last_answer : str
+        ``"direct"``, ``"solved"``, ``"relaxed"`` or ``"hold"``.
+    last_status : str
+        proxsuite status of the last solve, ``"CHOLESKY_SOLVED"`` for a direct one,
+        ``"ACTIVE_SET_SOLVED"`` for one solved by active-set iterations alone, or
+        ``"NON_FINITE_PROBLEM"`` for a QP refused before proxsuite (a NaN in a task).
+    last_iterations : int
+        Iterations of the last solve (proxsuite's inner iterations, or KKT solves).
+    """
+
+    n_ticks: int = 0
+    n_direct: int = 0
+    n_solved: int = 0
+    n_relaxed: int = 0
+    n_fallbacks: int = 0
+    n_cold_restarts: int = 0
+    n_torque_limited: int = 0
+    last_answer: str = "not run"
+    last_status: str = "not run"
+    last_iterations: int = 0
+
+
+class _Stage:
+    """One QP with its proxsuite solver, its own warm start and the (preallocated) arrays it
+    reads.
+
+    ``problem`` is (H, g, A, b, C, l, u), None for absent blocks: what the active-set
+    iterations read. ``at_upper`` and ``at_lower`` mark the rows active at the last solution
+    (``known``): the next tick starts from them. ``stale``: inequality bounds changed (a
+    contact transition), so the next proxsuite update passes them too.
+    """
+
+    __slots__ = (
+        "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
+        "at_lower", "known", "stale",
+    )  # fmt: skip
+
+    def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
+        dense = proxsuite.proxqp.dense
+        self.qp = dense.QP(n, n_eq, n_in, False, dense.HessianType.Dense, backend)
+        settings = self.qp.settings
+        settings.verbose = False
+        settings.initial_guess = _WARM
+        settings.max_iter_in = _MAX_INNER_ITERATIONS
+        # Stop on a small duality gap too, not only on small residuals: a warm start from the
+        # previous tick's multipliers can have small residuals with a stale active set.
+        settings.check_duality_gap = True
+        self.initialized = False
+        self.init_arguments = init_arguments
+        self.update_arguments = update_arguments
+        self.problem = (init_arguments + (None,) * 5)[:7]
+        self.at_upper = np.zeros(n_in, dtype=bool)
+        self.at_lower = np.zeros(n_in, dtype=bool)
+        self.known = False
+        self.stale = False  # bounds changed since proxsuite last saw them: update with all
+
+
+def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
+    """Positional arguments of proxsuite's init/update, with None for absent blocks."""
+    arguments = (hessian, gradient)
+    if equalities is not None:
+        arguments += equalities
+    elif inequalities is not None:
+        arguments += (None, None)
+    if inequalities is not None:
+        arguments += inequalities
+    return arguments
+
+
+def _active_set(
+    problem: tuple, at_upper: np.ndarray, at_lower: np.ndarray, tolerance: float, rounds: int
+) -> tuple[np.ndarray | None, int]:
+    r"""Primal-dual active-set iterations from the active set ``at_upper | at_lower``.
+
+    The QP restricted to its active rows as equalities is one linear KKT solve,
+
+    .. math:: \begin{bmatrix} H & E^\top \\ E & 0 \end{bmatrix}
+              \begin{bmatrix} x \\ \nu \end{bmatrix} = \begin{bmatrix} -g \\ e
+              \end{bmatrix}.
+
+    Its solution is the optimum (the certificate) if every inactive row holds to
+    ``tolerance`` and every multiplier has the sign of its side (:math:`\nu \ge 0` at an
+    upper bound, :math:`\le 0` at a lower one): the KKT conditions then hold exactly.
+    Otherwise the rows of the wrong sign leave the set, or else the most violated row enters
+    it, for at most ``rounds`` solves. ``at_upper`` and ``at_lower`` are updated in place.
+
+    Returns
+    -------
+    (x, solves) : the certified optimum, or None if no set verified (or the active rows are
+    dependent); and the number of KKT solves made.
+    """
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n = hessian.shape[0]
+    if in_matrix is None:  # no inequality rows
+        in_matrix, lower, upper = np.zeros((0, n)), np.zeros(0), np.zeros(0)
+    for solves in range(1, rounds + 1):
+        rows = np.flatnonzero(at_upper | at_lower)
+        bounds = np.where(at_upper, upper, lower)[rows]
+        matrix, target = in_matrix[rows], bounds
+        if eq_matrix is not None:
+            matrix, target = np.vstack([eq_matrix, matrix]), np.concatenate([eq_vector, bounds])
+        m = matrix.shape[0]
+        kkt = np.zeros((n + m, n + m))
+        kkt[:n, :n], kkt[:n, n:], kkt[n:, :n] = hessian, matrix.T, matrix
+        solution = np.concatenate([-gradient, target])
+        if not kernels.solve_in_place(kkt, solution):  # dependent active rows
+            return None, solves
+        candidate, multipliers = solution[:n], solution[n + m - rows.size :]
+        slack = 1e-9 * max(1.0, float(np.abs(multipliers).max(initial=0.0)))
+        wrong = np.zeros_like(at_upper)
+        wrong[rows] = np.where(at_upper[rows], multipliers < -slack, multipliers > slack)
+        if wrong.any():  # these rows leave the active set
+            at_upper &= ~wrong
+            at_lower &= ~wrong
+            continue
+        values = in_matrix @ candidate
+        violation = np.maximum(values - upper, lower - values)
+        if not violation.size or violation.max() <= tolerance:
+            return candidate, solves
+        worst = int(np.argmax(violation))
+        at_upper[worst] = values[worst] > upper[worst]
+        at_lower[worst] = values[worst] < lower[worst]
+    return None, rounds
+
+
+class StageSolver:
+    """Solving a stage (mixed into :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`,
+    which provides ``qp``, ``stats`` and ``_take``)."""
+
+    def _solve(self, stage: _Stage, deadline: float) -> bool:
+        """Solve one stage: active-set iterations from its last active set, else proxsuite
+        warm (cold on its first use), then once more cold if ``deadline`` (thread CPU time)
+        allows.
+
+        A non-finite Hessian or gradient (a NaN written into a task) fails without a solve:
+        proxsuite can report such a problem solved.
+        """
+        hessian, gradient = stage.update_arguments[:2]
+        stats = self.stats
+        if not math.isfinite(hessian.sum() + gradient.sum()):
+            stats.last_status, stats.last_iterations = "NON_FINITE_PROBLEM", 0
+            stage.initialized = stage.known = False
+            return False
+        if stage.known:
+            solution, solves = _active_set(
+                stage.problem, stage.at_upper, stage.at_lower, self.qp.settings.eps_abs,
+                _WARM_ROUNDS,
+            )  # fmt: skip
+            stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
+            if solution is not None and self._take(stage, solution):
+                return True
+        qp = stage.qp
+        if qp is not self.qp:
+            settings, source = qp.settings, self.qp.settings
+            for name in _MIRRORED_SETTINGS:
+                setattr(settings, name, getattr(source, name))
+        if not stage.initialized:
+            qp.init(*stage.init_arguments)
+            solved = self._run(stage, True, deadline)
+        else:
+            qp.update(*(stage.init_arguments if stage.stale else stage.update_arguments))
+            solved = self._run(stage, False, deadline)
+            # proxsuite can also report a feasible QP infeasible from a stale warm start.
+            if not solved and time.thread_time() < deadline:
+                stats.n_cold_restarts += 1
+                solved = self._run(stage, True, deadline)
+        stage.initialized = stage.known = solved
+        stage.stale = False
+        return solved
+
+    def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:
+        """proxsuite on one stage until ``deadline``; its answer refined by active-set
+        iterations from its active set.
+
+        proxsuite runs in calls of ``_CHUNK_ITERATIONS`` outer iterations (of at most 10
+        inner ones), each warm from the last, up to ``max_iter`` while time is left: a solve
+        ends at most one call after ``deadline``, and the calls do not depend on the time.
+        """
+        qp = stage.qp
+        settings = qp.settings
+        limit, done, iterations = settings.max_iter, 0, 0
+        chunk = min(limit, _CHUNK_ITERATIONS)
+        settings.initial_guess = _COLD if cold else _WARM
+        while True:
+            settings.max_iter = chunk
+            qp.solve()
+            settings.initial_guess = _WARM  # any next call goes on from this result
+            info = qp.results.info
+            done, iterations = done + chunk, iterations + int(info.iter)
+            if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
+                break
+            chunk = min(_CHUNK_ITERATIONS, limit - done)
+        settings.max_iter = limit
+        stats = self.stats
+        stats.last_status = info.status.name
+        stats.last_iterations = iterations
+        if info.status != _SOLVED:
+            return False
+        results = qp.results
+        z = results.z
+        noise = 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))  # its zeros are ~1e-19
+        np.greater(z, noise, out=stage.at_upper)
+        np.less(z, -noise, out=stage.at_lower)
+        solution, _ = _active_set(
+            stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS
+        )
+        if solution is None:  # no active set verified: proxsuite's answer, to its tolerance
+            solution = results.x
+            np.greater(z, noise, out=stage.at_upper)
+            np.less(z, -noise, out=stage.at_lower)
+        return self._take(stage, solution)

@@ -1,0 +1,197 @@
+"""One tick of the inverse-dynamics QP: which QP is solved, and the degraded answers.
+
+Mixed into :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`: inequality rows are added
+only when the least-squares optimum without them violates them (see the module docstring of
+:mod:`dmpopt.control.inverse_dynamics`); a failed QP gives the relaxed answer, and a failed
+relaxed QP or a spent time budget the hold answer.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
+
+from . import kernels
+from .qp_stages import _DIRECT, _Stage
+
+_RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
+_BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
+# Share of the time budget the exact QP may use; the rest is left to the relaxed QP.
+_EXACT_SHARE = 0.5
+
+
+class Tick:
+    """The tick's control flow over the stages (see the module docstring)."""
+
+    def compute_torques(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Joint torques for the state ``(q, v)``: one model update, QP assembly and solve.
+
+        Parameters
+        ----------
+        q : ndarray, shape (nq,)
+            Configuration (free-flyer position and unit quaternion first, if floating).
+        v : ndarray, shape (nv,)
+            Velocity (base twist in the base frame first, if floating).
+
+        Returns
+        -------
+        ndarray, shape (n_actuated,)
+            Torques of the actuated joints [N m], within the torque limits, always finite.
+        """
+        if q.shape != (self.model.nq,) or v.shape != (self._nv,):
+            raise ShapeError(
+                f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
+                f"({self._nv},) for {self.robot.name}"
+            )
+        if not kernels.all_finite(q, v):
+            raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
+        self.stats.n_ticks += 1
+        start = time.thread_time()
+        self._deadline = start + self.time_budget
+        self._exact_deadline = start + _EXACT_SHARE * self.time_budget
+        # Inequality rows are added only when the solution without them violates them; a
+        # level is kept until its rows are slack by a margin (hysteresis). Without inequality
+        # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
+        level, solved, mapped, checked = self._level, True, False, False
+        # Posture tasks on a fixed base need no model terms below the torque limits.
+        assembled = not (self._joint_space and level == 0)
+        if not assembled:
+            solved = self._solve_joint_space(q, v)
+            if not solved:  # not expected: W^-1 + J D^-1 J^T is positive definite
+                level = 2
+        else:
+            self._assemble(q, v)
+        if assembled and level < 2:
+            outcome = kernels.ILL_CONDITIONED
+            if self._basic is not None:
+                outcome = self._eliminated_tick(q, v) if level == 0 else self._assemble_eliminated()
+            if outcome == kernels.SOLVED:
+                checked = True  # cones, torques and acceleration bounds checked by the tick
+            elif outcome == kernels.LIMITS_VIOLATED:
+                level = 2
+            elif outcome == kernels.CHOLESKY_FAILED:
+                solved, level = False, 2
+            elif outcome == kernels.CONES_VIOLATED:
+                solved = self._solve(self._eliminated_cones, self._exact_deadline)
+                level = 0 if solved and self._cones_released() else 1
+            elif not self.contacts:  # fixed base: no equality rows
+                self._assemble_y()
+                mapped = True
+                solved = self._solve_direct()
+            else:  # ill-conditioned elimination: contact rows as equalities, with the cones
+                self._assemble_y()
+                mapped = True
+                solved = self._solve(self._free, self._exact_deadline)
+                level = min(level, 1)
+        # A failed solve, or a NaN torque (from a NaN written into a task), goes to the QP
+        # with every inequality row.
+        if not solved or (level < 2 and not checked):
+            if not (solved and self._feasible(self.torque_limit, self._bound_tolerance, q, v)):
+                level = 2
+        answer = "direct" if self.stats.last_status is _DIRECT else "solved"
+        if level == 2:
+            self.stats.n_torque_limited += 1
+            if not assembled:
+                self._assemble(q, v)
+            if not mapped:
+                self._assemble_y()
+            kernels.acceleration_bounds(self._bounds, q, v)
+            self._assemble_torque_rows()
+            answer = "solved"
+            solved = self._solve(self._limited, self._exact_deadline)
+            if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
+                level = 1 if self.contacts else 0  # without contacts there are no cone rows
+            elif not solved:
+                answer = "relaxed"
+                solved = self._time_left() and self._solve_relaxed()
+        self._level = level
+        if not solved:
+            self._fall_back()
+            return self._torques.copy()
+        self._count(answer)
+        self._has_valid_torque = True
+        self._solution, self._candidate = self._candidate, self._solution
+        if answer == "direct":  # its torques were checked against the limits
+            np.copyto(self._torques, self._tau)
+        else:  # proxsuite meets the limit rows only to its tolerance
+            np.minimum(self._tau, self.torque_limit, out=self._torques)
+            np.maximum(self._torques, -self.torque_limit, out=self._torques)
+        return self._torques.copy()
+
+    def _count(self, answer: str) -> None:
+        stats = self.stats
+        stats.last_answer = answer
+        if answer == "direct":
+            stats.n_direct += 1
+        elif answer == "solved":
+            stats.n_solved += 1
+        else:
+            stats.n_relaxed += 1
+
+    def _time_left(self) -> bool:
+        """Whether the tick's time budget allows another solve."""
+        return time.thread_time() < self._deadline
+
+    def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
+        """Whether the candidate's torques are within ``torque_limit`` and its accelerations
+        ``margin`` inside their bounds (kernels.feasible)."""
+        return kernels.feasible(
+            self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
+        )
+
+    def _take(self, stage: _Stage, solution: np.ndarray) -> bool:
+        """Accept a stage's solution as the tick's candidate, if finite."""
+        if not math.isfinite(solution.sum()):
+            return False
+        if stage is self._relaxed:  # (y, slacks)
+            solution = solution[: self._n]
+        if stage is self._eliminated_cones:
+            self._z_accepted[:] = solution
+        self._accept(solution, eliminated=stage is self._eliminated_cones)
+        return True
+
+    def _solve_relaxed(self) -> bool:
+        """The QP with every inequality row, with slacks on its contact and acceleration-bound
+        rows (assembled by the caller): always feasible (see the class notes)."""
+        stage, n = self._relaxed, self._n
+        hessian, gradient, equality, _, inequality = stage.problem[:5]
+        hessian[:n, :n] = self._hessian
+        gradient[:n] = self._gradient
+        if equality is not None:
+            equality[:, :n] = self._mapped[self._n_cost :, :n]
+        inequality[:, :n] = self._in_matrix
+        stage.initialized = False  # solved from scratch: its last problem is unrelated
+        return self._solve(stage, self._deadline)
+
+    def _solve_direct(self) -> bool:
+        """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
+        solution = self._y_solution
+        solved = kernels.cholesky_solve(self._hessian, self._y_factor, self._gradient, solution)
+        stats = self.stats
+        stats.last_status, stats.last_iterations = _DIRECT, 0
+        if solved:
+            self._accept(solution, eliminated=False)
+        return solved
+
+    def _fall_back(self) -> None:
+        """The hold answer: the last valid torque (h_a on the first tick), clipped."""
+        self.stats.n_fallbacks += 1
+        self.stats.last_answer = "hold"
+        if self.raise_on_failure:
+            raise NoSolutionFound(
+                f"inverse-dynamics QP and its relaxation failed with status "
+                f"{self.stats.last_status} after {self.stats.last_iterations} iterations; "
+                "check that the tasks and contacts are compatible with the torque limits, or "
+                "raise max_iterations or time_budget",
+                stats=self.stats,
+            )
+        if not self._has_valid_torque:
+            self._torques[:] = self.data.nle[self._n_base :]
+        np.clip(self._torques, -self.torque_limit, self.torque_limit, out=self._torques)
+        for stage in self._stages:
+            stage.initialized = False
+        self._level = 0

@@ -207,7 +207,7 @@ def rhythmic_case(form, seed=0, n_basis=8, tau=0.15, amplitude=1.3, n_dofs=2, ke
     setpoint = rng.normal(size=n_dofs)
     dmp = RhythmicDMP(
         weights, setpoint, tau, centres, widths, form=form, amplitude=amplitude,
-        kernel=kernel, frequency=1.5,
+        kernel=kernel, k=1.5,
     )  # fmt: skip
     target = amplitude if form == "phase" else 0.5 * (1.5 * amplitude) ** 2
     eq = Equations(
@@ -465,18 +465,18 @@ def test_random_discrete_systems_match_plain_equations(seed, tau, scale, form):
     start=st.floats(-5, 5),
     goal=st.floats(-5, 5),
     start_velocity=st.floats(-3, 3),
-    stiffness=st.floats(5.0, 60.0),
+    alpha_z=st.floats(5.0, 60.0),
 )
-def test_unforced_velocity_form_is_critically_damped(tau, start, goal, start_velocity, stiffness):
+def test_unforced_velocity_form_is_critically_damped(tau, start, goal, start_velocity, alpha_z):
     """w = 0, eq. (5): e = y - g solves e'' + 2 w e' + w^2 e = 0, w = alpha_z / (2 tau),
     so e(t) = (e0 + (e0' + w e0) t) exp(-w t)."""
     dmp = DiscreteDMP(
         np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
-        goal_scaling="translation", stiffness=stiffness,
+        goal_scaling="translation", alpha_z=alpha_z,
     )  # fmt: skip
     dt = 1e-3 * tau
     plan = dmp.rollout(2.0 * tau, dt, start_velocity=start_velocity)
-    t, w, e0, de0 = plan.times, stiffness / (2 * tau), start - goal, start_velocity
+    t, w, e0, de0 = plan.times, alpha_z / (2 * tau), start - goal, start_velocity
     decay = np.exp(-w * t)
     e = (e0 + (de0 + w * e0) * t) * decay
     de = (de0 - w * (de0 + w * e0) * t) * decay
@@ -631,8 +631,8 @@ def test_lwr_weights_are_per_basis_weighted_least_squares():
 
     w = ALPHA / 2
     crossing = brentq(lambda s: (1 + w * s + (w * s) ** 2 / 2) * np.exp(-w * s) - 0.05, 1e-3, 9)
-    assert dmp.time_constant == pytest.approx(duration / crossing, rel=8e-8)  # measured 2e-8
-    tau = dmp.time_constant  # the regression is sensitive to tau: isolate it
+    assert dmp.tau == pytest.approx(duration / crossing, rel=8e-8)  # measured 2e-8
+    tau = dmp.tau  # the regression is sensitive to tau: isolate it
     phase = canonical_phase(t, tau)
     phase_velocity = (ALPHA / 2) ** 2 * (t / tau) * np.exp(-(ALPHA / 2) * t / tau)
     r = goal + (start - goal) * np.exp(-(ALPHA / 2) * t / tau)[:, None]
@@ -660,7 +660,7 @@ def test_discrete_defaults_sample_every_millisecond_until_convergence(form):
     w = ALPHA / 2
     poles = (lambda s: 1 + s) if form == "velocity" else (lambda s: 1 + s + s**2 / 2)
     reached = [brentq(lambda t: poles(w * t) * np.exp(-w * t) - f, 1e-3, 20) for f in (0.05, 1e-4)]
-    end = dmp.time_constant * sum(reached)
+    end = dmp.tau * sum(reached)
     for times in (dmp.rollout().times, dmp.affine_plan().times):
         assert times[1] - times[0] == pytest.approx(1e-3, rel=1e-12)
         assert times[-1] == pytest.approx(end, abs=0.5e-3 + 1e-7)
@@ -672,7 +672,7 @@ def test_rhythmic_defaults_are_three_periods_from_the_setpoint_at_phase_zero(for
     """Period 2 pi tau (phase) or 2 pi tau / k (energy); the default plan starts at rest at
     the setpoint with the oscillator at phase 0: (0, A) or (A, 0)."""
     dmp, _ = rhythmic_case(form, seed=8)
-    period = 2 * np.pi * dmp.time_constant / (1.0 if form == "phase" else 1.5)
+    period = 2 * np.pi * dmp.tau / (1.0 if form == "phase" else 1.5)
     for plan in (dmp.rollout(), dmp.affine_plan().trajectory(dmp.forcing_weights())):
         assert plan.times[1] - plan.times[0] == pytest.approx(1e-3, rel=1e-12)
         assert plan.times[-1] == pytest.approx(3 * period, abs=0.5e-3 + 1e-9)

@@ -25,9 +25,7 @@ def test_rollout_equals_direct_integration(form):
     plan = dmp.rollout(0.6, 0.002)
     rows = [dmp.start, np.zeros(3)] + ([dmp.start] if form == "acceleration" else [])
     initial = np.concatenate([[0.0, 0.0], *rows])
-    _, y, yd, ydd = symbolic.simulate(
-        dmp.signature, plan.n_steps, initial, 0.002, dmp.parameter_values()
-    )
+    _, y, yd, ydd = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.002, dmp.parameters())
     np.testing.assert_allclose(plan.positions, y, atol=1e-12)
     np.testing.assert_allclose(plan.velocities, yd, atol=1e-10)
     np.testing.assert_allclose(plan.accelerations, ydd, atol=1e-8)
@@ -54,22 +52,22 @@ def test_goal_scaling_from_zero_start_scales_plan(form):
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
 @pytest.mark.parametrize("scaled_start_velocity", [0.0, [1.5, -0.7]])
-def test_time_constant_scaling_stretches_time_exactly(form, scaled_start_velocity):
+def test_tau_scaling_stretches_time_exactly(form, scaled_start_velocity):
     """tau -> c tau with dt -> c dt gives the same positions at times scaled by c, also for a
     plan that starts moving (its start velocity is divided by c)."""
     dmp = random_discrete(seed=4, form=form, scaled_start_velocity=scaled_start_velocity)
     c = 1.9
     plan = dmp.rollout(0.5, 0.001)
-    slow = dmp.with_time_constant(c * dmp.time_constant).rollout(c * 0.5, c * 0.001)
+    slow = dmp.with_tau(c * dmp.tau).rollout(c * 0.5, c * 0.001)
     np.testing.assert_allclose(slow.times, c * plan.times, rtol=1e-12)
     np.testing.assert_allclose(slow.positions, plan.positions, atol=1e-12)
     np.testing.assert_allclose(slow.velocities, plan.velocities / c, atol=1e-10)
 
 
-def test_time_constant_scaling_at_fixed_step_is_accurate():
+def test_tau_scaling_at_fixed_step_is_accurate():
     dmp = random_discrete(seed=5)
     plan = dmp.rollout(0.5, 0.0005)
-    slow = dmp.with_time_constant(2 * dmp.time_constant).rollout(1.0, 0.0005)
+    slow = dmp.with_tau(2 * dmp.tau).rollout(1.0, 0.0005)
     np.testing.assert_allclose(slow.positions[::2], plan.positions, atol=2e-6)
 
 
@@ -93,7 +91,7 @@ def test_rotation_scaling_maps_plan(angle, scale):
     moved = dmp.with_goal(goal).rollout(0.6)
     expected = dmp.start + (plan.positions - dmp.start) @ rotation.T
     np.testing.assert_allclose(moved.positions, expected, atol=1e-9 * max(1.0, scale))
-    np.testing.assert_allclose(moved.velocities[0], rotation @ [0.8, -0.5] / dmp.time_constant)
+    np.testing.assert_allclose(moved.velocities[0], rotation @ [0.8, -0.5] / dmp.tau)
 
 
 def test_paper_scaling_scales_each_dof():
@@ -128,7 +126,7 @@ def test_translation_moves_plan_by_at_most_the_goal_change(form):
     np.testing.assert_allclose(change, np.outer(response, delta), atol=1e-12)
     assert np.all(response >= -1e-12) and np.all(response <= 1 + 1e-12)
     if form == "velocity":
-        s = dmp.stiffness * np.arange(len(plan)) * 0.001 / (2 * dmp.time_constant)
+        s = dmp.alpha_z * np.arange(len(plan)) * 0.001 / (2 * dmp.tau)
         np.testing.assert_allclose(response, 1 - (1 + s) * np.exp(-s), atol=1e-8)
 
 
@@ -138,7 +136,7 @@ def test_default_duration_is_the_settling_time():
     from scipy.optimize import brentq
 
     dmp = random_discrete(seed=16)
-    rate = dmp.stiffness / (2 * dmp.time_constant)
+    rate = dmp.alpha_z / (2 * dmp.tau)
     reached = [brentq(lambda s: (1 + s) * np.exp(-s) - (1 - f), 0.1, 50) for f in (0.95, 0.9999)]
     assert dmp.convergence_time == pytest.approx(reached[0] / rate, rel=1e-5)
     assert dmp.settling_time == pytest.approx(sum(reached) / rate, rel=1e-5)
@@ -201,7 +199,7 @@ def test_amplitude_scales_oscillation(form, tolerance):
 def test_rhythmic_time_scaling_and_setpoint_translation(form):
     dmp = random_rhythmic(seed=2, form=form)
     plan = dmp.rollout(1.0, 0.001)
-    slow = dmp.with_time_constant(2 * dmp.time_constant).rollout(2.0, 0.002)
+    slow = dmp.with_tau(2 * dmp.tau).rollout(2.0, 0.002)
     np.testing.assert_allclose(slow.positions, plan.positions, atol=1e-12)
     moved = dmp.with_setpoint(dmp.setpoint + 1.5).rollout(1.0, 0.001)
     np.testing.assert_allclose(moved.positions, plan.positions + 1.5, atol=1e-12)
@@ -218,7 +216,7 @@ def test_limit_cycle_attracts_perturbed_state(form):
     if form == "phase":
         perturbed[0] = reference[0]  # the phase itself has no restoring force
     runs = [
-        symbolic.simulate(dmp.signature, n, x0, 0.001, dmp.parameter_values())
+        symbolic.simulate(dmp.signature, n, x0, 0.001, dmp.parameters())
         for x0 in (reference, perturbed)
     ]
     period_steps = int(round(dmp.period / 0.001))
@@ -233,7 +231,7 @@ def test_limit_cycle_attracts_perturbed_state(form):
                 atol=2e-3,
             )
         x, v = runs[1][0][-1, :2]
-        energy = 0.5 * (v**2 + dmp.frequency**2 * x**2)
+        energy = 0.5 * (v**2 + dmp.k**2 * x**2)
         assert abs(energy - 0.5 * dmp.amplitude**2) < 1e-6
 
 
@@ -260,8 +258,8 @@ def test_affine_plan_matches_rollout():
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"time_constant": 0.0}, "time_constant must be a finite number > 0, got"),
-        ({"time_constant": -1.0}, "time_constant must be a finite number > 0, got"),
+        ({"tau": 0.0}, "tau must be a finite number > 0, got"),
+        ({"tau": -1.0}, "tau must be a finite number > 0, got"),
         ({"goal": np.zeros(3)}, r"goal has shape \(3,\), expected \(2,\)"),
         ({"weights": np.full((2, 20), np.nan)}, "weights contains 40 NaN"),
         ({"form": "jerk"}, "form must be one of"),
@@ -304,15 +302,13 @@ def test_symbolic_rollout_function_matches_numeric_integration(form):
     )
     n = 200
     canonical = (0.0, 0.0) if form == "acceleration" else dmp.canonical_state(0.0)
-    rows = [dmp._goal_input(), np.zeros(2)]
+    rows = [dmp.parameters()["goal"], np.zeros(2)]
     rows += [rows[0]] if form == "acceleration" else []
     initial = np.concatenate([canonical, *rows])
-    positions = (
-        symbolic.rollout_function(dmp.signature, n)(initial, 0.002, *dmp.parameter_values())[0]
-        .full()
-        .T
-    )
-    stepped = symbolic.simulate(dmp.signature, n, initial, 0.002, dmp.parameter_values())[1]
+    rollout = symbolic.rollout_function(dmp.signature, n)
+    positions = rollout(initial_state=initial, dt=0.002, **dmp.parameters())["positions"]
+    positions = positions.full().T
+    stepped = symbolic.simulate(dmp.signature, n, initial, 0.002, dmp.parameters())[1]
     np.testing.assert_allclose(positions, stepped, atol=1e-12)
 
 
@@ -320,6 +316,6 @@ def test_phase_features_sum_to_the_phase_velocity():
     """Normalised activations sum to one, so the features of eq. (7) sum to v (eq. 6)."""
     dmp = random_discrete(seed=13)
     features = dmp.phase_features(300, 0.002)
-    s = dmp.phase_stiffness * np.arange(300) * 0.002 / (2 * dmp.time_constant)
-    velocity = dmp.phase_stiffness / 2 * s * np.exp(-s)  # d/dt' of 1 - (1 + s) e^-s, tau = 1
+    s = dmp.alpha_v * np.arange(300) * 0.002 / (2 * dmp.tau)
+    velocity = dmp.alpha_v / 2 * s * np.exp(-s)  # d/dt' of 1 - (1 + s) e^-s, tau = 1
     np.testing.assert_allclose(features.sum(axis=1), velocity, atol=1e-5)  # RK4, dt/tau = 0.005

@@ -48,10 +48,10 @@ def test_constant_coupling_shifts_equilibrium():
     np.testing.assert_allclose(final, dmp.goal + coupling / (25.0 * 6.25), atol=1e-6)
 
 
-def test_faster_time_constant_finishes_sooner():
+def test_faster_tau_finishes_sooner():
     dmp = random_discrete(seed=5)
     stepper = dmp.stepper(0.001)
-    stepper.set_time_constant(dmp.time_constant / 2)
+    stepper.set_tau(dmp.tau / 2)
     half = _run(stepper, 1000)
     np.testing.assert_allclose(half, dmp.rollout(2.0, 0.002).positions, atol=1e-12)
 
@@ -62,9 +62,9 @@ def test_phase_reset_and_frequency_change():
     _run(stepper, 250)
     stepper.reset_phase(0.25)
     assert stepper.phase == 0.25
-    stepper.set_time_constant(dmp.time_constant / 2)
+    stepper.set_tau(dmp.tau / 2)
     stepper.step()
-    assert stepper.phase == pytest.approx(0.25 + 0.001 / (dmp.time_constant / 2), abs=1e-12)
+    assert stepper.phase == pytest.approx(0.25 + 0.001 / (dmp.tau / 2), abs=1e-12)
 
 
 def test_amplitude_change_converges_to_scaled_cycle():
@@ -82,8 +82,8 @@ def test_errors():
     stepper = random_discrete().stepper()
     with pytest.raises(InvalidInputError, match="set_amplitude applies to rhythmic"):
         stepper.set_amplitude(2.0)
-    with pytest.raises(InvalidInputError, match="time_constant must be a finite number > 0, got"):
-        stepper.set_time_constant(0.0)
+    with pytest.raises(InvalidInputError, match="tau must be a finite number > 0, got"):
+        stepper.set_tau(0.0)
     with pytest.raises(InvalidInputError, match="reset_phase applies to rhythmic"):
         stepper.reset_phase(0.0)
     with pytest.raises(ShapeError, match=r"coupling has shape \(5,\), expected \(2,\)"):

@@ -1,13 +1,18 @@
 """Properties of the DMP systems: invariances (Section 3.3), convergence, limit cycles."""
 
+import ast
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import DiscreteDMP, InvalidInputError, ShapeError, symbolic
+from dmpopt import DiscreteDMP, InvalidInputError, ShapeError, Stepper, stepper, symbolic
 from dmpopt.basis import discrete_phase
+from dmpopt.dmp import goal_transform
 
 
 def test_canonical_phase_matches_closed_form():
@@ -319,3 +324,75 @@ def test_phase_features_sum_to_the_phase_velocity():
     s = dmp.alpha_v * np.arange(300) * 0.002 / (2 * dmp.tau)
     velocity = dmp.alpha_v / 2 * s * np.exp(-s)  # d/dt' of 1 - (1 + s) e^-s, tau = 1
     np.testing.assert_allclose(features.sum(axis=1), velocity, atol=1e-5)  # RK4, dt/tau = 0.005
+
+
+@pytest.mark.parametrize(
+    "former, new, form",
+    [
+        ("time_constant", "tau", "velocity"),
+        ("stiffness", "alpha_z", "velocity"),
+        ("damping", "beta_z", "acceleration"),
+        ("phase_stiffness", "alpha_v", "velocity"),
+        ("phase_damping", "beta_v", "velocity"),
+        ("goal_rate", "alpha_g", "acceleration"),
+        ("amplitude_rate", "alpha_r", "phase"),
+        ("amplitude_rate", "alpha_E", "energy"),
+        ("frequency", "k", "energy"),
+    ],
+)
+def test_a_former_field_name_is_refused_with_the_new_one(former, new, form):
+    """One name per concept: the old names (stiffness/damping now mean Kp/Kd of control)."""
+    dmp = random_rhythmic(form=form) if form in ("phase", "energy") else random_discrete(form=form)
+    message = f"no field '{former}': it is now '{new}'.*pass {new}=2.5"
+    with pytest.raises(InvalidInputError, match=message):
+        dmp.replace(**{former: 2.5})
+    fields = {f.name: getattr(dmp, f.name) for f in dataclasses.fields(dmp) if f.init}
+    with pytest.raises(InvalidInputError, match=message):
+        type(dmp)(**fields, **{former: 2.5})
+
+
+def test_goal_transform_maps_the_reference_onto_the_new_displacement():
+    """ "rotation": a rotation times a uniform scale with M d = d'; "paper": diag(d' / d);
+    "translation": the identity."""
+    rng = np.random.default_rng(3)
+    reference, displacement = rng.normal(size=4), rng.normal(size=4)
+    rotation = goal_transform("rotation", reference, displacement)
+    np.testing.assert_allclose(rotation @ reference, displacement, atol=1e-12)
+    scale = np.linalg.norm(displacement) / np.linalg.norm(reference)
+    np.testing.assert_allclose(rotation.T @ rotation, scale**2 * np.eye(4), atol=1e-12)
+    assert np.linalg.det(rotation) > 0  # a rotation, not a reflection
+    paper = goal_transform("paper", reference, displacement)
+    np.testing.assert_allclose(paper, np.diag(displacement / reference), rtol=1e-15)
+    assert np.array_equal(goal_transform("translation", reference, displacement), np.eye(4))
+    with pytest.raises(InvalidInputError, match="goal_scaling must be one of"):
+        goal_transform("auto", reference, displacement)
+
+
+def test_goal_map_of_a_dmp_is_its_goal_transform():
+    """The DMP's own map: "paper" weights are stored per unit of goal - start."""
+    dmp = random_discrete(seed=8)
+    new_goal = dmp.goal + np.array([0.3, -0.7])
+    displacement = new_goal - dmp.start
+    rotation = goal_transform("rotation", dmp.reference_displacement, displacement)
+    np.testing.assert_array_equal(dmp.goal_map(goal=new_goal), rotation)
+    paper = dmp.replace(goal_scaling="paper", reference_displacement=None)
+    np.testing.assert_array_equal(paper.goal_map(goal=new_goal), np.diag(displacement))
+
+
+def test_the_stepper_does_not_import_the_dmp_module():
+    """No import cycle dmp <-> stepper: dmp.py imports the stepper, never the reverse."""
+    tree = ast.parse(Path(stepper.__file__).read_text())
+    imported = {
+        node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+    } | {
+        alias.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Import)
+        for alias in node.names
+    }
+    assert not any(name.endswith("dmp") for name in imported), imported
+
+
+def test_a_stepper_refuses_what_is_not_a_dmp():
+    with pytest.raises(InvalidInputError, match="dmp must be a DiscreteDMP or RhythmicDMP, got"):
+        Stepper(object(), 0.001, [0.0])

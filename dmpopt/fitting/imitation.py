@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import basis, symbolic
-from ..dmp import DiscreteDMP, RhythmicDMP
+from ..dmp import DiscreteDMP, RhythmicDMP, goal_transform
 from ..exceptions import FittingFailed, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
 from ..validation import check_resources, flag, integer, real
@@ -239,16 +239,16 @@ def fit_discrete(
         else:
             forcing = _local_regression(unit, states[:, :2], targets)
 
-    # the weights are stored for the goal map at the demo's start and goal (diag(goal - start),
-    # the identity or a rotation by zero), so that this DMP's forcing weights are `forcing`
-    fitted = unit.replace(
-        goal_scaling=scaling,
-        reference_displacement=goal - start if scaling == "rotation" else None,
-    )
-    transform = fitted.goal_map()
-    return fitted.replace(
+    # stored per unit of the goal map at the demo's start and goal (see DiscreteDMP.goal_map):
+    # diag(goal - start) under "paper", the identity (a rotation by zero) otherwise
+    displacement = goal - start
+    reference = np.ones(demo.n_dofs) if scaling == "paper" else displacement
+    transform = goal_transform(scaling, reference, displacement)
+    return unit.replace(
         weights=np.linalg.solve(transform, forcing),
         scaled_start_velocity=np.linalg.solve(transform, tau * demo.velocities[0]),
+        goal_scaling=scaling,
+        reference_displacement=displacement if scaling == "rotation" else None,
     )
 
 

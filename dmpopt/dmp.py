@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -117,17 +118,17 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     The rotation is the smallest one: it turns the plane spanned by the two vectors and
     leaves its orthogonal complement alone. In one dimension it is a sign.
     """
-    source_norm = np.linalg.norm(source)
-    target_norm = np.linalg.norm(target)
+    source_norm = math.sqrt(source @ source)  # scalar arithmetic: called on every rollout
+    target_norm = math.sqrt(target @ target)
     n = source.size
     if target_norm == 0.0:
         return np.zeros((n, n))
     a, b = source / source_norm, target / target_norm
-    cosine = float(np.clip(a @ b, -1.0, 1.0))
+    cosine = min(max(float(a @ b), -1.0), 1.0)
     if n == 1:
         rotation = np.array([[np.sign(cosine)]])
     elif cosine > -1.0 + 1e-12:
-        cross = np.outer(b, a) - np.outer(a, b)
+        cross = b[:, None] * a - a[:, None] * b
         rotation = np.eye(n) + cross + cross @ cross / (1.0 + cosine)
     else:  # half turn in a plane that contains a
         helper = np.eye(n)[np.argmin(np.abs(a))]

@@ -67,7 +67,7 @@ class Stepper:
         self._function.set_inputs(dt=self.dt, **parameters)
         initial = symbolic.output_function(dmp.signature)(state=self._state, **parameters)
         self.position, self.velocity, self.acceleration = (
-            initial[name].full().ravel() for name in ("position", "velocity", "acceleration")
+            initial[name].full().ravel() for name in symbolic.PLAN_OUTPUTS
         )
 
     @property

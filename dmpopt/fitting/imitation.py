@@ -239,14 +239,14 @@ def fit_discrete(
         else:
             forcing = _local_regression(unit, states[:, :2], targets)
 
-    # stored per unit of the goal map at the demo's start and goal (see DiscreteDMP.goal_map):
-    # diag(goal - start) under "paper", the identity (a rotation by zero) otherwise
+    # stored per unit of the goal map at the demo's start and goal (see DiscreteDMP.goal_map),
+    # a diagonal matrix there: diag(goal - start) under "paper", the identity otherwise
     displacement = goal - start
     reference = np.ones(demo.n_dofs) if scaling == "paper" else displacement
-    transform = goal_transform(scaling, reference, displacement)
+    per_unit = np.diag(goal_transform(scaling, reference, displacement))
     return unit.replace(
-        weights=np.linalg.solve(transform, forcing),
-        scaled_start_velocity=np.linalg.solve(transform, tau * demo.velocities[0]),
+        weights=forcing / per_unit[:, None],
+        scaled_start_velocity=tau * demo.velocities[0] / per_unit,
         goal_scaling=scaling,
         reference_displacement=displacement if scaling == "rotation" else None,
     )

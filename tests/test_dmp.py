@@ -396,3 +396,12 @@ def test_the_stepper_does_not_import_the_dmp_module():
 def test_a_stepper_refuses_what_is_not_a_dmp():
     with pytest.raises(InvalidInputError, match="dmp must be a DiscreteDMP or RhythmicDMP, got"):
         Stepper(object(), 0.001, [0.0])
+
+
+def test_similarity_transform_of_unit_and_zero_targets():
+    """A unit-length target is an ordinary one; a zero target (goal = start) maps to zero."""
+    source = np.array([3.0, 4.0])
+    target = np.array([0.6, -0.8])  # norm exactly 1
+    matrix = goal_transform("rotation", source, target)
+    np.testing.assert_allclose(matrix @ source, target, atol=1e-15)
+    np.testing.assert_array_equal(goal_transform("rotation", source, np.zeros(2)), np.zeros((2, 2)))

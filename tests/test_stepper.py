@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import InvalidInputError, ShapeError
+from dmpopt import InvalidInputError, ShapeError, Stepper
 
 
 def _run(stepper, n, **kwargs):
@@ -88,3 +88,42 @@ def test_errors():
         stepper.reset_phase(0.0)
     with pytest.raises(ShapeError, match=r"coupling has shape \(5,\), expected \(2,\)"):
         stepper.step(coupling=np.zeros(5))
+
+
+def test_set_goal_scales_the_forcing_term_by_the_stepper_start():
+    """Eq. (7): after set_goal, a stepper started elsewhere runs the DMP moved to its own start
+    and the new goal (the affine rollout of that DMP is the key)."""
+    dmp = random_discrete(seed=9)
+    start, goal = dmp.start + np.array([0.4, -0.3]), dmp.goal + np.array([-0.5, 0.2])
+    stepper = Stepper(dmp, 0.001, start)
+    stepper.set_goal(goal)
+    plan = dmp.replace(start=start, goal=goal).rollout(0.3, 0.001, start_velocity=0.0)
+    np.testing.assert_allclose(_run(stepper, plan.n_steps - 1), plan.positions, atol=1e-12)
+
+
+def test_set_tau_refuses_exactly_below_the_stability_limit():
+    """The limit on dt is proportional to tau: dt <= tau * max_step / dmp.tau."""
+    dmp = random_discrete(seed=2)
+    stepper = dmp.stepper(0.001)
+    smallest = 0.001 * dmp.tau / dmp.max_step
+    stepper.set_tau(1.001 * smallest)
+    with pytest.raises(InvalidInputError, match=f"keep tau >= {smallest:.4g} s"):
+        stepper.set_tau(0.999 * smallest)
+
+
+def test_set_amplitude_keeps_the_tau_check():
+    """A larger amplitude of the energy oscillator lowers its stable step; set_tau uses it."""
+    dmp = random_rhythmic(seed=3, form="energy")
+    stepper = dmp.stepper(0.001)
+    stepper.set_amplitude(3.0)
+    scaled = dmp.replace(amplitude=3.0)
+    smallest = 0.001 * scaled.tau / scaled.max_step
+    stepper.set_tau(1.001 * smallest)
+    with pytest.raises(InvalidInputError, match="keep tau >="):
+        stepper.set_tau(0.999 * smallest)
+
+
+def test_reset_phase_names_its_argument():
+    stepper = random_rhythmic().stepper(0.001)
+    with pytest.raises(InvalidInputError, match="phase must be a real number"):
+        stepper.reset_phase("half")

@@ -405,3 +405,19 @@ def test_similarity_transform_of_unit_and_zero_targets():
     matrix = goal_transform("rotation", source, target)
     np.testing.assert_allclose(matrix @ source, target, atol=1e-15)
     np.testing.assert_array_equal(goal_transform("rotation", source, np.zeros(2)), np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize("n_dofs", [2, 3, 5])
+def test_similarity_transform_half_turn(n_dofs):
+    """Opposite vectors: a half turn in a plane containing them (a rotation, det = +1)."""
+    source = np.random.default_rng(n_dofs).normal(size=n_dofs)
+    matrix = goal_transform("rotation", source, -2.0 * source)
+    np.testing.assert_allclose(matrix @ source, -2.0 * source, atol=1e-12)
+    np.testing.assert_allclose(matrix.T @ matrix, 4.0 * np.eye(n_dofs), atol=1e-12)
+    assert np.linalg.det(matrix / 2.0) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("target, expected", [(3.0, 1.5), (-3.0, -1.5)])
+def test_similarity_transform_in_one_dimension_is_a_signed_scale(target, expected):
+    matrix = goal_transform("rotation", np.array([2.0]), np.array([target]))
+    np.testing.assert_array_equal(matrix, [[expected]])

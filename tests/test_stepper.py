@@ -127,3 +127,32 @@ def test_reset_phase_names_its_argument():
     stepper = random_rhythmic().stepper(0.001)
     with pytest.raises(InvalidInputError, match="phase must be a real number"):
         stepper.reset_phase("half")
+
+
+@pytest.mark.parametrize(
+    "changes, error, message",
+    [
+        (
+            {"coupling": [np.nan, 0.0]},
+            InvalidInputError,
+            r"coupling\[0\] is nan: coupling contains",
+        ),
+        ({"coupling": ["a", "b"]}, InvalidInputError, "coupling must be an array of real numbers"),
+        ({"coupling": np.zeros(0)}, ShapeError, r"coupling has shape \(0,\), expected \(2,\)"),
+        (
+            {"canonical_coupling": "x"},
+            InvalidInputError,
+            "canonical_coupling must be a real number",
+        ),
+    ],
+)
+def test_bad_coupling_names_the_argument(changes, error, message):
+    stepper = random_discrete().stepper(0.001)
+    with pytest.raises(error, match=message):
+        stepper.step(**changes)
+
+
+def test_integer_coupling_acts_like_the_same_floats():
+    dmp = random_discrete(seed=4)
+    first, second = dmp.stepper(0.001), dmp.stepper(0.001)
+    np.testing.assert_array_equal(first.step(coupling=[3, -2]), second.step(coupling=[3.0, -2.0]))

@@ -102,7 +102,7 @@ def goal_transform(goal_scaling: str, reference, displacement) -> np.ndarray:
     ``"paper"``: :math:`\mathrm{diag}(d' / d)`, eq. (7) per DOF; ``"rotation"``:
     :func:`similarity_transform`; ``"translation"``: the identity.
     """
-    reference, displacement = np.asarray(reference, float), np.asarray(displacement, float)
+    reference, displacement = np.asarray(reference), np.asarray(displacement)
     if goal_scaling == "paper":
         return np.diag(displacement / reference)
     if goal_scaling == "rotation":
@@ -319,7 +319,6 @@ class _DmpCommon:
             centres=np.asarray(self.centres),
             widths=np.asarray(self.widths),
             gains=np.asarray(self.gains),
-            coupling=np.zeros(self.n_dofs),
         )
 
     def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):

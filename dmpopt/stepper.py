@@ -58,7 +58,6 @@ class Stepper:
         # eq. (7): the forcing term scales by the movement's own start
         own = dmp.with_start(self._start) if self._discrete else dmp
         parameters = own.parameters()
-        self._goal = np.array(parameters["goal"], dtype=float)
         canonical = (0.0, 0.0) if self._discrete else dmp.canonical_state(phase)
         outputs = self._function.outputs
         self._outputs = [outputs[name] for name in ("next_state", *symbolic.PLAN_OUTPUTS)]
@@ -78,10 +77,10 @@ class Stepper:
     # -- inputs -------------------------------------------------------------------------
     def set_goal(self, goal) -> None:
         """New goal (discrete) or setpoint (rhythmic), effective from the next step."""
-        self._goal = vector("goal", goal, self.dmp.n_dofs, f"{self.dmp.n_dofs} DOFs")
-        self._function.set_inputs(goal=self._goal)
+        goal = vector("goal", goal, self.dmp.n_dofs, f"{self.dmp.n_dofs} DOFs")
+        self._function.set_inputs(goal=goal)
         if self._discrete:
-            weights = self.dmp.forcing_weights(self._start, self._goal)
+            weights = self.dmp.forcing_weights(self._start, goal)
             self._function.set_inputs(forcing_weights=weights)
 
     set_setpoint = set_goal

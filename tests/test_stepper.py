@@ -156,3 +156,13 @@ def test_integer_coupling_acts_like_the_same_floats():
     dmp = random_discrete(seed=4)
     first, second = dmp.stepper(0.001), dmp.stepper(0.001)
     np.testing.assert_array_equal(first.step(coupling=[3, -2]), second.step(coupling=[3.0, -2.0]))
+
+
+def test_compile_must_be_a_bool():
+    with pytest.raises(InvalidInputError, match="compile must be True or False, got 'yes'"):
+        random_discrete().stepper(0.001, compile="yes")
+
+
+def test_a_rhythmic_start_of_the_wrong_size_is_named():
+    with pytest.raises(ShapeError, match=r"start has shape \(5,\), expected \(2,\)"):
+        random_rhythmic().rollout(0.1, 0.001, start=np.zeros(5))

@@ -224,13 +224,12 @@ class Symbols:
 
 
 def parameters(**values) -> dict:
-    """Every parameter input by name: ``values`` where given, else ``tau = 1``, ``widths = 1``
-    and zero (a scalar fills a vector or matrix input)."""
+    """Every parameter input by name: ``values`` where given, else ``tau = 1`` and zero (a
+    scalar fills a vector or matrix input)."""
     unknown = sorted(set(values) - set(PARAMETER_NAMES))
     if unknown:
         raise ValueError(f"unknown parameters {unknown}; the parameters are {PARAMETER_NAMES}")
-    defaults = {"tau": 1.0, "widths": 1.0}
-    return {name: values.get(name, defaults.get(name, 0.0)) for name in PARAMETER_NAMES}
+    return {name: values.get(name, 1.0 if name == "tau" else 0.0) for name in PARAMETER_NAMES}
 
 
 def make_symbols(signature: Signature) -> Symbols:

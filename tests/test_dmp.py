@@ -421,3 +421,9 @@ def test_similarity_transform_half_turn(n_dofs):
 def test_similarity_transform_in_one_dimension_is_a_signed_scale(target, expected):
     matrix = goal_transform("rotation", np.array([2.0]), np.array([target]))
     np.testing.assert_array_equal(matrix, [[expected]])
+
+
+def test_symbolic_parameters_refuse_an_unknown_name():
+    assert symbolic.parameters(goal=2.0)["tau"] == 1.0
+    with pytest.raises(ValueError, match=r"unknown parameters \['time_constant'\]"):
+        symbolic.parameters(time_constant=1.0)

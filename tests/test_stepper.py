@@ -164,5 +164,7 @@ def test_compile_must_be_a_bool():
 
 
 def test_a_rhythmic_start_of_the_wrong_size_is_named():
-    with pytest.raises(ShapeError, match=r"start has shape \(5,\), expected \(2,\)"):
+    with pytest.raises(
+        ShapeError, match=r"start has shape \(5,\), expected \(2,\) to match 2 DOFs"
+    ):
         random_rhythmic().rollout(0.1, 0.001, start=np.zeros(5))

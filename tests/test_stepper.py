@@ -139,6 +139,7 @@ def test_reset_phase_names_its_argument():
         ),
         ({"coupling": ["a", "b"]}, InvalidInputError, "coupling must be an array of real numbers"),
         ({"coupling": np.zeros(0)}, ShapeError, r"coupling has shape \(0,\), expected \(2,\)"),
+        ({"coupling": np.zeros(0, int)}, ShapeError, r"coupling has shape \(0,\), expected"),
         (
             {"canonical_coupling": "x"},
             InvalidInputError,

@@ -427,3 +427,11 @@ def test_symbolic_parameters_refuse_an_unknown_name():
     assert symbolic.parameters(goal=2.0)["tau"] == 1.0
     with pytest.raises(ValueError, match=r"unknown parameters \['time_constant'\]"):
         symbolic.parameters(time_constant=1.0)
+
+
+def test_half_turn_along_a_coordinate_axis():
+    """The helper axis of the half turn is the one least aligned with the vectors, never
+    the axis they lie on."""
+    matrix = goal_transform("rotation", np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]))
+    np.testing.assert_allclose(matrix @ [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(matrix.T @ matrix, np.eye(3), atol=1e-15)

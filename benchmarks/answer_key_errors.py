@@ -74,7 +74,7 @@ def unforced_constants(n_draws=60):
         dt, e0 = 1e-3 * tau, start - goal
         dmp = DiscreteDMP(
             np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
-            goal_scaling="translation", stiffness=k,
+            goal_scaling="translation", alpha_z=k,
         )  # fmt: skip
         plan = plan_of(dmp.rollout(2.0 * tau, dt, start_velocity=v0))[:, :, 0]
         w = k / (2 * tau)

@@ -10,15 +10,17 @@ symbol                          meaning                                API name
 :math:`z`                       scaled velocity state                  (state)
 :math:`g`                       goal / setpoint                        ``goal``, ``setpoint``
 :math:`y_0`                     start                                  ``start``
-:math:`\tau`                    time constant                          ``time_constant``
-:math:`\alpha_z, \beta_z`       transformation gains                   ``stiffness``, ``damping``
-:math:`\alpha_v, \beta_v`       discrete canonical gains (eq. 6)       ``phase_stiffness`` ...
-:math:`\alpha_g`                goal filter rate (eq. 10)              ``goal_rate``
-:math:`A, \alpha_r`             amplitude and its rate (eq. 11)        ``amplitude``, ``amplitude_rate``
-:math:`E_0, \alpha_E, k`        energy oscillator (eq. 13)             ``amplitude``, ``amplitude_rate``, ``frequency``
+:math:`\tau`                    time constant                          ``tau``
+:math:`\alpha_z, \beta_z`       transformation gains (eqs. 5, 10)      ``alpha_z``, ``beta_z``
+:math:`\alpha_v, \beta_v`       discrete canonical gains (eq. 6)       ``alpha_v``, ``beta_v``
+:math:`\alpha_g`                goal filter rate (eq. 10)              ``alpha_g``
+:math:`A, \alpha_r`             amplitude and its rate (eq. 11)        ``amplitude``, ``alpha_r``
+:math:`E_0, \alpha_E, k`        energy oscillator (eq. 13)             ``amplitude``, ``alpha_E``, ``k``
 :math:`w_i, c_i, h_i`           weights, centres, widths               ``weights``, ``centres``, ``widths``
 :math:`f`                       forcing term                           ``forcing_weights()``
 ==============================  =====================================  =====================
+
+The full table, with units: ``docs/glossary.md``.
 """  # noqa: E501
 
 from .dmp import AffinePlan, DiscreteDMP, RhythmicDMP, similarity_transform

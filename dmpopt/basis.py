@@ -72,11 +72,13 @@ def stable_step(form: str, gains: tuple, canonical_target: float, canonical_stat
     signature = symbolic.Signature(form, 1, 1, "gaussian")
     s = symbolic.make_symbols(signature)
     rate = symbolic.system_rhs(signature, s, s.state)
-    jacobian = ca.Function("jacobian", [s.state, *s.parameters()], [ca.jacobian(rate, s.state)])
-    parameters = [1.0, 0.0, canonical_target, 0.0, 0.0, 1.0, np.array(gains), 0.0, 0.0]
+    jacobian = symbolic.function(
+        "jacobian", {"state": s.state, **s.parameters()}, {"jacobian": ca.jacobian(rate, s.state)}
+    )
+    parameters = symbolic.parameters(canonical_target=canonical_target, gains=np.array(gains))
     padding = np.zeros(signature.n_states - 2)
     matrices = [
-        jacobian(np.concatenate([canonical, padding]), *parameters).full()
+        jacobian(state=np.concatenate([canonical, padding]), **parameters)["jacobian"].full()
         for canonical in canonical_states
     ]
     frozen = [value for m in matrices for value in np.linalg.eigvals(m) if value.real < 0.0]
@@ -97,7 +99,7 @@ def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRAC
     signature = symbolic.Signature(form, 1, 1, "gaussian")
     n_transformation = symbolic.n_transformation_states(form)
     initial = np.zeros(2 + n_transformation)
-    parameters = [1.0, 1.0, 1.0, np.zeros((1, 1)), 0.0, 1.0, np.array(gains), 0.0, 0.0]
+    parameters = symbolic.parameters(goal=1.0, canonical_target=1.0, gains=np.array(gains))
     positions = symbolic.simulate(signature, n_steps, initial, dt, parameters)[1][:, 0]
     error = np.abs(1.0 - positions)
     outside = np.nonzero(error > 1.0 - fraction)[0]
@@ -114,7 +116,7 @@ def discrete_phase(gains: tuple, times: tuple) -> np.ndarray:
     dt = 1e-4
     n_steps = int(np.ceil(max(times) / dt)) + 2
     signature = symbolic.Signature("velocity", 1, 1, "gaussian")
-    parameters = [1.0, 0.0, 1.0, np.zeros((1, 1)), 0.0, 1.0, np.array(gains), 0.0, 0.0]
+    parameters = symbolic.parameters(canonical_target=1.0, gains=np.array(gains))
     states = symbolic.simulate(signature, n_steps, np.zeros(4), dt, parameters)[0]
     return np.interp(times, np.arange(n_steps) * dt, states[:, 0])
 

@@ -1,6 +1,6 @@
 r"""Discrete and rhythmic DMPs: immutable parameters and whole-plan rollouts.
 
-A DMP is a frozen value. ``with_goal``, ``with_time_constant``, ... return new objects.
+A DMP is a frozen value. ``with_goal``, ``with_tau``, ... return new objects.
 Rollouts use the affine structure of the plan: for a fixed time constant, step and
 canonical trajectory, positions, velocities and accelerations are linear in the initial
 transformation state, the goal and the weights. The response matrices are evaluated once
@@ -36,6 +36,8 @@ Amplification: a goal moved by :math:`\delta` moves no point of the plan by more
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -44,17 +46,26 @@ import numpy as np
 
 from . import basis, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
+from .stepper import Stepper
 from .trajectory import Trajectory
-from .validation import check_resources, real, real_array
+from .validation import check_resources, positive, real, real_array, vector
 
 GOAL_SCALINGS = ("paper", "rotation", "translation")
+RENAMED = {
+    "time_constant": "tau",
+    "stiffness": "alpha_z",
+    "damping": "beta_z",
+    "phase_stiffness": "alpha_v",
+    "phase_damping": "beta_v",
+    "goal_rate": "alpha_g",
+    "amplitude_rate": "alpha_r",
+    "frequency": "k",
+}
+"""Former field names and the paper's symbols that replaced them (docs/glossary.md); in the
+energy form ``amplitude_rate`` became ``alpha_E``."""
 SETTLING_FRACTION = 0.9999
 """Fraction of the way to its goal that the unforced system covers, from rest, in the time
 a default plan lasts beyond the convergence time (:attr:`DiscreteDMP.settling_time`)."""
-
-
-def _positive(name: str, value) -> float:
-    return real(name, value, minimum=0.0, open_minimum=True)
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
@@ -63,13 +74,42 @@ def _frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
-def _vector(name: str, value, size: int, reference: str) -> np.ndarray:
-    array = np.atleast_1d(real_array(name, value, empty=True))
-    if array.shape == (1,) and size > 1:
-        array = np.full(size, array[0])
-    if array.shape != (size,):
-        raise ShapeError(f"{name} has shape {array.shape}, expected ({size},) to match {reference}")
-    return array
+def _refuse_former_names(cls):
+    """Make the constructor (and ``replace``) name the new field for a former one."""
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def __init__(self, *args, **fields):
+        former = sorted(set(fields) & set(RENAMED))
+        if former:
+            name = former[0]
+            new = "alpha_E" if name == "amplitude_rate" and fields.get("form") == "energy" else ""
+            new = new or RENAMED[name]
+            raise InvalidInputError(
+                f"{cls.__name__} has no field {name!r}: it is now {new!r}, after the paper's "
+                f"symbol (docs/glossary.md); pass {new}={fields[name]!r}"
+            )
+        init(self, *args, **fields)
+
+    cls.__init__ = __init__
+    return cls
+
+
+def goal_transform(goal_scaling: str, reference, displacement) -> np.ndarray:
+    r"""Matrix :math:`M` that carries a plan demonstrated for the start-goal vector
+    ``reference`` to one for ``displacement`` (module docstring), shape (n_dofs, n_dofs).
+
+    ``"paper"``: :math:`\mathrm{diag}(d' / d)`, eq. (7) per DOF; ``"rotation"``:
+    :func:`similarity_transform`; ``"translation"``: the identity.
+    """
+    reference, displacement = np.asarray(reference), np.asarray(displacement)
+    if goal_scaling == "paper":
+        return np.diag(displacement / reference)
+    if goal_scaling == "rotation":
+        return similarity_transform(reference, displacement)
+    if goal_scaling == "translation":
+        return np.eye(displacement.size)
+    raise InvalidInputError(f"goal_scaling must be one of {GOAL_SCALINGS}, got {goal_scaling!r}")
 
 
 def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -78,17 +118,17 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     The rotation is the smallest one: it turns the plane spanned by the two vectors and
     leaves its orthogonal complement alone. In one dimension it is a sign.
     """
-    source_norm = np.linalg.norm(source)
-    target_norm = np.linalg.norm(target)
+    source_norm = math.sqrt(source @ source)  # scalar arithmetic: called on every rollout
+    target_norm = math.sqrt(target @ target)
     n = source.size
     if target_norm == 0.0:
         return np.zeros((n, n))
     a, b = source / source_norm, target / target_norm
-    cosine = float(np.clip(a @ b, -1.0, 1.0))
+    cosine = min(max(float(a @ b), -1.0), 1.0)
     if n == 1:
         rotation = np.array([[np.sign(cosine)]])
     elif cosine > -1.0 + 1e-12:
-        cross = np.outer(b, a) - np.outer(a, b)
+        cross = b[:, None] * a - a[:, None] * b
         rotation = np.eye(n) + cross + cross @ cross / (1.0 + cosine)
     else:  # half turn in a plane that contains a
         helper = np.eye(n)[np.argmin(np.abs(a))]
@@ -110,16 +150,19 @@ def _affine_step(signature: symbolic.Signature) -> ca.Function:
     """
     s = symbolic.make_symbols(signature)
     inputs = ca.vertcat(s.state[2:], s.goal, ca.vec(s.forcing_weights))
-    next_state = symbolic.step_function(signature)(s.state, s.dt, *s.parameters())[0]
-    outputs = ca.vertcat(*symbolic.output_function(signature)(s.state, *s.parameters()))
-    return ca.Function(
+    parameters = s.parameters()
+    next_state = symbolic.step_function(signature)(state=s.state, dt=s.dt, **parameters)
+    next_state = next_state["next_state"]
+    outputs = symbolic.output_function(signature)(state=s.state, **parameters)
+    outputs = ca.vertcat(outputs["position"], outputs["velocity"], outputs["acceleration"])
+    return symbolic.function(
         "dmp_affine_step",
-        [s.state, s.dt, *s.parameters()],
-        [
-            next_state,
-            ca.densify(ca.jacobian(next_state[2:], inputs)),
-            ca.densify(ca.jacobian(outputs, inputs)),
-        ],
+        {"state": s.state, "dt": s.dt, **parameters},
+        {
+            "next_state": next_state,
+            "step": ca.densify(ca.jacobian(next_state[2:], inputs)),
+            "outputs": ca.densify(ca.jacobian(outputs, inputs)),
+        },
     )
 
 
@@ -139,22 +182,15 @@ def _response(key: tuple) -> np.ndarray:
     n_transformation = symbolic.n_transformation_states(form)
     n_inputs = n_transformation + 1 + signature.n_features
     function = symbolic.NumericFunction(_affine_step(signature))
-    function.set_inputs(
-        np.concatenate([canonical0, np.zeros(n_transformation)]),
-        dt,
-        1.0,
-        0.0,
-        target,
-        np.zeros(signature.n_features),
-        np.array(centres),
-        np.array(widths),
-        np.array(gains),
-        0.0,
-        0.0,
+    parameters = symbolic.parameters(
+        canonical_target=target, centres=np.array(centres), widths=np.array(widths), gains=gains
     )
-    state, (next_state, step, outputs) = function.inputs[0], function.outputs
-    step = step.reshape((n_transformation, n_inputs), order="F")  # views of the buffers
-    outputs = outputs.reshape((3, n_inputs), order="F")
+    function.set_inputs(
+        state=np.concatenate([canonical0, np.zeros(n_transformation)]), dt=dt, **parameters
+    )
+    state, next_state = function.inputs["state"], function.outputs["next_state"]
+    step = function.outputs["step"].reshape((n_transformation, n_inputs), order="F")  # views
+    outputs = function.outputs["outputs"].reshape((3, n_inputs), order="F")
     transformation = np.eye(n_transformation, n_inputs)  # d(transformation state)/d(inputs)
     response = np.empty((3, n_steps, n_inputs))
     for k in range(n_steps):
@@ -213,17 +249,17 @@ class _DmpCommon:
                 f"weights has shape {self.weights.shape}: a DMP needs at least one DOF and one "
                 "basis function"
             )
-        centres = _vector("centres", self.centres, n_basis, f"{n_basis} basis functions")
-        widths = _vector("widths", self.widths, n_basis, f"{n_basis} basis functions")
+        centres = vector("centres", self.centres, n_basis, f"{n_basis} basis functions")
+        widths = vector("widths", self.widths, n_basis, f"{n_basis} basis functions")
         if np.any(widths <= 0):
             raise InvalidInputError(f"widths must all be positive, got {widths.min()!r}")
         object.__setattr__(self, "centres", _frozen(centres))
         object.__setattr__(self, "widths", _frozen(widths))
-        object.__setattr__(self, "time_constant", _positive("time_constant", self.time_constant))
-        object.__setattr__(self, "stiffness", _positive("stiffness", self.stiffness))
-        if self.damping is None:
-            object.__setattr__(self, "damping", self.stiffness / 4.0)
-        object.__setattr__(self, "damping", _positive("damping", self.damping))
+        object.__setattr__(self, "tau", positive("tau", self.tau))
+        object.__setattr__(self, "alpha_z", positive("alpha_z", self.alpha_z))
+        if self.beta_z is None:
+            object.__setattr__(self, "beta_z", self.alpha_z / 4.0)
+        object.__setattr__(self, "beta_z", positive("beta_z", self.beta_z))
 
     @property
     def n_dofs(self) -> int:
@@ -247,7 +283,7 @@ class _DmpCommon:
     @property
     def max_step(self) -> float:
         """Largest step [s] at which the RK4 integration is stable (:func:`basis.stable_step`)."""
-        return self.time_constant * basis.stable_step(
+        return self.tau * basis.stable_step(
             self.form, tuple(self.gains), float(self._canonical_target()), self._cycle_states()
         )
 
@@ -260,35 +296,33 @@ class _DmpCommon:
 
     def check_step(self, dt, name: str = "dt") -> float:
         """Return ``dt`` if it is a positive step within :attr:`max_step`, else raise."""
-        dt = _positive(name, dt)
+        dt = positive(name, dt)
         if dt > self.max_step:
             raise InvalidInputError(
                 f"{name} = {dt:.4g} s is beyond the stability limit {self.max_step:.4g} s of the "
-                f"RK4 integration for time_constant {self.time_constant:.4g} s and these gains "
+                f"RK4 integration for tau = {self.tau:.4g} s and these gains "
                 "(the plan would grow without bound); use a smaller step"
             )
         return dt
 
-    def with_time_constant(self, time_constant: float):
-        """Same movement, time scaled: ``tau -> time_constant`` (Section 3.3)."""
-        return self.replace(time_constant=time_constant)
+    def with_tau(self, tau: float):
+        """Same movement, time scaled by ``tau`` (Section 3.3)."""
+        return self.replace(tau=tau)
 
-    def parameter_values(self) -> list:
-        """Numeric inputs of the symbolic functions, in :data:`symbolic.PARAMETER_NAMES` order."""
-        return [
-            self.time_constant,
-            self._goal_input(),
-            self._canonical_target(),
-            self.forcing_weights(),
-            np.asarray(self.centres),
-            np.asarray(self.widths),
-            np.asarray(self.gains),
-            np.zeros(self.n_dofs),
-            0.0,
-        ]
+    def parameters(self) -> dict:
+        """Numeric inputs of the symbolic functions by name (:data:`symbolic.PARAMETER_NAMES`)."""
+        return symbolic.parameters(
+            tau=self.tau,
+            goal=self._goal_input(),
+            canonical_target=self._canonical_target(),
+            forcing_weights=self.forcing_weights(),
+            centres=np.asarray(self.centres),
+            widths=np.asarray(self.widths),
+            gains=np.asarray(self.gains),
+        )
 
     def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):
-        duration = _positive("duration", duration)
+        duration = positive("duration", duration)
         dt = self.check_step(dt)
         n_steps = int(round(duration / dt)) + 1
         if n_steps < 3:
@@ -300,7 +334,7 @@ class _DmpCommon:
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
             8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs),
             "raise dt or shorten duration (by default the convergence time or three periods, "
-            "both proportional to time_constant)",
+            "both proportional to tau)",
             n_samples=n_steps,
         )
         key = (
@@ -308,7 +342,7 @@ class _DmpCommon:
             self.kernel,
             self.n_basis,
             n_steps,
-            dt / self.time_constant,
+            dt / self.tau,
             float(self._canonical_target()),
             tuple(canonical0),
             tuple(self.centres),
@@ -325,7 +359,7 @@ class _DmpCommon:
         times, response, inputs = self._response_and_inputs(
             duration, dt, start, start_velocity, canonical0
         )
-        scale = np.array([1.0, self.time_constant, self.time_constant**2])[:, None, None]
+        scale = np.array([1.0, self.tau, self.tau**2])[:, None, None]
         n_free = inputs.shape[0] - symbolic.n_features(self.form, self.n_basis)
         return AffinePlan(
             times=times,
@@ -337,7 +371,7 @@ class _DmpCommon:
         times, response, inputs = self._response_and_inputs(
             duration, dt, start, start_velocity, canonical0
         )
-        tau = self.time_constant
+        tau = self.tau
         return Trajectory(
             times,
             response[0] @ inputs,
@@ -345,26 +379,28 @@ class _DmpCommon:
             response[2] @ inputs / tau**2,
         )
 
-    def _initial_z(self, start_velocity, canonical0):
-        """``z`` such that the initial velocity is ``start_velocity``: ``tau yd = z + f``."""
-        z = self.time_constant * start_velocity
-        if self.form == "velocity" or self.form in symbolic.RHYTHMIC_FORMS:
+    def initial_state(self, start, start_velocity, canonical0) -> np.ndarray:
+        """The state vector that starts at ``start`` with ``start_velocity`` and the canonical
+        state ``canonical0``: ``y = start``, ``z`` such that ``tau yd = z + f`` (eq. (5); ``z =
+        tau yd`` in eq. (10)) and ``r = start`` (eq. (10)). Shape (n_states,)."""
+        start = vector("start", start, self.n_dofs, f"{self.n_dofs} DOFs")
+        velocity = vector("start_velocity", start_velocity, self.n_dofs, f"{self.n_dofs} DOFs")
+        z = self.tau * velocity
+        if self.form != "acceleration":
             feature = symbolic.feature_function(self.signature)(
                 canonical0, np.asarray(self.centres), np.asarray(self.widths)
             ).full()[:, 0]
             z = z - self.forcing_weights() @ feature
-        return z
+        rows = [start, z, start] if self.form == "acceleration" else [start, z]
+        return np.concatenate([canonical0, *rows])
 
     def _response_inputs(self, start, start_velocity, canonical0) -> np.ndarray:
-        start = _vector("start", start, self.n_dofs, f"{self.n_dofs} DOFs")
-        velocity = _vector("start_velocity", start_velocity, self.n_dofs, f"{self.n_dofs} DOFs")
-        rows = [start, self._initial_z(velocity, canonical0)]
-        if self.form == "acceleration":
-            rows.append(start)  # r(0) = y(0), eq. (10)
-        rows.append(self._goal_input())
-        return np.vstack(rows + [self.forcing_weights().T])
+        transformation = self.initial_state(start, start_velocity, canonical0)[2:]
+        rows = transformation.reshape(-1, self.n_dofs)
+        return np.vstack([*rows, self._goal_input(), self.forcing_weights().T])
 
 
+@_refuse_former_names
 @dataclass(frozen=True, eq=False)
 class DiscreteDMP(_DmpCommon):
     r"""A point-to-point DMP with several DOFs on one canonical system (Sections 3.2, 3.6).
@@ -375,8 +411,8 @@ class DiscreteDMP(_DmpCommon):
         :math:`w_i` of eq. (7), per DOF.
     start, goal : ndarray, shape (n_dofs,)
         :math:`y_0` and :math:`g`.
-    time_constant : float
-        :math:`\tau` [s].
+    tau : float
+        :math:`\tau` [s], the time constant.
     centres, widths : ndarray, shape (n_basis,)
         :math:`c_i, h_i` of the Gaussians on the normalised phase.
     form : {"velocity", "acceleration"}
@@ -391,29 +427,29 @@ class DiscreteDMP(_DmpCommon):
         ``weights`` (per unit of ``goal - start`` under ``"paper"``). Plans start with
         :attr:`start_velocity`, this mapped to the current start and goal and divided by
         :math:`\tau`.
-    stiffness, damping : float
-        :math:`\alpha_z` and :math:`\beta_z` (default :math:`\alpha_z / 4`).
-    phase_stiffness, phase_damping : float
-        :math:`\alpha_v, \beta_v` of eq. (6).
-    goal_rate : float
+    alpha_z, beta_z : float
+        :math:`\alpha_z, \beta_z` of eqs. (5) and (10) (default :math:`\beta_z = \alpha_z / 4`).
+    alpha_v, beta_v : float
+        :math:`\alpha_v, \beta_v` of eq. (6) (default :math:`\beta_v = \alpha_v / 4`).
+    alpha_g : float
         :math:`\alpha_g` of eq. (10) (default :math:`\alpha_z / 2`).
     """
 
     weights: np.ndarray
     start: np.ndarray
     goal: np.ndarray
-    time_constant: float
+    tau: float
     centres: np.ndarray
     widths: np.ndarray
     form: str = "velocity"
     goal_scaling: str = "rotation"
     reference_displacement: np.ndarray | None = None
     scaled_start_velocity: np.ndarray | float = 0.0
-    stiffness: float = 25.0
-    damping: float | None = None
-    phase_stiffness: float = 25.0
-    phase_damping: float | None = None
-    goal_rate: float | None = None
+    alpha_z: float = 25.0
+    beta_z: float | None = None
+    alpha_v: float = 25.0
+    beta_v: float | None = None
+    alpha_g: float | None = None
     kernel: str = dataclasses.field(default="gaussian", init=False)
 
     def __post_init__(self):
@@ -432,7 +468,7 @@ class DiscreteDMP(_DmpCommon):
         object.__setattr__(self, "weights", _frozen(weights))
         self._check_basis(n_basis)
         for name in ("start", "goal", "scaled_start_velocity"):
-            value = _vector(name, getattr(self, name), n_dofs, f"weights {weights.shape}")
+            value = vector(name, getattr(self, name), n_dofs, f"weights {weights.shape}")
             object.__setattr__(self, name, _frozen(value))
         if self.goal_scaling == "rotation":
             if self.reference_displacement is None:
@@ -440,7 +476,7 @@ class DiscreteDMP(_DmpCommon):
                     "goal_scaling='rotation' needs reference_displacement (the demonstrated "
                     "goal - start); pass it or use goal_scaling='translation'"
                 )
-            reference = _vector(
+            reference = vector(
                 "reference_displacement", self.reference_displacement, n_dofs, "weights"
             )
             if not np.linalg.norm(reference) > 0.0:
@@ -450,21 +486,19 @@ class DiscreteDMP(_DmpCommon):
                 )
             object.__setattr__(self, "reference_displacement", _frozen(reference))
         for name, default in (
-            ("phase_damping", self.phase_stiffness / 4.0),
-            ("goal_rate", self.stiffness / 2.0),
+            ("beta_v", self.alpha_v / 4.0),
+            ("alpha_g", self.alpha_z / 2.0),
         ):
             if getattr(self, name) is None:
                 object.__setattr__(self, name, default)
-            object.__setattr__(self, name, _positive(name, getattr(self, name)))
-        object.__setattr__(
-            self, "phase_stiffness", _positive("phase_stiffness", self.phase_stiffness)
-        )
+            object.__setattr__(self, name, positive(name, getattr(self, name)))
+        object.__setattr__(self, "alpha_v", positive("alpha_v", self.alpha_v))
 
     @property
     def gains(self) -> tuple:
         """Constants in the order of :data:`symbolic.GAIN_NAMES`."""
-        values = (self.stiffness, self.damping, self.phase_stiffness, self.phase_damping)
-        return values + ((self.goal_rate,) if self.form == "acceleration" else ())
+        values = (self.alpha_z, self.beta_z, self.alpha_v, self.beta_v)
+        return values + ((self.alpha_g,) if self.form == "acceleration" else ())
 
     def _goal_input(self) -> np.ndarray:
         return np.asarray(self.goal)
@@ -478,11 +512,10 @@ class DiscreteDMP(_DmpCommon):
         start = self.start if start is None else start
         goal = self.goal if goal is None else goal
         displacement = np.asarray(goal) - np.asarray(start)
-        if self.goal_scaling == "paper":
-            return np.diag(displacement)
-        if self.goal_scaling == "rotation":
-            return similarity_transform(self.reference_displacement, displacement)
-        return np.eye(self.n_dofs)
+        # "paper" stores the weights per unit of goal - start: the reference is all ones
+        rotation = self.goal_scaling == "rotation"
+        reference = self.reference_displacement if rotation else np.ones(self.n_dofs)
+        return goal_transform(self.goal_scaling, reference, displacement)
 
     def forcing_weights(self, start=None, goal=None) -> np.ndarray:
         """Weights mapped to the current (or given) start and goal, shape (n_dofs, n_basis)."""
@@ -492,7 +525,7 @@ class DiscreteDMP(_DmpCommon):
     def start_velocity(self) -> np.ndarray:
         r"""Initial velocity [units/s] of plans by default: ``scaled_start_velocity`` mapped to
         the current start and goal, divided by :math:`\tau`, shape (n_dofs,)."""
-        return self.goal_map() @ self.scaled_start_velocity / self.time_constant
+        return self.goal_map() @ self.scaled_start_velocity / self.tau
 
     def with_goal(self, goal) -> DiscreteDMP:
         """Same movement towards a new goal."""
@@ -505,8 +538,7 @@ class DiscreteDMP(_DmpCommon):
     @property
     def convergence_time(self) -> float:
         """Time [s] at which the unforced system is 95 % of the way to its goal."""
-        gains = self.gains[:4] + ((self.goal_rate,) if self.form == "acceleration" else ())
-        return self.time_constant * basis.convergence_time(self.form, gains)
+        return self.tau * basis.convergence_time(self.form, self.gains)
 
     @property
     def settling_time(self) -> float:
@@ -515,9 +547,8 @@ class DiscreteDMP(_DmpCommon):
         0.01 % of its goal (:data:`SETTLING_FRACTION`). The margin lets a movement still
         under way at the end of its demonstration come to rest: the README's quickstart demo
         ends at 3.7 units/s and its plan ends within 0.1 % of its extent from the goal."""
-        gains = self.gains[:4] + ((self.goal_rate,) if self.form == "acceleration" else ())
-        settle = basis.convergence_time(self.form, gains, SETTLING_FRACTION)
-        return self.convergence_time + self.time_constant * settle
+        settle = basis.convergence_time(self.form, self.gains, SETTLING_FRACTION)
+        return self.convergence_time + self.tau * settle
 
     def phase_features(self, n_steps: int, dt: float) -> np.ndarray:
         """Regressors of the forcing term, eq. (7), at ``k dt`` for ``k < n_steps``.
@@ -543,7 +574,7 @@ class DiscreteDMP(_DmpCommon):
             scaled_start_velocity=0.0,
         )
         states = symbolic.simulate(
-            signature, n_steps, np.zeros(signature.n_states), dt, unforced.parameter_values()
+            signature, n_steps, np.zeros(signature.n_states), dt, unforced.parameters()
         )[0]
         features = symbolic.feature_function(signature).map(n_steps)
         return features(states[:, :2].T, self.centres, self.widths).full().T
@@ -583,12 +614,11 @@ class DiscreteDMP(_DmpCommon):
     def stepper(self, dt: float = 0.001, start_velocity=None, compile: bool = False):
         """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`),
         starting with ``start_velocity`` (default :attr:`start_velocity`)."""
-        from .stepper import Stepper
-
         velocity = self.start_velocity if start_velocity is None else start_velocity
         return Stepper(self, dt, self.start, velocity, compile=compile)
 
 
+@_refuse_former_names
 @dataclass(frozen=True, eq=False)
 class RhythmicDMP(_DmpCommon):
     r"""A periodic DMP with several DOFs on one oscillator (Sections 3.2, 3.6).
@@ -599,9 +629,9 @@ class RhythmicDMP(_DmpCommon):
         The 2-vectors :math:`w_i` of eqs. (12) and (14), per DOF.
     setpoint : ndarray, shape (n_dofs,)
         :math:`g`, the centre of the oscillation.
-    time_constant : float
-        :math:`\tau`: the period is :math:`2\pi\tau` (``phase``) or :math:`2\pi\tau/k`
-        (``energy``).
+    tau : float
+        :math:`\tau`, the time constant: the period is :math:`2\pi\tau` (``phase``) or
+        :math:`2\pi\tau/k` (``energy``).
     centres, widths : ndarray, shape (n_basis,)
         Basis on the oscillator's phase angle.
     form : {"phase", "energy"}
@@ -611,26 +641,29 @@ class RhythmicDMP(_DmpCommon):
         (:math:`E_0 = (k A)^2 / 2`). The plan's oscillation scales with it.
     kernel : {"von_mises", "paper"}
         Periodic kernel :math:`\exp(h(\cos(\phi - c) - 1))` or eq. (12) as printed.
-    stiffness, damping : float
-        :math:`\alpha_z, \beta_z` of eq. (5).
-    amplitude_rate : float
-        :math:`\alpha_r` of eq. (11) (``phase``) or :math:`\alpha_E` of eq. (13) (``energy``).
-    frequency : float
+    alpha_z, beta_z : float
+        :math:`\alpha_z, \beta_z` of eq. (5) (default :math:`\beta_z = \alpha_z / 4`).
+    alpha_r : float
+        :math:`\alpha_r` of eq. (11) (``phase`` only).
+    alpha_E : float
+        :math:`\alpha_E` of eq. (13) (``energy`` only).
+    k : float
         :math:`k` of eq. (13) (``energy`` only).
     """
 
     weights: np.ndarray
     setpoint: np.ndarray
-    time_constant: float
+    tau: float
     centres: np.ndarray
     widths: np.ndarray
     form: str = "phase"
     amplitude: float = 1.0
     kernel: str = "von_mises"
-    stiffness: float = 25.0
-    damping: float | None = None
-    amplitude_rate: float = 10.0
-    frequency: float = 1.0
+    alpha_z: float = 25.0
+    beta_z: float | None = None
+    alpha_r: float = 10.0
+    alpha_E: float = 10.0  # noqa: N815 (the paper's symbol)
+    k: float = 1.0
 
     def __post_init__(self):
         if self.form not in symbolic.RHYTHMIC_FORMS:
@@ -646,23 +679,23 @@ class RhythmicDMP(_DmpCommon):
             raise ShapeError(f"weights has shape {weights.shape}, expected (n_dofs, n_basis, 2)")
         object.__setattr__(self, "weights", _frozen(weights))
         self._check_basis(weights.shape[1])
-        setpoint = _vector("setpoint", self.setpoint, weights.shape[0], f"weights {weights.shape}")
+        setpoint = vector("setpoint", self.setpoint, weights.shape[0], f"weights {weights.shape}")
         object.__setattr__(self, "setpoint", _frozen(setpoint))
-        for name in ("amplitude", "amplitude_rate", "frequency"):
-            object.__setattr__(self, name, _positive(name, getattr(self, name)))
+        for name in ("amplitude", "alpha_r", "alpha_E", "k"):
+            object.__setattr__(self, name, positive(name, getattr(self, name)))
 
     @property
     def gains(self) -> tuple:
         """Constants in the order of :data:`symbolic.GAIN_NAMES`."""
         if self.form == "phase":
-            return (self.stiffness, self.damping, self.amplitude_rate)
-        return (self.stiffness, self.damping, self.amplitude_rate, self.frequency)
+            return (self.alpha_z, self.beta_z, self.alpha_r)
+        return (self.alpha_z, self.beta_z, self.alpha_E, self.k)
 
     @property
     def period(self) -> float:
         """Period of the oscillator [s]."""
-        scale = 1.0 if self.form == "phase" else 1.0 / self.frequency
-        return 2 * np.pi * self.time_constant * scale
+        scale = 1.0 if self.form == "phase" else 1.0 / self.k
+        return 2 * np.pi * self.tau * scale
 
     def _goal_input(self) -> np.ndarray:
         return np.asarray(self.setpoint)
@@ -670,7 +703,7 @@ class RhythmicDMP(_DmpCommon):
     def _canonical_target(self) -> float:
         if self.form == "phase":
             return self.amplitude
-        return 0.5 * (self.frequency * self.amplitude) ** 2
+        return 0.5 * (self.k * self.amplitude) ** 2
 
     def canonical_state(self, phase: float = 0.0) -> tuple[float, float]:
         """The oscillator's state on its limit cycle at ``phase`` [rad]."""
@@ -680,7 +713,7 @@ class RhythmicDMP(_DmpCommon):
         # x = A cos(theta), v = A k sin(theta) gives atan2(v, x) = theta for k = 1
         return (
             self.amplitude * float(np.cos(phase)),
-            self.amplitude * self.frequency * float(np.sin(phase)),
+            self.amplitude * self.k * float(np.sin(phase)),
         )
 
     def forcing_weights(self) -> np.ndarray:
@@ -712,7 +745,5 @@ class RhythmicDMP(_DmpCommon):
 
     def stepper(self, dt=0.001, start=None, start_velocity=0.0, phase=0.0, compile=False):
         """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`)."""
-        from .stepper import Stepper
-
         start = self.setpoint if start is None else start
         return Stepper(self, dt, start, start_velocity, phase, compile)

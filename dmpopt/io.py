@@ -18,13 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .dmp import DiscreteDMP, RhythmicDMP
+from .dmp import RENAMED, DiscreteDMP, RhythmicDMP
 from .exceptions import FileFormatError, InvalidInputError
 
 FORMAT = "dmpopt-dmp"
-VERSION = 1
+VERSION = 2
 """Written by :func:`save`; :func:`load` reads this version and every older one. A file
-lacking a field (written before the field existed) gets the field's default."""
+lacking a field (written before the field existed) gets the field's default. Version 2
+named the fields after the paper's symbols (``tau``, ``alpha_z``, ...); a version 1 file's
+fields are renamed on loading (:func:`_renamed`)."""
 CLASSES = {"DiscreteDMP": DiscreteDMP, "RhythmicDMP": RhythmicDMP}
 SCALAR_TYPES = (type(None), bool, int, float, str)
 
@@ -125,6 +127,8 @@ def load(path):
     if cls is None:
         raise FileFormatError(f"{path} holds an unknown class {header.get('class')!r}")
     values = {**header.get("scalars", {}), **arrays}
+    if version < 2:
+        values = _renamed(values)
     known = {field.name for field in dataclasses.fields(cls) if field.init}
     unknown = sorted(set(values) - known)
     if unknown:
@@ -135,3 +139,14 @@ def load(path):
         return cls(**values)
     except (TypeError, ValueError, KeyError) as error:
         raise FileFormatError(f"{path} has inconsistent contents: {error}") from error
+
+
+def _renamed(values: dict) -> dict:
+    """Fields of a version 1 file under their version 2 names (:data:`dmpopt.dmp.RENAMED`)."""
+    renamed = {}
+    for name, value in values.items():
+        new = RENAMED.get(name, name)
+        if name == "amplitude_rate" and values.get("form") == "energy":
+            new = "alpha_E"
+        renamed[new] = value
+    return renamed

@@ -76,11 +76,6 @@ def peak_acceleration(trajectory: Trajectory) -> np.ndarray:
     return np.max(np.abs(trajectory.accelerations), axis=0)
 
 
-def peak_jerk(trajectory: Trajectory) -> np.ndarray:
-    """Largest absolute finite-difference jerk per DOF, shape (n_dofs,)."""
-    return np.max(np.abs(jerk(trajectory)), axis=0)
-
-
 def limit_use(trajectory: Trajectory, velocity_limit=None, acceleration_limit=None) -> dict:
     """Peak velocity and acceleration as fractions of symmetric per-DOF limits.
 
@@ -138,15 +133,3 @@ def path_distance(positions: np.ndarray, reference: np.ndarray) -> float:
     forward = _closest_distances(positions, reference).mean()
     backward = _closest_distances(reference, positions).mean()
     return float(0.5 * (forward + backward))
-
-
-def rms_error(positions: np.ndarray, reference: np.ndarray) -> float:
-    """Root-mean-square distance between two sample sets of equal shape."""
-    positions = _samples("positions", positions)
-    reference = _samples("reference", reference, positions.shape[1])
-    if reference.shape != positions.shape:
-        raise ShapeError(
-            f"reference has shape {reference.shape}, expected {positions.shape} like positions"
-        )
-    difference = positions - reference
-    return float(np.sqrt(np.mean(np.sum(difference**2, axis=1))))

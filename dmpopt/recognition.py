@@ -173,7 +173,7 @@ def normalised_plan(dmp: DiscreteDMP, start_velocity=None, n_samples: int = 200)
     n_samples = _check_n_samples(n_samples)
     velocity = _check_start_velocity(start_velocity, dmp.n_dofs)
     forcing, frame = _start_goal_frame(dmp)
-    return _unit_plan(dmp, frame @ forcing, frame @ (dmp.time_constant * velocity), n_samples)
+    return _unit_plan(dmp, frame @ forcing, frame @ (dmp.tau * velocity), n_samples)
 
 
 def _unit_plan(dmp: DiscreteDMP, weights, velocity, n_samples: int) -> np.ndarray:
@@ -185,7 +185,7 @@ def _unit_plan(dmp: DiscreteDMP, weights, velocity, n_samples: int) -> np.ndarra
         weights=weights,
         start=np.zeros(dmp.n_dofs),
         goal=unit_goal,
-        time_constant=1.0,
+        tau=1.0,
         goal_scaling="translation",
         reference_displacement=None,
     )
@@ -230,7 +230,7 @@ def plan_metric_factor(
     """
     dmp = _check_dmp(dmp)
     n_samples = _check_n_samples(n_samples)
-    unit = dmp.with_time_constant(1.0)
+    unit = dmp.with_tau(1.0)
     duration = unit.convergence_time
     dt = duration / (n_samples - 1)
     plan = unit.affine_plan(duration, dt, start_velocity=0.0)
@@ -354,7 +354,7 @@ def movement_features(
     rows = []
     for dmp, velocity in zip(dmps, start_velocities):
         forcing, frame = _start_goal_frame(dmp)
-        weights = np.column_stack([frame @ forcing, frame @ (dmp.time_constant * velocity)])
+        weights = np.column_stack([frame @ forcing, frame @ (dmp.tau * velocity)])
         parts = [(weights @ factor).ravel()]
         if path_weight > 0.0:
             plan = _unit_plan(dmp, weights[:, :-1], weights[:, -1], n_samples)

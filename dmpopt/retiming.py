@@ -73,7 +73,7 @@ def _robot_arguments(robot, torque_limit, n_dofs):
 def time_scaled(trajectory: Trajectory, factor: float) -> Trajectory:
     """The same path ``factor`` times slower: ``t -> c t``, ``v -> v / c``, ``a -> a / c^2``.
 
-    For a DMP this is exactly ``dmp.with_time_constant(c * tau)`` (Section 3.3).
+    For a DMP this is exactly ``dmp.with_tau(c * tau)`` (Section 3.3).
     """
     trajectory = _check_trajectory(trajectory)
     factor = real("factor", factor, minimum=0.0, open_minimum=True)

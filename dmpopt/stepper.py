@@ -10,11 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import symbolic
-from .dmp import DiscreteDMP, RhythmicDMP, _positive, _vector
 from .exceptions import InvalidInputError, ShapeError
-from .validation import flag, real, real_array
-
-_INPUT = {name: 2 + i for i, name in enumerate(symbolic.PARAMETER_NAMES)}
+from .validation import flag, positive, real, real_array, vector
 
 
 class Stepper:
@@ -45,36 +42,32 @@ class Stepper:
     """
 
     def __init__(self, dmp, dt: float, start, start_velocity=0.0, phase=0.0, compile=False):
-        if not isinstance(dmp, (DiscreteDMP, RhythmicDMP)):
+        if type(dmp).__name__ not in ("DiscreteDMP", "RhythmicDMP"):
             raise InvalidInputError(
                 f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
             )
         self.dmp = dmp
+        self._discrete = dmp.form in symbolic.DISCRETE_FORMS
         self.dt = dmp.check_step(dt)
-        self._max_step_per_tau = dmp.max_step / dmp.time_constant
+        self._max_step_per_tau = dmp.max_step / dmp.tau
         step = symbolic.step_function(dmp.signature)
         compile = flag("compile", compile)
         self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
         self.time = 0.0
-        self._start = _vector("start", start, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
+        self._start = vector("start", start, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
         # eq. (7): the forcing term scales by the movement's own start
-        parameters = (
-            dmp.with_start(self._start) if isinstance(dmp, DiscreteDMP) else dmp
-        ).parameter_values()
-        self._function.set_inputs(np.zeros(dmp.signature.n_states), self.dt, *parameters)
-        self._goal = np.array(dmp._goal_input(), dtype=float)
-        if isinstance(dmp, RhythmicDMP):
-            canonical = dmp.canonical_state(phase)
-        else:
-            canonical = (0.0, 0.0)
-        velocity = _vector("start_velocity", start_velocity, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
-        rows = [self._start, dmp._initial_z(velocity, canonical)]
-        if dmp.form == "acceleration":
-            rows.append(self._start)
-        self._state = self._function.inputs[0]
-        self._state[:] = np.concatenate([canonical, *rows])
-        initial = symbolic.output_function(dmp.signature)(self._state, *parameters)
-        self.position, self.velocity, self.acceleration = (o.full().ravel() for o in initial)
+        own = dmp.with_start(self._start) if self._discrete else dmp
+        parameters = own.parameters()
+        canonical = (0.0, 0.0) if self._discrete else dmp.canonical_state(phase)
+        outputs = self._function.outputs
+        self._outputs = [outputs[name] for name in ("next_state", *symbolic.PLAN_OUTPUTS)]
+        self._state = self._function.inputs["state"]
+        self._state[:] = own.initial_state(self._start, start_velocity, canonical)
+        self._function.set_inputs(dt=self.dt, **parameters)
+        initial = symbolic.output_function(dmp.signature)(state=self._state, **parameters)
+        self.position, self.velocity, self.acceleration = (
+            initial[name].full().ravel() for name in symbolic.PLAN_OUTPUTS
+        )
 
     @property
     def compiled(self) -> bool:
@@ -82,59 +75,57 @@ class Stepper:
         return self._function.function.class_name() == "External"
 
     # -- inputs -------------------------------------------------------------------------
-    def _write(self, name: str, value) -> None:
-        self._function.inputs[_INPUT[name]][:] = np.ravel(value, order="F")
-
     def set_goal(self, goal) -> None:
         """New goal (discrete) or setpoint (rhythmic), effective from the next step."""
-        self._goal = _vector("goal", goal, self.dmp.n_dofs, f"{self.dmp.n_dofs} DOFs")
-        self._write("goal", self._goal)
-        if isinstance(self.dmp, DiscreteDMP):
-            self._write("forcing_weights", self.dmp.forcing_weights(self._start, self._goal))
+        goal = vector("goal", goal, self.dmp.n_dofs, f"{self.dmp.n_dofs} DOFs")
+        self._function.set_inputs(goal=goal)
+        if self._discrete:
+            weights = self.dmp.forcing_weights(self._start, goal)
+            self._function.set_inputs(forcing_weights=weights)
 
     set_setpoint = set_goal
 
-    def set_time_constant(self, time_constant: float) -> None:
+    def set_tau(self, tau: float) -> None:
         """New ``tau``: the rest of the movement runs faster (smaller) or slower.
 
         Refused if it puts the step ``dt`` beyond the stability limit, which is
         proportional to ``tau`` (:attr:`DiscreteDMP.max_step`).
         """
-        time_constant = _positive("time_constant", time_constant)
-        self._check_stable(time_constant, self._max_step_per_tau)
-        self._write("time_constant", time_constant)
+        tau = positive("tau", tau)
+        self._check_stable(tau, self._max_step_per_tau)
+        self._function.set_inputs(tau=tau)
 
-    def _check_stable(self, time_constant: float, max_step_per_tau: float) -> None:
-        limit = time_constant * max_step_per_tau
+    def _check_stable(self, tau: float, max_step_per_tau: float) -> None:
+        limit = tau * max_step_per_tau
         if self.dt > limit:
             raise InvalidInputError(
-                f"time_constant = {time_constant:.4g} s puts the step dt = {self.dt:.4g} s beyond "
-                f"the stability limit {limit:.4g} s of the integration; keep time_constant >= "
+                f"tau = {tau:.4g} s puts the step dt = {self.dt:.4g} s beyond the stability "
+                f"limit {limit:.4g} s of the integration; keep tau >= "
                 f"{self.dt / max_step_per_tau:.4g} s or build a stepper with a smaller dt"
             )
 
     def set_amplitude(self, amplitude: float) -> None:
         """New oscillation amplitude (rhythmic DMPs); the oscillator converges to it."""
-        if not isinstance(self.dmp, RhythmicDMP):
+        if self._discrete:
             raise InvalidInputError("set_amplitude applies to rhythmic DMPs; use set_goal")
-        scaled = self.dmp.replace(amplitude=_positive("amplitude", amplitude))
-        per_tau = scaled.max_step / scaled.time_constant
-        self._check_stable(self._function.inputs[_INPUT["time_constant"]][0], per_tau)
+        scaled = self.dmp.replace(amplitude=positive("amplitude", amplitude))
+        per_tau = scaled.max_step / scaled.tau
+        self._check_stable(self._function.inputs["tau"][0], per_tau)
         self._max_step_per_tau = per_tau
-        self._write("canonical_target", scaled._canonical_target())
+        self._function.set_inputs(canonical_target=scaled.parameters()["canonical_target"])
 
     def reset_phase(self, phase: float) -> None:
         """Jump the oscillator to ``phase`` [rad], keeping its amplitude (eq. (21))."""
-        if not isinstance(self.dmp, RhythmicDMP):
+        if self._discrete:
             raise InvalidInputError("reset_phase applies to rhythmic DMPs")
         phase = real("phase", phase)
         first, second = self._state[0], self._state[1]
         if self.dmp.form == "phase":
             self._state[0] = phase
         else:
-            amplitude = np.hypot(first, second / self.dmp.frequency)
+            amplitude = np.hypot(first, second / self.dmp.k)
             self._state[0] = amplitude * np.cos(phase)
-            self._state[1] = amplitude * self.dmp.frequency * np.sin(phase)
+            self._state[1] = amplitude * self.dmp.k * np.sin(phase)
 
     # -- state --------------------------------------------------------------------------
     @property
@@ -170,18 +161,18 @@ class Stepper:
                     f"coupling has shape {coupling.shape}, expected ({self.dmp.n_dofs},) "
                     "(one term per DOF) or a scalar"
                 )
-            self._write("coupling", coupling)
+            self._function.set_inputs(coupling=coupling)
         canonical_coupling = real("canonical_coupling", canonical_coupling)
-        self._function.inputs[_INPUT["canonical_coupling"]][0] = canonical_coupling
+        self._function.inputs["canonical_coupling"][0] = canonical_coupling
         self._function.evaluate()
-        next_state, position, velocity, acceleration = self._function.outputs
+        next_state, position, velocity, acceleration = self._outputs
         if not np.isfinite(next_state).all():
             raise InvalidInputError(
                 "the DMP state became non-finite; check the coupling terms and time constant"
             )
         self._state[:] = next_state
         if coupling is not None:
-            self._write("coupling", 0.0)
+            self._function.set_inputs(coupling=0.0)
         self.time += self.dt
         self.position, self.velocity, self.acceleration = (
             position.copy(),

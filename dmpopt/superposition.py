@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dmp import DiscreteDMP, RhythmicDMP, _positive
+from .dmp import DiscreteDMP, RhythmicDMP
 from .exceptions import InvalidInputError, ShapeError
 from .trajectory import Trajectory
+from .validation import positive
 
 
 def superpose(discrete: DiscreteDMP, rhythmic: RhythmicDMP, duration: float, dt: float = 0.001):
@@ -27,7 +28,7 @@ def superpose(discrete: DiscreteDMP, rhythmic: RhythmicDMP, duration: float, dt:
             f"discrete has {discrete.n_dofs} DOFs but rhythmic has {rhythmic.n_dofs}; "
             "they must drive the same DOFs"
         )
-    duration, dt = _positive("duration", duration), _positive("dt", dt)
+    duration, dt = positive("duration", duration), positive("dt", dt)
     setpoints = discrete.rollout(duration, dt).positions
     stepper = rhythmic.with_setpoint(setpoints[0]).stepper(dt, start=setpoints[0])
     samples = np.empty((3, len(setpoints), rhythmic.n_dofs))

@@ -50,17 +50,13 @@ FORMS = DISCRETE_FORMS + RHYTHMIC_FORMS
 KERNELS = ("gaussian", "von_mises", "paper")
 
 GAIN_NAMES = {
-    "velocity": ("stiffness", "damping", "phase_stiffness", "phase_damping"),
-    "acceleration": (
-        "stiffness",
-        "damping",
-        "phase_stiffness",
-        "phase_damping",
-        "goal_rate",
-    ),
-    "phase": ("stiffness", "damping", "amplitude_rate"),
-    "energy": ("stiffness", "damping", "energy_rate", "frequency"),
+    "velocity": ("alpha_z", "beta_z", "alpha_v", "beta_v"),
+    "acceleration": ("alpha_z", "beta_z", "alpha_v", "beta_v", "alpha_g"),
+    "phase": ("alpha_z", "beta_z", "alpha_r"),
+    "energy": ("alpha_z", "beta_z", "alpha_E", "k"),
 }
+"""The constants of each form, named after the paper's symbols (docs/glossary.md), in the
+order of the ``gains`` input of the compiled functions."""
 
 
 def n_transformation_states(form: str) -> int:
@@ -157,19 +153,14 @@ def canonical_rhs(form: str, canonical, target, gains, coupling):
     """
     first, second = canonical[0], canonical[1]
     if form in DISCRETE_FORMS:
-        phase_stiffness, phase_damping = gains[2], gains[3]
-        return ca.vertcat(
-            second, phase_stiffness * (phase_damping * (1 - first) - second) + coupling
-        )
+        alpha_v, beta_v = gains[2], gains[3]
+        return ca.vertcat(second, alpha_v * (beta_v * (1 - first) - second) + coupling)
     if form == "phase":
-        amplitude_rate = gains[2]
-        return ca.vertcat(1 + coupling, amplitude_rate * (target - second))
-    energy_rate, frequency = gains[2], gains[3]
-    energy = 0.5 * (second**2 + frequency**2 * first**2)
-    return ca.vertcat(
-        second,
-        -energy_rate * (energy - target) * second - frequency**2 * first + coupling,
-    )
+        alpha_r = gains[2]
+        return ca.vertcat(1 + coupling, alpha_r * (target - second))
+    alpha_e, k = gains[2], gains[3]
+    energy = 0.5 * (second**2 + k**2 * first**2)
+    return ca.vertcat(second, -alpha_e * (energy - target) * second - k**2 * first + coupling)
 
 
 def transformation_rhs(form: str, transformation, goal, forcing, gains, coupling):
@@ -182,26 +173,42 @@ def transformation_rhs(form: str, transformation, goal, forcing, gains, coupling
     Rhythmic forms use eq. (5) with ``goal`` the setpoint of the oscillation.
     """
     n = goal.shape[0]
-    stiffness, damping = gains[0], gains[1]
+    alpha_z, beta_z = gains[0], gains[1]
     y, z = transformation[:n], transformation[n : 2 * n]
     if form == "acceleration":
         r = transformation[2 * n :]
-        goal_rate = gains[4]
+        alpha_g = gains[4]
         return ca.vertcat(
             z,
-            stiffness * (damping * (r - y) - z) + forcing + coupling,
-            goal_rate * (goal - r),
+            alpha_z * (beta_z * (r - y) - z) + forcing + coupling,
+            alpha_g * (goal - r),
         )
-    return ca.vertcat(z + forcing, stiffness * (damping * (goal - y) - z) + coupling)
+    return ca.vertcat(z + forcing, alpha_z * (beta_z * (goal - y) - z) + coupling)
+
+
+PARAMETER_NAMES = (
+    "tau",
+    "goal",
+    "canonical_target",
+    "forcing_weights",
+    "centres",
+    "widths",
+    "gains",
+    "coupling",
+    "canonical_coupling",
+)
+"""Named inputs of every compiled function besides ``state`` (and ``dt``), in call order."""
+PLAN_OUTPUTS = ("position", "velocity", "acceleration")
+"""Outputs of the step and output functions, after ``next_state`` in the step's."""
 
 
 @dataclass(frozen=True)
 class Symbols:
-    """Symbolic inputs of one system, in the order of the compiled functions."""
+    """Symbolic inputs of one system: the state, the step and the parameters."""
 
     state: ca.SX
     dt: ca.SX
-    time_constant: ca.SX
+    tau: ca.SX
     goal: ca.SX
     canonical_target: ca.SX
     forcing_weights: ca.SX
@@ -211,32 +218,18 @@ class Symbols:
     coupling: ca.SX
     canonical_coupling: ca.SX
 
-    def parameters(self) -> list:
-        """Every input but the state and the step, in call order."""
-        return [
-            self.time_constant,
-            self.goal,
-            self.canonical_target,
-            self.forcing_weights,
-            self.centres,
-            self.widths,
-            self.gains,
-            self.coupling,
-            self.canonical_coupling,
-        ]
+    def parameters(self) -> dict:
+        """The parameter symbols by name, in :data:`PARAMETER_NAMES` order."""
+        return {name: getattr(self, name) for name in PARAMETER_NAMES}
 
 
-PARAMETER_NAMES = [
-    "time_constant",
-    "goal",
-    "canonical_target",
-    "forcing_weights",
-    "centres",
-    "widths",
-    "gains",
-    "coupling",
-    "canonical_coupling",
-]
+def parameters(**values) -> dict:
+    """Every parameter input by name: ``values`` where given, else ``tau = 1`` and zero (a
+    scalar fills a vector or matrix input)."""
+    unknown = sorted(set(values) - set(PARAMETER_NAMES))
+    if unknown:
+        raise ValueError(f"unknown parameters {unknown}; the parameters are {PARAMETER_NAMES}")
+    return {name: values.get(name, 1.0 if name == "tau" else 0.0) for name in PARAMETER_NAMES}
 
 
 def make_symbols(signature: Signature) -> Symbols:
@@ -245,7 +238,7 @@ def make_symbols(signature: Signature) -> Symbols:
     return Symbols(
         state=ca.SX.sym("state", signature.n_states),
         dt=ca.SX.sym("dt"),
-        time_constant=ca.SX.sym("time_constant"),
+        tau=ca.SX.sym("tau"),
         goal=ca.SX.sym("goal", d),
         canonical_target=ca.SX.sym("canonical_target"),
         forcing_weights=ca.SX.sym("forcing_weights", d, signature.n_features),
@@ -254,6 +247,18 @@ def make_symbols(signature: Signature) -> Symbols:
         gains=ca.SX.sym("gains", len(GAIN_NAMES[signature.form])),
         coupling=ca.SX.sym("coupling", d),
         canonical_coupling=ca.SX.sym("canonical_coupling"),
+    )
+
+
+def function(name: str, inputs: dict, outputs: dict, options=None) -> ca.Function:
+    """A ``casadi.Function`` whose inputs and outputs carry the names of the dicts' keys."""
+    return ca.Function(
+        name,
+        list(inputs.values()),
+        list(outputs.values()),
+        list(inputs),
+        list(outputs),
+        options or {},
     )
 
 
@@ -269,10 +274,10 @@ def system_rhs(signature: Signature, s: Symbols, state):
     transformation_rate = transformation_rhs(
         form, transformation, s.goal, forcing, s.gains, s.coupling
     )
-    return ca.vertcat(canonical_rate, transformation_rate) / s.time_constant
+    return ca.vertcat(canonical_rate, transformation_rate) / s.tau
 
 
-def plan_outputs(signature: Signature, s: Symbols):
+def plan_outputs(signature: Signature, s: Symbols) -> dict:
     """Position, velocity and acceleration of every DOF at the state ``s.state``.
 
     The acceleration is the derivative of the velocity along the flow (inputs held).
@@ -280,7 +285,49 @@ def plan_outputs(signature: Signature, s: Symbols):
     d = signature.n_dofs
     rate = system_rhs(signature, s, s.state)
     velocity = rate[2 : 2 + d]
-    return s.state[2 : 2 + d], velocity, ca.jtimes(velocity, s.state, rate)
+    return {
+        "position": s.state[2 : 2 + d],
+        "velocity": velocity,
+        "acceleration": ca.jtimes(velocity, s.state, rate),
+    }
+
+
+def forcing_target(form: str, transformation, velocity, acceleration, tau, goal, gains):
+    r"""The forcing term :math:`f` that gives the transformation system ``velocity`` and
+    ``acceleration`` at ``transformation``: eq. (5) or (10) solved for :math:`f`.
+
+    Velocity and rhythmic forms, eq. (15): :math:`f` enters :math:`\tau\dot y = z + f`, so
+    :math:`f = \tau \dot y - z` with the :math:`z` of ``transformation``.
+    Acceleration form, eq. (16): :math:`\tau \dot y = z` fixes :math:`z = \tau\dot y` and
+    :math:`f` enters :math:`\tau \dot z`: :math:`f = \tau^2 \ddot y - \alpha_z(\beta_z(r - y)
+    - \tau \dot y)`.
+    """
+    n = goal.shape[0]
+    if form == "acceleration":
+        transformation = ca.vertcat(transformation[:n], tau * velocity, transformation[2 * n :])
+        forced, rate = slice(n, 2 * n), tau**2 * acceleration
+    else:
+        forced, rate = slice(0, n), tau * velocity
+    unforced = transformation_rhs(form, transformation, goal, ca.SX.zeros(n), gains, 0.0)
+    return rate - unforced[forced]
+
+
+def filter_step(form: str, z, position, dt, tau, goal, gains):
+    r"""Exact step ``dt`` of :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` (eq. (5)
+    unforced) with the position :math:`y` held: the :math:`z` of eq. (15) along a
+    demonstration.
+
+    The equation is linear in :math:`z`, :math:`\dot z = a (z - z^*)`, so
+    :math:`z(dt) = e^{a\,dt} z + (1 - e^{a\,dt}) z^*`; :math:`a` and the equilibrium
+    :math:`z^*` are read off :func:`transformation_rhs`.
+    """
+    n = goal.shape[0]
+    zeros = ca.SX.zeros(n)
+    rate = transformation_rhs(form, ca.vertcat(position, z), goal, zeros, gains, 0.0)[n:] / tau
+    slope = ca.diag(ca.jacobian(rate, z))
+    equilibrium = -ca.substitute(rate, z, zeros) / slope
+    decay = ca.exp(slope * dt)
+    return decay * z + (1.0 - decay) * equilibrium
 
 
 # ---------------------------------------------------------------------------------------
@@ -290,10 +337,8 @@ def plan_outputs(signature: Signature, s: Symbols):
 
 @lru_cache(maxsize=64)
 def step_function(signature: Signature) -> ca.Function:
-    """One RK4 step: ``(state, dt, *parameters) -> (next_state, y, yd, ydd)``.
-
-    ``y, yd, ydd`` are evaluated at ``next_state``.
-    """
+    """One RK4 step: ``(state, dt, **parameters) -> (next_state, position, velocity,
+    acceleration)``, the last three at ``next_state``."""
     s = make_symbols(signature)
 
     def rate(x):
@@ -304,28 +349,23 @@ def step_function(signature: Signature) -> ca.Function:
     k3 = rate(s.state + 0.5 * s.dt * k2)
     k4 = rate(s.state + s.dt * k3)
     next_state = s.state + s.dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-    outputs = output_function(signature)(next_state, *s.parameters())
-    return ca.Function(
+    outputs = output_function(signature)(state=next_state, **s.parameters())  # a dict by name
+    return function(
         "dmp_step",
-        [s.state, s.dt, *s.parameters()],
-        [next_state, *outputs],
-        ["state", "dt", *PARAMETER_NAMES],
-        ["next_state", "position", "velocity", "acceleration"],
+        {"state": s.state, "dt": s.dt, **s.parameters()},
+        {"next_state": next_state, **{name: outputs[name] for name in PLAN_OUTPUTS}},
         {"cse": True},
     )
 
 
 @lru_cache(maxsize=64)
 def output_function(signature: Signature) -> ca.Function:
-    """``(state, *parameters) -> (y, yd, ydd)`` at one state."""
+    """``(state, **parameters) -> (position, velocity, acceleration)`` at one state."""
     s = make_symbols(signature)
-    position, velocity, acceleration = plan_outputs(signature, s)
-    return ca.Function(
+    return function(
         "dmp_outputs",
-        [s.state, *s.parameters()],
-        [position, velocity, acceleration],
-        ["state", *PARAMETER_NAMES],
-        ["position", "velocity", "acceleration"],
+        {"state": s.state, **s.parameters()},
+        plan_outputs(signature, s),
     )
 
 
@@ -349,90 +389,109 @@ def activation_function(signature: Signature) -> ca.Function:
 
 
 @lru_cache(maxsize=64)
-def rhs_function(signature: Signature) -> ca.Function:
-    """``(state, *parameters) -> dstate/dt`` (for tests and analysis)."""
+def forcing_target_function(signature: Signature) -> ca.Function:
+    """``(transformation, velocity, acceleration, tau, goal, gains) -> forcing`` at one sample
+    (:func:`forcing_target`); ``.map(n)`` evaluates a whole demonstration."""
     s = make_symbols(signature)
-    return ca.Function("dmp_rhs", [s.state, *s.parameters()], [system_rhs(signature, s, s.state)])
+    d = signature.n_dofs
+    transformation = ca.SX.sym("transformation", signature.n_states - 2)
+    velocity, acceleration = ca.SX.sym("velocity", d), ca.SX.sym("acceleration", d)
+    target = forcing_target(
+        signature.form, transformation, velocity, acceleration, s.tau, s.goal, s.gains
+    )
+    inputs = {"transformation": transformation, "velocity": velocity}
+    inputs |= {"acceleration": acceleration, "tau": s.tau, "goal": s.goal, "gains": s.gains}
+    return function("dmp_forcing_target", inputs, {"forcing": target})
+
+
+@lru_cache(maxsize=64)
+def filter_function(signature: Signature) -> ca.Function:
+    """``(z, position, dt, tau, goal, gains) -> next_z`` (:func:`filter_step`);
+    ``.mapaccum(n)`` runs it along a demonstration."""
+    s = make_symbols(signature)
+    d = signature.n_dofs
+    z, position = ca.SX.sym("z", d), ca.SX.sym("position", d)
+    following = filter_step(signature.form, z, position, s.dt, s.tau, s.goal, s.gains)
+    inputs = {"z": z, "position": position, "dt": s.dt}
+    inputs |= {"tau": s.tau, "goal": s.goal, "gains": s.gains}
+    return function("dmp_filter", inputs, {"next_z": following})
 
 
 @lru_cache(maxsize=32)
 def rollout_function(signature: Signature, n_steps: int) -> ca.Function:
-    """Whole rollout in one call: ``(initial_state, dt, *parameters) -> (Y, Yd, Ydd, states)``.
+    """Whole rollout in one call: ``(initial_state, dt, **parameters) -> (positions,
+    velocities, accelerations, states)``.
 
     Outputs are ``(n_dofs, n_steps)`` matrices, samples at ``k * dt`` for
     ``k = 0 .. n_steps - 1``; ``states`` is ``(n_states, n_steps)``.
     """
-    step = step_function(signature)
-    outputs = output_function(signature)
     s = make_symbols(signature)
     x0 = ca.MX.sym("initial_state", signature.n_states)
     dt = ca.MX.sym("dt")
-    params = [ca.MX.sym(name, p.shape) for name, p in zip(PARAMETER_NAMES, s.parameters())]
-    y0, yd0, ydd0 = outputs(x0, *params)
-    if n_steps == 1:
-        return ca.Function("dmp_rollout", [x0, dt, *params], [y0, yd0, ydd0, x0])
-
-    accumulated = step.mapaccum("dmp_accumulate", n_steps - 1)
-    states, ys, yds, ydds = accumulated(x0, dt, *params)
-    return ca.Function(
-        "dmp_rollout",
-        [x0, dt, *params],
-        [
-            ca.horzcat(y0, ys),
-            ca.horzcat(yd0, yds),
-            ca.horzcat(ydd0, ydds),
-            ca.horzcat(x0, states),
-        ],
-        ["initial_state", "dt", *PARAMETER_NAMES],
-        ["positions", "velocities", "accelerations", "states"],
+    params = {name: ca.MX.sym(name, p.shape) for name, p in s.parameters().items()}
+    first = output_function(signature)(state=x0, **params)
+    columns = [first["position"], first["velocity"], first["acceleration"], x0]
+    if n_steps > 1:
+        accumulated = step_function(signature).mapaccum("dmp_accumulate", n_steps - 1)
+        later = accumulated(state=x0, dt=dt, **params)
+        rows = ("position", "velocity", "acceleration", "next_state")
+        columns = [ca.horzcat(c, later[name]) for c, name in zip(columns, rows)]
+    names = ("positions", "velocities", "accelerations", "states")
+    return function(
+        "dmp_rollout", {"initial_state": x0, "dt": dt, **params}, dict(zip(names, columns))
     )
 
 
 class NumericFunction:
     """Low-overhead repeated evaluation of a ``casadi.Function`` on numpy buffers.
 
-    Inputs and outputs live in preallocated float64 arrays (``inputs[i]``,
-    ``outputs[i]``, flattened column-major); ``evaluate()`` runs the function on them
+    Inputs and outputs live in preallocated float64 arrays (``inputs[name]``,
+    ``outputs[name]``, flattened column-major); ``evaluate()`` runs the function on them
     in about a microsecond of call overhead, which the online stepper needs.
     """
 
     def __init__(self, function: ca.Function):
         self.function = function
-        self.inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
-        self.outputs = [np.zeros(function.nnz_out(i)) for i in range(function.n_out())]
+        self.inputs = {
+            function.name_in(i): np.zeros(function.nnz_in(i)) for i in range(function.n_in())
+        }
+        self.outputs = {
+            function.name_out(i): np.zeros(function.nnz_out(i)) for i in range(function.n_out())
+        }
         self._buffer, self._evaluate = function.buffer()
-        for i, array in enumerate(self.inputs):
+        for i, array in enumerate(self.inputs.values()):
             self._buffer.set_arg(i, memoryview(array))
-        for i, array in enumerate(self.outputs):
+        for i, array in enumerate(self.outputs.values()):
             self._buffer.set_res(i, memoryview(array))
 
-    def set_inputs(self, *values) -> None:
-        """Copy ``values`` (in input order) into the input buffers."""
-        for array, value in zip(self.inputs, values):
-            array[:] = np.ravel(value, order="F")
+    def set_inputs(self, **values) -> None:
+        """Copy ``values`` into the input buffers of those names."""
+        for name, value in values.items():
+            self.inputs[name][:] = np.ravel(value, order="F")
 
     def evaluate(self) -> None:
         """Evaluate on the current input buffers, writing the output buffers."""
         self._evaluate()
 
 
-def simulate(signature: Signature, n_steps: int, initial_state, dt: float, parameters: list):
-    """Integrate ``n_steps - 1`` RK4 steps from ``initial_state``.
+def simulate(signature: Signature, n_steps: int, initial_state, dt: float, parameters: dict):
+    """Integrate ``n_steps - 1`` RK4 steps from ``initial_state`` (``parameters`` by name).
 
     Returns ``(states, positions, velocities, accelerations)`` with shapes
     ``(n_steps, n_states)`` and ``(n_steps, n_dofs)``; samples at ``k * dt``.
     """
     d = signature.n_dofs
     step = NumericFunction(step_function(signature))
-    outputs = output_function(signature)(initial_state, *parameters)
+    first = output_function(signature)(state=initial_state, **parameters)
     states = np.empty((n_steps, signature.n_states))
     plan = np.empty((3, n_steps, d))
     states[0] = initial_state
-    for i, value in enumerate(outputs):
-        plan[i, 0] = value.full().ravel()
-    step.set_inputs(initial_state, dt, *parameters)
-    state_in = step.inputs[0]
-    next_state, position, velocity, acceleration = step.outputs
+    names = ("position", "velocity", "acceleration")
+    for i, name in enumerate(names):
+        plan[i, 0] = first[name].full().ravel()
+    step.set_inputs(state=initial_state, dt=dt, **parameters)
+    state_in, next_state = step.inputs["state"], step.outputs["next_state"]
+    position, velocity, acceleration = (step.outputs[name] for name in names)
     for k in range(1, n_steps):
         step.evaluate()
         state_in[:] = next_state

@@ -234,3 +234,19 @@ def check_resources(what: str, n_bytes: float, remedy: str, n_samples: int | Non
             bounds = f"{MAX_SAMPLES:.3g} samples (dmpopt.validation.MAX_SAMPLES) and {bounds}"
             needs = f"{n_samples:.3g} samples and {needs}"
         raise ResourceLimitError(f"{what} needs {needs}; dmpopt allows at most {bounds}: {remedy}")
+
+
+def positive(name: str, value) -> float:
+    """``value`` as a finite float ``> 0``."""
+    return real(name, value, minimum=0.0, open_minimum=True)
+
+
+def vector(name: str, value, size: int, reference: str) -> np.ndarray:
+    """``value`` as a float vector of ``size`` entries (a scalar or one entry fills it);
+    ``reference`` says what fixes the size, for the error message."""
+    array = np.atleast_1d(real_array(name, value, empty=True))
+    if array.shape == (1,) and size > 1:
+        array = np.full(size, array[0])
+    if array.shape != (size,):
+        raise ShapeError(f"{name} has shape {array.shape}, expected ({size},) to match {reference}")
+    return array

@@ -198,7 +198,7 @@ def walk(
     stepper = dmp.stepper(
         CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
     )
-    stepper.set_time_constant(1.0 / frequency)
+    stepper.set_tau(1.0 / frequency)
     q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
     q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
     sim = make_simulator(biped, backend)
@@ -258,7 +258,7 @@ def walk(
                     phase, new_frequency = adaptation.on_heel_strike(strike)
                     if phase is not None:
                         stepper.reset_phase(phase)
-                    stepper.set_time_constant(1.0 / new_frequency)
+                    stepper.set_tau(1.0 / new_frequency)
                     log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
             if k % log_every == 0:
                 log.times.append(state.t)
@@ -312,7 +312,7 @@ def make_simulator(biped: RobotModel, backend: str):
 
 def _limit_cycle_start(dmp, frequency: float) -> tuple[np.ndarray, np.ndarray]:
     """Position and velocity of the DMP's limit cycle at phase 0 (the right heel strike)."""
-    plan = dmp.with_time_constant(1.0 / frequency).rollout(
+    plan = dmp.with_tau(1.0 / frequency).rollout(
         duration=3 * 2 * np.pi / frequency, dt=DT
     )
     return plan.positions[-1], plan.velocities[-1]

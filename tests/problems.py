@@ -18,7 +18,7 @@ def random_discrete(seed=0, n_dofs=2, n_basis=20, form="velocity", scale=50.0, *
         weights=scale * rng.normal(size=(n_dofs, n_basis)),
         start=start,
         goal=goal,
-        time_constant=0.4,
+        tau=0.4,
         centres=centres,
         widths=widths,
         form=form,
@@ -36,7 +36,7 @@ def random_rhythmic(seed=0, n_dofs=2, n_basis=12, form="phase", **fields):
     options = dict(
         weights=rng.normal(size=(n_dofs, n_basis, 2)),
         setpoint=rng.normal(size=n_dofs),
-        time_constant=0.15,
+        tau=0.15,
         centres=centres,
         widths=widths,
         form=form,

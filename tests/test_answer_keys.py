@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from problems import minimum_jerk_demo, periodic_demo, random_discrete
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
@@ -30,7 +31,8 @@ from dmpopt import (
 )
 from dmpopt import io as dmpopt_io
 from dmpopt.basis import convergence_time, discrete_basis, discrete_phase, rhythmic_basis
-from dmpopt.fitting import fit_discrete, minimum_jerk, minimum_jerk_via_points
+from dmpopt.fitting import fit_discrete, fit_rhythmic, minimum_jerk, minimum_jerk_via_points
+from dmpopt.fitting.imitation import _filtered, forcing_targets
 from dmpopt.stepper import Stepper
 
 ALPHA = 25.0  # alpha_z = alpha_v, the paper's typical value
@@ -207,7 +209,7 @@ def rhythmic_case(form, seed=0, n_basis=8, tau=0.15, amplitude=1.3, n_dofs=2, ke
     setpoint = rng.normal(size=n_dofs)
     dmp = RhythmicDMP(
         weights, setpoint, tau, centres, widths, form=form, amplitude=amplitude,
-        kernel=kernel, frequency=1.5,
+        kernel=kernel, k=1.5,
     )  # fmt: skip
     target = amplitude if form == "phase" else 0.5 * (1.5 * amplitude) ** 2
     eq = Equations(
@@ -465,18 +467,18 @@ def test_random_discrete_systems_match_plain_equations(seed, tau, scale, form):
     start=st.floats(-5, 5),
     goal=st.floats(-5, 5),
     start_velocity=st.floats(-3, 3),
-    stiffness=st.floats(5.0, 60.0),
+    alpha_z=st.floats(5.0, 60.0),
 )
-def test_unforced_velocity_form_is_critically_damped(tau, start, goal, start_velocity, stiffness):
+def test_unforced_velocity_form_is_critically_damped(tau, start, goal, start_velocity, alpha_z):
     """w = 0, eq. (5): e = y - g solves e'' + 2 w e' + w^2 e = 0, w = alpha_z / (2 tau),
     so e(t) = (e0 + (e0' + w e0) t) exp(-w t)."""
     dmp = DiscreteDMP(
         np.zeros((1, 3)), start, goal, tau, np.zeros(3), np.ones(3),
-        goal_scaling="translation", stiffness=stiffness,
+        goal_scaling="translation", alpha_z=alpha_z,
     )  # fmt: skip
     dt = 1e-3 * tau
     plan = dmp.rollout(2.0 * tau, dt, start_velocity=start_velocity)
-    t, w, e0, de0 = plan.times, stiffness / (2 * tau), start - goal, start_velocity
+    t, w, e0, de0 = plan.times, alpha_z / (2 * tau), start - goal, start_velocity
     decay = np.exp(-w * t)
     e = (e0 + (de0 + w * e0) * t) * decay
     de = (de0 - w * (de0 + w * e0) * t) * decay
@@ -631,8 +633,8 @@ def test_lwr_weights_are_per_basis_weighted_least_squares():
 
     w = ALPHA / 2
     crossing = brentq(lambda s: (1 + w * s + (w * s) ** 2 / 2) * np.exp(-w * s) - 0.05, 1e-3, 9)
-    assert dmp.time_constant == pytest.approx(duration / crossing, rel=8e-8)  # measured 2e-8
-    tau = dmp.time_constant  # the regression is sensitive to tau: isolate it
+    assert dmp.tau == pytest.approx(duration / crossing, rel=8e-8)  # measured 2e-8
+    tau = dmp.tau  # the regression is sensitive to tau: isolate it
     phase = canonical_phase(t, tau)
     phase_velocity = (ALPHA / 2) ** 2 * (t / tau) * np.exp(-(ALPHA / 2) * t / tau)
     r = goal + (start - goal) * np.exp(-(ALPHA / 2) * t / tau)[:, None]
@@ -660,7 +662,7 @@ def test_discrete_defaults_sample_every_millisecond_until_convergence(form):
     w = ALPHA / 2
     poles = (lambda s: 1 + s) if form == "velocity" else (lambda s: 1 + s + s**2 / 2)
     reached = [brentq(lambda t: poles(w * t) * np.exp(-w * t) - f, 1e-3, 20) for f in (0.05, 1e-4)]
-    end = dmp.time_constant * sum(reached)
+    end = dmp.tau * sum(reached)
     for times in (dmp.rollout().times, dmp.affine_plan().times):
         assert times[1] - times[0] == pytest.approx(1e-3, rel=1e-12)
         assert times[-1] == pytest.approx(end, abs=0.5e-3 + 1e-7)
@@ -672,7 +674,7 @@ def test_rhythmic_defaults_are_three_periods_from_the_setpoint_at_phase_zero(for
     """Period 2 pi tau (phase) or 2 pi tau / k (energy); the default plan starts at rest at
     the setpoint with the oscillator at phase 0: (0, A) or (A, 0)."""
     dmp, _ = rhythmic_case(form, seed=8)
-    period = 2 * np.pi * dmp.time_constant / (1.0 if form == "phase" else 1.5)
+    period = 2 * np.pi * dmp.tau / (1.0 if form == "phase" else 1.5)
     for plan in (dmp.rollout(), dmp.affine_plan().trajectory(dmp.forcing_weights())):
         assert plan.times[1] - plan.times[0] == pytest.approx(1e-3, rel=1e-12)
         assert plan.times[-1] == pytest.approx(3 * period, abs=0.5e-3 + 1e-9)
@@ -796,3 +798,77 @@ def test_a_one_element_coupling_applies_to_every_dof():
         np.testing.assert_array_equal(
             one.step(coupling=[5.0])[0], each.step(coupling=[5.0, 5.0])[0]
         )
+
+
+# --- imitation targets, eqs. (15) and (16) ----------------------------------------------
+
+
+def _unit_dmp(demo, form, alpha_z, tau):
+    """A zero-weight DMP with the demo's start and goal (the fits' template)."""
+    return random_discrete(
+        n_dofs=demo.n_dofs,
+        form=form,
+        scale=0.0,
+        start=demo.positions[0],
+        goal=demo.positions[-1],
+        tau=tau,
+        alpha_z=alpha_z,
+        goal_scaling="translation",
+        reference_displacement=None,
+    )
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    alpha_z=st.floats(5.0, 60.0),
+    tau=st.floats(0.05, 2.0),
+)
+def test_velocity_form_targets_are_eq_15(seed, alpha_z, tau):
+    """f = tau yd - z, tau zdot = alpha_z (beta_z (g - y) - z), beta_z = alpha_z / 4, z(0) =
+    tau yd(0), integrated exactly over each step with y held at the step's midpoint."""
+    demo = minimum_jerk_demo(seed=seed)
+    dmp = _unit_dmp(demo, "velocity", alpha_z, tau)
+    y, yd, g = demo.positions, demo.velocities, demo.positions[-1]
+    beta_z = alpha_z / 4
+    z = np.empty_like(y)
+    z[0] = tau * yd[0]
+    for k in range(demo.n_steps - 1):
+        decay = np.exp(-alpha_z * (demo.times[k + 1] - demo.times[k]) / tau)
+        held = beta_z * (g - 0.5 * (y[k] + y[k + 1]))  # z at rest for this y
+        z[k + 1] = decay * z[k] + (1 - decay) * held
+    expected = tau * yd - z
+    actual = forcing_targets(dmp, demo, states=None)
+    np.testing.assert_allclose(actual, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+
+
+def test_acceleration_form_targets_are_eq_16():
+    """f = tau^2 ydd - alpha_z (beta_z (r - y) - tau yd), with the goal filter of eq. (10)
+    from r(0) = y(0): r(t) = g + (y(0) - g) exp(-alpha_g t / tau), alpha_g = alpha_z / 2."""
+    demo = minimum_jerk_demo(seed=4)
+    tau, alpha_z = 0.3, 40.0
+    dmp = _unit_dmp(demo, "acceleration", alpha_z, tau)
+    y, yd, ydd, g = demo.positions, demo.velocities, demo.accelerations, demo.positions[-1]
+    t = demo.times - demo.times[0]
+    r = g + (y[0] - g) * np.exp(-alpha_z / 2 * t / tau)[:, None]
+    expected = tau**2 * ydd - alpha_z * (alpha_z / 4 * (r - y) - tau * yd)
+    states = np.hstack([np.zeros((demo.n_steps, 2 + 2 * demo.n_dofs)), r])  # only r is read
+    actual = forcing_targets(dmp, demo, states)
+    np.testing.assert_allclose(actual, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_periodic_filter_starts_on_its_steady_cycle():
+    """Eq. (15) on a periodic demo: two passes of the exact filter, the second from where the
+    first ended; the first sample takes the second pass's end (a plain loop as answer key)."""
+    demo = periodic_demo()
+    unit = fit_rhythmic(demo, 8, period=0.8).replace(weights=np.zeros((demo.n_dofs, 8, 2)))
+    tau, alpha_z = unit.tau, unit.alpha_z
+    y, g = demo.positions, unit.setpoint
+    z = np.empty_like(y)
+    z[0] = tau * demo.velocities[0]
+    for _ in range(2):
+        for k in range(demo.n_steps - 1):
+            decay = np.exp(-alpha_z * (demo.times[k + 1] - demo.times[k]) / tau)
+            z[k + 1] = decay * z[k] + (1 - decay) * alpha_z / 4 * (g - 0.5 * (y[k] + y[k + 1]))
+        z[0] = z[-1]
+    np.testing.assert_allclose(_filtered(unit, demo, periodic=True), z, rtol=1e-13, atol=1e-13)

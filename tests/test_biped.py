@@ -90,7 +90,7 @@ def test_phase_reset_sets_the_dmp_phase_per_eq_21(gait):
     for time, leg, expected in ((0.123, 1, np.pi), (0.6, 0, 0.0)):
         phase, frequency = adaptation.on_heel_strike(HeelStrike(time, leg, np.zeros(3)))
         stepper.reset_phase(phase)
-        stepper.set_time_constant(1.0 / frequency)
+        stepper.set_tau(1.0 / frequency)
         assert stepper.phase == pytest.approx(expected)
     stepper.step()
     assert stepper.phase == pytest.approx(frequency * 1e-3)

@@ -1,13 +1,18 @@
 """Properties of the DMP systems: invariances (Section 3.3), convergence, limit cycles."""
 
+import ast
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import DiscreteDMP, InvalidInputError, ShapeError, symbolic
+from dmpopt import DiscreteDMP, InvalidInputError, ShapeError, Stepper, stepper, symbolic
 from dmpopt.basis import discrete_phase
+from dmpopt.dmp import goal_transform
 
 
 def test_canonical_phase_matches_closed_form():
@@ -25,9 +30,7 @@ def test_rollout_equals_direct_integration(form):
     plan = dmp.rollout(0.6, 0.002)
     rows = [dmp.start, np.zeros(3)] + ([dmp.start] if form == "acceleration" else [])
     initial = np.concatenate([[0.0, 0.0], *rows])
-    _, y, yd, ydd = symbolic.simulate(
-        dmp.signature, plan.n_steps, initial, 0.002, dmp.parameter_values()
-    )
+    _, y, yd, ydd = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.002, dmp.parameters())
     np.testing.assert_allclose(plan.positions, y, atol=1e-12)
     np.testing.assert_allclose(plan.velocities, yd, atol=1e-10)
     np.testing.assert_allclose(plan.accelerations, ydd, atol=1e-8)
@@ -54,22 +57,22 @@ def test_goal_scaling_from_zero_start_scales_plan(form):
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
 @pytest.mark.parametrize("scaled_start_velocity", [0.0, [1.5, -0.7]])
-def test_time_constant_scaling_stretches_time_exactly(form, scaled_start_velocity):
+def test_tau_scaling_stretches_time_exactly(form, scaled_start_velocity):
     """tau -> c tau with dt -> c dt gives the same positions at times scaled by c, also for a
     plan that starts moving (its start velocity is divided by c)."""
     dmp = random_discrete(seed=4, form=form, scaled_start_velocity=scaled_start_velocity)
     c = 1.9
     plan = dmp.rollout(0.5, 0.001)
-    slow = dmp.with_time_constant(c * dmp.time_constant).rollout(c * 0.5, c * 0.001)
+    slow = dmp.with_tau(c * dmp.tau).rollout(c * 0.5, c * 0.001)
     np.testing.assert_allclose(slow.times, c * plan.times, rtol=1e-12)
     np.testing.assert_allclose(slow.positions, plan.positions, atol=1e-12)
     np.testing.assert_allclose(slow.velocities, plan.velocities / c, atol=1e-10)
 
 
-def test_time_constant_scaling_at_fixed_step_is_accurate():
+def test_tau_scaling_at_fixed_step_is_accurate():
     dmp = random_discrete(seed=5)
     plan = dmp.rollout(0.5, 0.0005)
-    slow = dmp.with_time_constant(2 * dmp.time_constant).rollout(1.0, 0.0005)
+    slow = dmp.with_tau(2 * dmp.tau).rollout(1.0, 0.0005)
     np.testing.assert_allclose(slow.positions[::2], plan.positions, atol=2e-6)
 
 
@@ -93,7 +96,7 @@ def test_rotation_scaling_maps_plan(angle, scale):
     moved = dmp.with_goal(goal).rollout(0.6)
     expected = dmp.start + (plan.positions - dmp.start) @ rotation.T
     np.testing.assert_allclose(moved.positions, expected, atol=1e-9 * max(1.0, scale))
-    np.testing.assert_allclose(moved.velocities[0], rotation @ [0.8, -0.5] / dmp.time_constant)
+    np.testing.assert_allclose(moved.velocities[0], rotation @ [0.8, -0.5] / dmp.tau)
 
 
 def test_paper_scaling_scales_each_dof():
@@ -128,7 +131,7 @@ def test_translation_moves_plan_by_at_most_the_goal_change(form):
     np.testing.assert_allclose(change, np.outer(response, delta), atol=1e-12)
     assert np.all(response >= -1e-12) and np.all(response <= 1 + 1e-12)
     if form == "velocity":
-        s = dmp.stiffness * np.arange(len(plan)) * 0.001 / (2 * dmp.time_constant)
+        s = dmp.alpha_z * np.arange(len(plan)) * 0.001 / (2 * dmp.tau)
         np.testing.assert_allclose(response, 1 - (1 + s) * np.exp(-s), atol=1e-8)
 
 
@@ -138,7 +141,7 @@ def test_default_duration_is_the_settling_time():
     from scipy.optimize import brentq
 
     dmp = random_discrete(seed=16)
-    rate = dmp.stiffness / (2 * dmp.time_constant)
+    rate = dmp.alpha_z / (2 * dmp.tau)
     reached = [brentq(lambda s: (1 + s) * np.exp(-s) - (1 - f), 0.1, 50) for f in (0.95, 0.9999)]
     assert dmp.convergence_time == pytest.approx(reached[0] / rate, rel=1e-5)
     assert dmp.settling_time == pytest.approx(sum(reached) / rate, rel=1e-5)
@@ -201,7 +204,7 @@ def test_amplitude_scales_oscillation(form, tolerance):
 def test_rhythmic_time_scaling_and_setpoint_translation(form):
     dmp = random_rhythmic(seed=2, form=form)
     plan = dmp.rollout(1.0, 0.001)
-    slow = dmp.with_time_constant(2 * dmp.time_constant).rollout(2.0, 0.002)
+    slow = dmp.with_tau(2 * dmp.tau).rollout(2.0, 0.002)
     np.testing.assert_allclose(slow.positions, plan.positions, atol=1e-12)
     moved = dmp.with_setpoint(dmp.setpoint + 1.5).rollout(1.0, 0.001)
     np.testing.assert_allclose(moved.positions, plan.positions + 1.5, atol=1e-12)
@@ -218,7 +221,7 @@ def test_limit_cycle_attracts_perturbed_state(form):
     if form == "phase":
         perturbed[0] = reference[0]  # the phase itself has no restoring force
     runs = [
-        symbolic.simulate(dmp.signature, n, x0, 0.001, dmp.parameter_values())
+        symbolic.simulate(dmp.signature, n, x0, 0.001, dmp.parameters())
         for x0 in (reference, perturbed)
     ]
     period_steps = int(round(dmp.period / 0.001))
@@ -233,7 +236,7 @@ def test_limit_cycle_attracts_perturbed_state(form):
                 atol=2e-3,
             )
         x, v = runs[1][0][-1, :2]
-        energy = 0.5 * (v**2 + dmp.frequency**2 * x**2)
+        energy = 0.5 * (v**2 + dmp.k**2 * x**2)
         assert abs(energy - 0.5 * dmp.amplitude**2) < 1e-6
 
 
@@ -260,8 +263,8 @@ def test_affine_plan_matches_rollout():
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"time_constant": 0.0}, "time_constant must be a finite number > 0, got"),
-        ({"time_constant": -1.0}, "time_constant must be a finite number > 0, got"),
+        ({"tau": 0.0}, "tau must be a finite number > 0, got"),
+        ({"tau": -1.0}, "tau must be a finite number > 0, got"),
         ({"goal": np.zeros(3)}, r"goal has shape \(3,\), expected \(2,\)"),
         ({"weights": np.full((2, 20), np.nan)}, "weights contains 40 NaN"),
         ({"form": "jerk"}, "form must be one of"),
@@ -304,15 +307,13 @@ def test_symbolic_rollout_function_matches_numeric_integration(form):
     )
     n = 200
     canonical = (0.0, 0.0) if form == "acceleration" else dmp.canonical_state(0.0)
-    rows = [dmp._goal_input(), np.zeros(2)]
+    rows = [dmp.parameters()["goal"], np.zeros(2)]
     rows += [rows[0]] if form == "acceleration" else []
     initial = np.concatenate([canonical, *rows])
-    positions = (
-        symbolic.rollout_function(dmp.signature, n)(initial, 0.002, *dmp.parameter_values())[0]
-        .full()
-        .T
-    )
-    stepped = symbolic.simulate(dmp.signature, n, initial, 0.002, dmp.parameter_values())[1]
+    rollout = symbolic.rollout_function(dmp.signature, n)
+    positions = rollout(initial_state=initial, dt=0.002, **dmp.parameters())["positions"]
+    positions = positions.full().T
+    stepped = symbolic.simulate(dmp.signature, n, initial, 0.002, dmp.parameters())[1]
     np.testing.assert_allclose(positions, stepped, atol=1e-12)
 
 
@@ -320,6 +321,117 @@ def test_phase_features_sum_to_the_phase_velocity():
     """Normalised activations sum to one, so the features of eq. (7) sum to v (eq. 6)."""
     dmp = random_discrete(seed=13)
     features = dmp.phase_features(300, 0.002)
-    s = dmp.phase_stiffness * np.arange(300) * 0.002 / (2 * dmp.time_constant)
-    velocity = dmp.phase_stiffness / 2 * s * np.exp(-s)  # d/dt' of 1 - (1 + s) e^-s, tau = 1
+    s = dmp.alpha_v * np.arange(300) * 0.002 / (2 * dmp.tau)
+    velocity = dmp.alpha_v / 2 * s * np.exp(-s)  # d/dt' of 1 - (1 + s) e^-s, tau = 1
     np.testing.assert_allclose(features.sum(axis=1), velocity, atol=1e-5)  # RK4, dt/tau = 0.005
+
+
+@pytest.mark.parametrize(
+    "former, new, form",
+    [
+        ("time_constant", "tau", "velocity"),
+        ("stiffness", "alpha_z", "velocity"),
+        ("damping", "beta_z", "acceleration"),
+        ("phase_stiffness", "alpha_v", "velocity"),
+        ("phase_damping", "beta_v", "velocity"),
+        ("goal_rate", "alpha_g", "acceleration"),
+        ("amplitude_rate", "alpha_r", "phase"),
+        ("amplitude_rate", "alpha_E", "energy"),
+        ("frequency", "k", "energy"),
+    ],
+)
+def test_a_former_field_name_is_refused_with_the_new_one(former, new, form):
+    """One name per concept: the old names (stiffness/damping now mean Kp/Kd of control)."""
+    dmp = random_rhythmic(form=form) if form in ("phase", "energy") else random_discrete(form=form)
+    message = f"no field '{former}': it is now '{new}'.*pass {new}=2.5"
+    with pytest.raises(InvalidInputError, match=message):
+        dmp.replace(**{former: 2.5})
+    fields = {f.name: getattr(dmp, f.name) for f in dataclasses.fields(dmp) if f.init}
+    with pytest.raises(InvalidInputError, match=message):
+        type(dmp)(**fields, **{former: 2.5})
+
+
+def test_goal_transform_maps_the_reference_onto_the_new_displacement():
+    """ "rotation": a rotation times a uniform scale with M d = d'; "paper": diag(d' / d);
+    "translation": the identity."""
+    rng = np.random.default_rng(3)
+    reference, displacement = rng.normal(size=4), rng.normal(size=4)
+    rotation = goal_transform("rotation", reference, displacement)
+    np.testing.assert_allclose(rotation @ reference, displacement, atol=1e-12)
+    scale = np.linalg.norm(displacement) / np.linalg.norm(reference)
+    np.testing.assert_allclose(rotation.T @ rotation, scale**2 * np.eye(4), atol=1e-12)
+    assert np.linalg.det(rotation) > 0  # a rotation, not a reflection
+    paper = goal_transform("paper", reference, displacement)
+    np.testing.assert_allclose(paper, np.diag(displacement / reference), rtol=1e-15)
+    assert np.array_equal(goal_transform("translation", reference, displacement), np.eye(4))
+    with pytest.raises(InvalidInputError, match="goal_scaling must be one of"):
+        goal_transform("auto", reference, displacement)
+
+
+def test_goal_map_of_a_dmp_is_its_goal_transform():
+    """The DMP's own map: "paper" weights are stored per unit of goal - start."""
+    dmp = random_discrete(seed=8)
+    new_goal = dmp.goal + np.array([0.3, -0.7])
+    displacement = new_goal - dmp.start
+    rotation = goal_transform("rotation", dmp.reference_displacement, displacement)
+    np.testing.assert_array_equal(dmp.goal_map(goal=new_goal), rotation)
+    paper = dmp.replace(goal_scaling="paper", reference_displacement=None)
+    np.testing.assert_array_equal(paper.goal_map(goal=new_goal), np.diag(displacement))
+
+
+def test_the_stepper_does_not_import_the_dmp_module():
+    """No import cycle dmp <-> stepper: dmp.py imports the stepper, never the reverse."""
+    tree = ast.parse(Path(stepper.__file__).read_text())
+    imported = {
+        node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+    } | {
+        alias.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Import)
+        for alias in node.names
+    }
+    assert not any(name.endswith("dmp") for name in imported), imported
+
+
+def test_a_stepper_refuses_what_is_not_a_dmp():
+    with pytest.raises(InvalidInputError, match="dmp must be a DiscreteDMP or RhythmicDMP, got"):
+        Stepper(object(), 0.001, [0.0])
+
+
+def test_similarity_transform_of_unit_and_zero_targets():
+    """A unit-length target is an ordinary one; a zero target (goal = start) maps to zero."""
+    source = np.array([3.0, 4.0])
+    target = np.array([0.6, -0.8])  # norm exactly 1
+    matrix = goal_transform("rotation", source, target)
+    np.testing.assert_allclose(matrix @ source, target, atol=1e-15)
+    np.testing.assert_array_equal(goal_transform("rotation", source, np.zeros(2)), np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize("n_dofs", [2, 3, 5])
+def test_similarity_transform_half_turn(n_dofs):
+    """Opposite vectors: a half turn in a plane containing them (a rotation, det = +1)."""
+    source = np.random.default_rng(n_dofs).normal(size=n_dofs)
+    matrix = goal_transform("rotation", source, -2.0 * source)
+    np.testing.assert_allclose(matrix @ source, -2.0 * source, atol=1e-12)
+    np.testing.assert_allclose(matrix.T @ matrix, 4.0 * np.eye(n_dofs), atol=1e-12)
+    assert np.linalg.det(matrix / 2.0) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("target, expected", [(3.0, 1.5), (-3.0, -1.5)])
+def test_similarity_transform_in_one_dimension_is_a_signed_scale(target, expected):
+    matrix = goal_transform("rotation", np.array([2.0]), np.array([target]))
+    np.testing.assert_array_equal(matrix, [[expected]])
+
+
+def test_symbolic_parameters_refuse_an_unknown_name():
+    assert symbolic.parameters(goal=2.0)["tau"] == 1.0
+    with pytest.raises(ValueError, match=r"unknown parameters \['time_constant'\]"):
+        symbolic.parameters(time_constant=1.0)
+
+
+def test_half_turn_along_a_coordinate_axis():
+    """The helper axis of the half turn is the one least aligned with the vectors, never
+    the axis they lie on."""
+    matrix = goal_transform("rotation", np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]))
+    np.testing.assert_allclose(matrix @ [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(matrix.T @ matrix, np.eye(3), atol=1e-15)

@@ -66,7 +66,7 @@ def test_fig4_modification_converges_to_new_limit_cycle(dmps, name):
         )
     if name == "frequency":
         rate = np.gradient(plan["elbow_phase"], times)
-        assert rate[late].mean() == pytest.approx(2 / dmps.elbow.time_constant, rel=1e-3)
+        assert rate[late].mean() == pytest.approx(2 / dmps.elbow.tau, rel=1e-3)
 
 
 def test_elbow_relocks_to_the_shared_oscillator(dmps):

@@ -76,7 +76,7 @@ def test_fit_is_invariant_to_time_scaling_of_the_demo():
     slow = Trajectory.from_positions(3 * demo.times, demo.positions)
     fast_dmp, slow_dmp = fit_discrete(demo, 20), fit_discrete(slow, 20)
     np.testing.assert_allclose(slow_dmp.weights, fast_dmp.weights, rtol=1e-6, atol=1e-9)
-    assert slow_dmp.time_constant == pytest.approx(3 * fast_dmp.time_constant, rel=1e-12)
+    assert slow_dmp.tau == pytest.approx(3 * fast_dmp.tau, rel=1e-12)
 
 
 def test_fit_to_accuracy_picks_fewest_bases():

@@ -57,7 +57,7 @@ def test_newer_version_is_refused(tmp_path):
     header["version"] = 99
     contents["header"] = np.array(json.dumps(header))
     np.savez(path, **contents)
-    with pytest.raises(FileFormatError, match="format version 99; this dmpopt reads version 1"):
+    with pytest.raises(FileFormatError, match="format version 99; this dmpopt reads version 2"):
         load(path)
 
 
@@ -68,11 +68,11 @@ def _every_field_non_default():
         form="acceleration",
         goal_scaling="paper",
         reference_displacement=np.array([0.25, -1.5]),
-        stiffness=30.0,
-        damping=7.0,
-        phase_stiffness=20.0,
-        phase_damping=4.0,
-        goal_rate=11.0,
+        alpha_z=30.0,
+        beta_z=7.0,
+        alpha_v=20.0,
+        beta_v=4.0,
+        alpha_g=11.0,
     )
     for field in dataclasses.fields(dmp):
         if field.init and field.default is not dataclasses.MISSING:
@@ -115,10 +115,10 @@ def test_an_older_file_without_a_later_field_loads_with_its_default(tmp_path):
     with np.load(path) as archive:
         contents = dict(archive)
     header = json.loads(str(contents["header"]))
-    del header["scalars"]["goal_rate"]  # as written before goal_rate existed
+    del header["scalars"]["alpha_g"]  # as written before alpha_g existed
     contents["header"] = np.array(json.dumps(header))
     np.savez(path, **contents)
-    assert load(path).goal_rate == DISCRETE.stiffness / 2
+    assert load(path).alpha_g == DISCRETE.alpha_z / 2
 
 
 def test_a_file_with_unknown_fields_asks_for_an_upgrade(tmp_path):
@@ -174,3 +174,65 @@ def test_file_size_limit_during_overwrite_keeps_the_previous_file(tmp_path):
     assert result.stdout.strip() == str(errno.EFBIG), result.stderr
     _assert_same_fields(DISCRETE, load(path))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dmp.npz"]
+
+
+def _write_version_1(path, cls, scalars, arrays):
+    """A file as dmpopt wrote it before version 2, with the former field names."""
+    header = {"format": "dmpopt-dmp", "version": 1, "class": cls, "scalars": scalars}
+    np.savez(path, header=np.array(json.dumps(header)), **arrays)
+    return path
+
+
+def test_a_version_1_discrete_file_loads_under_the_new_names(tmp_path):
+    arrays = {
+        "weights": np.array([[1.0, -2.0, 3.0]]),
+        "start": np.array([0.5]),
+        "goal": np.array([1.5]),
+        "centres": np.array([0.1, 0.5, 0.9]),
+        "widths": np.array([10.0, 20.0, 30.0]),
+        "scaled_start_velocity": np.array([0.25]),
+    }
+    scalars = {
+        "time_constant": 0.7,
+        "form": "acceleration",
+        "goal_scaling": "translation",
+        "reference_displacement": None,
+        "stiffness": 30.0,
+        "damping": 7.0,
+        "phase_stiffness": 20.0,
+        "phase_damping": 4.0,
+        "goal_rate": 11.0,
+    }
+    dmp = load(_write_version_1(tmp_path / "v1.npz", "DiscreteDMP", scalars, arrays))
+    expected = {"tau": 0.7, "alpha_z": 30.0, "beta_z": 7.0, "alpha_v": 20.0, "beta_v": 4.0}
+    assert {name: getattr(dmp, name) for name in expected} == expected
+    assert dmp.alpha_g == 11.0 and dmp.form == "acceleration"
+    np.testing.assert_array_equal(dmp.weights, arrays["weights"])
+
+
+@pytest.mark.parametrize("form, rate", [("phase", "alpha_r"), ("energy", "alpha_E")])
+def test_a_version_1_rhythmic_file_maps_amplitude_rate_by_form(tmp_path, form, rate):
+    """amplitude_rate was alpha_r of eq. (11) or alpha_E of eq. (13); frequency was k."""
+    arrays = {
+        "weights": np.ones((1, 2, 2)),
+        "setpoint": np.array([0.0]),
+        "centres": np.array([0.0, np.pi]),
+        "widths": np.array([2.0, 2.0]),
+    }
+    scalars = {"time_constant": 0.3, "form": form, "amplitude_rate": 7.5, "frequency": 2.0}
+    dmp = load(_write_version_1(tmp_path / "v1.npz", "RhythmicDMP", scalars, arrays))
+    assert getattr(dmp, rate) == 7.5 and dmp.k == 2.0 and dmp.tau == 0.3
+    other = "alpha_E" if rate == "alpha_r" else "alpha_r"
+    assert getattr(dmp, other) == 10.0  # the default: the file did not set it
+
+
+def test_a_version_2_file_with_a_former_name_is_refused(tmp_path):
+    path = save(DISCRETE, tmp_path / "v2")
+    with np.load(path) as archive:
+        contents = dict(archive)
+    header = json.loads(str(contents["header"]))
+    header["scalars"]["stiffness"] = header["scalars"].pop("alpha_z")
+    contents["header"] = np.array(json.dumps(header))
+    np.savez(path, **contents)
+    with pytest.raises(FileFormatError, match=r"\['stiffness'\]"):
+        load(path)

@@ -37,13 +37,14 @@ def test_noisy_rollout_matches_step_by_step_integration(task):
     dmp = task.dmp.replace(weights=weights)
     step = symbolic.step_function(dmp.signature)
     output = symbolic.output_function(dmp.signature)
-    parameters = dmp.parameter_values()
+    parameters = dmp.parameters()
     state = np.zeros(dmp.signature.n_states)
     expected = []
     for k in range(task.n_steps):
-        parameters[7] = dmp.time_constant**2 * noise[0, k, 0] if k < task.n_actions else 0.0
-        expected.append([float(v) for v in output(state, *parameters)])
-        state = np.asarray(step(state, task.dt, *parameters)[0]).ravel()
+        parameters["coupling"] = dmp.tau**2 * noise[0, k, 0] if k < task.n_actions else 0.0
+        outputs = output(state=state, **parameters)
+        expected.append([float(outputs[name]) for name in ("position", "velocity", "acceleration")])
+        state = np.asarray(step(state=state, dt=task.dt, **parameters)["next_state"]).ravel()
     actual = task.rollouts(weights[None], noise)[0, :, :, 0]
     np.testing.assert_allclose(actual, np.array(expected).T, rtol=0, atol=1e-9)
 

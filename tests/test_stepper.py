@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import InvalidInputError, ShapeError
+from dmpopt import InvalidInputError, ShapeError, Stepper
 
 
 def _run(stepper, n, **kwargs):
@@ -48,10 +48,10 @@ def test_constant_coupling_shifts_equilibrium():
     np.testing.assert_allclose(final, dmp.goal + coupling / (25.0 * 6.25), atol=1e-6)
 
 
-def test_faster_time_constant_finishes_sooner():
+def test_faster_tau_finishes_sooner():
     dmp = random_discrete(seed=5)
     stepper = dmp.stepper(0.001)
-    stepper.set_time_constant(dmp.time_constant / 2)
+    stepper.set_tau(dmp.tau / 2)
     half = _run(stepper, 1000)
     np.testing.assert_allclose(half, dmp.rollout(2.0, 0.002).positions, atol=1e-12)
 
@@ -62,9 +62,9 @@ def test_phase_reset_and_frequency_change():
     _run(stepper, 250)
     stepper.reset_phase(0.25)
     assert stepper.phase == 0.25
-    stepper.set_time_constant(dmp.time_constant / 2)
+    stepper.set_tau(dmp.tau / 2)
     stepper.step()
-    assert stepper.phase == pytest.approx(0.25 + 0.001 / (dmp.time_constant / 2), abs=1e-12)
+    assert stepper.phase == pytest.approx(0.25 + 0.001 / (dmp.tau / 2), abs=1e-12)
 
 
 def test_amplitude_change_converges_to_scaled_cycle():
@@ -82,9 +82,90 @@ def test_errors():
     stepper = random_discrete().stepper()
     with pytest.raises(InvalidInputError, match="set_amplitude applies to rhythmic"):
         stepper.set_amplitude(2.0)
-    with pytest.raises(InvalidInputError, match="time_constant must be a finite number > 0, got"):
-        stepper.set_time_constant(0.0)
+    with pytest.raises(InvalidInputError, match="tau must be a finite number > 0, got"):
+        stepper.set_tau(0.0)
     with pytest.raises(InvalidInputError, match="reset_phase applies to rhythmic"):
         stepper.reset_phase(0.0)
     with pytest.raises(ShapeError, match=r"coupling has shape \(5,\), expected \(2,\)"):
         stepper.step(coupling=np.zeros(5))
+
+
+def test_set_goal_scales_the_forcing_term_by_the_stepper_start():
+    """Eq. (7): after set_goal, a stepper started elsewhere runs the DMP moved to its own start
+    and the new goal (the affine rollout of that DMP is the key)."""
+    dmp = random_discrete(seed=9)
+    start, goal = dmp.start + np.array([0.4, -0.3]), dmp.goal + np.array([-0.5, 0.2])
+    stepper = Stepper(dmp, 0.001, start)
+    stepper.set_goal(goal)
+    plan = dmp.replace(start=start, goal=goal).rollout(0.3, 0.001, start_velocity=0.0)
+    np.testing.assert_allclose(_run(stepper, plan.n_steps - 1), plan.positions, atol=1e-12)
+
+
+def test_set_tau_refuses_exactly_below_the_stability_limit():
+    """The limit on dt is proportional to tau: dt <= tau * max_step / dmp.tau."""
+    dmp = random_discrete(seed=2)
+    stepper = dmp.stepper(0.001)
+    smallest = 0.001 * dmp.tau / dmp.max_step
+    stepper.set_tau(1.001 * smallest)
+    with pytest.raises(InvalidInputError, match=f"keep tau >= {smallest:.4g} s"):
+        stepper.set_tau(0.999 * smallest)
+
+
+def test_set_amplitude_keeps_the_tau_check():
+    """A larger amplitude of the energy oscillator lowers its stable step; set_tau uses it."""
+    dmp = random_rhythmic(seed=3, form="energy")
+    stepper = dmp.stepper(0.001)
+    stepper.set_amplitude(3.0)
+    scaled = dmp.replace(amplitude=3.0)
+    smallest = 0.001 * scaled.tau / scaled.max_step
+    stepper.set_tau(1.001 * smallest)
+    with pytest.raises(InvalidInputError, match="keep tau >="):
+        stepper.set_tau(0.999 * smallest)
+
+
+def test_reset_phase_names_its_argument():
+    stepper = random_rhythmic().stepper(0.001)
+    with pytest.raises(InvalidInputError, match="phase must be a real number"):
+        stepper.reset_phase("half")
+
+
+@pytest.mark.parametrize(
+    "changes, error, message",
+    [
+        (
+            {"coupling": [np.nan, 0.0]},
+            InvalidInputError,
+            r"coupling\[0\] is nan: coupling contains",
+        ),
+        ({"coupling": ["a", "b"]}, InvalidInputError, "coupling must be an array of real numbers"),
+        ({"coupling": np.zeros(0)}, ShapeError, r"coupling has shape \(0,\), expected \(2,\)"),
+        ({"coupling": np.zeros(0, int)}, ShapeError, r"coupling has shape \(0,\), expected"),
+        (
+            {"canonical_coupling": "x"},
+            InvalidInputError,
+            "canonical_coupling must be a real number",
+        ),
+    ],
+)
+def test_bad_coupling_names_the_argument(changes, error, message):
+    stepper = random_discrete().stepper(0.001)
+    with pytest.raises(error, match=message):
+        stepper.step(**changes)
+
+
+def test_integer_coupling_acts_like_the_same_floats():
+    dmp = random_discrete(seed=4)
+    first, second = dmp.stepper(0.001), dmp.stepper(0.001)
+    np.testing.assert_array_equal(first.step(coupling=[3, -2]), second.step(coupling=[3.0, -2.0]))
+
+
+def test_compile_must_be_a_bool():
+    with pytest.raises(InvalidInputError, match="compile must be True or False, got 'yes'"):
+        random_discrete().stepper(0.001, compile="yes")
+
+
+def test_a_rhythmic_start_of_the_wrong_size_is_named():
+    with pytest.raises(
+        ShapeError, match=r"start has shape \(5,\), expected \(2,\) to match 2 DOFs"
+    ):
+        random_rhythmic().rollout(0.1, 0.001, start=np.zeros(5))

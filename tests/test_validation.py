@@ -49,7 +49,7 @@ BAD_INPUTS = [
     (lambda: DISCRETE.stepper().set_goal([1j, 0.0]), "goal is complex"),
     (lambda: DISCRETE.stepper().step(coupling=[1j, 0.0]), "coupling is complex"),
     (lambda: RHYTHMIC.stepper(start=[0.0, 1j]), "start is complex"),
-    (lambda: DISCRETE.with_time_constant(1 + 1j), "time_constant must be a real number"),
+    (lambda: DISCRETE.with_tau(1 + 1j), "tau must be a real number"),
     # no DOF, no basis function
     (_trajectory_0dof, r"positions has shape \(50, 0\), expected \(50, n_dofs\) with n_dofs >= 1"),
     (
@@ -60,10 +60,10 @@ BAD_INPUTS = [
     ),
     (lambda: DISCRETE.replace(weights=np.zeros((2, 0))), r"weights has shape \(2, 0\)"),
     # wrong types
-    (lambda: DISCRETE.with_time_constant("1"), "time_constant must be a real number"),
-    (lambda: DISCRETE.with_time_constant(None), "time_constant must be a real number"),
-    (lambda: DISCRETE.with_time_constant(True), "time_constant must be a real number"),
-    (lambda: DISCRETE.replace(stiffness="25"), "stiffness must be a real number"),
+    (lambda: DISCRETE.with_tau("1"), "tau must be a real number"),
+    (lambda: DISCRETE.with_tau(None), "tau must be a real number"),
+    (lambda: DISCRETE.with_tau(True), "tau must be a real number"),
+    (lambda: DISCRETE.replace(alpha_z="25"), "alpha_z must be a real number"),
     (lambda: DISCRETE.rollout("1", 0.001), "duration must be a real number"),
     (lambda: DISCRETE.rollout(0.5, None), "dt must be a real number"),
     (lambda: DISCRETE.affine_plan(0.5, True), "dt must be a real number"),
@@ -71,7 +71,7 @@ BAD_INPUTS = [
     (lambda: DISCRETE.phase_features(10, 1.0), "dt = 1 s is beyond the stability limit"),
     (lambda: DISCRETE.stepper("0.001"), "dt must be a real number"),
     (lambda: DISCRETE.stepper(0.001, compile="no"), "compile must be True or False"),
-    (lambda: DISCRETE.stepper().set_time_constant(None), "time_constant must be a real number"),
+    (lambda: DISCRETE.stepper().set_tau(None), "tau must be a real number"),
     (lambda: DISCRETE.stepper().step(canonical_coupling=None), "canonical_coupling must be"),
     (
         lambda: DISCRETE.stepper().step(coupling="ab"),
@@ -141,9 +141,9 @@ def test_bad_input_is_a_named_error(call, message):
 # -- stability of the integration --------------------------------------------------------
 
 
-def _plain_rk4_growth(stiffness, damping, time_constant, dt, n_steps=2000):
+def _plain_rk4_growth(alpha_z, beta_z, tau, dt, n_steps=2000):
     """|state| after n_steps RK4 steps of tau (y, z)' = (z, a (b (0 - y) - z)) from (1, 0)."""
-    matrix = np.array([[0.0, 1.0], [-stiffness * damping, -stiffness]]) / time_constant
+    matrix = np.array([[0.0, 1.0], [-alpha_z * beta_z, -alpha_z]]) / tau
     state = np.array([1.0, 0.0])
     for _ in range(n_steps):
         k1 = matrix @ state
@@ -154,15 +154,15 @@ def _plain_rk4_growth(stiffness, damping, time_constant, dt, n_steps=2000):
     return np.linalg.norm(state)
 
 
-@pytest.mark.parametrize("stiffness, phase_stiffness", [(25.0, 25.0), (100.0, 25.0), (10.0, 60.0)])
-def test_max_step_is_the_rk4_limit_of_the_fastest_mode(stiffness, phase_stiffness):
+@pytest.mark.parametrize("alpha_z, alpha_v", [(25.0, 25.0), (100.0, 25.0), (10.0, 60.0)])
+def test_max_step_is_the_rk4_limit_of_the_fastest_mode(alpha_z, alpha_v):
     """Critically damped modes sit at -alpha / (2 tau): the limit is 2.7853 tau / (alpha / 2)."""
-    dmp = random_discrete(stiffness=stiffness, phase_stiffness=phase_stiffness)
-    fastest = max(stiffness, phase_stiffness) / 2
-    assert dmp.max_step == pytest.approx(RK4_REAL_LIMIT * dmp.time_constant / fastest, rel=1e-9)
-    if stiffness >= phase_stiffness:  # answer key: a plain RK4 of the transformation system
-        assert _plain_rk4_growth(stiffness, stiffness / 4, 0.4, 0.98 * dmp.max_step) < 1.0
-        assert _plain_rk4_growth(stiffness, stiffness / 4, 0.4, 1.02 * dmp.max_step) > 1e3
+    dmp = random_discrete(alpha_z=alpha_z, alpha_v=alpha_v)
+    fastest = max(alpha_z, alpha_v) / 2
+    assert dmp.max_step == pytest.approx(RK4_REAL_LIMIT * dmp.tau / fastest, rel=1e-9)
+    if alpha_z >= alpha_v:  # answer key: a plain RK4 of the transformation system
+        assert _plain_rk4_growth(alpha_z, alpha_z / 4, 0.4, 0.98 * dmp.max_step) < 1.0
+        assert _plain_rk4_growth(alpha_z, alpha_z / 4, 0.4, 1.02 * dmp.max_step) > 1e3
 
 
 @pytest.mark.parametrize("dmp", [random_discrete(), random_discrete(form="acceleration"), RHYTHMIC])
@@ -178,16 +178,16 @@ def test_steps_beyond_the_stability_limit_are_refused(dmp):
 
 def test_phase_oscillator_limit_comes_from_the_transformation_system():
     """Eigenvalues -12.5 / tau (double, eq. (5)), -10 / tau (amplitude, eq. (11)) and 0."""
-    assert RHYTHMIC.max_step == pytest.approx(RK4_REAL_LIMIT * RHYTHMIC.time_constant / 12.5)
+    assert RHYTHMIC.max_step == pytest.approx(RK4_REAL_LIMIT * RHYTHMIC.tau / 12.5)
 
 
-def test_time_constant_change_that_makes_the_step_unstable_is_refused():
+def test_tau_change_that_makes_the_step_unstable_is_refused():
     """Stable is not accurate: just inside the limit the plan still converges to the goal."""
     stepper = DISCRETE.stepper(0.01)  # limit 0.4 * 2.785 / 12.5 = 0.089 s
     shortest = 0.01 * 12.5 / RK4_REAL_LIMIT  # the tau at which 0.01 s is the limit
-    with pytest.raises(InvalidInputError, match="time_constant = 0.04 s puts the step dt = 0.01"):
-        stepper.set_time_constant(0.04)
-    stepper.set_time_constant(1.01 * shortest)
+    with pytest.raises(InvalidInputError, match="tau = 0.04 s puts the step dt = 0.01"):
+        stepper.set_tau(0.04)
+    stepper.set_tau(1.01 * shortest)
     for _ in range(20000):
         position, _, _ = stepper.step()
     np.testing.assert_allclose(position, DISCRETE.goal, atol=1e-6)
@@ -196,9 +196,9 @@ def test_time_constant_change_that_makes_the_step_unstable_is_refused():
 def test_stable_energy_oscillator_stays_on_its_cycle():
     """At peak speed v = k A (x = 0) eq. (13) linearises to [[0, 1], [-k^2, -alpha_E v^2]]:
     its fast eigenvalue, the pull back onto the cycle, sets the limit."""
-    dmp = random_rhythmic(form="energy", amplitude=3.0, frequency=2.0)
+    dmp = random_rhythmic(form="energy", amplitude=3.0, k=2.0)
     fast = (10.0 * 36.0 + np.sqrt((10.0 * 36.0) ** 2 - 4 * 4.0)) / 2
-    assert dmp.max_step == pytest.approx(RK4_REAL_LIMIT * dmp.time_constant / fast, rel=1e-9)
+    assert dmp.max_step == pytest.approx(RK4_REAL_LIMIT * dmp.tau / fast, rel=1e-9)
     stepper = dmp.stepper(0.99 * dmp.max_step)
     for _ in range(5000):
         stepper.step()
@@ -214,8 +214,8 @@ def test_stable_energy_oscillator_stays_on_its_cycle():
     [
         lambda: DISCRETE.rollout(1.0, 1e-7),
         lambda: DISCRETE.rollout(1e4, 0.001),
-        lambda: DISCRETE.with_time_constant(1e9).rollout(),
-        lambda: RHYTHMIC.with_time_constant(1e9).affine_plan(),
+        lambda: DISCRETE.with_tau(1e9).rollout(),
+        lambda: RHYTHMIC.with_tau(1e9).affine_plan(),
         lambda: DEMO.resampled(10**9),
     ],
 )
@@ -241,7 +241,7 @@ def test_one_basis_function_is_the_phase_velocity():
     centres, widths = discrete_basis(1, (25.0, 6.25, 25.0, 6.25))
     assert centres.shape == widths.shape == (1,)
     dmp = random_discrete(n_basis=1, centres=centres, widths=widths, weights=[[40.0], [-25.0]])
-    s = np.arange(1000) * 0.001 / dmp.time_constant
+    s = np.arange(1000) * 0.001 / dmp.tau
     v = 12.5**2 * s * np.exp(-12.5 * s)
     np.testing.assert_allclose(dmp.phase_features(1000, 0.001)[:, 0], v, atol=1e-7)
     fitted = fit_discrete(DEMO, 1)

@@ -31,13 +31,13 @@ BUGS = {
     "energy phase reset, sin and cos swapped": (
         "dmpopt/stepper.py",
         "self._state[0] = amplitude * np.cos(phase)\n"
-        "            self._state[1] = amplitude * self.dmp.frequency * np.sin(phase)",
+        "            self._state[1] = amplitude * self.dmp.k * np.sin(phase)",
         "self._state[0] = amplitude * np.sin(phase)\n"
-        "            self._state[1] = amplitude * self.dmp.frequency * np.cos(phase)",
+        "            self._state[1] = amplitude * self.dmp.k * np.cos(phase)",
     ),
     "set_goal does not refresh the forcing weights": (
         "dmpopt/stepper.py",
-        'self._write("forcing_weights", self.dmp.forcing_weights(self._start, self._goal))',
+        "self._function.set_inputs(forcing_weights=weights)",
         "pass",
     ),
     "forcing sign flipped (velocity form)": (
@@ -47,8 +47,8 @@ BUGS = {
     ),
     "forcing sign flipped (acceleration form)": (
         "dmpopt/symbolic.py",
-        "stiffness * (damping * (r - y) - z) + forcing + coupling",
-        "stiffness * (damping * (r - y) - z) - forcing + coupling",
+        "alpha_z * (beta_z * (r - y) - z) + forcing + coupling",
+        "alpha_z * (beta_z * (r - y) - z) - forcing + coupling",
     ),
     "stepper velocity and acceleration swapped": (
         "dmpopt/stepper.py",

@@ -43,7 +43,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..dmp import AffinePlan, DiscreteDMP, similarity_transform
+from ..dmp import AffinePlan, DiscreteDMP, goal_transform
 from ..exceptions import (
     FittingFailed,
     InfeasibleProblem,
@@ -275,7 +275,7 @@ class FittingProblem:
         dmp = self.dmp
         transform = dmp.goal_map()
         weights = np.linalg.solve(transform, forcing_weights)
-        scaled_velocity = np.linalg.solve(transform, dmp.time_constant * self.start_velocity)
+        scaled_velocity = np.linalg.solve(transform, dmp.tau * self.start_velocity)
         return dmp.replace(weights=weights, scaled_start_velocity=scaled_velocity)
 
     def rollout(self, dmp: DiscreteDMP) -> Trajectory:
@@ -372,12 +372,7 @@ def _moved_demonstration(demo, dmp, start, goal, times, duration):
         [np.interp(normalised, demo.times, demo.positions[:, d]) for d in range(demo.n_dofs)]
     )
     old_start, old_goal = demo.positions[0], demo.positions[-1]
-    if dmp.goal_scaling == "rotation":
-        transform = similarity_transform(old_goal - old_start, goal - start)
-    elif dmp.goal_scaling == "paper":
-        transform = np.diag((goal - start) / (old_goal - old_start))
-    else:
-        transform = np.eye(demo.n_dofs)
+    transform = goal_transform(dmp.goal_scaling, old_goal - old_start, goal - start)
     moved = start + (positions - old_start) @ transform.T
     velocity = transform @ demo.velocities[0] * demo.duration / duration
     return moved, velocity
@@ -528,8 +523,8 @@ def build_fitting_problem(
     dt = duration / (n_steps - 1)
     times = np.arange(n_steps) * dt
 
-    tau = reference.time_constant * duration / demo.duration
-    dmp = reference.replace(start=start, goal=goal, time_constant=tau)
+    tau = reference.tau * duration / demo.duration
+    dmp = reference.replace(start=start, goal=goal, tau=tau)
     target, moved_velocity = _moved_demonstration(demo, dmp, start, goal, times, duration)
     if start_velocity is None:
         start_velocity = moved_velocity

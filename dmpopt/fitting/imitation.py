@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import basis, symbolic
-from ..dmp import DiscreteDMP, RhythmicDMP
+from ..dmp import DiscreteDMP, RhythmicDMP, goal_transform
 from ..exceptions import FittingFailed, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
 from ..validation import check_resources, flag, integer, real
@@ -164,8 +164,8 @@ def fit_discrete(
     method: str = "position",
     goal_scaling: str = "auto",
     regularization: float = 1e-9,
-    stiffness: float = 25.0,
-    phase_stiffness: float = 25.0,
+    alpha_z: float = 25.0,
+    alpha_v: float = 25.0,
 ) -> DiscreteDMP:
     """Fit a discrete DMP to a point-to-point demonstration (Section 3.4).
 
@@ -192,8 +192,9 @@ def fit_discrete(
         ``"paper"`` beyond that bound is refused.
     regularization : float
         Ridge weight relative to the mean diagonal of the normal equations.
-    stiffness, phase_stiffness : float
-        :math:`\\alpha_z` and :math:`\\alpha_v`.
+    alpha_z, alpha_v : float
+        :math:`\\alpha_z` of eq. (5) or (10) and :math:`\\alpha_v` of eq. (6) (each
+        :math:`\\beta = \\alpha / 4`).
     """
     demo = _check_demo(demo)
     method = _check_method(method)
@@ -206,17 +207,17 @@ def fit_discrete(
         weights=np.zeros((demo.n_dofs, n_basis)),
         start=start,
         goal=goal,
-        time_constant=1.0,
+        tau=1.0,
         centres=np.zeros(n_basis),
         widths=np.ones(n_basis),
         form=form,
         goal_scaling="translation",
-        stiffness=stiffness,
-        phase_stiffness=phase_stiffness,
+        alpha_z=alpha_z,
+        alpha_v=alpha_v,
     )
     centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
     tau = demo.duration / basis.convergence_time(form, template.gains)
-    unit = template.replace(time_constant=tau, centres=centres, widths=widths)
+    unit = template.replace(tau=tau, centres=centres, widths=widths)
     dt = demo.duration / (demo.n_steps - 1)
 
     if method == "position":
@@ -229,9 +230,8 @@ def fit_discrete(
             last_row=(response[-1], goal - plan.free[0][-1]),
         ).T
     else:
-        states = symbolic.simulate(
-            unit.signature, demo.n_steps, _initial_state(unit, demo), dt, unit.parameter_values()
-        )[0]
+        initial = unit.initial_state(start, demo.velocities[0], (0.0, 0.0))
+        states = symbolic.simulate(unit.signature, demo.n_steps, initial, dt, unit.parameters())[0]
         targets = forcing_targets(unit, demo, states)
         regressors = _features(unit, states)
         if method == "least_squares":
@@ -239,45 +239,73 @@ def fit_discrete(
         else:
             forcing = _local_regression(unit, states[:, :2], targets)
 
-    # stored per unit of the goal map at the demo's start and goal: diag(goal - start) or I
-    per_unit = goal - start if scaling == "paper" else np.ones(demo.n_dofs)
+    # stored per unit of the goal map at the demo's start and goal (see DiscreteDMP.goal_map),
+    # a diagonal matrix there: diag(goal - start) under "paper", the identity otherwise
+    displacement = goal - start
+    reference = np.ones(demo.n_dofs) if scaling == "paper" else displacement
+    per_unit = np.diag(goal_transform(scaling, reference, displacement))
     return unit.replace(
         weights=forcing / per_unit[:, None],
         scaled_start_velocity=tau * demo.velocities[0] / per_unit,
         goal_scaling=scaling,
-        reference_displacement=goal - start if scaling == "rotation" else None,
+        reference_displacement=displacement if scaling == "rotation" else None,
     )
-
-
-def _initial_state(dmp, demo: Trajectory) -> np.ndarray:
-    start = demo.positions[0]
-    rows = [start, dmp.time_constant * demo.velocities[0]]
-    if dmp.form == "acceleration":
-        rows.append(start)
-    return np.concatenate([[0.0, 0.0], *rows])
 
 
 def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> np.ndarray:
     r"""Forcing terms that make the DMP follow the demonstration, eqs. (15) and (16).
 
-    Acceleration form (16): :math:`f = \tau^2\ddot y - \alpha_z(\beta_z(r - y) - \tau\dot y)`
-    with the goal filter :math:`r(t)` from ``states``.
-    Velocity form (15): :math:`f = \tau \dot y - z` with
-    :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` integrated along the demonstration
-    (exactly, for positions linear between samples).
+    The transformation system solved for :math:`f` at every sample
+    (:func:`dmpopt.symbolic.forcing_target`), with :math:`y, \dot y, \ddot y` of the
+    demonstration. Acceleration form (16): the goal filter :math:`r(t)` comes from ``states``
+    (the unforced system integrated from the demonstrated start). Velocity form (15): the
+    state :math:`z` comes from :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` integrated
+    along the demonstration (:func:`_filtered`).
     """
-    tau, alpha, beta = dmp.time_constant, dmp.stiffness, dmp.damping
-    y, yd, ydd = demo.positions, demo.velocities, demo.accelerations
     if dmp.form == "acceleration":
-        r = states[:, 2 + 2 * dmp.n_dofs :]
-        return tau**2 * ydd - alpha * (beta * (r - y) - tau * yd)
-    decay = np.exp(-alpha * np.diff(demo.times) / tau)
-    z = np.empty_like(y)
-    z[0] = tau * yd[0]
-    drive = beta * (dmp.goal - 0.5 * (y[1:] + y[:-1]))
-    for k in range(len(decay)):
-        z[k + 1] = decay[k] * z[k] + (1.0 - decay[k]) * drive[k]
-    return tau * yd - z
+        transformation = np.hstack([demo.positions, states[:, 2 + dmp.n_dofs :]])
+    else:
+        transformation = np.hstack([demo.positions, _filtered(dmp, demo, periodic=False)])
+    return _solved_targets(dmp, demo, transformation)
+
+
+def _solved_targets(dmp, demo: Trajectory, transformation: np.ndarray) -> np.ndarray:
+    """:func:`dmpopt.symbolic.forcing_target` at every sample, shape (n_steps, n_dofs)."""
+    target = symbolic.forcing_target_function(dmp.signature).map(demo.n_steps)
+    forcing = target(
+        transformation=transformation.T,
+        velocity=demo.velocities.T,
+        acceleration=demo.accelerations.T,
+        tau=dmp.tau,
+        goal=dmp.parameters()["goal"],
+        gains=np.asarray(dmp.gains),
+    )["forcing"]
+    return forcing.full().T
+
+
+def _filtered(dmp, demo: Trajectory, periodic: bool) -> np.ndarray:
+    r"""The state :math:`z` of eq. (15) along ``demo``, shape (n_steps, n_dofs).
+
+    :func:`dmpopt.symbolic.filter_step` from sample to sample, the position held at the
+    midpoint of each interval, starting from :math:`z = \tau \dot y(0)`. ``periodic``: a
+    second pass starts where the first ends, and its end is taken for the first sample too
+    (the filter's steady cycle on a periodic demonstration).
+    """
+    y = demo.positions
+    accumulate = symbolic.filter_function(dmp.signature).mapaccum(demo.n_steps - 1)
+    inputs = {
+        "position": (0.5 * (y[1:] + y[:-1])).T,
+        "dt": np.diff(demo.times)[None, :],
+        "tau": dmp.tau,
+        "goal": dmp.parameters()["goal"],
+        "gains": np.asarray(dmp.gains),
+    }
+    first = dmp.tau * demo.velocities[0]
+    z = accumulate(z=first, **inputs)["next_z"].full()
+    if periodic:
+        z = accumulate(z=z[:, -1], **inputs)["next_z"].full()
+        first = z[:, -1]
+    return np.vstack([first, z.T])
 
 
 def _features(dmp, states: np.ndarray) -> np.ndarray:
@@ -448,7 +476,7 @@ def fit_rhythmic(
     kernel: str = "von_mises",
     amplitude: float = 1.0,
     regularization: float = 1e-9,
-    stiffness: float = 25.0,
+    alpha_z: float = 25.0,
     warm_up_periods: int = 2,
     periodicity_tolerance: float = PERIODICITY_TOLERANCE,
 ) -> RhythmicDMP:
@@ -515,22 +543,22 @@ def fit_rhythmic(
     template = RhythmicDMP(
         weights=np.zeros((demo.n_dofs, n_basis, 2)),
         setpoint=demo.positions.mean(axis=0),
-        time_constant=1.0,
+        tau=1.0,
         centres=centres,
         widths=widths,
         form=form,
         amplitude=amplitude,
         kernel=kernel,
-        stiffness=stiffness,
+        alpha_z=alpha_z,
     )
-    frequency = 1.0 if form == "phase" else template.frequency
-    unit = template.replace(time_constant=period * frequency / (2 * np.pi))
+    frequency = 1.0 if form == "phase" else template.k
+    unit = template.replace(tau=period * frequency / (2 * np.pi))
     dt = demo.duration / (demo.n_steps - 1)
     direction = 1.0 if form == "phase" else -frequency  # d(phase)/d(t / tau)
 
     if method == "position":
         n_warm = int(round(warm_up_periods * period / dt))
-        start_phase = -direction * n_warm * dt / unit.time_constant
+        start_phase = -direction * n_warm * dt / unit.tau
         plan = unit.affine_plan(
             (n_warm + demo.n_steps - 1) * dt,
             dt,
@@ -542,7 +570,7 @@ def fit_rhythmic(
         response = plan.weight_response[0][window]
         forcing = _ridge(response, demo.positions - plan.free[0][window], regularization).T
     else:
-        phases = direction * (demo.times - demo.times[0]) / unit.time_constant
+        phases = direction * (demo.times - demo.times[0]) / unit.tau
         canonical = np.array([unit.canonical_state(p) for p in phases])
         regressors = (
             symbolic.feature_function(unit.signature)
@@ -550,24 +578,10 @@ def fit_rhythmic(
             .full()
             .T
         )
-        targets = _periodic_velocity_targets(unit, demo)
+        transformation = np.hstack([demo.positions, _filtered(unit, demo, periodic=True)])
+        targets = _solved_targets(unit, demo, transformation)
         if method == "least_squares":
             forcing = _ridge(regressors, targets, regularization).T
         else:
             forcing = _local_regression(unit, canonical, targets)
     return unit.replace(weights=forcing.reshape(demo.n_dofs, n_basis, 2))
-
-
-def _periodic_velocity_targets(dmp: RhythmicDMP, demo: Trajectory) -> np.ndarray:
-    """Eq. (15) on a periodic demonstration: the filter state ``z`` in its steady cycle."""
-    tau, alpha, beta = dmp.time_constant, dmp.stiffness, dmp.damping
-    y, yd = demo.positions, demo.velocities
-    decay = np.exp(-alpha * np.diff(demo.times) / tau)
-    drive = beta * (dmp.setpoint - 0.5 * (y[1:] + y[:-1]))
-    z = np.empty_like(y)
-    z[0] = tau * yd[0]
-    for _ in range(2):  # the second pass starts from the end of the first: periodic state
-        for k in range(len(decay)):
-            z[k + 1] = decay[k] * z[k] + (1.0 - decay[k]) * drive[k]
-        z[0] = z[-1]
-    return tau * yd - z

@@ -91,22 +91,22 @@ def _noise_response(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
     off the symbolic RK4 step; the response is time invariant (lower-triangular Toeplitz).
     """
     signature = symbolic.Signature("acceleration", 1, 1, "gaussian")
-    tau = dmp.time_constant
+    tau = dmp.tau
     gains = np.asarray(dmp.gains)
     step = symbolic.step_function(signature)
     output = symbolic.output_function(signature)
 
     def parameters(coupling):
-        # tau, goal, canonical target, weights, centres, widths, gains, coupling, canonical C
-        return [tau, 0.0, 1.0, 0.0, 0.0, 1.0, gains, coupling, 0.0]
+        return symbolic.parameters(tau=tau, canonical_target=1.0, gains=gains, coupling=coupling)
 
     def transformation_step(state, coupling):
         full = np.concatenate([[0.0, 0.0], state])
-        return np.asarray(step(full, dt, *parameters(coupling))[0]).ravel()[2:]
+        return step(state=full, dt=dt, **parameters(coupling))["next_state"].full().ravel()[2:]
 
     def outputs(state, coupling):
         full = np.concatenate([[0.0, 0.0], state])
-        return np.array([float(v) for v in output(full, *parameters(coupling))])
+        values = output(state=full, **parameters(coupling))
+        return np.array([float(values[name]) for name in symbolic.PLAN_OUTPUTS])
 
     unit = np.eye(3)
     transition = np.column_stack([transformation_step(e, 0.0) for e in unit])  # (y, z, r)
@@ -209,7 +209,7 @@ class RewardTask:
         impulse = response[:, :, 0]  # effect of an input at step 0 on every sample
         object.__setattr__(self, "_impulse_spectrum", np.fft.rfft(impulse, n=fft_size, axis=1))
         # d mu_k / d w_i = phi_i(x_k) / tau^2 at each step's sample, (n_steps - 1, n_basis)
-        features = self.dmp.phase_features(n_steps, self.dt)[:-1] / self.dmp.time_constant**2
+        features = self.dmp.phase_features(n_steps, self.dt)[:-1] / self.dmp.tau**2
         features.setflags(write=False)
         object.__setattr__(self, "policy_features", features)
         object.__setattr__(self, "_optimum", self._solve_optimum())
@@ -413,7 +413,7 @@ def _dmp(start, goal, duration: float, n_basis: int) -> DiscreteDMP:
         weights=np.zeros((start.size, n_basis)),
         start=start,
         goal=goal,
-        time_constant=1.0,
+        tau=1.0,
         centres=np.zeros(n_basis),
         widths=np.ones(n_basis),
         form="acceleration",
@@ -421,7 +421,7 @@ def _dmp(start, goal, duration: float, n_basis: int) -> DiscreteDMP:
     )
     centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
     tau = duration / basis.convergence_time("acceleration", template.gains)
-    return template.replace(time_constant=tau, centres=centres, widths=widths)
+    return template.replace(tau=tau, centres=centres, widths=widths)
 
 
 def paper_reaching_task(

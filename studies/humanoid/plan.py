@@ -125,7 +125,7 @@ class DrumPlan:
         return np.array(
             [
                 elbow.amplitude * (2.0 if active and name == "amplitude" else 1.0),
-                elbow.time_constant / (2.0 if active and name == "frequency" else 1.0),
+                elbow.tau / (2.0 if active and name == "frequency" else 1.0),
                 elbow.setpoint[0] + (SETPOINT_SHIFT if active and name == "setpoint" else 0.0),
             ]
         )
@@ -139,12 +139,12 @@ class DrumPlan:
             self._parameters += (target - self._parameters) * min(1.0, self.dt / PARAMETER_FILTER)
             close = np.abs(target - self._parameters) < 1e-9
             self._parameters[close] = target[close]
-            amplitude, time_constant, setpoint = self._parameters
+            amplitude, tau, setpoint = self._parameters
             self.elbow.set_amplitude(amplitude)
-            self.elbow.set_time_constant(time_constant)
+            self.elbow.set_tau(tau)
             self.elbow.set_setpoint([setpoint])
         # Phase lock to the shared oscillator, except while the elbow runs at its own tau.
-        locked = abs(self._parameters[1] - self.dmps.elbow.time_constant) < 1e-6
+        locked = abs(self._parameters[1] - self.dmps.elbow.tau) < 1e-6
         coupling = ELBOW_PHASE_COUPLING * np.sin(self.shared.phase - self.elbow.phase)
         self.shared.step()
         self.elbow.step(canonical_coupling=coupling if locked else 0.0)
@@ -185,7 +185,7 @@ def elbow_limit_cycle(dmps: DrumDmps, dt: float = DT):
     plan = elbow.rollout(
         elbow.period + 2 * dt, dt, start=dmps.start[i], start_velocity=dmps.start_velocity[i]
     )
-    phase = plan.times / elbow.time_constant  # tau * phidot = 1
+    phase = plan.times / elbow.tau  # tau * phidot = 1
     values = plan.positions[:, 0]
 
     def cycle(phi):

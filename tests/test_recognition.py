@@ -1,12 +1,13 @@
 """Tests of dmpopt.recognition: invariant features, classifiers, partial observations."""
 
 import re
+import sys
 
 import numpy as np
 import pytest
 
 from dmpopt import Trajectory, fit_discrete
-from dmpopt.exceptions import InvalidInputError, ShapeError
+from dmpopt.exceptions import InvalidInputError, MissingDependency, ShapeError
 from dmpopt.recognition import (
     NearestNeighbourClassifier,
     PartialObservationClassifier,
@@ -229,7 +230,6 @@ def test_shrinkage_lda_on_blobs():
     classifier = ShrinkageLdaClassifier(shrinkage=0.05).fit(features, labels)
     test = np.vstack([m + spread * rng.standard_normal((10, 3)) for m in means])
     assert np.mean(classifier.predict(test) == np.repeat([0, 1, 2], 10)) >= 0.95
-    assert classifier.decision_distances(test).shape == (30, 3)
 
 
 def test_partial_observation_recognised():
@@ -426,3 +426,149 @@ def test_scaled_copy_is_indistinguishable():
     assert np.allclose(features[1], features[0], rtol=0, atol=1e-9 * abs(features).max())
     classifier = NearestNeighbourClassifier().fit(features[:1], ["big"])
     assert classifier.predict(features[1:])[0] == "big"
+
+
+# ---------------------------------------------------------------------------------------
+# Answer keys: the plain formulas and hand-computed cases
+# ---------------------------------------------------------------------------------------
+
+
+def test_normalised_weights_are_the_weights_in_the_start_goal_frame_per_unit_length(dmp):
+    """w_bar = R(d -> e1) w / |d|, with R the 2-D rotation by minus the angle of d."""
+    moved = dmp.replace(goal=dmp.start + np.array([3.0, 4.0]))  # |d| = 5
+    rotation = np.array([[3.0, 4.0], [-4.0, 3.0]]) / 5.0  # maps (3, 4) onto (5, 0)
+    expected = rotation @ moved.forcing_weights() / 5.0
+    assert np.allclose(normalised_weights(moved), expected, rtol=0, atol=1e-12)
+
+
+def test_euclidean_features_are_the_plain_formula(dmp):
+    """metric "euclidean", no path: [vec(R [w, tau v] / |d|), lambda d / |d|] per DMP."""
+    d = np.array([3.0, 4.0])
+    dmps = [dmp.replace(goal=dmp.start + d), dmp.replace(goal=dmp.start - d)]
+    velocities = np.array([[0.5, -1.0], [2.0, 0.25]])
+    features = movement_features(
+        dmps, start_velocities=velocities, metric="euclidean", direction_weight=0.7, path_weight=0
+    )
+    rows = []
+    for sign, model, velocity in zip((1.0, -1.0), dmps, velocities):
+        rotation = sign * np.array([[3.0, 4.0], [-4.0, 3.0]]) / 5.0  # maps sign * d onto e1
+        block = np.column_stack([model.forcing_weights(), model.time_constant * velocity])
+        rows.append(np.concatenate([(rotation @ block / 5.0).ravel(), 0.7 * sign * d / 5.0]))
+    assert np.allclose(features, rows, rtol=0, atol=1e-12)
+
+
+def test_path_block_is_the_arc_length_resampled_normalised_plan(dmp):
+    """The middle block is path_weight / sqrt(n) times the resampled normalised plan."""
+    velocity = np.array([[0.3, -0.2]])
+    features = movement_features(
+        [dmp], start_velocities=velocity, path_weight=1.5, direction_weight=0.0, n_samples=40
+    )
+    plan = normalised_plan(dmp, velocity[0], n_samples=40)
+    path = arc_length_resampled(plan, 40)
+    n_plan = 2 * (N_BASIS + 1)
+    expected = 1.5 / np.sqrt(40) * path.ravel()
+    assert np.allclose(features[0, n_plan:-2], expected, rtol=0, atol=1e-12)
+    assert np.all(features[0, -2:] == 0.0)
+
+
+def _line():
+    """Five 1-D samples: a, a at 0 and 1; b, b at 3 and 3.5; c at 10."""
+    return np.array([[0.0], [1.0], [3.0], [3.5], [10.0]]), np.array(list("aabbc"))
+
+
+def test_nearest_neighbours_on_a_hand_computed_line():
+    """Query 1.9: distances 1.9, 0.9, 1.1, 1.6, 8.1; 1-NN says a, the 3-NN vote (a, b, b) b."""
+    features, labels = _line()
+    assert NearestNeighbourClassifier(1).fit(features, labels).predict([[1.9]])[0] == "a"
+    three = NearestNeighbourClassifier(3).fit(features, labels)
+    assert three.predict([[1.9]])[0] == "b"
+    distances, indices = three.kneighbours([[1.9]])
+    assert np.allclose(distances, [[0.9, 1.1, 1.6]]) and indices.tolist() == [[1, 2, 3]]
+    assert list(three.classes_) == ["a", "b", "c"]
+
+
+def test_leave_one_out_on_a_hand_computed_line():
+    """Each sample (or its query) classified by 1-NN fitted on the four others."""
+    features, labels = _line()
+    nearest = NearestNeighbourClassifier()
+    assert leave_one_out(nearest, features, labels).tolist() == list("aabbb")
+    # query 9 for every sample: nearest is 10 (c), except when 10 is left out (3.5, b)
+    queries = np.full((5, 1), 9.0)
+    assert leave_one_out(nearest, features, labels, queries).tolist() == list("ccccb")
+    assert not hasattr(nearest, "estimator_")  # copies are fitted, never the classifier
+
+
+def test_shrinkage_lda_on_a_hand_computed_case():
+    r"""Class means (0, 0) and (1, 1), pooled covariance diag(0, 4) (tr / p = 2).
+
+    Shrunk: diag(2 g, 4 - 2 g). For q = (0.6, -0.5), d_A - d_B = 0.2 / (2 g) - 2 / (4 - 2 g):
+    +0.47 for g = 0.1 (B is nearer), -0.9 for g = 1 (A is nearer, as in Euclidean distance).
+    """
+    features = np.array([[0.0, -2.0], [0.0, 2.0], [1.0, -1.0], [1.0, 3.0]])
+    labels = ["A", "A", "B", "B"]
+    query = [[0.6, -0.5]]
+    assert ShrinkageLdaClassifier(0.1).fit(features, labels).predict(query)[0] == "B"
+    assert ShrinkageLdaClassifier(1.0).fit(features, labels).predict(query)[0] == "A"
+    lda = ShrinkageLdaClassifier("auto").fit(features, labels)
+    assert lda.estimator_.shrinkage == "auto" and list(lda.classes_) == ["A", "B"]
+
+
+def test_confusion_matrix_keeps_the_order_of_classes():
+    """Rows and columns follow ``classes``; by default the sorted labels."""
+    matrix = confusion_matrix([2, 2, 0, 1], [2, 0, 0, 0], classes=[2, 1, 0])
+    assert matrix.tolist() == [[1, 0, 1], [0, 0, 1], [0, 0, 1]]
+    assert confusion_matrix([2, 2, 0, 1], [2, 0, 0, 0]).tolist() == [
+        [1, 0, 0],
+        [1, 0, 0],
+        [1, 0, 1],
+    ]
+
+
+@pytest.mark.parametrize(
+    "call, module",
+    [
+        (lambda: NearestNeighbourClassifier().fit(np.eye(2), [0, 1]), "sklearn.neighbors"),
+        (
+            lambda: ShrinkageLdaClassifier().fit(np.eye(4), [0, 0, 1, 1]),
+            "sklearn.discriminant_analysis",
+        ),
+        (lambda: confusion_matrix([0, 1], [0, 0]), "sklearn.metrics"),
+        (
+            lambda: leave_one_out(NearestNeighbourClassifier(), np.eye(2), [0, 1]),
+            "sklearn.model_selection",
+        ),
+    ],
+)
+def test_without_scikit_learn_the_error_names_the_extra(monkeypatch, call, module):
+    """MissingDependency says which extra installs scikit-learn."""
+    monkeypatch.setitem(sys.modules, module, None)
+    with pytest.raises(MissingDependency, match=r"needs scikit-learn.*dmpopt\[recognition\]"):
+        call()
+
+
+def test_error_lda_degenerate_training_sets():
+    """One class, or no spread within any class, is refused before scikit-learn sees it."""
+    with _raises(
+        InvalidInputError, "labels hold the single class 'a'; LDA needs at least two classes"
+    ):
+        ShrinkageLdaClassifier().fit(np.eye(3), ["a", "a", "a"])
+    with _raises(
+        InvalidInputError,
+        "features do not vary within any class, so LDA has no within-class covariance to "
+        "estimate; give some class two distinct samples or use NearestNeighbourClassifier",
+    ):
+        ShrinkageLdaClassifier().fit(np.array([[0.0], [0.0], [1.0]]), [0, 0, 1])
+    with _raises(InvalidInputError, "shrinkage must be a number in (0, 1] or 'auto', got 'ledoit'"):
+        ShrinkageLdaClassifier("ledoit").fit(np.eye(3), [0, 1, 1])
+
+
+def test_error_confusion_matrix_classes():
+    """classes must list every label once."""
+    with _raises(
+        InvalidInputError, "labels ['c'] are not in classes; add them to classes or leave it out"
+    ):
+        confusion_matrix(["a", "c"], ["a", "a"], classes=["a", "b"])
+    with _raises(InvalidInputError, "classes repeats a label: ['a', 'a']; list each once"):
+        confusion_matrix(["a"], ["a"], classes=["a", "a"])
+    with _raises(ShapeError, "classes has shape (0,), expected (n_classes,)"):
+        confusion_matrix(["a"], ["a"], classes=[])

@@ -255,3 +255,280 @@ def test_ask_tell_errors(task):
     cma = CMAES(task.initial_weights, 5.0, seed=0)
     cma.tell(task.evaluate(cma.ask()))
     assert cma.n_trials == 20 and cma.mean.shape == (1, task.n_basis)
+
+
+# -- answer keys: the update rules written plainly ---------------------------------------------
+
+FEATURES = np.array([[1.0, 0.2], [0.5, -0.3], [-0.4, 1.1], [0.9, 0.7], [0.1, -0.8]])  # (5, 2)
+SIGMA = 0.5
+
+
+def _plain_scores(noise, features, sigma, with_log_std=False):
+    """psi_k[(d, b)] = sum_t eps_{k,t,d} phi_{t,b} / sigma^2 (and sum (eps^2/sigma^2 - 1))."""
+    k, n_actions, n_dofs = noise.shape
+    scores = np.zeros((k, n_dofs * features.shape[1] + with_log_std))
+    for r in range(k):
+        for d in range(n_dofs):
+            for b in range(features.shape[1]):
+                total = sum(noise[r, t, d] * features[t, b] for t in range(n_actions))
+                scores[r, d * features.shape[1] + b] = total / sigma**2
+        if with_log_std:
+            scores[r, -1] = np.sum(noise[r] ** 2 / sigma**2 - 1.0)
+    return scores
+
+
+def _plain_fisher(features, sigma, n_dofs):
+    """F[(d, b), (d', b')] = [d = d'] sum_t phi_{t,b} phi_{t,b'} / sigma^2."""
+    n_basis = features.shape[1]
+    fisher = np.zeros((n_dofs * n_basis, n_dofs * n_basis))
+    for d in range(n_dofs):
+        for b in range(n_basis):
+            for c in range(n_basis):
+                fisher[d * n_basis + b, d * n_basis + c] = features[:, b] @ features[:, c]
+    return fisher / sigma**2
+
+
+def test_enac_gradient_recovers_returns_linear_in_the_scores():
+    """Returns R = Psi a + c exactly: the regression of eq. (19) gives g = a and baseline c."""
+    rng = np.random.default_rng(10)
+    scores = rng.standard_normal((12, 3))
+    a, c = np.array([0.5, -2.0, 1.25]), 3.5
+    natural, baseline = enac_gradient(scores, scores @ a + c)
+    np.testing.assert_allclose(natural, a, rtol=0, atol=1e-12)
+    assert baseline == pytest.approx(c, abs=1e-12)
+
+
+def test_enac_step_is_the_natural_gradient_f_inverse_g():
+    """One constant step of eNAC moves W by alpha F^-1 grad J; the vanilla gradient does not.
+
+    With R = Psi a + c, the likelihood-ratio gradient is grad J = E[psi R] = F a, so the
+    natural gradient F^-1 grad J is a. Two DOFs check the (DOF, basis) layout.
+    """
+    weights = np.array([[1.0, -1.0], [0.5, 2.0]])
+    method = EpisodicNAC(
+        FEATURES, weights, SIGMA, n_rollouts=10, step_size=0.3, step_rule="constant", seed=4
+    )
+    noise = method.ask().acceleration_noise
+    scores = _plain_scores(noise, FEATURES, SIGMA)
+    a = np.array([0.2, -0.1, 0.4, 0.3])
+    returns = scores @ a + 7.0
+    natural = np.linalg.solve(
+        _plain_fisher(FEATURES, SIGMA, 2), _plain_fisher(FEATURES, SIGMA, 2) @ a
+    )
+    vanilla = reinforce_gradient(scores, returns)
+    assert np.linalg.norm(vanilla - natural) > 0.1 * np.linalg.norm(natural)
+    method.tell(returns)
+    np.testing.assert_allclose(
+        method.mean, weights + 0.3 * natural.reshape(2, 2), rtol=0, atol=1e-12
+    )
+    assert method.n_trials == 10 and method.n_updates == 1
+
+
+def test_kl_step_length_and_decay():
+    """step_rule "kl": alpha = sqrt(2 eps / (g^T F g)), divided by 1 + decay * n_updates."""
+    weights = np.array([[1.0, -1.0]])
+    method = EpisodicNAC(FEATURES, weights, SIGMA, n_rollouts=6, step_size=0.02, decay=0.5, seed=5)
+    fisher = _plain_fisher(FEATURES, SIGMA, 1)
+    a = np.array([1.5, -0.5])
+    expected = weights.copy()
+    for update in range(2):
+        scores = _plain_scores(method.ask().acceleration_noise, FEATURES, SIGMA)
+        method.tell(scores @ a - 1.0)
+        alpha = np.sqrt(2 * 0.02 / (a @ fisher @ a)) / (1 + 0.5 * update)
+        expected = expected + alpha * a
+        np.testing.assert_allclose(method.mean, expected, rtol=1e-10, atol=1e-12)
+    assert method.fisher() == pytest.approx(fisher, rel=1e-12)
+
+
+def test_learned_exploration_step_on_log_sigma():
+    """With learn_exploration, log sigma moves by alpha times its natural-gradient entry."""
+    weights = np.array([[0.0, 0.0]])
+    method = EpisodicNAC(
+        FEATURES,
+        weights,
+        SIGMA,
+        n_rollouts=8,
+        step_size=0.5,
+        step_rule="constant",
+        learn_exploration=True,
+        seed=6,
+    )
+    noise = method.ask().acceleration_noise
+    scores = _plain_scores(noise, FEATURES, SIGMA, with_log_std=True)
+    np.testing.assert_allclose(method.scores(noise), scores, rtol=1e-12, atol=1e-12)
+    a = np.array([0.4, -0.2, 0.1])
+    method.tell(scores @ a)
+    np.testing.assert_allclose(method.mean, [[0.2, -0.1]], rtol=0, atol=1e-12)
+    assert method.exploration_std == pytest.approx(SIGMA * np.exp(0.05), rel=1e-12)
+    fisher = method.fisher()
+    assert fisher.shape == (3, 3) and fisher[-1, -1] == 2.0 * FEATURES.shape[0]
+    assert np.all(fisher[-1, :-1] == 0) and np.all(fisher[:-1, -1] == 0)
+
+
+def test_reinforce_gradient_plain_formula():
+    """g_h = mean_k psi_kh (R_k - b_h), b_h = sum psi_kh^2 R_k / sum psi_kh^2; zero column -> 0."""
+    scores = 0.01 * np.array([[1.0, 0.0, 2.0], [-2.0, 0.0, 1.0], [0.5, 0.0, -1.0], [3.0, 0.0, 0.0]])
+    returns = np.array([1.0, -2.0, 0.5, 4.0])
+    expected = np.zeros(3)
+    for h in range(3):
+        psi = scores[:, h]
+        baseline = (psi**2 @ returns) / (psi**2).sum() if np.any(psi) else 0.0
+        expected[h] = np.mean(psi * (returns - baseline))
+    np.testing.assert_allclose(reinforce_gradient(scores, returns), expected, rtol=1e-12, atol=0)
+    method = EpisodicReinforce(
+        FEATURES, [[0.0, 0.0]], SIGMA, n_rollouts=4, step_size=2.0, step_rule="constant", seed=7
+    )
+    noise = method.ask().acceleration_noise
+    psi = _plain_scores(noise, FEATURES, SIGMA)
+    method.tell(returns)
+    np.testing.assert_allclose(method.mean[0], 2.0 * reinforce_gradient(psi, returns), rtol=1e-12)
+
+
+def _pibb_expected(samples, returns, mean, covariance, eliteness, decay, rate, adapt, floor):
+    """PI-BB update written plainly."""
+    scaled = (returns - returns.max()) / (returns.max() - returns.min())
+    p = np.exp(eliteness * scaled)
+    p = p / p.sum()
+    new_mean = sum(p[k] * samples[k] for k in range(len(p)))
+    if adapt:
+        estimate = sum(p[k] * np.outer(samples[k] - mean, samples[k] - mean) for k in range(len(p)))
+        covariance = (1 - rate) * covariance + rate * estimate
+    return new_mean, decay * covariance + floor * np.eye(len(mean))
+
+
+@pytest.mark.parametrize("adapt", [True, False])
+def test_pibb_update_plain_formula(adapt):
+    """Reward-weighted mean and (adapted or shrunk) covariance, with the 1e-6 sigma^2 floor."""
+    start = np.array([[0.5, -1.0, 2.0]])
+    method = PIBB(
+        start,
+        2.0,
+        n_rollouts=5,
+        eliteness=3.0,
+        decay=0.9,
+        adapt_covariance=adapt,
+        covariance_rate=0.25,
+        seed=8,
+    )
+    samples = method.ask().weights.reshape(5, 3)
+    returns = np.array([1.0, 4.0, -2.0, 0.5, 3.0])
+    method.tell(returns)
+    mean, covariance = _pibb_expected(
+        samples, returns, start[0], 4.0 * np.eye(3), 3.0, 0.9, 0.25, adapt, 4e-6
+    )
+    np.testing.assert_allclose(method.mean, mean[None], rtol=1e-12)
+    np.testing.assert_allclose(method.covariance, covariance, rtol=1e-12, atol=1e-15)
+    assert method.n_trials == 5 and method.n_updates == 1
+
+
+def test_pibb_defaults_and_equal_returns():
+    """Defaults: 20 roll-outs, eliteness 10, decay 0.98, adapted covariance at rate 0.5.
+
+    Equal returns weigh every sample equally (no division by a zero spread).
+    """
+    start = np.array([[0.0, 1.0]])
+    method = PIBB(start, 3.0, seed=9)
+    np.testing.assert_allclose(method.covariance, 9.0 * np.eye(2))
+    samples = method.ask().weights.reshape(20, 2)
+    assert samples.shape == (20, 2) and method.n_updates == 0 and method.n_trials == 0
+    returns = np.linspace(-1.0, 2.0, 20)
+    method.tell(returns)
+    mean, covariance = _pibb_expected(
+        samples, returns, start[0], 9.0 * np.eye(2), 10.0, 0.98, 0.5, True, 9e-6
+    )
+    np.testing.assert_allclose(method.mean[0], mean, rtol=1e-12)
+    np.testing.assert_allclose(method.covariance, covariance, rtol=1e-12)
+    samples = method.ask().weights.reshape(20, 2)
+    method.tell(np.zeros(20))
+    np.testing.assert_allclose(method.mean[0], samples.mean(axis=0), rtol=1e-12)
+
+
+def test_same_seed_same_exploration(task):
+    """A seed fixes every method's exploration; another seed changes it."""
+    for name, options in (
+        ("enac", {"exploration_std": 1.0}),
+        ("pibb", {"exploration_std": 1.0}),
+        ("cmaes", {"exploration_std": 1.0}),
+    ):
+        first, again, other = (make_method(name, task, seed=s, **options).ask() for s in (3, 3, 4))
+        np.testing.assert_array_equal(first.weights, again.weights)
+        if name == "enac":
+            first, again, other = (e.acceleration_noise for e in (first, again, other))
+        else:
+            first, other = first.weights, other.weights
+        assert not np.allclose(first, other)
+
+
+def test_learning_curve_lookups():
+    """weights_at: the last update within the trials; trials_to: the first reaching a fraction."""
+    curve = optimise(
+        make_method("pibb", paper_reaching_task(), seed=0, exploration_std=20.0),
+        paper_reaching_task(),
+        60,
+    )
+    assert curve.trials.tolist() == [0.0, 20.0, 40.0, 60.0]
+    np.testing.assert_array_equal(curve.weights_at(39.5), curve.weights[1])
+    np.testing.assert_array_equal(curve.weights_at(40), curve.weights[2])
+    np.testing.assert_array_equal(curve.weights_at(0), curve.weights[0])
+    np.testing.assert_array_equal(curve.final_weights, curve.weights[3])
+    target = float(curve.improvement[2])
+    first = int(np.argmax(curve.improvement >= target))
+    assert curve.trials_to(target) == curve.trials[first]
+    assert curve.trials_to(2.0) == float("inf")
+    with pytest.raises(InvalidInputError, match="trials"):
+        curve.weights_at(-1)
+    with pytest.raises(InvalidInputError, match="fraction"):
+        curve.trials_to(np.nan)
+
+
+def test_task_defaults():
+    """The paper's task: 1 DOF, 0 -> 1 in 0.5 s at 1 ms, 10 bases, tau from the convergence time."""
+    from dmpopt import basis
+
+    task = paper_reaching_task()
+    assert (task.n_dofs, task.n_basis, task.n_steps, task.dt, task.duration) == (
+        1,
+        10,
+        501,
+        0.001,
+        0.5,
+    )
+    assert task.jerk_weight == 0.0 and task.delayed is False
+    assert (task.goal_weight, task.velocity_weight, task.acceleration_weight) == (1000.0, 1.0, 1e-3)
+    np.testing.assert_array_equal(task.dmp.start, [0.0])
+    np.testing.assert_array_equal(task.dmp.goal, [1.0])
+    tau = 0.5 / basis.convergence_time("acceleration", task.dmp.gains)
+    assert task.dmp.time_constant == pytest.approx(tau, rel=1e-12)
+    np.testing.assert_array_equal(task.initial_weights, np.zeros((1, 10)))
+    six = multi_dof_reaching_task()
+    np.testing.assert_array_equal(six.dmp.goal, [1.0, -0.5, 0.8, 0.3, -1.2, 0.6])
+    assert (six.n_dofs, six.n_basis, six.dt, six.duration, six.delayed) == (
+        6,
+        10,
+        0.001,
+        0.5,
+        False,
+    )
+    via = via_point_task()
+    assert (via.n_dofs, via.n_basis, via.dt, via.duration, via.delayed) == (
+        2,
+        10,
+        0.001,
+        0.5,
+        False,
+    )
+    np.testing.assert_array_equal(via.dmp.goal, [1.0, 0.0])
+    assert via.via_points[0].time == 0.2 and via.via_points[0].position == (0.3, 0.6)
+
+
+def test_improvement_of_one_or_a_batch(task):
+    """improvement(W) is a float; of a batch (K, n_dofs, n_basis), an array of K fractions."""
+    half = 0.5 * task.optimal_weights
+    single = task.improvement(half)
+    assert isinstance(single, float)
+    expected = (task.deterministic_return(half) - task.initial_return) / (
+        task.optimum_return - task.initial_return
+    )
+    assert single == pytest.approx(expected, rel=1e-12)
+    batch = task.improvement(np.stack([task.initial_weights, half, task.optimal_weights]))
+    np.testing.assert_allclose(batch, [0.0, expected, 1.0], rtol=1e-12, atol=1e-12)

@@ -53,10 +53,14 @@ def leave_one_out(classifier, samples, labels, queries=None) -> np.ndarray:
     if labels.size < 2:
         raise InvalidInputError("leave_one_out needs at least two samples")
     queries = samples if queries is None else queries
-    if not hasattr(queries, "__len__") or len(queries) != labels.size:
+    if not hasattr(queries, "__len__") or isinstance(queries, (str, bytes)):
+        raise InvalidInputError(
+            f"queries must be an array or a list with one entry per sample, got "
+            f"{type(queries).__name__}"
+        )
+    if len(queries) != labels.size:
         raise ShapeError(
-            f"queries has {len(queries) if hasattr(queries, '__len__') else 'no'} entries, "
-            f"expected {labels.size}: one per sample"
+            f"queries has {len(queries)} entries, expected {labels.size}: one per sample"
         )
     splits = sklearn("model_selection", "leave_one_out").LeaveOneOut().split(labels)
     predictions = []

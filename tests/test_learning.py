@@ -5,12 +5,14 @@ import pytest
 from scipy.optimize import minimize
 
 from dmpopt import symbolic
-from dmpopt.exceptions import InvalidInputError, ShapeError
+from dmpopt.exceptions import DmpoptError, InvalidInputError, ShapeError
 from dmpopt.learning import (
     CMAES,
     PIBB,
     EpisodicNAC,
     EpisodicReinforce,
+    RewardTask,
+    ViaPoint,
     enac_gradient,
     make_method,
     multi_dof_reaching_task,
@@ -532,3 +534,187 @@ def test_improvement_of_one_or_a_batch(task):
     assert single == pytest.approx(expected, rel=1e-12)
     batch = task.improvement(np.stack([task.initial_weights, half, task.optimal_weights]))
     np.testing.assert_allclose(batch, [0.0, expected, 1.0], rtol=1e-12, atol=1e-12)
+
+
+# -- bad inputs: each names its argument; values on the bounds are accepted -------------------
+
+
+@pytest.fixture(scope="module")
+def coarse():
+    return paper_reaching_task(dt=0.01)
+
+
+def _pibb(coarse, **options):
+    return PIBB(coarse.initial_weights, options.pop("std", 1.0), **options)
+
+
+def _told(method, rewards):
+    method.ask()
+    method.tell(rewards)
+
+
+BAD = {
+    "task form": (
+        lambda t: RewardTask(t.dmp.replace(form="velocity")),
+        "dmp must be a DiscreteDMP with form='acceleration'",
+    ),
+    "goal_weight": (
+        lambda t: RewardTask(t.dmp, goal_weight=-1),
+        "goal_weight must be a finite number >= 0",
+    ),
+    "velocity_weight": (
+        lambda t: RewardTask(t.dmp, velocity_weight=np.nan),
+        "velocity_weight must",
+    ),
+    "acceleration_weight": (
+        lambda t: RewardTask(t.dmp, acceleration_weight=-1),
+        "acceleration_weight must",
+    ),
+    "jerk_weight": (lambda t: RewardTask(t.dmp, jerk_weight=-1), "jerk_weight must"),
+    "duration": (lambda t: RewardTask(t.dmp, duration=0), "duration must be a finite number > 0"),
+    "dt": (
+        lambda t: RewardTask(t.dmp, dt=0.3),
+        r"dt must be a finite number > 0 and <= 0.25, got 0.3",
+    ),
+    "delayed": (
+        lambda t: RewardTask(t.dmp, dt=0.01, delayed="yes"),
+        "delayed must be True or False",
+    ),
+    "via single": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=ViaPoint(0.1, (0.5,))),
+        "via_points must be a sequence of ViaPoint",
+    ),
+    "via time": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.7, (0.5,)),)),
+        r"via_points\[0\].time must be a finite number >= 0 and <= 0.5",
+    ),
+    "via position": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.1, (0.5, 1.0)),)),
+        r"via_points\[0\].position has shape \(2,\), expected \(1,\)",
+    ),
+    "via weight": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.1, (0.5,), -1.0),)),
+        r"via_points\[0\].weight must",
+    ),
+    "task size": (
+        lambda t: RewardTask(t.dmp, duration=100.0, dt=1e-4),
+        "a task of 100 s with dt = 0.0001 s",
+    ),
+    "rollout weights": (
+        lambda t: t.rollouts(np.zeros((2, 2, 10))),
+        r"weights has shape \(2, 2, 10\), expected \(K, 1, 10\)",
+    ),
+    "rollout noise": (
+        lambda t: t.rollouts(np.zeros((1, 1, 10)), np.zeros((1, 3, 1))),
+        r"acceleration_noise has shape \(1, 3, 1\), expected \(1, 50, 1\)",
+    ),
+    "rewards plans": (
+        lambda t: t.rewards(np.zeros((1, 3, 5, 1))),
+        r"plans has shape \(1, 3, 5, 1\), expected \(K, 3, 51, 1\)",
+    ),
+    "evaluate": (lambda t: t.evaluate(3), "exploration must be an Exploration"),
+    "n_basis": (lambda t: paper_reaching_task(n_basis=0), "n_basis must be an integer >= 1"),
+    "goals": (
+        lambda t: multi_dof_reaching_task(goals=[[1.0]]),
+        r"goals has shape \(1, 1\), expected \(n_dofs,\)",
+    ),
+    "goal": (lambda t: via_point_task(goal=[np.nan, 1]), r"goal\[0\] is nan"),
+    "start": (lambda t: multi_dof_reaching_task(duration=-1.0), "duration must be"),
+    "features": (
+        lambda t: EpisodicNAC(np.zeros((5, 3)), t.initial_weights, 1.0),
+        r"features has shape \(5, 3\), expected \(n_actions, 10\)",
+    ),
+    "nac std": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 0.0),
+        "exploration_std must be a finite number > 0",
+    ),
+    "nac n_rollouts": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 1.0, n_rollouts=1),
+        "n_rollouts must be an integer >= 2",
+    ),
+    "nac step_size": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 1.0, step_size=0),
+        "step_size must be a finite number > 0",
+    ),
+    "nac decay": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 1.0, decay=-1),
+        "decay must be a finite number >= 0",
+    ),
+    "initial_weights": (
+        lambda t: EpisodicNAC(t.policy_features, np.zeros((1, 1, 10)), 1.0),
+        r"initial_weights has shape \(1, 1, 10\)",
+    ),
+    "nac size": (
+        lambda t: EpisodicNAC(np.zeros((2, 17_000)), np.zeros((1, 17_000)), 1.0),
+        "a covariance over 17001 weights",
+    ),
+    "pibb n_rollouts": (lambda t: _pibb(t, n_rollouts=1), "n_rollouts must be an integer >= 2"),
+    "pibb std": (lambda t: _pibb(t, std=-1.0), "exploration_std must be a finite number > 0"),
+    "pibb decay": (lambda t: _pibb(t, decay=0.0), "decay must be a finite number > 0 and <= 1"),
+    "pibb eliteness": (lambda t: _pibb(t, eliteness=0.0), "eliteness must be a finite number > 0"),
+    "pibb covariance_rate": (
+        lambda t: _pibb(t, covariance_rate=1.5),
+        "covariance_rate must be a finite number >= 0 and <= 1",
+    ),
+    "pibb size": (lambda t: PIBB(np.zeros((1, 20_000)), 1.0), "a covariance over 20000 weights"),
+    "cma n_rollouts": (
+        lambda t: CMAES(t.initial_weights, 1.0, n_rollouts=1),
+        "n_rollouts must be an integer >= 2",
+    ),
+    "cma std": (
+        lambda t: CMAES(t.initial_weights, 0.0),
+        "exploration_std must be a finite number > 0",
+    ),
+    "cma options": (
+        lambda t: CMAES(t.initial_weights, 1.0, options=[1]),
+        "options must be a dict of cma options, got list",
+    ),
+    "cma option": (
+        lambda t: CMAES(t.initial_weights, 1.0, options={"nonsense": 1}),
+        "options were refused by cma",
+    ),
+    "make std": (
+        lambda t: make_method("pibb", t),
+        r"make_method\('pibb', ...\) needs exploration_std",
+    ),
+    "optimise method": (lambda t: optimise(3, t, 10), "method must be a PolicySearch"),
+    "optimise task": (lambda t: optimise(_pibb(t), 3, 10), "task must be a RewardTask"),
+    "n_trials": (lambda t: optimise(_pibb(t), t, -1), "n_trials must be an integer >= 0"),
+    "rewards nan": (
+        lambda t: _told(_pibb(t), np.full(20, np.nan)),
+        r"rewards\[0\] is nan: .*a failed roll-out needs a finite",
+    ),
+    "rewards overflow": (
+        lambda t: _told(_pibb(t), np.full((20, 3), 1e308)),
+        "rewards overflow when summed",
+    ),
+    "returns": (
+        lambda t: enac_gradient(np.zeros((3, 2)), np.zeros(2)),
+        r"returns has shape \(2,\), expected \(3,\): one per row of scores",
+    ),
+    "scores": (lambda t: enac_gradient(np.zeros(3), np.zeros(3)), r"scores has shape \(3,\)"),
+    "returns 2-D": (
+        lambda t: reinforce_gradient(np.zeros((3, 2)), np.zeros((3, 1))),
+        r"returns has shape \(3, 1\)",
+    ),
+}
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+@pytest.mark.parametrize("case", BAD, ids=list(BAD))
+def test_bad_inputs_name_the_argument(coarse, case):
+    """Each refused input is named in the message (checked per case)."""
+    call, message = BAD[case]
+    with pytest.raises(DmpoptError, match=message):
+        call(coarse)
+
+
+def test_values_on_the_bounds_are_accepted(coarse):
+    """The bounds are inclusive where the messages say so."""
+    RewardTask(coarse.dmp, duration=0.02, dt=0.01)
+    RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPoint(0.5, (0.5,), 0.0),), goal_weight=0.0)
+    for rate in (0.0, 1.0):
+        _pibb(coarse, decay=1.0, covariance_rate=rate)
+    EpisodicNAC(coarse.policy_features, coarse.initial_weights, 1.0, n_rollouts=2, decay=0.0)
+    CMAES(coarse.initial_weights, 1.0, n_rollouts=2)
+    assert optimise(_pibb(coarse), coarse, 0).trials.tolist() == [0.0]

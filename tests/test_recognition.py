@@ -731,3 +731,58 @@ def test_bad_inputs_name_the_argument(case):
     call, error, message = BAD_INPUTS[case]
     with pytest.raises(error, match=message):
         call(_line_dmp())
+
+
+def _best_similarity_fit(template, observed, rotation):
+    """min over s >= 0 (and a rotation angle) of |O - s T R|^2 / |O|^2, by scipy."""
+    from scipy.optimize import minimize
+
+    def cost(x):
+        angle = x[1] if rotation else 0.0
+        r = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+        return np.sum((observed - max(x[0], 0.0) * template @ r) ** 2)
+
+    starts = [[1.0, a] for a in np.linspace(-np.pi, np.pi, 13)] if rotation else [[1.0, 0.0]]
+    best = min(
+        minimize(cost, s, method="Nelder-Mead", options={"xatol": 1e-10, "fatol": 1e-14}).fun
+        for s in starts
+    )
+    return min(best, cost([0.0, 0.0])) / np.sum(observed**2)
+
+
+@pytest.mark.parametrize("rotation", [False, True])
+def test_match_residuals_are_the_best_similarity_fits(rotation):
+    """Residuals of random, mirrored, opposite and zero templates against a second solver."""
+    from dmpopt.recognition.partial import _match_residuals
+
+    rng = np.random.default_rng(5)
+    observed = rng.standard_normal((15, 2))
+    templates = np.stack(
+        [
+            rng.standard_normal((15, 2)),
+            observed + 0.3 * rng.standard_normal((15, 2)),
+            -observed,  # rotation by pi fits it exactly; a scale >= 0 alone cannot
+            observed * [1.0, -1.0],  # a reflection: no proper rotation fits it
+            np.zeros((15, 2)),
+        ]
+    )
+    expected = [_best_similarity_fit(t, observed, rotation) for t in templates]
+    actual = _match_residuals(templates, observed, rotation)
+    np.testing.assert_allclose(actual, expected, rtol=1e-6, atol=1e-9)
+    assert actual[2] == pytest.approx(0.0 if rotation else 1.0, abs=1e-12)
+    assert actual[4] == 1.0
+
+
+def test_match_finds_the_observed_fraction(dmp):
+    """The first 40 % of a DMP's own plan, moved, scaled and slowed, matches at fraction 0.4."""
+    duration = dmp.convergence_time
+    plan = dmp.rollout(duration, duration / 999)
+    keep = plan.times <= 0.4 * plan.times[-1] + 1e-9
+    positions = 2.5 * plan.positions[keep] + [3.0, -1.0]
+    observation = Trajectory.from_positions(3.0 * plan.times[keep] + 1.0, positions)
+    classifier = PartialObservationClassifier(fractions=(0.5, 0.3, 0.4), plan_samples=1000)
+    classifier.fit([dmp, dmp.replace(goal=dmp.goal + [0.0, 3.0])], ["same", "other"])
+    residuals, fractions = classifier.match(observation)
+    assert fractions[0] == 0.4 and residuals[0] < 1e-6 < residuals[1]
+    assert list(classifier.fractions_) == [0.3, 0.4, 0.5]
+    assert classifier.predict(observation).tolist() == ["same"]

@@ -66,7 +66,8 @@ from dmpopt.recognition import (
 
 from .common import output_dir, pyplot, write_metrics
 
-EXPECTED_SECONDS = {"full": 30, "quick": 5}  # measured on the 2-core machine
+# 2-core machine: 30 s measured before scikit-learn, plus ~30 s of CPU its fits cost (measured)
+EXPECTED_SECONDS = {"full": 60, "quick": 10}
 N_BASIS = 30
 QUICK_SHAPES = 8
 OFFSET = 500.0  # [mm], largest translation per axis

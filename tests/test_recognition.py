@@ -525,25 +525,47 @@ def test_confusion_matrix_keeps_the_order_of_classes():
 
 
 @pytest.mark.parametrize(
-    "call, module",
+    "call, module, user",
     [
-        (lambda: NearestNeighbourClassifier().fit(np.eye(2), [0, 1]), "sklearn.neighbors"),
+        (
+            lambda: NearestNeighbourClassifier().fit(np.eye(2), [0, 1]),
+            "sklearn.neighbors",
+            "NearestNeighbourClassifier",
+        ),
         (
             lambda: ShrinkageLdaClassifier().fit(np.eye(4), [0, 0, 1, 1]),
             "sklearn.discriminant_analysis",
+            "ShrinkageLdaClassifier",
         ),
-        (lambda: confusion_matrix([0, 1], [0, 0]), "sklearn.metrics"),
+        (lambda: confusion_matrix([0, 1], [0, 0]), "sklearn.metrics", "confusion_matrix"),
         (
             lambda: leave_one_out(NearestNeighbourClassifier(), np.eye(2), [0, 1]),
             "sklearn.model_selection",
+            "leave_one_out",
         ),
     ],
 )
-def test_without_scikit_learn_the_error_names_the_extra(monkeypatch, call, module):
-    """MissingDependency says which extra installs scikit-learn."""
+def test_without_scikit_learn_the_error_names_the_extra(monkeypatch, call, module, user):
+    """MissingDependency names the function and the extra that installs scikit-learn."""
     monkeypatch.setitem(sys.modules, module, None)
-    with pytest.raises(MissingDependency, match=r"needs scikit-learn.*dmpopt\[recognition\]"):
+    extra = re.escape("pip install 'dmpopt[recognition]'")
+    message = f"^{user} needs scikit-learn, which is not installed: {extra}$"
+    with pytest.raises(MissingDependency, match=message):
         call()
+
+
+def test_lda_memory_bound():
+    """The p x p covariance is bounded (8 p^2 bytes); 700 features are far below it."""
+    from dmpopt.exceptions import ResourceLimitError
+
+    with pytest.raises(
+        ResourceLimitError, match=r"^the covariance of 100000 features needs .*reduce the features"
+    ):
+        ShrinkageLdaClassifier().fit(np.zeros((3, 10**5)), [0, 1, 1])
+    rng = np.random.default_rng(0)
+    features = rng.standard_normal((4, 700))
+    lda = ShrinkageLdaClassifier().fit(features, [0, 0, 1, 1])
+    assert lda.predict(features).tolist() == [0, 0, 1, 1]
 
 
 def test_error_lda_degenerate_training_sets():

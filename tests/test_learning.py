@@ -718,3 +718,55 @@ def test_values_on_the_bounds_are_accepted(coarse):
     EpisodicNAC(coarse.policy_features, coarse.initial_weights, 1.0, n_rollouts=2, decay=0.0)
     CMAES(coarse.initial_weights, 1.0, n_rollouts=2)
     assert optimise(_pibb(coarse), coarse, 0).trials.tolist() == [0.0]
+
+
+def test_per_step_rewards_with_jerk_and_via_point():
+    """Per-step rewards written plainly: acceleration and jerk at their step, the via point at
+    its sample, goal and velocity at the last; the exact optimum is the least-squares one."""
+    task = RewardTask(
+        paper_reaching_task(dt=0.01).dmp,
+        duration=0.5,
+        dt=0.01,
+        goal_weight=500.0,
+        velocity_weight=2.0,
+        acceleration_weight=0.01,
+        jerk_weight=1e-6,
+        via_points=(ViaPoint(0.2, (0.3,), 50.0),),
+    )
+    rng = np.random.default_rng(11)
+    weights = 20 * rng.standard_normal((2, 1, task.n_basis))
+    noise = rng.standard_normal((2, task.n_actions, 1))
+    plans = task.rollouts(weights, noise)
+    y, yd, ydd = plans[:, 0, :, 0], plans[:, 1, :, 0], plans[:, 2, :, 0]
+    dt, n = 0.01, task.n_steps
+    expected = np.zeros((2, n))
+    for k in range(n - 1):
+        jerk = (ydd[:, k + 1] - ydd[:, k]) / dt
+        expected[:, k] = -0.01 * dt * ydd[:, k] ** 2 - 1e-6 * dt * jerk**2
+    expected[:, 20] -= 50.0 * (y[:, 20] - 0.3) ** 2
+    expected[:, -1] -= 500.0 * (y[:, -1] - 1.0) ** 2 + 2.0 * yd[:, -1] ** 2
+    np.testing.assert_allclose(task.rewards(plans), expected, rtol=1e-12, atol=1e-12)
+
+    def cost(w):
+        return -task.deterministic_return(w[None])
+
+    result = minimize(cost, np.zeros(task.n_basis), method="BFGS", options={"gtol": 1e-9})
+    assert task.optimum_return == pytest.approx(-result.fun, rel=1e-6)
+    np.testing.assert_allclose(
+        task.optimal_weights[0], result.x, rtol=1e-3, atol=1e-3 * abs(result.x).max()
+    )
+
+
+def test_noisy_rollouts_of_several_dofs_are_plan_plus_h_eps():
+    """Each DOF of each roll-out is the plan of its weights plus H @ eps of its own noise."""
+    via = via_point_task(dt=0.01)
+    rng = np.random.default_rng(12)
+    weights = 10 * rng.standard_normal((3, 2, via.n_basis))
+    noise = rng.standard_normal((3, via.n_actions, 2))
+    plans = via.rollouts(weights, noise)
+    response = via.noise_response
+    for k in range(3):
+        expected = via.plan.evaluate(weights[k]) + np.einsum("ist,td->isd", response, noise[k])
+        np.testing.assert_allclose(plans[k], expected, rtol=1e-10, atol=1e-10)
+    assert response.shape == (3, via.n_steps, via.n_actions)
+    assert np.all(np.triu(response[0], 1) == 0.0)  # causal: no effect before the input

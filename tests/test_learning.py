@@ -770,3 +770,29 @@ def test_noisy_rollouts_of_several_dofs_are_plan_plus_h_eps():
         np.testing.assert_allclose(plans[k], expected, rtol=1e-10, atol=1e-10)
     assert response.shape == (3, via.n_steps, via.n_actions)
     assert np.all(np.triu(response[0], 1) == 0.0)  # causal: no effect before the input
+
+
+def test_pibb_weights_ignore_a_shift_of_the_returns_and_count_updates():
+    """Two updates with returns near 1e6 and a spread of 0.5: the plain formula, no overflow."""
+    start = np.array([[0.5, -1.0]])
+    method = PIBB(start, 1.0, n_rollouts=4, seed=13)
+    mean, covariance = start[0], np.eye(2)
+    for update in range(2):
+        samples = method.ask().weights.reshape(4, 2)
+        returns = 1e6 + np.array([0.0, 0.5, 0.2, 0.4])
+        method.tell(returns)
+        mean, covariance = _pibb_expected(
+            samples, returns, mean, covariance, 10.0, 0.98, 0.5, True, 1e-6
+        )
+        np.testing.assert_allclose(method.mean[0], mean, rtol=1e-9)
+        np.testing.assert_allclose(method.covariance, covariance, rtol=1e-9)
+    assert method.n_updates == 2 and method.n_trials == 8
+
+
+def test_learning_curve_messages():
+    """weights_at and trials_to name their argument."""
+    curve = optimise(_pibb(paper_reaching_task(dt=0.01)), paper_reaching_task(dt=0.01), 20)
+    with pytest.raises(InvalidInputError, match="^trials must be a finite number >= 0"):
+        curve.weights_at(-1)
+    with pytest.raises(InvalidInputError, match="^fraction must be a finite number"):
+        curve.trials_to(np.nan)

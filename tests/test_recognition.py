@@ -786,23 +786,26 @@ def test_match_residuals_are_the_best_similarity_fits(rotation):
             -observed,  # rotation by pi fits it exactly; a scale >= 0 alone cannot
             observed * [1.0, -1.0],  # a reflection: no proper rotation fits it
             np.zeros((15, 2)),
+            0.01 * observed,  # a small copy: fitted exactly by the scale 100
         ]
     )
     expected = [_best_similarity_fit(t, observed, rotation) for t in templates]
     actual = _match_residuals(templates, observed, rotation)
     np.testing.assert_allclose(actual, expected, rtol=1e-6, atol=1e-9)
     assert actual[2] == pytest.approx(0.0 if rotation else 1.0, abs=1e-12)
-    assert actual[4] == 1.0
+    assert actual[4] == 1.0 and actual[5] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_match_finds_the_observed_fraction(dmp):
     """The first 40 % of a DMP's own plan, moved, scaled and slowed, matches at fraction 0.4."""
     duration = dmp.convergence_time
-    plan = dmp.rollout(duration, duration / 999)
+    plan = dmp.rollout(duration, duration / 1000)
     keep = plan.times <= 0.4 * plan.times[-1] + 1e-9
     positions = 2.5 * plan.positions[keep] + [3.0, -1.0]
     observation = Trajectory.from_positions(3.0 * plan.times[keep] + 1.0, positions)
-    classifier = PartialObservationClassifier(fractions=(0.5, 0.3, 0.4), plan_samples=1000)
+    classifier = PartialObservationClassifier(
+        fractions=(0.5, 0.3, 0.4), n_samples=40, plan_samples=1001
+    )
     classifier.fit([dmp, dmp.replace(goal=dmp.goal + [0.0, 3.0])], ["same", "other"])
     residuals, fractions = classifier.match(observation)
     assert fractions[0] == 0.4 and residuals[0] < 1e-6 < residuals[1]

@@ -797,11 +797,11 @@ def test_match_residuals_are_the_best_similarity_fits(rotation):
 
 
 def test_match_finds_the_observed_fraction(dmp):
-    """The first 40 % of a DMP's own plan, moved, scaled and slowed, matches at fraction 0.4."""
+    """The first 40 % of a DMP's own plan, moved, shrunk and slowed, matches at fraction 0.4."""
     duration = dmp.convergence_time
     plan = dmp.rollout(duration, duration / 1000)
     keep = plan.times <= 0.4 * plan.times[-1] + 1e-9
-    positions = 2.5 * plan.positions[keep] + [3.0, -1.0]
+    positions = 0.1 * plan.positions[keep] + [3.0, -1.0]  # small: moves less than 1
     observation = Trajectory.from_positions(3.0 * plan.times[keep] + 1.0, positions)
     classifier = PartialObservationClassifier(
         fractions=(0.5, 0.3, 0.4), n_samples=40, plan_samples=1001
@@ -811,3 +811,24 @@ def test_match_finds_the_observed_fraction(dmp):
     assert fractions[0] == 0.4 and residuals[0] < 1e-6 < residuals[1]
     assert list(classifier.fractions_) == [0.3, 0.4, 0.5]
     assert classifier.predict(observation).tolist() == ["same"]
+
+
+def test_partial_classifier_defaults(dmp):
+    """Nine fractions 0.3-0.7, 50 compared samples, no rotation, 400 plan samples."""
+    classifier = PartialObservationClassifier()
+    assert classifier.fractions == (0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7)
+    assert (classifier.n_samples, classifier.rotation, classifier.plan_samples) == (50, False, 400)
+    classifier.fit([dmp, dmp, dmp], ["b", "a", "b"])
+    assert classifier.plans_.shape == (3, 400, 2) and np.all(classifier.plans_[:, 0] == 0.0)
+    assert classifier.classes_.tolist() == ["a", "b"] and classifier.labels_.tolist() == list("bab")
+    whole = PartialObservationClassifier(fractions=[1.0]).fit([dmp], ["a"])
+    assert whole.fractions_.tolist() == [1.0]
+
+
+def test_first_part_keeps_samples_up_to_the_end_time():
+    """Samples at exactly the end time are kept (within 1e-12 of the duration)."""
+    line = Trajectory.from_positions(np.arange(11.0), np.arange(11.0)[:, None])
+    assert first_part(line, 0.5).times.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    assert first_part(line, 0.2).n_steps == 3  # three samples are enough
+    long = Trajectory.from_positions(np.arange(11.0) * 1e5, np.arange(11.0)[:, None])
+    assert first_part(long, (3e5 - 1e-7) / 1e6).times[-1] == 3e5

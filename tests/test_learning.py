@@ -333,7 +333,7 @@ def test_kl_step_length_and_decay():
     fisher = _plain_fisher(FEATURES, SIGMA, 1)
     a = np.array([1.5, -0.5])
     expected = weights.copy()
-    for update in range(2):
+    for update in range(3):
         scores = _plain_scores(method.ask().acceleration_noise, FEATURES, SIGMA)
         method.tell(scores @ a - 1.0)
         alpha = np.sqrt(2 * 0.02 / (a @ fisher @ a)) / (1 + 0.5 * update)
@@ -695,7 +695,7 @@ BAD = {
     "scores": (lambda t: enac_gradient(np.zeros(3), np.zeros(3)), r"scores has shape \(3,\)"),
     "returns 2-D": (
         lambda t: reinforce_gradient(np.zeros((3, 2)), np.zeros((3, 1))),
-        r"returns has shape \(3, 1\)",
+        r"returns has shape \(3, 1\), expected 1 dimension",
     ),
 }
 
@@ -796,3 +796,51 @@ def test_learning_curve_messages():
         curve.weights_at(-1)
     with pytest.raises(InvalidInputError, match="^fraction must be a finite number"):
         curve.trials_to(np.nan)
+
+
+def test_action_space_defaults_and_counters(coarse):
+    """Defaults: 20 roll-outs, KL steps of 0.1, no decay, fixed exploration; counters add up."""
+    method = EpisodicNAC(coarse.policy_features, coarse.initial_weights, 2.0, seed=0)
+    assert (method.n_rollouts, method.step_size, method.step_rule) == (20, 0.1, "kl")
+    assert (method.decay, method.learn_exploration, method.exploration_std) == (0.0, False, 2.0)
+    cma = CMAES(coarse.initial_weights, 2.0, seed=0)
+    for _ in range(3):
+        method.tell(coarse.evaluate(method.ask()))
+        cma.tell(coarse.evaluate(cma.ask()))
+    assert (method.n_updates, method.n_trials, cma.n_updates, cma.n_trials) == (3, 60, 3, 60)
+
+
+def test_zero_gradient_gives_no_step(coarse):
+    """Equal returns: no direction, so the KL step leaves the weights.
+
+    Before, the regression returned round-off (~1e-16) and the KL rule scaled it to a full
+    step: weights moved by up to 0.42 in a random direction.
+    """
+    method = EpisodicNAC(coarse.policy_features, coarse.initial_weights, 2.0, seed=1)
+    method.ask()
+    method.tell(np.full(20, 3.0))
+    np.testing.assert_array_equal(method.mean, coarse.initial_weights)
+
+
+def test_fisher_of_log_sigma_counts_every_dof():
+    """The log-sigma entry of F is 2 n_actions n_dofs (one Gaussian per step and DOF)."""
+    method = EpisodicNAC(FEATURES, np.zeros((3, 2)), SIGMA, learn_exploration=True)
+    fisher = method.fisher()
+    assert fisher.shape == (7, 7) and fisher[-1, -1] == 2.0 * 5 * 3
+    np.testing.assert_allclose(fisher[:-1, :-1], _plain_fisher(FEATURES, SIGMA, 3), rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["pibb", "cmaes"])
+def test_tell_before_ask_is_refused(coarse, name):
+    """Every method refuses rewards it did not ask for."""
+    method = make_method(name, coarse, exploration_std=1.0)
+    with pytest.raises(InvalidInputError, match=r"^tell\(\) called without a pending ask\(\)"):
+        method.tell(np.zeros(20))
+
+
+def test_batch_memory_bound_counts_steps_times_dofs():
+    """K roll-outs of n_actions x n_dofs noise values are bounded (8 bytes each)."""
+    with pytest.raises(DmpoptError, match=r"^1000000 roll-outs of 1000 values each"):
+        EpisodicNAC(np.ones((500, 10)), np.zeros((2, 10)), 1.0, n_rollouts=10**6)
+    with pytest.raises(InvalidInputError, match=r"^features\[0, 0\] is nan"):
+        EpisodicNAC(np.full((5, 2), np.nan), np.zeros((1, 2)), 1.0)

@@ -832,3 +832,35 @@ def test_first_part_keeps_samples_up_to_the_end_time():
     assert first_part(line, 0.2).n_steps == 3  # three samples are enough
     long = Trajectory.from_positions(np.arange(11.0) * 1e5, np.arange(11.0)[:, None])
     assert first_part(long, (3e5 - 1e-7) / 1e6).times[-1] == 3e5
+
+
+def test_feature_checks_at_their_edges():
+    """Empty features are named; 1e150 is the largest magnitude accepted."""
+    with _raises(ShapeError, "features has shape (0, 3), expected (n_samples, n_features)"):
+        NearestNeighbourClassifier().fit(np.zeros((0, 3)), [])
+    big = NearestNeighbourClassifier().fit([[1e150], [-1e150]], ["a", "b"])
+    assert big.predict([[1e150]]).tolist() == ["a"]
+
+
+class _FitOnly:
+    def fit(self, samples, labels):
+        return self
+
+
+def test_leave_one_out_needs_fit_and_predict():
+    """An object without predict is refused before any fit."""
+    with _raises(InvalidInputError, "classifier must have fit() and predict(), got _FitOnly"):
+        leave_one_out(_FitOnly(), np.eye(3), [0, 1, 1])
+
+
+def test_arc_length_of_a_short_two_point_segment():
+    """Two points of one DOF, half a unit apart: three equally spaced points between them."""
+    path = arc_length_resampled([[0.0], [0.5]], 3)
+    assert path.shape == (3, 1) and np.allclose(path[:, 0], [0.0, 0.25, 0.5], rtol=0, atol=1e-15)
+
+
+def test_plan_metric_factor_defaults(dmp):
+    """200 samples, weights only (no start-velocity column) unless asked."""
+    factor = plan_metric_factor(dmp)
+    assert factor.shape == (N_BASIS, N_BASIS)
+    np.testing.assert_array_equal(factor, plan_metric_factor(dmp, 200, start_velocity=False))

@@ -657,6 +657,10 @@ BAD = {
         "covariance_rate must be a finite number >= 0 and <= 1",
     ),
     "pibb size": (lambda t: PIBB(np.zeros((1, 20_000)), 1.0), "a covariance over 20000 weights"),
+    "cma size": (
+        lambda t: CMAES(np.zeros((1, 20_000)), 1.0),
+        "a covariance over 20000 weights",
+    ),
     "cma n_rollouts": (
         lambda t: CMAES(t.initial_weights, 1.0, n_rollouts=1),
         "n_rollouts must be an integer >= 2",
@@ -682,7 +686,7 @@ BAD = {
     "n_trials": (lambda t: optimise(_pibb(t), t, -1), "n_trials must be an integer >= 0"),
     "rewards nan": (
         lambda t: _told(_pibb(t), np.full(20, np.nan)),
-        r"rewards\[0\] is nan: .*a failed roll-out needs a finite",
+        r"^rewards\[0\] is nan: .*; a failed roll-out needs a finite \(e.g. very low\) reward$",
     ),
     "rewards overflow": (
         lambda t: _told(_pibb(t), np.full((20, 3), 1e308)),
@@ -844,3 +848,23 @@ def test_batch_memory_bound_counts_steps_times_dofs():
         EpisodicNAC(np.ones((500, 10)), np.zeros((2, 10)), 1.0, n_rollouts=10**6)
     with pytest.raises(InvalidInputError, match=r"^features\[0, 0\] is nan"):
         EpisodicNAC(np.full((5, 2), np.nan), np.zeros((1, 2)), 1.0)
+
+
+@pytest.mark.parametrize(
+    "name, kind",
+    [("enac", EpisodicNAC), ("ereinforce", EpisodicReinforce), ("pibb", PIBB), ("cmaes", CMAES)],
+)
+def test_make_method_builds_the_named_method_from_the_task(coarse, name, kind, capsys):
+    """Each name gives its class, started at the task's weights, seeded, and silent."""
+    first = make_method(name, coarse, seed=2, exploration_std=1.5)
+    assert type(first) is kind
+    np.testing.assert_array_equal(first.mean, coarse.initial_weights)
+    a = first.ask()
+    # one after the other: cma draws from numpy's global generator, seeded at construction
+    b = make_method(name, coarse, seed=2, exploration_std=1.5).ask()
+    np.testing.assert_array_equal(a.weights, b.weights)
+    if a.acceleration_noise is not None:
+        np.testing.assert_array_equal(a.acceleration_noise, b.acceleration_noise)
+        assert first.exploration_std == 1.5
+    first.tell(coarse.evaluate(a))
+    assert capsys.readouterr().out == ""

@@ -559,7 +559,9 @@ def test_lda_memory_bound():
     from dmpopt.exceptions import ResourceLimitError
 
     with pytest.raises(
-        ResourceLimitError, match=r"^the covariance of 100000 features needs .*reduce the features"
+        ResourceLimitError,
+        match=r"^the covariance of 100000 features needs about 74.5 GiB; .*: reduce the "
+        r"features \(e.g. fewer basis functions or path samples\)$",
     ):
         ShrinkageLdaClassifier().fit(np.zeros((3, 10**5)), [0, 1, 1])
     rng = np.random.default_rng(0)

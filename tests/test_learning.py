@@ -468,7 +468,7 @@ def test_learning_curve_lookups():
         paper_reaching_task(),
         60,
     )
-    assert curve.trials.tolist() == [0.0, 20.0, 40.0, 60.0]
+    assert curve.trials.tolist() == [0.0, 20.0, 40.0, 60.0] and curve.trials.dtype == float
     np.testing.assert_array_equal(curve.weights_at(39.5), curve.weights[1])
     np.testing.assert_array_equal(curve.weights_at(40), curve.weights[2])
     np.testing.assert_array_equal(curve.weights_at(0), curve.weights[0])
@@ -644,9 +644,14 @@ BAD = {
         lambda t: EpisodicNAC(t.policy_features, np.zeros((1, 1, 10)), 1.0),
         r"initial_weights has shape \(1, 1, 10\)",
     ),
+    "initial_weights nan": (
+        lambda t: PIBB([[np.nan, 0.0]], 1.0),
+        r"^initial_weights\[0, 0\] is nan",
+    ),
     "nac size": (
         lambda t: EpisodicNAC(np.zeros((2, 17_000)), np.zeros((1, 17_000)), 1.0),
-        "a covariance over 17001 weights",
+        r"^a covariance over 17001 weights needs .*: "
+        r"learn fewer weights \(fewer basis functions or DOFs\)$",
     ),
     "pibb n_rollouts": (lambda t: _pibb(t, n_rollouts=1), "n_rollouts must be an integer >= 2"),
     "pibb std": (lambda t: _pibb(t, std=-1.0), "exploration_std must be a finite number > 0"),
@@ -844,7 +849,9 @@ def test_tell_before_ask_is_refused(coarse, name):
 
 def test_batch_memory_bound_counts_steps_times_dofs():
     """K roll-outs of n_actions x n_dofs noise values are bounded (8 bytes each)."""
-    with pytest.raises(DmpoptError, match=r"^1000000 roll-outs of 1000 values each"):
+    with pytest.raises(
+        DmpoptError, match=r"^1000000 roll-outs of 1000 values each needs .*: lower n_rollouts$"
+    ):
         EpisodicNAC(np.ones((500, 10)), np.zeros((2, 10)), 1.0, n_rollouts=10**6)
     with pytest.raises(InvalidInputError, match=r"^features\[0, 0\] is nan"):
         EpisodicNAC(np.full((5, 2), np.nan), np.zeros((1, 2)), 1.0)

@@ -866,3 +866,33 @@ def test_plan_metric_factor_defaults(dmp):
     factor = plan_metric_factor(dmp)
     assert factor.shape == (N_BASIS, N_BASIS)
     np.testing.assert_array_equal(factor, plan_metric_factor(dmp, 200, start_velocity=False))
+
+
+def test_movement_features_defaults_and_single_dmp(dmp):
+    """Defaults: plan metric, path and direction weights 1, 200 samples; one DMP is a list."""
+    expected = movement_features(
+        [dmp], metric="plan", direction_weight=1.0, path_weight=1.0, n_samples=200
+    )
+    np.testing.assert_array_equal(movement_features(dmp), expected)
+    euclidean = movement_features(dmp, metric="euclidean", path_weight=0.0)
+    assert euclidean.shape == (1, 2 * (N_BASIS + 1) + 2)
+    assert np.all(np.isfinite(plan_metric_factor(dmp, start_velocity=True)))
+
+
+def test_start_goal_degeneracy_is_relative_to_the_weights(dmp):
+    """|g - y0| must exceed 1e-9 times the largest forcing weight (zero weights: any motion)."""
+    flat = dmp.replace(weights=np.zeros_like(dmp.weights), goal_scaling="translation")
+    tiny = flat.replace(goal=flat.start + [1e-10, 0.0])
+    np.testing.assert_array_equal(normalised_weights(tiny), np.zeros_like(dmp.weights))
+    with pytest.raises(InvalidInputError, match="goal equals its start"):
+        normalised_weights(flat.replace(goal=flat.start))
+    weighted = dmp.replace(goal_scaling="translation")
+    size = np.abs(weighted.forcing_weights()).max()
+    with pytest.raises(InvalidInputError, match="goal equals its start"):
+        normalised_weights(weighted.replace(goal=weighted.start + [0.5e-9 * size, 0.0]))
+
+
+def test_arc_length_with_a_pause_at_the_start():
+    """A repeated first point (zero first step) still has a path."""
+    path = arc_length_resampled([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]], 3)
+    assert np.allclose(path, [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]], rtol=0, atol=1e-15)

@@ -726,6 +726,7 @@ def test_values_on_the_bounds_are_accepted(coarse):
         _pibb(coarse, decay=1.0, covariance_rate=rate)
     EpisodicNAC(coarse.policy_features, coarse.initial_weights, 1.0, n_rollouts=2, decay=0.0)
     CMAES(coarse.initial_weights, 1.0, n_rollouts=2)
+    PIBB(np.zeros((1, 700)), 1.0)  # 8 p^2 bytes: 3.9 MB
     assert optimise(_pibb(coarse), coarse, 0).trials.tolist() == [0.0]
 
 

@@ -621,7 +621,11 @@ BAD_INPUTS = {
         InvalidInputError,
         r"start_velocity\[0\] is nan",
     ),
-    "plan n_samples": (lambda d: normalised_plan(d, n_samples=10**6), Exception, "n_samples"),
+    "plan n_samples": (
+        lambda d: normalised_plan(d, n_samples=10**6),
+        Exception,
+        "^n_samples = 1000000 exceeds the bound 100000 of this function; a few hundred suffice$",
+    ),
     "factor n_samples": (
         lambda d: plan_metric_factor(d, n_samples=2),
         InvalidInputError,
@@ -896,3 +900,17 @@ def test_arc_length_with_a_pause_at_the_start():
     """A repeated first point (zero first step) still has a path."""
     path = arc_length_resampled([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]], 3)
     assert np.allclose(path, [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]], rtol=0, atol=1e-15)
+
+
+def test_float_labels_and_the_whole_plan(dmp):
+    """Whole-number floats are labels, 2.5 is not; fraction 1 compares the whole plan."""
+    features, _ = _line()
+    fitted = NearestNeighbourClassifier().fit(features, [0.0, 0.0, 1.0, 1.0, 2.0])
+    assert fitted.predict([[9.0]]).tolist() == [2.0]
+    with pytest.raises(InvalidInputError, match="^labels must be integers or strings, got dtype"):
+        NearestNeighbourClassifier().fit(features, [0.0, 0.0, 1.0, 1.0, 2.5])
+    duration = dmp.convergence_time
+    plan = dmp.rollout(duration, duration / 100)
+    whole = PartialObservationClassifier(fractions=[1.0], plan_samples=101, n_samples=101)
+    residuals, fractions = whole.fit([dmp], ["a"]).match(plan)
+    assert fractions.tolist() == [1.0] and residuals[0] < 1e-12

@@ -80,9 +80,8 @@ def check_features(features, name: str = "features", n_features: int | None = No
 def check_labels(labels, n_samples: int) -> np.ndarray:
     """One integer or string label per sample."""
     labels = np.asarray(labels)
-    if labels.dtype.kind not in "iuUSb" and not (
-        labels.dtype.kind == "f" and np.all(np.isfinite(labels))
-    ):
+    integral = labels.dtype.kind == "f" and np.all(np.isfinite(labels) & (labels % 1 == 0))
+    if labels.dtype.kind not in "iuUSb" and not integral:
         raise InvalidInputError(
             f"labels must be integers or strings, got dtype {labels.dtype} ({labels!r:.60})"
         )

@@ -914,3 +914,9 @@ def test_float_labels_and_the_whole_plan(dmp):
     whole = PartialObservationClassifier(fractions=[1.0], plan_samples=101, n_samples=101)
     residuals, fractions = whole.fit([dmp], ["a"]).match(plan)
     assert fractions.tolist() == [1.0] and residuals[0] < 1e-12
+
+
+def test_documented_defaults_of_the_curves(dmp, demo):
+    """normalised_plan samples 200 points; first_part keeps the first half."""
+    assert normalised_plan(dmp).shape == (200, 2)
+    np.testing.assert_array_equal(first_part(demo).times, first_part(demo, 0.5).times)

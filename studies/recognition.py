@@ -66,8 +66,8 @@ from dmpopt.recognition import (
 
 from .common import output_dir, pyplot, write_metrics
 
-# 2-core machine: 30 s measured before scikit-learn, plus ~30 s of CPU its fits cost (measured)
-EXPECTED_SECONDS = {"full": 60, "quick": 10}
+# 2-core machine: 66 s measured beside one other job (28 s before the scikit-learn classifiers)
+EXPECTED_SECONDS = {"full": 65, "quick": 10}
 N_BASIS = 30
 QUICK_SHAPES = 8
 OFFSET = 500.0  # [mm], largest translation per axis

@@ -5,12 +5,14 @@ import pytest
 from scipy.optimize import minimize
 
 from dmpopt import symbolic
-from dmpopt.exceptions import InvalidInputError, ShapeError
+from dmpopt.exceptions import DmpoptError, InvalidInputError, ShapeError
 from dmpopt.learning import (
     CMAES,
     PIBB,
     EpisodicNAC,
     EpisodicReinforce,
+    RewardTask,
+    ViaPoint,
     enac_gradient,
     make_method,
     multi_dof_reaching_task,
@@ -256,3 +258,622 @@ def test_ask_tell_errors(task):
     cma = CMAES(task.initial_weights, 5.0, seed=0)
     cma.tell(task.evaluate(cma.ask()))
     assert cma.n_trials == 20 and cma.mean.shape == (1, task.n_basis)
+
+
+# -- answer keys: the update rules written plainly ---------------------------------------------
+
+FEATURES = np.array([[1.0, 0.2], [0.5, -0.3], [-0.4, 1.1], [0.9, 0.7], [0.1, -0.8]])  # (5, 2)
+SIGMA = 0.5
+
+
+def _plain_scores(noise, features, sigma, with_log_std=False):
+    """psi_k[(d, b)] = sum_t eps_{k,t,d} phi_{t,b} / sigma^2 (and sum (eps^2/sigma^2 - 1))."""
+    k, n_actions, n_dofs = noise.shape
+    scores = np.zeros((k, n_dofs * features.shape[1] + with_log_std))
+    for r in range(k):
+        for d in range(n_dofs):
+            for b in range(features.shape[1]):
+                total = sum(noise[r, t, d] * features[t, b] for t in range(n_actions))
+                scores[r, d * features.shape[1] + b] = total / sigma**2
+        if with_log_std:
+            scores[r, -1] = np.sum(noise[r] ** 2 / sigma**2 - 1.0)
+    return scores
+
+
+def _plain_fisher(features, sigma, n_dofs):
+    """F[(d, b), (d', b')] = [d = d'] sum_t phi_{t,b} phi_{t,b'} / sigma^2."""
+    n_basis = features.shape[1]
+    fisher = np.zeros((n_dofs * n_basis, n_dofs * n_basis))
+    for d in range(n_dofs):
+        for b in range(n_basis):
+            for c in range(n_basis):
+                fisher[d * n_basis + b, d * n_basis + c] = features[:, b] @ features[:, c]
+    return fisher / sigma**2
+
+
+def test_enac_gradient_recovers_returns_linear_in_the_scores():
+    """Returns R = Psi a + c exactly: the regression of eq. (19) gives g = a and baseline c."""
+    rng = np.random.default_rng(10)
+    scores = rng.standard_normal((12, 3))
+    a, c = np.array([0.5, -2.0, 1.25]), 3.5
+    natural, baseline = enac_gradient(scores, scores @ a + c)
+    np.testing.assert_allclose(natural, a, rtol=0, atol=1e-12)
+    assert baseline == pytest.approx(c, abs=1e-12)
+
+
+def test_enac_step_is_the_natural_gradient_f_inverse_g():
+    """One constant step of eNAC moves W by alpha F^-1 grad J; the vanilla gradient does not.
+
+    With R = Psi a + c, the likelihood-ratio gradient is grad J = E[psi R] = F a, so the
+    natural gradient F^-1 grad J is a. Two DOFs check the (DOF, basis) layout.
+    """
+    weights = np.array([[1.0, -1.0], [0.5, 2.0]])
+    method = EpisodicNAC(
+        FEATURES, weights, SIGMA, n_rollouts=10, step_size=0.3, step_rule="constant", seed=4
+    )
+    noise = method.ask().acceleration_noise
+    scores = _plain_scores(noise, FEATURES, SIGMA)
+    a = np.array([0.2, -0.1, 0.4, 0.3])
+    returns = scores @ a + 7.0
+    natural = np.linalg.solve(
+        _plain_fisher(FEATURES, SIGMA, 2), _plain_fisher(FEATURES, SIGMA, 2) @ a
+    )
+    vanilla = reinforce_gradient(scores, returns)
+    assert np.linalg.norm(vanilla - natural) > 0.1 * np.linalg.norm(natural)
+    method.tell(returns)
+    np.testing.assert_allclose(
+        method.mean, weights + 0.3 * natural.reshape(2, 2), rtol=0, atol=1e-12
+    )
+    assert method.n_trials == 10 and method.n_updates == 1
+
+
+def test_kl_step_length_and_decay():
+    """step_rule "kl": alpha = sqrt(2 eps / (g^T F g)), divided by 1 + decay * n_updates."""
+    weights = np.array([[1.0, -1.0]])
+    method = EpisodicNAC(FEATURES, weights, SIGMA, n_rollouts=6, step_size=0.02, decay=0.5, seed=5)
+    fisher = _plain_fisher(FEATURES, SIGMA, 1)
+    a = np.array([1.5, -0.5])
+    expected = weights.copy()
+    for update in range(3):
+        scores = _plain_scores(method.ask().acceleration_noise, FEATURES, SIGMA)
+        method.tell(scores @ a - 1.0)
+        alpha = np.sqrt(2 * 0.02 / (a @ fisher @ a)) / (1 + 0.5 * update)
+        expected = expected + alpha * a
+        np.testing.assert_allclose(method.mean, expected, rtol=1e-10, atol=1e-12)
+    assert method.fisher() == pytest.approx(fisher, rel=1e-12)
+
+
+def test_learned_exploration_step_on_log_sigma():
+    """With learn_exploration, log sigma moves by alpha times its natural-gradient entry."""
+    weights = np.array([[0.0, 0.0]])
+    method = EpisodicNAC(
+        FEATURES,
+        weights,
+        SIGMA,
+        n_rollouts=8,
+        step_size=0.5,
+        step_rule="constant",
+        learn_exploration=True,
+        seed=6,
+    )
+    noise = method.ask().acceleration_noise
+    scores = _plain_scores(noise, FEATURES, SIGMA, with_log_std=True)
+    np.testing.assert_allclose(method.scores(noise), scores, rtol=1e-12, atol=1e-12)
+    a = np.array([0.4, -0.2, 0.1])
+    method.tell(scores @ a)
+    np.testing.assert_allclose(method.mean, [[0.2, -0.1]], rtol=0, atol=1e-12)
+    assert method.exploration_std == pytest.approx(SIGMA * np.exp(0.05), rel=1e-12)
+    fisher = method.fisher()
+    assert fisher.shape == (3, 3) and fisher[-1, -1] == 2.0 * FEATURES.shape[0]
+    assert np.all(fisher[-1, :-1] == 0) and np.all(fisher[:-1, -1] == 0)
+
+
+def test_reinforce_gradient_plain_formula():
+    """g_h = mean_k psi_kh (R_k - b_h), b_h = sum psi_kh^2 R_k / sum psi_kh^2; zero column -> 0."""
+    scores = 0.01 * np.array([[1.0, 0.0, 2.0], [-2.0, 0.0, 1.0], [0.5, 0.0, -1.0], [3.0, 0.0, 0.0]])
+    returns = np.array([1.0, -2.0, 0.5, 4.0])
+    expected = np.zeros(3)
+    for h in range(3):
+        psi = scores[:, h]
+        baseline = (psi**2 @ returns) / (psi**2).sum() if np.any(psi) else 0.0
+        expected[h] = np.mean(psi * (returns - baseline))
+    np.testing.assert_allclose(reinforce_gradient(scores, returns), expected, rtol=1e-12, atol=0)
+    method = EpisodicReinforce(
+        FEATURES, [[0.0, 0.0]], SIGMA, n_rollouts=4, step_size=2.0, step_rule="constant", seed=7
+    )
+    noise = method.ask().acceleration_noise
+    psi = _plain_scores(noise, FEATURES, SIGMA)
+    method.tell(returns)
+    np.testing.assert_allclose(method.mean[0], 2.0 * reinforce_gradient(psi, returns), rtol=1e-12)
+
+
+def _pibb_expected(samples, returns, mean, covariance, eliteness, decay, rate, adapt, floor):
+    """PI-BB update written plainly."""
+    scaled = (returns - returns.max()) / (returns.max() - returns.min())
+    p = np.exp(eliteness * scaled)
+    p = p / p.sum()
+    new_mean = sum(p[k] * samples[k] for k in range(len(p)))
+    if adapt:
+        estimate = sum(p[k] * np.outer(samples[k] - mean, samples[k] - mean) for k in range(len(p)))
+        covariance = (1 - rate) * covariance + rate * estimate
+    return new_mean, decay * covariance + floor * np.eye(len(mean))
+
+
+@pytest.mark.parametrize("adapt", [True, False])
+def test_pibb_update_plain_formula(adapt):
+    """Reward-weighted mean and (adapted or shrunk) covariance, with the 1e-6 sigma^2 floor."""
+    start = np.array([[0.5, -1.0, 2.0]])
+    method = PIBB(
+        start,
+        2.0,
+        n_rollouts=5,
+        eliteness=3.0,
+        decay=0.9,
+        adapt_covariance=adapt,
+        covariance_rate=0.25,
+        seed=8,
+    )
+    samples = method.ask().weights.reshape(5, 3)
+    returns = np.array([1.0, 4.0, -2.0, 0.5, 3.0])
+    method.tell(returns)
+    mean, covariance = _pibb_expected(
+        samples, returns, start[0], 4.0 * np.eye(3), 3.0, 0.9, 0.25, adapt, 4e-6
+    )
+    np.testing.assert_allclose(method.mean, mean[None], rtol=1e-12)
+    np.testing.assert_allclose(method.covariance, covariance, rtol=1e-12, atol=1e-15)
+    assert method.n_trials == 5 and method.n_updates == 1
+
+
+def test_pibb_defaults_and_equal_returns():
+    """Defaults: 20 roll-outs, eliteness 10, decay 0.98, adapted covariance at rate 0.5.
+
+    Equal returns weigh every sample equally (no division by a zero spread).
+    """
+    start = np.array([[0.0, 1.0]])
+    method = PIBB(start, 3.0, seed=9)
+    np.testing.assert_allclose(method.covariance, 9.0 * np.eye(2))
+    samples = method.ask().weights.reshape(20, 2)
+    assert samples.shape == (20, 2) and method.n_updates == 0 and method.n_trials == 0
+    returns = np.linspace(-1.0, 2.0, 20)
+    method.tell(returns)
+    mean, covariance = _pibb_expected(
+        samples, returns, start[0], 9.0 * np.eye(2), 10.0, 0.98, 0.5, True, 9e-6
+    )
+    np.testing.assert_allclose(method.mean[0], mean, rtol=1e-12)
+    np.testing.assert_allclose(method.covariance, covariance, rtol=1e-12)
+    samples = method.ask().weights.reshape(20, 2)
+    method.tell(np.zeros(20))
+    np.testing.assert_allclose(method.mean[0], samples.mean(axis=0), rtol=1e-12)
+
+
+def test_same_seed_same_exploration(task):
+    """A seed fixes every method's exploration; another seed changes it."""
+    for name, options in (
+        ("enac", {"exploration_std": 1.0}),
+        ("pibb", {"exploration_std": 1.0}),
+        ("cmaes", {"exploration_std": 1.0}),
+    ):
+        first, again, other = (make_method(name, task, seed=s, **options).ask() for s in (3, 3, 4))
+        np.testing.assert_array_equal(first.weights, again.weights)
+        if name == "enac":
+            first, again, other = (e.acceleration_noise for e in (first, again, other))
+        else:
+            first, other = first.weights, other.weights
+        assert not np.allclose(first, other)
+
+
+def test_learning_curve_lookups():
+    """weights_at: the last update within the trials; trials_to: the first reaching a fraction."""
+    curve = optimise(
+        make_method("pibb", paper_reaching_task(), seed=0, exploration_std=20.0),
+        paper_reaching_task(),
+        60,
+    )
+    assert curve.trials.tolist() == [0.0, 20.0, 40.0, 60.0] and curve.trials.dtype == float
+    np.testing.assert_array_equal(curve.weights_at(39.5), curve.weights[1])
+    np.testing.assert_array_equal(curve.weights_at(40), curve.weights[2])
+    np.testing.assert_array_equal(curve.weights_at(0), curve.weights[0])
+    np.testing.assert_array_equal(curve.final_weights, curve.weights[3])
+    target = float(curve.improvement[2])
+    first = int(np.argmax(curve.improvement >= target))
+    assert curve.trials_to(target) == curve.trials[first]
+    assert curve.trials_to(2.0) == float("inf")
+    with pytest.raises(InvalidInputError, match="trials"):
+        curve.weights_at(-1)
+    with pytest.raises(InvalidInputError, match="fraction"):
+        curve.trials_to(np.nan)
+
+
+def test_task_defaults():
+    """The paper's task: 1 DOF, 0 -> 1 in 0.5 s at 1 ms, 10 bases, tau from the convergence time."""
+    from dmpopt import basis
+
+    task = paper_reaching_task()
+    assert (task.n_dofs, task.n_basis, task.n_steps, task.dt, task.duration) == (
+        1,
+        10,
+        501,
+        0.001,
+        0.5,
+    )
+    assert task.jerk_weight == 0.0 and task.delayed is False
+    assert (task.goal_weight, task.velocity_weight, task.acceleration_weight) == (1000.0, 1.0, 1e-3)
+    np.testing.assert_array_equal(task.dmp.start, [0.0])
+    np.testing.assert_array_equal(task.dmp.goal, [1.0])
+    tau = 0.5 / basis.convergence_time("acceleration", task.dmp.gains)
+    assert task.dmp.tau == pytest.approx(tau, rel=1e-12)
+    np.testing.assert_array_equal(task.initial_weights, np.zeros((1, 10)))
+    six = multi_dof_reaching_task()
+    np.testing.assert_array_equal(six.dmp.goal, [1.0, -0.5, 0.8, 0.3, -1.2, 0.6])
+    assert (six.n_dofs, six.n_basis, six.dt, six.duration, six.delayed) == (
+        6,
+        10,
+        0.001,
+        0.5,
+        False,
+    )
+    via = via_point_task()
+    assert (via.n_dofs, via.n_basis, via.dt, via.duration, via.delayed) == (
+        2,
+        10,
+        0.001,
+        0.5,
+        False,
+    )
+    np.testing.assert_array_equal(via.dmp.goal, [1.0, 0.0])
+    assert via.via_points[0].time == 0.2 and via.via_points[0].position == (0.3, 0.6)
+
+
+def test_improvement_of_one_or_a_batch(task):
+    """improvement(W) is a float; of a batch (K, n_dofs, n_basis), an array of K fractions."""
+    half = 0.5 * task.optimal_weights
+    single = task.improvement(half)
+    assert isinstance(single, float)
+    expected = (task.deterministic_return(half) - task.initial_return) / (
+        task.optimum_return - task.initial_return
+    )
+    assert single == pytest.approx(expected, rel=1e-12)
+    batch = task.improvement(np.stack([task.initial_weights, half, task.optimal_weights]))
+    np.testing.assert_allclose(batch, [0.0, expected, 1.0], rtol=1e-12, atol=1e-12)
+
+
+# -- bad inputs: each names its argument; values on the bounds are accepted -------------------
+
+
+@pytest.fixture(scope="module")
+def coarse():
+    return paper_reaching_task(dt=0.01)
+
+
+def _pibb(coarse, **options):
+    return PIBB(coarse.initial_weights, options.pop("std", 1.0), **options)
+
+
+def _told(method, rewards):
+    method.ask()
+    method.tell(rewards)
+
+
+BAD = {
+    "task form": (
+        lambda t: RewardTask(t.dmp.replace(form="velocity")),
+        "dmp must be a DiscreteDMP with form='acceleration'",
+    ),
+    "goal_weight": (
+        lambda t: RewardTask(t.dmp, goal_weight=-1),
+        "goal_weight must be a finite number >= 0",
+    ),
+    "velocity_weight": (
+        lambda t: RewardTask(t.dmp, velocity_weight=np.nan),
+        "velocity_weight must",
+    ),
+    "acceleration_weight": (
+        lambda t: RewardTask(t.dmp, acceleration_weight=-1),
+        "acceleration_weight must",
+    ),
+    "jerk_weight": (lambda t: RewardTask(t.dmp, jerk_weight=-1), "jerk_weight must"),
+    "duration": (lambda t: RewardTask(t.dmp, duration=0), "duration must be a finite number > 0"),
+    "dt": (
+        lambda t: RewardTask(t.dmp, dt=0.3),
+        r"dt must be a finite number > 0 and <= 0.25, got 0.3",
+    ),
+    "delayed": (
+        lambda t: RewardTask(t.dmp, dt=0.01, delayed="yes"),
+        "delayed must be True or False",
+    ),
+    "via single": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=ViaPoint(0.1, (0.5,))),
+        "via_points must be a sequence of ViaPoint",
+    ),
+    "via time": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.7, (0.5,)),)),
+        r"via_points\[0\].time must be a finite number >= 0 and <= 0.5",
+    ),
+    "via position": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.1, (0.5, 1.0)),)),
+        r"via_points\[0\].position has shape \(2,\), expected \(1,\)",
+    ),
+    "via weight": (
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.1, (0.5,), -1.0),)),
+        r"via_points\[0\].weight must",
+    ),
+    "task size": (
+        lambda t: RewardTask(t.dmp, duration=100.0, dt=1e-4),
+        "a task of 100 s with dt = 0.0001 s",
+    ),
+    "rollout weights": (
+        lambda t: t.rollouts(np.zeros((2, 2, 10))),
+        r"weights has shape \(2, 2, 10\), expected \(K, 1, 10\)",
+    ),
+    "rollout noise": (
+        lambda t: t.rollouts(np.zeros((1, 1, 10)), np.zeros((1, 3, 1))),
+        r"acceleration_noise has shape \(1, 3, 1\), expected \(1, 50, 1\)",
+    ),
+    "rewards plans": (
+        lambda t: t.rewards(np.zeros((1, 3, 5, 1))),
+        r"plans has shape \(1, 3, 5, 1\), expected \(K, 3, 51, 1\)",
+    ),
+    "evaluate": (lambda t: t.evaluate(3), "exploration must be an Exploration"),
+    "n_basis": (lambda t: paper_reaching_task(n_basis=0), "n_basis must be an integer >= 1"),
+    "goals": (
+        lambda t: multi_dof_reaching_task(goals=[[1.0]]),
+        r"goals has shape \(1, 1\), expected \(n_dofs,\)",
+    ),
+    "goal": (lambda t: via_point_task(goal=[np.nan, 1]), r"goal\[0\] is nan"),
+    "start": (lambda t: multi_dof_reaching_task(duration=-1.0), "duration must be"),
+    "features": (
+        lambda t: EpisodicNAC(np.zeros((5, 3)), t.initial_weights, 1.0),
+        r"features has shape \(5, 3\), expected \(n_actions, 10\)",
+    ),
+    "nac std": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 0.0),
+        "exploration_std must be a finite number > 0",
+    ),
+    "nac n_rollouts": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 1.0, n_rollouts=1),
+        "n_rollouts must be an integer >= 2",
+    ),
+    "nac step_size": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 1.0, step_size=0),
+        "step_size must be a finite number > 0",
+    ),
+    "nac decay": (
+        lambda t: EpisodicNAC(t.policy_features, t.initial_weights, 1.0, decay=-1),
+        "decay must be a finite number >= 0",
+    ),
+    "initial_weights": (
+        lambda t: EpisodicNAC(t.policy_features, np.zeros((1, 1, 10)), 1.0),
+        r"initial_weights has shape \(1, 1, 10\)",
+    ),
+    "initial_weights nan": (
+        lambda t: PIBB([[np.nan, 0.0]], 1.0),
+        r"^initial_weights\[0, 0\] is nan",
+    ),
+    "nac size": (
+        lambda t: EpisodicNAC(np.zeros((2, 17_000)), np.zeros((1, 17_000)), 1.0),
+        r"^a covariance over 17001 weights needs .*: "
+        r"learn fewer weights \(fewer basis functions or DOFs\)$",
+    ),
+    "pibb n_rollouts": (lambda t: _pibb(t, n_rollouts=1), "n_rollouts must be an integer >= 2"),
+    "pibb std": (lambda t: _pibb(t, std=-1.0), "exploration_std must be a finite number > 0"),
+    "pibb decay": (lambda t: _pibb(t, decay=0.0), "decay must be a finite number > 0 and <= 1"),
+    "pibb eliteness": (lambda t: _pibb(t, eliteness=0.0), "eliteness must be a finite number > 0"),
+    "pibb covariance_rate": (
+        lambda t: _pibb(t, covariance_rate=1.5),
+        "covariance_rate must be a finite number >= 0 and <= 1",
+    ),
+    "pibb size": (lambda t: PIBB(np.zeros((1, 20_000)), 1.0), "a covariance over 20000 weights"),
+    "cma size": (
+        lambda t: CMAES(np.zeros((1, 20_000)), 1.0),
+        "a covariance over 20000 weights",
+    ),
+    "cma n_rollouts": (
+        lambda t: CMAES(t.initial_weights, 1.0, n_rollouts=1),
+        "n_rollouts must be an integer >= 2",
+    ),
+    "cma std": (
+        lambda t: CMAES(t.initial_weights, 0.0),
+        "exploration_std must be a finite number > 0",
+    ),
+    "cma options": (
+        lambda t: CMAES(t.initial_weights, 1.0, options=[1]),
+        "options must be a dict of cma options, got list",
+    ),
+    "cma option": (
+        lambda t: CMAES(t.initial_weights, 1.0, options={"nonsense": 1}),
+        "options were refused by cma",
+    ),
+    "make std": (
+        lambda t: make_method("pibb", t),
+        r"make_method\('pibb', ...\) needs exploration_std",
+    ),
+    "optimise method": (lambda t: optimise(3, t, 10), "method must be a PolicySearch"),
+    "optimise task": (lambda t: optimise(_pibb(t), 3, 10), "task must be a RewardTask"),
+    "n_trials": (lambda t: optimise(_pibb(t), t, -1), "n_trials must be an integer >= 0"),
+    "rewards nan": (
+        lambda t: _told(_pibb(t), np.full(20, np.nan)),
+        r"^rewards\[0\] is nan: .*; a failed roll-out needs a finite \(e.g. very low\) reward$",
+    ),
+    "rewards overflow": (
+        lambda t: _told(_pibb(t), np.full((20, 3), 1e308)),
+        "rewards overflow when summed",
+    ),
+    "returns": (
+        lambda t: enac_gradient(np.zeros((3, 2)), np.zeros(2)),
+        r"returns has shape \(2,\), expected \(3,\): one per row of scores",
+    ),
+    "scores": (lambda t: enac_gradient(np.zeros(3), np.zeros(3)), r"scores has shape \(3,\)"),
+    "returns 2-D": (
+        lambda t: reinforce_gradient(np.zeros((3, 2)), np.zeros((3, 1))),
+        r"returns has shape \(3, 1\), expected 1 dimension",
+    ),
+}
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+@pytest.mark.parametrize("case", BAD, ids=list(BAD))
+def test_bad_inputs_name_the_argument(coarse, case):
+    """Each refused input is named in the message (checked per case)."""
+    call, message = BAD[case]
+    with pytest.raises(DmpoptError, match=message):
+        call(coarse)
+
+
+def test_values_on_the_bounds_are_accepted(coarse):
+    """The bounds are inclusive where the messages say so."""
+    RewardTask(coarse.dmp, duration=0.02, dt=0.01)
+    RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPoint(0.5, (0.5,), 0.0),), goal_weight=0.0)
+    for rate in (0.0, 1.0):
+        _pibb(coarse, decay=1.0, covariance_rate=rate)
+    EpisodicNAC(coarse.policy_features, coarse.initial_weights, 1.0, n_rollouts=2, decay=0.0)
+    CMAES(coarse.initial_weights, 1.0, n_rollouts=2)
+    PIBB(np.zeros((1, 700)), 1.0)  # 8 p^2 bytes: 3.9 MB
+    assert optimise(_pibb(coarse), coarse, 0).trials.tolist() == [0.0]
+
+
+def test_per_step_rewards_with_jerk_and_via_point():
+    """Per-step rewards written plainly: acceleration and jerk at their step, the via point at
+    its sample, goal and velocity at the last; the exact optimum is the least-squares one."""
+    task = RewardTask(
+        paper_reaching_task(dt=0.01).dmp,
+        duration=0.5,
+        dt=0.01,
+        goal_weight=500.0,
+        velocity_weight=2.0,
+        acceleration_weight=0.01,
+        jerk_weight=1e-6,
+        via_points=(ViaPoint(0.2, (0.3,), 50.0),),
+    )
+    rng = np.random.default_rng(11)
+    weights = 20 * rng.standard_normal((2, 1, task.n_basis))
+    noise = rng.standard_normal((2, task.n_actions, 1))
+    plans = task.rollouts(weights, noise)
+    y, yd, ydd = plans[:, 0, :, 0], plans[:, 1, :, 0], plans[:, 2, :, 0]
+    dt, n = 0.01, task.n_steps
+    expected = np.zeros((2, n))
+    for k in range(n - 1):
+        jerk = (ydd[:, k + 1] - ydd[:, k]) / dt
+        expected[:, k] = -0.01 * dt * ydd[:, k] ** 2 - 1e-6 * dt * jerk**2
+    expected[:, 20] -= 50.0 * (y[:, 20] - 0.3) ** 2
+    expected[:, -1] -= 500.0 * (y[:, -1] - 1.0) ** 2 + 2.0 * yd[:, -1] ** 2
+    np.testing.assert_allclose(task.rewards(plans), expected, rtol=1e-12, atol=1e-12)
+
+    def cost(w):
+        return -task.deterministic_return(w[None])
+
+    result = minimize(cost, np.zeros(task.n_basis), method="BFGS", options={"gtol": 1e-9})
+    assert task.optimum_return == pytest.approx(-result.fun, rel=1e-6)
+    np.testing.assert_allclose(
+        task.optimal_weights[0], result.x, rtol=1e-3, atol=1e-3 * abs(result.x).max()
+    )
+
+
+def test_noisy_rollouts_of_several_dofs_are_plan_plus_h_eps():
+    """Each DOF of each roll-out is the plan of its weights plus H @ eps of its own noise."""
+    via = via_point_task(dt=0.01)
+    rng = np.random.default_rng(12)
+    weights = 10 * rng.standard_normal((3, 2, via.n_basis))
+    noise = rng.standard_normal((3, via.n_actions, 2))
+    plans = via.rollouts(weights, noise)
+    response = via.noise_response
+    for k in range(3):
+        expected = via.plan.evaluate(weights[k]) + np.einsum("ist,td->isd", response, noise[k])
+        np.testing.assert_allclose(plans[k], expected, rtol=1e-10, atol=1e-10)
+    assert response.shape == (3, via.n_steps, via.n_actions)
+    assert np.all(np.triu(response[0], 1) == 0.0)  # causal: no effect before the input
+
+
+def test_pibb_weights_ignore_a_shift_of_the_returns_and_count_updates():
+    """Two updates with returns near 1e6 and a spread of 0.5: the plain formula, no overflow."""
+    start = np.array([[0.5, -1.0]])
+    method = PIBB(start, 1.0, n_rollouts=4, seed=13)
+    mean, covariance = start[0], np.eye(2)
+    for update in range(2):
+        samples = method.ask().weights.reshape(4, 2)
+        returns = 1e6 + np.array([0.0, 0.5, 0.2, 0.4])
+        method.tell(returns)
+        mean, covariance = _pibb_expected(
+            samples, returns, mean, covariance, 10.0, 0.98, 0.5, True, 1e-6
+        )
+        np.testing.assert_allclose(method.mean[0], mean, rtol=1e-9)
+        np.testing.assert_allclose(method.covariance, covariance, rtol=1e-9)
+    assert method.n_updates == 2 and method.n_trials == 8
+
+
+def test_learning_curve_messages():
+    """weights_at and trials_to name their argument."""
+    curve = optimise(_pibb(paper_reaching_task(dt=0.01)), paper_reaching_task(dt=0.01), 20)
+    with pytest.raises(InvalidInputError, match="^trials must be a finite number >= 0"):
+        curve.weights_at(-1)
+    with pytest.raises(InvalidInputError, match="^fraction must be a finite number"):
+        curve.trials_to(np.nan)
+
+
+def test_action_space_defaults_and_counters(coarse):
+    """Defaults: 20 roll-outs, KL steps of 0.1, no decay, fixed exploration; counters add up."""
+    method = EpisodicNAC(coarse.policy_features, coarse.initial_weights, 2.0, seed=0)
+    assert (method.n_rollouts, method.step_size, method.step_rule) == (20, 0.1, "kl")
+    assert (method.decay, method.learn_exploration, method.exploration_std) == (0.0, False, 2.0)
+    cma = CMAES(coarse.initial_weights, 2.0, seed=0)
+    for _ in range(3):
+        method.tell(coarse.evaluate(method.ask()))
+        cma.tell(coarse.evaluate(cma.ask()))
+    assert (method.n_updates, method.n_trials, cma.n_updates, cma.n_trials) == (3, 60, 3, 60)
+
+
+def test_zero_gradient_gives_no_step(coarse):
+    """Equal returns: no direction, so the KL step leaves the weights.
+
+    Before, the regression returned round-off (~1e-16) and the KL rule scaled it to a full
+    step: weights moved by up to 0.42 in a random direction.
+    """
+    method = EpisodicNAC(coarse.policy_features, coarse.initial_weights, 2.0, seed=1)
+    method.ask()
+    method.tell(np.full(20, 3.0))
+    np.testing.assert_array_equal(method.mean, coarse.initial_weights)
+
+
+def test_fisher_of_log_sigma_counts_every_dof():
+    """The log-sigma entry of F is 2 n_actions n_dofs (one Gaussian per step and DOF)."""
+    method = EpisodicNAC(FEATURES, np.zeros((3, 2)), SIGMA, learn_exploration=True)
+    fisher = method.fisher()
+    assert fisher.shape == (7, 7) and fisher[-1, -1] == 2.0 * 5 * 3
+    np.testing.assert_allclose(fisher[:-1, :-1], _plain_fisher(FEATURES, SIGMA, 3), rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["pibb", "cmaes"])
+def test_tell_before_ask_is_refused(coarse, name):
+    """Every method refuses rewards it did not ask for."""
+    method = make_method(name, coarse, exploration_std=1.0)
+    with pytest.raises(InvalidInputError, match=r"^tell\(\) called without a pending ask\(\)"):
+        method.tell(np.zeros(20))
+
+
+def test_batch_memory_bound_counts_steps_times_dofs():
+    """K roll-outs of n_actions x n_dofs noise values are bounded (8 bytes each)."""
+    with pytest.raises(
+        DmpoptError, match=r"^1000000 roll-outs of 1000 values each needs .*: lower n_rollouts$"
+    ):
+        EpisodicNAC(np.ones((500, 10)), np.zeros((2, 10)), 1.0, n_rollouts=10**6)
+    with pytest.raises(InvalidInputError, match=r"^features\[0, 0\] is nan"):
+        EpisodicNAC(np.full((5, 2), np.nan), np.zeros((1, 2)), 1.0)
+
+
+@pytest.mark.parametrize(
+    "name, kind",
+    [("enac", EpisodicNAC), ("ereinforce", EpisodicReinforce), ("pibb", PIBB), ("cmaes", CMAES)],
+)
+def test_make_method_builds_the_named_method_from_the_task(coarse, name, kind, capsys):
+    """Each name gives its class, started at the task's weights, seeded, and silent."""
+    first = make_method(name, coarse, seed=2, exploration_std=1.5)
+    assert type(first) is kind
+    np.testing.assert_array_equal(first.mean, coarse.initial_weights)
+    a = first.ask()
+    # one after the other: cma draws from numpy's global generator, seeded at construction
+    b = make_method(name, coarse, seed=2, exploration_std=1.5).ask()
+    np.testing.assert_array_equal(a.weights, b.weights)
+    if a.acceleration_noise is not None:
+        np.testing.assert_array_equal(a.acceleration_noise, b.acceleration_noise)
+        assert first.exploration_std == 1.5
+    first.tell(coarse.evaluate(a))
+    assert capsys.readouterr().out == ""

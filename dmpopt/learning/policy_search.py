@@ -293,6 +293,9 @@ class _ActionSpaceGradient(PolicySearch):
     def tell(self, rewards) -> None:
         noise, returns = self._pending_returns(rewards)
         direction = self.direction(self.scores(noise), returns)
+        if not np.ptp(returns) > 0.0:
+            # equal returns carry no gradient; the KL rule would scale round-off to a full step
+            direction = np.zeros_like(direction)
         if self.step_rule == "kl":
             curvature = float(direction @ self.fisher() @ direction)
             step = np.sqrt(2.0 * self.step_size / curvature) if curvature > 0 else 0.0

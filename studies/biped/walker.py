@@ -1,0 +1,358 @@
+"""One walk of the planar biped: DMP references, eq. (21), a controller, a simulator.
+
+Two controllers execute the DMPs' joint references:
+
+* ``"qp"``: the QP inverse-dynamics controller (:mod:`dmpopt.control`) with a posture task on
+  the four joints (the DMP's position, velocity and acceleration), a torso-pitch task (the
+  pitch row of a ``FrameTask`` on the torso, upright) and a point contact per foot, switched
+  by the DMP phase (a leg's contact ramps out at lift-off) and the simulator's touchdowns (a
+  heel strike adds it back): a swing foot has no contact;
+* ``"pd"``: the paper's joint PD on the DMP's position and velocity (the baseline).
+
+The boom keeps the robot in the sagittal plane (the planar base); its pitch spring-damper
+(``boom_pitch_stiffness``, ``boom_pitch_damping``) is 0 for the claims.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dmpopt.exceptions import InvalidInputError
+from dmpopt.sim import GroundContact, Simulator
+from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
+
+from .gait import limit_cycle_start
+
+DT = 1e-3  # [s] simulation step; the PD law and the QP run every step
+CONTROL_EVERY = 4  # the DMP steps every CONTROL_EVERY * DT
+COMPILE = True  # compiled DMP step (generated C, cached in ~/.cache/dmpopt)
+GROUND = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
+FALL_HEIGHT = 0.35  # [m] the walker has fallen when its torso is lower
+ADAPTATION_GAIN = 0.3  # K of eq. (21)
+LOG_EVERY = 10  # steps between logged samples
+START_SPEED = 0.35  # [m/s] forward speed at the first heel strike
+CONTROLLERS = ("qp", "pd")
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Joint PD gains of the baseline: stiffness [N m/rad] and damping [N m s/rad]."""
+
+    hip_stiffness: float = 100.0
+    hip_damping: float = 3.0
+    knee_stiffness: float = 100.0
+    knee_damping: float = 3.0
+
+
+@dataclass(frozen=True)
+class QPGains:
+    """Task gains of the QP walker (stiffness [1/s^2], damping [1/s], weights [-]).
+
+    ``lift_phase``: fraction of its own half-cycle after the other leg's heel strike at which
+    a stance leg's contact starts to ramp out over ``transition_time`` [s].
+    """
+
+    posture_stiffness: float = 400.0
+    posture_damping: float = 40.0
+    posture_weight: float = 1.0
+    pitch_stiffness: float = 100.0
+    pitch_damping: float = 20.0
+    pitch_weight: float = 10.0
+    friction: float = 0.7
+    lift_phase: float = 0.05
+    transition_time: float = 0.03
+
+
+GAINS = Gains()
+QP_GAINS = QPGains()
+BOOM_PITCH_STIFFNESS = 500.0  # [N m/rad] the paper's boom (PD reference run only)
+BOOM_PITCH_DAMPING = 30.0  # [N m s/rad]
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """What a randomised trial does to the walker (MuJoCo backend).
+
+    Attributes
+    ----------
+    push_impulse : float
+        Forward horizontal impulse on the torso [N s], spread over 0.1 s from ``push_time``.
+    push_time : float
+        [s]
+    mass_scale : tuple of float, optional
+        Factor on the mass and inertia of each moving body, in MuJoCo body order (the
+        controller keeps the nominal model).
+    slope_deg : float
+        Ground slope from ``slope_time`` on [deg], positive uphill (gravity tilted backwards).
+    slope_time : float
+        [s]
+    """
+
+    push_impulse: float = 0.0
+    push_time: float = 0.0
+    mass_scale: tuple | None = None
+    slope_deg: float = 0.0
+    slope_time: float = 0.0
+
+
+@dataclass
+class WalkLog:
+    """What one walk produced (samples every ``log_every`` steps)."""
+
+    times: list = field(default_factory=list)
+    q: list = field(default_factory=list)
+    desired: list = field(default_factory=list)
+    strikes: list = field(default_factory=list)  # (time, leg, x of the foot)
+    frequencies: list = field(default_factory=list)
+    positive_work: float = 0.0  # [J] actuator work, sum over joints of max(tau qdot, 0) dt
+    absolute_work: float = 0.0  # [J] sum of |tau qdot| dt
+    fell: bool = False
+    diverged: str = ""
+    duration: float = 0.0  # [s] simulated
+    wall_time: float = 0.0  # [s]
+    cpu_time: float = 0.0  # [s] process time, insensitive to other load on the machine
+    distance: float = 0.0  # [m]
+
+
+class PDControl:
+    """The paper's joint PD on the DMP's position and velocity, torques saturated."""
+
+    def __init__(self, biped, gains: Gains = GAINS):
+        order = biped.joint_velocity_indices - biped.n_base_dofs
+        self.index = np.sort(biped.joint_velocity_indices)
+        self.stiffness, self.damping, self.limit = np.empty(4), np.empty(4), np.empty(4)
+        self.stiffness[order] = [gains.hip_stiffness, gains.knee_stiffness] * 2
+        self.damping[order] = [gains.hip_damping, gains.knee_damping] * 2
+        self.limit[order] = biped.torque_limit
+
+    def torques(self, state, position, velocity, acceleration, phase) -> np.ndarray:
+        """Joint torques in model order from the references in model order."""
+        error = position - state.q[self.index]
+        torque = self.stiffness * error + self.damping * (velocity - state.v[self.index])
+        return np.clip(torque, -self.limit, self.limit)
+
+    def on_heel_strike(self, leg: int) -> None:
+        """The PD law does not switch."""
+
+
+class QPControl:
+    """QP inverse dynamics with DMP posture, torso pitch and switched point contacts."""
+
+    def __init__(self, biped, gains: QPGains = QP_GAINS):
+        from dmpopt.control import FrameTask, InverseDynamicsController, PointContact, PostureTask
+
+        self.gains = gains
+        self.frames = tuple(biped.foot_frames)
+        self.posture = PostureTask(
+            biped,
+            weight=gains.posture_weight,
+            stiffness=gains.posture_stiffness,
+            damping=gains.posture_damping,
+        )
+        stiffness, damping = np.zeros(6), np.zeros(6)
+        stiffness[4], damping[4] = gains.pitch_stiffness, gains.pitch_damping
+        self.pitch = FrameTask(
+            biped,
+            biped.torso_frame,
+            weight=gains.pitch_weight,
+            stiffness=stiffness,
+            damping=damping,
+            components=[4],
+        )
+        contacts = [
+            PointContact(biped, frame, friction_coefficient=gains.friction) for frame in self.frames
+        ]
+        self.controller = InverseDynamicsController(biped, [self.posture, self.pitch], contacts)
+        self.t = 0.0
+
+    def torques(self, state, position, velocity, acceleration, phase) -> np.ndarray:
+        """Torques in model order; lifts a stance leg once the DMP phase says it swings."""
+        self.t = state.t
+        self._lift_by_phase(state, phase)
+        self.posture.set_reference(position, velocity, acceleration)
+        return self.controller.compute_torques(state.q, state.v, state.t)
+
+    def _lift_by_phase(self, state, phase) -> None:
+        # Leg 0 (right) swings in the second half of the cycle, leg 1 in the first.
+        half = (phase % (2 * np.pi)) / np.pi
+        swinging = 0 if half >= 1.0 else 1
+        if (half % 1.0) < self.gains.lift_phase:
+            return
+        active = self.controller.active_contacts
+        frame, other = self.frames[swinging], self.frames[1 - swinging]
+        if frame in active and other in active and state.in_contact[1 - swinging]:
+            self.controller.remove_contact(frame, transition_time=self.gains.transition_time)
+
+    def on_heel_strike(self, leg: int) -> None:
+        """A heel strike puts the foot's contact back, held where it landed."""
+        if self.frames[leg] not in self.controller.active_contacts:
+            self.controller.add_contact(self.frames[leg])
+
+
+def walk(
+    biped,
+    dmp,
+    duration: float,
+    frequency: float,
+    adapt: bool = True,
+    reset_phase: bool = True,
+    controller: str = "pd",
+    boom_pitch_stiffness: float = BOOM_PITCH_STIFFNESS,
+    boom_pitch_damping: float = BOOM_PITCH_DAMPING,
+    disturbance: Disturbance | None = None,
+    push_impulse: float = 0.0,
+    push_time: float = 0.0,
+    seed: int = 0,
+    log_every: int = LOG_EVERY,
+    backend: str = "mujoco",
+) -> WalkLog:
+    """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
+
+    The robot starts at the right heel strike of the DMP's limit cycle with a forward speed of
+    ``START_SPEED`` plus a seeded perturbation of +-0.02 m/s. ``push_impulse`` [N s] at
+    ``push_time`` is a shorthand for ``Disturbance(push_impulse, push_time)``. The DMP steps at
+    ``CONTROL_EVERY * DT``; the controller (``"qp"`` or ``"pd"``) and the simulator
+    (``"mujoco"`` or ``"native"``) at ``DT``.
+    """
+    if controller not in CONTROLLERS:
+        raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
+    if disturbance is None:
+        disturbance = Disturbance(push_impulse, push_time)
+    rng = np.random.default_rng(seed)
+    start_position, start_velocity = limit_cycle_start(dmp, frequency, DT)
+    stepper = dmp.stepper(
+        CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
+    )
+    stepper.set_time_constant(1.0 / frequency)
+    q = biped.configuration(0.0, biped.leg_length, 0.0, stepper.position)
+    q[1] -= biped.foot_positions(q)[:, 1].min()
+    sim = make_simulator(biped, backend)
+    _perturb_masses(sim, disturbance)
+    v = np.zeros(biped.model.nv)
+    v[0] = START_SPEED + rng.uniform(-0.02, 0.02)
+    state = sim.reset(q, v)
+    law = QPControl(biped) if controller == "qp" else PDControl(biped)
+    order = biped.joint_velocity_indices - biped.n_base_dofs  # model-order slots, gait order
+    index = np.sort(biped.joint_velocity_indices)
+    detector = HeelStrikeDetector(min_swing_time=0.1)
+    adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
+    log = WalkLog(frequencies=[frequency])
+    base_force = np.zeros(3)
+    desired, desired_velocity, desired_acceleration = np.empty(4), np.empty(4), np.empty(4)
+    positive_work = absolute_work = 0.0
+    n_steps = int(round(duration / DT))
+    push_step = int(round(disturbance.push_time / DT)) if disturbance.push_impulse else -1
+    slope_step = int(round(disturbance.slope_time / DT)) if disturbance.slope_deg else -1
+    start, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        for k in range(n_steps):
+            if k == push_step:
+                sim.push_impulse(biped.torso_frame, [disturbance.push_impulse, 0, 0], 0.1)
+            if k == slope_step:
+                _tilt_gravity(sim, disturbance.slope_deg)
+            if k % CONTROL_EVERY == 0:
+                position, velocity, acceleration = stepper.step()
+                desired[order], desired_velocity[order] = position, velocity
+                desired_acceleration[order] = acceleration
+            torque = law.torques(
+                state, desired, desired_velocity, desired_acceleration, stepper.phase
+            )
+            base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
+            joint_velocities = state.v[index]
+            state = sim.step(torque, base_force)
+            power = torque @ joint_velocities
+            work = np.abs(torque * joint_velocities).sum()
+            absolute_work += work
+            positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
+            if state.touchdowns or not state.in_contact.all():
+                strike = detector.update(state.t, state.in_contact, state.contact_positions)
+                if strike is not None:
+                    law.on_heel_strike(strike.leg)
+                    phase, new_frequency = adaptation.on_heel_strike(strike)
+                    if phase is not None:
+                        stepper.reset_phase(phase)
+                    stepper.set_time_constant(1.0 / new_frequency)
+                    log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+            if k % log_every == 0:
+                log.times.append(state.t)
+                log.q.append(state.q)
+                log.desired.append(desired[order])
+            if state.fallen:
+                log.fell = True
+                break
+    except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
+        log.fell, log.diverged = True, f"{type(error).__name__}: {error}"
+    log.wall_time = time.perf_counter() - start
+    log.cpu_time = time.process_time() - cpu_start
+    log.positive_work, log.absolute_work = DT * positive_work, DT * absolute_work
+    log.duration = sim.t
+    log.distance = float(sim.q[0] - q[0])
+    log.frequencies = adaptation.frequencies
+    return log
+
+
+def _perturb_masses(sim, disturbance: Disturbance) -> None:
+    """Scale the simulated bodies' masses and inertias (MuJoCo only)."""
+    if disturbance.mass_scale is None:
+        return
+    if not hasattr(sim, "mj_model"):
+        raise InvalidInputError("mass_scale needs the MuJoCo backend; pass backend='mujoco'")
+    import mujoco
+
+    moving = np.flatnonzero(sim.mj_model.body_mass > 0)
+    scale = np.asarray(disturbance.mass_scale, dtype=float)
+    if scale.shape != moving.shape:
+        raise InvalidInputError(
+            f"mass_scale has {scale.size} factors, expected {moving.size} (one per moving body)"
+        )
+    sim.mj_model.body_mass[moving] *= scale
+    sim.mj_model.body_inertia[moving] *= scale[:, None]
+    mujoco.mj_setConst(sim.mj_model, sim.mj_data)
+
+
+def _tilt_gravity(sim, slope_deg: float) -> None:
+    """A ground sloping ``slope_deg`` uphill: gravity tilted backwards by that angle."""
+    if not hasattr(sim, "mj_model"):
+        raise InvalidInputError("slope_deg needs the MuJoCo backend; pass backend='mujoco'")
+    angle = np.radians(slope_deg)
+    sim.mj_model.opt.gravity[:] = 9.81 * np.array([-np.sin(angle), 0.0, -np.cos(angle)])
+
+
+def n_moving_bodies(biped) -> int:
+    """How many factors ``Disturbance.mass_scale`` needs (bodies with mass in MuJoCo)."""
+    return len(make_simulator(biped, "mujoco").mj_model.body_mass.nonzero()[0])
+
+
+def make_simulator(biped, backend: str):
+    """The walker's simulator on ``backend``: "mujoco" or "native" (compliant ``GROUND``).
+
+    Both flag a fall when the torso is below ``FALL_HEIGHT`` (the other thresholds derived from
+    the biped, :mod:`dmpopt.sim.falls`).
+    """
+    from studies.humanoid import check_backend
+
+    if check_backend(backend) == "native":
+        return Simulator(
+            biped.model,
+            DT,
+            biped.contact_points,
+            GROUND,
+            n_base_dofs=3,
+            fall_frame=biped.torso_frame,
+            fall_height=FALL_HEIGHT,
+        )
+    from dmpopt.sim import MujocoSimulator
+    from robots.biped import BIPED_URDF
+
+    return MujocoSimulator(
+        biped.model,
+        BIPED_URDF,
+        DT,
+        biped.contact_points,
+        friction=GROUND.friction,
+        fall_frame=biped.torso_frame,
+        fall_height=FALL_HEIGHT,
+    )

@@ -2,7 +2,9 @@
 
 :class:`RobotModel` bundles a Pinocchio model with what a whole-body controller asks of a robot:
 named joint groups, joint limits, the frames of feet and hands, a reference posture and the sole
-corners used as contact points. It is robot-agnostic; ``robots/talos.py`` fills it for Talos.
+corners used as contact points. It is robot-agnostic and covers the three bases dmpopt uses: a
+fixed base, a planar base (x, z, pitch: one composite root joint, the biped) and a 3-D free
+flyer (Talos). ``robots/talos.py`` and ``robots/biped.py`` fill it.
 """
 
 from __future__ import annotations
@@ -18,7 +20,10 @@ import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError, MissingDependency
 
-__all__ = ["RobotModel", "example_robot_data_dir"]
+__all__ = ["BASES", "RobotModel", "example_robot_data_dir"]
+
+#: Base kinds and their number of unactuated velocity coordinates (those of the root joint).
+BASES = MappingProxyType({"fixed": 0, "planar": 3, "free_flyer": 6})
 
 
 def example_robot_data_dir() -> Path:
@@ -64,27 +69,32 @@ class RobotModel:
     name : str
         Human-readable name, e.g. ``"talos_full"``.
     model : pinocchio.Model
-        The kinematic and dynamic model. With a floating base the first joint is the free flyer
-        (7 configuration and 6 velocity coordinates) and is not actuated.
+        The kinematic and dynamic model. Unless ``base`` is ``"fixed"``, its first joint is
+        the unactuated base: a free flyer (7 configuration and 6 velocity coordinates) or the
+        planar base (x, z, pitch about y; 3 and 3).
     joint_groups : Mapping[str, tuple of str]
         Group name (``"left_arm"``, ``"torso"``, ...) to the names of its joints, in model order.
     reference_configuration : ndarray, shape (nq,)
         A nominal posture (half-sitting for Talos).
     position_lower, position_upper : ndarray, shape (nq,)
-        Joint position limits [rad or m]; the free flyer's entries are infinite.
+        Joint position limits [rad or m]; infinite for the base.
     velocity_limit : ndarray, shape (nv,)
-        Symmetric joint velocity limits [rad/s]; infinite for the free flyer.
+        Symmetric joint velocity limits [rad/s]; infinite for the base.
     torque_limit : ndarray, shape (n_actuated,)
-        Symmetric torque limits of the actuated joints [N m].
-    floating_base : bool
-        Whether the first joint is an unactuated free flyer.
+        Symmetric torque limits of the actuated joints, in model order [N m].
+    base : {"fixed", "planar", "free_flyer"}
+        The base (see :data:`BASES`).
     foot_frames : tuple of str
-        Sole frames (z axis normal to the sole, origin on the sole surface). Empty if no feet.
+        Foot frames: soles (z axis normal to the sole, origin on the sole surface) or point
+        feet. Empty if no feet.
     hand_frames : tuple of str
         End-effector frames of the hands.
     sole_corners : ndarray, shape (n_corners, 3)
         Corners of each sole expressed in its foot frame [m]; contact points for the simulator
-        and the centre-of-pressure bounds of the controller.
+        and the centre-of-pressure bounds of the controller. One corner at the origin for
+        point feet.
+    torso_frame : str
+        The frame whose height tells a fall (``""`` if none).
     source : str
         The file the model was built from.
     """
@@ -97,13 +107,15 @@ class RobotModel:
     position_upper: np.ndarray
     velocity_limit: np.ndarray
     torque_limit: np.ndarray
-    floating_base: bool
+    base: str
     foot_frames: tuple[str, ...] = ()
     hand_frames: tuple[str, ...] = ()
     sole_corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    torso_frame: str = ""
     source: str = ""
 
     def __post_init__(self):
+        self._check_base()
         groups = {name: tuple(joints) for name, joints in self.joint_groups.items()}
         object.__setattr__(self, "joint_groups", MappingProxyType(groups))
         for name in (
@@ -128,13 +140,54 @@ class RobotModel:
                     f"{name} has shape {getattr(self, name).shape}, expected {shape} "
                     f"to match the Pinocchio model (nq={self.nq}, nv={self.nv})"
                 )
-        for frame in self.foot_frames + self.hand_frames:
+        frames = (
+            self.foot_frames + self.hand_frames + ((self.torso_frame,) if self.torso_frame else ())
+        )
+        for frame in frames:
             if not self.model.existFrame(frame):
                 raise InvalidInputError(f"frame {frame!r} is not in the model {self.name!r}")
         for joints in groups.values():
             for joint in joints:
                 if not self.model.existJointName(joint):
                     raise InvalidInputError(f"joint {joint!r} is not in the model {self.name!r}")
+
+    def _check_base(self) -> None:
+        if self.base not in BASES:
+            raise InvalidInputError(
+                f"base={self.base!r} is not a base kind; expected one of {sorted(BASES)}"
+            )
+        n_base = BASES[self.base]
+        root_nv = self.model.joints[1].nv if self.model.njoints > 1 else 0
+        free = self.base != "free_flyer" or self.model.joints[1].nq == 7
+        if n_base and (root_nv != n_base or not free):
+            raise InvalidInputError(
+                f"base={self.base!r} needs a root joint with {n_base} velocity coordinates, but "
+                f"the root joint of {self.name!r} has {root_nv}; build the model with that root "
+                "joint or pick the matching base"
+            )
+
+    @property
+    def floating_base(self) -> bool:
+        """Whether the root joint is an unactuated base (planar or free flyer)."""
+        return self.base != "fixed"
+
+    @property
+    def n_base(self) -> int:
+        """Unactuated velocity coordinates of the base: 0, 3 (planar) or 6 (free flyer)."""
+        return BASES[self.base]
+
+    @property
+    def mass(self) -> float:
+        """Total mass [kg]."""
+        return float(pin.computeTotalMass(self.model))
+
+    @property
+    def contact_points(self) -> list[tuple[str, tuple[float, float, float]]]:
+        """``(frame, offset)`` of every sole corner of every foot, for :class:`dmpopt.sim.Simulator`
+        (feet in :attr:`foot_frames` order)."""
+        return [
+            (f, tuple(float(x) for x in c)) for f in self.foot_frames for c in self.sole_corners
+        ]
 
     @property
     def nq(self) -> int:
@@ -148,8 +201,8 @@ class RobotModel:
 
     @property
     def n_actuated(self) -> int:
-        """Number of actuated velocity coordinates (``nv - 6`` with a floating base)."""
-        return self.model.nv - 6 if self.floating_base else self.model.nv
+        """Number of actuated velocity coordinates (``nv - n_base``)."""
+        return self.model.nv - self.n_base
 
     @property
     def actuated_joint_names(self) -> tuple[str, ...]:

@@ -112,7 +112,7 @@ def load_talos(variant: str = "full", fixed_base: bool = False) -> RobotModel:
         position_upper=_finite_or_inf(model.upperPositionLimit),
         velocity_limit=_finite_or_inf(model.velocityLimit),
         torque_limit=np.array(model.effortLimit)[actuated_v],
-        floating_base=not fixed_base,
+        base="fixed" if fixed_base else "free_flyer",
         foot_frames=feet,
         hand_frames=("gripper_left_base_link", "gripper_right_base_link"),
         sole_corners=TALOS_SOLE_CORNERS if feet else np.zeros((0, 3)),

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from dmpopt.sim import GroundContact, Simulator
+from robots import biped as biped_model
 from robots.biped import load_biped
 
 GRAVITY = 9.81
@@ -24,17 +25,17 @@ def gait():
 def test_model_matches_its_documented_parameters(biped):
     """7 kg, 0.6 m legs, planar base (x, z, pitch) plus four actuated joints."""
     assert biped.mass == pytest.approx(7.0)
-    assert biped.leg_length == pytest.approx(0.6)
+    assert biped_model.leg_length(biped) == pytest.approx(0.6)
     assert biped.model.nq == biped.model.nv == 7
-    q = biped.configuration(0.0, 0.6, 0.0, [0.3, 0.0, 0.0, 0.0])
-    right, left = biped.foot_positions(q)
+    q = biped_model.configuration(biped, 0.0, 0.6, 0.0, [0.3, 0.0, 0.0, 0.0])
+    right, left = biped_model.foot_positions(biped, q)
     assert right == pytest.approx([0.6 * np.sin(0.3), 0.6 - 0.6 * np.cos(0.3)])
     assert left == pytest.approx([0.0, 0.0])
 
 
 def test_actuator_torques_follow_the_model_order(biped):
-    torques = biped.actuator_torques([1.0, 2.0, 3.0, 4.0])
-    assert torques[biped.joint_velocity_indices - 3] == pytest.approx([1, 2, 3, 4])
+    torques = biped_model.actuator_torques(biped, [1.0, 2.0, 3.0, 4.0])
+    assert torques[biped.velocity_indices("gait") - 3] == pytest.approx([1, 2, 3, 4])
 
 
 def test_standing_biped_rests_at_spring_height_with_weight_on_feet(biped):
@@ -43,14 +44,14 @@ def test_standing_biped_rests_at_spring_height_with_weight_on_feet(biped):
     sim = Simulator(biped.model, 1e-3, biped.contact_points, ground)
     assert sim.n_base_dofs == 3
     joints = np.array([0.15, 0.1, -0.15, 0.1])
-    q = biped.configuration(0.0, 0.0, 0.0, joints)
-    q[1] = 0.05 - biped.foot_positions(q)[:, 1].min()
+    q = biped_model.configuration(biped, 0.0, 0.0, 0.0, joints)
+    q[1] = 0.05 - biped_model.foot_positions(biped, q)[:, 1].min()
     state = sim.reset(q)
-    index = biped.joint_velocity_indices
+    index = biped.velocity_indices("gait")
     for _ in range(2500):
         torque = 200.0 * (joints - state.q[index]) - 2.0 * state.v[index]
         boom = [0.0, 0.0, -500.0 * state.q[2] - 30.0 * state.v[2]]
-        state = sim.step(biped.actuator_torques(torque), boom)
+        state = sim.step(biped_model.actuator_torques(biped, torque), boom)
     assert state.in_contact.all()
     assert state.contact_forces[:, 2].sum() == pytest.approx(biped.mass * GRAVITY, rel=2e-3)
     sink = -state.contact_positions[:, 2]
@@ -122,15 +123,6 @@ def test_adaptation_moves_towards_the_measured_step_rate(biped, gait):
     assert frequencies[-1] < 0.9 * frequencies[0]
 
 
-def test_push_survival_needs_continued_stepping(biped, gait):
-    """A small push is survived; the bisection returns the upper bound when that survives."""
-    from studies.biped import largest_survived_push, survives_push
-
-    _, dmp = gait
-    assert survives_push(biped, dmp, 2.4, True, 2.0, seed=0)
-    assert largest_survived_push(biped, dmp, 2.4, True, 0, upper=5.0, tolerance=10.0) == 5.0
-
-
 def test_unknown_backend_is_refused(biped, gait):
     from dmpopt.exceptions import InvalidInputError
     from studies.biped import walk
@@ -141,25 +133,125 @@ def test_unknown_backend_is_refused(biped, gait):
 
 def test_mujoco_fall_height_matches_the_native_one(biped):
     """Both backends get the same fall options: the same thresholds, min height FALL_HEIGHT."""
-    from studies.biped import FALL_HEIGHT, make_simulator
+    from studies.biped.walker import FALL_HEIGHT, make_simulator
 
     mujoco, native = (make_simulator(biped, b).fall_detector for b in ("mujoco", "native"))
     assert mujoco == native
     assert mujoco.min_height == FALL_HEIGHT
 
 
-def test_quick_study_walks_in_mujoco(tmp_path):
-    """Quick study, MuJoCo by default: walks without falling, native numbers side by side."""
+def test_wilson_interval_matches_newcombe_1998():
+    """Newcombe (1998), Stat. Med. 17:857, Table I, method 3: 81/263, 15/148, 0/20, 1/29."""
+    from studies.biped.analysis import wilson_interval
+
+    for (x, n), expected in (
+        ((81, 263), (0.2553, 0.3662)),
+        ((15, 148), (0.0624, 0.1605)),
+        ((0, 20), (0.0, 0.1611)),
+        ((1, 29), (0.0061, 0.1718)),
+    ):
+        assert wilson_interval(x, n) == pytest.approx(expected, abs=1e-4)
+    z2 = 1.959963984540054**2
+    assert wilson_interval(50, 50) == pytest.approx((50 / (50 + z2), 1.0))
+
+
+@pytest.mark.parametrize("x, n", [(3, 2), (-1, 5), (0, 0), (1, 2.5)])
+def test_wilson_interval_refuses_impossible_counts(x, n):
+    from dmpopt.exceptions import InvalidInputError
+    from studies.biped.analysis import wilson_interval
+
+    with pytest.raises(InvalidInputError, match="successes <= n"):
+        wilson_interval(x, n)
+
+
+def _log(speed=0.4, strikes=(0, 1, 0, 1, 0, 1), height=0.55, fell=False, end=8.0):
+    """A hand-made walk: base at ``speed`` m/s and ``height`` m, strikes every end/6 s."""
+    from studies.biped.walker import WalkLog
+
+    times = np.arange(0.0, end + 1e-9, 0.01)
+    q = [np.array([speed * t, height, 0, 0, 0, 0, 0]) for t in times]
+    step = end / len(strikes)
+    hits = [((k + 1) * step - 0.01, leg, 0.0) for k, leg in enumerate(strikes)]
+    return WalkLog(times=list(times), q=q, strikes=hits, fell=fell, duration=end)
+
+
+@pytest.mark.parametrize(
+    "log, survived",
+    [
+        (_log(), True),
+        (_log(fell=True), False),
+        (_log(speed=3.0), False),  # sent flying: not walking on
+        (_log(speed=-0.3), False),  # pushed back, walking backwards
+        (_log(strikes=(0, 1, 0, 1, 0, 0)), False),  # same leg twice: a stumble
+        (_log(strikes=(0, 1, 0)), False),  # stopped stepping in the last 2.5 s
+        (_log(height=0.4), False),  # crouched below the fall height + 0.1 m
+    ],
+)
+def test_survival_rule_means_walking_on(log, survived):
+    from studies.biped.analysis import SURVIVAL
+
+    assert SURVIVAL.survived(log) is survived
+
+
+def test_survival_by_arm_counts_outcomes_and_intervals(monkeypatch):
+    """Fake walks: the arm with phase resetting survives the pushes up to 2 N s, the others
+    none; rates, counts and Wilson intervals follow from the outcomes written here."""
+    from studies.biped import analysis
+    from studies.biped.walker import Disturbance
+
+    def fake_walk(biped, dmp, duration, frequency, reset_phase, disturbance, **_):
+        ok = reset_phase and disturbance.push_impulse <= 2.0
+        return _log(speed=0.4 if ok else 5.0)
+
+    monkeypatch.setattr(analysis, "walk", fake_walk)
+    pushes = [Disturbance(push_impulse=p) for p in (0.5, 1.0, 2.0, 3.0, 4.0)]
+    result = analysis.survival_by_arm(None, None, 2.0, pushes)
+    assert result["reset_and_adapt"]["survived"] == result["reset_only"]["survived"] == 3
+    assert result["neither"]["rate"] == 0.0 and result["neither"]["n"] == 5
+    assert result["reset_only"]["ci95_wilson"] == pytest.approx(analysis.wilson_interval(3, 5))
+    assert result["reset_and_adapt"]["outcomes"] == [True, True, True, False, False]
+
+
+def test_sweep_minimum_reports_the_flat_band():
+    from studies.biped.analysis import sweep_minimum
+
+    rows = [
+        {"frequency": f, "cost_of_transport": c}
+        for f, c in ((1.0, 0.5), (2.0, 0.30), (2.5, 0.31), (3.0, 0.40), (4.0, None))
+    ]
+    found = sweep_minimum(rows)
+    assert found["min_cost_of_transport_frequency"] == 2.0
+    assert found["within_5%_of_min_rad_s"] == [2.0, 2.5]
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
     from studies import biped as study
 
-    metrics = study.run(tmp_path, quick=True)
-    mujoco, native = metrics["mujoco"], metrics["native"]
-    assert metrics["backend"] == "mujoco"
-    assert mujoco["fell"] is False and mujoco["steps_walked"] >= 10
-    assert mujoco["steps_walked"] == metrics["steps_walked"]
-    assert native["fell"] is False and native["steps_walked"] >= 10
-    assert mujoco["real_time_factor"] > 0 and native["real_time_factor"] > 0
-    # 20 s of walking at the adapted ~4 rad/s: pi / omega s per step, about 25 steps.
-    expected = 20.0 * mujoco["frequency_final"] / np.pi
-    assert abs(mujoco["steps_walked"] - expected) < 0.25 * expected
-    assert metrics["videos"] == [] and metrics["videos_skipped"] == "quick run"
+    return study.run(tmp_path_factory.mktemp("biped"), quick=True)
+
+
+def test_quick_study_walks_through_the_qp_without_pitch_torque(quick):
+    """Headline of the quick run: the QP walker, no boom pitch torque, 20 s without a fall at
+    about pi / omega s per step."""
+    assert quick["controller"] == "qp_inverse_dynamics"
+    assert quick["boom_pitch_stiffness_N_m_per_rad"] == 0
+    assert quick["fell"] is False and quick["steps_walked"] >= 12
+    expected = 20.0 * quick["frequency_final"] / np.pi
+    assert abs(quick["steps_walked"] - expected) < 0.25 * expected
+
+
+def test_quick_study_frequencies_converge_from_every_start(quick):
+    """From 1.6 to 5 rad/s the final frequencies agree within 10 %."""
+    finals = np.array(list(quick["frequency_final_by_start"].values()))
+    assert len(finals) >= 4
+    assert finals.max() / finals.min() - 1 < 0.10
+
+
+def test_quick_study_reports_survival_per_arm(quick):
+    survival = quick["push_survival_rate"]
+    assert set(survival) == {"reset_and_adapt", "reset_only", "neither"}
+    for arm in survival.values():
+        assert arm["n"] == 4 and arm["rate"] == arm["survived"] / 4
+        assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
+    assert quick["videos"] == [] and quick["videos_skipped"] == "quick run"

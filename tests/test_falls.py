@@ -12,6 +12,7 @@ from test_simulator import GRAVITY, box_at, box_corners, free_box
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import FallDetector, GroundContact, Simulator, base_tilt
+from robots import biped as biped_model
 
 GROUND = GroundContact(stiffness=2e4, damping=300.0, friction=0.8)
 
@@ -180,7 +181,7 @@ def test_defaults_come_from_the_neutral_standing_height(talos, biped):
     assert talos_height == pytest.approx(1.083, abs=1e-3)
     for sim, height in (
         (Simulator(talos.model, 1e-3, points, GROUND), talos_height),
-        (Simulator(biped.model, 1e-3, biped.contact_points, GROUND), biped.leg_length),
+        (Simulator(biped.model, 1e-3, biped.contact_points, GROUND), biped_model.leg_length(biped)),
     ):
         expected = FallDetector.for_standing_height(height)
         assert astuple(sim.fall_detector) == pytest.approx(astuple(expected), rel=1e-12)
@@ -192,7 +193,7 @@ def test_defaults_come_from_the_neutral_standing_height(talos, biped):
 def test_planar_biped_tilt_is_its_pitch(biped, pitch, falls):
     """The planar base's orientation is the pitch coordinate: |pitch| > 45 deg is a fall."""
     sim = Simulator(biped.model, 1e-3, biped.contact_points, GROUND)
-    q = biped.configuration(0.0, 2.0, pitch, np.zeros(4))
+    q = biped_model.configuration(biped, 0.0, 2.0, pitch, np.zeros(4))
     sim.reset(q)
     fall = sim.step(np.zeros(4)).fall
     assert (fall is not None) == falls
@@ -204,8 +205,10 @@ def test_biped_collapsing_without_torques_falls_below_half_its_leg(biped):
     """Straight-legged biped standing with no torques and no boom: it falls; the first check
     to fire is reported and the hip is then above the ground (it did not sink through it)."""
     sim = Simulator(biped.model, 1e-3, biped.contact_points, GROUND)
-    q = biped.configuration(0.0, biped.leg_length, 0.02, [0.1, 0.2, -0.1, 0.2])
-    q[1] -= biped.foot_positions(q)[:, 1].min()
+    q = biped_model.configuration(
+        biped, 0.0, biped_model.leg_length(biped), 0.02, [0.1, 0.2, -0.1, 0.2]
+    )
+    q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
     state = sim.reset(q)
     for _ in range(3000):
         state = sim.step(np.zeros(4))

@@ -153,7 +153,7 @@ def test_robot_model_checks_shapes(talos_full):
             position_upper=talos_full.position_upper,
             velocity_limit=talos_full.velocity_limit,
             torque_limit=np.ones(3),
-            floating_base=True,
+            base="free_flyer",
         )
     assert str(error.value) == (
         "torque_limit has shape (3,), expected (44,) to match the Pinocchio model (nq=51, nv=50)"

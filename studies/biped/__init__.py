@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robots import biped as biped_model
 from robots.biped import load_biped
 
 from ..common import write_metrics
@@ -99,10 +100,11 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
     plan = dmp.with_time_constant(1.0 / frequency).rollout(
         duration=3.75 * 2 * np.pi / frequency, dt=DT
     )
-    q = biped.configuration(0.0, biped.leg_length, 0.0, plan.positions[-1])
-    q[1] -= biped.foot_positions(q)[1, 1]  # left foot on the ground
-    swing = biped.joint_velocity_indices[:2]  # right hip, right knee
-    slots = swing - biped.n_base_dofs
+    height = biped_model.leg_length(biped)
+    q = biped_model.configuration(biped, 0.0, height, 0.0, plan.positions[-1])
+    q[1] -= biped_model.foot_positions(biped, q)[1, 1]  # left foot on the ground
+    swing = biped.velocity_indices("gait")[:2]  # right hip, right knee
+    slots = swing - biped.n_base
     gains = np.array([[GAINS.hip_stiffness, GAINS.hip_damping]] * 2)
     gains[1] = GAINS.knee_stiffness, GAINS.knee_damping
 
@@ -111,7 +113,7 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
 
     qp = QPControl(biped)
     qp.controller.remove_contact(biped.foot_frames[0])
-    qp.posture.set_reference(q[np.sort(biped.joint_velocity_indices)])
+    qp.posture.set_reference(q[np.sort(biped.velocity_indices("gait"))])
 
     def inverse_dynamics(moved, v):
         return qp.controller.compute_torques(moved, v, 0.0)[slots]
@@ -124,7 +126,8 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
             ("qp_controller", inverse_dynamics),
         )
     }
-    frequencies["passive_knee_locked_straight"] = biped.swing_leg_natural_frequency(0.0)
+    straight = biped_model.swing_leg_natural_frequency(biped, 0.0)
+    frequencies["passive_knee_locked_straight"] = straight
     return frequencies
 
 

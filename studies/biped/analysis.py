@@ -101,7 +101,7 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
         Disturbance(
             push_impulse=float(rng.uniform(*ranges.push_impulse)),
             push_time=float(rng.uniform(*ranges.push_time)),
-            mass_scale=tuple(rng.uniform(*ranges.mass_scale, n_bodies)),
+            mass_scale=tuple(rng.uniform(*ranges.mass_scale, n_bodies).tolist()),
             slope_deg=float(rng.uniform(*ranges.slope_deg)),
             slope_time=float(rng.uniform(*ranges.slope_time)),
         )

@@ -79,12 +79,12 @@ def joints_figure(path, biped, log) -> None:
     """Desired (DMP) against actual joint angles, first and last 4 s of a walk."""
     plt = pyplot()
     times = np.asarray(log.times)
-    q = np.asarray(log.q)[:, biped.joint_velocity_indices]
+    q = np.asarray(log.q)[:, biped.velocity_indices("gait")]
     desired = np.asarray(log.desired)
     fig, axes = plt.subplots(4, 2, figsize=(9, 7), sharex="col")
     windows = [times <= times[0] + 4.0, times >= times[-1] - 4.0]
     for col, window in enumerate(windows):
-        for row, name in enumerate(biped.joint_names):
+        for row, name in enumerate(biped.joint_groups["gait"]):
             ax = axes[row, col]
             ax.plot(times[window], np.degrees(desired[window, row]), "--", label="DMP")
             ax.plot(times[window], np.degrees(q[window, row]), label="robot")

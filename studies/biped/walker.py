@@ -23,6 +23,7 @@ import numpy as np
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
+from robots import biped as biped_model
 
 from .gait import limit_cycle_start
 
@@ -121,12 +122,12 @@ class PDControl:
     """The paper's joint PD on the DMP's position and velocity, torques saturated."""
 
     def __init__(self, biped, gains: Gains = GAINS):
-        order = biped.joint_velocity_indices - biped.n_base_dofs
-        self.index = np.sort(biped.joint_velocity_indices)
-        self.stiffness, self.damping, self.limit = np.empty(4), np.empty(4), np.empty(4)
+        order = biped.velocity_indices("gait") - biped.n_base
+        self.index = np.sort(biped.velocity_indices("gait"))
+        self.stiffness, self.damping = np.empty(4), np.empty(4)
         self.stiffness[order] = [gains.hip_stiffness, gains.knee_stiffness] * 2
         self.damping[order] = [gains.hip_damping, gains.knee_damping] * 2
-        self.limit[order] = biped.torque_limit
+        self.limit = np.array(biped.torque_limit)  # model order
 
     def torques(self, state, position, velocity, acceleration, phase) -> np.ndarray:
         """Joint torques in model order from the references in model order."""
@@ -227,16 +228,16 @@ def walk(
         CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
     )
     stepper.set_time_constant(1.0 / frequency)
-    q = biped.configuration(0.0, biped.leg_length, 0.0, stepper.position)
-    q[1] -= biped.foot_positions(q)[:, 1].min()
+    q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
+    q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
     sim = make_simulator(biped, backend)
     _perturb_masses(sim, disturbance)
     v = np.zeros(biped.model.nv)
     v[0] = START_SPEED + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
     law = QPControl(biped) if controller == "qp" else PDControl(biped)
-    order = biped.joint_velocity_indices - biped.n_base_dofs  # model-order slots, gait order
-    index = np.sort(biped.joint_velocity_indices)
+    order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
+    index = np.sort(biped.velocity_indices("gait"))
     detector = HeelStrikeDetector(min_swing_time=0.1)
     adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
     log = WalkLog(frequencies=[frequency])

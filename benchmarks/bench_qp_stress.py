@@ -97,9 +97,10 @@ SCENARIOS = {
 }
 
 
-def full_qp(controller, q, v):
+def full_qp(public, q, v):
     """The tick's QP over y = (qdd_a, f / weight) with every inequality row, and the constant
     that makes its objective the full least-squares cost: (H, g, A, b, C, l, u, constant)."""
+    controller = public._current  # the QP of the active contact set
     controller._assemble(q, v)
     controller._assemble_y()
     kernels.acceleration_bounds(controller._bounds, q, v)
@@ -145,8 +146,9 @@ def reference_solution(problem):
     return qp.results.x
 
 
-def controller_y(controller):
+def controller_y(public):
     """The controller's last answer over y (wrenches divided by the robot's weight)."""
+    controller = public._current
     x = controller._solution.copy()
     x[controller._nv :] /= controller._force_scale
     return x[controller._n_base :]

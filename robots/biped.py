@@ -38,9 +38,10 @@ BIPED_URDF = Path(__file__).with_name("biped.urdf")
 
 #: Actuated joints in the order used by the gait (right leg first), not the model order.
 GAIT_JOINTS = ("right_hip", "right_knee", "left_hip", "left_knee")
-#: Joint angles of the reference configuration, in :data:`GAIT_JOINTS` order [rad]: a crouch
-#: whose bent knees keep the feet's Jacobian of full rank.
-REFERENCE_JOINTS = (0.2, 0.4, 0.2, 0.4)
+#: Joint angles of the reference configuration, in :data:`GAIT_JOINTS` order [rad]: a stance
+#: with the right foot 8.8 cm ahead of the hip and the left 8.8 cm behind, knees bent 0.4 rad
+#: (bent knees keep the feet's Jacobian of full rank).
+REFERENCE_JOINTS = (0.35, 0.4, 0.05, 0.4)
 
 
 def _gait_indices(robot: RobotModel) -> np.ndarray:
@@ -141,7 +142,7 @@ def swing_leg_natural_frequency(
 
 
 def _standing(model: pin.Model) -> np.ndarray:
-    """Both feet under the hip on the ground (z = 0), hips at 0.2 rad, knees at 0.4 rad."""
+    """The stance of :data:`REFERENCE_JOINTS` with both feet on the ground (z = 0)."""
     q = np.zeros(model.nq)
     for name, angle in zip(GAIT_JOINTS, REFERENCE_JOINTS):
         q[model.joints[model.getJointId(name)].idx_q] = angle

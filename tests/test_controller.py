@@ -183,8 +183,8 @@ def test_fixed_base_woodbury_solve_matches_the_cholesky_solve(upper_body, compon
 
     woodbury, hand_w = controller()
     cholesky, hand_c = controller()
-    assert woodbury._joint_space
-    cholesky._joint_space = False  # the general path: computeAllTerms, Cholesky, M qdd + h
+    assert woodbury._current._joint_space
+    cholesky._current._joint_space = False  # the general path: computeAllTerms, Cholesky, M qdd + h
     model, data = upper_body.model, upper_body.create_data()
     for _ in range(5):
         q, v = random_state(upper_body, rng, spread=0.05, speed=0.05)

@@ -48,9 +48,10 @@ def upper_body():
 
 
 # ---------------------------------------------------------------- the answer key
-def full_qp(controller, q, v):
+def full_qp(public, q, v):
     """The tick's QP over y = (qdd_a, f / weight) with every inequality row, and the constant
     that makes its objective the whole least-squares cost (so that the optimum is > 0)."""
+    controller = public._current  # the QP of the active contact set
     controller._assemble(q, v)
     controller._assemble_y()
     kernels.acceleration_bounds(controller._bounds, q, v)
@@ -98,7 +99,8 @@ def clarabel(hessian, gradient, c, lower, upper, a=None, b=None):
     return qp.results.x
 
 
-def controller_y(controller):
+def controller_y(public):
+    controller = public._current
     x = controller.joint_accelerations
     n_base = controller._n_base
     wrenches = controller.contact_wrenches.ravel() / controller._force_scale
@@ -308,7 +310,7 @@ def test_infeasible_tick_gives_the_relaxed_answer(upper_body):
     tau = controller.compute_torques(q, v)
     assert controller.stats.last_answer == "relaxed" and controller.stats.n_relaxed == 1
     problem = full_qp(controller, q, v)
-    n, n_bound = problem["hessian"].shape[0], controller._bounds[1].size
+    n, n_bound = problem["hessian"].shape[0], controller._current._bounds[1].size
     n_act = upper_body.n_actuated
     # min cost(y) + 1e4/2 ||s||^2  s.t.  torque rows;  l <= qdd_j + s_j <= u
     hessian = scipy.linalg.block_diag(problem["hessian"], 1e4 * np.eye(n_bound))

@@ -1,4 +1,4 @@
-"""Whole-body control: QP inverse dynamics with tasks and sole contacts, computed torque.
+"""Whole-body control: QP inverse dynamics with tasks and switchable contacts, computed torque.
 
 >>> robot = load_talos("full")
 >>> posture = PostureTask(robot, weight=1e-2, stiffness=10.0)
@@ -24,11 +24,16 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
         sys.modules["numba"].core.config.reload_config()
 
 from dmpopt.control.computed_torque import ComputedTorqueController  # noqa: E402
-from dmpopt.control.inverse_dynamics import (  # noqa: E402
-    ControllerStats,
-    InverseDynamicsController,
+from dmpopt.control.controller import InverseDynamicsController  # noqa: E402
+from dmpopt.control.inverse_dynamics import ControllerStats  # noqa: E402
+from dmpopt.control.tasks import (  # noqa: E402
+    ComTask,
+    FrameTask,
+    PointContact,
+    PostureTask,
+    SoleContact,
+    Task,
 )
-from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, SoleContact, Task  # noqa: E402
 
 __all__ = [
     "ComTask",
@@ -36,6 +41,7 @@ __all__ = [
     "ControllerStats",
     "FrameTask",
     "InverseDynamicsController",
+    "PointContact",
     "PostureTask",
     "SoleContact",
     "Task",

@@ -91,9 +91,11 @@ from scipy.linalg import lapack
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 
 from . import kernels
-from .tasks import FrameTask, PostureTask, SoleContact, Task
+from .tasks import FrameTask, PointContact, PostureTask, SoleContact, Task
 
-__all__ = ["JOINT_LIMIT_TOLERANCE", "ControllerStats", "InverseDynamicsController"]
+CONTACT_TYPES = (SoleContact, PointContact)
+
+__all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
@@ -186,12 +188,13 @@ class _Stage:
 
     ``problem`` is (H, g, A, b, C, l, u), None for absent blocks: what the active-set
     iterations read. ``at_upper`` and ``at_lower`` mark the rows active at the last solution
-    (``known``): the next tick starts from them.
+    (``known``): the next tick starts from them. ``stale``: inequality bounds changed (a
+    contact transition), so the next proxsuite update passes them too.
     """
 
     __slots__ = (
         "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known",
+        "at_lower", "known", "stale",
     )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
@@ -211,6 +214,7 @@ class _Stage:
         self.at_upper = np.zeros(n_in, dtype=bool)
         self.at_lower = np.zeros(n_in, dtype=bool)
         self.known = False
+        self.stale = False  # bounds changed since proxsuite last saw them: update with all
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -236,17 +240,18 @@ def _check_positive(name: str, value) -> None:
 
 def _check_items(robot, tasks, contacts) -> None:
     """Tasks and contacts of the right types, built for this robot."""
-    if isinstance(tasks, Task) or isinstance(contacts, SoleContact):
+    if isinstance(tasks, Task) or isinstance(contacts, CONTACT_TYPES):
         raise InvalidInputError(
             "tasks and contacts must be sequences; wrap a single one in a list: [task]"
         )
     if not tasks:
         raise InvalidInputError("tasks is empty; give at least one task (e.g. PostureTask)")
-    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, SoleContact)):
+    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, CONTACT_TYPES)):
         for item in items:
             if not isinstance(item, kind):
+                expected = "Task" if kind is Task else "SoleContact or PointContact"
                 raise InvalidInputError(
-                    f"{name} holds {type(item).__name__!s}, expected {kind.__name__} objects"
+                    f"{name} holds {type(item).__name__!s}, expected {expected} objects"
                 )
             model = getattr(item, "model", robot.model)  # a user's Task may have none
             if model.nv != robot.nv or model.nq != robot.model.nq:
@@ -314,7 +319,7 @@ def _active_set(
 
 
 def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
-    """Velocity indices of 6 joints per contact that move its sole, or None.
+    """Velocity indices of as many joints as contact rows that move the feet, or None.
 
     Chosen by a column-pivoted QR of the contacts' actuated Jacobian columns in the reference
     configuration (for Talos: the 12 leg joints); None if that block is rank deficient.
@@ -322,9 +327,7 @@ def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     model, data = robot.model, robot.create_data()
     pin.computeJointJacobians(model, data, robot.reference_configuration)
     pin.updateFramePlacements(model, data)
-    jacobian = np.vstack(
-        [pin.getFrameJacobian(model, data, c.frame_id, pin.LOCAL) for c in contacts]
-    )[:, n_base:]
+    jacobian = np.vstack([c.contact_jacobian(data) for c in contacts])[:, n_base:]
     n_rows = jacobian.shape[0]
     if n_rows > jacobian.shape[1]:
         return None
@@ -335,92 +338,11 @@ def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     return np.sort(pivots[:n_rows]) + n_base
 
 
-class InverseDynamicsController:
-    r"""Task-space inverse dynamics with rigid sole contacts, solved by proxsuite each tick.
-
-    Parameters
-    ----------
-    robot : RobotModel
-        The robot (see :mod:`robots`); floating or fixed base.
-    tasks : sequence of Task
-        Weighted tasks (:class:`~dmpopt.control.tasks.PostureTask`, ``FrameTask``,
-        ``ComTask``). Keep a reference to update their targets between ticks.
-    contacts : sequence of SoleContact
-        Active rigid contacts; their wrenches become decision variables.
-    acceleration_regularization : float
-        :math:`\epsilon_a`, keeps the Hessian positive definite when tasks leave joints free.
-    force_regularization : float
-        :math:`\epsilon_f`, spreads the load between contacts. Forces are in newtons, hundreds
-        of times larger than accelerations, so it is small: 1e-5 would already let Talos sag
-        by 0.02 m/s^2 to save force.
-    tolerance : float
-        proxsuite absolute tolerance ``eps_abs`` on the KKT residuals and the duality gap;
-        the acceleration bounds of the joint limits are met to it (a joint resting at its
-        limit would otherwise violate them by rounding errors). A much tighter tolerance needs
-        more iterations: raise ``max_iterations`` with it.
-    max_iterations : int
-        proxsuite's outer iteration limit per solve (each of at most 10 inner iterations):
-        with ``time_budget``, what bounds a tick's time.
-    time_budget : float
-        CPU seconds (of the calling thread) per tick. The exact QP may use the first half,
-        the relaxed QP the rest; a tick that runs out of it gives the hold answer. proxsuite
-        runs in calls of 3 outer iterations (at most 30 inner ones) with the time checked
-        between, so a tick overruns its budget by about one such call plus the active-set
-        rounds, which are not interrupted (the bound is soft: for Talos with infeasible torque
-        limits on a busy 2-core machine, at most 6.6 ms CPU for the default 5 ms,
-        ``benchmarks/bench_qp_stress.py``). The calls do not depend on the time: a tick whose
-        budget is not spent gives the same answer for the same inputs and history. CPU time,
-        not wall time, so that a busy machine changes the answers less; on a dedicated
-        real-time core they are the same.
-    raise_on_failure : bool
-        If True, a tick that would give the hold answer raises :class:`NoSolutionFound`.
-    joint_limit_horizon : float or None
-        h [s]: bound the accelerations of ``limited_joints`` so that they stay within the
-        robot's position and velocity limits (see :func:`kernels.acceleration_bounds`: a joint
-        brakes no later than a critically damped approach of time constant h). None: no such
-        bounds, torque limits only.
-    limited_joints : str or sequence of str, optional
-        The joints so bounded: a joint group (``"right_arm"``) or joint names; default all
-        actuated joints with finite position limits. A joint may end up to
-        ``JOINT_LIMIT_TOLERANCE`` (1e-3 rad) past its limit: the bounds aim at the limit plus
-        that margin, so that a joint resting exactly at its limit (Talos's closed grippers)
-        leaves its bound inactive.
-    torque_limit_scale : float
-        The torque limits used are ``torque_limit_scale * robot.torque_limit`` (> 0; e.g.
-        0.3 to test a controller with weak motors).
-    dense_backend : proxsuite.proxqp.dense.DenseBackend
-        Factorisation used by proxsuite. ``PrimalDualLDLT`` (the KKT system) is the default:
-        ``PrimalLDLT`` factorises :math:`H + C^\top C/\mu` and stalls at tight tolerances on
-        ill-conditioned task Hessians.
-
-    Attributes
-    ----------
-    qp : proxsuite.proxqp.dense.QP
-        The QP with torque-limit rows (and cone rows, if in contact). Its settings
-        ``eps_abs``, ``eps_rel``, ``max_iter`` and ``verbose`` are copied to the other
-        proxsuite QPs (with cone rows only, with the contact rows kept) before each of their
-        solves. Ticks without an active inequality row do not use proxsuite.
-
-    Notes
-    -----
-    Each tick gives one of four answers, counted in :attr:`stats`:
-
-    - ``direct``: no inequality row active; the least-squares optimum (exact).
-    - ``solved``: the QP with its inequality rows: by at most 5 active-set iterations from
-      the last tick's active set, else by proxsuite (warm-started, retried cold once on
-      failure, within the first half of the time budget) refined to the exact optimum of
-      its active set when that set verifies (:func:`_active_set`).
-    - ``relaxed``: if that QP fails (infeasible, e.g. torque limits too weak to hold the
-      robot, or out of iterations or of its half of the budget), the QP with every
-      inequality row in which the contact rows and the acceleration bounds get slacks
-      weighted by 1e4 in the cost; the torque and cone rows stay hard. It is always
-      feasible (the contact wrenches can sit inside their cones, and the joint
-      accelerations can produce any torque).
-    - ``hold``: if that fails too or the whole time budget is spent, the last valid torque
-      (gravity and Coriolis compensation :math:`h_a` on the first tick), clipped to the
-      torque limits.
-
-    The torques are always finite and within the torque limits.
+class ContactSetQP:
+    """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
+    contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
+    stages (see the module docstring). The controller builds one per set it meets and keeps
+    them; the parameters are the controller's.
     """
 
     def __init__(
@@ -467,10 +389,16 @@ class InverseDynamicsController:
         self.raise_on_failure = raise_on_failure
 
         nv, n_act, n_c = robot.nv, robot.n_actuated, len(self.contacts)
-        n_base, n_force = nv - n_act, 6 * n_c
+        force_offsets = np.cumsum([0] + [c.n_force for c in self.contacts]).astype(int)
+        cone_offsets = np.cumsum([0] + [c.wrench_upper.size for c in self.contacts]).astype(int)
+        n_base, n_force = nv - n_act, int(force_offsets[-1])
         n_x = nv + n_force  # unknowns x = (qdd, f / force_scale)
         n = n_act + n_force  # unknowns y = (qdd_a, f / force_scale), base rows eliminated
-        n_cone = SoleContact.n_wrench_rows * n_c
+        n_cone = int(cone_offsets[-1])
+        self._force_slices = tuple(slice(a, b) for a, b in zip(force_offsets, force_offsets[1:]))
+        # Cone rows of each contact's normal-force bounds (its last two: -f_n <= -f_min, f_n <=
+        # f_max), which a transition changes.
+        self._normal_rows = tuple((int(b) - 2, int(b) - 1) for b in cone_offsets[1:])
         self._nv, self._n_base, self._n_act, self._n = nv, n_base, n_act, n
         self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
         if not (self.torque_limit > 0).all():  # NaN too
@@ -511,7 +439,9 @@ class InverseDynamicsController:
         for task, rows in zip(self._stacked_tasks, self._task_rows):
             self._row_scale[rows] = np.sqrt(task.weight)
         self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
-        self._contact_rows = tuple(slice(n_cost + 6 * k, n_cost + 6 * (k + 1)) for k in range(n_c))
+        self._contact_rows = tuple(
+            slice(n_cost + a.start, n_cost + a.stop) for a in self._force_slices
+        )
         self._bound = tuple(
             self._bind(item, rows)
             for item, rows in zip(
@@ -552,10 +482,12 @@ class InverseDynamicsController:
         # Cone rows over x (scaled wrenches): constant.
         cone_matrix = np.zeros((n_cone, n_x))
         cone_upper = np.full(n_cone, _NO_BOUND)
-        for k, contact in enumerate(self.contacts):
-            rows = slice(12 * k, 12 * (k + 1))
-            cone_matrix[rows, nv + 6 * k : nv + 6 * (k + 1)] = scale * contact.wrench_matrix
-            cone_upper[rows] = contact.wrench_upper
+        for contact, forces, a, b in zip(
+            self.contacts, self._force_slices, cone_offsets, cone_offsets[1:]
+        ):
+            cone_matrix[a:b, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
+            cone_upper[a:b] = contact.wrench_upper
+        self._cone_upper, self._n_limit = cone_upper, None  # n_limit set below
         cone_lower = np.full(n_cone, -_NO_BOUND)
 
         # ---- QPs over y = x[n_base:] (base rows eliminated): without torque rows (used when
@@ -570,6 +502,7 @@ class InverseDynamicsController:
         self._eq_vector = self._mapped[n_cost:, n]
         # Inequality rows over y: torques, acceleration bounds (if any), cones.
         n_limit = n_act + n_bound
+        self._n_limit = n_limit
         self._in_matrix = np.zeros((n_limit + n_cone, n))
         self._in_matrix[n_act + np.arange(n_bound), self._bounds[1] - n_base] = 1.0
         self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
@@ -784,7 +717,27 @@ class InverseDynamicsController:
 
         Rows are (fx, fy, fz, tx, ty, tz) [N, N m] in each sole frame, in contact order.
         """
-        return self._solution[self._nv :].reshape(-1, 6).copy()
+        forces = self._solution[self._nv :]
+        if not self.contacts:
+            return np.zeros((0, 6))
+        return np.array([forces[rows] for rows in self._force_slices])
+
+    def set_normal_force_limit(self, index: int, limit: float) -> None:
+        """Bound the normal force of contact ``index`` by ``limit`` [N] from the next tick
+        (its lower bound becomes min(f_min, limit)); only the bound vectors change."""
+        contact = self.contacts[index]
+        lower = -min(contact.min_normal_force, limit)
+        rows = self._normal_rows[index]
+        if (self._cone_upper[list(rows)] == (lower, limit)).all():
+            return
+        margin = _CONE_RELEASE_MARGIN * self._force_scale
+        for row, value in zip(rows, (lower, limit)):
+            self._cone_upper[row] = value
+            self._in_upper[self._n_limit + row] = value
+            if self._basic is not None:
+                self._z_cone_release[row] = value - margin
+        for stage in self._stages:
+            stage.stale = True
 
     @property
     def torques(self) -> np.ndarray:
@@ -1096,7 +1049,7 @@ class InverseDynamicsController:
             if solution is not None and self._take(stage, solution):
                 return True
         qp = stage.qp
-        if stage is not self._primary:
+        if qp is not self.qp:
             settings, source = qp.settings, self.qp.settings
             for name in _MIRRORED_SETTINGS:
                 setattr(settings, name, getattr(source, name))
@@ -1104,13 +1057,14 @@ class InverseDynamicsController:
             qp.init(*stage.init_arguments)
             solved = self._run(stage, True, deadline)
         else:
-            qp.update(*stage.update_arguments)
+            qp.update(*(stage.init_arguments if stage.stale else stage.update_arguments))
             solved = self._run(stage, False, deadline)
             # proxsuite can also report a feasible QP infeasible from a stale warm start.
             if not solved and time.thread_time() < deadline:
                 stats.n_cold_restarts += 1
                 solved = self._run(stage, True, deadline)
         stage.initialized = stage.known = solved
+        stage.stale = False
         return solved
 
     def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:

@@ -52,8 +52,8 @@ class Survival:
     ``min_height`` [m] above the ground throughout.
     """
 
-    after: float = 4.0
-    window: float = 2.5
+    after: float = 2.5
+    window: float = 1.5
     min_strikes: int = 2
     min_speed: float = 0.05
     max_speed: float = 1.5
@@ -86,11 +86,11 @@ ARMS = {  # (reset_phase, adapt)
 class TrialRanges:
     """Ranges of the randomised disturbances (uniform draws)."""
 
-    push_impulse: tuple = (0.0, 3.0)  # [N s] forward, on the torso
-    push_time: tuple = (3.0, 4.5)  # [s] (about one step: a random phase of the gait)
+    push_impulse: tuple = (0.0, 4.0)  # [N s] forward, on the torso
+    push_time: tuple = (1.5, 2.5)  # [s] (several steps: a random phase of the gait)
     mass_scale: tuple = (0.9, 1.1)  # factor on each body's mass and inertia
     slope_deg: tuple = (-3.0, 3.0)  # [deg] ground slope from slope_time, positive uphill
-    slope_time: tuple = (1.0, 2.0)  # [s]
+    slope_time: tuple = (0.5, 1.5)  # [s]
 
 
 def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[Disturbance]:

@@ -57,8 +57,8 @@ def survival_figure(path, survival: dict, ranges) -> None:
     low = np.array([survival[name]["ci95_wilson"][0] for name in names])
     high = np.array([survival[name]["ci95_wilson"][1] for name in names])
     ax.bar(names, rates, color="C0", alpha=0.7, label="survival rate")
-    ax.errorbar(names, rates, yerr=[rates - low, high - rates], fmt="none", color="k",
-                capsize=5, label="Wilson 95 % CI")  # fmt: skip
+    errors = np.maximum(0.0, [rates - low, high - rates])  # not -1e-17 from rounding
+    ax.errorbar(names, rates, yerr=errors, fmt="none", color="k", capsize=5, label="Wilson 95 % CI")
     for k, name in enumerate(names):
         ax.text(k, 0.02, f"n={survival[name]['n']}", ha="center", fontsize=8)
     ax.set_ylim(0, 1.05)

@@ -34,7 +34,7 @@ GROUND = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
 FALL_HEIGHT = 0.35  # [m] the walker has fallen when its torso is lower
 ADAPTATION_GAIN = 0.3  # K of eq. (21)
 LOG_EVERY = 10  # steps between logged samples
-START_SPEED = 0.35  # [m/s] forward speed at the first heel strike
+START_SPEEDS = {"qp": 0.8, "pd": 0.35}  # [m/s] forward speed at the first heel strike
 CONTROLLERS = ("qp", "pd")
 
 
@@ -52,6 +52,11 @@ class Gains:
 class QPGains:
     """Task gains of the QP walker (stiffness [1/s^2], damping [1/s], weights [-]).
 
+    ``torso_pitch``: the torso's target pitch [rad], positive leaning forward.
+    ``placement_gain`` [s], ``target_speed`` [m/s]: foot placement (Raibert): over its swing
+    the swing hip's reference moves from the DMP's towards the angle that lands the foot
+    ``v T / 2 + placement_gain (v - target_speed)`` ahead of the hip, with ``v`` the hip's
+    forward speed and ``T = pi / omega`` the oscillator's step duration; None: no placement.
     ``lift_phase``: fraction of its own half-cycle after the other leg's heel strike at which
     a stance leg's contact starts to ramp out over ``transition_time`` [s].
     """
@@ -59,10 +64,13 @@ class QPGains:
     posture_stiffness: float = 400.0
     posture_damping: float = 40.0
     posture_weight: float = 1.0
-    pitch_stiffness: float = 100.0
-    pitch_damping: float = 20.0
-    pitch_weight: float = 10.0
+    pitch_stiffness: float = 400.0
+    pitch_damping: float = 40.0
+    pitch_weight: float = 1000.0
+    torso_pitch: float = 0.2
     friction: float = 0.7
+    placement_gain: float | None = 0.1
+    target_speed: float = 0.6
     lift_phase: float = 0.05
     transition_time: float = 0.03
 
@@ -135,7 +143,7 @@ class PDControl:
         torque = self.stiffness * error + self.damping * (velocity - state.v[self.index])
         return np.clip(torque, -self.limit, self.limit)
 
-    def on_heel_strike(self, leg: int) -> None:
+    def on_heel_strike(self, leg: int, frequency: float) -> None:
         """The PD law does not switch."""
 
 
@@ -143,6 +151,8 @@ class QPControl:
     """QP inverse dynamics with DMP posture, torso pitch and switched point contacts."""
 
     def __init__(self, biped, gains: QPGains = QP_GAINS):
+        import pinocchio as pin
+
         from dmpopt.control import FrameTask, InverseDynamicsController, PointContact, PostureTask
 
         self.gains = gains
@@ -163,34 +173,65 @@ class QPControl:
             damping=damping,
             components=[4],
         )
+        upright = self.pitch.target_placement
+        self.pitch.set_target(
+            pin.SE3(pin.utils.rotate("y", gains.torso_pitch), upright.translation)
+        )
         contacts = [
             PointContact(biped, frame, friction_coefficient=gains.friction) for frame in self.frames
         ]
         self.controller = InverseDynamicsController(biped, [self.posture, self.pitch], contacts)
-        self.t = 0.0
+        self.lifted = [False, False]  # contact removed (or ramping out) since the last strike
+        gait = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
+        self.hips, self.knees = gait[[0, 2]], gait[[1, 3]]
+        self.thigh, self.shank = biped_model.leg_lengths(biped)
+        self.frequency = 1.0
+        self._reference = np.empty(biped.n_actuated)
 
     def torques(self, state, position, velocity, acceleration, phase) -> np.ndarray:
         """Torques in model order; lifts a stance leg once the DMP phase says it swings."""
-        self.t = state.t
-        self._lift_by_phase(state, phase)
-        self.posture.set_reference(position, velocity, acceleration)
+        half = (phase % (2 * np.pi)) / np.pi  # leg 0 swings in [1, 2), leg 1 in [0, 1)
+        self._lift_by_phase(state, half)
+        reference = self._reference
+        reference[:] = position
+        if self.gains.placement_gain is not None:
+            self._place_swing_foot(state, half % 1.0, reference)
+        self.posture.set_reference(reference, velocity, acceleration)
         return self.controller.compute_torques(state.q, state.v, state.t)
 
-    def _lift_by_phase(self, state, phase) -> None:
-        # Leg 0 (right) swings in the second half of the cycle, leg 1 in the first.
-        half = (phase % (2 * np.pi)) / np.pi
+    def _lift_by_phase(self, state, half: float) -> None:
         swinging = 0 if half >= 1.0 else 1
-        if (half % 1.0) < self.gains.lift_phase:
+        if (half % 1.0) < self.gains.lift_phase or self.lifted[0] or self.lifted[1]:
             return
-        active = self.controller.active_contacts
-        frame, other = self.frames[swinging], self.frames[1 - swinging]
-        if frame in active and other in active and state.in_contact[1 - swinging]:
-            self.controller.remove_contact(frame, transition_time=self.gains.transition_time)
+        if state.in_contact[1 - swinging]:
+            self.controller.remove_contact(
+                self.frames[swinging], transition_time=self.gains.transition_time
+            )
+            self.lifted[swinging] = True
 
-    def on_heel_strike(self, leg: int) -> None:
+    def _place_swing_foot(self, state, progress: float, reference: np.ndarray) -> None:
+        """Move the swing hip's reference towards the Raibert landing angle over the swing."""
+        if not (self.lifted[0] or self.lifted[1]):
+            return
+        leg = 0 if self.lifted[0] else 1
+        speed = state.v[0]
+        step_duration = np.pi / self.frequency
+        reach = 0.5 * speed * step_duration
+        reach += self.gains.placement_gain * (speed - self.gains.target_speed)
+        knee = reference[self.knees[leg]]
+        length = np.hypot(self.thigh + self.shank * np.cos(knee), self.shank * np.sin(knee))
+        offset = np.arctan2(self.shank * np.sin(knee), self.thigh + self.shank * np.cos(knee))
+        landing = np.arcsin(np.clip(reach / length, -0.8, 0.8)) + offset
+        hip = self.hips[leg]
+        reference[hip] += min(progress, 1.0) * (landing - reference[hip])
+
+    def on_heel_strike(self, leg: int, frequency: float) -> None:
         """A heel strike puts the foot's contact back, held where it landed."""
-        if self.frames[leg] not in self.controller.active_contacts:
-            self.controller.add_contact(self.frames[leg])
+        self.frequency = frequency
+        if self.lifted[leg]:
+            if self.frames[leg] not in self.controller.active_contacts:
+                self.controller.add_contact(self.frames[leg])
+            self.lifted[leg] = False
 
 
 def walk(
@@ -209,20 +250,27 @@ def walk(
     seed: int = 0,
     log_every: int = LOG_EVERY,
     backend: str = "mujoco",
+    amplitude: float = 1.0,
+    start_speed: float | None = None,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
 
-    The robot starts at the right heel strike of the DMP's limit cycle with a forward speed of
-    ``START_SPEED`` plus a seeded perturbation of +-0.02 m/s. ``push_impulse`` [N s] at
-    ``push_time`` is a shorthand for ``Disturbance(push_impulse, push_time)``. The DMP steps at
-    ``CONTROL_EVERY * DT``; the controller (``"qp"`` or ``"pd"``) and the simulator
-    (``"mujoco"`` or ``"native"``) at ``DT``.
+    The robot starts at the right heel strike of the DMP's limit cycle (``amplitude``: the
+    DMPs' amplitude A of eq. (11)) with a forward speed of ``start_speed`` [m/s] (default
+    ``START_SPEEDS[controller]``) plus a seeded perturbation of +-0.02 m/s.
+    ``push_impulse`` [N s] at ``push_time`` is a shorthand for
+    ``Disturbance(push_impulse, push_time)``. The DMP steps at ``CONTROL_EVERY * DT``; the
+    controller (``"qp"`` or ``"pd"``) and the simulator (``"mujoco"`` or ``"native"``) at
+    ``DT``.
     """
     if controller not in CONTROLLERS:
         raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
     if disturbance is None:
         disturbance = Disturbance(push_impulse, push_time)
     rng = np.random.default_rng(seed)
+    if start_speed is None:
+        start_speed = START_SPEEDS[controller]
+    dmp = dmp.with_amplitude(amplitude)
     start_position, start_velocity = limit_cycle_start(dmp, frequency, DT)
     stepper = dmp.stepper(
         CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
@@ -233,9 +281,10 @@ def walk(
     sim = make_simulator(biped, backend)
     _perturb_masses(sim, disturbance)
     v = np.zeros(biped.model.nv)
-    v[0] = START_SPEED + rng.uniform(-0.02, 0.02)
+    v[0] = start_speed + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
     law = QPControl(biped) if controller == "qp" else PDControl(biped)
+    law.frequency = frequency
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
     index = np.sort(biped.velocity_indices("gait"))
     detector = HeelStrikeDetector(min_swing_time=0.1)
@@ -271,8 +320,8 @@ def walk(
             if state.touchdowns or not state.in_contact.all():
                 strike = detector.update(state.t, state.in_contact, state.contact_positions)
                 if strike is not None:
-                    law.on_heel_strike(strike.leg)
                     phase, new_frequency = adaptation.on_heel_strike(strike)
+                    law.on_heel_strike(strike.leg, new_frequency)
                     if phase is not None:
                         stepper.reset_phase(phase)
                     stepper.set_time_constant(1.0 / new_frequency)

@@ -10,9 +10,12 @@ Set-up (all choices are ours, see ``robots/README.md``):
 * robot: ``robots/biped.urdf`` (leg 0.6 m, 7 kg), planar base (x, z, pitch): the boom keeps
   it in the sagittal plane and applies **no pitch torque** in the claims;
 * controller: the QP inverse-dynamics controller of :mod:`dmpopt.control` (posture task on
-  the DMP references, torso-pitch task, point contacts switched by the DMP phase and the
-  touchdowns), see :mod:`studies.biped.walker`; the paper's joint PD is the baseline, with
-  the boom's pitch spring (500 N m/rad) and without it;
+  the DMP references, torso-pitch task leaning 0.2 rad, point contacts switched by the DMP
+  phase and the touchdowns, Raibert foot placement on the swing hip), see
+  :mod:`studies.biped.walker`; the paper's joint PD is the baseline, with the boom's pitch
+  spring (500 N m/rad) and without it. Without the boom a point-foot walker must vault over
+  its stance foot: it starts at 0.8 m/s (0.35 m/s with the PD and the boom), and it falls
+  at its first steps when started at 3.5 rad/s or below or at 16 rad/s;
 * simulator: MuJoCo (:class:`dmpopt.sim.MujocoSimulator`, 5 mm spheres at the point feet,
   friction 0.8), 1 ms step; the DMP steps every 4 ms (compiled);
 * demonstration: normative sagittal hip and knee angles (Winter 2009, Perry 2010), the left

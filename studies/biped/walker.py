@@ -4,9 +4,11 @@ Two controllers execute the DMPs' joint references:
 
 * ``"qp"``: the QP inverse-dynamics controller (:mod:`dmpopt.control`) with a posture task on
   the four joints (the DMP's position, velocity and acceleration), a torso-pitch task (the
-  pitch row of a ``FrameTask`` on the torso, upright) and a point contact per foot, switched
-  by the DMP phase (a leg's contact ramps out at lift-off) and the simulator's touchdowns (a
-  heel strike adds it back): a swing foot has no contact;
+  pitch row of a ``FrameTask`` on the torso, leaning ``QPGains.torso_pitch``) and a point
+  contact per foot, switched by the DMP phase (a leg's contact ramps out at lift-off) and the
+  simulator's touchdowns (a heel strike adds it back): a swing foot has no contact. The
+  swing hip's reference is bent towards a Raibert landing angle (``QPGains``): without it
+  the walker, which has no ankles and no boom torque, falls within a few steps;
 * ``"pd"``: the paper's joint PD on the DMP's position and velocity (the baseline).
 
 The boom keeps the robot in the sagittal plane (the planar base); its pitch spring-damper

@@ -153,6 +153,7 @@ def test_wilson_interval_matches_newcombe_1998():
         assert wilson_interval(x, n) == pytest.approx(expected, abs=1e-4)
     z2 = 1.959963984540054**2
     assert wilson_interval(50, 50) == pytest.approx((50 / (50 + z2), 1.0))
+    assert wilson_interval(0, 50)[0] == 0.0 and wilson_interval(50, 50)[1] == 1.0
 
 
 @pytest.mark.parametrize("x, n", [(3, 2), (-1, 5), (0, 0), (1, 2.5)])

@@ -225,22 +225,35 @@ def test_sweep_minimum_reports_the_flat_band():
     assert found["within_5%_of_min_rad_s"] == [2.0, 2.5]
 
 
-def test_qp_swing_foot_has_no_contact_between_lift_off_and_heel_strike(biped):
-    """Phase pi/2 (left leg in swing, right foot down): the left contact ramps out over the
-    transition time and is gone; the left heel strike puts it back."""
+def test_qp_contacts_switch_on_heel_strikes_not_on_the_dmp_phase(biped):
+    """The walk starts at a right heel strike: lift_phase of a step pi / omega later the left
+    contact ramps out over the transition time and is gone; the left heel strike puts it
+    back, and lift_phase of a step after it the right contact ramps out."""
     from types import SimpleNamespace
 
     from studies.biped.walker import QP_GAINS, QPControl
 
     law = QPControl(biped)
+    law.frequency = 5.0
+    lift = QP_GAINS.lift_phase * np.pi / 5.0  # [s] after a heel strike
     q, v = np.array(biped.reference_configuration), np.zeros(biped.nv)
     reference = q[np.sort(biped.velocity_indices("gait"))]
-    for t in (0.0, 0.5 * QP_GAINS.transition_time, 2 * QP_GAINS.transition_time):
-        state = SimpleNamespace(t=t, q=q, v=v, in_contact=np.array([True, True]))
-        law.torques(state, reference, np.zeros(4), np.zeros(4), 0.5 * np.pi)
-    assert law.controller.active_contacts == ("right_foot",)
-    law.on_heel_strike(1, 5.0)
+
+    def run(times):
+        for t in times:
+            state = SimpleNamespace(t=t, q=q, v=v, in_contact=np.array([True, True]))
+            law.torques(state, reference, np.zeros(4), np.zeros(4))
+
+    run([0.0, 0.9 * lift])
     assert set(law.controller.active_contacts) == {"right_foot", "left_foot"}
+    run([lift + k * QP_GAINS.transition_time for k in (0.0, 0.5, 2.0)])
+    assert law.controller.active_contacts == ("right_foot",)
+    law.on_heel_strike(1, 0.5, 5.0)
+    assert set(law.controller.active_contacts) == {"right_foot", "left_foot"}
+    run([0.5 + 0.9 * lift])
+    assert set(law.controller.active_contacts) == {"right_foot", "left_foot"}
+    run([0.5 + lift + k * QP_GAINS.transition_time for k in (0.0, 0.5, 2.0)])
+    assert law.controller.active_contacts == ("left_foot",)
 
 
 @pytest.fixture(scope="module")
@@ -289,3 +302,37 @@ def test_quick_study_reports_survival_per_arm(quick):
         assert arm["n"] == 3 and arm["rate"] == arm["survived"] / 3
         assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
     assert quick["videos"] == [] and quick["videos_skipped"] == "quick run"
+
+
+def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypatch):
+    """Real QP walks of one trial per arm (pushed, masses, slope) and the undisturbed walks:
+    the oscillator's phase is reset at heel strikes in the arms with resetting, never in
+    ``neither``. Counts Stepper.reset_phase calls, below every switch on the way to it."""
+    from dmpopt.stepper import Stepper
+    from studies.biped import analysis
+    from studies.biped.walker import Disturbance
+
+    calls = []
+    reset_phase = Stepper.reset_phase
+
+    def counted(self, phase):
+        calls[-1] += 1
+        reset_phase(self, phase)
+
+    real_walk = analysis.walk
+
+    def walk(*args, **kwargs):
+        calls.append(0)
+        return real_walk(*args, **kwargs)
+
+    monkeypatch.setattr(Stepper, "reset_phase", counted)
+    monkeypatch.setattr(analysis, "walk", walk)
+    _, dmp = gait
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    push = Disturbance(push_impulse=1.0, push_time=0.3, slope_deg=1.0, slope_time=0.2)
+    rule = analysis.Survival(after=1.0, window=0.5)
+    assert list(analysis.ARMS) == ["reset_and_adapt", "reset_only", "neither"]
+    analysis.survival_by_arm(biped, dmp, 8.0, [push], rule=rule, **qp)
+    analysis.undisturbed_by_arm(biped, dmp, 8.0, 1.3, **qp)
+    assert calls[2] == calls[5] == 0
+    assert min(calls[:2] + calls[3:5]) >= 1

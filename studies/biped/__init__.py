@@ -26,7 +26,11 @@ Fig. 7 is checked against two resonance estimates that do not use eq. (21): the 
 least mechanical cost of transport in a fine fixed-frequency sweep (adaptation off), and the
 natural frequencies of the swing leg linearised under the controller's own gains
 (:func:`dmpopt.walking.closed_loop_frequencies`, hip held still). Whether phase resetting
-matters is measured as survival over randomised trials (push, masses, slope) in three arms.
+matters is measured as survival over randomised trials (push, masses, slope) in three arms
+(:data:`studies.biped.analysis.ARMS`), after one undisturbed walk of each arm
+(``undisturbed_by_arm``: can the arm walk at all). In every arm the controller's contacts
+switch on the simulator's heel strikes, so the arm without resetting differs only in its
+oscillator not being reset.
 
 Run: ``python -m studies.biped OUT_DIR [--quick]``.
 """
@@ -53,6 +57,7 @@ from .analysis import (
     steps_to_within,
     survival_by_arm,
     sweep_minimum,
+    undisturbed_by_arm,
 )
 from .gait import DEMO_FREQUENCY, learn_gait, limit_cycle_start
 from .walker import (
@@ -212,6 +217,9 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         "swing leg, QP gains": swing["qp_controller"][0],
     }
 
+    progress("undisturbed walk of each arm")
+    trial_duration = RANGES.push_time[1] + SURVIVAL.after
+    undisturbed = undisturbed_by_arm(biped, dmp, final, trial_duration, **qp, **on)
     n_trials = 3 if quick else 50
     disturbances = random_disturbances(biped, n_trials, seed, RANGES)
     survival = survival_by_arm(
@@ -235,6 +243,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
             "swing_leg_linearised": swing,
         },
         "fixed_frequency_sweep": sweep,
+        "undisturbed_by_arm": undisturbed,
         "push_survival_rate": {
             name: {k: v for k, v in arm.items() if k != "outcomes"}
             for name, arm in survival.items()
@@ -303,6 +312,7 @@ def main(argv=None) -> None:
         "fell",
         "frequency_final_by_start",
         "resonance_estimate_rad_s",
+        "undisturbed_by_arm",
         "push_survival_rate",
         "pd_baseline",
         "real_time_factor_cpu",

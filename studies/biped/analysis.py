@@ -82,6 +82,12 @@ ARMS = {  # (reset_phase, adapt)
     "reset_only": (True, False),
     "neither": (False, False),
 }
+"""The arms of the ablation. Each walks with the same controller, whose contacts switch on the
+simulator's heel strikes (:class:`~studies.biped.walker.QPControl`) in every arm.
+``reset_and_adapt``: at each heel strike the oscillator's phase is reset, eq. (21) first
+line, and its frequency adapted, eq. (21) second line. ``reset_only`` switches off the
+frequency adaptation (the frequency stays at the start's). ``neither`` also switches off the
+phase reset: the oscillator runs freely at the start's frequency; nothing else differs."""
 
 
 @dataclass(frozen=True)
@@ -142,6 +148,30 @@ def survival_by_arm(
             "survived": survived,
             "n": n,
             "outcomes": outcomes,
+        }
+    return results
+
+
+def undisturbed_by_arm(biped, dmp, frequency, duration, controller="qp", **walk_on) -> dict:
+    """One walk of ``duration`` [s] per arm of :data:`ARMS` with no push, nominal masses and
+    flat ground: heel strikes, fall and time of the fall [s] (None without a fall)."""
+    results = {}
+    for name, (reset_phase, adapt) in ARMS.items():
+        log = walk(
+            biped,
+            dmp,
+            duration,
+            frequency,
+            adapt=adapt,
+            reset_phase=reset_phase,
+            controller=controller,
+            disturbance=Disturbance(),
+            **walk_on,
+        )
+        results[name] = {
+            "steps": len(log.strikes),
+            "fell": log.fell,
+            "time_of_fall_s": log.duration if log.fell else None,
         }
     return results
 

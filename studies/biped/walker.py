@@ -5,10 +5,12 @@ Two controllers execute the DMPs' joint references:
 * ``"qp"``: the QP inverse-dynamics controller (:mod:`dmpopt.control`) with a posture task on
   the four joints (the DMP's position, velocity and acceleration), a torso-pitch task (the
   pitch row of a ``FrameTask`` on the torso, leaning ``QPGains.torso_pitch``) and a point
-  contact per foot, switched by the DMP phase (a leg's contact ramps out at lift-off) and the
-  simulator's touchdowns (a heel strike adds it back): a swing foot has no contact. The
-  swing hip's reference is bent towards a Raibert landing angle (``QPGains``): without it
-  the walker, which has no ankles and no boom torque, falls within a few steps;
+  contact per foot, switched by the simulator's heel strikes alone, never by the DMP phase:
+  a heel strike puts the foot's contact back and, ``lift_phase`` of a step duration
+  ``pi / omega`` later, the other foot's contact ramps out (a swing foot has no contact).
+  The swing hip's reference is bent towards a Raibert landing angle (``QPGains``), timed
+  from the same heel strike: without it the walker, which has no ankles and no boom torque,
+  falls within a few steps. With or without phase resetting the contacts switch alike;
 * ``"pd"``: the paper's joint PD on the DMP's position and velocity (the baseline).
 
 The boom keeps the robot in the sagittal plane (the planar base); its pitch spring-damper
@@ -59,8 +61,8 @@ class QPGains:
     the swing hip's reference moves from the DMP's towards the angle that lands the foot
     ``v T / 2 + placement_gain (v - target_speed)`` ahead of the hip, with ``v`` the hip's
     forward speed and ``T = pi / omega`` the oscillator's step duration; None: no placement.
-    ``lift_phase``: fraction of its own half-cycle after the other leg's heel strike at which
-    a stance leg's contact starts to ramp out over ``transition_time`` [s].
+    ``lift_phase``: fraction of a step duration ``T`` after the other leg's heel strike at
+    which a stance leg's contact starts to ramp out over ``transition_time`` [s].
     """
 
     posture_stiffness: float = 400.0
@@ -139,13 +141,13 @@ class PDControl:
         self.damping[order] = [gains.hip_damping, gains.knee_damping] * 2
         self.limit = np.array(biped.torque_limit)  # model order
 
-    def torques(self, state, position, velocity, acceleration, phase) -> np.ndarray:
+    def torques(self, state, position, velocity, acceleration) -> np.ndarray:
         """Joint torques in model order from the references in model order."""
         error = position - state.q[self.index]
         torque = self.stiffness * error + self.damping * (velocity - state.v[self.index])
         return np.clip(torque, -self.limit, self.limit)
 
-    def on_heel_strike(self, leg: int, frequency: float) -> None:
+    def on_heel_strike(self, leg: int, time: float, frequency: float) -> None:
         """The PD law does not switch."""
 
 
@@ -184,32 +186,33 @@ class QPControl:
         ]
         self.controller = InverseDynamicsController(biped, [self.posture, self.pitch], contacts)
         self.lifted = [False, False]  # contact removed (or ramping out) since the last strike
+        self.strike = (0, 0.0)  # (leg, time) of the last heel strike: the walk starts at one
         gait = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
         self.hips, self.knees = gait[[0, 2]], gait[[1, 3]]
         self.thigh, self.shank = biped_model.leg_lengths(biped)
         self.frequency = 1.0
         self._reference = np.empty(biped.n_actuated)
 
-    def torques(self, state, position, velocity, acceleration, phase) -> np.ndarray:
-        """Torques in model order; lifts a stance leg once the DMP phase says it swings."""
-        half = (phase % (2 * np.pi)) / np.pi  # leg 0 swings in [1, 2), leg 1 in [0, 1)
-        self._lift_by_phase(state, half)
+    def torques(self, state, position, velocity, acceleration) -> np.ndarray:
+        """Torques in model order; lifts the swing leg a little after the other's heel strike."""
+        progress = (state.t - self.strike[1]) * self.frequency / np.pi  # of the step, from 0
+        self._lift_after_strike(state, progress)
         reference = self._reference
         reference[:] = position
         if self.gains.placement_gain is not None:
-            self._place_swing_foot(state, half % 1.0, reference)
+            self._place_swing_foot(state, progress, reference)
         self.posture.set_reference(reference, velocity, acceleration)
         return self.controller.compute_torques(state.q, state.v, state.t)
 
-    def _lift_by_phase(self, state, half: float) -> None:
-        swinging = 0 if half >= 1.0 else 1
-        if (half % 1.0) < self.gains.lift_phase or self.lifted[0] or self.lifted[1]:
+    def _lift_after_strike(self, state, progress: float) -> None:
+        stance = self.strike[0]
+        if progress < self.gains.lift_phase or self.lifted[0] or self.lifted[1]:
             return
-        if state.in_contact[1 - swinging]:
+        if state.in_contact[stance]:
             self.controller.remove_contact(
-                self.frames[swinging], transition_time=self.gains.transition_time
+                self.frames[1 - stance], transition_time=self.gains.transition_time
             )
-            self.lifted[swinging] = True
+            self.lifted[1 - stance] = True
 
     def _place_swing_foot(self, state, progress: float, reference: np.ndarray) -> None:
         """Move the swing hip's reference towards the Raibert landing angle over the swing."""
@@ -227,9 +230,11 @@ class QPControl:
         hip = self.hips[leg]
         reference[hip] += min(progress, 1.0) * (landing - reference[hip])
 
-    def on_heel_strike(self, leg: int, frequency: float) -> None:
-        """A heel strike puts the foot's contact back, held where it landed."""
+    def on_heel_strike(self, leg: int, time: float, frequency: float) -> None:
+        """A heel strike at ``time`` [s] puts the foot's contact back, held where it landed,
+        and starts the step after which the other leg lifts."""
         self.frequency = frequency
+        self.strike = (leg, time)
         if self.lifted[leg]:
             if self.frames[leg] not in self.controller.active_contacts:
                 self.controller.add_contact(self.frames[leg])
@@ -309,9 +314,7 @@ def walk(
                 position, velocity, acceleration = stepper.step()
                 desired[order], desired_velocity[order] = position, velocity
                 desired_acceleration[order] = acceleration
-            torque = law.torques(
-                state, desired, desired_velocity, desired_acceleration, stepper.phase
-            )
+            torque = law.torques(state, desired, desired_velocity, desired_acceleration)
             base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
             joint_velocities = state.v[index]
             state = sim.step(torque, base_force)
@@ -323,7 +326,7 @@ def walk(
                 strike = detector.update(state.t, state.in_contact, state.contact_positions)
                 if strike is not None:
                     phase, new_frequency = adaptation.on_heel_strike(strike)
-                    law.on_heel_strike(strike.leg, new_frequency)
+                    law.on_heel_strike(strike.leg, strike.time, new_frequency)
                     if phase is not None:
                         stepper.reset_phase(phase)
                     stepper.set_time_constant(1.0 / new_frequency)

@@ -274,12 +274,13 @@ def test_quick_study_walks_through_the_qp_without_pitch_torque(quick):
 
 
 def test_quick_study_frequencies_converge_from_below_and_above(quick):
-    """From 12 (below) and 14.5 rad/s (above) eq. (21) ends within 5 % in 8 s; from 5 and 8
-    rad/s it has climbed at least half-way towards them."""
+    """From 12 (below) and 13.5 rad/s (above) eq. (21) ends within 5 % in 8 s; from 5 and 8
+    rad/s it has climbed at least half-way towards them; no start falls."""
     finals = {float(k): v for k, v in quick["frequency_final_by_start"].items()}
     assert len(finals) >= 4
-    assert abs(finals[12.0] / finals[14.5] - 1) < 0.05
-    target = 0.5 * (finals[12.0] + finals[14.5])
+    assert not any(quick["fell_by_start"].values())
+    assert abs(finals[12.0] / finals[13.5] - 1) < 0.05
+    target = 0.5 * (finals[12.0] + finals[13.5])
     for start in (5.0, 8.0):
         assert finals[start] - start > 0.5 * (target - start)
 
@@ -302,6 +303,18 @@ def test_quick_study_reports_survival_per_arm(quick):
         assert arm["n"] == 3 and arm["rate"] == arm["survived"] / 3
         assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
     assert quick["videos"] == [] and quick["videos_skipped"] == "quick run"
+
+
+def test_quick_study_reports_the_undisturbed_walk_of_each_arm(quick):
+    """Undisturbed, 5 s (the longest trial): the arm with resetting and adaptation walks at
+    least 10 steps (about pi / omega = 0.3 s each) without a fall; a fall has its time."""
+    undisturbed = quick["undisturbed_by_arm"]
+    assert set(undisturbed) == {"reset_and_adapt", "reset_only", "neither"}
+    assert undisturbed["reset_and_adapt"]["fell"] is False
+    assert undisturbed["reset_and_adapt"]["steps"] >= 10
+    for arm in undisturbed.values():
+        assert (arm["time_of_fall_s"] is None) == (not arm["fell"])
+        assert arm["fell"] is False or 0 < arm["time_of_fall_s"] < 5.0
 
 
 def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypatch):

@@ -32,6 +32,7 @@ __all__ = [
     "HeelStrike",
     "HeelStrikeDetector",
     "adapt_frequency",
+    "closed_loop_frequencies",
     "heel_strike_phase",
     "measured_frequency",
 ]
@@ -253,3 +254,88 @@ class FrequencyAdaptation:
         self._last_strike_time = strike.time
         phase = heel_strike_phase(strike.leg, self.oscillator_leg) if self.reset_phase else None
         return phase, self.frequency
+
+
+def closed_loop_frequencies(model, q, joints, torque_law, step: float = 1e-6) -> np.ndarray:
+    r"""Natural frequencies of some joints of a robot under a feedback law, linearised.
+
+    The other coordinates are held at ``q`` (at rest), e.g. a swing leg with its hip held
+    still. With :math:`M_{jj}` the joints' block of the mass matrix, :math:`h_j(q, v)` their
+    bias forces (gravity, Coriolis) and :math:`\tau(q, v)` the law's torques on them,
+
+    .. math::
+
+        M_{jj}\,\ddot q_j + h_j = \tau \;\Rightarrow\;
+        M_{jj}\,\delta\ddot q_j + D\,\delta\dot q_j + K\,\delta q_j = 0,\quad
+        K = \partial (h_j - \tau) / \partial q_j,
+
+    :math:`K` by central differences at :math:`(q, 0)`. The undamped natural frequencies are
+    :math:`\omega_i = \sqrt{\lambda_i}` with :math:`K x = \lambda M_{jj} x`; for one joint
+    with stiffness :math:`k_p`, centre of mass at :math:`d` below the axis and inertia
+    :math:`I` about it, :math:`\omega = \sqrt{(k_p + m g d) / I}`.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    q : array_like, shape (model.nq,)
+        Configuration to linearise at.
+    joints : sequence of int
+        Indices in the velocity vector of the joints that move.
+    torque_law : callable
+        ``torque_law(q, v)`` returns the generalised forces on ``joints``, shape
+        ``(len(joints),)`` [N m].
+    step : float
+        Finite-difference step [rad].
+
+    Returns
+    -------
+    ndarray
+        :math:`\omega_i` [rad/s], ascending; NaN for an unstable mode (:math:`\lambda_i < 0`).
+    """
+    import pinocchio as pin
+
+    if not isinstance(model, pin.Model):
+        raise InvalidInputError(f"model must be a pinocchio.Model, got {type(model).__name__}")
+    q = real_array("q", q, shape=(model.nq,), expected="a configuration of model")
+    index = np.asarray(joints)
+    if (
+        index.ndim != 1
+        or index.size == 0
+        or index.dtype.kind not in "iu"
+        or len(set(index.tolist())) != index.size
+        or index.min() < 0
+        or index.max() >= model.nv
+    ):
+        raise InvalidInputError(
+            f"joints must be distinct velocity indices in [0, {model.nv}), got {joints!r}"
+        )
+    if not callable(torque_law):
+        raise InvalidInputError(
+            f"torque_law must be a callable torque_law(q, v), got {type(torque_law).__name__}"
+        )
+    step = real("step", step, minimum=0.0, open_minimum=True)
+    data = model.createData()
+    zero = np.zeros(model.nv)
+
+    def residual(dq: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        """h_j - tau at the perturbed state."""
+        full_dq, v = zero.copy(), zero.copy()
+        full_dq[index], v[index] = dq, dv
+        moved = pin.integrate(model, q, full_dq)
+        torque = real_array(
+            "torque_law(q, v)",
+            torque_law(moved, v),
+            shape=(index.size,),
+            expected="generalised forces on joints [N m]",
+        )
+        return pin.rnea(model, data, moved, v, zero)[index] - torque
+
+    n = index.size
+    stiffness, rest = np.empty((n, n)), np.zeros(n)
+    for k, unit in enumerate(np.eye(n) * step):
+        stiffness[:, k] = (residual(unit, rest) - residual(-unit, rest)) / (2 * step)
+    mass = pin.crba(model, data, q)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    block = mass[np.ix_(index, index)]
+    squares = np.linalg.eigvals(np.linalg.solve(block, stiffness)).real
+    return np.sort(np.sqrt(np.where(squares >= 0, squares, np.nan)))

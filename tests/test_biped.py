@@ -123,15 +123,6 @@ def test_adaptation_moves_towards_the_measured_step_rate(biped, gait):
     assert frequencies[-1] < 0.9 * frequencies[0]
 
 
-def test_push_survival_needs_continued_stepping(biped, gait):
-    """A small push is survived; the bisection returns the upper bound when that survives."""
-    from studies.biped import largest_survived_push, survives_push
-
-    _, dmp = gait
-    assert survives_push(biped, dmp, 2.4, True, 2.0, seed=0)
-    assert largest_survived_push(biped, dmp, 2.4, True, 0, upper=5.0, tolerance=10.0) == 5.0
-
-
 def test_unknown_backend_is_refused(biped, gait):
     from dmpopt.exceptions import InvalidInputError
     from studies.biped import walk
@@ -142,25 +133,219 @@ def test_unknown_backend_is_refused(biped, gait):
 
 def test_mujoco_fall_height_matches_the_native_one(biped):
     """Both backends get the same fall options: the same thresholds, min height FALL_HEIGHT."""
-    from studies.biped import FALL_HEIGHT, make_simulator
+    from studies.biped.walker import FALL_HEIGHT, make_simulator
 
     mujoco, native = (make_simulator(biped, b).fall_detector for b in ("mujoco", "native"))
     assert mujoco == native
     assert mujoco.min_height == FALL_HEIGHT
 
 
-def test_quick_study_walks_in_mujoco(tmp_path):
-    """Quick study, MuJoCo by default: walks without falling, native numbers side by side."""
+def test_wilson_interval_matches_newcombe_1998():
+    """Newcombe (1998), Stat. Med. 17:857, Table I, method 3: 81/263, 15/148, 0/20, 1/29."""
+    from studies.biped.analysis import wilson_interval
+
+    for (x, n), expected in (
+        ((81, 263), (0.2553, 0.3662)),
+        ((15, 148), (0.0624, 0.1605)),
+        ((0, 20), (0.0, 0.1611)),
+        ((1, 29), (0.0061, 0.1718)),
+    ):
+        assert wilson_interval(x, n) == pytest.approx(expected, abs=1e-4)
+    z2 = 1.959963984540054**2
+    assert wilson_interval(50, 50) == pytest.approx((50 / (50 + z2), 1.0))
+    assert wilson_interval(0, 50)[0] == 0.0 and wilson_interval(50, 50)[1] == 1.0
+
+
+@pytest.mark.parametrize("x, n", [(3, 2), (-1, 5), (0, 0), (1, 2.5)])
+def test_wilson_interval_refuses_impossible_counts(x, n):
+    from dmpopt.exceptions import InvalidInputError
+    from studies.biped.analysis import wilson_interval
+
+    with pytest.raises(InvalidInputError, match="successes <= n"):
+        wilson_interval(x, n)
+
+
+def _log(speed=0.4, strikes=(0, 1, 0, 1, 0, 1), height=0.55, fell=False, end=8.0):
+    """A hand-made walk: base at ``speed`` m/s and ``height`` m, strikes every end/6 s."""
+    from studies.biped.walker import WalkLog
+
+    times = np.arange(0.0, end + 1e-9, 0.01)
+    q = [np.array([speed * t, height, 0, 0, 0, 0, 0]) for t in times]
+    step = end / len(strikes)
+    hits = [((k + 1) * step - 0.01, leg, 0.0) for k, leg in enumerate(strikes)]
+    return WalkLog(times=list(times), q=q, strikes=hits, fell=fell, duration=end)
+
+
+@pytest.mark.parametrize(
+    "log, survived",
+    [
+        (_log(), True),
+        (_log(fell=True), False),
+        (_log(speed=3.0), False),  # sent flying: not walking on
+        (_log(speed=-0.3), False),  # pushed back, walking backwards
+        (_log(strikes=(0, 1, 0, 1, 0, 0)), False),  # same leg twice: a stumble
+        (_log(strikes=(0, 1, 0)), False),  # stopped stepping in the last 2.5 s
+        (_log(height=0.4), False),  # crouched below the fall height + 0.1 m
+    ],
+)
+def test_survival_rule_means_walking_on(log, survived):
+    from studies.biped.analysis import SURVIVAL
+
+    assert SURVIVAL.survived(log) is survived
+
+
+def test_survival_by_arm_counts_outcomes_and_intervals(monkeypatch):
+    """Fake walks: the arm with phase resetting survives the pushes up to 2 N s, the others
+    none; rates, counts and Wilson intervals follow from the outcomes written here."""
+    from studies.biped import analysis
+    from studies.biped.walker import Disturbance
+
+    def fake_walk(biped, dmp, duration, frequency, reset_phase, disturbance, **_):
+        ok = reset_phase and disturbance.push_impulse <= 2.0
+        return _log(speed=0.4 if ok else 5.0)
+
+    monkeypatch.setattr(analysis, "walk", fake_walk)
+    pushes = [Disturbance(push_impulse=p) for p in (0.5, 1.0, 2.0, 3.0, 4.0)]
+    result = analysis.survival_by_arm(None, None, 2.0, pushes)
+    assert result["reset_and_adapt"]["survived"] == result["reset_only"]["survived"] == 3
+    assert result["neither"]["rate"] == 0.0 and result["neither"]["n"] == 5
+    assert result["reset_only"]["ci95_wilson"] == pytest.approx(analysis.wilson_interval(3, 5))
+    assert result["reset_and_adapt"]["outcomes"] == [True, True, True, False, False]
+
+
+def test_sweep_minimum_reports_the_flat_band():
+    from studies.biped.analysis import sweep_minimum
+
+    rows = [
+        {"frequency": f, "cost_of_transport": c}
+        for f, c in ((1.0, 0.5), (2.0, 0.30), (2.5, 0.31), (3.0, 0.40), (4.0, None))
+    ]
+    found = sweep_minimum(rows)
+    assert found["min_cost_of_transport_frequency"] == 2.0
+    assert found["within_5%_of_min_rad_s"] == [2.0, 2.5]
+
+
+def test_qp_contacts_switch_on_heel_strikes_not_on_the_dmp_phase(biped):
+    """The walk starts at a right heel strike: lift_phase of a step pi / omega later the left
+    contact ramps out over the transition time and is gone; the left heel strike puts it
+    back, and lift_phase of a step after it the right contact ramps out."""
+    from types import SimpleNamespace
+
+    from studies.biped.walker import QP_GAINS, QPControl
+
+    law = QPControl(biped)
+    law.frequency = 5.0
+    lift = QP_GAINS.lift_phase * np.pi / 5.0  # [s] after a heel strike
+    q, v = np.array(biped.reference_configuration), np.zeros(biped.nv)
+    reference = q[np.sort(biped.velocity_indices("gait"))]
+
+    def run(times):
+        for t in times:
+            state = SimpleNamespace(t=t, q=q, v=v, in_contact=np.array([True, True]))
+            law.torques(state, reference, np.zeros(4), np.zeros(4))
+
+    run([0.0, 0.9 * lift])
+    assert set(law.controller.active_contacts) == {"right_foot", "left_foot"}
+    run([lift + k * QP_GAINS.transition_time for k in (0.0, 0.5, 2.0)])
+    assert law.controller.active_contacts == ("right_foot",)
+    law.on_heel_strike(1, 0.5, 5.0)
+    assert set(law.controller.active_contacts) == {"right_foot", "left_foot"}
+    run([0.5 + 0.9 * lift])
+    assert set(law.controller.active_contacts) == {"right_foot", "left_foot"}
+    run([0.5 + lift + k * QP_GAINS.transition_time for k in (0.0, 0.5, 2.0)])
+    assert law.controller.active_contacts == ("left_foot",)
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
     from studies import biped as study
 
-    metrics = study.run(tmp_path, quick=True)
-    mujoco, native = metrics["mujoco"], metrics["native"]
-    assert metrics["backend"] == "mujoco"
-    assert mujoco["fell"] is False and mujoco["steps_walked"] >= 10
-    assert mujoco["steps_walked"] == metrics["steps_walked"]
-    assert native["fell"] is False and native["steps_walked"] >= 10
-    assert mujoco["real_time_factor"] > 0 and native["real_time_factor"] > 0
-    # 20 s of walking at the adapted ~4 rad/s: pi / omega s per step, about 25 steps.
-    expected = 20.0 * mujoco["frequency_final"] / np.pi
-    assert abs(mujoco["steps_walked"] - expected) < 0.25 * expected
-    assert metrics["videos"] == [] and metrics["videos_skipped"] == "quick run"
+    return study.run(tmp_path_factory.mktemp("biped"), quick=True)
+
+
+def test_quick_study_walks_through_the_qp_without_pitch_torque(quick):
+    """Headline of the quick run: the QP walker, no boom pitch torque, 10 s without a fall;
+    the PD baseline without the boom's pitch spring falls, with it walks."""
+    assert quick["controller"] == "qp_inverse_dynamics"
+    assert quick["boom_pitch_stiffness_N_m_per_rad"] == 0
+    assert quick["fell"] is False and quick["steps_walked"] >= 15
+    assert quick["pd_baseline"]["boom_pitch_0"]["fell"] is True
+    assert quick["pd_baseline"]["boom_pitch_500"]["fell"] is False
+
+
+def test_quick_study_frequencies_converge_from_below_and_above(quick):
+    """From 12 (below) and 13.5 rad/s (above) eq. (21) ends within 5 % in 8 s; from 5 and 8
+    rad/s it has climbed at least half-way towards them; no start falls."""
+    finals = {float(k): v for k, v in quick["frequency_final_by_start"].items()}
+    assert len(finals) >= 4
+    assert not any(quick["fell_by_start"].values())
+    assert abs(finals[12.0] / finals[13.5] - 1) < 0.05
+    target = 0.5 * (finals[12.0] + finals[13.5])
+    for start in (5.0, 8.0):
+        assert finals[start] - start > 0.5 * (target - start)
+
+
+def test_quick_study_swing_leg_under_qp_is_near_sqrt_of_posture_stiffness(quick):
+    """Exact inverse dynamics makes each joint follow qdd = -K_p e: omega = sqrt(K_p), up to
+    the coupling through the torso task and the held hip (both modes within 20 %)."""
+    from studies.biped.walker import QP_GAINS
+
+    swing = quick["resonance_estimate_rad_s"]["swing_leg_linearised"]
+    assert np.asarray(swing["qp_controller"]) == pytest.approx(
+        np.sqrt(QP_GAINS.posture_stiffness), rel=0.2
+    )
+
+
+def test_quick_study_reports_survival_per_arm(quick):
+    survival = quick["push_survival_rate"]
+    assert set(survival) == {"reset_and_adapt", "reset_only", "neither"}
+    for arm in survival.values():
+        assert arm["n"] == 3 and arm["rate"] == arm["survived"] / 3
+        assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
+    assert quick["videos"] == [] and quick["videos_skipped"] == "quick run"
+
+
+def test_quick_study_reports_the_undisturbed_walk_of_each_arm(quick):
+    """Undisturbed, 5 s (the longest trial): the arm with resetting and adaptation walks at
+    least 10 steps (about pi / omega = 0.3 s each) without a fall; a fall has its time."""
+    undisturbed = quick["undisturbed_by_arm"]
+    assert set(undisturbed) == {"reset_and_adapt", "reset_only", "neither"}
+    assert undisturbed["reset_and_adapt"]["fell"] is False
+    assert undisturbed["reset_and_adapt"]["steps"] >= 10
+    for arm in undisturbed.values():
+        assert (arm["time_of_fall_s"] is None) == (not arm["fell"])
+        assert arm["fell"] is False or 0 < arm["time_of_fall_s"] < 5.0
+
+
+def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypatch):
+    """Real QP walks of one trial per arm (pushed, masses, slope) and the undisturbed walks:
+    the oscillator's phase is reset at heel strikes in the arms with resetting, never in
+    ``neither``. Counts Stepper.reset_phase calls, below every switch on the way to it."""
+    from dmpopt.stepper import Stepper
+    from studies.biped import analysis
+    from studies.biped.walker import Disturbance
+
+    calls = []
+    reset_phase = Stepper.reset_phase
+
+    def counted(self, phase):
+        calls[-1] += 1
+        reset_phase(self, phase)
+
+    real_walk = analysis.walk
+
+    def walk(*args, **kwargs):
+        calls.append(0)
+        return real_walk(*args, **kwargs)
+
+    monkeypatch.setattr(Stepper, "reset_phase", counted)
+    monkeypatch.setattr(analysis, "walk", walk)
+    _, dmp = gait
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    push = Disturbance(push_impulse=1.0, push_time=0.3, slope_deg=1.0, slope_time=0.2)
+    rule = analysis.Survival(after=1.0, window=0.5)
+    assert list(analysis.ARMS) == ["reset_and_adapt", "reset_only", "neither"]
+    analysis.survival_by_arm(biped, dmp, 8.0, [push], rule=rule, **qp)
+    analysis.undisturbed_by_arm(biped, dmp, 8.0, 1.3, **qp)
+    assert calls[2] == calls[5] == 0
+    assert min(calls[:2] + calls[3:5]) >= 1

@@ -87,3 +87,65 @@ def test_bad_arguments_are_named():
         heel_strike_phase(2)
     with pytest.raises(InvalidInputError, match="frequency must be a finite number > 0"):
         FrequencyAdaptation(frequency=0.0)
+
+
+def _pendulum(mass=2.0, lever=0.25, inertia_com=0.01):
+    """One revolute joint about y, centre of mass ``lever`` below the axis."""
+    import pinocchio as pin
+
+    model = pin.Model()
+    joint = model.addJoint(0, pin.JointModelRY(), pin.SE3.Identity(), "hip")
+    inertia = pin.Inertia(mass, np.array([0.0, 0.0, -lever]), np.diag([1.0, inertia_com, 1.0]))
+    model.appendBodyToJoint(joint, inertia, pin.SE3.Identity())
+    return model
+
+
+@pytest.mark.parametrize("stiffness", [0.0, 3.0, 40.0])
+def test_closed_loop_frequency_of_a_pendulum_is_sqrt_of_stiffness_plus_mgd_over_i(stiffness):
+    """Hand-derived: omega = sqrt((k_p + m g d) / (I_c + m d^2)); damping does not change it."""
+    from dmpopt.walking import closed_loop_frequencies
+
+    m, d, i_c = 2.0, 0.25, 0.01
+    model = _pendulum(m, d, i_c)
+
+    def law(q, v):
+        return np.array([-stiffness * q[0] - 0.7 * v[0]])
+
+    omega = closed_loop_frequencies(model, np.zeros(1), [0], law)
+    expected = np.sqrt((stiffness + m * 9.81 * d) / (i_c + m * d**2))
+    assert omega == pytest.approx([expected], rel=1e-6)
+
+
+def test_closed_loop_frequency_flags_an_unstable_mode_as_nan():
+    """Inverted (q = pi) and unactuated: K = -m g d < 0, no oscillation."""
+    from dmpopt.walking import closed_loop_frequencies
+
+    omega = closed_loop_frequencies(_pendulum(), np.array([np.pi]), [0], lambda q, v: [0.0])
+    assert np.isnan(omega).all()
+
+
+@pytest.mark.parametrize(
+    "joints, law, match",
+    [
+        ([1], lambda q, v: [0.0], "joints must be distinct"),
+        ([0, 0], lambda q, v: [0.0, 0.0], "joints must be distinct"),
+        ([0.5], lambda q, v: [0.0], "joints must be distinct"),
+        ([0], "pd", "torque_law must be a callable"),
+        ([0], lambda q, v: [np.nan], r"torque_law\(q, v\)"),
+        ([0], lambda q, v: [0.0, 1.0], r"torque_law\(q, v\) has shape"),
+    ],
+)
+def test_closed_loop_frequencies_refuses_bad_input(joints, law, match):
+    from dmpopt.exceptions import DmpoptError
+    from dmpopt.walking import closed_loop_frequencies
+
+    with pytest.raises(DmpoptError, match=match):
+        closed_loop_frequencies(_pendulum(), np.zeros(1), joints, law)
+
+
+def test_closed_loop_frequencies_needs_a_configuration_of_the_model():
+    from dmpopt.exceptions import ShapeError
+    from dmpopt.walking import closed_loop_frequencies
+
+    with pytest.raises(ShapeError, match="q has shape"):
+        closed_loop_frequencies(_pendulum(), np.zeros(2), [0], lambda q, v: [0.0])

@@ -1,0 +1,5 @@
+"""``python -m studies.biped OUT_DIR [--quick]``."""
+
+from . import main
+
+main()

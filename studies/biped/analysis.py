@@ -1,0 +1,225 @@
+"""What the walks are judged by: cost of transport, survival, Wilson intervals, sweeps."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dmpopt.exceptions import InvalidInputError
+
+from .walker import FALL_HEIGHT, Disturbance, WalkLog, n_moving_bodies, walk
+
+WILSON_Z = 1.959963984540054  # two-sided 95 % normal quantile
+
+
+def steps_to_within(frequencies, tolerance: float = 0.02) -> int | None:
+    """First step after which the frequency stays within ``tolerance`` of its final value."""
+    frequencies = np.asarray(frequencies, dtype=float)
+    inside = np.abs(frequencies / frequencies[-1] - 1.0) <= tolerance
+    outside = np.flatnonzero(~inside)
+    return 0 if outside.size == 0 else int(outside[-1] + 1)
+
+
+def cost_of_transport(log: WalkLog, mass: float, gravity: float = 9.81) -> float | None:
+    """Mechanical cost of transport, positive actuator work / (m g |distance|) [-]."""
+    if log.distance == 0.0:
+        return None
+    return log.positive_work / (mass * gravity * abs(log.distance))
+
+
+def wilson_interval(successes: int, n: int, z: float = WILSON_Z) -> tuple[float, float]:
+    r"""Wilson score interval of a binomial proportion (95 % by default).
+
+    .. math:: \frac{\hat p + z^2/2n \pm z\sqrt{\hat p(1-\hat p)/n + z^2/4n^2}}{1 + z^2/n}
+    """
+    if not (isinstance(n, (int, np.integer)) and n >= 1 and 0 <= successes <= n):
+        raise InvalidInputError(f"need 0 <= successes <= n and n >= 1, got {successes}/{n}")
+    p = successes / n
+    centre = p + z**2 / (2 * n)
+    half = z * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
+    scale = 1 + z**2 / n
+    low = 0.0 if successes == 0 else (centre - half) / scale  # exact ends, not 1e-17
+    high = 1.0 if successes == n else (centre + half) / scale
+    return low, high
+
+
+@dataclass(frozen=True)
+class Survival:
+    """The rule a walk must meet after its push to count as survived.
+
+    In the last ``window`` seconds of the walk (which ends ``after`` seconds after the push):
+    no fall, at least ``min_strikes`` heel strikes alternating between the legs, a mean
+    forward speed in ``[min_speed, max_speed]`` [m/s] and the torso at least
+    ``min_height`` [m] above the ground throughout.
+    """
+
+    after: float = 2.5
+    window: float = 1.5
+    min_strikes: int = 2
+    min_speed: float = 0.05
+    max_speed: float = 1.5
+    min_height: float = FALL_HEIGHT + 0.1
+
+    def survived(self, log: WalkLog) -> bool:
+        """Whether ``log`` (sampled with its ``times`` and ``q``) meets the rule."""
+        if log.fell or not log.times:
+            return False
+        end = log.times[-1]
+        strikes = [leg for t, leg, _ in log.strikes if t >= end - self.window]
+        if len(strikes) < self.min_strikes or any(a == b for a, b in zip(strikes, strikes[1:])):
+            return False
+        times = np.asarray(log.times)
+        late = times >= end - self.window
+        q = np.asarray(log.q)[late]
+        speed = (q[-1, 0] - q[0, 0]) / (times[late][-1] - times[late][0])
+        return bool(self.min_speed <= speed <= self.max_speed and q[:, 1].min() >= self.min_height)
+
+
+SURVIVAL = Survival()
+ARMS = {  # (reset_phase, adapt)
+    "reset_and_adapt": (True, True),
+    "reset_only": (True, False),
+    "neither": (False, False),
+}
+"""The arms of the ablation. Each walks with the same controller, whose contacts switch on the
+simulator's heel strikes (:class:`~studies.biped.walker.QPControl`) in every arm.
+``reset_and_adapt``: at each heel strike the oscillator's phase is reset, eq. (21) first
+line, and its frequency adapted, eq. (21) second line. ``reset_only`` switches off the
+frequency adaptation (the frequency stays at the start's). ``neither`` also switches off the
+phase reset: the oscillator runs freely at the start's frequency; nothing else differs."""
+
+
+@dataclass(frozen=True)
+class TrialRanges:
+    """Ranges of the randomised disturbances (uniform draws)."""
+
+    push_impulse: tuple = (0.0, 4.0)  # [N s] forward, on the torso
+    push_time: tuple = (1.5, 2.5)  # [s] (several steps: a random phase of the gait)
+    mass_scale: tuple = (0.9, 1.1)  # factor on each body's mass and inertia
+    slope_deg: tuple = (-3.0, 3.0)  # [deg] ground slope from slope_time, positive uphill
+    slope_time: tuple = (0.5, 1.5)  # [s]
+
+
+def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[Disturbance]:
+    """``n`` seeded draws of push, masses and slope (the same set for every arm)."""
+    rng = np.random.default_rng(seed)
+    n_bodies = n_moving_bodies(biped)
+    return [
+        Disturbance(
+            push_impulse=float(rng.uniform(*ranges.push_impulse)),
+            push_time=float(rng.uniform(*ranges.push_time)),
+            mass_scale=tuple(rng.uniform(*ranges.mass_scale, n_bodies).tolist()),
+            slope_deg=float(rng.uniform(*ranges.slope_deg)),
+            slope_time=float(rng.uniform(*ranges.slope_time)),
+        )
+        for _ in range(n)
+    ]
+
+
+def survival_by_arm(
+    biped, dmp, frequency, disturbances, controller="qp", rule=SURVIVAL, progress=None, **walk_on
+) -> dict:
+    """Survival rate of each arm of :data:`ARMS` over ``disturbances`` with its Wilson CI."""
+    results = {}
+    for name, (reset_phase, adapt) in ARMS.items():
+        outcomes = []
+        for k, disturbance in enumerate(disturbances):
+            log = walk(
+                biped,
+                dmp,
+                disturbance.push_time + rule.after,
+                frequency,
+                adapt=adapt,
+                reset_phase=reset_phase,
+                controller=controller,
+                disturbance=disturbance,
+                seed=k,
+                **walk_on,
+            )
+            outcomes.append(rule.survived(log))
+            if progress:
+                progress(f"{name} {k + 1}/{len(disturbances)}")
+        n, survived = len(outcomes), int(sum(outcomes))
+        low, high = wilson_interval(survived, n)
+        results[name] = {
+            "rate": survived / n,
+            "ci95_wilson": [low, high],
+            "survived": survived,
+            "n": n,
+            "outcomes": outcomes,
+        }
+    return results
+
+
+def undisturbed_by_arm(biped, dmp, frequency, duration, controller="qp", **walk_on) -> dict:
+    """One walk of ``duration`` [s] per arm of :data:`ARMS` with no push, nominal masses and
+    flat ground: heel strikes, fall and time of the fall [s] (None without a fall)."""
+    results = {}
+    for name, (reset_phase, adapt) in ARMS.items():
+        log = walk(
+            biped,
+            dmp,
+            duration,
+            frequency,
+            adapt=adapt,
+            reset_phase=reset_phase,
+            controller=controller,
+            disturbance=Disturbance(),
+            **walk_on,
+        )
+        results[name] = {
+            "steps": len(log.strikes),
+            "fell": log.fell,
+            "time_of_fall_s": log.duration if log.fell else None,
+        }
+    return results
+
+
+def fixed_frequency_sweep(
+    biped, dmp, frequencies, duration, controller="qp", progress=None, **walk_on
+) -> list[dict]:
+    """Walk at each fixed frequency (phase resetting on, adaptation off); CoT and step rate."""
+    rows = []
+    for frequency in frequencies:
+        log = walk(
+            biped,
+            dmp,
+            duration,
+            frequency,
+            adapt=False,
+            controller=controller,
+            log_every=10**9,
+            **walk_on,
+        )
+        durations = np.diff([t for t, _, _ in log.strikes])[2:]
+        rows.append(
+            {
+                "frequency": float(frequency),
+                "fell": log.fell,
+                "cost_of_transport": None if log.fell else cost_of_transport(log, biped.mass),
+                "speed_m_per_s": log.distance / log.duration,
+                "measured_frequency": float(np.pi / durations.mean()) if durations.size else None,
+            }
+        )
+        if progress:
+            progress(f"sweep {frequency:.2f} rad/s")
+    return rows
+
+
+def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
+    """The cheapest frequency of a sweep and the band of frequencies within ``flat`` of it."""
+    walked = [row for row in rows if row["cost_of_transport"] is not None]
+    if not walked:
+        return {"min_cost_of_transport_frequency": None}
+    best = min(walked, key=lambda row: row["cost_of_transport"])
+    near = [
+        row["frequency"]
+        for row in walked
+        if row["cost_of_transport"] <= (1 + flat) * best["cost_of_transport"]
+    ]
+    return {
+        "min_cost_of_transport_frequency": best["frequency"],
+        "min_cost_of_transport": best["cost_of_transport"],
+        f"within_{flat:.0%}_of_min_rad_s": [min(near), max(near)],
+    }

@@ -1,0 +1,413 @@
+"""One walk of the planar biped: DMP references, eq. (21), a controller, a simulator.
+
+Two controllers execute the DMPs' joint references:
+
+* ``"qp"``: the QP inverse-dynamics controller (:mod:`dmpopt.control`) with a posture task on
+  the four joints (the DMP's position, velocity and acceleration), a torso-pitch task (the
+  pitch row of a ``FrameTask`` on the torso, leaning ``QPGains.torso_pitch``) and a point
+  contact per foot, switched by the simulator's heel strikes alone, never by the DMP phase:
+  a heel strike puts the foot's contact back and, ``lift_phase`` of a step duration
+  ``pi / omega`` later, the other foot's contact ramps out (a swing foot has no contact).
+  The swing hip's reference is bent towards a Raibert landing angle (``QPGains``), timed
+  from the same heel strike: without it the walker, which has no ankles and no boom torque,
+  falls within a few steps. With or without phase resetting the contacts switch alike;
+* ``"pd"``: the paper's joint PD on the DMP's position and velocity (the baseline).
+
+The boom keeps the robot in the sagittal plane (the planar base); its pitch spring-damper
+(``boom_pitch_stiffness``, ``boom_pitch_damping``) is 0 for the claims.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dmpopt.exceptions import InvalidInputError
+from dmpopt.sim import GroundContact, Simulator
+from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
+from robots import biped as biped_model
+
+from .gait import limit_cycle_start
+
+DT = 1e-3  # [s] simulation step; the PD law and the QP run every step
+CONTROL_EVERY = 4  # the DMP steps every CONTROL_EVERY * DT
+COMPILE = True  # compiled DMP step (generated C, cached in ~/.cache/dmpopt)
+GROUND = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
+FALL_HEIGHT = 0.35  # [m] the walker has fallen when its torso is lower
+ADAPTATION_GAIN = 0.3  # K of eq. (21)
+LOG_EVERY = 10  # steps between logged samples
+START_SPEEDS = {"qp": 0.8, "pd": 0.35}  # [m/s] forward speed at the first heel strike
+CONTROLLERS = ("qp", "pd")
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Joint PD gains of the baseline: stiffness [N m/rad] and damping [N m s/rad]."""
+
+    hip_stiffness: float = 100.0
+    hip_damping: float = 3.0
+    knee_stiffness: float = 100.0
+    knee_damping: float = 3.0
+
+
+@dataclass(frozen=True)
+class QPGains:
+    """Task gains of the QP walker (stiffness [1/s^2], damping [1/s], weights [-]).
+
+    ``torso_pitch``: the torso's target pitch [rad], positive leaning forward.
+    ``placement_gain`` [s], ``target_speed`` [m/s]: foot placement (Raibert): over its swing
+    the swing hip's reference moves from the DMP's towards the angle that lands the foot
+    ``v T / 2 + placement_gain (v - target_speed)`` ahead of the hip, with ``v`` the hip's
+    forward speed and ``T = pi / omega`` the oscillator's step duration; None: no placement.
+    ``lift_phase``: fraction of a step duration ``T`` after the other leg's heel strike at
+    which a stance leg's contact starts to ramp out over ``transition_time`` [s].
+    """
+
+    posture_stiffness: float = 400.0
+    posture_damping: float = 40.0
+    posture_weight: float = 1.0
+    pitch_stiffness: float = 400.0
+    pitch_damping: float = 40.0
+    pitch_weight: float = 1000.0
+    torso_pitch: float = 0.2
+    friction: float = 0.7
+    placement_gain: float | None = 0.1
+    target_speed: float = 0.6
+    lift_phase: float = 0.05
+    transition_time: float = 0.03
+
+
+GAINS = Gains()
+QP_GAINS = QPGains()
+BOOM_PITCH_STIFFNESS = 500.0  # [N m/rad] the paper's boom (PD reference run only)
+BOOM_PITCH_DAMPING = 30.0  # [N m s/rad]
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """What a randomised trial does to the walker (MuJoCo backend).
+
+    Attributes
+    ----------
+    push_impulse : float
+        Forward horizontal impulse on the torso [N s], spread over 0.1 s from ``push_time``.
+    push_time : float
+        [s]
+    mass_scale : tuple of float, optional
+        Factor on the mass and inertia of each moving body, in MuJoCo body order (the
+        controller keeps the nominal model).
+    slope_deg : float
+        Ground slope from ``slope_time`` on [deg], positive uphill (gravity tilted backwards).
+    slope_time : float
+        [s]
+    """
+
+    push_impulse: float = 0.0
+    push_time: float = 0.0
+    mass_scale: tuple | None = None
+    slope_deg: float = 0.0
+    slope_time: float = 0.0
+
+
+@dataclass
+class WalkLog:
+    """What one walk produced (samples every ``log_every`` steps)."""
+
+    times: list = field(default_factory=list)
+    q: list = field(default_factory=list)
+    desired: list = field(default_factory=list)
+    strikes: list = field(default_factory=list)  # (time, leg, x of the foot)
+    frequencies: list = field(default_factory=list)
+    positive_work: float = 0.0  # [J] actuator work, sum over joints of max(tau qdot, 0) dt
+    absolute_work: float = 0.0  # [J] sum of |tau qdot| dt
+    fell: bool = False
+    diverged: str = ""
+    duration: float = 0.0  # [s] simulated
+    wall_time: float = 0.0  # [s]
+    cpu_time: float = 0.0  # [s] process time, insensitive to other load on the machine
+    distance: float = 0.0  # [m]
+
+
+class PDControl:
+    """The paper's joint PD on the DMP's position and velocity, torques saturated."""
+
+    def __init__(self, biped, gains: Gains = GAINS):
+        order = biped.velocity_indices("gait") - biped.n_base
+        self.index = np.sort(biped.velocity_indices("gait"))
+        self.stiffness, self.damping = np.empty(4), np.empty(4)
+        self.stiffness[order] = [gains.hip_stiffness, gains.knee_stiffness] * 2
+        self.damping[order] = [gains.hip_damping, gains.knee_damping] * 2
+        self.limit = np.array(biped.torque_limit)  # model order
+
+    def torques(self, state, position, velocity, acceleration) -> np.ndarray:
+        """Joint torques in model order from the references in model order."""
+        error = position - state.q[self.index]
+        torque = self.stiffness * error + self.damping * (velocity - state.v[self.index])
+        return np.clip(torque, -self.limit, self.limit)
+
+    def on_heel_strike(self, leg: int, time: float, frequency: float) -> None:
+        """The PD law does not switch."""
+
+
+class QPControl:
+    """QP inverse dynamics with DMP posture, torso pitch and switched point contacts."""
+
+    def __init__(self, biped, gains: QPGains = QP_GAINS):
+        import pinocchio as pin
+
+        from dmpopt.control import FrameTask, InverseDynamicsController, PointContact, PostureTask
+
+        self.gains = gains
+        self.frames = tuple(biped.foot_frames)
+        self.posture = PostureTask(
+            biped,
+            weight=gains.posture_weight,
+            stiffness=gains.posture_stiffness,
+            damping=gains.posture_damping,
+        )
+        stiffness, damping = np.zeros(6), np.zeros(6)
+        stiffness[4], damping[4] = gains.pitch_stiffness, gains.pitch_damping
+        self.pitch = FrameTask(
+            biped,
+            biped.torso_frame,
+            weight=gains.pitch_weight,
+            stiffness=stiffness,
+            damping=damping,
+            components=[4],
+        )
+        upright = self.pitch.target_placement
+        self.pitch.set_target(
+            pin.SE3(pin.utils.rotate("y", gains.torso_pitch), upright.translation)
+        )
+        contacts = [
+            PointContact(biped, frame, friction_coefficient=gains.friction) for frame in self.frames
+        ]
+        self.controller = InverseDynamicsController(biped, [self.posture, self.pitch], contacts)
+        self.lifted = [False, False]  # contact removed (or ramping out) since the last strike
+        self.strike = (0, 0.0)  # (leg, time) of the last heel strike: the walk starts at one
+        gait = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
+        self.hips, self.knees = gait[[0, 2]], gait[[1, 3]]
+        self.thigh, self.shank = biped_model.leg_lengths(biped)
+        self.frequency = 1.0
+        self._reference = np.empty(biped.n_actuated)
+
+    def torques(self, state, position, velocity, acceleration) -> np.ndarray:
+        """Torques in model order; lifts the swing leg a little after the other's heel strike."""
+        progress = (state.t - self.strike[1]) * self.frequency / np.pi  # of the step, from 0
+        self._lift_after_strike(state, progress)
+        reference = self._reference
+        reference[:] = position
+        if self.gains.placement_gain is not None:
+            self._place_swing_foot(state, progress, reference)
+        self.posture.set_reference(reference, velocity, acceleration)
+        return self.controller.compute_torques(state.q, state.v, state.t)
+
+    def _lift_after_strike(self, state, progress: float) -> None:
+        stance = self.strike[0]
+        if progress < self.gains.lift_phase or self.lifted[0] or self.lifted[1]:
+            return
+        if state.in_contact[stance]:
+            self.controller.remove_contact(
+                self.frames[1 - stance], transition_time=self.gains.transition_time
+            )
+            self.lifted[1 - stance] = True
+
+    def _place_swing_foot(self, state, progress: float, reference: np.ndarray) -> None:
+        """Move the swing hip's reference towards the Raibert landing angle over the swing."""
+        if not (self.lifted[0] or self.lifted[1]):
+            return
+        leg = 0 if self.lifted[0] else 1
+        speed = state.v[0]
+        step_duration = np.pi / self.frequency
+        reach = 0.5 * speed * step_duration
+        reach += self.gains.placement_gain * (speed - self.gains.target_speed)
+        knee = reference[self.knees[leg]]
+        length = np.hypot(self.thigh + self.shank * np.cos(knee), self.shank * np.sin(knee))
+        offset = np.arctan2(self.shank * np.sin(knee), self.thigh + self.shank * np.cos(knee))
+        landing = np.arcsin(np.clip(reach / length, -0.8, 0.8)) + offset
+        hip = self.hips[leg]
+        reference[hip] += min(progress, 1.0) * (landing - reference[hip])
+
+    def on_heel_strike(self, leg: int, time: float, frequency: float) -> None:
+        """A heel strike at ``time`` [s] puts the foot's contact back, held where it landed,
+        and starts the step after which the other leg lifts."""
+        self.frequency = frequency
+        self.strike = (leg, time)
+        if self.lifted[leg]:
+            if self.frames[leg] not in self.controller.active_contacts:
+                self.controller.add_contact(self.frames[leg])
+            self.lifted[leg] = False
+
+
+def walk(
+    biped,
+    dmp,
+    duration: float,
+    frequency: float,
+    adapt: bool = True,
+    reset_phase: bool = True,
+    controller: str = "pd",
+    boom_pitch_stiffness: float = BOOM_PITCH_STIFFNESS,
+    boom_pitch_damping: float = BOOM_PITCH_DAMPING,
+    disturbance: Disturbance | None = None,
+    push_impulse: float = 0.0,
+    push_time: float = 0.0,
+    seed: int = 0,
+    log_every: int = LOG_EVERY,
+    backend: str = "mujoco",
+    amplitude: float = 1.0,
+    start_speed: float | None = None,
+) -> WalkLog:
+    """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
+
+    The robot starts at the right heel strike of the DMP's limit cycle (``amplitude``: the
+    DMPs' amplitude A of eq. (11)) with a forward speed of ``start_speed`` [m/s] (default
+    ``START_SPEEDS[controller]``) plus a seeded perturbation of +-0.02 m/s.
+    ``push_impulse`` [N s] at ``push_time`` is a shorthand for
+    ``Disturbance(push_impulse, push_time)``. The DMP steps at ``CONTROL_EVERY * DT``; the
+    controller (``"qp"`` or ``"pd"``) and the simulator (``"mujoco"`` or ``"native"``) at
+    ``DT``.
+    """
+    if controller not in CONTROLLERS:
+        raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
+    if disturbance is None:
+        disturbance = Disturbance(push_impulse, push_time)
+    rng = np.random.default_rng(seed)
+    if start_speed is None:
+        start_speed = START_SPEEDS[controller]
+    dmp = dmp.with_amplitude(amplitude)
+    start_position, start_velocity = limit_cycle_start(dmp, frequency, DT)
+    stepper = dmp.stepper(
+        CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
+    )
+    stepper.set_tau(1.0 / frequency)
+    q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
+    q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
+    sim = make_simulator(biped, backend)
+    _perturb_masses(sim, disturbance)
+    v = np.zeros(biped.model.nv)
+    v[0] = start_speed + rng.uniform(-0.02, 0.02)
+    state = sim.reset(q, v)
+    law = QPControl(biped) if controller == "qp" else PDControl(biped)
+    law.frequency = frequency
+    order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
+    index = np.sort(biped.velocity_indices("gait"))
+    detector = HeelStrikeDetector(min_swing_time=0.1)
+    adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
+    log = WalkLog(frequencies=[frequency])
+    base_force = np.zeros(3)
+    desired, desired_velocity, desired_acceleration = np.empty(4), np.empty(4), np.empty(4)
+    positive_work = absolute_work = 0.0
+    n_steps = int(round(duration / DT))
+    push_step = int(round(disturbance.push_time / DT)) if disturbance.push_impulse else -1
+    slope_step = int(round(disturbance.slope_time / DT)) if disturbance.slope_deg else -1
+    start, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        for k in range(n_steps):
+            if k == push_step:
+                sim.push_impulse(biped.torso_frame, [disturbance.push_impulse, 0, 0], 0.1)
+            if k == slope_step:
+                _tilt_gravity(sim, disturbance.slope_deg)
+            if k % CONTROL_EVERY == 0:
+                position, velocity, acceleration = stepper.step()
+                desired[order], desired_velocity[order] = position, velocity
+                desired_acceleration[order] = acceleration
+            torque = law.torques(state, desired, desired_velocity, desired_acceleration)
+            base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
+            joint_velocities = state.v[index]
+            state = sim.step(torque, base_force)
+            power = torque @ joint_velocities
+            work = np.abs(torque * joint_velocities).sum()
+            absolute_work += work
+            positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
+            if state.touchdowns or not state.in_contact.all():
+                strike = detector.update(state.t, state.in_contact, state.contact_positions)
+                if strike is not None:
+                    phase, new_frequency = adaptation.on_heel_strike(strike)
+                    law.on_heel_strike(strike.leg, strike.time, new_frequency)
+                    if phase is not None:
+                        stepper.reset_phase(phase)
+                    stepper.set_tau(1.0 / new_frequency)
+                    log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+            if k % log_every == 0:
+                log.times.append(state.t)
+                log.q.append(state.q)
+                log.desired.append(desired[order])
+            if state.fallen:
+                log.fell = True
+                break
+    except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
+        log.fell, log.diverged = True, f"{type(error).__name__}: {error}"
+    log.wall_time = time.perf_counter() - start
+    log.cpu_time = time.process_time() - cpu_start
+    log.positive_work, log.absolute_work = DT * positive_work, DT * absolute_work
+    log.duration = sim.t
+    log.distance = float(sim.q[0] - q[0])
+    log.frequencies = adaptation.frequencies
+    return log
+
+
+def _perturb_masses(sim, disturbance: Disturbance) -> None:
+    """Scale the simulated bodies' masses and inertias (MuJoCo only)."""
+    if disturbance.mass_scale is None:
+        return
+    if not hasattr(sim, "mj_model"):
+        raise InvalidInputError("mass_scale needs the MuJoCo backend; pass backend='mujoco'")
+    import mujoco
+
+    moving = np.flatnonzero(sim.mj_model.body_mass > 0)
+    scale = np.asarray(disturbance.mass_scale, dtype=float)
+    if scale.shape != moving.shape:
+        raise InvalidInputError(
+            f"mass_scale has {scale.size} factors, expected {moving.size} (one per moving body)"
+        )
+    sim.mj_model.body_mass[moving] *= scale
+    sim.mj_model.body_inertia[moving] *= scale[:, None]
+    mujoco.mj_setConst(sim.mj_model, sim.mj_data)
+
+
+def _tilt_gravity(sim, slope_deg: float) -> None:
+    """A ground sloping ``slope_deg`` uphill: gravity tilted backwards by that angle."""
+    if not hasattr(sim, "mj_model"):
+        raise InvalidInputError("slope_deg needs the MuJoCo backend; pass backend='mujoco'")
+    angle = np.radians(slope_deg)
+    sim.mj_model.opt.gravity[:] = 9.81 * np.array([-np.sin(angle), 0.0, -np.cos(angle)])
+
+
+def n_moving_bodies(biped) -> int:
+    """How many factors ``Disturbance.mass_scale`` needs (bodies with mass in MuJoCo)."""
+    return len(make_simulator(biped, "mujoco").mj_model.body_mass.nonzero()[0])
+
+
+def make_simulator(biped, backend: str):
+    """The walker's simulator on ``backend``: "mujoco" or "native" (compliant ``GROUND``).
+
+    Both flag a fall when the torso is below ``FALL_HEIGHT`` (the other thresholds derived from
+    the biped, :mod:`dmpopt.sim.falls`).
+    """
+    from studies.humanoid import check_backend
+
+    if check_backend(backend) == "native":
+        return Simulator(
+            biped.model,
+            DT,
+            biped.contact_points,
+            GROUND,
+            n_base_dofs=3,
+            fall_frame=biped.torso_frame,
+            fall_height=FALL_HEIGHT,
+        )
+    from dmpopt.sim import MujocoSimulator
+    from robots.biped import BIPED_URDF
+
+    return MujocoSimulator(
+        biped.model,
+        BIPED_URDF,
+        DT,
+        biped.contact_points,
+        friction=GROUND.friction,
+        fall_frame=biped.torso_frame,
+        fall_height=FALL_HEIGHT,
+    )

@@ -11,6 +11,7 @@ from dmpopt.fitting.constrained import (
     ViaPoint,
     build_fitting_problem,
     fit_weights_constrained,
+    solve_fitting_problem,
 )
 from dmpopt.fitting.imitation import fit_discrete
 from dmpopt.trajectory import Trajectory
@@ -137,8 +138,8 @@ def test_problem_is_inspectable_and_warm_starts():
     assert [g.name for g in problem.groups] == ["velocity", "end_position"]
     hessian, gradient, matrix, lower, upper = problem.full_qp()
     assert hessian.shape == (40, 40) and matrix.shape == (2 * (DEMO.n_steps + 1), 40)
-    first, _ = fit_weights_constrained(problem)
-    second, _ = fit_weights_constrained(problem)
+    first, report = solve_fitting_problem(problem)
+    second, _ = solve_fitting_problem(problem, warm_start=report)
     np.testing.assert_allclose(first.weights, second.weights, atol=1e-9)
     opti, variable = problem.to_opti()
     assert variable.shape == (20, 2)
@@ -154,7 +155,7 @@ def test_infeasible_request_names_the_constraint_group():
         bounds=Bounds(velocity=0.2 * np.abs(plan.velocities).max(0)),
     )
     with pytest.raises(InfeasibleProblem) as caught:
-        fit_weights_constrained(problem)
+        solve_fitting_problem(problem)
     message = str(caught.value)
     assert message.startswith("infeasible constrained fit")
     assert "relax these constraints by at least that much" in message

@@ -2,10 +2,12 @@
 
 import numpy as np
 import pytest
+import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dmpopt.exceptions import InfeasibleProblem, InvalidInputError
+from dmpopt.fitting import qp
 from dmpopt.fitting.constrained import (
     Bounds,
     ViaPoint,
@@ -14,6 +16,7 @@ from dmpopt.fitting.constrained import (
     solve_fitting_problem,
 )
 from dmpopt.fitting.imitation import fit_discrete
+from dmpopt.fitting.qp import solve_qp
 from dmpopt.trajectory import Trajectory
 
 
@@ -174,3 +177,165 @@ def test_invalid_requests_are_rejected():
         build_fitting_problem(
             DEMO, reference=REFERENCES["velocity"], via_points=[ViaPoint(2.0, [0.0, 0.0])]
         )
+
+
+# ---------------------------------------------------------------------------------------
+# The QP layer, against a second solver (Clarabel through qpsolvers)
+# ---------------------------------------------------------------------------------------
+
+
+def clarabel(hessian, gradient, matrix=None, lower=None, upper=None, eq=None, eq_rhs=None):
+    """``min 1/2 x'Hx + g'x`` s.t. ``lower <= A x <= upper`` (finite sides) with Clarabel."""
+    rows, rhs = [], []
+    if matrix is not None:
+        for sign, bound in ((1.0, upper), (-1.0, lower)):
+            finite = np.abs(bound) < 1e19
+            rows.append(sign * matrix[finite])
+            rhs.append(sign * bound[finite])
+    x = qpsolvers.solve_qp(
+        hessian,
+        gradient,
+        np.vstack(rows) if rows else None,
+        np.concatenate(rhs) if rhs else None,
+        eq,
+        eq_rhs,
+        solver="clarabel",
+        tol_gap_abs=1e-12,
+        tol_gap_rel=1e-12,
+        tol_feas=1e-12,
+    )
+    assert x is not None, "the answer key failed"
+    return x
+
+
+def random_qp(seed, n, m):
+    """A feasible strictly convex QP; some rows one-sided, one an equality."""
+    rng = np.random.default_rng(seed)
+    factor = rng.normal(size=(n, n))
+    hessian = factor @ factor.T + np.eye(n)
+    gradient = 3 * rng.normal(size=n)
+    matrix = rng.normal(size=(m, n))
+    inside = matrix @ rng.normal(size=n)
+    lower = inside - rng.uniform(0.1, 1.0, m)
+    upper = inside + rng.uniform(0.1, 1.0, m)
+    lower[::4] = -1e20  # one-sided rows
+    lower[1], upper[1] = inside[1], inside[1]  # an equality
+    return hessian, gradient, matrix, lower, upper
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(2, 8),
+    m=st.integers(2, 40),
+    solver=st.sampled_from(["daqp", "qpoases", "proxsuite"]),
+    stride=st.sampled_from([1, 3, 10]),
+)
+def test_solve_qp_matches_a_second_solver(seed, n, m, solver, stride):
+    """Row generation with every backend reaches Clarabel's optimum of the whole QP."""
+    hessian, gradient, matrix, lower, upper = random_qp(seed, n, m)
+    key = clarabel(hessian, gradient, matrix, lower, upper)
+    solution = solve_qp(hessian, gradient, matrix, lower, upper, solver=solver, stride=stride)
+    assert solution.success
+    np.testing.assert_allclose(solution.x, key, atol=1e-5 * (1 + np.abs(key).max()))
+    values = matrix @ solution.x
+    on_bound = np.minimum(np.abs(values - lower), np.abs(values - upper))
+    assert np.all(on_bound[solution.active] < 1e-6)  # the working set is at its bounds
+
+
+def test_solve_blocks_falls_back_and_stops_at_an_infeasible_block(monkeypatch):
+    """A block the first backend fails is solved by qpOASES; an infeasible block stops the
+    loop and is named."""
+    hessian, gradient, matrix, lower, upper = random_qp(3, 4, 12)
+    real_backend = qp._backend_solve
+
+    def daqp_fails(solver, *args):
+        x, z, success, status = real_backend(solver, *args)
+        return x, z, success and solver != "daqp", status
+
+    monkeypatch.setattr(qp, "_backend_solve", daqp_fails)
+    both = qp.solve_blocks(
+        hessian,
+        np.stack([gradient, -gradient]),
+        matrix,
+        np.stack([lower, lower]),
+        np.stack([upper, upper]),
+        solver="daqp",
+    )
+    assert both.success and both.solver == "daqp+qpoases" and both.failed_block == -1
+    np.testing.assert_allclose(
+        both.x[1], clarabel(hessian, -gradient, matrix, lower, upper), atol=1e-6
+    )
+    monkeypatch.setattr(qp, "_backend_solve", real_backend)
+    twice = np.vstack([matrix, matrix[:1]])  # row 0 twice: disjoint bounds make it infeasible
+    low, high = np.append(lower, lower[0]), np.append(upper, upper[0])
+    apart_low, apart_high = low.copy(), high.copy()
+    apart_low[-1], apart_high[-1] = upper[0] + 1.0, upper[0] + 2.0
+    stopped = qp.solve_blocks(
+        hessian,
+        np.stack([gradient] * 3),
+        twice,
+        np.stack([low, apart_low, low]),
+        np.stack([high, apart_high, high]),
+    )
+    assert not stopped.success and stopped.failed_block == 1
+    assert np.all(np.isnan(stopped.x[1:]))
+
+
+def test_scale_rows_is_the_same_constraint_in_units():
+    """Each scaled row, times its norm and the unit, plus the offset, is the original row;
+    its bounds are the requested ones tightened by ``margin`` units, or free."""
+    rng = np.random.default_rng(1)
+    matrix, offset = rng.normal(size=(5, 3)), rng.normal(size=(5, 2))
+    lower = np.array([[-1.0, -np.inf], [0.0, 0.0], [-2.0, -1.0], [-np.inf, -1.0], [0.5, 0.5]])
+    upper = np.array([[1.0, 2.0], [0.0, 3.0], [np.inf, 1.0], [1.0, np.inf], [0.5, 0.5]])
+    unit, margin = 0.7, 1e-3
+    rows = qp.scale_rows(matrix, offset, lower, upper, unit, margin)
+    np.testing.assert_allclose(np.linalg.norm(rows.matrix, axis=1), 1.0)
+    np.testing.assert_allclose(rows.matrix * rows.norms[:, None] * unit, matrix)
+    wide = (upper - lower) > 2 * margin * unit
+    expected_lower = np.where(np.isinf(lower), -1e20, lower - offset + margin * unit * wide)
+    expected_upper = np.where(np.isinf(upper), 1e20, upper - offset - margin * unit * wide)
+    finite_l, finite_u = np.isfinite(lower), np.isfinite(upper)
+    scale = rows.norms[:, None] * unit
+    np.testing.assert_allclose((rows.lower * scale)[finite_l], expected_lower[finite_l])
+    np.testing.assert_allclose((rows.upper * scale)[finite_u], expected_upper[finite_u])
+    assert np.all(rows.lower[~finite_l] == -1e20) and np.all(rows.upper[~finite_u] == 1e20)
+
+
+def test_constrained_fit_matches_the_plain_qp_solved_by_a_second_solver():
+    """The fit equals, per DOF, min ||F0 + G0 w - y_demo||^2 + lambda ||w||^2 subject to
+    |F1 + G1 w| <= v, |F2 + G2 w| <= a and F0[-1] + G0[-1] w = g, written plainly and
+    solved by Clarabel on the library's affine plan (F, G)."""
+    plan = plain_plan()
+    velocity = 0.8 * np.abs(plan.velocities).max(0)
+    acceleration = 0.7 * np.abs(plan.accelerations).max(0)
+    dmp, report = fit_weights_constrained(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        bounds=Bounds(velocity=velocity, acceleration=acceleration),
+    )
+    affine = report.problem.plan
+    free, response = affine.free, affine.weight_response
+    gram = response[0].T @ response[0]
+    ridge = 1e-9 * np.trace(gram) / gram.shape[0]
+    weights = []
+    for d in range(2):
+        limits = np.concatenate(
+            [np.full(DEMO.n_steps, velocity[d]), np.full(DEMO.n_steps, acceleration[d])]
+        )
+        offset = np.concatenate([free[1, :, d], free[2, :, d]])
+        weights.append(
+            clarabel(
+                gram + ridge * np.eye(gram.shape[0]),
+                -response[0].T @ (DEMO.positions[:, d] - free[0, :, d]),
+                np.vstack([response[1], response[2]]),
+                -limits - offset,
+                limits - offset,
+                response[0, -1:],
+                np.array([DEMO.positions[-1, d] - free[0, -1, d]]),
+            )
+        )
+    key_positions = free[0] + response[0] @ np.array(weights).T
+    extent = np.ptp(DEMO.positions, axis=0).max()
+    np.testing.assert_allclose(report.trajectory.positions, key_positions, atol=1e-4 * extent)

@@ -12,8 +12,10 @@ from dmpopt.exceptions import InvalidInputError, ResourceLimitError, ShapeError
 from dmpopt.fitting.constrained import (
     Bounds,
     ViaPoint,
+    build_fitting_problem,
     diagnose_infeasibility,
     fit_weights_constrained,
+    solve_fitting_problem,
     solve_qp,
 )
 from dmpopt.fitting.imitation import fit_discrete
@@ -30,6 +32,7 @@ from dmpopt.learning import (
     EpisodicNAC,
     EpisodicReinforce,
     LearningCurve,
+    RewardTask,
     enac_gradient,
     make_method,
     multi_dof_reaching_task,
@@ -61,6 +64,15 @@ def fit(**options):
     return fit_weights_constrained(DEMO, 10, reference=REFERENCE, **options)
 
 
+PROBLEM = build_fitting_problem(DEMO, reference=REFERENCE)
+
+
+def report_of_another_size():
+    return solve_fitting_problem(
+        build_fitting_problem(DEMO, reference=REFERENCE, bounds=Bounds(velocity=10.0))
+    )[1]
+
+
 def told(learner, rewards):
     learner.ask()
     learner.tell(rewards)
@@ -85,6 +97,36 @@ BAD_INPUTS = {
     "via position dofs": (lambda: fit(via_points=[ViaPoint(0.5, [0, 0, 0])]), "via_points"),
     "fit warm_start str": (lambda: fit(warm_start="last"), "warm_start"),
     "diagnose None": (lambda: diagnose_infeasibility(None), "problem"),
+    "fit a built problem": (
+        lambda: fit_weights_constrained(PROBLEM),
+        "got a FittingProblem; solve a built problem with solve_fitting_problem",
+    ),
+    "solve a Trajectory": (lambda: solve_fitting_problem(DEMO), "problem must be a FittingProblem"),
+    "solve warm_start problem": (
+        lambda: solve_fitting_problem(PROBLEM, warm_start=PROBLEM),
+        "warm_start must be a FitReport",
+    ),
+    "solve warm_start other size": (
+        lambda: solve_fitting_problem(PROBLEM, warm_start=report_of_another_size()),
+        "warm_start comes from a problem with",
+    ),
+    "fit solver unknown": (lambda: fit(solver="osqp"), "solver must be 'auto' or one of"),
+    "solve_qp solver None": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1], solver=None),
+        "solver",
+    ),
+    "solve_qp lower above upper": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 2], [1, 1]),
+        r"lower exceeds upper in row\(s\) \[1\]",
+    ),
+    "solve_qp rows of another width": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(3), [0, 0, 0], [1, 1, 1]),
+        "constraint_matrix",
+    ),
+    "RewardTask with a constraint ViaPoint": (
+        lambda: RewardTask(TASK.dmp, via_points=[ViaPoint(0.1, [0.0])]),
+        r"via_points\[0\] must be a ViaPointReward.*ViaPointReward\(time, position, weight\)",
+    ),
     "solve_qp nan gradient": (
         lambda: solve_qp(np.eye(2), [NAN, 0.0], np.eye(2), [0, 0], [1, 1]),
         "gradient",
@@ -122,6 +164,10 @@ BAD_INPUTS = {
     "mjc n_segments str": (lambda: minimum_jerk_constrained(0, 1, 1.0, n_segments="60"), "n_seg"),
     "mjc margin nan": (lambda: minimum_jerk_constrained(0, 1, 1.0, margin=NAN), "margin"),
     "mjc bounds dict": (lambda: minimum_jerk_constrained(0, 1, 1.0, bounds={}), "bounds"),
+    "mjc ball via": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, via_points=[ViaPoint(0.5, [0.5], 0.1, "ball")]),
+        r"via_points\[0\] has norm 'ball'",
+    ),
     "mjc via after end": (
         lambda: minimum_jerk_constrained(0, 1, 1.0, via_points=[ViaPoint(2.0, [0.5])]),
         "via_points",

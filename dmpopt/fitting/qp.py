@@ -31,6 +31,9 @@ FALLBACK_SOLVER = "qpoases"
 """Backend tried on a block that the first one failed (it also confirms infeasibility)."""
 INFINITY = 1e20
 """Bound that stands for a free side (the backends take finite numbers)."""
+ACTIVE_MULTIPLIER = 1e-9
+"""A row is in the working set if its multiplier exceeds this, relative (ProxQP's multipliers
+of inactive rows are tiny, not zero)."""
 PROXSUITE_TOLERANCE = 1e-8  # absolute; relative tolerance 0
 DAQP_PRIMAL_TOLERANCE = 1e-10
 
@@ -119,6 +122,12 @@ def _checked_qp(hessian, gradient, constraint_matrix, lower, upper):
             "constraint_matrix must be finite and lower, upper free of NaN (use +-inf for "
             "a free side)"
         )
+    crossed = np.nonzero(lower > upper)[0]
+    if crossed.size:
+        raise InvalidInputError(
+            f"lower exceeds upper in row(s) {crossed[:5].tolist()} of constraint_matrix (e.g. "
+            f"{lower[crossed[0]]:g} > {upper[crossed[0]]:g}); give lower <= upper"
+        )
     return hessian, gradient, matrix, lower, upper
 
 
@@ -190,7 +199,8 @@ def solve_qp(
             break
         selected |= violated
     active = np.zeros(lower.size, dtype=bool)
-    active[index[np.abs(multipliers[: index.size]) > 0]] = True
+    multipliers = np.abs(multipliers[: index.size])
+    active[index[multipliers > ACTIVE_MULTIPLIER * (1.0 + multipliers.max(initial=0.0))]] = True
     return QpSolution(x, success, status, time.perf_counter() - begin, rounds, active)
 
 

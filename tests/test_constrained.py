@@ -1,5 +1,8 @@
 """Constrained DMP fits: every constraint holds on the rollout; no constraint = imitation."""
 
+import dataclasses
+import os
+
 import numpy as np
 import pytest
 import qpsolvers
@@ -7,11 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dmpopt.exceptions import InfeasibleProblem, InvalidInputError
-from dmpopt.fitting import qp
+from dmpopt.fitting import groups, qp
 from dmpopt.fitting.constrained import (
     Bounds,
     ViaPoint,
     build_fitting_problem,
+    diagnose_infeasibility,
     fit_weights_constrained,
     solve_fitting_problem,
 )
@@ -339,3 +343,96 @@ def test_constrained_fit_matches_the_plain_qp_solved_by_a_second_solver():
     key_positions = free[0] + response[0] @ np.array(weights).T
     extent = np.ptp(DEMO.positions, axis=0).max()
     np.testing.assert_allclose(report.trajectory.positions, key_positions, atol=1e-4 * extent)
+
+
+# ---------------------------------------------------------------------------------------
+# Build and solve: a frozen problem, explicit warm start, the process's stdout untouched
+# ---------------------------------------------------------------------------------------
+
+
+def test_problem_is_frozen_and_solving_leaves_it_unchanged():
+    """A FittingProblem is a value: no attribute can be set, and two solves of it, the second
+    warm-started, return the same weights and working sets (no state kept between them)."""
+    plan = plain_plan()
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
+    )
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        problem.solver = "qpoases"
+    assert not hasattr(problem, "cache")
+    lower = problem.lower.copy()
+    first, report = solve_fitting_problem(problem)
+    second, again = solve_fitting_problem(problem, warm_start=report)
+    np.testing.assert_array_equal(problem.lower, lower)
+    np.testing.assert_allclose(second.weights, first.weights, atol=1e-9)
+    assert report.working_sets.shape == problem.lower.shape and report.working_sets.any()
+    np.testing.assert_array_equal(again.working_sets, report.working_sets)
+
+
+def test_solving_never_redirects_the_process_stdout():
+    """qpOASES (fallback and infeasibility diagnosis) runs without touching file descriptor 1."""
+
+    def refuse(*args):
+        raise AssertionError("file descriptors must not be redirected")
+
+    plan = plain_plan()
+    peak = np.abs(plan.velocities).max(0)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "dup", refuse)
+        patch.setattr(os, "dup2", refuse)
+        _, report = fit_weights_constrained(
+            DEMO,
+            reference=REFERENCES["velocity"],
+            n_samples=101,
+            solver="qpoases",
+            bounds=Bounds(velocity=0.9 * peak),
+        )
+        with pytest.raises(InfeasibleProblem):
+            fit_weights_constrained(
+                DEMO,
+                reference=REFERENCES["velocity"],
+                n_samples=101,
+                bounds=Bounds(velocity=0.2 * peak),
+            )
+    assert report.solver == "qpoases"
+
+
+def test_diagnosis_relaxes_a_via_point_against_a_position_box_by_their_gap():
+    """A via-point 0.3 above the position box: the elastic problem relaxes the two groups by
+    0.3 in total (plus the safety margins), and nothing else."""
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        bounds=Bounds(position_upper=[1.2, 2.0]),
+        via_points=[ViaPoint(0.5, [1.5, 0.4])],
+    )
+    relaxations = diagnose_infeasibility(problem)
+    assert set(relaxations) <= {"position", "via_point[0]"}
+    total = sum(amount for amount, _ in relaxations.values())
+    assert 0.3 <= total <= 0.3 + 1e-3
+    assert all(dofs == [0] for _, dofs in relaxations.values())
+    with pytest.raises(
+        InfeasibleProblem, match="'(position|via_point\\[0\\])' on DOF\\(s\\) \\[0\\]"
+    ):
+        solve_fitting_problem(problem)
+
+
+@settings(max_examples=20, deadline=None)
+@given(time=st.floats(0.0, 1.0), n_steps=st.integers(3, 50))
+def test_sample_interpolates_like_np_interp_and_jerk_is_the_difference(time, n_steps):
+    """A group's value at a time is the linear interpolation of the samples (np.interp); its
+    jerk is the forward difference of the accelerations divided by dt."""
+    rng = np.random.default_rng(n_steps)
+    times = np.linspace(0.0, 1.0, n_steps)
+    dt = times[1] - times[0]
+    values = rng.normal(size=(3, n_steps, 2))
+    at = groups.interpolation(time, dt, n_steps, "via")
+    for k, quantity in enumerate(["position", "velocity", "acceleration"]):
+        key = [np.interp(time, times, values[k, :, d]) for d in range(2)]
+        np.testing.assert_allclose(groups.sample(values, dt, quantity, at)[0], key, atol=1e-12)
+        np.testing.assert_array_equal(groups.sample(values, dt, quantity), values[k])
+    jerk = (values[2, 1:] - values[2, :-1]) / dt
+    np.testing.assert_allclose(groups.sample(values, dt, "jerk"), jerk)

@@ -471,3 +471,19 @@ def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):
     expected = 0.5 * (brute(points, polyline) + brute(polyline, points))
     monkeypatch.setattr(validation, "MEMORY_BUDGET", 200 * 8 * 16)  # two rows per chunk
     assert metrics.path_distance(points, polyline) == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_learning_via_point_is_a_reward_term_under_its_own_name():
+    """A task's via-point is a weighted reward, not the fit's hard ViaPoint: it is called
+    ViaPointReward; the former name dmpopt.learning.ViaPoint still resolves, with a warning."""
+    import dmpopt
+    from dmpopt import learning
+
+    with pytest.warns(DeprecationWarning, match="ViaPointReward"):
+        former = learning.ViaPoint
+    assert former is learning.ViaPointReward and former is not dmpopt.ViaPoint
+    with pytest.raises(AttributeError, match="ViaPointt"):
+        learning.ViaPointt  # noqa: B018
+    task = via_point_task(via_time=0.2, via_position=(0.3, 0.6), dt=0.01)
+    assert isinstance(task.via_points[0], learning.ViaPointReward)
+    assert task.via_points[0].weight == 1000.0

@@ -40,8 +40,8 @@ infeasibility diagnosis in :mod:`dmpopt.fitting.diagnosis`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import NamedTuple, Sequence
+from dataclasses import replace
+from typing import Sequence
 
 import numpy as np
 
@@ -53,7 +53,7 @@ from .diagnosis import diagnose_infeasibility, infeasibility_error
 from .groups import ConstraintGroup, end_groups, limit_groups, sample, via_point_groups
 from .imitation import _check_demo, fit_discrete
 from .nlp import solve_nlp
-from .problem import FittingProblem
+from .problem import ConstrainedFit, FitReport, FittingProblem
 from .qp import check_solver, scale_rows, solve_blocks, solve_qp, stack_rows
 from .requests import Bounds, ViaPoint, check_bounds, per_dof
 
@@ -309,49 +309,6 @@ def _assemble(requested, plan, variable_scale, units, margin):
         parts.append(part)
         count = rows.stop
     return tuple(groups), stack_rows(parts, variable_scale.size, plan.free.shape[2])
-
-
-@dataclass(frozen=True, eq=False)
-class FitReport:
-    """What a constrained fit did.
-
-    Attributes
-    ----------
-    solver : str
-        ``"daqp"``, ``"qpoases"``, ``"proxsuite"`` or ``"ipopt"`` (the NLP); ``"daqp+qpoases"``
-        if the fallback solved a DOF.
-    status : str
-        The solver's own status (last DOF).
-    solve_time : float
-        Wall time of the solver calls [s] (building the problem not included).
-    iterations : int
-        Rounds of row generation (QP, summed over DOFs) or IPOPT iterations.
-    violations : dict
-        Largest violation of each constraint group on the returned DMP's rollout
-        [physical units]; zero on success.
-    trajectory : Trajectory
-        The rollout of the returned DMP on the problem's grid.
-    problem : FittingProblem
-    working_sets : ndarray of bool, shape (n_dofs, n_rows), or None
-        Rows active at the QP's solution (``None`` for the NLP); pass this report as
-        ``warm_start`` to the next fit of a problem of the same size.
-    """
-
-    solver: str
-    status: str
-    solve_time: float
-    iterations: int
-    violations: dict
-    trajectory: Trajectory
-    problem: FittingProblem
-    working_sets: np.ndarray | None = None
-
-
-class ConstrainedFit(NamedTuple):
-    """``(dmp, report)`` returned by :func:`solve_fitting_problem`."""
-
-    dmp: DiscreteDMP
-    report: FitReport
 
 
 def _working_sets(problem: FittingProblem, warm_start) -> np.ndarray | None:

@@ -1,4 +1,4 @@
-r"""A built constrained fit: the QP's matrices, its constraint groups and its views.
+r"""A built constrained fit (the QP's matrices, constraint groups, views) and its result.
 
 Built by :func:`dmpopt.fitting.constrained.build_fitting_problem`, solved by
 :func:`dmpopt.fitting.constrained.solve_fitting_problem` (module docstring there).
@@ -7,6 +7,7 @@ Built by :func:`dmpopt.fitting.constrained.build_fitting_problem`, solved by
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -157,3 +158,46 @@ class FittingProblem:
         the NLP that is solved when ``balls`` is not empty.
         """
         return to_opti(self)
+
+
+@dataclass(frozen=True, eq=False)
+class FitReport:
+    """What a constrained fit did.
+
+    Attributes
+    ----------
+    solver : str
+        ``"daqp"``, ``"qpoases"``, ``"proxsuite"`` or ``"ipopt"`` (the NLP); ``"daqp+qpoases"``
+        if the fallback solved a DOF.
+    status : str
+        The solver's own status (last DOF).
+    solve_time : float
+        Wall time of the solver calls [s] (building the problem not included).
+    iterations : int
+        Rounds of row generation (QP, summed over DOFs) or IPOPT iterations.
+    violations : dict
+        Largest violation of each constraint group on the returned DMP's rollout
+        [physical units]; zero on success.
+    trajectory : Trajectory
+        The rollout of the returned DMP on the problem's grid.
+    problem : FittingProblem
+    working_sets : ndarray of bool, shape (n_dofs, n_rows), or None
+        Rows active at the QP's solution (``None`` for the NLP); pass this report as
+        ``warm_start`` to the next fit of a problem of the same size.
+    """
+
+    solver: str
+    status: str
+    solve_time: float
+    iterations: int
+    violations: dict
+    trajectory: Trajectory
+    problem: FittingProblem
+    working_sets: np.ndarray | None = None
+
+
+class ConstrainedFit(NamedTuple):
+    """``(dmp, report)`` returned by :func:`solve_fitting_problem`."""
+
+    dmp: DiscreteDMP
+    report: FitReport

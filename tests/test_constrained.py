@@ -9,7 +9,7 @@ import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dmpopt.exceptions import InfeasibleProblem, InvalidInputError
+from dmpopt.exceptions import FittingFailed, InfeasibleProblem, InvalidInputError
 from dmpopt.fitting import groups, qp
 from dmpopt.fitting.constrained import (
     Bounds,
@@ -130,8 +130,27 @@ def test_euclidean_via_point_uses_the_nlp():
         n_samples=101,
         via_points=[ViaPoint(0.5, point, tolerance=0.02, norm="ball")],
     )
-    assert report.solver == "ipopt"
+    assert report.solver == "ipopt" and report.status == "Solve_Succeeded"
+    assert report.iterations > 0 and report.working_sets is None
     assert np.linalg.norm(report.trajectory.positions[50] - point) <= 0.02 + 1e-7
+
+
+def test_unreachable_euclidean_via_point_is_reported_as_such():
+    """A ball via-point beyond a position box: IPOPT fails; the linear constraints alone can
+    hold, so the error points at the via-point, with the solver's status."""
+    with pytest.raises(FittingFailed) as caught:
+        fit_weights_constrained(
+            DEMO,
+            reference=REFERENCES["velocity"],
+            n_samples=101,
+            bounds=Bounds(position_upper=[1.2, 2.0]),
+            via_points=[ViaPoint(0.5, [1.5, 0.4], tolerance=0.01, norm="ball")],
+        )
+    assert not isinstance(caught.value, InfeasibleProblem)
+    message = str(caught.value)
+    assert message.startswith("the ipopt solver failed (Infeasible_Problem_Detected)")
+    assert "Euclidean via-point may be out of reach" in message
+    assert caught.value.stats["solver"] == "ipopt"
 
 
 def test_problem_is_inspectable_and_warm_starts():
@@ -164,7 +183,8 @@ def test_infeasible_request_names_the_constraint_group():
     with pytest.raises(InfeasibleProblem) as caught:
         solve_fitting_problem(problem)
     message = str(caught.value)
-    assert message.startswith("infeasible constrained fit")
+    assert message.startswith(f"infeasible constrained fit ({caught.value.stats['status']}): ")
+    assert caught.value.stats["solver"] == "daqp+qpoases"
     assert "relax these constraints by at least that much" in message
     assert caught.value.problem is problem
     assert set(caught.value.relaxations) <= {"velocity", "end_position"}
@@ -436,3 +456,73 @@ def test_sample_interpolates_like_np_interp_and_jerk_is_the_difference(time, n_s
         np.testing.assert_array_equal(groups.sample(values, dt, quantity), values[k])
     jerk = (values[2, 1:] - values[2, :-1]) / dt
     np.testing.assert_allclose(groups.sample(values, dt, "jerk"), jerk)
+
+
+DEMO_10 = Trajectory(DEMO.times, 10 * DEMO.positions, 10 * DEMO.velocities, 10 * DEMO.accelerations)
+REFERENCE_10 = fit_discrete(DEMO_10, 20)
+
+
+def test_diagnosis_amounts_are_the_fixed_start_against_the_limits():
+    """The first sample's position and velocity do not depend on the weights. A start velocity
+    of 4 against a limit of 0.5, and a via-point at t = 0 five units from the start, need
+    relaxations of exactly 3.5 and 5 (plus margins, physical units, on DOF 0 only); the
+    message lists the larger first."""
+    problem = build_fitting_problem(
+        DEMO_10,
+        reference=REFERENCE_10,
+        n_samples=101,
+        start_velocity=[4.0, 0.0],
+        bounds=Bounds(velocity=[0.5, 1e3]),
+        via_points=[ViaPoint(0.0, [5.0, 0.0])],
+        end_position_tolerance=None,
+    )
+    relaxations = diagnose_infeasibility(problem)
+    assert set(relaxations) == {"velocity", "via_point[0]"}
+    np.testing.assert_allclose(relaxations["velocity"][0], 3.5, atol=1e-3)
+    np.testing.assert_allclose(relaxations["via_point[0]"][0], 5.0, atol=1e-3)
+    assert relaxations["velocity"][1] == [0] and relaxations["via_point[0]"][1] == [0]
+    with pytest.raises(
+        InfeasibleProblem,
+        match=r"'via_point\[0\]' on DOF\(s\) \[0\] by 5.*"
+        r"'velocity' on DOF\(s\) \[0\] by 3.5",
+    ) as caught:
+        solve_fitting_problem(problem)
+    assert caught.value.relaxations == relaxations and caught.value.problem is problem
+
+
+def test_a_single_infeasible_group_is_diagnosed():
+    """With one constraint group only (the velocity limit) the diagnosis still names it."""
+    problem = build_fitting_problem(
+        DEMO_10,
+        reference=REFERENCE_10,
+        n_samples=101,
+        start_velocity=[4.0, 0.0],
+        bounds=Bounds(velocity=[0.5, 1e3]),
+        end_position_tolerance=None,
+    )
+    assert len(problem.groups) == 1
+    relaxations = diagnose_infeasibility(problem)
+    np.testing.assert_allclose(relaxations["velocity"][0], 3.5, atol=1e-3)
+
+
+def test_interpolation_of_a_time_on_the_grid():
+    """Times on the grid give the sample itself; the end is the last interval's far end;
+    times beyond half a step outside the plan are refused."""
+    assert groups.interpolation(0.5, 0.25, 5, "t") == (2, 0.0)
+    assert groups.interpolation(0.625, 0.25, 5, "t") == (2, 0.5)
+    assert groups.interpolation(1.0, 0.25, 5, "t") == (3, 1.0)
+    assert groups.interpolation(1.0 + 1e-12, 0.25, 5, "t") == (3, 1.0)
+    assert groups.interpolation(0.0, 0.25, 5, "t") == (0, 0.0)
+    assert groups.interpolation(-1e-12, 0.25, 5, "t") == (0, 0.0)
+    for outside in (-0.125, 1.125):
+        with pytest.raises(InvalidInputError, match=r"via_points\[3\] time .* outside the plan"):
+            groups.interpolation(outside, 0.25, 5, "via_points[3]")
+
+
+def test_variables_and_forcing_weights_are_inverse_maps():
+    """x -> W = L s x -> x is the identity (the NLP's initial guess goes through it)."""
+    problem = build_fitting_problem(DEMO_10, reference=REFERENCE_10, n_samples=101)
+    x = np.random.default_rng(0).normal(size=(2, 20))
+    weights = problem.forcing_weights(x)
+    np.testing.assert_allclose(weights, problem.length_scale * x * problem.scale[None, :])
+    np.testing.assert_allclose(problem.variables(weights), x, rtol=1e-12)

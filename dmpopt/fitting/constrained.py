@@ -393,10 +393,16 @@ def solve_fitting_problem(problem: FittingProblem, *, warm_start=None) -> Constr
         working_sets, solver = None, "ipopt"
     stats = {"solver": solver, "status": status, "solve_time": solve_time, "iterations": iterations}
     if not success or not np.all(np.isfinite(x)):
+        remedy = (
+            "try another solver ('daqp', 'qpoases') or a larger regularization"
+            if problem.is_qp
+            else "so a Euclidean via-point may be out of reach of them: widen its tolerance, "
+            "move it or relax the bounds"
+        )
         raise _failure(
             problem,
-            f"the {solver} solver failed ({status}) although the constraints can hold; "
-            "try another solver ('daqp', 'qpoases') or a larger regularization",
+            f"the {solver} solver failed ({status}) although the linear constraints can "
+            f"hold; {remedy}",
             stats,
         )
     dmp = problem.dmp_for(problem.forcing_weights(x))

@@ -29,6 +29,8 @@ DEFAULT_SOLVER = "daqp"
 """QP backend used by ``solver="auto"`` (see ``benchmarks/bench_constrained.py``)."""
 FALLBACK_SOLVER = "qpoases"
 """Backend tried on a block that the first one failed (it also confirms infeasibility)."""
+ZERO_ROW = 1e-12
+"""Rows of smaller norm (in units of their group) are not normalised (:func:`scale_rows`)."""
 INFINITY = 1e20
 """Bound that stands for a free side (the backends take finite numbers)."""
 ACTIVE_MULTIPLIER = 1e-9
@@ -270,14 +272,18 @@ def scale_rows(matrix, offset, lower, upper, unit: float, margin: float) -> Scal
     ``matrix`` (m, n) maps the scaled variables to the quantity; ``offset``, ``lower`` and
     ``upper`` broadcast to (m, n_blocks), ``-inf``/``inf`` for a free side. A box wider than
     twice ``margin * unit`` is tightened by ``margin`` units on both sides, so that the answer
-    holds despite the solver's tolerance; bounds are then clipped to :data:`INFINITY`.
+    holds despite the solver's tolerance; bounds are then clipped to :data:`INFINITY`. A row of
+    norm below :data:`ZERO_ROW` (a quantity the variables cannot change, such as the first
+    sample's position) is kept as it is: normalising it would blow its bounds up to infinity
+    and hide how far a fixed value lies outside its limits.
     """
     offset = np.asarray(offset, dtype=float)
     shape = (matrix.shape[0], offset.shape[-1])
     low = np.broadcast_to(lower, shape).astype(float)
     high = np.broadcast_to(upper, shape).astype(float)
     scaled = matrix / unit
-    norms = np.maximum(np.linalg.norm(scaled, axis=1), 1e-300)[:, None]
+    norms = np.linalg.norm(scaled, axis=1)[:, None]
+    norms[norms < ZERO_ROW] = 1.0  # a row the variables do not move (a fixed start) stays
     tight = (high - low) > 2 * margin * unit
     low = np.where(np.isfinite(low), (low - offset) / unit + margin * tight, -np.inf)
     high = np.where(np.isfinite(high), (high - offset) / unit - margin * tight, np.inf)

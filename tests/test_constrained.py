@@ -526,3 +526,49 @@ def test_variables_and_forcing_weights_are_inverse_maps():
     weights = problem.forcing_weights(x)
     np.testing.assert_allclose(weights, problem.length_scale * x * problem.scale[None, :])
     np.testing.assert_allclose(problem.variables(weights), x, rtol=1e-12)
+
+
+@pytest.mark.parametrize("quantity", ["position", "velocity", "acceleration", "jerk"])
+def test_active_limits_are_tightened_by_the_margin_in_their_unit(quantity):
+    """On a plan of duration T = 1.5 s, an active limit is reached up to a gap of exactly
+    margin * L / T^k (L the demonstration's largest extent, k = 0..3 for position ... jerk)."""
+    duration, margin = 1.5, 1e-3
+    length = np.ptp(DEMO.positions, axis=0).max()
+    goal = [1.0, 0.2]  # below the bump of DOF 1, whose peak is then inside the motion
+    free = build_fitting_problem(
+        DEMO, reference=REFERENCES["velocity"], duration=duration, goal=goal
+    )
+    plan = free.rollout(free.dmp)
+    dt = plan.times[1] - plan.times[0]
+    series = {
+        "position": plan.positions[:, 1],
+        "velocity": plan.velocities[:, 1],
+        "acceleration": plan.accelerations[:, 1],
+        "jerk": np.diff(plan.accelerations[:, 1]) / dt,
+    }
+    peak = np.abs(series[quantity]).max()
+    if quantity == "position":
+        assert 0 < np.argmax(plan.positions[:, 1]) < plan.times.size - 1
+        limit = plan.positions[:, 1].max() - 0.02
+        bounds = Bounds(position_upper=[2.0, limit])
+    else:
+        limit = 0.9 * peak
+        bounds = Bounds(**{quantity: [1e3 * peak, limit]})
+    _, report = fit_weights_constrained(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        duration=duration,
+        goal=goal,
+        bounds=bounds,
+        margin=margin,
+    )
+    result = report.trajectory
+    values = {
+        "position": result.positions[:, 1],
+        "velocity": result.velocities[:, 1],
+        "acceleration": result.accelerations[:, 1],
+        "jerk": np.diff(result.accelerations[:, 1]) / dt,
+    }[quantity]
+    power = ["position", "velocity", "acceleration", "jerk"].index(quantity)
+    reached = values.max() if quantity == "position" else np.abs(values).max()
+    np.testing.assert_allclose(reached, limit - margin * length / duration**power, rtol=1e-7)

@@ -147,3 +147,41 @@ def test_qp_matches_the_plain_jerk_qp_solved_by_a_second_solver():
         "jerk",
         "via_point[0]",
     }
+
+
+@pytest.mark.parametrize("quantity", ["position", "velocity", "acceleration", "jerk"])
+def test_active_limits_are_tightened_by_the_margin_in_their_unit(quantity):
+    """With L the extent (of start, goal and via-points) and T the duration, an active limit
+    holds with a gap of exactly margin * L, L/T, L/T^2 or L/T^3: positions, velocities,
+    accelerations or finite-difference jerks reach limit - margin * unit and no further."""
+    start, goal, duration, margin = np.array([0.0]), np.array([3.0]), 2.0, 1e-3
+    length = 3.0  # |goal - start|
+    exact = minimum_jerk(start, goal, duration, n_samples=401)
+    power = ["position", "velocity", "acceleration", "jerk"].index(quantity)
+    if quantity == "position":  # a box below the goal's overshoot-free path: via-point above
+        bounds = Bounds(position_upper=3.2)
+        vias = [ViaPoint(1.0, [3.5], tolerance=0.4)]
+        values = lambda plan: plan.positions  # noqa: E731
+        limit, length = 3.2, 3.5  # the via-point widens the extent
+    else:
+        series = {
+            "velocity": exact.velocities,
+            "acceleration": exact.accelerations,
+            "jerk": np.diff(exact.accelerations, axis=0) / (exact.times[1] - exact.times[0]),
+        }[quantity]
+        limit = 0.9 * np.abs(series).max()
+        bounds = Bounds(**{quantity: limit})
+        vias = []
+        values = {
+            "velocity": lambda plan: plan.velocities,
+            "acceleration": lambda plan: plan.accelerations,
+            "jerk": lambda plan: (
+                np.diff(plan.accelerations, axis=0) / (plan.times[1] - plan.times[0])
+            ),
+        }[quantity]
+    plan, report = minimum_jerk_constrained(
+        start, goal, duration, bounds=bounds, via_points=vias, n_samples=401, margin=margin
+    )
+    unit = length / duration**power
+    np.testing.assert_allclose(np.abs(values(plan)).max(), limit - margin * unit, rtol=1e-9)
+    assert report.violations[quantity] == 0.0 and report.iterations >= 1 and report.solve_time > 0

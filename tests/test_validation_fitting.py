@@ -46,6 +46,7 @@ from dmpopt.trajectory import Trajectory
 TIMES = np.linspace(0.0, 1.0, 101)
 SHAPE = 10 * TIMES**3 - 15 * TIMES**4 + 6 * TIMES**5  # minimum jerk from 0 to 1 in 1 s
 DEMO = Trajectory.from_positions(TIMES, np.column_stack([SHAPE, 0.5 * SHAPE]))
+DEMO_1 = Trajectory.from_positions(TIMES, SHAPE[:, None])
 REFERENCE = fit_discrete(DEMO, 10)
 PLAN = minimum_jerk([0.0, 0.0], [1.0, 0.5], 1.0, n_samples=101)
 TASK = paper_reaching_task(dt=0.01)
@@ -134,6 +135,116 @@ BAD_INPUTS = {
     "solve_qp nan bound": (
         lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [NAN, 0], [1, 1]),
         "lower",
+    ),
+    "fit margin 0.5": (
+        lambda: fit(margin=0.5),
+        r"margin must be a finite number >= 0 and <= 0.1, got 0.5; keep it tiny, e.g. 1e-6",
+    ),
+    "fit n_samples 2": (lambda: fit(n_samples=2), r"n_samples must be an integer >= 3, got 2"),
+    "fit duration 0": (lambda: fit(duration=0.0), r"duration must be a finite number > 0, got 0"),
+    "fit regularization -1": (
+        lambda: fit(regularization=-1.0),
+        r"regularization must be a finite number >= 0, got -1",
+    ),
+    "fit end tolerance -1": (
+        lambda: fit(end_position_tolerance=-1.0),
+        r"end_position_tolerance must be a finite number >= 0, got -1.0; pass None to leave it",
+    ),
+    "fit reference of 1 DOF": (
+        lambda: fit_weights_constrained(DEMO, reference=fit_discrete(DEMO_1, 10)),
+        r"reference must be a DiscreteDMP with the demonstration's 2 DOFs, got a DiscreteDMP "
+        r"with 1 DOFs; pass fit_discrete\(demo, n_basis\) or None",
+    ),
+    "fit reference str": (
+        lambda: fit_weights_constrained(DEMO, reference="dmp"),
+        r"reference must be a DiscreteDMP with the demonstration's 2 DOFs, got str",
+    ),
+    "fit objective speed": (
+        lambda: fit(objective="speed"),
+        r"objective must be one of \('position', 'forcing'\), got 'speed'",
+    ),
+    "fit bounds dict": (lambda: fit(bounds={}), r"bounds must be a Bounds, got dict; write"),
+    "fit via tolerance dofs": (
+        lambda: fit(via_points=[ViaPoint(0.5, [0.5, 0.2], [0.1, 0.1, 0.1])]),
+        r"via_points\[0\].tolerance has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "fit start dofs": (
+        lambda: fit(start=[0.0, 0.0, 0.0]),
+        r"start has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "fit via after the end": (
+        lambda: fit(via_points=[ViaPoint(1.5, [0.5, 0.2])]),
+        r"via_points\[0\] time 1.5 s is outside the plan \[0, 1(.0)?\] s",
+    ),
+    "Bounds lower above upper": (
+        lambda: Bounds(position_lower=[0.0, 1.0], position_upper=[1.0, 0.5]),
+        r"position_lower exceeds position_upper for DOF\(s\) \[1\] \(1 > 0.5\); give",
+    ),
+    "Bounds jerk 0": (lambda: Bounds(jerk=0.0), r"jerk must be positive, got \[0.0\]"),
+    "Bounds acceleration 2d": (
+        lambda: Bounds(acceleration=np.ones((2, 2))),
+        r"acceleration has shape \(2, 2\), expected \(n_dofs,\) or a scalar",
+    ),
+    "ViaPoint tolerance negative": (
+        lambda: ViaPoint(0.5, [0.0], -1.0),
+        r"tolerance must be a number >= 0 or one per DOF, got \[-1.0\]; give the half-width",
+    ),
+    "ViaPoint tolerance 2d": (
+        lambda: ViaPoint(0.5, [0.0], np.ones((2, 2))),
+        r"tolerance must be a number >= 0 or one per DOF, got \[\[1.0, 1.0\]",
+    ),
+    "ViaPoint ball two radii": (
+        lambda: ViaPoint(0.5, [0.0, 0.0], [0.1, 0.1], "ball"),
+        r"a 'ball' via-point takes one scalar tolerance \(its radius\)",
+    ),
+    "ViaPoint norm l1": (
+        lambda: ViaPoint(0.5, [0.0], norm="l1"),
+        r"norm must be 'box' or 'ball', got 'l1'",
+    ),
+    "ViaPoint time negative": (
+        lambda: ViaPoint(-0.5, [0.0]),
+        r"time must be a finite number >= 0, got -0.5",
+    ),
+    "ViaPoint position 2d": (
+        lambda: ViaPoint(0.5, np.ones((2, 2))),
+        r"position has shape \(2, 2\), expected \(n_dofs,\) or a scalar",
+    ),
+    "mj duration 0": (
+        lambda: minimum_jerk(0, 1, 0.0),
+        r"duration must be a finite number > 0, got 0",
+    ),
+    "mj dt 0.6 of 1 s": (
+        lambda: minimum_jerk(0, 1, 1.0, 0.6),
+        r"dt must be a finite number > 0 and <= 0.5, got 0.6; or give n_samples",
+    ),
+    "mj dt 0.4 of 0.7 s": (lambda: minimum_jerk(0, 1, 0.7, 0.4), r"<= 0.35, got 0.4"),
+    "mj n_samples 2": (
+        lambda: minimum_jerk(0, 1, 1.0, n_samples=2),
+        r"n_samples must be an integer >= 3, got 2",
+    ),
+    "mjc margin 0.5": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, margin=0.5),
+        r"margin must be a finite number >= 0 and <= 0.1, got 0.5; keep it tiny, e.g. 1e-6",
+    ),
+    "mjc margin -0.1": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, margin=-0.1),
+        r"margin must be a finite number >= 0",
+    ),
+    "mjc n_segments 2": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, n_segments=2),
+        r"n_segments must be an integer >= 3, got 2",
+    ),
+    "mjc duration -1": (
+        lambda: minimum_jerk_constrained(0, 1, -1.0),
+        r"duration must be a finite number > 0, got -1",
+    ),
+    "jerk_response times 2d": (
+        lambda: jerk_response(np.ones((2, 2)), 3),
+        r"times has shape \(2, 2\), expected 1 dimension",
+    ),
+    "jerk_response n_segments 0 message": (
+        lambda: jerk_response(TIMES, 0),
+        r"n_segments must be an integer >= 1, got 0",
     ),
     "Bounds velocity bool": (lambda: Bounds(velocity=True), "velocity"),
     "Bounds velocity empty": (lambda: Bounds(velocity=[]), "velocity"),

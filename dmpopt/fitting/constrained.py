@@ -211,7 +211,10 @@ def build_fitting_problem(
             demo, n_basis, form=form, goal_scaling=goal_scaling, regularization=regularization
         )
     elif not isinstance(reference, DiscreteDMP) or reference.n_dofs != demo.n_dofs:
-        raise InvalidInputError("reference must be a DiscreteDMP with the demonstration's DOFs")
+        raise InvalidInputError(
+            f"reference must be a DiscreteDMP with the demonstration's {demo.n_dofs} DOFs, got "
+            f"{_description(reference)}; pass fit_discrete(demo, n_basis) or None"
+        )
     start = (
         demo.positions[0] if start is None else per_dof("start", real_array("start", start), n_dofs)
     )
@@ -257,6 +260,12 @@ def build_fitting_problem(
         solver=solver,
         margin=margin,
     )
+
+
+def _description(value) -> str:
+    if isinstance(value, DiscreteDMP):
+        return f"a DiscreteDMP with {value.n_dofs} DOFs"
+    return type(value).__name__
 
 
 def _units(length: float, duration: float) -> dict:

@@ -57,8 +57,13 @@ class Bounds:
             object.__setattr__(self, name, _optional_array(name, getattr(self, name), True))
         lower, upper = self.position_lower, self.position_upper
         if lower is not None and upper is not None and lower.size == upper.size:
-            if np.any(lower > upper):
-                raise InvalidInputError("position_lower exceeds position_upper for some DOF")
+            crossed = np.nonzero(lower > upper)[0]
+            if crossed.size:
+                d = int(crossed[0])
+                raise InvalidInputError(
+                    f"position_lower exceeds position_upper for DOF(s) {crossed.tolist()} "
+                    f"({lower[d]:g} > {upper[d]:g}); give position_lower <= position_upper"
+                )
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +98,8 @@ class ViaPoint:
         tolerance = np.atleast_1d(real_array("tolerance", self.tolerance))
         if tolerance.ndim != 1 or np.any(tolerance < 0.0):
             raise InvalidInputError(
-                f"tolerance must be a number >= 0 or one per DOF, got {tolerance.tolist()}"
+                f"tolerance must be a number >= 0 or one per DOF, got {tolerance.tolist()}; "
+                "give the half-width of the box (or the ball's radius)"
             )
         if not isinstance(self.norm, str) or self.norm not in NORMS:
             raise InvalidInputError(f"norm must be 'box' or 'ball', got {self.norm!r}")

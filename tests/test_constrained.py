@@ -150,7 +150,8 @@ def test_unreachable_euclidean_via_point_is_reported_as_such():
     message = str(caught.value)
     assert message.startswith("the ipopt solver failed (Infeasible_Problem_Detected)")
     assert "Euclidean via-point may be out of reach" in message
-    assert caught.value.stats["solver"] == "ipopt"
+    assert caught.value.stats["solver"] == "ipopt" and caught.value.problem is not None
+    assert set(caught.value.stats) == {"solver", "status", "solve_time", "iterations"}
 
 
 def test_problem_is_inspectable_and_warm_starts():
@@ -187,6 +188,9 @@ def test_infeasible_request_names_the_constraint_group():
     assert caught.value.stats["solver"] == "daqp+qpoases"
     assert "relax these constraints by at least that much" in message
     assert caught.value.problem is problem
+    assert message.startswith(
+        "infeasible constrained fit (Initial QP could not be solved due to infeasibility!): "
+    )
     assert set(caught.value.relaxations) <= {"velocity", "end_position"}
     assert all(amount > 0 for amount, _ in caught.value.relaxations.values())
 
@@ -572,3 +576,97 @@ def test_active_limits_are_tightened_by_the_margin_in_their_unit(quantity):
     power = ["position", "velocity", "acceleration", "jerk"].index(quantity)
     reached = values.max() if quantity == "position" else np.abs(values).max()
     np.testing.assert_allclose(reached, limit - margin * length / duration**power, rtol=1e-7)
+
+
+@pytest.mark.parametrize(
+    "solver, status",
+    [
+        ("daqp", "1"),
+        ("qpoases", "Successful return."),
+        ("proxsuite", "QPSolverOutput.PROXQP_SOLVED"),
+    ],
+)
+def test_solve_qp_reports_each_backend_s_own_status(solver, status):
+    """The status is the backend's own word for success, one round when every row holds."""
+    solution = solve_qp(np.eye(2), [1.0, 1.0], np.eye(2), [-5.0, 0.5], [5.0, 5.0], solver=solver)
+    assert solution.success and solution.status == status and solution.iterations == 1
+    np.testing.assert_allclose(solution.x, [-1.0, 0.5], atol=1e-7)  # the clipped minimiser
+    np.testing.assert_array_equal(solution.active, [False, True])
+
+
+def test_first_rows_of_the_row_generation():
+    """Every stride-th row, the last row, the equalities and (warm start) the given rows,
+    on a grid five times sparser when rows are given."""
+    lower = np.full(23, -1.0)
+    upper = np.full(23, 1.0)
+    lower[[4, 7]] = upper[[4, 7]] = 0.5  # equalities
+    lower[9], upper[11] = -np.inf, np.inf  # one-sided rows are not equalities
+    expected = np.zeros(23, dtype=bool)
+    expected[::3] = expected[-1] = expected[4] = expected[7] = True
+    np.testing.assert_array_equal(qp._first_rows(lower, upper, 3, None), expected)
+    rows = np.zeros(23, dtype=bool)
+    rows[[5, 13]] = True
+    warm = np.zeros(23, dtype=bool)
+    warm[::15] = warm[-1] = warm[4] = warm[7] = warm[5] = warm[13] = True
+    np.testing.assert_array_equal(qp._first_rows(lower, upper, 3, rows), warm)
+    np.testing.assert_array_equal(qp._first_rows(lower, upper, 0, None), np.ones(23, bool))
+
+
+def test_warm_start_from_the_working_sets_needs_one_round_per_dof():
+    """Started from its own working sets, a fit adds no row: one round per DOF; the cold
+    start needed more. Times and rounds are summed over the DOFs."""
+    plan = plain_plan()
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        bounds=Bounds(acceleration=0.6 * np.abs(plan.accelerations).max(0)),
+    )
+    _, cold = solve_fitting_problem(problem)
+    _, warm = solve_fitting_problem(problem, warm_start=cold)
+    assert cold.iterations > problem.n_dofs and warm.iterations == problem.n_dofs
+    assert warm.solve_time > 0 and cold.status == warm.status == "1"
+
+
+def test_an_answer_that_violates_a_limit_on_the_rollout_is_refused(monkeypatch):
+    """If the solver's answer breaks a limit on the rollout although the limits can hold
+    (here: the answer is spoilt on purpose), the fit fails and names the group."""
+    from dmpopt.fitting import constrained
+
+    plan = plain_plan()
+    real_solve = constrained.solve_blocks
+
+    def spoilt(*args, **kwargs):
+        solution = real_solve(*args, **kwargs)
+        return solution._replace(x=1.5 * solution.x)
+
+    monkeypatch.setattr(constrained, "solve_blocks", spoilt)
+    with pytest.raises(
+        FittingFailed, match=r"the daqp answer violates '(velocity|end_position)' by"
+    ):
+        fit_weights_constrained(
+            DEMO,
+            reference=REFERENCES["velocity"],
+            n_samples=101,
+            bounds=Bounds(velocity=0.9 * np.abs(plan.velocities).max(0)),
+        )
+
+
+def test_relative_violations_divide_by_each_group_s_unit():
+    """Violations in physical units divided by L, L/T... (L for Euclidean via-points)."""
+    problem = build_fitting_problem(
+        DEMO_10, reference=REFERENCE_10, duration=2.0, bounds=Bounds(velocity=50.0)
+    )
+    length = problem.length_scale
+    relative = problem.relative_violations({"velocity": 3.0, "via_point_ball[0]": 4.0})
+    np.testing.assert_allclose(relative["velocity"], 3.0 / (length / 2.0))
+    np.testing.assert_allclose(relative["via_point_ball[0]"], 4.0 / length)
+
+
+def test_a_requested_start_velocity_is_kept_by_the_returned_dmp():
+    """The fit starts with the requested velocity, and so does the returned DMP's own rollout."""
+    dmp, report = fit_weights_constrained(
+        DEMO, reference=REFERENCES["velocity"], n_samples=101, start_velocity=[0.5, -0.2]
+    )
+    np.testing.assert_allclose(report.trajectory.velocities[0], [0.5, -0.2], atol=1e-12)
+    own = dmp.rollout(DEMO.duration, DEMO.duration / 100)
+    np.testing.assert_allclose(own.positions, report.trajectory.positions, atol=1e-10)

@@ -116,6 +116,30 @@ BAD_INPUTS = {
         lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1], solver=None),
         "solver",
     ),
+    "solve_qp hessian 3x3": (
+        lambda: solve_qp(np.eye(3), [0.0, 0.0], np.eye(2), [0, 0], [1, 1]),
+        r"hessian \(3, 3\), constraint_matrix \(2, 2\), lower \(2,\) and upper \(2,\) do not fit",
+    ),
+    "solve_qp lower of 3 rows": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0, 0], [1, 1]),
+        r"lower \(3,\) and upper \(2,\) do not fit a gradient of 2 entries",
+    ),
+    "solve_qp upper of 3 rows": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1, 1]),
+        r"upper \(3,\) do not fit",
+    ),
+    "solve_qp hessian 1d": (
+        lambda: solve_qp(np.ones(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1]),
+        r"hessian has shape \(2,\), expected 2 dimension",
+    ),
+    "solve_qp gradient 2d": (
+        lambda: solve_qp(np.eye(2), np.zeros((2, 1)), np.eye(2), [0, 0], [1, 1]),
+        r"gradient has shape \(2, 1\), expected 1 dimension",
+    ),
+    "solve_qp matrix nan": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], [[NAN, 0.0], [0.0, 1.0]], [0, 0], [1, 1]),
+        r"constraint_matrix must be finite and lower, upper free of NaN",
+    ),
     "solve_qp lower above upper": (
         lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 2], [1, 1]),
         r"lower exceeds upper in row\(s\) \[1\]",

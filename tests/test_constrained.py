@@ -670,3 +670,88 @@ def test_a_requested_start_velocity_is_kept_by_the_returned_dmp():
     np.testing.assert_allclose(report.trajectory.velocities[0], [0.5, -0.2], atol=1e-12)
     own = dmp.rollout(DEMO.duration, DEMO.duration / 100)
     np.testing.assert_allclose(own.positions, report.trajectory.positions, atol=1e-10)
+
+
+@pytest.mark.parametrize("goal_scaling", ["paper", "rotation", "translation"])
+def test_moved_demonstration_follows_the_goal_scaling_written_plainly(goal_scaling):
+    """The target of a request with a new start, goal and twice the duration is the
+    demonstration (same samples, time stretched) mapped by the goal scaling: per DOF by
+    (g - s) / (g0 - s0) ("paper"), by the planar similarity taking g0 - s0 to g - s, written
+    as a complex product ("rotation"), or shifted ("translation"); its start velocity is the
+    demonstration's mapped the same way and halved."""
+    times = np.linspace(0.0, 1.0, 201)
+    demo = Trajectory.from_positions(times, np.column_stack([times + times**2, 0.5 * times**3]))
+    reference = fit_discrete(demo, 15, goal_scaling=goal_scaling)
+    start, goal = np.array([0.2, -0.1]), np.array([1.5, 0.9])
+    problem = build_fitting_problem(
+        demo, reference=reference, start=start, goal=goal, duration=2.0, n_samples=201
+    )
+    old_start, old_goal = demo.positions[0], demo.positions[-1]
+    offsets, velocity = demo.positions - old_start, demo.velocities[0]
+    if goal_scaling == "paper":
+        ratio = (goal - start) / (old_goal - old_start)
+        moved, moved_velocity = offsets * ratio, velocity * ratio
+    elif goal_scaling == "rotation":
+        factor = complex(*(goal - start)) / complex(*(old_goal - old_start))
+        as_complex = (offsets[:, 0] + 1j * offsets[:, 1]) * factor
+        moved = np.column_stack([as_complex.real, as_complex.imag])
+        turned = complex(*velocity) * factor
+        moved_velocity = np.array([turned.real, turned.imag])
+    else:
+        moved, moved_velocity = offsets, velocity
+    np.testing.assert_allclose(problem.target, start + moved, atol=1e-12)
+    np.testing.assert_allclose(problem.start_velocity, moved_velocity / 2.0, atol=1e-12)
+    np.testing.assert_array_equal(problem.dmp.start, start)
+    np.testing.assert_array_equal(problem.dmp.goal, goal)
+    assert problem.duration == 2.0 and problem.dt == 0.01
+    np.testing.assert_allclose(problem.dmp.time_constant, 2.0 * reference.time_constant)
+
+
+def test_build_defaults_and_its_own_imitation_fit():
+    """Without a reference the build fits one with the given options (30 basis functions,
+    form "velocity", goal scaling "auto" and ridge 1e-9 by default)."""
+    problem = build_fitting_problem(DEMO)
+    default = fit_discrete(DEMO, 30)
+    assert problem.n_basis == 30 and problem.dmp.form == "velocity"
+    np.testing.assert_allclose(problem.dmp.weights, default.weights, rtol=1e-12)
+    assert problem.dmp.goal_scaling == default.goal_scaling and problem.solver == "daqp"
+    options = dict(form="acceleration", goal_scaling="paper", regularization=1e-4)
+    other = build_fitting_problem(DEMO, 12, **options)
+    np.testing.assert_allclose(other.dmp.weights, fit_discrete(DEMO, 12, **options).weights)
+    assert fit_weights_constrained(DEMO, n_samples=51).dmp.n_basis == 30
+
+
+def test_forcing_objective_matches_the_plain_qp_solved_by_a_second_solver():
+    """The objective "forcing" is, per DOF, min ||Phi (w - w0)||^2 + lambda ||w - w0||^2 with
+    Phi the phase features and w0 the reference's forcing weights, here under a velocity
+    limit and the goal held (Clarabel on the library's affine plan)."""
+    plan = plain_plan()
+    velocity = 0.8 * np.abs(plan.velocities).max(0)
+    _, report = fit_weights_constrained(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        objective="forcing",
+        bounds=Bounds(velocity=velocity),
+        margin=0.0,
+    )
+    problem = report.problem
+    free, response = problem.plan.free, problem.plan.weight_response
+    features = problem.dmp.phase_features(DEMO.n_steps, DEMO.duration / (DEMO.n_steps - 1))
+    gram = features.T @ features
+    ridge = 1e-9 * np.trace(gram) / gram.shape[0]
+    prior = problem.dmp.forcing_weights()
+    key = []
+    for d in range(2):
+        key.append(
+            clarabel(
+                gram + ridge * np.eye(20),
+                -(gram + ridge * np.eye(20)) @ prior[d],
+                response[1],
+                -velocity[d] - free[1, :, d],
+                velocity[d] - free[1, :, d],
+                response[0, -1:],
+                np.array([DEMO.positions[-1, d] - free[0, -1, d]]),
+            )
+        )
+    key_positions = free[0] + response[0] @ np.array(key).T
+    np.testing.assert_allclose(report.trajectory.positions, key_positions, atol=1e-6)

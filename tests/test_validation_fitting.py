@@ -170,6 +170,26 @@ BAD_INPUTS = {
         lambda: fit(regularization=-1.0),
         r"regularization must be a finite number >= 0, got -1",
     ),
+    "fit end_velocity_tolerance -1": (
+        lambda: fit(end_velocity_tolerance=-1.0),
+        r"end_velocity_tolerance must be a finite number >= 0, got -1.0; pass None to leave it",
+    ),
+    "fit end_acceleration_tolerance -1": (
+        lambda: fit(end_acceleration_tolerance=-1.0),
+        r"end_acceleration_tolerance must be a finite number >= 0, got -1.0; pass None to lea",
+    ),
+    "fit goal dofs": (
+        lambda: fit(goal=[1.0, 1.0, 1.0]),
+        r"goal has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "fit via_points str": (
+        lambda: fit(via_points="via"),
+        r"via_points must be a sequence of ViaPoint, got str",
+    ),
+    "fit duration nan": (
+        lambda: fit(duration=NAN),
+        r"duration must be a finite number > 0, got nan",
+    ),
     "fit end tolerance -1": (
         lambda: fit(end_position_tolerance=-1.0),
         r"end_position_tolerance must be a finite number >= 0, got -1.0; pass None to leave it",

@@ -297,10 +297,8 @@ def _objective(dmp, plan, target, objective, regularization, length):
     gram = matrix.T @ matrix
     lam = regularization * np.trace(gram) / dmp.n_basis
     scale = 1.0 / np.maximum(np.sqrt(np.diag(gram) + lam), 1e-300)
-    hessian = scale[:, None] * (gram + lam * np.eye(dmp.n_basis)) * scale[None, :]
-    normaliser = float(np.mean(np.diag(hessian)))
-    hessian = hessian / normaliser
-    gradient = -((matrix.T @ targets + lam * prior.T) * scale[:, None]).T / (length * normaliser)
+    hessian = scale[:, None] * (gram + lam * np.eye(dmp.n_basis)) * scale[None, :]  # unit diagonal
+    gradient = -((matrix.T @ targets + lam * prior.T) * scale[:, None]).T / length
     return scale, hessian, gradient
 
 

@@ -642,3 +642,20 @@ def test_the_learning_via_point_is_a_reward_term_under_its_own_name():
     task = via_point_task(via_time=0.2, via_position=(0.3, 0.6), dt=0.01)
     assert isinstance(task.via_points[0], learning.ViaPointReward)
     assert task.via_points[0].weight == 1000.0
+
+
+def test_a_via_point_stores_validated_read_only_copies():
+    """ViaPoint turns its time into a float and its position and tolerance into read-only
+    float arrays (one tolerance broadcasts); a Euclidean via-point keeps its one radius."""
+    position = [1, 2]
+    via = ViaPoint(1, position, 0.25)
+    assert type(via.time) is float and via.time == 1.0
+    assert via.position.dtype == float and not via.position.flags.writeable
+    np.testing.assert_array_equal(via.position, [1.0, 2.0])
+    np.testing.assert_array_equal(via.tolerance, [0.25])
+    assert not via.tolerance.flags.writeable and via.norm == "box"
+    ball = ViaPoint(0.5, [0.0, 1.0], 0.1, "ball")
+    assert ball.norm == "ball" and ball.tolerance.shape == (1,)
+    bounds = Bounds(position_lower=-1, position_upper=[1.0, 2.0], velocity=3)
+    np.testing.assert_array_equal(bounds.position_lower, [-1.0])
+    assert not bounds.velocity.flags.writeable and bounds.jerk is None

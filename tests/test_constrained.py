@@ -679,12 +679,14 @@ def test_moved_demonstration_follows_the_goal_scaling_written_plainly(goal_scali
     (g - s) / (g0 - s0) ("paper"), by the planar similarity taking g0 - s0 to g - s, written
     as a complex product ("rotation"), or shifted ("translation"); its start velocity is the
     demonstration's mapped the same way and halved."""
-    times = np.linspace(0.0, 1.0, 201)
-    demo = Trajectory.from_positions(times, np.column_stack([times + times**2, 0.5 * times**3]))
+    times = np.linspace(0.5, 2.5, 201)  # 2 s, not starting at 0, from (0.3, -0.2)
+    s = times - 0.5
+    positions = np.column_stack([0.3 + s + s**2, -0.2 + 0.5 * s**3])
+    demo = Trajectory.from_positions(times, positions)
     reference = fit_discrete(demo, 15, goal_scaling=goal_scaling)
     start, goal = np.array([0.2, -0.1]), np.array([1.5, 0.9])
     problem = build_fitting_problem(
-        demo, reference=reference, start=start, goal=goal, duration=2.0, n_samples=201
+        demo, reference=reference, start=start, goal=goal, duration=4.0, n_samples=201
     )
     old_start, old_goal = demo.positions[0], demo.positions[-1]
     offsets, velocity = demo.positions - old_start, demo.velocities[0]
@@ -703,7 +705,7 @@ def test_moved_demonstration_follows_the_goal_scaling_written_plainly(goal_scali
     np.testing.assert_allclose(problem.start_velocity, moved_velocity / 2.0, atol=1e-12)
     np.testing.assert_array_equal(problem.dmp.start, start)
     np.testing.assert_array_equal(problem.dmp.goal, goal)
-    assert problem.duration == 2.0 and problem.dt == 0.01
+    assert problem.duration == 4.0 and problem.dt == 0.02
     np.testing.assert_allclose(problem.dmp.time_constant, 2.0 * reference.time_constant)
 
 

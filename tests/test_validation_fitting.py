@@ -220,6 +220,14 @@ BAD_INPUTS = {
         lambda: fit(via_points=[ViaPoint(1.5, [0.5, 0.2])]),
         r"via_points\[0\] time 1.5 s is outside the plan \[0, 1(.0)?\] s",
     ),
+    "Bounds position_lower dofs": (
+        lambda: fit(bounds=Bounds(position_lower=[0.0, 0.0, 0.0])),
+        r"position_lower has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "Bounds position_upper dofs": (
+        lambda: fit(bounds=Bounds(position_upper=[1.0, 1.0, 1.0])),
+        r"position_upper has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
     "Bounds lower above upper": (
         lambda: Bounds(position_lower=[0.0, 1.0], position_upper=[1.0, 0.5]),
         r"position_lower exceeds position_upper for DOF\(s\) \[1\] \(1 > 0.5\); give",

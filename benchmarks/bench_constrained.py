@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from dmpopt.exceptions import DmpoptError
-from dmpopt.fitting.constrained import Bounds, build_fitting_problem, fit_weights_constrained
+from dmpopt.fitting.constrained import Bounds, build_fitting_problem, solve_fitting_problem
 from dmpopt.fitting.imitation import fit_discrete
 from dmpopt.trajectory import Trajectory
 
@@ -47,8 +47,8 @@ def main(repeats: int = 11) -> None:
                 demo, reference=reference, bounds=bounds, goal=goal + shift + 0.002, solver=solver
             )
             try:
-                _, first = fit_weights_constrained(problem)
-                _, second = fit_weights_constrained(follow, warm_start=first)
+                _, first = solve_fitting_problem(problem)
+                _, second = solve_fitting_problem(follow, warm_start=first)
             except DmpoptError as error:
                 failures += 1
                 last_error = f"{type(error).__name__}: {str(error)[:120]}"

@@ -48,6 +48,7 @@ from .fitting import (
     minimum_jerk_constrained,
     minimum_jerk_via_points,
     reproduction_error,
+    solve_fitting_problem,
 )
 from .io import load, save
 from .retiming import retime, time_scaled, uniform_time_scaling
@@ -88,6 +89,7 @@ __all__ = [
     "retime",
     "save",
     "similarity_transform",
+    "solve_fitting_problem",
     "superpose",
     "time_scaled",
     "uniform_time_scaling",

@@ -55,7 +55,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         Bounds,
         ViaPoint,
         build_fitting_problem,
-        fit_weights_constrained,
+        solve_fitting_problem,
     )
     from dmpopt.fitting.imitation import fit_discrete
     from dmpopt.fitting.minimum_jerk import minimum_jerk_constrained
@@ -88,7 +88,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         plans = {"dmp_unconstrained": (plain, 0.0)}
         try:
             problem = build_fitting_problem(demo, reference=reference, goal=goal, bounds=bounds)
-            _, report = fit_weights_constrained(problem)
+            _, report = solve_fitting_problem(problem)
             plans["dmp_constrained"] = (report.trajectory, report.solve_time)
         except DmpoptError as error:
             failures.append({"shape": name, "method": "dmp_constrained", "error": str(error)})

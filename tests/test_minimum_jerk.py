@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -83,3 +84,104 @@ def test_impossible_bounds_raise():
     """A velocity limit below distance / duration is infeasible."""
     with pytest.raises(InfeasibleProblem, match="minimum-jerk movement infeasible on DOF 0"):
         minimum_jerk_constrained([0.0], [1.0], 1.0, bounds=Bounds(velocity=0.9), n_samples=201)
+
+
+def test_qp_matches_the_plain_jerk_qp_solved_by_a_second_solver():
+    """Piecewise-constant jerk j_i on equal segments from rest: position
+    sum_i j_i ((t - t_i)_+^3 - (t - t_{i+1})_+^3) / 6 (velocity: squares / 2, acceleration:
+    ramps). Minimising sum j_i^2 with the goal reached at rest, |velocity| and |jerk| bounded
+    and a box via-point, written plainly and solved by Clarabel, gives the same movement."""
+    n_samples, n_segments, duration = 201, 30, 1.0
+    start, goal = np.array([0.2, -0.1]), np.array([1.0, 0.6])
+    times = np.linspace(0.0, duration, n_samples)
+    knots = np.linspace(0.0, duration, n_segments + 1)
+
+    def response(t, power):
+        ramp = np.maximum(np.subtract.outer(t, knots), 0.0) ** power / np.prod(range(1, power + 1))
+        return ramp[:, :-1] - ramp[:, 1:]
+
+    position, velocity, acceleration = (response(times, p) for p in (3, 2, 1))
+    peak = 1.875 * np.abs(goal - start) / duration
+    via = ViaPoint(0.3, [0.5, 0.2], tolerance=0.01)
+    bounds = Bounds(velocity=0.95 * peak + 0.05, jerk=250.0)
+    plan, report = minimum_jerk_constrained(
+        start,
+        goal,
+        duration,
+        bounds=bounds,
+        via_points=[via],
+        n_samples=n_samples,
+        n_segments=n_segments,
+        margin=0.0,  # the plain problem has no safety margin
+    )
+    jerk = np.diff(acceleration, axis=0) / (times[1] - times[0])
+    at_via = response(np.array([via.time]), 3)
+    for d in range(2):
+        limit = np.concatenate(
+            [np.full(n_samples, bounds.velocity[d]), np.full(n_samples - 1, 250.0)]
+        )
+        inequality = np.vstack([velocity, jerk, at_via])
+        upper = np.concatenate([limit, [via.position[d] + 0.01 - start[d]]])
+        lower = np.concatenate([-limit, [via.position[d] - 0.01 - start[d]]])
+        x = qpsolvers.solve_qp(
+            np.eye(n_segments),
+            np.zeros(n_segments),
+            np.vstack([inequality, -inequality]),
+            np.concatenate([upper, -lower]),
+            np.vstack([position[-1], velocity[-1], acceleration[-1]]),
+            np.array([goal[d] - start[d], 0.0, 0.0]),
+            solver="clarabel",
+            tol_gap_abs=1e-12,
+            tol_gap_rel=1e-12,
+            tol_feas=1e-12,
+        )
+        key = start[d] + position @ x
+        np.testing.assert_allclose(plan.positions[:, d], key, atol=1e-7)
+        np.testing.assert_allclose(plan.velocities[:, d], velocity @ x, atol=1e-6)
+    assert max(report.violations.values()) < 1e-7
+    assert set(report.violations) == {
+        "end_position",
+        "end_velocity",
+        "end_acceleration",
+        "velocity",
+        "jerk",
+        "via_point[0]",
+    }
+
+
+@pytest.mark.parametrize("quantity", ["position", "velocity", "acceleration", "jerk"])
+def test_active_limits_are_tightened_by_the_margin_in_their_unit(quantity):
+    """With L the extent (of start, goal and via-points) and T the duration, an active limit
+    holds with a gap of exactly margin * L, L/T, L/T^2 or L/T^3: positions, velocities,
+    accelerations or finite-difference jerks reach limit - margin * unit and no further."""
+    start, goal, duration, margin = np.array([0.0]), np.array([3.0]), 2.0, 1e-3
+    length = 3.0  # |goal - start|
+    exact = minimum_jerk(start, goal, duration, n_samples=401)
+    power = ["position", "velocity", "acceleration", "jerk"].index(quantity)
+    if quantity == "position":  # a box below the goal's overshoot-free path: via-point above
+        bounds = Bounds(position_upper=3.2)
+        vias = [ViaPoint(1.0, [3.5], tolerance=0.4)]
+        values = lambda plan: plan.positions  # noqa: E731
+        limit, length = 3.2, 3.5  # the via-point widens the extent
+    else:
+        series = {
+            "velocity": exact.velocities,
+            "acceleration": exact.accelerations,
+            "jerk": np.diff(exact.accelerations, axis=0) / (exact.times[1] - exact.times[0]),
+        }[quantity]
+        limit = 0.9 * np.abs(series).max()
+        bounds = Bounds(**{quantity: limit})
+        vias = []
+        values = {
+            "velocity": lambda plan: plan.velocities,
+            "acceleration": lambda plan: plan.accelerations,
+            "jerk": lambda plan: (
+                np.diff(plan.accelerations, axis=0) / (plan.times[1] - plan.times[0])
+            ),
+        }[quantity]
+    plan, report = minimum_jerk_constrained(
+        start, goal, duration, bounds=bounds, via_points=vias, n_samples=401, margin=margin
+    )
+    unit = length / duration**power
+    np.testing.assert_allclose(np.abs(values(plan)).max(), limit - margin * unit, rtol=1e-9)
+    assert report.violations[quantity] == 0.0 and report.iterations >= 1 and report.solve_time > 0

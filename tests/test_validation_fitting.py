@@ -12,8 +12,10 @@ from dmpopt.exceptions import InvalidInputError, ResourceLimitError, ShapeError
 from dmpopt.fitting.constrained import (
     Bounds,
     ViaPoint,
+    build_fitting_problem,
     diagnose_infeasibility,
     fit_weights_constrained,
+    solve_fitting_problem,
     solve_qp,
 )
 from dmpopt.fitting.imitation import fit_discrete
@@ -30,6 +32,7 @@ from dmpopt.learning import (
     EpisodicNAC,
     EpisodicReinforce,
     LearningCurve,
+    RewardTask,
     enac_gradient,
     make_method,
     multi_dof_reaching_task,
@@ -43,6 +46,7 @@ from dmpopt.trajectory import Trajectory
 TIMES = np.linspace(0.0, 1.0, 101)
 SHAPE = 10 * TIMES**3 - 15 * TIMES**4 + 6 * TIMES**5  # minimum jerk from 0 to 1 in 1 s
 DEMO = Trajectory.from_positions(TIMES, np.column_stack([SHAPE, 0.5 * SHAPE]))
+DEMO_1 = Trajectory.from_positions(TIMES, SHAPE[:, None])
 REFERENCE = fit_discrete(DEMO, 10)
 PLAN = minimum_jerk([0.0, 0.0], [1.0, 0.5], 1.0, n_samples=101)
 TASK = paper_reaching_task(dt=0.01)
@@ -59,6 +63,15 @@ CURVE = LearningCurve(
 
 def fit(**options):
     return fit_weights_constrained(DEMO, 10, reference=REFERENCE, **options)
+
+
+PROBLEM = build_fitting_problem(DEMO, reference=REFERENCE)
+
+
+def report_of_another_size():
+    return solve_fitting_problem(
+        build_fitting_problem(DEMO, reference=REFERENCE, bounds=Bounds(velocity=10.0))
+    )[1]
 
 
 def told(learner, rewards):
@@ -85,6 +98,60 @@ BAD_INPUTS = {
     "via position dofs": (lambda: fit(via_points=[ViaPoint(0.5, [0, 0, 0])]), "via_points"),
     "fit warm_start str": (lambda: fit(warm_start="last"), "warm_start"),
     "diagnose None": (lambda: diagnose_infeasibility(None), "problem"),
+    "fit a built problem": (
+        lambda: fit_weights_constrained(PROBLEM),
+        "got a FittingProblem; solve a built problem with solve_fitting_problem",
+    ),
+    "solve a Trajectory": (lambda: solve_fitting_problem(DEMO), "problem must be a FittingProblem"),
+    "solve warm_start problem": (
+        lambda: solve_fitting_problem(PROBLEM, warm_start=PROBLEM),
+        "warm_start must be a FitReport",
+    ),
+    "solve warm_start other size": (
+        lambda: solve_fitting_problem(PROBLEM, warm_start=report_of_another_size()),
+        "warm_start comes from a problem with",
+    ),
+    "fit solver unknown": (lambda: fit(solver="osqp"), "solver must be 'auto' or one of"),
+    "solve_qp solver None": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1], solver=None),
+        "solver",
+    ),
+    "solve_qp hessian 3x3": (
+        lambda: solve_qp(np.eye(3), [0.0, 0.0], np.eye(2), [0, 0], [1, 1]),
+        r"hessian \(3, 3\), constraint_matrix \(2, 2\), lower \(2,\) and upper \(2,\) do not fit",
+    ),
+    "solve_qp lower of 3 rows": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0, 0], [1, 1]),
+        r"lower \(3,\) and upper \(2,\) do not fit a gradient of 2 entries",
+    ),
+    "solve_qp upper of 3 rows": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1, 1]),
+        r"upper \(3,\) do not fit",
+    ),
+    "solve_qp hessian 1d": (
+        lambda: solve_qp(np.ones(2), [0.0, 0.0], np.eye(2), [0, 0], [1, 1]),
+        r"hessian has shape \(2,\), expected 2 dimension",
+    ),
+    "solve_qp gradient 2d": (
+        lambda: solve_qp(np.eye(2), np.zeros((2, 1)), np.eye(2), [0, 0], [1, 1]),
+        r"gradient has shape \(2, 1\), expected 1 dimension",
+    ),
+    "solve_qp matrix nan": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], [[NAN, 0.0], [0.0, 1.0]], [0, 0], [1, 1]),
+        r"constraint_matrix must be finite and lower, upper free of NaN",
+    ),
+    "solve_qp lower above upper": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [0, 2], [1, 1]),
+        r"lower exceeds upper in row\(s\) \[1\]",
+    ),
+    "solve_qp rows of another width": (
+        lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(3), [0, 0, 0], [1, 1, 1]),
+        "constraint_matrix",
+    ),
+    "RewardTask with a constraint ViaPoint": (
+        lambda: RewardTask(TASK.dmp, via_points=[ViaPoint(0.1, [0.0])]),
+        r"via_points\[0\] must be a ViaPointReward.*ViaPointReward\(time, position, weight\)",
+    ),
     "solve_qp nan gradient": (
         lambda: solve_qp(np.eye(2), [NAN, 0.0], np.eye(2), [0, 0], [1, 1]),
         "gradient",
@@ -92,6 +159,144 @@ BAD_INPUTS = {
     "solve_qp nan bound": (
         lambda: solve_qp(np.eye(2), [0.0, 0.0], np.eye(2), [NAN, 0], [1, 1]),
         "lower",
+    ),
+    "fit margin 0.5": (
+        lambda: fit(margin=0.5),
+        r"margin must be a finite number >= 0 and <= 0.1, got 0.5; keep it tiny, e.g. 1e-6",
+    ),
+    "fit n_samples 2": (lambda: fit(n_samples=2), r"n_samples must be an integer >= 3, got 2"),
+    "fit duration 0": (lambda: fit(duration=0.0), r"duration must be a finite number > 0, got 0"),
+    "fit regularization -1": (
+        lambda: fit(regularization=-1.0),
+        r"regularization must be a finite number >= 0, got -1",
+    ),
+    "fit end_velocity_tolerance -1": (
+        lambda: fit(end_velocity_tolerance=-1.0),
+        r"end_velocity_tolerance must be a finite number >= 0, got -1.0; pass None to leave it",
+    ),
+    "fit end_acceleration_tolerance -1": (
+        lambda: fit(end_acceleration_tolerance=-1.0),
+        r"end_acceleration_tolerance must be a finite number >= 0, got -1.0; pass None to lea",
+    ),
+    "fit goal dofs": (
+        lambda: fit(goal=[1.0, 1.0, 1.0]),
+        r"goal has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "fit via_points str": (
+        lambda: fit(via_points="via"),
+        r"via_points must be a sequence of ViaPoint, got str",
+    ),
+    "fit duration nan": (
+        lambda: fit(duration=NAN),
+        r"duration must be a finite number > 0, got nan",
+    ),
+    "fit end tolerance -1": (
+        lambda: fit(end_position_tolerance=-1.0),
+        r"end_position_tolerance must be a finite number >= 0, got -1.0; pass None to leave it",
+    ),
+    "fit reference of 1 DOF": (
+        lambda: fit_weights_constrained(DEMO, reference=fit_discrete(DEMO_1, 10)),
+        r"reference must be a DiscreteDMP with the demonstration's 2 DOFs, got a DiscreteDMP "
+        r"with 1 DOFs; pass fit_discrete\(demo, n_basis\) or None",
+    ),
+    "fit reference str": (
+        lambda: fit_weights_constrained(DEMO, reference="dmp"),
+        r"reference must be a DiscreteDMP with the demonstration's 2 DOFs, got str",
+    ),
+    "fit objective speed": (
+        lambda: fit(objective="speed"),
+        r"objective must be one of \('position', 'forcing'\), got 'speed'",
+    ),
+    "fit bounds dict": (lambda: fit(bounds={}), r"bounds must be a Bounds, got dict; write"),
+    "fit via tolerance dofs": (
+        lambda: fit(via_points=[ViaPoint(0.5, [0.5, 0.2], [0.1, 0.1, 0.1])]),
+        r"via_points\[0\].tolerance has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "fit start dofs": (
+        lambda: fit(start=[0.0, 0.0, 0.0]),
+        r"start has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "fit via after the end": (
+        lambda: fit(via_points=[ViaPoint(1.5, [0.5, 0.2])]),
+        r"via_points\[0\] time 1.5 s is outside the plan \[0, 1(.0)?\] s",
+    ),
+    "Bounds position_lower dofs": (
+        lambda: fit(bounds=Bounds(position_lower=[0.0, 0.0, 0.0])),
+        r"position_lower has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "Bounds position_upper dofs": (
+        lambda: fit(bounds=Bounds(position_upper=[1.0, 1.0, 1.0])),
+        r"position_upper has shape \(3,\), expected \(2,\) for 2 DOFs",
+    ),
+    "Bounds lower above upper": (
+        lambda: Bounds(position_lower=[0.0, 1.0], position_upper=[1.0, 0.5]),
+        r"position_lower exceeds position_upper for DOF\(s\) \[1\] \(1 > 0.5\); give",
+    ),
+    "Bounds jerk 0": (lambda: Bounds(jerk=0.0), r"jerk must be positive, got \[0.0\]"),
+    "Bounds acceleration 2d": (
+        lambda: Bounds(acceleration=np.ones((2, 2))),
+        r"acceleration has shape \(2, 2\), expected \(n_dofs,\) or a scalar",
+    ),
+    "ViaPoint tolerance negative": (
+        lambda: ViaPoint(0.5, [0.0], -1.0),
+        r"tolerance must be a number >= 0 or one per DOF, got \[-1.0\]; give the half-width",
+    ),
+    "ViaPoint tolerance 2d": (
+        lambda: ViaPoint(0.5, [0.0], np.ones((2, 2))),
+        r"tolerance must be a number >= 0 or one per DOF, got \[\[1.0, 1.0\]",
+    ),
+    "ViaPoint ball two radii": (
+        lambda: ViaPoint(0.5, [0.0, 0.0], [0.1, 0.1], "ball"),
+        r"a 'ball' via-point takes one scalar tolerance \(its radius\)",
+    ),
+    "ViaPoint norm l1": (
+        lambda: ViaPoint(0.5, [0.0], norm="l1"),
+        r"norm must be 'box' or 'ball', got 'l1'",
+    ),
+    "ViaPoint time negative": (
+        lambda: ViaPoint(-0.5, [0.0]),
+        r"time must be a finite number >= 0, got -0.5",
+    ),
+    "ViaPoint position 2d": (
+        lambda: ViaPoint(0.5, np.ones((2, 2))),
+        r"position has shape \(2, 2\), expected \(n_dofs,\) or a scalar",
+    ),
+    "mj duration 0": (
+        lambda: minimum_jerk(0, 1, 0.0),
+        r"duration must be a finite number > 0, got 0",
+    ),
+    "mj dt 0.6 of 1 s": (
+        lambda: minimum_jerk(0, 1, 1.0, 0.6),
+        r"dt must be a finite number > 0 and <= 0.5, got 0.6; or give n_samples",
+    ),
+    "mj dt 0.4 of 0.7 s": (lambda: minimum_jerk(0, 1, 0.7, 0.4), r"<= 0.35, got 0.4"),
+    "mj n_samples 2": (
+        lambda: minimum_jerk(0, 1, 1.0, n_samples=2),
+        r"n_samples must be an integer >= 3, got 2",
+    ),
+    "mjc margin 0.5": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, margin=0.5),
+        r"margin must be a finite number >= 0 and <= 0.1, got 0.5; keep it tiny, e.g. 1e-6",
+    ),
+    "mjc margin -0.1": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, margin=-0.1),
+        r"margin must be a finite number >= 0",
+    ),
+    "mjc n_segments 2": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, n_segments=2),
+        r"n_segments must be an integer >= 3, got 2",
+    ),
+    "mjc duration -1": (
+        lambda: minimum_jerk_constrained(0, 1, -1.0),
+        r"duration must be a finite number > 0, got -1",
+    ),
+    "jerk_response times 2d": (
+        lambda: jerk_response(np.ones((2, 2)), 3),
+        r"times has shape \(2, 2\), expected 1 dimension",
+    ),
+    "jerk_response n_segments 0 message": (
+        lambda: jerk_response(TIMES, 0),
+        r"n_segments must be an integer >= 1, got 0",
     ),
     "Bounds velocity bool": (lambda: Bounds(velocity=True), "velocity"),
     "Bounds velocity empty": (lambda: Bounds(velocity=[]), "velocity"),
@@ -122,6 +327,10 @@ BAD_INPUTS = {
     "mjc n_segments str": (lambda: minimum_jerk_constrained(0, 1, 1.0, n_segments="60"), "n_seg"),
     "mjc margin nan": (lambda: minimum_jerk_constrained(0, 1, 1.0, margin=NAN), "margin"),
     "mjc bounds dict": (lambda: minimum_jerk_constrained(0, 1, 1.0, bounds={}), "bounds"),
+    "mjc ball via": (
+        lambda: minimum_jerk_constrained(0, 1, 1.0, via_points=[ViaPoint(0.5, [0.5], 0.1, "ball")]),
+        r"via_points\[0\] has norm 'ball'",
+    ),
     "mjc via after end": (
         lambda: minimum_jerk_constrained(0, 1, 1.0, via_points=[ViaPoint(2.0, [0.5])]),
         "via_points",
@@ -424,3 +633,36 @@ def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):
     expected = 0.5 * (brute(points, polyline) + brute(polyline, points))
     monkeypatch.setattr(validation, "MEMORY_BUDGET", 200 * 8 * 16)  # two rows per chunk
     assert metrics.path_distance(points, polyline) == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_learning_via_point_is_a_reward_term_under_its_own_name():
+    """A task's via-point is a weighted reward, not the fit's hard ViaPoint: it is called
+    ViaPointReward; the former name dmpopt.learning.ViaPoint still resolves, with a warning."""
+    import dmpopt
+    from dmpopt import learning
+
+    with pytest.warns(DeprecationWarning, match="ViaPointReward"):
+        former = learning.ViaPoint
+    assert former is learning.ViaPointReward and former is not dmpopt.ViaPoint
+    with pytest.raises(AttributeError, match="ViaPointt"):
+        learning.ViaPointt  # noqa: B018
+    task = via_point_task(via_time=0.2, via_position=(0.3, 0.6), dt=0.01)
+    assert isinstance(task.via_points[0], learning.ViaPointReward)
+    assert task.via_points[0].weight == 1000.0
+
+
+def test_a_via_point_stores_validated_read_only_copies():
+    """ViaPoint turns its time into a float and its position and tolerance into read-only
+    float arrays (one tolerance broadcasts); a Euclidean via-point keeps its one radius."""
+    position = [1, 2]
+    via = ViaPoint(1, position, 0.25)
+    assert type(via.time) is float and via.time == 1.0
+    assert via.position.dtype == float and not via.position.flags.writeable
+    np.testing.assert_array_equal(via.position, [1.0, 2.0])
+    np.testing.assert_array_equal(via.tolerance, [0.25])
+    assert not via.tolerance.flags.writeable and via.norm == "box"
+    ball = ViaPoint(0.5, [0.0, 1.0], 0.1, "ball")
+    assert ball.norm == "ball" and ball.tolerance.shape == (1,)
+    bounds = Bounds(position_lower=-1, position_upper=[1.0, 2.0], velocity=3)
+    np.testing.assert_array_equal(bounds.position_lower, [-1.0])
+    assert not bounds.velocity.flags.writeable and bounds.jerk is None

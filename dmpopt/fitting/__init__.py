@@ -8,6 +8,7 @@ from .constrained import (
     ViaPoint,
     build_fitting_problem,
     fit_weights_constrained,
+    solve_fitting_problem,
 )
 from .imitation import (
     estimate_period,
@@ -36,4 +37,5 @@ __all__ = [
     "minimum_jerk_constrained",
     "minimum_jerk_via_points",
     "reproduction_error",
+    "solve_fitting_problem",
 ]

@@ -17,12 +17,11 @@ Three baselines, each returning a :class:`~dmpopt.trajectory.Trajectory`:
     jerk is piecewise constant on ``n_segments`` equal intervals, so positions, velocities and
     accelerations at every sample are linear in it, and the cost
     :math:`\int \dddot y^2 dt = h \sum_i j_i^2` is exact. Solved with
-    :func:`dmpopt.fitting.constrained.solve_qp` per DOF.
+    :func:`dmpopt.fitting.qp.solve_blocks` per DOF, the QP layer of the constrained DMP fit.
 """
 
 from __future__ import annotations
 
-import time
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -30,12 +29,9 @@ import numpy as np
 from ..exceptions import InfeasibleProblem, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
 from ..validation import MEMORY_BUDGET, check_resources, integer, real, real_array, sequence_of
-from .constrained import (
-    Bounds,
-    ViaPoint,
-    _per_dof,
-    solve_qp,
-)
+from .groups import QUANTITIES, end_groups, limit_groups, sample
+from .qp import scale_rows, solve_blocks, stack_rows
+from .requests import Bounds, ViaPoint, check_bounds, per_dof
 
 MIN_SEGMENT_FRACTION = 0.01
 """Via-points must be at least this fraction of the duration away from each other and from
@@ -166,7 +162,7 @@ def minimum_jerk_via_points(
     knots = knots / total  # normalised time: conditioning independent of the duration
     n_segments = len(knots) - 1
     n_dofs = start.size
-    points = [_per_dof(f"via_points[{i}].position", v.position, n_dofs) for i, v in enumerate(vias)]
+    points = [per_dof(f"via_points[{i}].position", v.position, n_dofs) for i, v in enumerate(vias)]
     size = 6 * n_segments
     system = np.zeros((size, size))
     rhs = np.zeros((size, n_dofs))
@@ -235,6 +231,77 @@ def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
     return np.stack([_ramp(begin, p) - _ramp(end, p) for p in (3, 2, 1)])
 
 
+def _box_via_points(via_points, duration: float) -> tuple:
+    """``via_points`` checked: box via-points within the duration."""
+    via_points = sequence_of("via_points", via_points, ViaPoint)
+    for i, via in enumerate(via_points):
+        if via.norm != "box":
+            raise InvalidInputError(
+                f"via_points[{i}] has norm {via.norm!r}; minimum_jerk_constrained takes 'box' "
+                "via-points only"
+            )
+        if via.time > duration:
+            raise InvalidInputError(
+                f"via_points[{i}].time = {via.time:g} s is after the end ({duration:g} s); "
+                "give a time within the duration"
+            )
+    return via_points
+
+
+class _ViaRow(NamedTuple):
+    """A box via-point as one exact row of the jerk response (no interpolation)."""
+
+    name: str
+    row: np.ndarray  # (1, n_segments)
+    lower: np.ndarray  # (n_dofs,)
+    upper: np.ndarray
+
+
+def _via_rows(via_points, duration: float, n_segments: int, n_dofs: int) -> list[_ViaRow]:
+    rows = []
+    for i, via in enumerate(via_points):
+        point = per_dof(f"via_points[{i}].position", via.position, n_dofs)
+        tolerance = per_dof(f"via_points[{i}].tolerance", via.tolerance, n_dofs)
+        row = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
+        rows.append(_ViaRow(f"via_point[{i}]", row, point - tolerance, point + tolerance))
+    return rows
+
+
+def _length_scale(start, goal, via_points) -> float:
+    """Extent of the motion: of start, goal and via-points together."""
+    points = np.vstack([start, goal] + [np.atleast_1d(v.position) for v in via_points])
+    return float(max(np.abs(goal - start).max(), np.ptp(points, axis=0).max(), 1e-12))
+
+
+def _constraint_rows(groups, vias, response, free, step, start, units, margin):
+    """Scaled rows of the groups (sampled) and of the via-points (exact), one block per DOF."""
+    jerk_unit = units["jerk"]
+    parts = []
+    for group in groups:
+        matrix = sample(response, step, group.quantity, group.at) * jerk_unit
+        offset = sample(free, step, group.quantity, group.at)
+        parts.append(
+            scale_rows(matrix, offset, group.lower, group.upper, units[group.quantity], margin)
+        )
+    for via in vias:
+        parts.append(
+            scale_rows(
+                via.row * jerk_unit, start[None, :], via.lower, via.upper, units["position"], margin
+            )
+        )
+    return stack_rows(parts, response.shape[2], start.size)
+
+
+def _violations(groups, vias, values, jerks, step, start) -> dict:
+    """Largest violation of each request on the answer [physical units]."""
+    violations = {group.name: group.excess(values, step) for group in groups}
+    for via in vias:
+        sample_ = start[None, :] + via.row @ jerks
+        excess = np.maximum(via.lower - sample_, sample_ - via.upper)
+        violations[via.name] = float(max(np.max(excess, initial=0.0), 0.0))
+    return violations
+
+
 def minimum_jerk_constrained(
     start,
     goal,
@@ -250,7 +317,9 @@ def minimum_jerk_constrained(
     """Minimum-jerk rest-to-rest movement under bounds and via-points (QP).
 
     The same :class:`Bounds` and box :class:`ViaPoint` as the constrained DMP fit, held at
-    every sample. Returns ``(trajectory, report)``.
+    every sample (via-points exactly at their time). Solved per DOF with
+    :func:`dmpopt.fitting.qp.solve_blocks` (DAQP, qpOASES as fallback). Returns
+    ``(trajectory, report)``.
 
     Raises
     ------
@@ -266,141 +335,46 @@ def minimum_jerk_constrained(
     step = times[1] - times[0]
     n_segments = integer("n_segments", n_segments, minimum=3)
     margin = real("margin", margin, minimum=0.0, maximum=0.1, fix="keep it tiny, e.g. 1e-6")
-    if bounds is not None and not isinstance(bounds, Bounds):
-        raise InvalidInputError(
-            f"bounds must be a Bounds, got {type(bounds).__name__}; "
-            "write bounds=Bounds(velocity=..., acceleration=...)"
-        )
-    via_points = sequence_of("via_points", via_points, ViaPoint)
-    for i, via in enumerate(via_points):
-        if via.norm != "box":
-            raise InvalidInputError(
-                f"via_points[{i}] has norm {via.norm!r}; minimum_jerk_constrained takes 'box' "
-                "via-points only"
-            )
-        if via.time > duration:
-            raise InvalidInputError(
-                f"via_points[{i}].time = {via.time:g} s is after the end ({duration:g} s); "
-                "give a time within the duration"
-            )
+    bounds = check_bounds(bounds)
+    via_points = _box_via_points(via_points, duration)
     check_resources(
         f"a minimum-jerk QP with {times.size} samples and {n_segments} jerk segments",
         8.0 * ((3 + 4) * times.size * n_segments),
         "lower n_segments or sample more coarsely (raise dt)",
     )
     response = jerk_response(times, n_segments)
-    length = float(max(np.abs(goal - start).max(), 1e-12))
-    if via_points:
-        extent = np.ptp(
-            np.vstack([start, goal] + [np.atleast_1d(v.position) for v in via_points]), axis=0
+    length = _length_scale(start, goal, via_points)
+    units = dict(
+        zip(QUANTITIES, [length, length / duration, length / duration**2, length / duration**3])
+    )
+    # free motion (jerk zero): at rest at the start
+    free = np.zeros((3, times.size, n_dofs))
+    free[0] = start
+    # end conditions (at the goal, at rest), limits at every sample, via-points
+    groups = end_groups(goal, (0.0, 0.0, 0.0), times.size) + limit_groups(
+        bounds, times.size, n_dofs
+    )
+    vias = _via_rows(via_points, duration, n_segments, n_dofs)
+    rows = _constraint_rows(groups, vias, response, free, step, start, units, margin)
+    qp = solve_blocks(
+        np.eye(n_segments),
+        np.zeros((n_dofs, n_segments)),
+        rows.matrix,
+        rows.lower,
+        rows.upper,
+        solver="daqp",
+    )
+    if not qp.success:
+        raise InfeasibleProblem(
+            f"minimum-jerk movement infeasible on DOF {qp.failed_block} ({qp.status}): the "
+            "bounds and via-points cannot all hold within the duration; relax them or lengthen it",
+            stats={"status": qp.status},
         )
-        length = max(length, float(extent.max()))
-    units = [length, length / duration, length / duration**2, length / duration**3]
-    jerk_unit = units[3]
-    # free motion (jerk zero): rest at start
-    free = np.broadcast_to(start, (3, times.size, n_dofs)) * np.array([1.0, 0, 0])[:, None, None]
-
-    rows, lowers, uppers, checks = [], [], [], {}
-
-    def add(name, quantity, matrix, offset, low, high):
-        unit = units[quantity]
-        low = np.broadcast_to(low, offset.shape)
-        high = np.broadcast_to(high, offset.shape)
-        tight = (high - low) > 2 * margin * unit
-        scaled = matrix * jerk_unit / unit
-        norms = np.maximum(np.linalg.norm(scaled, axis=1), 1e-300)
-        rows.append(scaled / norms[:, None])
-        lowers.append(
-            (np.where(np.isfinite(low), (low - offset) / unit + margin * tight, -1e20))
-            / norms[:, None]
-        )
-        uppers.append(
-            (np.where(np.isfinite(high), (high - offset) / unit - margin * tight, 1e20))
-            / norms[:, None]
-        )
-        checks[name] = (quantity, low, high)
-
-    # end conditions: at the goal, at rest
-    for k in range(3):
-        target = goal if k == 0 else np.zeros(n_dofs)
-        add(
-            ("end_position", "end_velocity", "end_acceleration")[k],
-            k,
-            response[k, -1:],
-            free[k, -1:],
-            target,
-            target,
-        )
-    if bounds is not None:
-        if bounds.position_lower is not None or bounds.position_upper is not None:
-            low = -np.inf if bounds.position_lower is None else bounds.position_lower
-            high = np.inf if bounds.position_upper is None else bounds.position_upper
-            add(
-                "position",
-                0,
-                response[0],
-                free[0],
-                _per_dof("position_lower", low, n_dofs),
-                _per_dof("position_upper", high, n_dofs),
-            )
-        for k, name in ((1, "velocity"), (2, "acceleration")):
-            limit = getattr(bounds, name)
-            if limit is not None:
-                limit = _per_dof(name, limit, n_dofs)
-                add(name, k, response[k], free[k], -limit, limit)
-        if bounds.jerk is not None:
-            limit = _per_dof("jerk", bounds.jerk, n_dofs)
-            add(
-                "jerk",
-                3,
-                np.diff(response[2], axis=0) / step,
-                np.zeros((times.size - 1, n_dofs)),
-                -limit,
-                limit,
-            )
-    for i, via in enumerate(via_points):
-        point = _per_dof(f"via_points[{i}].position", via.position, n_dofs)
-        tolerance = _per_dof(f"via_points[{i}].tolerance", via.tolerance, n_dofs)
-        one = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
-        add(f"via_point[{i}]", 0, one, start[None, :], point - tolerance, point + tolerance)
-
-    matrix = np.vstack(rows)
-    lower, upper = np.vstack(lowers), np.vstack(uppers)
-    hessian = np.eye(n_segments)
-    jerks = np.empty((n_segments, n_dofs))
-    begin, rounds = time.perf_counter(), 0
-    for d in range(n_dofs):
-        for backend in ("daqp", "qpoases"):  # qpOASES confirms a DAQP infeasibility
-            solution = solve_qp(
-                hessian, np.zeros(n_segments), matrix, lower[:, d], upper[:, d], solver=backend
-            )
-            rounds += solution.iterations
-            if solution.success:
-                break
-        if not solution.success:
-            raise InfeasibleProblem(
-                f"minimum-jerk movement infeasible on DOF {d} ({solution.status}): the bounds "
-                "and via-points cannot all hold within the duration; relax them or lengthen it",
-                stats={"status": solution.status},
-            )
-        jerks[:, d] = solution.x * jerk_unit
-    elapsed = time.perf_counter() - begin
+    jerks = qp.x.T * units["jerk"]
     values = free + response @ jerks
     trajectory = Trajectory(times, values[0], values[1], values[2])
-    violations = {}
-    jerk_values = np.diff(values[2], axis=0) / step
-    for name, (quantity, low, high) in checks.items():
-        if name.startswith("via_point"):
-            via = via_points[int(name[10:-1])]
-            exact = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
-            sample = start[None, :] + exact @ jerks
-        elif name.startswith("end_"):
-            sample = values[quantity, -1:]
-        else:
-            sample = jerk_values if quantity == 3 else values[quantity]
-        excess = np.maximum(low - sample, sample - high)
-        violations[name] = float(max(np.max(excess, initial=0.0), 0.0))
-    return trajectory, MinimumJerkReport(elapsed, rounds, violations)
+    violations = _violations(groups, vias, values, jerks, step, start)
+    return trajectory, MinimumJerkReport(qp.solve_time, qp.iterations, violations)
 
 
 __all__ = [

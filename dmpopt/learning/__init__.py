@@ -22,7 +22,7 @@ from .policy_search import (
 )
 from .tasks import (
     RewardTask,
-    ViaPoint,
+    ViaPointReward,
     multi_dof_reaching_task,
     paper_reaching_task,
     via_point_task,
@@ -38,7 +38,7 @@ __all__ = [
     "LearningCurve",
     "PolicySearch",
     "RewardTask",
-    "ViaPoint",
+    "ViaPointReward",
     "enac_gradient",
     "make_method",
     "multi_dof_reaching_task",
@@ -47,3 +47,18 @@ __all__ = [
     "reinforce_gradient",
     "via_point_task",
 ]
+
+
+def __getattr__(name):
+    """``ViaPoint``: the former name of :class:`ViaPointReward`, kept with a warning."""
+    if name == "ViaPoint":
+        import warnings
+
+        warnings.warn(
+            "dmpopt.learning.ViaPoint is now ViaPointReward (a rewarded point; the hard "
+            "constraint of a fit is dmpopt.ViaPoint)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return ViaPointReward
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

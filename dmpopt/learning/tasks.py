@@ -66,7 +66,7 @@ from ..validation import check_resources, real, real_array, sequence_of
 
 __all__ = [
     "RewardTask",
-    "ViaPoint",
+    "ViaPointReward",
     "multi_dof_reaching_task",
     "paper_reaching_task",
     "via_point_task",
@@ -74,8 +74,13 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class ViaPoint:
-    """A position to pass at a given time, rewarded by ``-weight * ||y(time) - position||^2``."""
+class ViaPointReward:
+    """A reward term ``-weight * ||y(time) - position||^2`` of a :class:`RewardTask`.
+
+    Not a :class:`dmpopt.ViaPoint`: that one is a hard constraint of a fit (the plan must
+    pass within a tolerance, interpolated between samples); this one is a soft, weighted
+    penalty on the nearest sample, which the learner trades against the other reward terms.
+    """
 
     time: float  # [s]
     position: tuple
@@ -140,8 +145,8 @@ class RewardTask:
         Step [s]; one exploration sample per step.
     goal_weight, velocity_weight, acceleration_weight, jerk_weight : float
         :math:`c_g, c_v, c_a, c_j` of the reward.
-    via_points : tuple of ViaPoint
-        Positions to pass (one entry per DOF in ``position``).
+    via_points : tuple of ViaPointReward
+        Rewarded positions (one entry per DOF in ``position``).
     delayed : bool
         Per-step rewards (False) or the whole return at the last step (True).
 
@@ -191,7 +196,8 @@ class RewardTask:
         object.__setattr__(self, "plan", plan)
         n_steps = plan.times.size
         via = []
-        for i, point in enumerate(sequence_of("via_points", self.via_points, ViaPoint)):
+        fix = "a reward task scores closeness: ViaPointReward(time, position, weight)"
+        for i, point in enumerate(sequence_of("via_points", self.via_points, ViaPointReward, fix)):
             name = f"via_points[{i}]"
             time = real(f"{name}.time", point.time, minimum=0.0, maximum=duration)
             position = np.atleast_1d(real_array(f"{name}.position", point.position))
@@ -478,6 +484,6 @@ def via_point_task(
         _dmp(np.zeros(goal.size), goal, duration, n_basis),
         duration=duration,
         dt=dt,
-        via_points=(ViaPoint(via_time, tuple(via_position)),),
+        via_points=(ViaPointReward(via_time, tuple(via_position)),),
         delayed=delayed,
     )

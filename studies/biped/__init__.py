@@ -110,9 +110,7 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
     """
     from dmpopt.walking import closed_loop_frequencies
 
-    plan = dmp.with_tau(1.0 / frequency).rollout(
-        duration=3.75 * 2 * np.pi / frequency, dt=DT
-    )
+    plan = dmp.with_tau(1.0 / frequency).rollout(duration=3.75 * 2 * np.pi / frequency, dt=DT)
     height = biped_model.leg_length(biped)
     q = biped_model.configuration(biped, 0.0, height, 0.0, plan.positions[-1])
     q[1] -= biped_model.foot_positions(biped, q)[1, 1]  # left foot on the ground

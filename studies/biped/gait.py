@@ -76,7 +76,5 @@ def learn_gait():
 
 def limit_cycle_start(dmp, frequency: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Position and velocity of the DMP's limit cycle at phase 0 (the right heel strike)."""
-    plan = dmp.with_tau(1.0 / frequency).rollout(
-        duration=3 * 2 * np.pi / frequency, dt=dt
-    )
+    plan = dmp.with_tau(1.0 / frequency).rollout(duration=3 * 2 * np.pi / frequency, dt=dt)
     return plan.positions[-1], plan.velocities[-1]

@@ -5,14 +5,8 @@ import pytest
 
 from dmpopt.sim import GroundContact, Simulator
 from robots import biped as biped_model
-from robots.biped import load_biped
 
 GRAVITY = 9.81
-
-
-@pytest.fixture(scope="module")
-def biped():
-    return load_biped()
 
 
 @pytest.fixture(scope="module")

@@ -20,21 +20,10 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.exceptions import InvalidInputError
-from robots import load_talos
-from robots.biped import foot_positions, load_biped
+from robots.biped import foot_positions
 
 GRAVITY = 9.81
 RIGHT, LEFT = "right_sole_link", "left_sole_link"
-
-
-@pytest.fixture(scope="module")
-def talos():
-    return load_talos("full")
-
-
-@pytest.fixture(scope="module")
-def biped():
-    return load_biped()
 
 
 def talos_controller(robot, **options):

@@ -18,11 +18,6 @@ from robots import load_talos
 
 
 @pytest.fixture(scope="module")
-def talos():
-    return load_talos("full")
-
-
-@pytest.fixture(scope="module")
 def upper_body():
     return load_talos("reduced", fixed_base=True)
 

@@ -237,20 +237,6 @@ def _push_standing_talos(robot, force, duration=1.5, push_time=0.3):
     return state
 
 
-@pytest.fixture(scope="module")
-def talos():
-    from robots import load_talos
-
-    return load_talos("full")
-
-
-@pytest.fixture(scope="module")
-def biped():
-    from robots.biped import load_biped
-
-    return load_biped()
-
-
 def test_small_push_is_survived(talos):
     """50 N for 0.1 s: Talos stays up, no fall."""
     state = _push_standing_talos(talos, 50.0)

@@ -34,11 +34,6 @@ GRAVITY = 9.81
 
 
 @pytest.fixture(scope="module")
-def talos():
-    return load_talos("full")
-
-
-@pytest.fixture(scope="module")
 def talos_sim(talos):
     points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
     return MujocoSimulator(talos.model, talos.source, contact_points=points)

@@ -38,11 +38,6 @@ GROUND_STIFFNESS = 2e4  # [N/m] per sole corner
 
 
 @pytest.fixture(scope="module")
-def talos():
-    return load_talos("full")
-
-
-@pytest.fixture(scope="module")
 def upper_body():
     return load_talos("full", fixed_base=True)
 

@@ -150,6 +150,23 @@ def pyplot():
     return plt
 
 
+class Progress:
+    """Prints a study's stage and the elapsed time: ``progress("fitting")``.
+
+    >>> progress = Progress("rl")            # doctest: +SKIP
+    >>> progress("eNAC, seed 3 of 10")       # doctest: +SKIP
+    [rl     12.3 s] eNAC, seed 3 of 10
+    """
+
+    def __init__(self, study: str):
+        self.study = study
+        self.start = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        elapsed = time.perf_counter() - self.start
+        print(f"[{self.study} {elapsed:6.1f} s] {message}", flush=True)
+
+
 def median_time(function, repeats: int = 20) -> float:
     """Median wall time of ``function()`` over ``repeats`` calls [s]."""
     times = []

@@ -47,7 +47,7 @@ import numpy as np
 from robots import biped as biped_model
 from robots.biped import load_biped
 
-from ..common import write_metrics
+from ..common import Progress, write_metrics
 from . import plots
 from .analysis import (
     SURVIVAL,
@@ -157,16 +157,6 @@ def _summary(log: WalkLog, mass: float) -> dict:
     }
 
 
-class _Progress:
-    """Prints the stage and the elapsed time (the study runs for minutes)."""
-
-    def __init__(self):
-        self.start = time.perf_counter()
-
-    def __call__(self, message: str) -> None:
-        print(f"[biped {time.perf_counter() - self.start:6.1f} s] {message}", flush=True)
-
-
 def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") -> dict:
     """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics."""
     from studies.humanoid import VIDEO_FPS, check_backend, write_videos
@@ -174,7 +164,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
     backend = check_backend(backend)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    progress = _Progress()
+    progress = Progress("biped")
     biped = load_biped()
     _, dmp = learn_gait()
     on = {"seed": seed, "backend": backend}

@@ -39,7 +39,6 @@ Run: ``python -m studies.biped OUT_DIR [--quick]``.
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import sys
 import tempfile
 import time
@@ -107,7 +108,23 @@ def _left(target: Path, existed: bool) -> str:
     return f"{target} left unchanged" if existed else f"{target} not written"
 
 
-def _run_one(name: str, module, target: Path, quick: bool, seed: int) -> int:
+def _workers(text: str) -> int:
+    try:
+        workers = int(text)
+    except ValueError:
+        workers = None
+    if workers is None or workers < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return workers
+
+
+def _study_options(module, runner) -> dict:
+    """``runner=`` for the studies whose independent runs can go elsewhere."""
+    accepts = "runner" in inspect.signature(module.run).parameters
+    return {"runner": runner} if accepts else {}
+
+
+def _run_one(name: str, module, target: Path, quick: bool, seed: int, runner=None) -> int:
     """Run one study into a staged folder that replaces ``target``; return the exit code."""
     from threadpoolctl import threadpool_limits
 
@@ -121,7 +138,7 @@ def _run_one(name: str, module, target: Path, quick: bool, seed: int) -> int:
         # the studies multiply small matrices: one BLAS thread is faster, and on a loaded
         # machine several threads per product cost milliseconds each
         with staged_output(target) as folder, threadpool_limits(limits=1, user_api="blas"):
-            module.run(folder, quick=quick, seed=seed)
+            module.run(folder, quick=quick, seed=seed, **_study_options(module, runner))
     except KeyboardInterrupt:
         print(f"interrupted: {_left(target, existed)}", file=sys.stderr)
         return 130
@@ -132,7 +149,7 @@ def _run_one(name: str, module, target: Path, quick: bool, seed: int) -> int:
     return 0
 
 
-def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int) -> int:
+def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, runner=None) -> int:
     from studies.report import write_report
 
     total = sum(_seconds(studies[n], quick) for n in names)
@@ -143,7 +160,7 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int) -> 
     refresh_report = len(names) > 1 or (out / "report.html").exists()
     code, done = 0, 0
     for name in names:
-        code = _run_one(name, studies[name], out / name, quick, seed)
+        code = _run_one(name, studies[name], out / name, quick, seed, runner)
         if code:
             break
         done += 1
@@ -156,6 +173,19 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int) -> 
         if not code:
             print(f"report: {path}")
     return code
+
+
+def _runner(workers: int, ray: str | None):
+    from .exceptions import DmpoptError
+    from .parallel import Runner
+
+    try:
+        runner = Runner(workers=workers, ray=ray)
+        if ray is not None:
+            runner.connect()  # a wrong address or a missing ray fails now, not mid-study
+    except DmpoptError as error:
+        raise UsageError(f"--ray: {error}") from None
+    return runner
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
@@ -177,6 +207,21 @@ def main(argv=None) -> int:
     run.add_argument("--out", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="a reduced run (about a minute each)")
     run.add_argument("--seed", default=0, type=_seed, help="random seed, >= 0 (default: 0)")
+    run.add_argument(
+        "--workers",
+        default=1,
+        type=_workers,
+        help="independent runs (seeds, trials, folds) in N local processes (default: 1); "
+        "with --ray, the CPUs a local Ray may use",
+    )
+    run.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        metavar="ADDRESS",
+        help="independent runs on Ray: a local Ray without ADDRESS, 'auto' for the cluster "
+        "of 'ray start', or HOST:PORT of a head (needs pip install 'dmpopt[ray]')",
+    )
     try:
         args = parser.parse_args(argv)
         with warnings.catch_warnings():
@@ -189,7 +234,8 @@ def main(argv=None) -> int:
             names = list(studies) if args.name == "all" else [args.name]
             out = _writable_folder(args.out)
             _check_targets(out, names)
-            return _run(studies, names, out, args.quick, args.seed)
+            with _runner(args.workers, args.ray) as runner:
+                return _run(studies, names, out, args.quick, args.seed, runner)
     except UsageError as error:
         print(f"dmpopt: error: {error}", file=sys.stderr)
         return 2

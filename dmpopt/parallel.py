@@ -1,23 +1,30 @@
-"""Independent runs (seeds, trials, folds, sweep points): in series or in local processes.
+"""Independent runs (seeds, trials, folds, sweep points): in series, in local processes or on Ray.
 
 A study hands its independent runs to :func:`map_runs` as one module-level function and a
 list of inputs; the :class:`Runner` it is given decides where they run. Results come back in
-the order of the inputs, whatever the order they finish in, so a run with workers gives the
-same numbers as the serial run with the same seeds.
+the order of the inputs, whatever the order they finish in, so a run with workers or on Ray
+gives the same numbers as the serial run with the same seeds. A progress bar counts the runs
+as they finish.
 
 >>> from dmpopt.parallel import Runner, map_runs
 >>> map_runs(abs, [-1, 2, -3], Runner())
 [1, 2, 3]
+
+On a Ray cluster (``pip install 'dmpopt[ray]'``; docs/cluster.md)::
+
+    with Runner(ray="auto") as runner:      # or ray="local", or ray="10.0.0.1:6379"
+        results = map_runs(simulate_trial, seeds, runner)
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import socket
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
-from .exceptions import InvalidInputError
+from .exceptions import InvalidInputError, MissingDependency
 
 
 @dataclass
@@ -27,49 +34,185 @@ class Runner:
     Parameters
     ----------
     workers : int
-        1 runs them in series in this process; N > 1 in N local processes.
+        Without ``ray``: 1 runs in series in this process, N > 1 in N local processes. With
+        ``ray="local"``: the number of CPUs the local Ray may use (1: all of this machine's).
+    ray : str, optional
+        ``"local"`` starts a Ray instance on this machine for the runner's lifetime; ``"auto"``
+        joins the cluster this machine belongs to (``ray start``); ``"HOST:PORT"`` joins the
+        cluster whose head is there. None (default): no Ray.
+    progress : bool
+        Show a progress bar (on stderr) as runs finish.
     """
 
     workers: int = 1
+    ray: str | None = None
+    progress: bool = True
     wall_seconds: float = field(default=0.0, init=False)
     runs: int = field(default=0, init=False)
+    _ray_started: bool = field(default=False, init=False, repr=False)
+    _pool: ProcessPoolExecutor | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise InvalidInputError(
                 f"workers must be an integer >= 1, got {self.workers!r}; use 1 to run in series"
             )
+        if self.ray is not None and (not isinstance(self.ray, str) or not self.ray.strip()):
+            raise InvalidInputError(
+                f"ray must be 'local', 'auto' or a head address 'HOST:PORT', got {self.ray!r}"
+            )
 
     @property
     def backend(self) -> str:
+        if self.ray is not None:
+            return "ray"
         return "serial" if self.workers == 1 else "processes"
 
     def record(self) -> dict:
         """What a study writes under ``parallel`` in its metrics."""
-        return {
+        record = {
             "backend": self.backend,
             "workers": self.workers,
             "runs": self.runs,
             "wall_seconds": self.wall_seconds,
         }
+        if self.ray is not None:
+            record["ray_address"] = self.ray
+            record["ray_cpus"] = self._ray_cpus()
+        return record
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self) -> None:
+        """Stop the worker processes and the local Ray this runner started.
+
+        A cluster it joined keeps running. A runner is used again after ``close()`` by
+        starting them anew.
+        """
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+        if self._ray_started:
+            import ray
+
+            ray.shutdown()
+            self._ray_started = False
+
+    def connect(self) -> None:
+        """Start or join Ray now (otherwise at the first :func:`map_runs`)."""
+        self._ray()
+
+    def _ray(self):
+        try:
+            import ray
+        except ImportError as error:
+            raise MissingDependency(
+                "ray is not installed: pip install 'dmpopt[ray]', or run without ray "
+                "(workers=N for local processes)"
+            ) from error
+        if not ray.is_initialized():
+            options = {"include_dashboard": False, "log_to_driver": False}
+            if self.ray not in ("local", "auto"):
+                _check_reachable(self.ray)
+            try:
+                if self.ray == "local":
+                    ray.init(num_cpus=self.workers if self.workers > 1 else None, **options)
+                else:
+                    ray.init(address=self.ray, **options)
+            except (ConnectionError, RuntimeError, ValueError) as error:
+                raise InvalidInputError(
+                    f"cannot start or join Ray at {self.ray!r} ({error}); start a cluster "
+                    "with 'ray start --head' or use ray='local'"
+                ) from error
+            self._ray_started = True
+        return ray
+
+    def _ray_cpus(self):
+        try:
+            import ray
+        except ImportError:
+            return None
+        return ray.cluster_resources().get("CPU") if ray.is_initialized() else None
 
 
-def map_runs(function, inputs, runner: Runner | None = None) -> list:
-    """``[function(x) for x in inputs]``, run where ``runner`` says.
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail in seconds on a head that is not there (Ray itself retries for minutes)."""
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit():
+        raise InvalidInputError(
+            f"ray address must be 'local', 'auto' or 'HOST:PORT', got {address!r}"
+        )
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as error:
+        raise InvalidInputError(
+            f"no Ray head answers at {address} ({error.strerror or error}); start one with "
+            "'ray start --head --port PORT' on that machine, or use ray='local'"
+        ) from None
 
-    ``function`` must be importable by name (a module-level function) when ``runner`` has
-    several workers; each run gets its own process, so it must not rely on state set up in
-    this one.
+
+def _bar(runner: Runner, total: int, label: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=label, unit="run", disable=not runner.progress, leave=False)
+
+
+def _in_processes(function, inputs, runner, bar) -> list:
+    if runner._pool is None:  # kept for the runner's next map_runs; close() ends it
+        context = multiprocessing.get_context("spawn")
+        runner._pool = ProcessPoolExecutor(runner.workers, mp_context=context)
+    results = [None] * len(inputs)
+    futures = {runner._pool.submit(function, x): i for i, x in enumerate(inputs)}
+    for future in as_completed(futures):
+        results[futures[future]] = future.result()
+        bar.update()
+    return results
+
+
+def _call(function, x):
+    return function(x)
+
+
+def _on_ray(function, inputs, runner, bar) -> list:
+    ray = runner._ray()
+    remote = ray.remote(_call)
+    function_ref = ray.put(function)
+    pending = [remote.remote(function_ref, x) for x in inputs]
+    index = {ref: i for i, ref in enumerate(pending)}
+    results = [None] * len(inputs)
+    while pending:
+        done, pending = ray.wait(pending, num_returns=1)
+        results[index[done[0]]] = ray.get(done[0])
+        bar.update()
+    return results
+
+
+def map_runs(function, inputs, runner: Runner | None = None, label: str = "runs") -> list:
+    """``[function(x) for x in inputs]``, run where ``runner`` says, in the order of ``inputs``.
+
+    ``function`` must be importable by name (a module-level function) when the runs leave
+    this process (workers > 1 or Ray); each run then executes in another process, so it must
+    not rely on state set up in this one. An exception in a run is raised here.
     """
     runner = runner or Runner()
+    if not callable(function):
+        raise InvalidInputError(f"function must be callable, got {type(function).__name__}")
     inputs = list(inputs)
     start = time.perf_counter()
-    if runner.workers == 1 or len(inputs) < 2:
-        results = [function(x) for x in inputs]
-    else:
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(min(runner.workers, len(inputs)), mp_context=context) as pool:
-            results = list(pool.map(function, inputs))
+    with _bar(runner, len(inputs), label) as bar:
+        if runner.ray is not None:
+            results = _on_ray(function, inputs, runner, bar)
+        elif runner.workers == 1:
+            results = []
+            for x in inputs:
+                results.append(function(x))
+                bar.update()
+        else:
+            results = _in_processes(function, inputs, runner, bar)
     runner.wall_seconds += time.perf_counter() - start
     runner.runs += len(inputs)
     return results

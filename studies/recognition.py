@@ -53,6 +53,7 @@ from tqdm import tqdm
 
 from dmpopt import Trajectory, fit_discrete
 from dmpopt.exceptions import MissingDependency
+from dmpopt.parallel import Runner, map_runs
 from dmpopt.recognition import (
     NearestNeighbourClassifier,
     PartialObservationClassifier,
@@ -145,6 +146,19 @@ def _partial_loo(classifier, observations, labels):
         residuals[i] = np.inf
         predictions.append(classifier.labels_[np.argmin(residuals)])
     return np.array(predictions)
+
+
+def _nearest_accuracy(job) -> float:
+    """Leave-one-out accuracy of k-NN on feature rows: one independent run of the study."""
+    rows, labels, k = job
+    return _accuracy(labels, leave_one_out(NearestNeighbourClassifier(k), rows, labels))
+
+
+def _partial_accuracy(job) -> float:
+    """Leave-one-out accuracy on the first ``fraction`` of every demo: one independent run."""
+    classifier, demos, labels, fraction = job
+    observations = [first_part(demo, fraction) for demo in demos]
+    return _accuracy(labels, _partial_loo(classifier, observations, labels))
 
 
 def _trajectory_ladder(demos, labels, n_samples: int = 100) -> dict:
@@ -312,8 +326,13 @@ def _plot_partial(plt, fractions, accuracies, observed, path):
     plt.close(figure)
 
 
-def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
-    """Run the study; write figures and ``metrics.json`` to ``out_dir``; return the metrics."""
+def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = None) -> dict:
+    """Run the study; write figures and ``metrics.json`` to ``out_dir``; return the metrics.
+
+    The ablations and the points of the partial-observation curve are independent runs,
+    executed where ``runner`` says (:mod:`dmpopt.parallel`; default: in series).
+    """
+    runner = runner or Runner()
     start_time = time.perf_counter()
     out = output_dir(out_dir)
     plt = pyplot()
@@ -385,12 +404,11 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         ),
         "raw forcing weights [mm] (not invariant)": raw_weights,
     }
-    ablation_accuracy = {
-        name: _accuracy(labels, leave_one_out(nearest, rows, labels))
-        for name, rows in tqdm(ablations.items(), desc="ablations", leave=False)
-    }
-    ablation_accuracy["3-NN vote (default features)"] = _accuracy(
-        labels, leave_one_out(NearestNeighbourClassifier(3), features, labels)
+    ablations["3-NN vote (default features)"] = features
+    neighbours = [3 if name.startswith("3-NN") else 1 for name in ablations]
+    jobs = [(rows, labels, k) for rows, k in zip(ablations.values(), neighbours)]
+    ablation_accuracy = dict(
+        zip(ablations, map_runs(_nearest_accuracy, jobs, runner, label="ablations"))
     )
     nested, chosen, by_weight = _nested_weights(dmps, velocities, labels)
 
@@ -427,10 +445,8 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     partial_moved = _partial_loo(partial, moved_observations, labels)
     curve_fractions = FRACTION_CURVE[1::2] if quick else FRACTION_CURVE
     wide = PartialObservationClassifier(fractions=np.linspace(0.1, 1.0, 19)).fit(dmps, labels)
-    curve = [
-        _accuracy(labels, _partial_loo(wide, [first_part(d, f) for d in demos], labels))
-        for f in tqdm(curve_fractions, desc="partial curve", leave=False)
-    ]
+    jobs = [(wide, demos, labels, fraction) for fraction in curve_fractions]
+    curve = map_runs(_partial_accuracy, jobs, runner, label="partial curve")
 
     # figures
     accuracy = _accuracy(labels, predictions)
@@ -489,6 +505,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
         "errors_partial": _errors(labels, partial_predictions),
         "errors_loo_single_shapes": _errors(labels[single], single_predictions),
         "seconds": time.perf_counter() - start_time,
+        "parallel": runner.record(),
     }
     parameters = {
         "shapes": names,

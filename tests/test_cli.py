@@ -62,6 +62,9 @@ def contents(folder: Path) -> dict:
         (["study", "run", "rl", "--seed", "1.5"], r"--seed: expected an integer >= 0, got '1.5'"),
         (["study", "run", "rl", "--out", ""], r"--out is empty; give the folder"),
         (["study", "run", "rl", "--bogus"], r"unrecognized arguments: --bogus"),
+        (["study", "run", "rl", "--workers", "0"], r"--workers: expected an integer >= 1"),
+        (["study", "run", "rl", "--workers", "two"], r"--workers: expected an integer >= 1"),
+        (["study", "run", "rl", "--ray", "nohost"], r"--ray: .*'HOST:PORT', got 'nohost'"),
         (["study"], r"required: action .*'dmpopt study --help'"),
         ([], r"required: command"),
     ],
@@ -134,6 +137,25 @@ def test_list_shows_quick_and_full_times(capsys):
 
 
 # ------------------------------------------------------------------ nothing lost
+
+
+def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_path):
+    """--workers N: a study with a ``runner`` argument gets Runner(workers=N); others run as before."""
+    from studies import constrained, imitation
+
+    received = []
+
+    def run_with_runner(out_dir, quick=False, seed=0, runner=None):
+        received.append(runner)
+        (Path(out_dir) / "metrics.json").write_text("{}")
+
+    monkeypatch.setattr(imitation, "run", run_with_runner)
+    monkeypatch.setattr(constrained, "run", fake_run([]))
+    for name in ("imitation", "constrained"):
+        argv = ("study", "run", name, "--out", str(tmp_path), "--workers", "3")
+        assert run_cli(capsys, *argv)[0] == 0
+    assert len(received) == 1
+    assert (received[0].workers, received[0].ray, received[0].backend) == (3, None, "processes")
 
 
 def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path):

@@ -1,0 +1,59 @@
+"""Overhead of dmpopt.parallel per run: local processes and Ray, against a run in series.
+
+    python benchmarks/bench_parallel.py                  # local processes and a local Ray
+    python benchmarks/bench_parallel.py --ray auto       # a running cluster (docs/cluster.md)
+
+A run is a call of a function that returns at once, so the time per run is the backend's
+cost: sending the input, scheduling, and collecting the result. Two measures: one run at a
+time (latency, what a single slow trial pays) and a batch of runs (what a sweep pays per run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from dmpopt.parallel import Runner, map_runs
+
+
+def _echo(x):
+    return x
+
+
+def overhead(runner: Runner, batch: int = 400, single: int = 20) -> dict:
+    """Median seconds per run: one at a time, and in a batch of ``batch`` runs."""
+    map_runs(_echo, range(4), runner)  # start the workers before timing
+    alone = []
+    for i in range(single):
+        start = time.perf_counter()
+        map_runs(_echo, [i], runner)
+        alone.append(time.perf_counter() - start)
+    start = time.perf_counter()
+    map_runs(_echo, range(batch), runner)
+    return {
+        "one_at_a_time_ms": 1e3 * np.median(alone),
+        "in_a_batch_ms": 1e3 * (time.perf_counter() - start) / batch,
+    }
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ray", default="local", help="'local', 'auto' or HOST:PORT")
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args(argv)
+    runners = {
+        "serial": Runner(progress=False),
+        f"processes ({args.workers})": Runner(workers=args.workers, progress=False),
+        f"ray {args.ray}": Runner(workers=args.workers, ray=args.ray, progress=False),
+    }
+    print(f"{'backend':22s} {'one at a time [ms]':>20s} {'in a batch [ms/run]':>20s}")
+    for name, runner in runners.items():
+        with runner:
+            result = overhead(runner)
+        print(f"{name:22s} {result['one_at_a_time_ms']:20.3f} {result['in_a_batch_ms']:20.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -561,8 +561,16 @@ def _captions(metrics: dict, examples: list) -> dict:
 
 def run(out_dir, quick: bool = False, seed: int = 0, runner=None) -> dict:
     """Run the study, write figures and metrics.json into ``out_dir``, return the metrics."""
+    from dmpopt.exceptions import InvalidInputError
     from dmpopt.parallel import Runner, map_runs
+    from dmpopt.validation import integer
 
+    seed = integer("seed", seed, minimum=0)
+    if runner is not None and not isinstance(runner, Runner):
+        raise InvalidInputError(
+            f"runner must be a dmpopt.parallel.Runner or None, got {type(runner).__name__}; "
+            "pass Runner(workers=2) for two processes"
+        )
     runner = runner or Runner()
     progress = Progress("constrained")
     out = Path(out_dir)

@@ -205,3 +205,14 @@ def test_results_do_not_depend_on_the_runner(quick_run, tmp_path):
     assert parallel["parallel"]["workers"] == 2
     assert parallel["summary"] == serial["summary"]
     assert parallel["feasible"] == serial["feasible"]
+
+
+@pytest.mark.parametrize(
+    "options, match",
+    [({"seed": -1}, "seed"), ({"seed": 1.5}, "seed"), ({"runner": 2}, "runner")],
+)
+def test_bad_arguments_are_refused_before_any_work(tmp_path, options, match):
+    from dmpopt.exceptions import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=match):
+        constrained.run(tmp_path, quick=True, **options)

@@ -102,20 +102,6 @@ def _figures(folder):
     return sorted(p.name for p in folder.glob("*.png") if p.stat().st_size > 10_000)
 
 
-def test_constrained_quick(tmp_path):
-    from studies import constrained
-
-    metrics = constrained.run(tmp_path, quick=True)
-    violations = metrics["violation_fraction"]
-    assert violations["dmp_unconstrained"] > 0.5  # the bounds are tight
-    constrained_name = [
-        m for m in violations if "dmp" in m and "constrained" in m and "unconstrained" not in m
-    ][0]
-    assert violations[constrained_name] == 0.0
-    assert metrics["solve_ms_median"][constrained_name] > 0
-    assert len(_figures(tmp_path)) >= 3
-
-
 RL_TRIALS_TO_95 = {"enac": 160, "ereinforce": 330}  # quick run, median of 6 seeds
 RL_RATIO_95 = 2.06  # eREINFORCE / eNAC, quick run; the paper reports about 10
 

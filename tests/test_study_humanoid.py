@@ -167,3 +167,20 @@ def test_captions_name_the_swing_numbers():
     text = captions(_metrics_stub())
     assert {"fig4_elbow", "figure8", "swing", "demonstration"} <= set(text)
     assert "120 mm higher" in text["swing"] and "12.3 mm" in text["swing"]
+
+
+def test_scenarios_do_not_depend_on_the_runner(dmps):
+    """Two short MuJoCo scenarios (a heavier model, a push) in series and in two worker
+    processes: the same logs, in the order of the inputs (to round-off: the linear algebra
+    of another process may sum in another order, 1e-13 rad measured)."""
+    from dmpopt.parallel import Runner, map_runs
+    from studies.humanoid.robustness import Scenario, run_scenario
+
+    base = Scenario(dmps, duration=0.05)
+    scenarios = [Scenario(dmps, 0.05, mass_scale=1.1), Scenario(dmps, 0.05, push_ns=5.0)]
+    serial = map_runs(run_scenario, scenarios, Runner())
+    parallel = map_runs(run_scenario, scenarios, Runner(2))
+    for one, other in zip(serial, parallel):
+        np.testing.assert_allclose(one.actual, other.actual, rtol=0, atol=1e-10)
+        assert "simulator" not in one.extras  # it does not cross processes
+    assert not np.array_equal(serial[0].actual, map_runs(run_scenario, [base])[0].actual)

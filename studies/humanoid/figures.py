@@ -119,6 +119,8 @@ def _drumming_tracking(plt, study):
         )
         ax.tick_params(labelsize=7)
     axes[0, 0].legend(fontsize=7)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("[rad]", fontsize=8)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
     figure.suptitle("Drumming on standing Talos: DMP plan and joint angles [rad]")

@@ -45,7 +45,7 @@ def test_dmps_reproduce_the_demonstration(dmps, demo):
 
 @pytest.mark.parametrize("name", ["amplitude", "frequency", "setpoint"])
 def test_fig4_modification_converges_to_new_limit_cycle(dmps, name):
-    """A x2, tau/2, g + 0.1 rad on the elbow plan: within 5 % of the new cycle within 0.5 s."""
+    """A x2, tau/2, g + 1 rad (steps) on the elbow plan: within 5 % of the new cycle in 0.5 s."""
     modification = humanoid.Modification(name, 1.0, 4.0)
     plan = humanoid.plan_rollout(dmps, 6.0, modification)
     times = plan["times"]

@@ -25,14 +25,15 @@ Set-up (all choices are ours):
   (``LINK_MASS_SCALES``); floor friction 0.4 and 0.7 (``FRICTIONS``; the controller's cone
   at ``min(0.7, floor)``); torque limits of the controller at ``TIGHT_TORQUE`` of the
   nominal run's peak use, so that the QP's torque rows bind; forward pushes on the pelvis
-  of increasing impulse (``PUSH_LADDER``, then two bisections) until the first fall;
+  of every impulse of ``PUSH_LADDER``, then two bisections below its first fall;
 * walking (MuJoCo backend only; :mod:`studies.talos_walk`, metrics under ``walk``): Talos
   (``reduced`` model) steps in place, then walks forward on a LIPM/DCM CoM plan with
   swing-foot references from discrete DMPs, through the same controller with contact
   switching (a normal-force ramp over each double support);
 * videos (MuJoCo's offscreen renderer, animated WebP of ``VIDEO_SECONDS``): drumming,
-  figure-8 and the largest survived push; skipped in quick mode and without an OpenGL
-  context, with the reason in ``videos_skipped``;
+  figure-8, the largest survived push and the forehand (with five keyframes,
+  ``swing_keyframes.png``); skipped in quick mode and without an OpenGL context, with the
+  reason in ``videos_skipped``;
 * controller: :class:`dmpopt.control.InverseDynamicsController` at 1 kHz (a least-squares
   solve per tick, proxsuite when a friction, CoP or torque row is active) with the
   DMP-driven arm joints as a posture task (plan acceleration as feed-forward, low-gain PD
@@ -50,28 +51,47 @@ Set-up (all choices are ours):
   period and start phase, phase-locked to the shared oscillator by a coupling term
   ``ELBOW_PHASE_COUPLING * sin(phi - phi_elbow)`` (switched off while the elbow runs at
   ``tau / 2``), so that ``A``, ``tau`` and ``g`` can change on the elbow alone;
-* Fig. 4 right: ``A -> 2A``, ``tau -> tau / 2`` and ``g -> g + 0.1 rad`` (``SETPOINT_SHIFT``;
-  ``+1`` of the paper is in unknown units and one radian would leave the joint range) on the
-  right elbow from 3 s to 7 s, each in its own standing run; the new A, tau, g are reached
-  through a first-order filter (``PARAMETER_FILTER`` = 0.1 s, like the goal filter of
-  eq. (10)) because steps in them ask for far more than the 8 N m of the Talos wrist; settle
-  times count from the requested change, filter included, to 5 % of the new cycle's range;
+* Fig. 4 right: ``A -> 2A``, ``tau -> tau / 2`` and ``g -> g + 1 rad`` (``SETPOINT_SHIFT``)
+  on the right elbow from 3 s to 7 s, each in its own standing run, as steps (as in the
+  paper). The paper prints no unit for its ``+1``; its joint angles are in radians, and one
+  radian is feasible here: the elbow's limit cycle (0.29 rad peak to peak, centred at -1.49
+  rad) moves to [-0.59, -0.30] rad, inside the elbow's range [-2.23, 0.0035] rad. The
+  shift is 3.5 times the cycle's peak-to-peak range. Settle times count from the step to
+  the last time the elbow leaves 5 % of the new cycle's peak-to-peak range around it; the
+  DMP alone (``plan``) and the robot are reported apart, and the DMP with the change through
+  a 0.1 s first-order filter (``PARAMETER_FILTER``, ``plan_filtered``) for comparison with
+  earlier versions of this study. The setpoint step asks the elbow for about 19 rad/s; its
+  velocity limit (4.58 rad/s) bounds how fast any controller can follow
+  (``setpoint_velocity_bound_s``);
+* discrete movement (``discrete_swing`` in the metrics; :mod:`.swing`): a forehand of the
+  right arm -- a synthetic demonstration of two overlapping minimum-jerk submovements, a
+  backswing (0.9 s) then a faster forward swing (0.5 s) through the contact point to the
+  follow-through -- learned by one six-DOF discrete DMP (:func:`dmpopt.fit_discrete`,
+  library defaults: 30 bases per joint, one canonical system) and executed standing through
+  the same controller for the DMP's default plan length; then sent to a new goal, the
+  follow-through posture with the hand ``SWING_FINISH_RAISE`` higher;
 * figure-8: a 1:2 Lissajous curve of the right hand in the frontal plane, learned as a
   three-DOF task-space rhythmic DMP and tracked by a hand position task while standing;
 * ablations: the controller's model with arms 10 % too heavy (``MASS_ERROR``; the simulator
   and the controller otherwise share the exact model, so tracking is near-perfect), and the
   pelvis orientation task left out.
 
-Quick mode simulates about 40 s in total (3 s of drumming, Fig. 4 runs of 4 s with the change
-between 1 s and 3 s, MuJoCo scenarios of 1.5 s, pushes of 10 and 60 N s) and renders no
-video.
+The MuJoCo scenarios and the pushes are independent runs: they go through
+:func:`dmpopt.parallel.map_runs` with the ``runner`` given to :func:`run` (serial by
+default; ``--workers N`` on the command line). Each stage prints its progress.
 
-Run: ``python -m studies.humanoid OUT_DIR [--quick]`` or ``dmpopt study run humanoid``.
+Quick mode simulates about 50 s in total (3 s of drumming, Fig. 4 runs of 4 s with the change
+between 1 s and 3 s, the two swings, MuJoCo scenarios of 1.5 s, pushes of 10 and 60 N s) and
+renders no video.
+
+Run: ``python -m studies.humanoid OUT_DIR [--quick] [--workers N]`` or ``dmpopt study run
+humanoid``.
 
 Modules: :mod:`.parameters` (the set-up constants), :mod:`.demos` (the demonstrations and
 their inverse kinematics), :mod:`.plan` (the DMPs, their online plan and settle times),
 :mod:`.controller` (controller and simulators), :mod:`.loop` (the closed loop),
-:mod:`.robustness` (MuJoCo scenarios and pushes), :mod:`.metrics`, :mod:`.figures` and
+:mod:`.robustness` (MuJoCo scenarios and pushes), :mod:`.swing` (the discrete forehand),
+:mod:`.metrics`, :mod:`.summary` (the opening table and captions), :mod:`.figures` and
 :mod:`.study` (``run`` and ``main``).
 """
 
@@ -120,7 +140,7 @@ from .plan import (
     plan_rollout,
     settle_time,
 )
-from .robustness import mujoco_scenarios, push_search
+from .robustness import Scenario, mujoco_scenarios, push_search, run_scenario
 from .study import check_backend, main, run
 
 __all__ = [
@@ -140,6 +160,7 @@ __all__ = [
     "PERIOD",
     "POSTURE_WEIGHT",
     "PUSH_TIME",
+    "Scenario",
     "RunLog",
     "SETPOINT_SHIFT",
     "SETTLE_TOLERANCE",
@@ -163,6 +184,7 @@ __all__ = [
     "run",
     "run_drumming",
     "run_figure8",
+    "run_scenario",
     "settle_time",
     "with_mass_error",
     "with_scaled_masses",

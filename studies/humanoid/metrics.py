@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -10,13 +10,22 @@ from .demos import DRUM_JOINTS, Demonstration
 from .loop import RunLog
 from .parameters import (
     DT,
+    ELBOW,
     JOINT_LIMIT_HORIZON,
     MASS_ERROR,
+    PARAMETER_FILTER,
     PERIOD,
     SETPOINT_SHIFT,
     SETTLE_TOLERANCE,
 )
-from .plan import DrumDmps, Modification, ideal_elbow, plan_rollout, settle_time
+from .plan import (
+    DrumDmps,
+    Modification,
+    elbow_limit_cycle,
+    ideal_elbow,
+    plan_rollout,
+    settle_time,
+)
 
 GROUPS = {"left_arm": slice(0, 6), "right_arm": slice(6, 12)}  # columns of DRUM_JOINTS
 
@@ -35,6 +44,8 @@ class StudyRuns:
     native: RunLog  # nominal drumming on the native simulator (runs["none"] on that backend)
     mujoco: dict | None  # robustness.mujoco_scenarios, on the MuJoCo backend only
     fig4_duration: float  # [s] each Fig. 4 run
+    swing_demo: object = None  # Trajectory: the forehand demonstration (swing.py)
+    swings: dict = field(default_factory=dict)  # "demonstrated_goal", "new_goal" -> SwingRun
 
     @property
     def standing(self) -> list:
@@ -96,7 +107,12 @@ def _frequency_settle(plan: dict, modification: Modification) -> float | None:
 
 
 def fig4_metrics(dmps: DrumDmps, study: StudyRuns) -> dict:
-    """Settle times of the plan and of the robot's elbow after each Fig. 4 change."""
+    """Settle times of the plan and of the robot's elbow after each Fig. 4 change.
+
+    The robot and ``plan`` take the change as a step (as in the paper); ``plan_filtered``
+    is the plan alone with the change passed through a ``PARAMETER_FILTER`` first-order
+    filter, for comparison with the filtered set-up of earlier versions.
+    """
     elbow, end = dmps.elbow_index, study.fig4_duration
     fig4 = {}
     for modification in study.modifications[1:]:
@@ -104,9 +120,19 @@ def fig4_metrics(dmps: DrumDmps, study: StudyRuns) -> dict:
         plan, log = study.plans[name], study.runs[name]
         plan_elbow = plan["positions"][:, elbow]
         elbow_error = log.actual[:, elbow] - log.desired[:, elbow]
+        filtered_change = replace(modification, filter=PARAMETER_FILTER)
+        filtered = plan_rollout(dmps, end, filtered_change)
         fig4[name] = {
             "plan": _settling(
                 dmps, modification, plan["times"], plan_elbow, plan["elbow_phase"], end
+            ),
+            "plan_filtered": _settling(
+                dmps,
+                filtered_change,
+                filtered["times"],
+                filtered["positions"][:, elbow],
+                filtered["elbow_phase"],
+                end,
             ),
             "robot": _settling(
                 dmps, modification, log.times, log.actual[:, elbow], log.elbow_phase, end
@@ -238,13 +264,24 @@ def study_metrics(robot, dmps: DrumDmps, study: StudyRuns) -> dict:
     """Every metric of the closed-loop runs (``robot``: the standing Talos)."""
     fig4 = fig4_metrics(dmps, study)
     onset = [fig4[n]["robot"]["onset_s"] for n in fig4]
+    elbow_speed = float(robot.model.velocityLimit[robot.velocity_indices([ELBOW])[0]])
     return {
         **timing_metrics(study),
         **tracking_metrics(study),
         "settle_time_s": None if None in onset else float(max(onset)),
         "settle_time_note": f"robot elbow within {SETTLE_TOLERANCE:.0%} of the new limit "
-        "cycle's peak-to-peak amplitude after the change, worst of A x2, tau/2, g + "
-        f"{SETPOINT_SHIFT} rad",
+        "cycle's peak-to-peak amplitude after a step change (no filter, as in the paper), "
+        f"worst of A x2, tau/2, g + {SETPOINT_SHIFT:g} rad; fig4.<change>.plan is the DMP "
+        "alone, fig4.<change>.plan_filtered the DMP with a "
+        f"{PARAMETER_FILTER:g} s filter on the change",
+        "setpoint_shift_rad": SETPOINT_SHIFT,
+        "setpoint_shift_note": f"the paper's g + 1 taken in radians (its joint angles; it "
+        "prints no unit); the elbow's limit cycle is "
+        f"{np.ptp(elbow_limit_cycle(dmps)(np.linspace(0, 2 * np.pi, 721))):.3f} rad peak to "
+        f"peak and stays inside the elbow's range after the shift",
+        "setpoint_velocity_bound_s": SETPOINT_SHIFT / elbow_speed,
+        "setpoint_velocity_bound_note": f"shift / elbow velocity limit ({elbow_speed:g} "
+        "rad/s): no controller within the limit moves the elbow's cycle faster",
         "fig4": fig4,
         **limit_metrics(robot, study),
         **ablation_metrics(study),

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-EXPECTED_SECONDS = {"full": 220, "quick": 105}  # CPU seconds on the 2-core machine (MuJoCo)
+EXPECTED_SECONDS = {"full": 180, "quick": 70}  # CPU seconds on the 2-core machine (MuJoCo)
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)
@@ -11,13 +11,14 @@ N_BASIS = 15  # basis functions per DOF, as in the paper
 ARM_JOINTS = (1, 2, 3, 4, 6, 7)  # Talos arm joints driven by DMPs (6 per arm); 5 is held
 ELBOW = "arm_right_4_joint"
 CHANGE_START, CHANGE_END = 3.0, 7.0  # [s] Fig. 4 right: modification window
-SETPOINT_SHIFT = 0.1  # [rad] "g + 1" of Fig. 4, in a safe unit
+# Fig. 4's "g -> g + 1" in radians (the paper's joint angles; it prints no unit): the new
+# elbow cycle [-0.59, -0.30] rad stays inside the Talos elbow range [-2.23, 0.0035] rad.
+SETPOINT_SHIFT = 1.0  # [rad]
 ELBOW_PHASE_COUPLING = 2.0  # gain of the elbow's phase lock to the shared oscillator
 SETTLE_TOLERANCE = 0.05  # fraction of the new peak-to-peak amplitude
-# A, tau and g of the elbow move to their new values through a first-order filter of this
-# time constant (like the goal filter of eq. (10)): a step in tau steps the plan's velocity
-# and a step in A or g gives plan accelerations of hundreds of rad/s^2 (infinite for tau),
-# far beyond the 70 N m elbow and 8 N m wrist of Talos.
+# The robot runs take A, tau and g as steps, as in the paper. For comparison only, the plan
+# is also rolled out with the parameters passed through a first-order filter of this time
+# constant (like the goal filter of eq. (10)), which an earlier version of the study used.
 PARAMETER_FILTER = 0.1  # [s]
 
 # Drumming posture (bent elbows, hands in front of the belly); arm joints 1..7, left arm.
@@ -64,3 +65,15 @@ PUSH_RUN_SECONDS = {"quick": 1.5, "full": 2.5}  # [s] each push run (push at PUS
 VIDEO_FPS = 20.0
 VIDEO_SECONDS = 3.0  # [s] of each clip (from the start of its run)
 VIDEO_SIZE = (320, 240)  # [pixels]
+
+# Discrete movement: a forehand of the right arm (joints 1..7; 5 held), from the drumming
+# posture. The demonstration is two overlapping minimum-jerk submovements: a backswing, then a
+# faster forward swing through the contact point to the follow-through (peak joint speeds
+# 74-85 % of the Talos velocity limits).
+SWING_BACK = (-0.55, -0.55, -0.20, -1.25, 0.0, 0.25, -0.25)
+SWING_FOLLOW = (0.05, -0.20, 0.70, -1.70, 0.0, -0.15, 0.15)
+SWING_BACK_SECONDS = 0.9  # [s] backswing duration
+SWING_FORWARD_START = 0.75  # [s] the forward swing starts before the backswing ends
+SWING_FORWARD_SECONDS = 0.5  # [s]
+SWING_HOLD = 0.75  # [s] simulated after the demonstrated duration
+SWING_FINISH_RAISE = 0.12  # [m] the new goal: the follow-through hand this much higher

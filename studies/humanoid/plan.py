@@ -16,7 +16,6 @@ from .parameters import (
     ELBOW,
     ELBOW_PHASE_COUPLING,
     N_BASIS,
-    PARAMETER_FILTER,
     PERIOD,
     SETPOINT_SHIFT,
 )
@@ -69,6 +68,7 @@ class Modification:
     name: str  # "none", "amplitude", "frequency" or "setpoint"
     start: float = CHANGE_START
     end: float = CHANGE_END
+    filter: float = 0.0  # [s] time constant of the parameters' first-order filter; 0: a step
 
     @property
     def label(self) -> str:
@@ -77,7 +77,7 @@ class Modification:
             "none": "A: unmodified",
             "amplitude": "B: A -> 2A",
             "frequency": "C: tau -> tau/2",
-            "setpoint": f"D: g -> g + {SETPOINT_SHIFT} rad",
+            "setpoint": f"D: g -> g + {SETPOINT_SHIFT:g} rad",
         }[self.name]
 
 
@@ -136,7 +136,8 @@ class DrumPlan:
         active = mod.name != "none" and mod.start <= self.time + 1e-9 < mod.end
         target = self._targets(active)
         if np.any(target != self._parameters):
-            self._parameters += (target - self._parameters) * min(1.0, self.dt / PARAMETER_FILTER)
+            rate = min(1.0, self.dt / mod.filter) if mod.filter > 0 else 1.0
+            self._parameters += (target - self._parameters) * rate
             close = np.abs(target - self._parameters) < 1e-9
             self._parameters[close] = target[close]
             amplitude, tau, setpoint = self._parameters

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+from functools import lru_cache
+
 import numpy as np
+
+from dmpopt.parallel import map_runs
+from robots import load_talos
 
 from .controller import mujoco_plant, with_scaled_masses, with_scaled_torque_limits
 from .loop import RunLog, run_drumming
@@ -39,33 +45,91 @@ def summary(log: RunLog) -> dict:
     }
 
 
-def push_search(drum, ladder, bisections: int) -> dict:
+@dataclass(frozen=True)
+class Scenario:
+    """One independent MuJoCo drumming run from the drumming start (picklable, for workers).
+
+    ``mass_scale`` scales every link of the controller's model, ``torque_scale`` its torque
+    limits; ``friction`` is the floor's (the controller's cone at ``min(0.7, friction)``);
+    ``push_ns`` a forward impulse on the pelvis at ``PUSH_TIME``; ``record`` keeps the
+    configurations for a video.
+    """
+
+    dmps: object  # DrumDmps
+    duration: float
+    compile: bool = False
+    mass_scale: float | None = None
+    torque_scale: float | None = None
+    friction: float = MUJOCO_FRICTION
+    push_ns: float | None = None
+    record: bool = False
+
+
+@lru_cache(maxsize=1)
+def _talos():
+    return load_talos("full")
+
+
+def run_scenario(scenario: Scenario) -> RunLog:
+    """Run one :class:`Scenario` (a module-level function for :func:`dmpopt.parallel.map_runs`).
+
+    The simulator is left out of the returned log (it does not cross processes); the
+    recorded configurations are kept.
+    """
+    robot = _talos()
+    controller_robot = robot
+    if scenario.mass_scale is not None:
+        controller_robot = with_scaled_masses(controller_robot, scenario.mass_scale)
+    if scenario.torque_scale is not None:
+        controller_robot = with_scaled_torque_limits(controller_robot, scenario.torque_scale)
+    push = None if scenario.push_ns is None else (PUSH_TIME, np.array([scenario.push_ns, 0, 0]))
+    log = run_drumming(
+        robot,
+        scenario.dmps,
+        scenario.duration,
+        compile=scenario.compile,
+        controller_robot=controller_robot,
+        build_options={
+            "com_sink": 0.0,
+            "friction": min(CONTROLLER_FRICTION, scenario.friction),
+        },
+        plant=mujoco_plant(scenario.friction),
+        push=push,
+        record_every=int(round(1.0 / (VIDEO_FPS * DT))) if scenario.record else 0,
+    )
+    log.extras.pop("simulator", None)
+    return log
+
+
+def push_search(attempt, ladder, bisections: int) -> dict:
     """Largest forward impulse on the pelvis [N s] survived while drumming.
 
-    ``drum(push=(time, impulse))`` runs one pushed drumming run. The impulses of ``ladder``
-    (increasing) are tried until the first fall, then ``bisections`` halvings between the
-    largest survived and the smallest fatal impulse. A run that diverged did not survive and
-    bounds the search like a fall, but is reported as ``diverged``, not as a fall. Assumes
-    survival is monotonic in the impulse (checked only at the points tried). Returns the
-    bounds, every impulse tried and the run of the largest survived push (or of the first
-    failure if none was survived).
+    ``attempt(impulses)`` runs one pushed drumming run per impulse (independent runs) and
+    returns their logs in order. Every impulse of ``ladder`` (increasing) is run; the largest
+    one below the first failure is survived, the first failure is fatal; then ``bisections``
+    halvings between the two, one run each. A run that diverged did not survive and bounds
+    the search like a fall, but is reported as ``diverged``, not as a fall. The ladder's
+    runs above the first failure stay in ``tried``, so that a non-monotonic survival shows.
+    Returns the bounds, every impulse tried and the run of the largest survived push (or of
+    the first failure if none was survived).
     """
-    tried, survived, fatal, shown = [], 0.0, None, None
+    tried = []
 
-    def attempt(impulse):
-        log = drum(push=(PUSH_TIME, np.array([impulse, 0.0, 0.0])))
-        tried.append({"impulse_ns": impulse, "fell": log.fell, "diverged": log.diverged})
-        return log, log.fell or log.diverged is not None
+    def run(impulses):
+        logs = attempt(list(impulses))
+        for impulse, log in zip(impulses, logs):
+            tried.append({"impulse_ns": impulse, "fell": log.fell, "diverged": log.diverged})
+        return [(log, log.fell or log.diverged is not None) for log in logs]
 
-    for impulse in ladder:
-        log, failed = attempt(impulse)
+    survived, fatal, shown = 0.0, None, None
+    for impulse, (log, failed) in zip(ladder, run(ladder)):
         if failed:
             fatal, shown = impulse, shown or log
             break
         survived, shown = impulse, log
     for _ in range(bisections if fatal is not None else 0):
         impulse = 0.5 * (survived + fatal)
-        log, failed = attempt(impulse)
+        [(log, failed)] = run([impulse])
         if failed:
             fatal = impulse
         else:
@@ -73,44 +137,31 @@ def push_search(drum, ladder, bisections: int) -> dict:
     return {"survived_ns": survived, "fell_ns": fatal, "tried": tried, "log": shown}
 
 
-def mujoco_scenarios(robot, dmps, nominal: RunLog, quick: bool, compile: bool, bar) -> dict:
+def mujoco_scenarios(dmps, nominal: RunLog, quick: bool, compile: bool, runner=None) -> dict:
     """Model mismatch, friction, tight torque limits and pushes, all in MuJoCo.
 
     ``nominal`` is the unmodified MuJoCo drumming run (its peak torque use sets the tight
-    torque limits). Returns the scenario summaries, the push search and the push run.
+    torque limits). The runs go through :func:`dmpopt.parallel.map_runs` with ``runner``.
+    Returns the scenario summaries, the push search and the push run.
     """
     mode = "quick" if quick else "full"
-    duration = SCENARIO_SECONDS[mode]
-    record = int(round(1.0 / (VIDEO_FPS * DT)))
-
-    def drum(plant=None, controller_robot=None, friction=CONTROLLER_FRICTION, **loop):
-        return run_drumming(
-            robot,
-            dmps,
-            loop.pop("duration", duration),
-            None,
-            bar,
-            compile=compile,
-            controller_robot=controller_robot,
-            build_options={"com_sink": 0.0, "friction": friction},
-            plant=plant or mujoco_plant(),
-            **loop,
-        )
-
-    scenarios = {}
-    for scale in LINK_MASS_SCALES:
-        log = drum(controller_robot=with_scaled_masses(robot, scale))
-        scenarios[f"link_masses_x{scale:g}"] = summary(log)
-    for friction in FRICTIONS:
-        log = drum(plant=mujoco_plant(friction), friction=min(CONTROLLER_FRICTION, friction))
-        scenarios[f"friction_{friction:g}"] = summary(log)
+    base = Scenario(dmps, SCENARIO_SECONDS[mode], compile)
     tight = TIGHT_TORQUE * float(nominal.torque_use.max())
+    names = [f"link_masses_x{scale:g}" for scale in LINK_MASS_SCALES]
+    names += [f"friction_{friction:g}" for friction in FRICTIONS] + ["tight_torque_limits"]
+    runs = [replace(base, mass_scale=scale) for scale in LINK_MASS_SCALES]
+    runs += [replace(base, friction=friction) for friction in FRICTIONS]
+    runs.append(replace(base, torque_scale=tight))
+    scenarios = {n: summary(log) for n, log in zip(names, map_runs(run_scenario, runs, runner))}
     scenarios["tight_torque_limits"] = {
         "scale_of_urdf_limits": tight,
-        **summary(drum(controller_robot=with_scaled_torque_limits(robot, tight))),
+        **scenarios["tight_torque_limits"],
     }
+    pushed = replace(base, duration=PUSH_RUN_SECONDS[mode], record=True)
     push = push_search(
-        lambda push: drum(push=push, duration=PUSH_RUN_SECONDS[mode], record_every=record),
+        lambda impulses: map_runs(
+            run_scenario, [replace(pushed, push_ns=i) for i in impulses], runner
+        ),
         PUSH_LADDER_QUICK if quick else PUSH_LADDER,
         bisections=0 if quick else PUSH_BISECTIONS,
     )
@@ -141,7 +192,8 @@ def mujoco_metrics(nominal: RunLog, mujoco: dict) -> dict:
         "push_fell_ns": push["fell_ns"],
         "push_tried_ns": push["tried"],
         "push_note": f"forward impulse on the pelvis spread over {PUSH_DURATION} s from "
-        f"t = {PUSH_TIME} s while drumming; ladder, then bisection. "
+        f"t = {PUSH_TIME} s while drumming; the whole ladder (independent runs), then "
+        "bisection below its first failure. "
         + (
             "No impulse tried was fatal: push_survived_ns is only a lower bound (search capped). "
             if push["fell_ns"] is None

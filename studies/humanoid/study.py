@@ -6,10 +6,11 @@ import time
 from dataclasses import dataclass
 
 from dmpopt.exceptions import InvalidInputError
+from dmpopt.parallel import Runner
 from robots import load_talos
 
-from ..common import output_dir, write_metrics
-from ..talos_walk import run_walk
+from ..common import Progress, output_dir, write_metrics
+from ..talos_walk import keyframes, run_walk
 from .controller import mujoco_plant, with_mass_error
 from .demos import DRUM_JOINTS, demonstrate_drumming
 from .figures import plot, video_clips, write_videos
@@ -27,19 +28,29 @@ from .parameters import (
     MASS_ERROR,
     N_BASIS,
     PERIOD,
-    PUSH_BISECTIONS,
-    PUSH_LADDER,
-    PUSH_LADDER_QUICK,
-    PUSH_RUN_SECONDS,
-    SCENARIO_SECONDS,
     SETPOINT_SHIFT,
     STROKE_HEIGHT,
     STROKE_LOOP,
+    SWING_BACK,
+    SWING_BACK_SECONDS,
+    SWING_FINISH_RAISE,
+    SWING_FOLLOW,
+    SWING_FORWARD_SECONDS,
+    SWING_FORWARD_START,
     VIDEO_FPS,
     WRIST_FLICK,
 )
 from .plan import MODIFICATIONS, Modification, learn_drumming, plan_rollout, stepper_compiles
 from .robustness import loop_summary, mujoco_metrics, mujoco_scenarios
+from .summary import captions, summary_rows
+from .swing import (
+    SWING_JOINTS,
+    demonstrate_swing,
+    executed_swing,
+    learn_swing,
+    raised_goal,
+    swing_metrics,
+)
 
 
 @dataclass(frozen=True)
@@ -70,89 +81,109 @@ def check_backend(backend) -> str:
     return backend
 
 
-def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") -> dict:
+def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", runner=None) -> dict:
     """Run the study, write the figures and ``metrics.json`` into ``out_dir``; return metrics.
 
     ``backend`` simulates the standing robot: "mujoco" (default; also runs the model-mismatch,
     friction, torque-limit and push scenarios, a native run for comparison, and the videos)
-    or "native". The study is deterministic; ``seed`` is recorded only.
+    or "native". ``runner`` (:class:`dmpopt.parallel.Runner`, default serial) runs the
+    independent MuJoCo scenarios and pushes. The study is deterministic; ``seed`` is
+    recorded only.
     """
     backend = check_backend(backend)
+    runner = runner or Runner()
     out = output_dir(out_dir)
     durations = Durations.of(quick)
+    progress = Progress("humanoid")
     start_wall, start_cpu = time.perf_counter(), time.process_time()
 
+    progress("drumming demonstration (inverse kinematics) and rhythmic DMPs")
     demo = demonstrate_drumming()
     dmps = learn_drumming(demo)
     compile = stepper_compiles(dmps)
     floating = load_talos("full")
-    study = simulate(floating, dmps, durations, backend, quick, compile)
+    study = simulate(floating, dmps, durations, backend, quick, compile, progress, runner)
 
     metrics = study_metrics(floating, dmps, study)
     metrics.update(demo_ik_error=demo.ik_error, dmp_fit_error_rad=fit_error(dmps, demo))
     metrics.update(dmp_step_compiled=compile, backend=backend)
+    metrics["discrete_swing"] = swing_metrics(floating, study.swing_demo, study.swings)
     metrics["native"] = loop_summary(study.native)
     on_mujoco = backend == "mujoco"
     if on_mujoco:
         metrics["mujoco"] = mujoco_metrics(study.runs["none"], study.mujoco)
-        metrics["walk"] = run_walk(out, quick)  # Talos steps in place, then walks forward
+        progress("Talos walk (reduced model): steps in place, then forward")
+        metrics["walk"] = run_walk(out, quick)
     skip = "quick run" if quick else None if on_mujoco else "native backend (videos need MuJoCo)"
-    clips = video_clips(study) if on_mujoco else {}
+    clips = video_clips(floating, study) if skip is None else {}
+    progress("figures" + ("" if skip else " and videos"))
     metrics["videos"], metrics["videos_skipped"] = write_videos(out, clips, skip)
     if metrics["videos_skipped"]:
         print(f"videos skipped: {metrics['videos_skipped']}")
+    if "humanoid_swing.webp" in metrics["videos"]:
+        keyframes(out / "humanoid_swing.webp", out / "swing_keyframes.png")
     plot(out, dmps, demo, study)
+    metrics["parallel"] = runner.record()
+    metrics["summary"] = summary_rows(metrics)
+    metrics["captions"] = captions(metrics)
     metrics["cpu_seconds"] = time.process_time() - start_cpu
     metrics["wall_seconds"] = time.perf_counter() - start_wall
     return write_metrics(out, "humanoid", metrics, _parameters(durations), seed, quick)
 
 
-def simulate(robot, dmps, durations: Durations, backend: str, quick: bool, compile: bool):
+def simulate(
+    robot, dmps, durations: Durations, backend: str, quick: bool, compile: bool, progress, runner
+):
     """Every closed-loop run of the study on the standing ``robot``, as :class:`StudyRuns`."""
-    from tqdm import tqdm
-
     on_mujoco = backend == "mujoco"
     standing = {
         "compile": compile,
         "build_options": {"com_sink": 0.0} if on_mujoco else None,
         "plant": mujoco_plant() if on_mujoco else None,
     }
-    record = int(round(1.0 / (VIDEO_FPS * DT))) if on_mujoco else 0
+    record = int(round(1.0 / (VIDEO_FPS * DT))) if on_mujoco and not quick else 0
     modifications = [Modification(m.name, *durations.window) for m in MODIFICATIONS]
-    bar_format = "{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} simulated s [{elapsed}]"
-    ticks = int(round(_simulated_seconds(durations, on_mujoco, quick) / DT))
-    with tqdm(total=ticks, desc="humanoid", bar_format=bar_format, unit_scale=DT) as bar:
-        runs, plans = {}, {}
-        for modification in modifications:
-            name = modification.name
-            duration = durations.drum if name == "none" else durations.fig4
-            plans[name] = plan_rollout(dmps, durations.fig4, modification)
-            runs[name] = run_drumming(
-                robot,
-                dmps,
-                duration,
-                modification,
-                bar,
-                record_every=record if name == "none" else 0,
-                **standing,
-            )
-        # The fixed-base upper body is a reduced model with locked legs (no URDF of its own):
-        # it stays on the native simulator, as the controller's timing reference.
-        fixed = load_talos("full", fixed_base=True)
-        fixed_log = run_drumming(fixed, dmps, durations.fixed, None, bar, compile=compile)
-        # Ablations: a controller model with heavier arms, and no pelvis orientation task.
-        heavier_arms = with_mass_error(robot, MASS_ERROR)
-        wrong_model = run_drumming(
-            robot, dmps, durations.drum, None, bar, controller_robot=heavier_arms, **standing
+    runs, plans = {}, {}
+    for modification in modifications:
+        name = modification.name
+        duration = durations.drum if name == "none" else durations.fig4
+        progress(f"drumming, Fig. 4 {modification.label} ({duration:g} s simulated)")
+        plans[name] = plan_rollout(dmps, durations.fig4, modification)
+        runs[name] = run_drumming(
+            robot,
+            dmps,
+            duration,
+            modification,
+            record_every=record if name == "none" else 0,
+            **standing,
         )
-        no_base_task = run_drumming(
-            robot, dmps, durations.drum, None, bar, base_task=False, **standing
+    progress("drumming: fixed base, heavier arms in the model, no pelvis task; figure-8")
+    # The fixed-base upper body is a reduced model with locked legs (no URDF of its own):
+    # it stays on the native simulator, as the controller's timing reference.
+    fixed = load_talos("full", fixed_base=True)
+    fixed_log = run_drumming(fixed, dmps, durations.fixed, None, compile=compile)
+    # Ablations: a controller model with heavier arms, and no pelvis orientation task.
+    heavier_arms = with_mass_error(robot, MASS_ERROR)
+    wrong_model = run_drumming(
+        robot, dmps, durations.drum, None, controller_robot=heavier_arms, **standing
+    )
+    no_base_task = run_drumming(robot, dmps, durations.drum, None, base_task=False, **standing)
+    figure8, _ = run_figure8(robot, durations.figure8, record_every=record, **standing)
+    progress("discrete forehand swing: demonstrated goal and a higher finish")
+    swing_demo = demonstrate_swing(robot)
+    swing_dmp = learn_swing(swing_demo)
+    swings = {
+        name: executed_swing(robot, dmp, dmp.settling_time, record_every=record, **standing)
+        for name, dmp in (
+            ("demonstrated_goal", swing_dmp),
+            ("new_goal", swing_dmp.with_goal(raised_goal(robot, swing_dmp))),
         )
-        figure8, _ = run_figure8(robot, durations.figure8, bar, record_every=record, **standing)
-        native, mujoco = runs["none"], None
-        if on_mujoco:
-            native = run_drumming(robot, dmps, durations.drum, None, bar, compile=compile)
-            mujoco = mujoco_scenarios(robot, dmps, runs["none"], quick, compile, bar)
+    }
+    native, mujoco = runs["none"], None
+    if on_mujoco:
+        progress("drumming on the native simulator; MuJoCo scenarios and pushes")
+        native = run_drumming(robot, dmps, durations.drum, None, compile=compile)
+        mujoco = mujoco_scenarios(dmps, runs["none"], quick, compile, runner)
     return StudyRuns(
         modifications,
         plans,
@@ -164,17 +195,9 @@ def simulate(robot, dmps, durations: Durations, backend: str, quick: bool, compi
         native,
         mujoco,
         durations.fig4,
+        swing_demo,
+        swings,
     )
-
-
-def _simulated_seconds(durations: Durations, on_mujoco: bool, quick: bool) -> float:
-    """Simulated time of all the runs (the pushes: at most this many), for the progress bar."""
-    total = 3 * durations.fig4 + 3 * durations.drum + durations.fixed + durations.figure8
-    if on_mujoco:  # the native comparison, five scenarios, the pushes
-        mode = "quick" if quick else "full"
-        pushes = len(PUSH_LADDER_QUICK) if quick else len(PUSH_LADDER) + PUSH_BISECTIONS
-        total += durations.drum + 5 * SCENARIO_SECONDS[mode] + pushes * PUSH_RUN_SECONDS[mode]
-    return total
 
 
 def _parameters(durations: Durations) -> dict:
@@ -187,6 +210,7 @@ def _parameters(durations: Durations) -> dict:
         "drum_joints": DRUM_JOINTS,
         "modification_window_s": durations.window,
         "setpoint_shift_rad": SETPOINT_SHIFT,
+        "fig4_changes": "steps (no filter)",
         "arm_stiffness": ARM_STIFFNESS,
         "hand_stiffness": HAND_STIFFNESS,
         "durations_s": {
@@ -198,6 +222,15 @@ def _parameters(durations: Durations) -> dict:
         "stroke": {"height_m": STROKE_HEIGHT, "loop_m": STROKE_LOOP, "wrist_rad": WRIST_FLICK},
         "figure8_size_m": FIGURE8_SIZE,
         "figure8_period_s": FIGURE8_PERIOD,
+        "swing": {
+            "joints": SWING_JOINTS,
+            "backswing_rad": SWING_BACK,
+            "follow_through_rad": SWING_FOLLOW,
+            "backswing_s": SWING_BACK_SECONDS,
+            "forward_swing_start_s": SWING_FORWARD_START,
+            "forward_swing_s": SWING_FORWARD_SECONDS,
+            "new_goal_finish_raise_m": SWING_FINISH_RAISE,
+        },
     }
 
 
@@ -213,8 +246,12 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true", help="a few simulated seconds")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--backend", choices=BACKENDS, default="mujoco")
+    parser.add_argument("--workers", type=int, default=1, help="processes for the scenarios")
     args = parser.parse_args(argv)
-    metrics = run(args.out_dir, quick=args.quick, seed=args.seed, backend=args.backend)
+    runner = Runner(args.workers)
+    metrics = run(
+        args.out_dir, quick=args.quick, seed=args.seed, backend=args.backend, runner=runner
+    )
     print(json.dumps({k: metrics[k] for k in SUMMARY_KEYS if k in metrics}, indent=1))
 
 
@@ -228,6 +265,7 @@ SUMMARY_KEYS = (  # what main() prints
     "tracking_rms_rad",
     "figure8_rms_mm",
     "settle_time_s",
+    "discrete_swing",
     "torque_limit_use_max",
     "position_limit_margin_rad",
     "fell",

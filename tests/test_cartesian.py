@@ -418,3 +418,22 @@ def test_bad_fields_and_goals_are_refused_by_name(fitted):
         fitted.stepper(100.0)
     with pytest.raises(InvalidInputError, match="dmp must be a CartesianDMP"):
         dmpopt.CartesianStepper("not a dmp")
+
+
+# --- on the robot ----------------------------------------------------------------------
+
+
+def test_cartesian_study_quick(tmp_path):
+    """Talos stands and its hand follows the pose plan, replayed and re-aimed online."""
+    from studies import cartesian
+
+    metrics = cartesian.run(tmp_path, quick=True)
+    assert metrics["fell"] is False and metrics["new_goal"]["fell"] is False
+    assert metrics["quaternion_norm_error_max"] < 1e-12
+    assert metrics["position_rmse_mm"] < 1.0 and metrics["orientation_rmse_deg"] < 0.5
+    assert metrics["hand_tracking_mm"] < 1.0 and metrics["hand_tracking_deg"] < 0.5
+    assert metrics["new_goal"]["hand_tracking_mm"] < 2.0
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "cartesian_plan.png",
+        "cartesian_tracking.png",
+    ]

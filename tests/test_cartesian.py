@@ -437,3 +437,16 @@ def test_cartesian_study_quick(tmp_path):
         "cartesian_plan.png",
         "cartesian_tracking.png",
     ]
+
+
+def test_stepper_set_tau_scales_time(fitted):
+    """set_tau(2 tau) from the start: the plan of with_tau(2 tau), sampled at twice dt."""
+    slow = fitted.with_tau(2 * fitted.tau).rollout(4.0, 0.004)
+    stepper = fitted.stepper(0.004)
+    stepper.set_tau(2 * fitted.tau)
+    stepped = [stepper.step()[3] for _ in range(slow.times.size - 1)]
+    assert np.abs(np.array(stepped) - slow.orientations[1:]).max() < 1e-12
+    with pytest.raises(InvalidInputError, match="tau must be a finite number > 0"):
+        stepper.set_tau(np.nan)
+    with pytest.raises(InvalidInputError, match="beyond the stability limit"):
+        stepper.set_tau(1e-4)

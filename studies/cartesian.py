@@ -55,7 +55,7 @@ TILT = np.array([1.0, 0.0, 0.0])  # [rad] demonstrated rotation vector (world fr
 PITCH = 0.2  # [rad] extra pitch at mid-motion
 GOAL_CHANGE_TIME = 0.8  # [s]
 GOAL_SHIFT = np.array([0.0, -0.05, 0.03])  # [m]
-GOAL_TURN = np.radians(25.0)  # [rad] about the vertical
+GOAL_TURN = np.radians(-25.0)  # [rad] about the vertical (+25 puts arm_right_7 on its limit)
 HAND_STIFFNESS = 100.0  # [1/s^2], damping critical
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT = 1e-2, 10.0, 1.0
 RUN_SECONDS = {"full": 5.0, "quick": 3.0}
@@ -151,6 +151,7 @@ def run_hand(robot, dmp, hand: str, duration: float, goal=None) -> dict:
         "hand": measured,
         "fell": fell,
         "ticks": ticks[:n],
+        "q": state.q.copy(),
     }
 
 
@@ -160,10 +161,14 @@ def angles_deg(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.degrees(2 * np.arccos(dots))
 
 
-def tracking(run: dict) -> dict:
-    """RMS and max of the hand's pose error against the plan."""
+def tracking(robot, run: dict) -> dict:
+    """RMS and max of the hand's pose error against the plan; the right arm's smallest
+    distance to a joint limit at the end [rad]."""
     millimetres = 1e3 * np.linalg.norm(run["hand"][:, :3] - run["plan"][:, :3], axis=1)
     degrees = angles_deg(run["hand"][:, 3:], run["plan"][:, 3:])
+    arm = robot.configuration_indices("right_arm")
+    q = run["q"][arm]
+    low, high = robot.model.lowerPositionLimit[arm], robot.model.upperPositionLimit[arm]
     return {
         "hand_tracking_mm": float(np.sqrt(np.mean(millimetres**2))),
         "hand_tracking_deg": float(np.sqrt(np.mean(degrees**2))),
@@ -171,6 +176,7 @@ def tracking(run: dict) -> dict:
         "hand_tracking_max_deg": float(degrees.max()),
         "fell": run["fell"],
         "tick_median_us": float(1e6 * np.median(run["ticks"])),
+        "right_arm_limit_margin_rad": float(min((q - low).min(), (high - q).min())),
     }
 
 
@@ -206,9 +212,9 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
             np.sqrt(np.mean(angles_deg(plan.orientations, orientations) ** 2))
         ),
         "quaternion_norm_error_max": float(np.abs(np.linalg.norm(quaternions, axis=1) - 1).max()),
-        **tracking(replay),
+        **tracking(robot, replay),
         "new_goal": {
-            **tracking(moved),
+            **tracking(robot, moved),
             "plan_final_position_error_mm": 1e3
             * float(np.linalg.norm(moved["plan"][-1, :3] - goal_position)),
             "plan_final_orientation_error_deg": float(

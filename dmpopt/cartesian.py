@@ -303,12 +303,12 @@ class CartesianDMP:
     def with_goal(self, position=None, orientation=None) -> CartesianDMP:
         """Same movement towards a new goal position and/or orientation (taken on the side
         of the start: the short way round)."""
-        changes = {} if position is None else {"goal": position}
+        changes = {} if position is None else {"goal": vector("position", position, 3, "3-D")}
         return self.replace(**changes, goal_orientation=self._given(orientation, "goal"))
 
     def with_start(self, position=None, orientation=None) -> CartesianDMP:
         """Same movement from a new start position and/or orientation."""
-        changes = {} if position is None else {"start": position}
+        changes = {} if position is None else {"start": vector("position", position, 3, "3-D")}
         return self.replace(**changes, start_orientation=self._given(orientation, "start"))
 
     def _given(self, orientation, which: str) -> np.ndarray:
@@ -402,7 +402,7 @@ class CartesianStepper:
     dt : float
         Step [s], at most ``dmp.max_step``.
     compile : bool
-        Compile the step to C (:class:`dmpopt.Stepper`).
+        Compile the step and the orientation map to C (as :class:`dmpopt.Stepper` does).
     """
 
     def __init__(self, dmp: CartesianDMP, dt: float = 0.001, compile: bool = False):
@@ -413,9 +413,11 @@ class CartesianStepper:
         joint = dmp.joint_dmp()
         self._max_step_per_tau = joint.max_step / joint.tau
         step = symbolic.step_function(joint.signature)
-        compiled = symbolic.compiled(step) if flag("compile", compile) else step
-        self._function = symbolic.NumericFunction(compiled)
-        self._orientation = symbolic.NumericFunction(symbolic.orientation_function())
+        orientation = symbolic.orientation_function()
+        if flag("compile", compile):
+            step, orientation = symbolic.compiled(step), symbolic.compiled(orientation)
+        self._function = symbolic.NumericFunction(step)
+        self._orientation = symbolic.NumericFunction(orientation)
         self._state = self._function.inputs["state"]
         self._state[:] = joint.initial_state(joint.start, joint.start_velocity, (0.0, 0.0))
         self._function.set_inputs(dt=self.dt, **joint.parameters())

@@ -21,6 +21,10 @@ by the ``forcing_weights`` matrix that the caller builds from the weights (see
 :mod:`dmpopt.dmp`). Time enters only as ``t / tau``: a step of ``dt`` with time constant
 ``tau`` is exactly a step of ``dt / tau`` with time constant 1.
 
+Orientation (Cartesian DMPs, :mod:`dmpopt.cartesian`): the quaternion exponential and
+logarithm and the map from the log-space state of a discrete system to an orientation,
+angular velocity and angular acceleration (:func:`orientation_function`).
+
 Discretisation: classical Runge-Kutta 4 with inputs held over the step. Velocities and
 accelerations of the plan are the exact time derivatives of the continuous system at each
 sample (accelerations by automatic differentiation along the flow).

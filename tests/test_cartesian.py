@@ -450,3 +450,13 @@ def test_stepper_set_tau_scales_time(fitted):
         stepper.set_tau(np.nan)
     with pytest.raises(InvalidInputError, match="beyond the stability limit"):
         stepper.set_tau(1e-4)
+
+
+def test_compiled_stepper_gives_the_same_plan(fitted):
+    compiled, plain = fitted.stepper(0.004, compile=True), fitted.stepper(0.004)
+    for k in range(300):
+        if k == 100:
+            for stepper in (compiled, plain):
+                stepper.set_goal([0.5, 0.0, 0.4], [1.0, 0.0, 0.0, 0.0])
+        first, second = compiled.step(), plain.step()
+    assert all(np.allclose(a, b, rtol=0, atol=1e-12) for a, b in zip(first, second))

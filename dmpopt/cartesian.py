@@ -5,10 +5,13 @@ angular velocity: :math:`\dot q = \frac12 \omega \otimes q`).
 
 Position: the discrete DMP of eq. (5) (or eq. (10)) on :math:`y \in \mathbb{R}^3`.
 
-Orientation: the formulation of Koutras and Doulgeri (2020) of the quaternion DMP of Ude,
-Nemec, Petric and Morimoto (2014). Ude et al. drive the angular velocity with the
-quaternion logarithm :math:`2 \log(g \otimes \bar q)`; Koutras and Doulgeri run the DMP on
-the logarithm itself,
+Orientation: the quaternion DMP of Ude, Nemec, Petric and Morimoto [Ude2014]_ in the
+log-space form of Koutras and Doulgeri [Koutras2020]_ (``docs/references.rst``).
+Ude et al. drive the angular velocity with the quaternion logarithm :math:`2 \log(g
+\otimes \bar q)`; Koutras and Doulgeri run the DMP on the logarithm of the orientation
+error itself; here (our choices: the factor 2, which makes it the rotation vector, the world
+frame, eqs. (5) and (10) as the linear system, the goal-change rule of
+:class:`CartesianStepper`)
 
 .. math:: e = 2 \log(q \otimes \bar g) \in \mathbb{R}^3, \qquad q = \exp(e / 2) \otimes g,
 

@@ -91,9 +91,11 @@ def key_rollout(dmp: CartesianDMP, times, goal_changes=()):
 
     ``goal_changes``: (time, new goal quaternion) pairs; at each, e is recomputed about the
     new goal (on the side of q) and z carried as an angular velocity, z' = J(e')^-1 J(e) z.
-    Translation scaling only (the weights do not change with the goal).
+    Translation scaling only (the weights do not change with the goal); goal changes in the
+    velocity form only.
     """
     assert dmp.orientation_scaling == "translation"
+    assert dmp.form == "velocity" or not goal_changes
     tau, az, bz, av, bv = dmp.tau, dmp.alpha_z, dmp.beta_z, dmp.alpha_v, dmp.beta_v
     weights, centres, widths = dmp.orientation_weights, dmp.centres, dmp.widths
 
@@ -104,19 +106,21 @@ def key_rollout(dmp: CartesianDMP, times, goal_changes=()):
     def rhs(_, s, goal):
         x, v, q, z = s[0], s[1], s[2:6], s[6:9]
         e = qlog(qmul(q, qconj(goal)))
-        e_rate = (z + forcing(x, v)) / tau
+        canonical = [v / tau, av * (bv * (1 - x) - v) / tau]
+        if dmp.form == "velocity":  # eq. (5)
+            e_rate, rates = (z + forcing(x, v)) / tau, [az * (bz * (-e) - z) / tau]
+        else:  # eq. (10), goal filter r towards e = 0
+            r = s[9:12]
+            e_rate = z / tau
+            rates = [(az * (bz * (r - e) - z) + forcing(x, v)) / tau, dmp.alpha_g * -r / tau]
         omega = left_jacobian(e) @ e_rate
-        return np.concatenate(
-            [
-                [v / tau, av * (bv * (1 - x) - v) / tau],
-                0.5 * qmul(np.concatenate([[0.0], omega]), q),
-                az * (bz * (-e) - z) / tau,
-            ]
-        )
+        return np.concatenate([canonical, 0.5 * qmul(np.r_[0.0, omega], q), *rates])
 
     goal = dmp.goal_orientation
+    start_log = qlog(qmul(dmp.start_orientation, qconj(goal)))
     state = np.concatenate(
         [[0.0, 0.0], dmp.start_orientation, tau * dmp.orientation_dmp.start_velocity]
+        + ([start_log] if dmp.form == "acceleration" else [])
     )
     edges = [times[0], *[t for t, _ in goal_changes], times[-1]]
     goals = [goal, *[g for _, g in goal_changes]]
@@ -180,9 +184,12 @@ def fitted(demo):
 # --- against the plain system ----------------------------------------------------------
 
 
-def test_rollout_and_stepper_match_the_plain_quaternion_system():
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), form=st.sampled_from(["velocity", "acceleration"]))
+def test_rollout_and_stepper_match_the_plain_quaternion_system(seed, form):
     """The orientation plan equals eq. (5) on the logarithm, integrated in quaternions."""
-    dmp = random_dmp(np.random.default_rng(1), scaled_start_log_rate=[0.5, -1.0, 0.2])
+    rng = np.random.default_rng(seed)
+    dmp = random_dmp(rng, scaled_start_log_rate=rng.normal(size=3), form=form)
     times = np.arange(0, 1.5 + 1e-9, 0.001)  # RK4: 3.6e-7 rad at 2 ms, 2.2e-8 at 1 ms
     key = key_rollout(dmp, times)
     plan = dmp.rollout(1.5, 0.001)

@@ -54,8 +54,8 @@ from .validation import flag, positive, real_array, vector
 UNIT_TOLERANCE = 1e-6
 """Largest accepted deviation of an input quaternion's norm from 1 (it is then normalised)."""
 ANTIPODAL_MARGIN = 1e-9
-r"""Smallest :math:`1 + w` of :math:`q \otimes \bar g` for which the logarithm is computed: at
-:math:`q = -g` (a full turn away) it has no defined axis."""
+r"""Smallest :math:`1 + w` of :math:`q \otimes \bar g` for which the logarithm is computed
+(0.005 degrees from a full turn): at :math:`q = -g` it has no defined axis."""
 
 
 def unit_quaternions(name: str, value, shape: tuple) -> np.ndarray:

@@ -640,9 +640,9 @@ def quaternion_log(q):
     """
     w, v = q[0], q[1:]
     squared = ca.dot(v, v)
-    small = squared < SMALL_ANGLE_SQUARED
-    norm = ca.sqrt(ca.if_else(small, 1.0, squared))
-    safe_w = ca.if_else(small, w, 1.0)  # the series serves w near 1 (w near -1 is refused)
+    small = ca.logic_and(squared < SMALL_ANGLE_SQUARED, w > 0)  # near q = 1 only
+    norm = ca.sqrt(ca.if_else(small, 1.0, squared))  # q = -1 itself is refused by callers
+    safe_w = ca.if_else(small, w, 1.0)
     series = (1.0 - squared / (3 * safe_w**2) + squared**2 / (5 * safe_w**4)) / safe_w
     return 2 * ca.if_else(small, series, ca.atan2(norm, w) / norm) * v
 

@@ -467,3 +467,20 @@ def test_compiled_stepper_gives_the_same_plan(fitted):
                 stepper.set_goal([0.5, 0.0, 0.4], [1.0, 0.0, 0.0, 0.0])
         first, second = compiled.step(), plain.step()
     assert all(np.allclose(a, b, rtol=0, atol=1e-12) for a, b in zip(first, second))
+
+
+@pytest.mark.parametrize("angle", [1e-9, 1e-4, 0.5, np.pi, 6.0, 2 * np.pi - 1e-3, 2 * np.pi - 1e-4])
+def test_log_of_every_angle(angle):
+    """e = 2 log(q conj(g)) is the rotation vector, from near zero to near a full turn (the
+    long way round, w < 0), against the plain formula; at a full turn it is refused."""
+    from dmpopt.cartesian import orientation_log
+
+    rng = np.random.default_rng(7)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    goal = random_unit(rng)
+    q = qmul(np.r_[np.cos(angle / 2), np.sin(angle / 2) * axis], goal)
+    assert np.allclose(orientation_log(q, goal), angle * axis, rtol=1e-9, atol=1e-12)
+    assert np.allclose(qlog(qmul(q, qconj(goal))), angle * axis, rtol=1e-9, atol=1e-12)
+    with pytest.raises(InvalidInputError, match=r"start\[0\] is a full turn"):
+        orientation_log(-goal, goal, "start")

@@ -23,6 +23,7 @@ symbol                          meaning                                API name
 The full table, with units: ``docs/glossary.md``.
 """  # noqa: E501
 
+from .cartesian import CartesianDMP, CartesianStepper, CartesianTrajectory, fit_cartesian
 from .dmp import AffinePlan, DiscreteDMP, RhythmicDMP, similarity_transform
 from .exceptions import (
     DmpoptError,
@@ -61,6 +62,9 @@ __version__ = "0.1.0"
 __all__ = [
     "AffinePlan",
     "Bounds",
+    "CartesianDMP",
+    "CartesianStepper",
+    "CartesianTrajectory",
     "DiscreteDMP",
     "DmpoptError",
     "FileFormatError",
@@ -77,6 +81,7 @@ __all__ = [
     "Trajectory",
     "ViaPoint",
     "build_fitting_problem",
+    "fit_cartesian",
     "fit_discrete",
     "fit_rhythmic",
     "fit_to_accuracy",

@@ -17,7 +17,7 @@ import time
 import warnings
 from pathlib import Path
 
-STUDIES = ("imitation", "constrained", "rl", "recognition", "humanoid", "biped")
+STUDIES = ("imitation", "constrained", "rl", "recognition", "humanoid", "biped", "cartesian")
 
 
 class UsageError(Exception):

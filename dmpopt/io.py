@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cartesian import CartesianDMP
 from .dmp import RENAMED, DiscreteDMP, RhythmicDMP
 from .exceptions import FileFormatError, InvalidInputError
 
@@ -27,7 +28,9 @@ VERSION = 2
 lacking a field (written before the field existed) gets the field's default. Version 2
 named the fields after the paper's symbols (``tau``, ``alpha_z``, ...); a version 1 file's
 fields are renamed on loading (:func:`_renamed`)."""
-CLASSES = {"DiscreteDMP": DiscreteDMP, "RhythmicDMP": RhythmicDMP}
+CLASSES = {"DiscreteDMP": DiscreteDMP, "RhythmicDMP": RhythmicDMP, "CartesianDMP": CartesianDMP}
+"""The classes a file may hold (``CartesianDMP`` since the version 2 format, which it
+shares: its files do not change how older files read)."""
 SCALAR_TYPES = (type(None), bool, int, float, str)
 
 
@@ -67,9 +70,7 @@ def save(dmp, path) -> Path:
     failed save leaves any previous file at ``path`` intact.
     """
     if type(dmp).__name__ not in CLASSES:
-        raise InvalidInputError(
-            f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
-        )
+        raise InvalidInputError(f"dmp must be one of {sorted(CLASSES)}, got {type(dmp).__name__}")
     path = _file_path(path)
     if not path.parent.is_dir():
         raise InvalidInputError(f"path {path}: folder {path.parent} does not exist; create it")

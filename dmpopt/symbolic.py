@@ -21,6 +21,10 @@ by the ``forcing_weights`` matrix that the caller builds from the weights (see
 :mod:`dmpopt.dmp`). Time enters only as ``t / tau``: a step of ``dt`` with time constant
 ``tau`` is exactly a step of ``dt / tau`` with time constant 1.
 
+Orientation (Cartesian DMPs, :mod:`dmpopt.cartesian`): the quaternion exponential and
+logarithm and the map from the log-space state of a discrete system to an orientation,
+angular velocity and angular acceleration (:func:`orientation_function`).
+
 Discretisation: classical Runge-Kutta 4 with inputs held over the step. Velocities and
 accelerations of the plan are the exact time derivatives of the continuous system at each
 sample (accelerations by automatic differentiation along the flow).
@@ -590,3 +594,97 @@ def _uncompiled(function: ca.Function, reason: str) -> ca.Function:
         stacklevel=3,
     )
     return function
+
+
+# ---------------------------------------------------------------------------------------
+# Orientation: unit quaternions (w, x, y, z) and their logarithm
+# ---------------------------------------------------------------------------------------
+
+SMALL_ANGLE_SQUARED = 1e-6
+"""Below this squared angle [rad^2] the quotients of :func:`quaternion_exp` and
+:func:`quaternion_log` are evaluated by their Taylor series (truncation error below 1e-21)."""
+
+
+def quaternion_product(p, q):
+    r"""Hamilton product :math:`p \otimes q` of quaternions stored ``(w, x, y, z)``."""
+    pw, pv, qw, qv = p[0], p[1:], q[0], q[1:]
+    return ca.vertcat(pw * qw - ca.dot(pv, qv), pw * qv + qw * pv + ca.cross(pv, qv))
+
+
+def quaternion_conjugate(q):
+    r""":math:`\bar q`, the inverse of a unit quaternion."""
+    return ca.vertcat(q[0], -q[1:])
+
+
+def quaternion_exp(rotation):
+    r"""The unit quaternion of the rotation vector ``rotation`` (angle times axis):
+    :math:`\exp(e/2) = (\cos\frac{\theta}{2}, \sin\frac{\theta}{2}\, e / \theta)`,
+    :math:`\theta = |e|`; smooth at :math:`e = 0` to every order."""
+    squared = ca.dot(rotation, rotation)
+    small = squared < SMALL_ANGLE_SQUARED
+    angle = ca.sqrt(ca.if_else(small, 1.0, squared))  # never sqrt(0): finite derivatives
+    series = 1.0 - squared / 8.0 + squared**2 / 384.0
+    cosine = ca.if_else(small, series, ca.cos(angle / 2))
+    series = 0.5 - squared / 48.0 + squared**2 / 3840.0
+    sine_over_angle = ca.if_else(small, series, ca.sin(angle / 2) / angle)
+    return ca.vertcat(cosine, sine_over_angle * rotation)
+
+
+def quaternion_log(q):
+    r"""The rotation vector :math:`e = 2 \log q = 2\,\mathrm{atan2}(|v|, w)\, v / |v|` of a
+    unit quaternion :math:`q = (w, v)`, the inverse of :func:`quaternion_exp`.
+
+    The angle :math:`|e|` lies in :math:`[0, 2\pi)`: ``q`` and ``-q`` (the same rotation) give
+    the short and the long way round, and :math:`e` is continuous along any path of
+    quaternions that avoids :math:`q = -1`.
+    """
+    w, v = q[0], q[1:]
+    squared = ca.dot(v, v)
+    small = ca.logic_and(squared < SMALL_ANGLE_SQUARED, w > 0)  # near q = 1 only
+    norm = ca.sqrt(ca.if_else(small, 1.0, squared))  # q = -1 itself is refused by callers
+    safe_w = ca.if_else(small, w, 1.0)
+    series = (1.0 - squared / (3 * safe_w**2) + squared**2 / (5 * safe_w**4)) / safe_w
+    return 2 * ca.if_else(small, series, ca.atan2(norm, w) / norm) * v
+
+
+@lru_cache(maxsize=1)
+def orientation_function() -> ca.Function:
+    r"""The orientation of a Cartesian DMP from the state of its log-space system.
+
+    ``(log, log_rate, log_acceleration, goal_orientation) -> (orientation, angular_velocity,
+    angular_acceleration, log_jacobian)``. The orientation is :math:`q = \exp(e/2) \otimes
+    g` (:func:`quaternion_exp`, unit to rounding by construction); the angular velocity, in
+    the world frame (:math:`\dot q = \frac12 \omega \otimes q`), is :math:`\omega = 2\,
+    \mathrm{vec}(\dot p \otimes \bar p)` with :math:`p = \exp(e/2)`, :math:`\dot p =
+    \partial_e p\, \dot e`; the angular acceleration is its derivative along :math:`(\dot e,
+    \ddot e)`; ``log_jacobian`` is :math:`J(e) = \partial\omega / \partial\dot e`
+    (:math:`\omega = J(e)\,\dot e`, the left Jacobian of SO(3)). All by automatic
+    differentiation of the exponential map.
+    """
+    log, rate, acceleration = (ca.SX.sym(name, 3) for name in ("log", "rate", "acceleration"))
+    goal = ca.SX.sym("goal_orientation", 4)
+    p = quaternion_exp(log)
+    p_rate = ca.jtimes(p, log, rate)
+    angular_velocity = 2 * quaternion_product(p_rate, quaternion_conjugate(p))[1:]
+    both, both_rates = ca.vertcat(log, rate), ca.vertcat(rate, acceleration)
+    return function(
+        "dmp_orientation",
+        {"log": log, "log_rate": rate, "log_acceleration": acceleration, "goal_orientation": goal},
+        {
+            "orientation": quaternion_product(p, goal),
+            "angular_velocity": angular_velocity,
+            "angular_acceleration": ca.jtimes(angular_velocity, both, both_rates),
+            "log_jacobian": ca.jacobian(angular_velocity, rate),
+        },
+    )
+
+
+@lru_cache(maxsize=1)
+def orientation_log_function() -> ca.Function:
+    r"""``(orientation, goal_orientation) -> log``: :math:`e = 2 \log(q \otimes \bar g)`, the
+    state of the orientation part of a Cartesian DMP (:func:`quaternion_log`)."""
+    q, goal = ca.SX.sym("orientation", 4), ca.SX.sym("goal_orientation", 4)
+    log = quaternion_log(quaternion_product(q, quaternion_conjugate(goal)))
+    return function(
+        "dmp_orientation_log", {"orientation": q, "goal_orientation": goal}, {"log": log}
+    )

@@ -444,6 +444,11 @@ def test_cartesian_study_quick(tmp_path):
         "cartesian_plan.png",
         "cartesian_tracking.png",
     ]
+    assert set(metrics["captions"]) == {"cartesian_plan", "cartesian_tracking"}
+    rows = metrics["summary"]
+    assert all(set(row) == {"claim", "paper", "dmpopt", "anchor", "verdict"} for row in rows)
+    hand = f"{metrics['hand_tracking_mm']:.2g} mm"  # the table quotes this run's numbers
+    assert any(row["dmpopt"].startswith(hand) for row in rows)
 
 
 def test_stepper_set_tau_scales_time(fitted):

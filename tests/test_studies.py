@@ -200,11 +200,10 @@ def test_biped_quick(tmp_path):
 
 
 def test_report_links_every_figure(tmp_path, imitation_run):
-    """report.html names each study, embeds each figure it links, and renders if a browser
-    is installed (headless Chromium from the Debian package)."""
+    """report.html names the study, embeds each figure it links and shows its metrics (the
+    page's structure in a browser: tests/test_report.py)."""
     import re
     import shutil
-    import subprocess
 
     from studies.report import write_report
 
@@ -215,31 +214,6 @@ def test_report_links_every_figure(tmp_path, imitation_run):
     images = re.findall(r'<img src="([^"]+)"', page)
     assert len(images) == 3
     assert all((tmp_path / image).stat().st_size > 10_000 for image in images)
-    browser = shutil.which("chromium")
-    if browser is None:
-        return
-    shot = tmp_path / "report.png"
-    subprocess.run(
-        [
-            browser,
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            f"--user-data-dir={tmp_path / 'profile'}",
-            f"--screenshot={shot}",
-            "--window-size=1200,2000",
-            (tmp_path / "report.html").as_uri(),
-        ],
-        check=True,
-        capture_output=True,
-        timeout=120,
-    )
-    assert shot.stat().st_size > 50_000  # a blank page compresses to a few kB
 
 
 def test_report_embeds_listed_videos_and_says_why_they_were_skipped(tmp_path):

@@ -190,15 +190,6 @@ def test_recognition_quick(tmp_path):
     assert len(_figures(tmp_path)) >= 2
 
 
-def test_biped_quick(tmp_path):
-    from studies import biped
-
-    metrics = biped.run(tmp_path, quick=True)
-    assert metrics["fell"] is False and metrics["steps_walked"] >= 10
-    assert {"steps_to_2pct", "cost_of_transport", "real_time_factor"} <= set(metrics)
-    assert len(_figures(tmp_path)) >= 3
-
-
 def test_report_links_every_figure(tmp_path, imitation_run):
     """report.html names the study, embeds each figure it links and shows its metrics (the
     page's structure in a browser: tests/test_report.py)."""

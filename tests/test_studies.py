@@ -187,7 +187,13 @@ def test_recognition_quick(tmp_path):
     metrics = recognition.run(tmp_path, quick=True)
     assert 0.9 <= metrics["accuracy_loo"] <= 1.0
     assert metrics["accuracy_transformed"] == metrics["accuracy_loo"]
-    assert len(_figures(tmp_path)) >= 2
+    figures = {path.stem for path in tmp_path.glob("*.png")}
+    assert len(figures) >= 2 and figures <= set(metrics["captions"])
+    keys = {"claim", "paper", "dmpopt", "anchor", "verdict"}
+    assert [set(row) for row in metrics["summary"]] == [keys] * 3
+    correct = round(metrics["accuracy_loo"] * metrics["n_demos"])
+    assert f"({correct}/{metrics['n_demos']})" in metrics["summary"][0]["dmpopt"]
+    assert metrics["summary"][1]["verdict"] == "reproduced"
 
 
 def test_report_links_every_figure(tmp_path, imitation_run):

@@ -100,25 +100,28 @@ def figure_title(stem: str) -> str:
 
 
 def _short(value) -> str:
-    """One table cell for a metric value: numbers to 4 significant digits, long lists cut."""
-    if isinstance(value, bool) or value is None:
-        return str(value)
+    """One table cell for a metric value: numbers to 4 significant digits, long lists
+    summarised, any text cut at :data:`SHORT_TEXT` characters."""
     if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list):
-        scalars = all(isinstance(v, (int, float, str, bool)) or v is None for v in value)
-        if scalars and len(value) <= SHORT_LIST:
-            return "[" + ", ".join(_short(v) for v in value) + "]"
-        numbers = [v for v in value if isinstance(v, (int, float)) and not isinstance(v, bool)]
-        if scalars and len(numbers) == len(value):
-            return (
-                f"{len(value)} values: {_short(value[0])}, {_short(value[1])} ... "
-                f"{_short(value[-1])} (min {_short(min(numbers))}, max {_short(max(numbers))})"
-            )
-        head = ", ".join(_short(v) for v in value[:2])
-        return f"{len(value)} items: {head}, ... (in metrics.json)"
-    text = str(value)
+        text = f"{value:.4g}"
+    elif isinstance(value, list):
+        text = _short_list(value)
+    else:
+        text = str(value)
     return text if len(text) <= SHORT_TEXT else text[: SHORT_TEXT - 3] + "..."
+
+
+def _short_list(value: list) -> str:
+    scalars = all(isinstance(v, (int, float, str, bool)) or v is None for v in value)
+    if scalars and len(value) <= SHORT_LIST:
+        return "[" + ", ".join(_short(v) for v in value) + "]"
+    numbers = [v for v in value if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    if numbers and len(numbers) == len(value):
+        return (
+            f"{len(value)} values: {_short(value[0])}, {_short(value[1])} ... "
+            f"{_short(value[-1])} (min {_short(min(numbers))}, max {_short(max(numbers))})"
+        )
+    return f"{len(value)} items: {_short(value[0])}, ... (in metrics.json)"
 
 
 def flat_metrics(metrics: dict, prefix: str = "") -> list[tuple[str, str]]:

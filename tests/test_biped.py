@@ -426,3 +426,31 @@ def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run)
         "biped_stick_figure",
     }
     assert "heel strike" in quick["captions"]["biped_joints"]
+
+
+@pytest.mark.parametrize(
+    "steps, converged, verdict",
+    [
+        ({"5": 40, "12": 9}, {"5": 13.2, "12": 13.4}, "reproduced"),
+        ({"5": 40, "12": 9}, {"5": 10.0, "12": 13.4}, "not reproduced: the starts settle apart"),
+        (
+            {"5": "at least 24", "12": 9},
+            {"5": 7.8, "12": 13.4},
+            "undecided: from 5 rad/s not settled within the walk",
+        ),
+    ],
+)
+def test_convergence_verdict_needs_every_start_settled_and_within_5_percent(
+    steps, converged, verdict
+):
+    from studies.biped.summary import _convergence_row
+
+    values = list(converged.values())
+    metrics = {
+        "frequency_converged_by_start": converged,
+        "frequency_converged_spread_rad_s": max(values) - min(values),
+        "steps_to_2pct_by_start": steps,
+    }
+    row = _convergence_row(metrics)
+    assert row["verdict"] == verdict
+    assert " / ".join(str(n) for n in steps.values()) in row["dmpopt"]

@@ -239,6 +239,9 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         "start_frequency": MAIN_START,
         "frequency_final": final,
         "steps_to_2pct": steps_to_within(main_walk.frequencies),
+        "steps_to_2pct_by_start": {
+            f"{s:g}": steps_to_within(log.frequencies) for s, log in by_start.items()
+        },
         "frequency_final_by_start": finals,
         "frequency_final_spread_rad_s": max(finals.values()) - min(finals.values()),
         "frequency_converged_by_start": converged,

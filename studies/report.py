@@ -141,23 +141,26 @@ def flat_metrics(metrics: dict, prefix: str = "") -> list[tuple[str, str]]:
 
 def _summary_rows(name: str, metrics: dict) -> list[str]:
     """The study's rows of the summary table (a note when it has none or a malformed one)."""
-    link = f'<td class="study"><a href="#{html.escape(name)}">{html.escape(name)}</a></td>'
+    link = f'<a href="#{html.escape(name)}">{html.escape(name)}</a>'
     rows = metrics.get("summary")
     if rows is None:
         note = "no summary table in this study's metrics.json (written before it had one)"
-        return [f'<tr>{link}<td colspan="5" class="note">{note}</td></tr>']
-    if not isinstance(rows, list) or not all(isinstance(row, dict) for row in rows):
-        note = f"metrics['summary'] is not a list of rows (dicts): {_short(rows)}"
-        return [f'<tr>{link}<td colspan="5" class="note">{html.escape(note)}</td></tr>']
+    elif not rows or not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+        note = html.escape(f"metrics['summary'] is not a list of rows (dicts): {_short(rows)}")
+    else:
+        note = None
+    if note is not None:
+        return [f'<tr><td class="study">{link}</td><td colspan="5" class="note">{note}</td></tr>']
     cells = []
-    for row in rows:
+    for k, row in enumerate(rows):
+        study = f'<td class="study" rowspan="{len(rows)}">{link}</td>' if k == 0 else ""
         cell = "".join(
             f"<td>{inline_rst(row[key])}</td>"
             if key in row
             else f'<td class="note">({key} missing)</td>'
             for key in COLUMNS
         )
-        cells.append(f"<tr>{link}{cell}</tr>")
+        cells.append(f"<tr>{study}{cell}</tr>")
     return cells
 
 

@@ -74,6 +74,7 @@ def test_summary_table_comes_first_with_every_row_and_column(results):
     assert table.count("<tr>") == 1 + 2 + 1  # header, two imitation rows, biped's note
     assert "second claim" in table and "0.33 mm median" in table
     assert "no summary table" in table.split('href="#biped"')[1]
+    assert table.count('rowspan="2"') == 1 and table.count('href="#imitation"') == 1
 
 
 def test_captions_come_from_the_metrics_and_titles_otherwise(results):
@@ -151,9 +152,10 @@ def test_malformed_summaries_are_shown_not_hidden(results):
     metrics["summary"] = [{k: v for k, v in ROW.items() if k != "verdict"}]
     path.write_text(json.dumps(metrics))
     assert '<td class="note">(verdict missing)</td>' in _write(results)
-    metrics["summary"] = "reproduced"
-    path.write_text(json.dumps(metrics))
-    assert "metrics[&#x27;summary&#x27;] is not a list of rows" in _write(results)
+    for malformed in ("reproduced", [], [ROW, "reproduced"]):
+        metrics["summary"] = malformed
+        path.write_text(json.dumps(metrics))
+        assert "metrics[&#x27;summary&#x27;] is not a list of rows" in _write(results)
 
 
 def test_bad_inputs_are_refused_with_the_argument_named(results, tmp_path):

@@ -61,20 +61,19 @@ def survival_figure(path, survival: dict, ranges) -> None:
     colours = ["C0" if ARMS[name][0] else "C3" for name in names]
     labels = [
         f"reset {'on' if ARMS[name][0] else 'off'}\nadaptation {'on' if ARMS[name][1] else 'off'}"
+        f"\n{survival[name]['survived']}/{survival[name]['n']} survived"
         for name in names
     ]
     ax.bar(labels, rates, color=colours, alpha=0.75)
     errors = np.maximum(0.0, [rates - low, high - rates])  # not -1e-17 from rounding
     ax.errorbar(labels, rates, yerr=errors, fmt="none", color="k", capsize=5)
-    for k, name in enumerate(names):
-        ax.text(k, 0.02, f"{survival[name]['survived']}/{survival[name]['n']}", ha="center")
     handles = [
         plt.Rectangle((0, 0), 1, 1, color="C0", alpha=0.75, label="phase resetting on"),
         plt.Rectangle((0, 0), 1, 1, color="C3", alpha=0.75, label="phase resetting off"),
         plt.Line2D([], [], color="k", marker="_", ls="none", ms=10, label="Wilson 95 % CI"),
     ]
-    ax.legend(handles=handles, fontsize=8, loc="upper right")
-    ax.set_ylim(0, 1.15)
+    ax.legend(handles=handles, fontsize=8, loc="upper center", ncol=3)
+    ax.set_ylim(0, 1.25)
     ax.set_ylabel("survived trials [fraction]")
     ax.set_title(
         f"push {ranges.push_impulse[0]:g}-{ranges.push_impulse[1]:g} N s, masses "

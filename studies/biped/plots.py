@@ -25,7 +25,7 @@ def frequency_figure(path, by_start, sweep, resonance, flat_band) -> None:
     ax.set_xlabel("heel strike n")
     ax.set_ylabel(r"oscillator frequency $\omega_n$ [rad/s]")
     ax.set_title("Frequency adaptation, eq. (21), QP walker")
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=7, ncol=2)
     walked = [row for row in sweep if row["cost_of_transport"] is not None]
     ax_cot.plot(
         [row["frequency"] for row in walked],
@@ -35,14 +35,17 @@ def frequency_figure(path, by_start, sweep, resonance, flat_band) -> None:
     )
     fallen = [row["frequency"] for row in sweep if row["cost_of_transport"] is None]
     if fallen:
-        ax_cot.plot(fallen, np.zeros(len(fallen)), "rx", label="fell")
+        ax_cot.plot(fallen, np.zeros(len(fallen)), "rx", label="fell (no cost)")
     if flat_band:
         ax_cot.axvspan(*flat_band, color="g", alpha=0.15, label="within 5 % of min")
     ax_cot.set_xlabel(r"oscillator frequency $\omega$ [rad/s]")
     ax_cot.set_ylabel("mechanical cost of transport [-]")
     ax_cot.set_title("Fixed-frequency sweep")
     ax_cot.set_xscale("log")
-    ax_cot.legend(fontsize=6)
+    ticks = [4, 5, 6, 8, 10, 12, 16, 20]
+    ax_cot.set_xticks(ticks, [str(t) for t in ticks])
+    ax_cot.minorticks_off()
+    ax_cot.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

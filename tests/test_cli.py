@@ -287,7 +287,7 @@ def test_report_reads_the_folders(tmp_path):
     (tmp_path / "rl" / "metrics.json").write_text(json.dumps({"trials_to_95": {"enac": 140}}))
     (tmp_path / "biped").mkdir()  # no metrics.json: not a complete study folder
     page = write_report(tmp_path).read_text()
-    assert '<section id="rl">' in page and "&quot;enac&quot;: 140" in page
+    assert '<section id="rl">' in page and "<td>trials_to_95.enac</td><td>140</td>" in page
     assert 'id="biped"' not in page
 
 

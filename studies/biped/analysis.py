@@ -165,7 +165,7 @@ def survival_by_arm(
                 **walk_on,
             )
             outcomes.append(rule.survived(log))
-            if progress and ((k + 1) % 10 == 0 or k + 1 == len(disturbances)):
+            if progress and ((k + 1) % 5 == 0 or k + 1 == len(disturbances)):
                 progress(f"{name}: trial {k + 1} of {len(disturbances)}")
         n, survived = len(outcomes), int(sum(outcomes))
         low, high = wilson_interval(survived, n)

@@ -202,9 +202,60 @@ def test_survival_by_arm_counts_outcomes_and_intervals(monkeypatch):
     pushes = [Disturbance(push_impulse=p) for p in (0.5, 1.0, 2.0, 3.0, 4.0)]
     result = analysis.survival_by_arm(None, None, 2.0, pushes)
     assert result["reset_and_adapt"]["survived"] == result["reset_only"]["survived"] == 3
-    assert result["neither"]["rate"] == 0.0 and result["neither"]["n"] == 5
+    assert result["neither"]["rate"] == result["adapt_only"]["rate"] == 0.0
+    assert result["neither"]["n"] == 5
     assert result["reset_only"]["ci95_wilson"] == pytest.approx(analysis.wilson_interval(3, 5))
     assert result["reset_and_adapt"]["outcomes"] == [True, True, True, False, False]
+
+
+def test_reset_ablation_pairs_arms_with_the_adaptation_in_the_same_state():
+    """Discordant pairs and the exact McNemar p-value written plainly: with 5 trials won only
+    by resetting and 1 only without, p = 2 (C(6,0) + C(6,1)) / 2^6 = 14 / 64."""
+    from studies.biped.analysis import reset_ablation
+
+    def arm(outcomes):
+        return {"outcomes": outcomes, "rate": sum(outcomes) / len(outcomes)}
+
+    survival = {
+        "reset_and_adapt": arm([True] * 6 + [False, True]),
+        "adapt_only": arm([False] * 5 + [True, True, True]),
+        "reset_only": arm([True, False] * 4),
+        "neither": arm([True, False] * 4),
+    }
+    result = reset_ablation(survival)
+    on, off = result["adaptation_on"], result["adaptation_off"]
+    assert (on["with_reset"], on["without_reset"]) == ("reset_and_adapt", "adapt_only")
+    assert (off["with_reset"], off["without_reset"]) == ("reset_only", "neither")
+    assert on["survived_only_with_reset"] == 5 and on["survived_only_without_reset"] == 1
+    assert on["mcnemar_p"] == pytest.approx(14 / 64)
+    assert on["difference"] == pytest.approx(7 / 8 - 3 / 8)
+    assert off["mcnemar_p"] == 1.0 and off["difference"] == 0.0
+
+
+@pytest.mark.parametrize(
+    "frequencies, expected",
+    [
+        ([5.0] + [10.0] * 30, 1),  # settles at the first strike
+        ([5.0, 8.0, 9.0] + [10.0, 10.1] * 15, 3),  # 9 is 10 % below, 10.1 within 2 %
+        (list(np.linspace(5.0, 10.0, 40)), "at least 40"),  # still rising: only a bound
+        ([5.0] * 30 + [10.0] * 15, "at least 30"),  # settled for fewer than 20 strikes
+    ],
+)
+def test_steps_to_within_reports_a_capped_result_as_a_bound(frequencies, expected):
+    from studies.biped.analysis import steps_to_within
+
+    assert steps_to_within(frequencies) == expected
+
+
+def test_sweep_minimum_at_the_edge_of_the_sweep_is_a_bound():
+    from studies.biped.analysis import sweep_minimum
+
+    rows = [{"frequency": f, "cost_of_transport": c} for f, c in ((4.0, 0.2), (5.0, 0.3))]
+    assert sweep_minimum(rows)["bound"] == "at most 4 rad/s (sweep's edge)"
+    rows = [{"frequency": f, "cost_of_transport": c} for f, c in ((4.0, 0.5), (5.0, 0.3))]
+    assert sweep_minimum(rows)["bound"] == "at least 5 rad/s (sweep's edge)"
+    rows.append({"frequency": 6.0, "cost_of_transport": None})  # fell: still tried
+    assert sweep_minimum(rows)["bound"] is None
 
 
 def test_sweep_minimum_reports_the_flat_band():
@@ -251,10 +302,17 @@ def test_qp_contacts_switch_on_heel_strikes_not_on_the_dmp_phase(biped):
 
 
 @pytest.fixture(scope="module")
-def quick(tmp_path_factory):
+def quick_run(tmp_path_factory):
+    """One quick run of the study, shared: (output folder, metrics)."""
     from studies import biped as study
 
-    return study.run(tmp_path_factory.mktemp("biped"), quick=True)
+    folder = tmp_path_factory.mktemp("biped")
+    return folder, study.run(folder, quick=True)
+
+
+@pytest.fixture(scope="module")
+def quick(quick_run):
+    return quick_run[1]
 
 
 def test_quick_study_walks_through_the_qp_without_pitch_torque(quick):
@@ -292,7 +350,7 @@ def test_quick_study_swing_leg_under_qp_is_near_sqrt_of_posture_stiffness(quick)
 
 def test_quick_study_reports_survival_per_arm(quick):
     survival = quick["push_survival_rate"]
-    assert set(survival) == {"reset_and_adapt", "reset_only", "neither"}
+    assert set(survival) == {"reset_and_adapt", "adapt_only", "reset_only", "neither"}
     for arm in survival.values():
         assert arm["n"] == 3 and arm["rate"] == arm["survived"] / 3
         assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
@@ -303,7 +361,7 @@ def test_quick_study_reports_the_undisturbed_walk_of_each_arm(quick):
     """Undisturbed, 5 s (the longest trial): the arm with resetting and adaptation walks at
     least 10 steps (about pi / omega = 0.3 s each) without a fall; a fall has its time."""
     undisturbed = quick["undisturbed_by_arm"]
-    assert set(undisturbed) == {"reset_and_adapt", "reset_only", "neither"}
+    assert set(undisturbed) == {"reset_and_adapt", "adapt_only", "reset_only", "neither"}
     assert undisturbed["reset_and_adapt"]["fell"] is False
     assert undisturbed["reset_and_adapt"]["steps"] >= 10
     for arm in undisturbed.values():
@@ -314,7 +372,8 @@ def test_quick_study_reports_the_undisturbed_walk_of_each_arm(quick):
 def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypatch):
     """Real QP walks of one trial per arm (pushed, masses, slope) and the undisturbed walks:
     the oscillator's phase is reset at heel strikes in the arms with resetting, never in
-    ``neither``. Counts Stepper.reset_phase calls, below every switch on the way to it."""
+    ``adapt_only`` and ``neither``. Counts Stepper.reset_phase calls, below every switch on
+    the way to it."""
     from dmpopt.stepper import Stepper
     from studies.biped import analysis
     from studies.biped.walker import Disturbance
@@ -338,8 +397,60 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
     qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
     push = Disturbance(push_impulse=1.0, push_time=0.3, slope_deg=1.0, slope_time=0.2)
     rule = analysis.Survival(after=1.0, window=0.5)
-    assert list(analysis.ARMS) == ["reset_and_adapt", "reset_only", "neither"]
+    assert list(analysis.ARMS) == ["reset_and_adapt", "adapt_only", "reset_only", "neither"]
     analysis.survival_by_arm(biped, dmp, 8.0, [push], rule=rule, **qp)
     analysis.undisturbed_by_arm(biped, dmp, 8.0, 1.3, **qp)
-    assert calls[2] == calls[5] == 0
-    assert min(calls[:2] + calls[3:5]) >= 1
+    assert calls[1] == calls[3] == calls[5] == calls[7] == 0
+    assert min(calls[0], calls[2], calls[4], calls[6]) >= 1
+
+
+def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run):
+    """Four rows with every column, their numbers formatted from the metrics; a caption for
+    each figure written (the quick run writes no video)."""
+    from studies.report import COLUMNS
+
+    folder, quick = quick_run
+    figures = {path.stem for path in folder.glob("*.png")}
+    assert len(figures) == 4 and figures <= set(quick["captions"])
+    rows = quick["summary"]
+    assert len(rows) == 4 and all(set(row) == set(COLUMNS) for row in rows)
+    walk = quick["main_walk"]
+    assert f"{walk['steps_walked']} steps in 10 s" in rows[0]["dmpopt"]
+    assert rows[0]["verdict"] == "reproduced"
+    on = quick["phase_reset_ablation"]["adaptation_on"]
+    assert f"McNemar p = {on['mcnemar_p']:.2g}" in rows[3]["dmpopt"]
+    assert set(quick["captions"]) >= {
+        "biped_frequency",
+        "biped_survival",
+        "biped_joints",
+        "biped_stick_figure",
+    }
+    assert "heel strike" in quick["captions"]["biped_joints"]
+
+
+@pytest.mark.parametrize(
+    "steps, converged, verdict",
+    [
+        ({"5": 40, "12": 9}, {"5": 13.2, "12": 13.4}, "reproduced"),
+        ({"5": 40, "12": 9}, {"5": 10.0, "12": 13.4}, "not reproduced: the starts settle apart"),
+        (
+            {"5": "at least 24", "12": 9},
+            {"5": 7.8, "12": 13.4},
+            "undecided: from 5 rad/s not settled within the walk",
+        ),
+    ],
+)
+def test_convergence_verdict_needs_every_start_settled_and_within_5_percent(
+    steps, converged, verdict
+):
+    from studies.biped.summary import _convergence_row
+
+    values = list(converged.values())
+    metrics = {
+        "frequency_converged_by_start": converged,
+        "frequency_converged_spread_rad_s": max(values) - min(values),
+        "steps_to_2pct_by_start": steps,
+    }
+    row = _convergence_row(metrics)
+    assert row["verdict"] == verdict
+    assert " / ".join(str(n) for n in steps.values()) in row["dmpopt"]

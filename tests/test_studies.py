@@ -173,24 +173,20 @@ def test_recognition_quick(tmp_path):
     metrics = recognition.run(tmp_path, quick=True)
     assert 0.9 <= metrics["accuracy_loo"] <= 1.0
     assert metrics["accuracy_transformed"] == metrics["accuracy_loo"]
-    assert len(_figures(tmp_path)) >= 2
-
-
-def test_biped_quick(tmp_path):
-    from studies import biped
-
-    metrics = biped.run(tmp_path, quick=True)
-    assert metrics["fell"] is False and metrics["steps_walked"] >= 10
-    assert {"steps_to_2pct", "cost_of_transport", "real_time_factor"} <= set(metrics)
-    assert len(_figures(tmp_path)) >= 3
+    figures = {path.stem for path in tmp_path.glob("*.png")}
+    assert len(figures) >= 2 and figures <= set(metrics["captions"])
+    keys = {"claim", "paper", "dmpopt", "anchor", "verdict"}
+    assert [set(row) for row in metrics["summary"]] == [keys] * 3
+    correct = round(metrics["accuracy_loo"] * metrics["n_demos"])
+    assert f"({correct}/{metrics['n_demos']})" in metrics["summary"][0]["dmpopt"]
+    assert metrics["summary"][1]["verdict"] == "reproduced"
 
 
 def test_report_links_every_figure(tmp_path, imitation_run):
-    """report.html names each study, embeds each figure it links, and renders if a browser
-    is installed (headless Chromium from the Debian package)."""
+    """report.html names the study, embeds each figure it links and shows its metrics (the
+    page's structure in a browser: tests/test_report.py)."""
     import re
     import shutil
-    import subprocess
 
     from studies.report import write_report
 
@@ -201,31 +197,6 @@ def test_report_links_every_figure(tmp_path, imitation_run):
     images = re.findall(r'<img src="([^"]+)"', page)
     assert len(images) == 3
     assert all((tmp_path / image).stat().st_size > 10_000 for image in images)
-    browser = shutil.which("chromium")
-    if browser is None:
-        return
-    shot = tmp_path / "report.png"
-    subprocess.run(
-        [
-            browser,
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            f"--user-data-dir={tmp_path / 'profile'}",
-            f"--screenshot={shot}",
-            "--window-size=1200,2000",
-            (tmp_path / "report.html").as_uri(),
-        ],
-        check=True,
-        capture_output=True,
-        timeout=120,
-    )
-    assert shot.stat().st_size > 50_000  # a blank page compresses to a few kB
 
 
 def test_report_embeds_listed_videos_and_says_why_they_were_skipped(tmp_path):

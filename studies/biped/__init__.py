@@ -27,11 +27,18 @@ Fig. 7 is checked against two resonance estimates that do not use eq. (21): the 
 least mechanical cost of transport in a fine fixed-frequency sweep (adaptation off), and the
 natural frequencies of the swing leg linearised under the controller's own gains
 (:func:`dmpopt.walking.closed_loop_frequencies`, hip held still). Whether phase resetting
-matters is measured as survival over randomised trials (push, masses, slope) in three arms
-(:data:`studies.biped.analysis.ARMS`), after one undisturbed walk of each arm
-(``undisturbed_by_arm``: can the arm walk at all). In every arm the controller's contacts
-switch on the simulator's heel strikes, so the arm without resetting differs only in its
-oscillator not being reset.
+matters is measured as survival over the same randomised trials (push, masses, slope) in four
+arms, resetting on and off with the adaptation on and off (:data:`studies.biped.analysis.ARMS`),
+after one undisturbed walk of each arm (``undisturbed_by_arm``: can the arm walk at all). The
+ablation pairs resetting on against off with the adaptation in the same state
+(``phase_reset_ablation``: paired counts and an exact McNemar test). In every arm the
+controller's contacts switch on the simulator's heel strikes, so an arm without resetting
+differs only in its oscillator not being reset.
+
+The frequency a walk settles at is the median of its last 20 heel strikes; the strikes it
+takes to stay within 2 % of it (``steps_to_2pct``) are a bound ("at least N") when the walk
+ends before it has stayed there for 20 strikes, and so is a cheapest sweep frequency at the
+sweep's edge (``bound``). ``summary`` and ``captions`` are formatted from the metrics.
 
 Run: ``python -m studies.biped OUT_DIR [--quick]``.
 """
@@ -49,17 +56,21 @@ from robots.biped import load_biped
 from ..common import Progress, write_metrics
 from . import plots
 from .analysis import (
+    ARMS,
     SURVIVAL,
     TrialRanges,
+    converged_frequency,
     cost_of_transport,
     fixed_frequency_sweep,
     random_disturbances,
+    reset_ablation,
     steps_to_within,
     survival_by_arm,
     sweep_minimum,
     undisturbed_by_arm,
 )
 from .gait import DEMO_FREQUENCY, learn_gait, limit_cycle_start
+from .summary import captions, summary
 from .walker import (
     ADAPTATION_GAIN,
     BOOM_PITCH_STIFFNESS,
@@ -86,9 +97,9 @@ __all__ = [
     "walk",
 ]
 
-# CPU seconds measured on the 2-core machine (MuJoCo); the full run took 5 min of wall time
-# at a load average of 3 (25 min at 16)
-EXPECTED_SECONDS = {"full": 270, "quick": 55}
+# CPU seconds measured on the 2-core machine (MuJoCo), four arms of 50 trials; the full run
+# took 28 min of wall time at a load average of 9 (the quick run 11 min)
+EXPECTED_SECONDS = {"full": 350, "quick": 65}
 # [rad/s] starts below and above where the QP walker settles (from 4 rad/s it makes one step
 # and falls, from 3.5 one step and stops; from 14 and 15 rad/s it falls within 1 s)
 START_FREQUENCIES = (5.0, 8.0, 12.0, 13.5)
@@ -164,6 +175,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = Progress("biped")
+    progress("learning the gait; compiling the DMP step (cached after the first run)")
     biped = load_biped()
     _, dmp = learn_gait()
     on = {"seed": seed, "backend": backend}
@@ -172,19 +184,22 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
 
     duration = 10.0 if quick else 40.0
     progress(f"QP walk, {duration:g} s from {MAIN_START} rad/s")
-    main_walk = walk(biped, dmp, duration, MAIN_START, **qp, **on)
+    main_walk = walk(biped, dmp, duration, MAIN_START, **qp, **on, progress=progress)
     converge = 8.0 if quick else 25.0
     by_start = {MAIN_START: main_walk}
     for start in START_FREQUENCIES:
         if start != MAIN_START:
             progress(f"QP walk, {converge:g} s from {start} rad/s")
-            by_start[start] = walk(biped, dmp, converge, start, **qp, **on)
+            by_start[start] = walk(biped, dmp, converge, start, **qp, **on, progress=progress)
     finals = {f"{start:g}": log.frequencies[-1] for start, log in by_start.items()}
+    converged = {
+        f"{start:g}": converged_frequency(log.frequencies) for start, log in by_start.items()
+    }
     final = main_walk.frequencies[-1]
 
     progress("PD baselines: boom pitch 0 and 500 N m/rad")
-    pd_free = walk(biped, dmp, duration, MAIN_START, **no_boom, **on)
-    pd_boom = walk(biped, dmp, duration, MAIN_START, controller="pd", **on)
+    pd_free = walk(biped, dmp, duration, MAIN_START, **no_boom, **on, progress=progress)
+    pd_boom = walk(biped, dmp, duration, MAIN_START, controller="pd", **on, progress=progress)
 
     sweep = fixed_frequency_sweep(
         biped,
@@ -205,9 +220,11 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         "swing leg, QP gains": swing["qp_controller"][0],
     }
 
-    progress("undisturbed walk of each arm")
+    progress(f"undisturbed walk of each arm ({len(ARMS)})")
     trial_duration = RANGES.push_time[1] + SURVIVAL.after
-    undisturbed = undisturbed_by_arm(biped, dmp, final, trial_duration, **qp, **on)
+    undisturbed = undisturbed_by_arm(
+        biped, dmp, final, trial_duration, progress=progress, **qp, **on
+    )
     n_trials = 3 if quick else 50
     disturbances = random_disturbances(biped, n_trials, seed, RANGES)
     survival = survival_by_arm(
@@ -222,8 +239,13 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         "start_frequency": MAIN_START,
         "frequency_final": final,
         "steps_to_2pct": steps_to_within(main_walk.frequencies),
+        "steps_to_2pct_by_start": {
+            f"{s:g}": steps_to_within(log.frequencies) for s, log in by_start.items()
+        },
         "frequency_final_by_start": finals,
         "frequency_final_spread_rad_s": max(finals.values()) - min(finals.values()),
+        "frequency_converged_by_start": converged,
+        "frequency_converged_spread_rad_s": max(converged.values()) - min(converged.values()),
         "frequency_vs_step_by_start": {f"{s:g}": log.frequencies for s, log in by_start.items()},
         "fell_by_start": {f"{s:g}": log.fell for s, log in by_start.items()},
         "resonance_estimate_rad_s": {
@@ -236,6 +258,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
             name: {k: v for k, v in arm.items() if k != "outcomes"}
             for name, arm in survival.items()
         },
+        "phase_reset_ablation": reset_ablation(survival),
         "push_survival_trials": {
             "rule": SURVIVAL.__dict__,
             "ranges": RANGES.__dict__,
@@ -259,6 +282,8 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         frames = np.asarray(main_walk.q)[::every][-int(VIDEO_SECONDS_WALK * VIDEO_FPS) :]
         clips["biped_walking"] = (make_simulator(biped, "mujoco"), frames, 2.0)
     skip = "quick run" if quick else None if backend == "mujoco" else "native backend"
+    if clips:
+        progress("video of the walk")
     metrics["videos"], metrics["videos_skipped"] = write_videos(out_dir, clips, skip)
     progress("figures")
     plots.frequency_figure(
@@ -281,6 +306,8 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
         "sweep_rad_s": SWEEP_QUICK if quick else SWEEP,
         "n_trials_per_arm": n_trials,
     }
+    metrics["summary"] = summary(metrics)
+    metrics["captions"] = captions(metrics)
     progress("done")
     return write_metrics(out_dir, "biped", metrics, parameters, seed, quick)
 

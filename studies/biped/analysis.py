@@ -13,12 +13,31 @@ from .walker import FALL_HEIGHT, Disturbance, WalkLog, n_moving_bodies, walk
 WILSON_Z = 1.959963984540054  # two-sided 95 % normal quantile
 
 
-def steps_to_within(frequencies, tolerance: float = 0.02) -> int | None:
-    """First step after which the frequency stays within ``tolerance`` of its final value."""
+SETTLED_STRIKES = 20  # heel strikes that define the converged frequency (their median)
+
+
+def converged_frequency(frequencies, window: int = SETTLED_STRIKES) -> float:
+    """Median of the last ``window`` frequencies of a walk [rad/s]."""
+    return float(np.median(np.asarray(frequencies, dtype=float)[-window:]))
+
+
+def steps_to_within(
+    frequencies, tolerance: float = 0.02, window: int = SETTLED_STRIKES
+) -> int | str:
+    """Heel strikes until the frequency stays within ``tolerance`` of its converged value.
+
+    The converged value is the median of the last ``window`` strikes. When the frequency
+    has not stayed inside for the whole last ``window`` strikes, the walk was too short to
+    see it settle: the result is the bound ``"at least N"`` (a string, N the strike after
+    its last one outside), not a number.
+    """
     frequencies = np.asarray(frequencies, dtype=float)
-    inside = np.abs(frequencies / frequencies[-1] - 1.0) <= tolerance
+    inside = np.abs(frequencies / converged_frequency(frequencies, window) - 1.0) <= tolerance
     outside = np.flatnonzero(~inside)
-    return 0 if outside.size == 0 else int(outside[-1] + 1)
+    settled = 0 if outside.size == 0 else int(outside[-1] + 1)
+    if settled > frequencies.size - window:
+        return f"at least {settled}"
+    return settled
 
 
 def cost_of_transport(log: WalkLog, mass: float, gravity: float = 9.81) -> float | None:
@@ -79,15 +98,23 @@ class Survival:
 SURVIVAL = Survival()
 ARMS = {  # (reset_phase, adapt)
     "reset_and_adapt": (True, True),
+    "adapt_only": (False, True),
     "reset_only": (True, False),
     "neither": (False, False),
 }
-"""The arms of the ablation. Each walks with the same controller, whose contacts switch on the
-simulator's heel strikes (:class:`~studies.biped.walker.QPControl`) in every arm.
-``reset_and_adapt``: at each heel strike the oscillator's phase is reset, eq. (21) first
-line, and its frequency adapted, eq. (21) second line. ``reset_only`` switches off the
-frequency adaptation (the frequency stays at the start's). ``neither`` also switches off the
-phase reset: the oscillator runs freely at the start's frequency; nothing else differs."""
+"""The arms of the ablation, phase resetting on and off with the adaptation on and off. Each
+walks with the same controller, whose contacts switch on the simulator's heel strikes
+(:class:`~studies.biped.walker.QPControl`) in every arm. ``reset_and_adapt``: at each heel
+strike the oscillator's phase is reset, eq. (21) first line, and its frequency adapted, eq.
+(21) second line. ``adapt_only`` switches off the phase reset (the oscillator keeps its own
+phase, its frequency still adapts to the measured steps). ``reset_only`` switches off the
+adaptation (the frequency stays at the start's). ``neither`` switches off both; nothing else
+differs. The phase-resetting ablation compares the arms in pairs with the adaptation in the
+same state (:data:`RESET_PAIRS`)."""
+RESET_PAIRS = {  # adaptation state -> (arm with resetting, arm without)
+    "adaptation_on": ("reset_and_adapt", "adapt_only"),
+    "adaptation_off": ("reset_only", "neither"),
+}
 
 
 @dataclass(frozen=True)
@@ -138,8 +165,8 @@ def survival_by_arm(
                 **walk_on,
             )
             outcomes.append(rule.survived(log))
-            if progress:
-                progress(f"{name} {k + 1}/{len(disturbances)}")
+            if progress and ((k + 1) % 5 == 0 or k + 1 == len(disturbances)):
+                progress(f"{name}: trial {k + 1} of {len(disturbances)}")
         n, survived = len(outcomes), int(sum(outcomes))
         low, high = wilson_interval(survived, n)
         results[name] = {
@@ -152,7 +179,38 @@ def survival_by_arm(
     return results
 
 
-def undisturbed_by_arm(biped, dmp, frequency, duration, controller="qp", **walk_on) -> dict:
+def reset_ablation(survival: dict) -> dict:
+    """Phase resetting on against off over the same trials, per adaptation state.
+
+    For each pair of :data:`RESET_PAIRS`: both rates, their difference, the trials survived
+    only with resetting and only without, and the exact two-sided McNemar p-value of those
+    discordant counts (a binomial test at 1/2).
+    """
+    from scipy.stats import binomtest
+
+    results = {}
+    for state, (with_reset, without) in RESET_PAIRS.items():
+        pairs = list(zip(survival[with_reset]["outcomes"], survival[without]["outcomes"]))
+        only_with = sum(a and not b for a, b in pairs)
+        only_without = sum(b and not a for a, b in pairs)
+        discordant = only_with + only_without
+        results[state] = {
+            "with_reset": with_reset,
+            "without_reset": without,
+            "rate_with_reset": survival[with_reset]["rate"],
+            "rate_without_reset": survival[without]["rate"],
+            "difference": survival[with_reset]["rate"] - survival[without]["rate"],
+            "survived_only_with_reset": only_with,
+            "survived_only_without_reset": only_without,
+            "n": len(pairs),
+            "mcnemar_p": binomtest(only_with, discordant).pvalue if discordant else 1.0,
+        }
+    return results
+
+
+def undisturbed_by_arm(
+    biped, dmp, frequency, duration, controller="qp", progress=None, **walk_on
+) -> dict:
     """One walk of ``duration`` [s] per arm of :data:`ARMS` with no push, nominal masses and
     flat ground: heel strikes, fall and time of the fall [s] (None without a fall)."""
     results = {}
@@ -168,6 +226,8 @@ def undisturbed_by_arm(biped, dmp, frequency, duration, controller="qp", **walk_
             disturbance=Disturbance(),
             **walk_on,
         )
+        if progress:
+            progress(f"undisturbed walk: {name}")
         results[name] = {
             "steps": len(log.strikes),
             "fell": log.fell,
@@ -208,7 +268,10 @@ def fixed_frequency_sweep(
 
 
 def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
-    """The cheapest frequency of a sweep and the band of frequencies within ``flat`` of it."""
+    """The cheapest frequency of a sweep and the band of frequencies within ``flat`` of it.
+
+    ``bound``: None, or when the cheapest frequency is the sweep's lowest or highest, the
+    bound it gives (``"at most 4 rad/s (sweep's edge)"``): the minimum may lie beyond."""
     walked = [row for row in rows if row["cost_of_transport"] is not None]
     if not walked:
         return {"min_cost_of_transport_frequency": None}
@@ -218,8 +281,11 @@ def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
         for row in walked
         if row["cost_of_transport"] <= (1 + flat) * best["cost_of_transport"]
     ]
+    tried = [row["frequency"] for row in rows]
+    edge = {min(tried): "at most", max(tried): "at least"}.get(best["frequency"])
     return {
         "min_cost_of_transport_frequency": best["frequency"],
         "min_cost_of_transport": best["cost_of_transport"],
         f"within_{flat:.0%}_of_min_rad_s": [min(near), max(near)],
+        "bound": None if edge is None else f"{edge} {best['frequency']:g} rad/s (sweep's edge)",
     }

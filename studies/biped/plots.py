@@ -25,7 +25,7 @@ def frequency_figure(path, by_start, sweep, resonance, flat_band) -> None:
     ax.set_xlabel("heel strike n")
     ax.set_ylabel(r"oscillator frequency $\omega_n$ [rad/s]")
     ax.set_title("Frequency adaptation, eq. (21), QP walker")
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=7, ncol=2)
     walked = [row for row in sweep if row["cost_of_transport"] is not None]
     ax_cot.plot(
         [row["frequency"] for row in walked],
@@ -35,69 +35,89 @@ def frequency_figure(path, by_start, sweep, resonance, flat_band) -> None:
     )
     fallen = [row["frequency"] for row in sweep if row["cost_of_transport"] is None]
     if fallen:
-        ax_cot.plot(fallen, np.zeros(len(fallen)), "rx", label="fell")
+        ax_cot.plot(fallen, np.zeros(len(fallen)), "rx", label="fell (no cost)")
     if flat_band:
         ax_cot.axvspan(*flat_band, color="g", alpha=0.15, label="within 5 % of min")
     ax_cot.set_xlabel(r"oscillator frequency $\omega$ [rad/s]")
     ax_cot.set_ylabel("mechanical cost of transport [-]")
     ax_cot.set_title("Fixed-frequency sweep")
     ax_cot.set_xscale("log")
-    ax_cot.legend(fontsize=6)
+    ticks = [4, 5, 6, 8, 10, 12, 16, 20]
+    ax_cot.set_xticks(ticks, [str(t) for t in ticks])
+    ax_cot.minorticks_off()
+    ax_cot.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
 def survival_figure(path, survival: dict, ranges) -> None:
-    """Survival rate per arm with its Wilson 95 % interval."""
+    """Survival rate per arm with its Wilson 95 % interval, coloured by phase resetting."""
+    from .analysis import ARMS
+
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6, 3.6))
-    names = list(survival)
+    fig, ax = plt.subplots(figsize=(7, 3.8))
+    names = [name for name in ARMS if name in survival]
     rates = np.array([survival[name]["rate"] for name in names])
     low = np.array([survival[name]["ci95_wilson"][0] for name in names])
     high = np.array([survival[name]["ci95_wilson"][1] for name in names])
-    ax.bar(names, rates, color="C0", alpha=0.7, label="survival rate")
+    colours = ["C0" if ARMS[name][0] else "C3" for name in names]
+    labels = [
+        f"reset {'on' if ARMS[name][0] else 'off'}\nadaptation {'on' if ARMS[name][1] else 'off'}"
+        f"\n{survival[name]['survived']}/{survival[name]['n']} survived"
+        for name in names
+    ]
+    ax.bar(labels, rates, color=colours, alpha=0.75)
     errors = np.maximum(0.0, [rates - low, high - rates])  # not -1e-17 from rounding
-    ax.errorbar(names, rates, yerr=errors, fmt="none", color="k", capsize=5, label="Wilson 95 % CI")
-    for k, name in enumerate(names):
-        ax.text(k, 0.02, f"n={survival[name]['n']}", ha="center", fontsize=8)
-    ax.set_ylim(0, 1.05)
-    ax.set_ylabel("survived trials [-]")
+    ax.errorbar(labels, rates, yerr=errors, fmt="none", color="k", capsize=5)
+    handles = [
+        plt.Rectangle((0, 0), 1, 1, color="C0", alpha=0.75, label="phase resetting on"),
+        plt.Rectangle((0, 0), 1, 1, color="C3", alpha=0.75, label="phase resetting off"),
+        plt.Line2D([], [], color="k", marker="_", ls="none", ms=10, label="Wilson 95 % CI"),
+    ]
+    ax.legend(handles=handles, fontsize=8, loc="upper center", ncol=3)
+    ax.set_ylim(0, 1.25)
+    ax.set_ylabel("survived trials [fraction]")
     ax.set_title(
         f"push {ranges.push_impulse[0]:g}-{ranges.push_impulse[1]:g} N s, masses "
         f"x{ranges.mass_scale[0]:g}-{ranges.mass_scale[1]:g}, slope "
-        f"{ranges.slope_deg[0]:g}..{ranges.slope_deg[1]:g} deg",
-        fontsize=8,
+        f"{ranges.slope_deg[0]:g} to {ranges.slope_deg[1]:g} deg",
+        fontsize=9,
     )
-    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
-def joints_figure(path, biped, log) -> None:
-    """Desired (DMP) against actual joint angles, first and last 4 s of a walk."""
+def joints_figure(path, biped, log, seconds: float = 3.0) -> None:
+    """Desired (DMP) against actual joint angles, first and last ``seconds`` of a walk;
+    vertical lines mark the heel strikes (red right foot, blue left)."""
     plt = pyplot()
     times = np.asarray(log.times)
     q = np.asarray(log.q)[:, biped.velocity_indices("gait")]
     desired = np.asarray(log.desired)
     fig, axes = plt.subplots(4, 2, figsize=(9, 7), sharex="col")
-    windows = [times <= times[0] + 4.0, times >= times[-1] - 4.0]
+    windows = [times <= times[0] + seconds, times >= times[-1] - seconds]
     for col, window in enumerate(windows):
         for row, name in enumerate(biped.joint_groups["gait"]):
             ax = axes[row, col]
-            ax.plot(times[window], np.degrees(desired[window, row]), "--", label="DMP")
+            ax.plot(times[window], np.degrees(desired[window, row]), "--", label="DMP reference")
             ax.plot(times[window], np.degrees(q[window, row]), label="robot")
             for t, leg, _ in log.strikes:
                 if times[window][0] <= t <= times[window][-1]:
-                    ax.axvline(t, color="r" if leg == 0 else "b", lw=0.4)
-            ax.set_ylabel(f"{name} [deg]", fontsize=8)
-    axes[0, 0].set_title("start")
-    axes[0, 1].set_title("end")
-    axes[0, 0].legend(fontsize=7)
+                    ax.axvline(t, color="r" if leg == 0 else "b", lw=0.6, alpha=0.6)
+            ax.set_ylabel(f"{name.replace('_', ' ')} [deg]", fontsize=8)
+    axes[0, 0].set_title(f"first {seconds:g} s")
+    axes[0, 1].set_title(f"last {seconds:g} s")
+    strikes = [
+        plt.Line2D([], [], color="r", lw=0.8, label="right heel strike"),
+        plt.Line2D([], [], color="b", lw=0.8, label="left heel strike"),
+    ]
+    handles = axes[0, 0].get_legend_handles_labels()[0] + strikes
+    fig.legend(handles=handles, loc="upper center", ncol=4, fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
     axes[-1, 1].set_xlabel("t [s]")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
@@ -108,25 +128,40 @@ def stick_figure(path, biped, log, speed) -> None:
 
     plt = pyplot()
     times = np.asarray(log.times)
-    fig, ax = plt.subplots(figsize=(10, 2.6))
     window = np.flatnonzero(times >= times[-1] - 3.0)[::8]
     data = biped.model.createData()
     frames = [biped.torso_frame, "right_knee", biped.foot_frames[0], "left_knee"]
     frames.append(biped.foot_frames[1])
     ids = [biped.model.getFrameId(f) for f in frames]
     colours = plt.cm.viridis(np.linspace(0, 1, len(window)))
-    for colour, k in zip(colours, window):
+    chains = []
+    for k in window:
         pin.framesForwardKinematics(biped.model, data, log.q[k])
         hip, right_knee, right_foot, left_knee, left_foot = (
             data.oMf[i].translation[[0, 2]] for i in ids
         )
         pitch = log.q[k][2]
         top = hip + 0.3 * np.array([np.sin(pitch), np.cos(pitch)])
-        for chain in ([top, hip], [hip, right_knee, right_foot], [hip, left_knee, left_foot]):
-            chain = np.array(chain)
-            ax.plot(chain[:, 0], chain[:, 1], color=colour, lw=1)
+        chains.append(
+            [
+                np.array(c)
+                for c in ([top, hip], [hip, right_knee, right_foot], [hip, left_knee, left_foot])
+            ]
+        )
+    points = np.concatenate([np.concatenate(c) for c in chains])
+    low, high = points.min(axis=0) - 0.05, points.max(axis=0) + 0.05
+    low[1] = min(low[1], -0.05)
+    width = 9.0  # [in]; the height follows the data at equal scales, plus the margins
+    fig, ax = plt.subplots(figsize=(width, 0.9 + width * (high[1] - low[1]) / (high[0] - low[0])))
+    for colour, chain in zip(colours, chains):
+        for segment in chain:
+            ax.plot(segment[:, 0], segment[:, 1], color=colour, lw=1.2)
     ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlim(low[0], high[0])
+    ax.set_ylim(low[1], high[1])
     ax.set_aspect("equal")
+    clock = plt.cm.ScalarMappable(cmap="viridis", norm=plt.Normalize(*times[window[[0, -1]]]))
+    fig.colorbar(clock, ax=ax, label="t [s]", fraction=0.025, pad=0.01)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(f"last 3 s, {speed:.2f} m/s")

@@ -40,6 +40,7 @@ ADAPTATION_GAIN = 0.3  # K of eq. (21)
 LOG_EVERY = 10  # steps between logged samples
 START_SPEEDS = {"qp": 0.8, "pd": 0.35}  # [m/s] forward speed at the first heel strike
 CONTROLLERS = ("qp", "pd")
+PROGRESS_EVERY = 10.0  # [s] simulated, between the progress messages of a long walk
 
 
 @dataclass(frozen=True)
@@ -259,6 +260,7 @@ def walk(
     backend: str = "mujoco",
     amplitude: float = 1.0,
     start_speed: float | None = None,
+    progress=None,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
 
@@ -268,7 +270,7 @@ def walk(
     ``push_impulse`` [N s] at ``push_time`` is a shorthand for
     ``Disturbance(push_impulse, push_time)``. The DMP steps at ``CONTROL_EVERY * DT``; the
     controller (``"qp"`` or ``"pd"``) and the simulator (``"mujoco"`` or ``"native"``) at
-    ``DT``.
+    ``DT``. ``progress``: called with a message every ``PROGRESS_EVERY`` simulated seconds.
     """
     if controller not in CONTROLLERS:
         raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
@@ -303,6 +305,7 @@ def walk(
     n_steps = int(round(duration / DT))
     push_step = int(round(disturbance.push_time / DT)) if disturbance.push_impulse else -1
     slope_step = int(round(disturbance.slope_time / DT)) if disturbance.slope_deg else -1
+    progress_steps = int(round(PROGRESS_EVERY / DT))
     start, cpu_start = time.perf_counter(), time.process_time()
     try:
         for k in range(n_steps):
@@ -331,6 +334,8 @@ def walk(
                         stepper.reset_phase(phase)
                     stepper.set_tau(1.0 / new_frequency)
                     log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+            if progress and k and k % progress_steps == 0:
+                progress(f"{state.t:.0f} of {duration:g} s simulated")
             if k % log_every == 0:
                 log.times.append(state.t)
                 log.q.append(state.q)

@@ -60,6 +60,11 @@ def _readonly(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def _rebuild_robot_model(fields: dict) -> RobotModel:
+    """A pickled :class:`RobotModel` back (worker processes of :mod:`dmpopt.parallel`)."""
+    return RobotModel(**fields)
+
+
 @dataclass(frozen=True, eq=False)
 class RobotModel:
     """A Pinocchio model with joint groups, limits, contact and hand frames.
@@ -113,6 +118,12 @@ class RobotModel:
     sole_corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     torso_frame: str = ""
     source: str = ""
+
+    def __reduce__(self):
+        # the read-only mapping of joint groups does not pickle: rebuild from a plain dict
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        fields["joint_groups"] = dict(self.joint_groups)
+        return (_rebuild_robot_model, (fields,))
 
     def __post_init__(self):
         self._check_base()

@@ -91,3 +91,19 @@ def test_an_absent_ray_head_fails_in_seconds_with_the_fix():
         Runner(ray="127.0.0.1:1").connect()
     with pytest.raises(InvalidInputError, match="HOST:PORT"):
         Runner(ray="no-port").connect()
+
+
+def test_robot_models_survive_the_trip_to_a_worker():
+    """A RobotModel pickles (worker processes get the model of the caller, not a reload)."""
+    import pickle
+
+    from robots.biped import load_biped
+
+    biped = load_biped()
+    copy = pickle.loads(pickle.dumps(biped))
+    assert dict(copy.joint_groups) == dict(biped.joint_groups)
+    assert copy.model.nq == biped.model.nq == 7
+    masses = [inertia.mass for inertia in biped.model.inertias]
+    assert [inertia.mass for inertia in copy.model.inertias] == masses
+    np.testing.assert_array_equal(copy.torque_limit, biped.torque_limit)
+    assert copy.foot_frames == biped.foot_frames and copy.base == "planar"

@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dmpopt.parallel import Runner
 from robots import biped as biped_model
 from robots.biped import load_biped
 
@@ -167,8 +168,12 @@ def _summary(log: WalkLog, mass: float) -> dict:
     }
 
 
-def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") -> dict:
-    """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics."""
+def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", runner=None) -> dict:
+    """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics.
+
+    The randomised trials are independent runs, executed where ``runner`` says
+    (:mod:`dmpopt.parallel`; default: in series); the results do not depend on it.
+    """
     from studies.humanoid import VIDEO_FPS, check_backend, write_videos
 
     backend = check_backend(backend)
@@ -227,13 +232,15 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco") ->
     )
     n_trials = 3 if quick else 50
     disturbances = random_disturbances(biped, n_trials, seed, RANGES)
+    runner = runner or Runner()
     survival = survival_by_arm(
-        biped, dmp, final, disturbances, progress=progress, **qp, backend=backend
+        biped, dmp, final, disturbances, progress=progress, runner=runner, **qp, backend=backend
     )
     metrics = {
         "controller": "qp_inverse_dynamics",
         "boom_pitch_stiffness_N_m_per_rad": 0.0,
         "steps_walked": len(main_walk.strikes),
+        "parallel": runner.record(),
         "fell": main_walk.fell,
         "main_walk": _summary(main_walk, biped.mass),
         "start_frequency": MAIN_START,

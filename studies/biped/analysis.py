@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dmpopt.exceptions import InvalidInputError
+from dmpopt.parallel import map_runs
 
 from .walker import FALL_HEIGHT, Disturbance, WalkLog, n_moving_bodies, walk
 
@@ -144,29 +145,53 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
     ]
 
 
+def _survived(job: tuple) -> bool:
+    """One randomised trial, an independent run of :func:`survival_by_arm`."""
+    rule, walk_options = job
+    return rule.survived(walk(**walk_options))
+
+
 def survival_by_arm(
-    biped, dmp, frequency, disturbances, controller="qp", rule=SURVIVAL, progress=None, **walk_on
+    biped,
+    dmp,
+    frequency,
+    disturbances,
+    controller="qp",
+    rule=SURVIVAL,
+    progress=None,
+    runner=None,
+    **walk_on,
 ) -> dict:
-    """Survival rate of each arm of :data:`ARMS` over ``disturbances`` with its Wilson CI."""
-    results = {}
-    for name, (reset_phase, adapt) in ARMS.items():
-        outcomes = []
-        for k, disturbance in enumerate(disturbances):
-            log = walk(
-                biped,
-                dmp,
-                disturbance.push_time + rule.after,
-                frequency,
+    """Survival rate of each arm of :data:`ARMS` over ``disturbances`` with its Wilson CI.
+
+    Every (arm, trial) walk is an independent run, executed where ``runner`` says
+    (:mod:`dmpopt.parallel`; default: in series); the results do not depend on it.
+    """
+    jobs = [
+        (
+            rule,
+            dict(
+                biped=biped,
+                dmp=dmp,
+                duration=disturbance.push_time + rule.after,
+                frequency=frequency,
                 adapt=adapt,
                 reset_phase=reset_phase,
                 controller=controller,
                 disturbance=disturbance,
                 seed=k,
                 **walk_on,
-            )
-            outcomes.append(rule.survived(log))
-            if progress and ((k + 1) % 5 == 0 or k + 1 == len(disturbances)):
-                progress(f"{name}: trial {k + 1} of {len(disturbances)}")
+            ),
+        )
+        for reset_phase, adapt in ARMS.values()
+        for k, disturbance in enumerate(disturbances)
+    ]
+    if progress:
+        progress(f"{len(jobs)} randomised trials ({len(ARMS)} arms x {len(disturbances)})")
+    survived_all = map_runs(_survived, jobs, runner, label="biped trials")
+    results = {}
+    for i, name in enumerate(ARMS):
+        outcomes = survived_all[i * len(disturbances) : (i + 1) * len(disturbances)]
         n, survived = len(outcomes), int(sum(outcomes))
         low, high = wilson_interval(survived, n)
         results[name] = {

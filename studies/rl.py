@@ -304,7 +304,7 @@ def _summary(values):
         ]
     )
     return {
-        "median": float(np.median(values)) if np.mean(finite) >= 0.5 else None,
+        "median": float(np.median(values)) if np.isfinite(np.median(values)) else None,
         "q25": None if quartiles[0] is None else float(quartiles[0]),
         "q75": None if quartiles[1] is None else float(quartiles[1]),
         "reached": float(np.mean(finite)),
@@ -418,7 +418,8 @@ def _plot_curves(path, results, metrics, title, n_trials):
         title="fraction, linear scale",
     )
     axes[0].legend(fontsize=7, loc="lower left")
-    fig.suptitle(f"{title}: median and quartiles over {len(curves)} seeds", fontsize=10)
+    n_seeds = max(len(result["curves"]) for result in results.values())
+    fig.suptitle(f"{title}: median and quartiles over {n_seeds} seeds", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -646,17 +647,23 @@ def _summary_rows(metrics: dict) -> list[dict]:
         else "none reached 99 %"
     )
     enac95 = methods["enac"]["trials_to_95"]["median"]
+    kl95 = methods["enac_kl"]["trials_to_95"]["median"]
     rows = [
         {
             "claim": "eNAC learns the 1-DOF reach (Fig. 5): trials to 99 % of the achievable "
             "improvement",
             "paper": "converges smoothly; good profiles after about 150-200 trials",
             "dmpopt": f"eNAC {_trials_text(methods['enac']['trials_to_99'], budget)} to 99 %, "
-            f"{_trials_text(methods['enac']['trials_to_95'], budget)} to 95 %; median of "
+            f"{_trials_text(methods['enac']['trials_to_95'], budget)} to 95 %; with KL steps "
+            f"{_trials_text(methods['enac_kl']['trials_to_99'], budget)} and "
+            f"{_trials_text(methods['enac_kl']['trials_to_95'], budget)}; median of "
             f"{metrics['n_eval_seeds']} seeds",
             "anchor": anchor,
             "verdict": "reproduced (95 % within 200 trials)"
             if enac95 is not None and enac95 <= 200
+            else "reproduced with KL steps (95 % within 200 trials); fixed steps tuned for 99 % "
+            "are slower to 95 %"
+            if kl95 is not None and kl95 <= 200
             else "trails the paper: 95 % takes more than 200 trials",
         }
     ]
@@ -700,6 +707,12 @@ def _summary_rows(metrics: dict) -> list[dict]:
             f"eREINFORCE / eNAC {_point_ratio(native)} at {native['condition_number']:.0f} "
             f"(default), {_point_ratio(classic)} at {classic['condition_number']:.0f} "
             f"(classic layout), {_point_ratio(worst)} at {worst['condition_number']:.0f}"
+            + (
+                f"; with KL steps {_point_ratio(native, 'ratio_kl_95')}, "
+                f"{_point_ratio(classic, 'ratio_kl_95')}, {_point_ratio(worst, 'ratio_kl_95')}"
+                if "ratio_kl_95" in native
+                else ""
+            )
             if all(t is not None for t in enac)
             else "eNAC did not reach 95 % at every conditioning",
             "anchor": "eREINFORCE (vanilla gradient) on the same scalings",
@@ -727,23 +740,12 @@ def _summary_rows(metrics: dict) -> list[dict]:
         }
     )
     for name, task in metrics["other_tasks"].items():
-        reached = {
-            v: m["trials_to_99"]["median"]
-            for v, m in task["methods"].items()
-            if m["trials_to_99"]["median"] is not None
-        }
-        best_text = (
-            ", ".join(
-                f"{LABELS[v]} {t:.0f}" for v, t in sorted(reached.items(), key=lambda i: i[1])
-            )
-            if reached
-            else f"none within {budget}"
-        )
         rows.append(
             {
-                "claim": f"{name.replace('_', ' ')} task ({task['n_dofs']} DOFs): trials to 99 %",
+                "claim": f"{name.replace('_', ' ')} task ({task['n_dofs']} DOFs): trials to "
+                "95 % / 99 %",
                 "paper": "not in the paper",
-                "dmpopt": best_text,
+                "dmpopt": _other_task_text(task["methods"], budget),
                 "anchor": "none measured",
                 "verdict": "beyond the paper",
             }
@@ -762,6 +764,24 @@ def _summary_rows(metrics: dict) -> list[dict]:
     return rows
 
 
+def _other_task_text(methods: dict, budget: int) -> str:
+    """The three methods fastest to 95 %: "CMA-ES 240 / > 3000"."""
+
+    def text(value):
+        return f"> {budget}" if value is None else f"{value:.0f}"
+
+    def order(variant):
+        summary = methods[variant]["trials_to_95"]
+        return np.inf if summary["median"] is None else summary["median"]
+
+    fastest = sorted(methods, key=order)[:3]
+    return ", ".join(
+        f"{LABELS[v]} {text(methods[v]['trials_to_95']['median'])} / "
+        f"{text(methods[v]['trials_to_99']['median'])}"
+        for v in fastest
+    )
+
+
 def _passed(check) -> str:
     return "n/a" if check is None else "passes" if check["passed"] else "fails"
 
@@ -772,7 +792,8 @@ def _captions(metrics: dict) -> dict:
     captions = {
         "rl_curves": "Left: the remaining gap to the exact optimum on a log scale, where the "
         "methods separate (dashed 95 %, dotted 99 %); right: the same curves as the fraction of "
-        f"the achievable improvement. Roll-outs per update: {rollouts}.",
+        f"the achievable improvement. Steps tuned for the fewest trials to 99 % on separate "
+        f"seeds. Roll-outs per update: {rollouts}.",
         "rl_conditioning": "The same task with the policy's feature columns rescaled: eNAC's "
         "trials stay flat (the natural gradient is invariant), eREINFORCE's grow with the "
         "Fisher condition number; right, their ratio against the paper's ~10x.",
@@ -808,7 +829,9 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
     settings = () if quick else ((3.0, BATCH), (30.0, BATCH), (EXPLORATION_STD, 15), (10.0, 50))
     sweep_variants = ("enac", "ereinforce") if quick else GRADIENT_VARIANTS
     targets = CONDITIONING_TARGETS[2:] if quick else CONDITIONING_TARGETS
-    extra_seeds = (tuning_seeds, eval_seeds[: n_eval // 2])
+    # secondary parts: half the evaluation seeds (and 3 tuning seeds on the bigger tasks)
+    half = (tuning_seeds, eval_seeds[: n_eval // 2])
+    extra_seeds = (tuning_seeds[:3], eval_seeds[: n_eval // 2])
     extra_tasks = () if quick else ("six_dof", "via_point")
 
     # The paper's task ------------------------------------------------------------------
@@ -820,7 +843,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
     sweep = _conditioning_sweep(
         method_metrics, sweep_variants, targets, seeds, n_trials, runner, progress
     )
-    dependence = _dependence(settings, seeds, n_trials, runner, progress)
+    dependence = _dependence(settings, half, n_trials, runner, progress)
 
     # Beyond one joint ------------------------------------------------------------------
     extra_metrics, extra_results = {}, {}

@@ -418,7 +418,7 @@ def _plot_curves(path, results, metrics, title, n_trials):
         ylim=(-0.1, 1.05),
         title="fraction, linear scale",
     )
-    axes[0].legend(fontsize=7, loc="lower left")
+    axes[1].legend(*axes[0].get_legend_handles_labels(), fontsize=7, loc="lower right")
     n_seeds = max(len(result["curves"]) for result in results.values())
     fig.suptitle(f"{title}: median and quartiles over {n_seeds} seeds", fontsize=10)
     fig.tight_layout()

@@ -102,8 +102,8 @@ def _figures(folder):
     return sorted(p.name for p in folder.glob("*.png") if p.stat().st_size > 10_000)
 
 
-RL_TRIALS_TO_95 = {"enac": 160, "ereinforce": 330}  # quick run, median of 6 seeds
-RL_RATIO_95 = 2.06  # eREINFORCE / eNAC, quick run; the paper reports about 10
+RL_TRIALS_TO_99 = {"enac": 1520, "enac_kl": 650}  # quick run (seed 0), median of 6 seeds
+RL_RATIO_95_AT_10000 = 6.57  # eREINFORCE / eNAC trials to 95 % at Fisher condition 1e4, quick
 
 
 @pytest.fixture(scope="module")
@@ -149,22 +149,77 @@ def test_rl_optimum_is_the_maximum_of_the_quadratic_return(rl_run):
     assert metrics["optimum_return"] > metrics["initial_return"]
 
 
-def test_enac_reaches_95_percent_in_fewer_trials_than_ereinforce(rl_run):
-    """Fig. 5's claim within the quick budget (2000 trials): every eNAC and eREINFORCE seed
-    reaches 95 % of the exact optimum, eNAC in fewer trials, and within MARGIN of the
-    measured medians; eNAC ends above 99 % with a bell-shaped velocity profile."""
-    folder, metrics = rl_run
-    methods = metrics["methods"]
-    for name in ("enac", "ereinforce"):
-        assert methods[name]["trials_to_95"]["reached"] == 1.0, name
+def test_rl_leads_with_trials_to_99_beside_the_papers_ratio(rl_run):
+    """Within the quick budget (2000 trials) eNAC reaches 99 % of the exact optimum (KL step:
+    every seed; fixed step: 5 of 6, the rest jitter below it), within MARGIN of the measured
+    medians; fixed-step eREINFORCE does not on most
+    seeds, so its ratio is the bound budget / eNAC (written out here), stated beside the
+    paper's 10x in the metrics and in the summary table."""
+    _, metrics = rl_run
+    methods, budget = metrics["methods"], metrics["trial_budget"]
+    for name, measured in RL_TRIALS_TO_99.items():
+        assert methods[name]["trials_to_99"]["reached"] >= 0.8, name
         assert methods[name]["diverged"] == 0, name
-        assert metrics["trials_to_95"][name] <= MARGIN * RL_TRIALS_TO_95[name], name
-    assert metrics["trials_to_95"]["enac"] < metrics["trials_to_95"]["ereinforce"]
-    assert metrics["ratio_ereinforce_over_enac_95"] >= RL_RATIO_95 / MARGIN
-    assert metrics["trials_to_95"]["enac"] <= metrics["trial_budget"]
-    assert metrics["enac_end_improvement"] >= 0.99  # measured 0.994
-    assert metrics["velocity_bell_shaped"]["enac_end"] is True
-    assert len(_figures(folder)) >= 2
+        assert metrics["trials_to_99"][name] <= MARGIN * measured, name
+    assert methods["enac_kl"]["trials_to_99"]["reached"] == 1.0
+    assert metrics["trials_to_99"]["ereinforce"] is None
+    ratios = metrics["ratio_ereinforce_over_enac"]
+    assert ratios["paper"] == 10.0
+    assert ratios["fixed_step_99_is_lower_bound"] is True
+    assert ratios["fixed_step_99"] == pytest.approx(budget / metrics["trials_to_99"]["enac"])
+    expected = metrics["trials_to_95"]["ereinforce"] / metrics["trials_to_95"]["enac"]
+    assert ratios["fixed_step_95"] == pytest.approx(expected)
+    row = next(r for r in metrics["summary"] if "10x faster" in r["claim"])
+    assert row["paper"] == "about 10x"
+    assert f">= {ratios['fixed_step_99']:.1f}x to 99 %" in row["dmpopt"]
+    assert row["verdict"].startswith("trails the paper")
+
+
+def test_rl_natural_gradient_stays_flat_as_the_basis_is_rescaled(rl_run):
+    """Answer key of the invariance: eNAC's runs on rescaled features are the same runs, so
+    its trials to 95 % are equal at every conditioning; eREINFORCE's grow with the Fisher
+    condition number (111 by default, the classic layout's 2170, then 1e4)."""
+    from dmpopt.learning import paper_reaching_task
+
+    _, metrics = rl_run
+    sweep = metrics["ratio_vs_conditioning"]
+    features = paper_reaching_task().policy_features
+    conditions = [p["condition_number"] for p in sweep]
+    assert conditions[0] == pytest.approx(np.linalg.cond(features.T @ features))
+    assert conditions[1:] == pytest.approx([2170.0, 1e4])
+    enac = [p["trials_to_95"]["enac"] for p in sweep]
+    assert max(enac) - min(enac) <= 20  # one update
+    ereinforce = [p["trials_to_95"]["ereinforce"] for p in sweep]
+    assert all(t is not None for t in ereinforce)
+    assert ereinforce == sorted(ereinforce) and ereinforce[-1] > 3 * ereinforce[0]
+    for point in sweep:
+        expected = point["trials_to_95"]["ereinforce"] / point["trials_to_95"]["enac"]
+        assert point["ratio_95"] == pytest.approx(expected)
+    assert sweep[-1]["ratio_95"] >= RL_RATIO_95_AT_10000 / MARGIN
+
+
+def test_rl_bell_check_fails_at_w0_and_passes_after_learning(rl_run):
+    """The check that can fail: w = 0 ends moving and 5 % short; eNAC's final policy
+    (median seed, measured 98.3 % of the improvement) and the exact optimum pass."""
+    _, metrics = rl_run
+    bell = metrics["velocity_bell_shaped"]
+    assert bell["start"]["passed"] is False
+    assert bell["start"]["goal_error"] == pytest.approx(0.05, abs=1e-3)
+    assert bell["enac_end"]["passed"] is True and bell["optimum"]["passed"] is True
+    assert metrics["enac_end_improvement"] >= 0.975
+
+
+def test_rl_summary_captions_and_parallel_record(rl_run):
+    """An opening table of claim | paper | dmpopt | anchor | verdict, a caption per figure
+    and the runner's record."""
+    folder, metrics = rl_run
+    keys = {"claim", "paper", "dmpopt", "anchor", "verdict"}
+    assert len(metrics["summary"]) >= 4
+    assert all(set(row) == keys and all(row.values()) for row in metrics["summary"])
+    figures = _figures(folder)
+    assert {"rl_curves.png", "rl_conditioning.png", "rl_velocity.png"} <= set(figures)
+    assert {name[:-4] for name in figures} <= set(metrics["captions"])
+    assert metrics["parallel"]["backend"] == "serial" and metrics["parallel"]["runs"] > 100
 
 
 def test_recognition_quick(tmp_path):

@@ -76,6 +76,8 @@ def test_noise_floor_stops_growth():
     choice = fit_adaptive(_curve(noise=sigma, seed=1), 1e-6)
     assert choice.stopped == "no improvement"
     assert choice.n_basis < 100
+    tried = sorted({n for n, _, _ in choice.history})
+    assert tried[-3] == choice.n_basis  # two more numbers tried without enough improvement
     assert 0.8 * sigma * np.sqrt(2) <= choice.validation_error <= 1.3 * sigma * np.sqrt(2)
 
 

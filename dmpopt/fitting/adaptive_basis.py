@@ -29,6 +29,9 @@ from ..validation import integer, real
 from .imitation import _check_demo, _local_regression, _ridge, fit_discrete, forcing_targets
 
 STOP_REASONS = ("tolerance", "no improvement", "max_basis")
+PATIENCE = 2
+"""Growth steps in a row without enough improvement after which growth stops (one step can
+fail where the width search is caught in a poor local minimum)."""
 WIDTH_SCALES = tuple(2.0**k for k in range(-3, 7))
 """Default factors on the widths, 1/8 to 64: on LASA the position-space fit prefers wider
 basis functions than the default layout, LWR much narrower ones."""
@@ -50,8 +53,9 @@ class BasisChoice:
         RMS Euclidean position error [demo units] of the plan at the held-out samples, for
         the chosen layout fitted to the other samples.
     stopped : {"tolerance", "no improvement", "max_basis"}
-        Why growth stopped: the tolerance was met, one more growth step lowered the
-        validation error by less than ``min_improvement``, or ``max_basis`` was reached.
+        Why growth stopped: the tolerance was met, :data:`PATIENCE` growth steps in a row
+        lowered the validation error by less than ``min_improvement``, or ``max_basis``
+        was reached.
     history : tuple of (int, float, float)
         ``(n_basis, width_scale, validation_error)`` of every layout tried, in order.
     """
@@ -102,8 +106,8 @@ def fit_adaptive(
     growth : float
         Factor (> 1) between successive numbers of basis functions (rounded up, at least +1).
     min_improvement : float
-        Growth stops when a step lowers the best validation error by less than this fraction
-        (in [0, 1)); the smaller layout is kept.
+        Growth stops when :data:`PATIENCE` steps in a row each fail to lower the best
+        validation error by this fraction (in [0, 1)); the best layout found is kept.
 
     Returns
     -------
@@ -132,15 +136,18 @@ def fit_adaptive(
         alpha_v=alpha_v,
     )
     data = _Demo(demo, first, method, regularization)
-    history, best, stopped = [], None, "max_basis"
+    history, best, stale, stopped = [], None, 0, "max_basis"
     k = int(np.argmin(np.abs(np.log(scales))))
     for n_basis in _numbers(min_basis, max_basis, growth):
         k, errors = _width_search(data, n_basis, scales, k, train)
         history += [(n_basis, scales[i], errors[i]) for i in sorted(errors)]
         if best is not None and errors[k] > (1.0 - min_improvement) * best[2]:
-            stopped = "no improvement"
-            break
-        best = (n_basis, scales[k], errors[k])
+            stale += 1
+            if stale == PATIENCE:
+                stopped = "no improvement"
+                break
+            continue
+        best, stale = (n_basis, scales[k], errors[k]), 0
         if errors[k] <= tolerance:
             stopped = "tolerance"
             break

@@ -28,7 +28,7 @@ from dmpopt.parallel import Runner, map_runs
 from . import lasa
 from .common import Progress, median_time, output_dir, pyplot, write_metrics
 
-# CPU seconds measured on the 2-core machine (wall: 787 s and 42 s under a load of 10)
+# CPU seconds measured on the 2-core machine (wall: 385 s and 42 s on the shared machine)
 EXPECTED_SECONDS = {"full": 190, "quick": 15}
 N_BASIS = (10, 30, 100)
 DEFAULT_N_BASIS = 30  # fit_discrete's default

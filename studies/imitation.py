@@ -24,6 +24,7 @@ from dmpopt import fit_discrete, similarity_transform
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.fitting.adaptive_basis import fit_adaptive
 from dmpopt.parallel import Runner, map_runs
+from dmpopt.validation import flag, integer
 
 from . import lasa
 from .common import Progress, median_time, output_dir, pyplot, write_metrics
@@ -154,6 +155,12 @@ def _spread(values) -> dict:
 
 def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = None) -> dict:
     """Fit every LASA demo, write figures and ``metrics.json``; return the metrics."""
+    quick, seed = flag("quick", quick), integer("seed", seed, minimum=0)
+    if runner is not None and not isinstance(runner, Runner):
+        raise InvalidInputError(
+            f"runner must be a dmpopt.parallel.Runner or None, got {type(runner).__name__}; "
+            "pass Runner(workers=2) to use two processes"
+        )
     out = output_dir(out_dir)
     runner = runner or Runner()
     progress = Progress("imitation")

@@ -167,3 +167,20 @@ def test_summary_and_captions_come_from_the_metrics(saved):
     assert figures == sorted(saved["captions"]) == ["new_goals", "reproductions", "rmse_vs_basis"]
     assert all((imitation_quick() / f"{stem}.png").stat().st_size > 10_000 for stem in figures)
     assert saved["parallel"]["runs"] == 12
+
+
+@pytest.mark.parametrize(
+    "options, match",
+    [
+        ({"quick": "yes"}, "quick must be True or False"),
+        ({"seed": -1}, "seed must be"),
+        ({"runner": 2}, "runner must be a dmpopt.parallel.Runner or None, got int"),
+    ],
+)
+def test_bad_run_options_are_refused(tmp_path, options, match):
+    from dmpopt import InvalidInputError
+    from studies import imitation
+
+    with pytest.raises(InvalidInputError, match=match):
+        imitation.run(tmp_path, **options)
+    assert not any(tmp_path.iterdir())

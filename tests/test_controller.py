@@ -371,6 +371,7 @@ def test_failed_solve_falls_back_without_nan(talos):
     com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
     first = controller.compute_torques(q, v)
     assert controller.stats.last_status == "PROXQP_SOLVED"
+    assert controller.stats.last_iterations >= 1
     controller.qp.settings.max_iter = 1
     com.set_target(com.target_position + [0.05, 0.02, -0.05], acceleration=[-6.0, 4.0, 0.0])
     second = controller.compute_torques(q, v)
@@ -539,8 +540,9 @@ def test_joint_limits_standing(talos):
     controller, _ = standing_controller(talos, joint_limit_horizon=0.05)
     arm = PostureTask(talos, "left_arm", weight=10.0, stiffness=400.0)
     controller = InverseDynamicsController(
-        talos, [*controller.tasks, arm], controller.contacts, joint_limit_horizon=0.05
-    )
+        talos, [*controller.tasks, arm], controller.contacts, joint_limit_horizon=0.05,
+        time_budget=1.0,  # a busy machine (or mutation testing) must not end the exact QP
+    )  # fmt: skip
     joint = "arm_left_4_joint"
     i_q, i_v = talos.configuration_indices([joint])[0], talos.velocity_indices([joint])[0]
     reference = arm.reference_position.copy()
@@ -778,8 +780,8 @@ def test_posture_reference_arguments(upper_body):
 
 def test_placements_must_be_finite_rigid_motions(upper_body):
     """A frame target with a NaN translation, or a rotation 0.1 % off orthonormal, is
-    refused; so are a position that is not numbers and a velocity of the wrong size, by
-    name."""
+    refused (one off by round-off, 1e-7, is accepted); so are a position that is not
+    numbers and a velocity of the wrong size, by name."""
     hand = FrameTask(upper_body, "gripper_left_base_link")
     for bad in (
         pin.SE3(np.eye(3), np.array([np.nan, 0.0, 0.0])),
@@ -787,6 +789,7 @@ def test_placements_must_be_finite_rigid_motions(upper_body):
     ):
         with pytest.raises(InvalidInputError, match="placement must be finite with a rotation"):
             hand.set_target(bad)
+    hand.set_target(pin.SE3(np.eye(3) + np.diag([1e-7, 1e-7], 1), np.zeros(3)))  # round-off
     with pytest.raises(InvalidInputError, match="^placement must be numbers"):
         hand.set_target("up")
     with pytest.raises(ShapeError, match=r"^velocity has shape \(2,\)"):

@@ -592,3 +592,34 @@ def test_removal_before_the_first_tick_ramps_from_max_normal_force(talos):
     controller.remove_contact(RIGHT, transition_time=0.25)
     controller.compute_torques(q, v, 0.0)
     assert controller.contact_force(RIGHT)[2] > 600.0
+
+
+# ---------------------------------------------------------------- fixed base, normal equations
+@pytest.mark.parametrize("posture", [False, True])
+def test_fixed_base_tick_solves_the_normal_equations(posture):
+    """Fixed base, no limit binding: qdd minimises sum_k w_k |J_k qdd - b_k|^2 + eps_a |qdd|^2,
+    so (sum_k w_k J_k^T J_k + eps_a I) qdd = sum_k w_k J_k^T b_k, solved here with numpy. A hand
+    task of weight 5 alone (the Cholesky path without posture terms), or with a posture task
+    on every joint (the Woodbury path)."""
+    from robots import load_talos
+
+    robot = load_talos("reduced", fixed_base=True)
+    rng = np.random.default_rng(11)
+    hand = FrameTask(robot, "gripper_left_base_link", weight=5.0, stiffness=10.0)
+    tasks = [hand] + [PostureTask(robot, weight=0.5, stiffness=4.0)] * posture
+    controller = InverseDynamicsController(
+        robot, tasks, max_iterations=1, time_budget=1.0, joint_limit_horizon=None
+    )
+    q = pin.integrate(robot.model, robot.reference_configuration, 0.05 * rng.normal(size=robot.nv))
+    v = 0.1 * rng.normal(size=robot.nv)
+    current = placement(robot, q, hand.frame)
+    hand.set_target(current * pin.exp6(0.01 * rng.normal(size=6)), 0.05 * rng.normal(size=6))
+    controller.compute_torques(q, v)
+    assert controller.stats.last_answer == "direct"
+    normal, right = 1e-6 * np.eye(robot.nv), np.zeros(robot.nv)  # eps_a = 1e-6 by default
+    for task in tasks:
+        jacobian, target, weight = task_rows(robot, task, q, v)
+        normal += weight * jacobian.T @ jacobian
+        right += weight * jacobian.T @ target
+    expected = np.linalg.solve(normal, right)
+    np.testing.assert_allclose(controller.joint_accelerations, expected, rtol=1e-7, atol=1e-8)

@@ -472,3 +472,154 @@ def test_planar_biped_stands_on_one_point_foot(biped):
     assert controller.active_contacts == (left,)
     assert foot_positions(biped, state.q)[0, 1] > 0.04  # the right foot is up
     assert controller.stats.n_fallbacks == 0
+
+
+# ---------------------------------------------------------------- point feet in three dimensions
+def test_point_contact_defaults_and_pyramid_in_three_dimensions(talos, biped):
+    """A point foot of a robot in space: force (fx, fy, fz) in world axes, |fx|, |fy| <=
+    (mu / sqrt 2) fz, 1 N <= fz <= 5000 N, mu = 0.7, Kp = 10, Kd = 2 sqrt(Kp) by default;
+    a damping given is kept. On a planar robot: (fx, fz) and |fx| <= mu fz."""
+    contact = PointContact(talos, LEFT)
+    m = 0.7 / np.sqrt(2.0)
+    pyramid = [[1, 0, -m], [0, 1, -m], [-1, 0, -m], [0, -1, -m], [0, 0, -1], [0, 0, 1]]
+    np.testing.assert_allclose(contact.wrench_matrix, pyramid, rtol=1e-15)
+    np.testing.assert_array_equal(contact.wrench_upper, [0, 0, 0, 0, -1.0, 5000.0])
+    np.testing.assert_array_equal(contact.components, [0, 1, 2])
+    assert (contact.n_force, contact.normal_index) == (3, 2)
+    assert contact.friction_coefficient == 0.7 and contact.stiffness == 10.0
+    assert contact.damping == pytest.approx(2.0 * np.sqrt(10.0), rel=1e-15)
+    assert PointContact(talos, LEFT, damping=3.0).damping == 3.0
+    planar = PointContact(biped, biped.foot_frames[0])  # (fx, fz): |fx| <= mu fz
+    np.testing.assert_allclose(planar.wrench_matrix, [[1, -0.7], [-1, -0.7], [0, -1], [0, 1]])
+    np.testing.assert_array_equal(planar.components, [0, 2])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_talos_on_two_point_feet_equals_the_reference_qp(seed, talos):
+    """Talos on two point feet (3-D forces in world axes): the tick is the optimum of the
+    QP written out in reference_qp (Clarabel), to 1e-6 relative."""
+    rng = np.random.default_rng(seed)
+    tasks = [
+        PostureTask(talos, weight=0.1, stiffness=10.0),
+        ComTask(talos, weight=10.0, stiffness=50.0),
+        FrameTask(talos, "base_link", weight=1.0, stiffness=50.0, components="orientation"),
+    ]
+    contacts = [PointContact(talos, f, friction_coefficient=0.5) for f in (RIGHT, LEFT)]
+    controller = InverseDynamicsController(
+        talos, tasks, contacts, tolerance=1e-10, max_iterations=10_000, time_budget=1.0,
+        joint_limit_horizon=None,
+    )  # fmt: skip
+    q = pin.integrate(talos.model, talos.reference_configuration, 0.1 * rng.normal(size=talos.nv))
+    v = 0.5 * rng.normal(size=talos.nv)
+    random_targets(talos, rng, tasks, q)
+    for contact in contacts:
+        contact.reference_placement = placement(talos, q, contact.frame) * pin.exp6(
+            0.01 * rng.normal(size=6)
+        )
+    controller.compute_torques(q, v)
+    assert controller.stats.last_answer in ("direct", "solved")
+    qdd, force = reference_qp(talos, tasks, contacts, q, v, controller.torque_limit)
+    x_controller = np.r_[controller.joint_accelerations, controller.contact_wrenches.ravel()]
+    x_reference = np.r_[qdd, force]
+    assert np.linalg.norm(x_controller - x_reference) <= 1e-6 * np.linalg.norm(x_reference)
+
+
+# ---------------------------------------------------------------- transitions, continued
+def test_added_contact_ramps_up_from_zero_and_a_cancelled_removal_restores_it(talos):
+    """add_contact with a transition: the normal-force bound rises from 0 at the first tick
+    to 1500 N (max_normal_force) 0.2 s later, and the force meets it (1500 * 0.05 / 0.2 N
+    at 0.05 s). A removal cancelled by add_contact restores the bound at once: the same
+    state gives the force of before the removal; add_contact with a reference during a
+    removal holds that reference."""
+    controller, _ = talos_controller(talos, inactive=[RIGHT], time_budget=1.0)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    controller.add_contact(RIGHT, transition_time=0.2)
+    controller.compute_torques(q, v, 0.0)
+    assert controller.active_contacts == (LEFT, RIGHT)
+    controller.compute_torques(q, v, 0.05)
+    assert controller.contact_force(RIGHT)[2] == pytest.approx(375.0, abs=1e-6)
+    controller.compute_torques(q, v, 0.2)  # the ramp is over: bound back to 1500 N
+    f0 = controller.contact_force(RIGHT)[2]
+    assert f0 > 376.0
+    controller.remove_contact(RIGHT, transition_time=0.25)
+    for t in (0.3, 0.4):
+        controller.compute_torques(q, v, t)
+    assert controller.contact_force(RIGHT)[2] < 0.7 * f0
+    controller.add_contact(RIGHT)
+    controller.compute_torques(q, v, 0.41)
+    assert controller.contact_force(RIGHT)[2] == pytest.approx(f0, rel=1e-9)
+    controller.remove_contact(RIGHT, transition_time=0.25)
+    controller.compute_torques(q, v, 0.5)
+    reference = placement(talos, q, RIGHT) * pin.exp6(np.r_[0.0, 0.0, 0.01, 0.0, 0.0, 0.0])
+    controller.add_contact(RIGHT, reference)
+    assert controller.contacts[1].reference_placement.isApprox(reference)
+    assert controller.active_contacts == (LEFT, RIGHT)
+
+
+def test_contact_frame_and_reference_are_checked_by_name(talos):
+    """contact_force, add_contact and the time of a tick during a transition name the
+    argument; a reference with a NaN translation or a rotation 0.1 % off orthonormal is
+    refused, one off by round-off (1e-7) accepted."""
+    controller, _ = talos_controller(talos, inactive=[RIGHT])
+    state = talos.reference_configuration, np.zeros(talos.nv)
+    with pytest.raises(InvalidInputError, match="^frame='head_1_link' is not the frame"):
+        controller.contact_force("head_1_link")
+    with pytest.raises(InvalidInputError, match="^frame='head_1_link' is not the frame"):
+        controller.add_contact("head_1_link")
+    for bad in (
+        pin.SE3(np.eye(3), np.array([np.nan, 0.0, 0.0])),
+        pin.SE3(1.001 * np.eye(3), np.zeros(3)),
+    ):
+        with pytest.raises(InvalidInputError, match="reference must be finite with a rotation"):
+            controller.add_contact(RIGHT, bad)
+    rounded = placement(talos, talos.reference_configuration, RIGHT)
+    rounded.rotation = rounded.rotation @ (np.eye(3) + np.diag([1e-7, 1e-7], 1))  # round-off
+    controller.add_contact(RIGHT, rounded)
+    controller.remove_contact(RIGHT)
+    controller.add_contact(RIGHT)
+    controller.remove_contact(RIGHT, transition_time=0.25)
+    with pytest.raises(InvalidInputError, match="^t must be a finite number"):
+        controller.compute_torques(*state, float("nan"))
+
+
+def test_removal_before_the_first_tick_ramps_from_max_normal_force(talos):
+    """Before any tick a removal ramps down from max_normal_force (1500 N): the first tick
+    is not bound (a sideways CoM acceleration puts about 720 N on the right sole, more than
+    on either sole standing still)."""
+    controller, com = talos_controller(talos, time_budget=1.0)  # a busy machine
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    com.set_target(com.target_position, acceleration=[0.0, 1.0, 0.0])
+    controller.remove_contact(RIGHT, transition_time=0.25)
+    controller.compute_torques(q, v, 0.0)
+    assert controller.contact_force(RIGHT)[2] > 600.0
+
+
+# ---------------------------------------------------------------- fixed base, normal equations
+@pytest.mark.parametrize("posture", [False, True])
+def test_fixed_base_tick_solves_the_normal_equations(posture):
+    """Fixed base, no limit binding: qdd minimises sum_k w_k |J_k qdd - b_k|^2 + eps_a |qdd|^2,
+    so (sum_k w_k J_k^T J_k + eps_a I) qdd = sum_k w_k J_k^T b_k, solved here with numpy. A hand
+    task of weight 5 alone (the Cholesky path without posture terms), or with a posture task
+    on every joint (the Woodbury path)."""
+    from robots import load_talos
+
+    robot = load_talos("reduced", fixed_base=True)
+    rng = np.random.default_rng(11)
+    hand = FrameTask(robot, "gripper_left_base_link", weight=5.0, stiffness=10.0)
+    tasks = [hand] + [PostureTask(robot, weight=0.5, stiffness=4.0)] * posture
+    controller = InverseDynamicsController(
+        robot, tasks, max_iterations=1, time_budget=1.0, joint_limit_horizon=None
+    )
+    q = pin.integrate(robot.model, robot.reference_configuration, 0.05 * rng.normal(size=robot.nv))
+    v = 0.1 * rng.normal(size=robot.nv)
+    current = placement(robot, q, hand.frame)
+    hand.set_target(current * pin.exp6(0.01 * rng.normal(size=6)), 0.05 * rng.normal(size=6))
+    controller.compute_torques(q, v)
+    assert controller.stats.last_answer == "direct"
+    normal, right = 1e-6 * np.eye(robot.nv), np.zeros(robot.nv)  # eps_a = 1e-6 by default
+    for task in tasks:
+        jacobian, target, weight = task_rows(robot, task, q, v)
+        normal += weight * jacobian.T @ jacobian
+        right += weight * jacobian.T @ target
+    expected = np.linalg.solve(normal, right)
+    np.testing.assert_allclose(controller.joint_accelerations, expected, rtol=1e-7, atol=1e-8)

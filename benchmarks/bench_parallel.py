@@ -2,6 +2,7 @@
 
     python benchmarks/bench_parallel.py                  # local processes and a local Ray
     python benchmarks/bench_parallel.py --ray auto       # a running cluster (docs/cluster.md)
+    python benchmarks/bench_parallel.py --biped-trials 6 # and the biped study's trials
 
 A run is a call of a function that returns at once, so the time per run is the backend's
 cost: sending the input, scheduling, and collecting the result. Two measures: one run at a
@@ -38,21 +39,47 @@ def overhead(runner: Runner, batch: int = 400, single: int = 20) -> dict:
     }
 
 
+def biped_trials(runner: Runner, n_trials: int) -> float:
+    """Wall seconds of the biped study's randomised trials (4 arms x ``n_trials`` walks)."""
+    from robots.biped import load_biped
+    from studies.biped import RANGES
+    from studies.biped.analysis import random_disturbances, survival_by_arm
+    from studies.biped.gait import learn_gait
+
+    biped, (_, dmp) = load_biped(), learn_gait()
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    disturbances = random_disturbances(biped, n_trials, 0, RANGES)
+    start = time.perf_counter()
+    survival_by_arm(biped, dmp, 13.3, disturbances, runner=runner, **qp)
+    return time.perf_counter() - start
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ray", default="local", help="'local', 'auto' or HOST:PORT")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--biped-trials",
+        type=int,
+        default=0,
+        help="also time the biped study's randomised trials (4 arms x N walks) per backend",
+    )
     args = parser.parse_args(argv)
     runners = {
         "serial": Runner(progress=False),
         f"processes ({args.workers})": Runner(workers=args.workers, progress=False),
         f"ray {args.ray}": Runner(workers=args.workers, ray=args.ray, progress=False),
     }
-    print(f"{'backend':22s} {'one at a time [ms]':>20s} {'in a batch [ms/run]':>20s}")
+    print(f"{'backend':22s} {'one at a time [ms]':>20s} {'in a batch [ms/run]':>20s}", end="")
+    print(f" {'biped trials [s]':>18s}" if args.biped_trials else "")
     for name, runner in runners.items():
         with runner:
             result = overhead(runner)
-        print(f"{name:22s} {result['one_at_a_time_ms']:20.3f} {result['in_a_batch_ms']:20.3f}")
+            trials = biped_trials(runner, args.biped_trials) if args.biped_trials else None
+        print(
+            f"{name:22s} {result['one_at_a_time_ms']:20.3f} {result['in_a_batch_ms']:20.3f}", end=""
+        )
+        print(f" {trials:18.1f}" if trials is not None else "")
 
 
 if __name__ == "__main__":

@@ -623,3 +623,23 @@ def test_fixed_base_tick_solves_the_normal_equations(posture):
         right += weight * jacobian.T @ target
     expected = np.linalg.solve(normal, right)
     np.testing.assert_allclose(controller.joint_accelerations, expected, rtol=1e-7, atol=1e-8)
+
+
+def test_no_tick_compiles_a_kernel_whatever_the_state_arrays(talos):
+    """numba compiles one variant of a kernel per argument type; a read-only, writable or
+    integer state, in any mix, must not make a tick compile one (a compilation takes tens
+    of milliseconds: an added contact's first tick once gave the hold answer for it)."""
+    from numba.core.registry import CPUDispatcher
+
+    from dmpopt.control import kernels
+
+    controller, _ = talos_controller(talos, inactive=[RIGHT])
+    dispatchers = [f for f in vars(kernels).values() if isinstance(f, CPUDispatcher)]
+    before = {f.__name__: len(f.signatures) for f in dispatchers}
+    q = np.array(talos.reference_configuration)  # read-only like the robot's own array
+    q.flags.writeable = False
+    controller.add_contact(RIGHT, transition_time=0.2)
+    for t, state in enumerate([(q, np.zeros(talos.nv)), (q.copy(), np.zeros(talos.nv, int))]):
+        controller.compute_torques(*state, 1e-3 * t)
+    assert {f.__name__: len(f.signatures) for f in dispatchers} == before
+    assert controller.stats.last_answer == "solved"

@@ -452,6 +452,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self.stats = ControllerStats()
         self._torques = np.zeros(n_act)
         self._tau = np.zeros(n_act)
+        self._q_tick, self._v_tick = np.zeros(self.model.nq), np.zeros(self._nv)
         self._solution = np.zeros(n_x)
         self._candidate = np.zeros(n_x)
         self._has_valid_torque = False
@@ -460,18 +461,14 @@ class ContactSetQP(Tick, Assembly, StageSolver):
     def _compile_kernels(self) -> None:
         """Compile (or load from numba's disk cache) the kernels a tick can use, so that no
         tick of a control loop waits for a compilation: one tick on the reference
-        configuration with a read-only and a writable state, and the stages used around
-        proxsuite; then the controller is as new (contact references kept)."""
+        configuration, and the stages used around proxsuite; then the controller is as new
+        (contact references kept)."""
         references = [contact.reference_placement for contact in self.contacts]
-        v = np.zeros(self._nv)
-        v.flags.writeable = False
-        q = np.array(self.robot.reference_configuration, dtype=float)
-        q.flags.writeable = False
-        for state in ((q, v), (q.copy(), v.copy())):
-            self._level = 0  # the path of a tick without active inequality rows
-            self.compute_torques(*state)
-            self._feasible(self.torque_limit, self._bound_tolerance, *state)
-            kernels.acceleration_bounds(self._bounds, *state)
+        state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self._nv)
+        self._level = 0  # the path of a tick without active inequality rows
+        self.compute_torques(*state)  # copies the state: every kernel sees writable float64
+        self._feasible(self.torque_limit, self._bound_tolerance, *state)
+        kernels.acceleration_bounds(self._bounds, *state)
         if self._basic is not None:
             self._assemble_eliminated()
             self._accept(self._z_solution, eliminated=True)

@@ -47,6 +47,12 @@ class Tick:
                 f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
                 f"({self._nv},) for {self.robot.name}"
             )
+        # the tick's own float64 copies: numba compiles a kernel once per argument type
+        # (read-only or writable, dtype), so a caller's read-only or integer state would
+        # otherwise compile a variant inside a control loop's tick
+        np.copyto(self._q_tick, q)
+        np.copyto(self._v_tick, v)
+        q, v = self._q_tick, self._v_tick
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1

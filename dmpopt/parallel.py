@@ -161,10 +161,19 @@ def _bar(runner: Runner, total: int, label: str):
     return tqdm(total=total, desc=label, unit="run", disable=not runner.progress, leave=False)
 
 
+def _one_blas_thread() -> None:
+    """A worker's BLAS on one thread: the workers already fill the cores (Ray does the same)."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)
+
+
 def _in_processes(function, inputs, runner, bar) -> list:
     if runner._pool is None:  # kept for the runner's next map_runs; close() ends it
         context = multiprocessing.get_context("spawn")
-        runner._pool = ProcessPoolExecutor(runner.workers, mp_context=context)
+        runner._pool = ProcessPoolExecutor(
+            runner.workers, mp_context=context, initializer=_one_blas_thread
+        )
     results = [None] * len(inputs)
     futures = {runner._pool.submit(function, x): i for i, x in enumerate(inputs)}
     for future in as_completed(futures):

@@ -184,40 +184,40 @@ def test_swing_reference_is_the_demonstration_re_targeted(swing_dmps):
     reference = swing_reference(swing_dmps, start, start + [0.2, 0, 0])
     s = reference.times / SINGLE
     forward = 0.2 * (10 * s**3 - 15 * s**4 + 6 * s**5)
-    np.testing.assert_allclose(reference.positions[:, 0] - start[0], forward, atol=2e-3)
+    np.testing.assert_allclose(reference.positions[:, 0] - start[0], forward, atol=3e-4)
     np.testing.assert_allclose(
-        reference.positions[:, 2], 0.05 * 64 * s**3 * (1 - s) ** 3, atol=2e-3
+        reference.positions[:, 2], 0.05 * 64 * s**3 * (1 - s) ** 3, atol=3e-4
     )
     in_place = swing_reference(swing_dmps, start, start)
     np.testing.assert_allclose(
         in_place.positions[:, :2], np.tile(start[:2], (s.size, 1)), atol=1e-12
     )
-    assert in_place.positions[:, 2].max() == pytest.approx(0.05, abs=2e-3)
+    assert in_place.positions[:, 2].max() == pytest.approx(0.05, abs=3e-4)
     half = swing_reference(swing_dmps, start, start + [0.1, 0, 0])  # goal change: half the length
-    np.testing.assert_allclose(half.positions[:, 0] - start[0], forward / 2, atol=2e-3)
+    np.testing.assert_allclose(half.positions[:, 0] - start[0], forward / 2, atol=3e-4)
 
 
 # ---------------------------------------------------------------------------- bad inputs
 @pytest.mark.parametrize(
     ("call", "error", "match"),
     [
-        (lambda: lipm_time_constant(-0.8), InvalidInputError, "com_height"),
-        (lambda: lipm_time_constant(float("nan")), InvalidInputError, "com_height"),
-        (lambda: lipm_state([0.0, 1.0], [0.0], [0.0, 0.0], 0.1, 0.3), ShapeError, "velocity"),
-        (lambda: lipm_state([0.0], [0.0], [0.0], -1.0, 0.3), InvalidInputError, "t must"),
-        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, float("nan")), InvalidInputError, "step_length"),
-        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, 1.0), InvalidInputError, "step_length"),
-        (lambda: footstep_plan(LEFT[:2], RIGHT, 0, 3, 0.1), ShapeError, "left"),
-        (lambda: footstep_plan(LEFT, RIGHT, -1, 3, 0.1), InvalidInputError, "n_in_place"),
-        (lambda: footstep_plan(LEFT, RIGHT, 0, 2.5, 0.1), InvalidInputError, "n_forward"),
-        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, 0.1, "middle"), InvalidInputError, "first_side"),
-        (lambda: plan_walk([(0, 1)], COM, 0.87, 0.8, 0.3), InvalidInputError, r"footsteps\[0\]"),
-        (lambda: plan_walk([], COM, 0.87, 0.0, 0.3), InvalidInputError, "single_support"),
-        (lambda: plan_walk([], COM, 0.87, 0.8, -0.1), InvalidInputError, "double_support"),
-        (lambda: plan_walk([], [0, 0, np.inf], 0.87, 0.8, 0.1), InvalidInputError, "com"),
-        (lambda: fit_swing_dmps(0.0), InvalidInputError, "duration"),
-        (lambda: fit_swing_dmps(0.8, height=-0.05), InvalidInputError, "height"),
-        (lambda: swing_reference("dmps", LEFT, LEFT), InvalidInputError, "dmps"),
+        (lambda: lipm_time_constant(-0.8), InvalidInputError, "^com_height"),
+        (lambda: lipm_time_constant(float("nan")), InvalidInputError, "^com_height"),
+        (lambda: lipm_state([0.0, 1.0], [0.0], [0.0, 0.0], 0.1, 0.3), ShapeError, "^velocity"),
+        (lambda: lipm_state([0.0], [0.0], [0.0], -1.0, 0.3), InvalidInputError, "^t must"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, float("nan")), InvalidInputError, "^step_length"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, 1.0), InvalidInputError, "^step_length"),
+        (lambda: footstep_plan(LEFT[:2], RIGHT, 0, 3, 0.1), ShapeError, "^left"),
+        (lambda: footstep_plan(LEFT, RIGHT, -1, 3, 0.1), InvalidInputError, "^n_in_place"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 2.5, 0.1), InvalidInputError, "^n_forward"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 3, 0.1, "middle"), InvalidInputError, "^first_side"),
+        (lambda: plan_walk([(0, 1)], COM, 0.87, 0.8, 0.3), InvalidInputError, r"^footsteps\[0\]"),
+        (lambda: plan_walk([], COM, 0.87, 0.0, 0.3), InvalidInputError, "^single_support"),
+        (lambda: plan_walk([], COM, 0.87, 0.8, -0.1), InvalidInputError, "^double_support"),
+        (lambda: plan_walk([], [0, 0, np.inf], 0.87, 0.8, 0.1), InvalidInputError, "^com"),
+        (lambda: fit_swing_dmps(0.0), InvalidInputError, "^duration"),
+        (lambda: fit_swing_dmps(0.8, height=-0.05), InvalidInputError, "^height"),
+        (lambda: swing_reference("dmps", LEFT, LEFT), InvalidInputError, "^dmps"),
     ],
 )
 def test_bad_inputs_are_refused_with_the_argument_named(call, error, match):
@@ -226,9 +226,9 @@ def test_bad_inputs_are_refused_with_the_argument_named(call, error, match):
 
 
 def test_bad_swing_footholds_are_refused(swing_dmps):
-    with pytest.raises(ShapeError, match="goal"):
+    with pytest.raises(ShapeError, match="^goal"):
         swing_reference(swing_dmps, LEFT, [0.1, 0.0])
-    with pytest.raises(InvalidInputError, match="start"):
+    with pytest.raises(InvalidInputError, match="^start"):
         swing_reference(swing_dmps, [np.nan, 0, 0], LEFT)
 
 
@@ -237,11 +237,11 @@ def test_footstep_is_a_checked_read_only_value():
     assert step.length == pytest.approx(0.2)
     with pytest.raises(ValueError, match="read-only"):
         step.goal[0] = 1.0
-    with pytest.raises(InvalidInputError, match="side"):
+    with pytest.raises(InvalidInputError, match="^side"):
         Footstep("middle", LEFT, LEFT, RIGHT)
-    with pytest.raises(ShapeError, match="stance"):
+    with pytest.raises(ShapeError, match="^stance"):
         Footstep("left", LEFT, LEFT, RIGHT[:2])
-    with pytest.raises(InvalidInputError, match="goal"):
+    with pytest.raises(InvalidInputError, match="^goal"):
         Footstep("left", LEFT, [0.0, np.nan, 0.0], RIGHT)
 
 
@@ -249,7 +249,7 @@ def test_footstep_is_a_checked_read_only_value():
 def test_plan_refuses_times_that_are_not_finite_numbers(t):
     plan = walk()
     for query in (plan.com, plan.dcm, plan.zmp, plan.phase):
-        with pytest.raises(InvalidInputError, match="t must|t "):
+        with pytest.raises(InvalidInputError, match=r"^t[ \[]"):
             query(t)
 
 
@@ -307,15 +307,18 @@ def test_com_follows_scipy_integration_of_the_lipm_on_each_segment():
 
 
 def test_without_footsteps_the_plan_holds_the_com_still():
-    plan = plan_walk([], COM, COM[2], SINGLE, DOUBLE, initial_hold=0.5, final_hold=0.25)
+    com = np.array([0.02, -0.01, 0.87])
+    plan = plan_walk([], com, COM[2], SINGLE, DOUBLE, initial_hold=0.5, final_hold=0.25)
     np.testing.assert_allclose(plan.knot_times, [0.0, 0.5, 0.75])
+    for knots in (plan.zmp_knots, plan.dcm_knots, plan.com_knots):
+        np.testing.assert_array_equal(knots, np.tile(com[:2], (3, 1)))
     assert plan.lift_off.shape == (0,) and plan.touchdown.shape == (0,)
     t = np.linspace(0.0, 0.75, 7)
     position, velocity, acceleration = plan.com(t)
-    np.testing.assert_allclose(position, np.tile(COM, (7, 1)), atol=1e-15)
+    np.testing.assert_allclose(position, np.tile(com, (7, 1)), atol=1e-15)
     np.testing.assert_allclose(velocity, 0.0, atol=1e-15)
     np.testing.assert_allclose(acceleration, 0.0, atol=1e-15)
-    np.testing.assert_allclose(plan.dcm(t), np.tile(COM[:2], (7, 1)), atol=1e-15)
+    np.testing.assert_allclose(plan.dcm(t), np.tile(com[:2], (7, 1)), atol=1e-15)
     assert plan.phase(0.1) == ("double", 0)
 
 
@@ -379,33 +382,33 @@ def test_lipm_state_at_time_zero_is_the_start_and_rows_are_refused():
     position, velocity = lipm_state([0.1, -0.2], [0.3, 0.0], [0.0, 0.05], 0, 0.3)
     np.testing.assert_array_equal(position, [0.1, -0.2])
     np.testing.assert_array_equal(velocity, [0.3, 0.0])
-    with pytest.raises(ShapeError, match="position"):
+    with pytest.raises(ShapeError, match="^position"):
         lipm_state([[0.1]], [[0.0]], [[0.0]], 0.1, 0.3)
 
 
 @pytest.mark.parametrize(
     ("call", "match"),
     [
-        (lambda: lipm_time_constant(0.0), r"com_height must be a finite number > 0, got 0"),
-        (lambda: lipm_time_constant(0.8, gravity=0.0), r"gravity must be a finite number > 0"),
-        (lambda: lipm_state([0.0], [0.0], [0.0, 1.0], 0.1, 0.3), r"zmp"),
-        (lambda: lipm_state([0.0], [0.0], [0.0], 0.1, 0.0), r"time_constant must be .* > 0"),
-        (lambda: lipm_state([0.0], [0.0], [0.0], -0.1, 0.3), r"t must be a finite number >= 0"),
-        (lambda: steady_dcm_offset(np.nan, 0.8, 0.3), r"step_length must be a finite number"),
-        (lambda: steady_dcm_offset(0.1, 0.0, 0.3), r"single_support must be .* > 0, got 0"),
-        (lambda: steady_dcm_offset(0.1, 0.8, 0.0), r"time_constant must be .* > 0, got 0"),
-        (lambda: footstep_plan(LEFT, RIGHT, 0, 1, 0.41), r"step_length must be .* <= 0\.4"),
-        (lambda: footstep_plan(LEFT, RIGHT, 0, 1, -0.01), r"step_length must be .* >= 0"),
-        (lambda: footstep_plan(LEFT, [0, 0], 0, 1, 0.1), r"right has shape \(2,\), expected"),
-        (lambda: plan_walk([], COM, 0.0, 0.8, 0.3), r"com_height must be .* > 0"),
-        (lambda: plan_walk([], COM, 0.87, 0.8, 0.3, 0.0), r"initial_hold must be .* > 0, got 0"),
-        (lambda: plan_walk([], COM, 0.87, 0.8, 0.3, 1.0, 0.0), r"final_hold must be .* > 0"),
-        (lambda: plan_walk([], COM, 0.87, 0.8, 0.3, gravity=-1), r"gravity must be .* > 0"),
-        (lambda: plan_walk([], COM[:2], 0.87, 0.8, 0.3), r"com has shape \(2,\)"),
-        (lambda: fit_swing_dmps(0.8, step_length=0.0), r"step_length must be .* > 0, got 0"),
-        (lambda: fit_swing_dmps(0.8, height=0.0), r"height must be .* > 0, got 0"),
-        (lambda: fit_swing_dmps(0.8, dt=0.0), r"dt must be .* > 0 and <= 0\.04, got 0"),
-        (lambda: fit_swing_dmps(0.1), r"dt must be .* <= 0\.005, got 0\.01"),
+        (lambda: lipm_time_constant(0.0), r"^com_height must be a finite number > 0, got 0"),
+        (lambda: lipm_time_constant(0.8, gravity=0.0), r"^gravity must be a finite number > 0"),
+        (lambda: lipm_state([0.0], [0.0], [0.0, 1.0], 0.1, 0.3), r"^zmp"),
+        (lambda: lipm_state([0.0], [0.0], [0.0], 0.1, 0.0), r"^time_constant must be .* > 0"),
+        (lambda: lipm_state([0.0], [0.0], [0.0], -0.1, 0.3), r"^t must be a finite number >= 0"),
+        (lambda: steady_dcm_offset(np.nan, 0.8, 0.3), r"^step_length must be a finite number"),
+        (lambda: steady_dcm_offset(0.1, 0.0, 0.3), r"^single_support must be .* > 0, got 0"),
+        (lambda: steady_dcm_offset(0.1, 0.8, 0.0), r"^time_constant must be .* > 0, got 0"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 1, 0.41), r"^step_length must be .* <= 0\.4"),
+        (lambda: footstep_plan(LEFT, RIGHT, 0, 1, -0.01), r"^step_length must be .* >= 0"),
+        (lambda: footstep_plan(LEFT, [0, 0], 0, 1, 0.1), r"^right has shape \(2,\), expected"),
+        (lambda: plan_walk([], COM, 0.0, 0.8, 0.3), r"^com_height must be .* > 0"),
+        (lambda: plan_walk([], COM, 0.87, 0.8, 0.3, 0.0), r"^initial_hold must be .* > 0, got 0"),
+        (lambda: plan_walk([], COM, 0.87, 0.8, 0.3, 1.0, 0.0), r"^final_hold must be .* > 0"),
+        (lambda: plan_walk([], COM, 0.87, 0.8, 0.3, gravity=-1), r"^gravity must be .* > 0"),
+        (lambda: plan_walk([], COM[:2], 0.87, 0.8, 0.3), r"^com has shape \(2,\)"),
+        (lambda: fit_swing_dmps(0.8, step_length=0.0), r"^step_length must be .* > 0, got 0"),
+        (lambda: fit_swing_dmps(0.8, height=0.0), r"^height must be .* > 0, got 0"),
+        (lambda: fit_swing_dmps(0.8, dt=0.0), r"^dt must be .* > 0 and <= 0\.04, got 0"),
+        (lambda: fit_swing_dmps(0.1), r"^dt must be .* <= 0\.005, got 0\.01"),
     ],
 )
 def test_each_argument_is_named_with_its_bounds(call, match):

@@ -614,6 +614,11 @@ BAD = {
         r"plans has shape \(1, 3, 5, 1\), expected \(K, 3, 51, 1\)",
     ),
     "evaluate": (lambda t: t.evaluate(3), "exploration must be an Exploration"),
+    "evaluate without noise": (
+        lambda t: t.evaluate(type("Half", (), {"weights": t.initial_weights[None]})()),
+        r"^exploration must be an Exploration .*, got Half",
+    ),
+    "goals not finite": (lambda t: multi_dof_reaching_task(goals=[np.nan]), r"^goals\["),
     "n_basis": (lambda t: paper_reaching_task(n_basis=0), "n_basis must be an integer >= 1"),
     "goals": (
         lambda t: multi_dof_reaching_task(goals=[[1.0]]),
@@ -877,3 +882,12 @@ def test_make_method_builds_the_named_method_from_the_task(coarse, name, kind, c
         assert first.exploration_std == 1.5
     first.tell(coarse.evaluate(a))
     assert capsys.readouterr().out == ""
+
+
+def test_task_builders_pass_duration_step_and_delay_on():
+    """The builders' duration, dt and delayed reach the task (not the RewardTask defaults)."""
+    for build in (multi_dof_reaching_task, via_point_task):
+        task = build(duration=0.3, dt=0.01, delayed=True)
+        assert (task.duration, task.dt, task.delayed, task.n_steps) == (0.3, 0.01, True, 31)
+    task = paper_reaching_task(dt=0.01, delayed=True)
+    assert (task.duration, task.dt, task.delayed) == (0.5, 0.01, True)

@@ -618,6 +618,10 @@ BAD = {
         lambda t: t.evaluate(type("Half", (), {"weights": t.initial_weights[None]})()),
         r"^exploration must be an Exploration .*, got Half",
     ),
+    "plans not finite": (
+        lambda t: t.rewards(np.full((1, 3, t.n_steps, 1), np.nan)),
+        r"^plans\[0, 0, 0, 0\] is nan",
+    ),
     "goals not finite": (lambda t: multi_dof_reaching_task(goals=[np.nan]), r"^goals\["),
     "n_basis": (lambda t: paper_reaching_task(n_basis=0), "n_basis must be an integer >= 1"),
     "goals": (
@@ -891,3 +895,10 @@ def test_task_builders_pass_duration_step_and_delay_on():
         assert (task.duration, task.dt, task.delayed, task.n_steps) == (0.3, 0.01, True, 31)
     task = paper_reaching_task(dt=0.01, delayed=True)
     assert (task.duration, task.dt, task.delayed) == (0.5, 0.01, True)
+
+
+def test_task_arrays_are_read_only(coarse):
+    """The class docstring promises read-only values: H, the features and the optimum."""
+    for values in (coarse.noise_response, coarse.policy_features, coarse.optimal_weights):
+        with pytest.raises(ValueError, match="read-only"):
+            values.flat[0] = 1.0

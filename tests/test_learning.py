@@ -622,6 +622,14 @@ BAD = {
         lambda t: t.rewards(np.full((1, 3, t.n_steps, 1), np.nan)),
         r"^plans\[0, 0, 0, 0\] is nan",
     ),
+    "noise not finite": (
+        lambda t: t.rollouts(t.initial_weights, np.full((1, t.n_actions, 1), np.nan)),
+        r"^acceleration_noise\[0, 0, 0\] is nan",
+    ),
+    "weights not finite": (
+        lambda t: t.rollouts(np.full((1, 10), np.inf)),
+        r"^weights\[0, 0\] is inf",
+    ),
     "goals not finite": (lambda t: multi_dof_reaching_task(goals=[np.nan]), r"^goals\["),
     "n_basis": (lambda t: paper_reaching_task(n_basis=0), "n_basis must be an integer >= 1"),
     "goals": (
@@ -902,3 +910,53 @@ def test_task_arrays_are_read_only(coarse):
     for values in (coarse.noise_response, coarse.policy_features, coarse.optimal_weights):
         with pytest.raises(ValueError, match="read-only"):
             values.flat[0] = 1.0
+
+
+def test_memory_bounds_of_a_task_and_of_a_batch_count_their_bytes():
+    """Bytes written plainly: H holds 3 n^2 values, the optimum's unit roll-outs
+    (D N + 1) 3 n D, a batch K 3 n D, 8 bytes each; the messages state them in GiB."""
+    from dmpopt.exceptions import ResourceLimitError
+
+    small = paper_reaching_task(dt=0.01)
+    dofs, n_basis, n = 10, 2000, 501
+    wide = small.dmp.replace(
+        weights=np.zeros((dofs, n_basis)),
+        start=np.zeros(dofs),
+        goal=np.ones(dofs),
+        centres=np.linspace(0.0, 1.0, n_basis),
+        widths=np.ones(n_basis),
+    )
+    needed = 8 * (dofs * n_basis + 1) * 3 * n * dofs / 1024**3
+    with pytest.raises(
+        ResourceLimitError,
+        match=rf"^a task of 0.5 s with dt = 0.001 s \(501 steps\) needs about {needed:.3g} GiB;"
+        r" .*: raise dt \(the paper uses 1 ms over 0.5 s\) or shorten the duration$",
+    ):
+        RewardTask(wide)
+    six = multi_dof_reaching_task(dt=0.01, n_basis=2)
+    k = 400_000
+    needed = 8 * k * 3 * six.n_steps * 6 / 1024**3
+    with pytest.raises(
+        ResourceLimitError,
+        match=rf"^plans of {k} roll-outs needs about {needed:.3g} GiB; .*: evaluate the batch in "
+        "smaller chunks$",
+    ):
+        six.rollouts(np.zeros((k, 6, 2)))
+
+
+def test_task_basis_and_builder_checks():
+    """The builders' DMP has the discrete basis of its own gains (distinct centres); a goal
+    of the wrong shape and a zero duration are refused by name."""
+    from dmpopt import basis
+
+    task = paper_reaching_task(dt=0.01)
+    centres, widths = basis.discrete_basis(10, task.dmp.gains[:4])
+    np.testing.assert_array_equal(task.dmp.centres, centres)
+    np.testing.assert_array_equal(task.dmp.widths, widths)
+    assert np.unique(task.dmp.centres).size == 10
+    with pytest.raises(ShapeError, match=r"^goal has shape \(1, 2\), expected \(2,\)"):
+        via_point_task(goal=[[1.0, 0.0]])
+    with pytest.raises(InvalidInputError, match=r"^goal\[0\] is nan"):
+        via_point_task(goal=[np.nan, 0.0])
+    with pytest.raises(InvalidInputError, match=r"^duration must be a finite number > 0, got 0"):
+        multi_dof_reaching_task(duration=0.0)

@@ -960,3 +960,61 @@ def test_task_basis_and_builder_checks():
         via_point_task(goal=[np.nan, 0.0])
     with pytest.raises(InvalidInputError, match=r"^duration must be a finite number > 0, got 0"):
         multi_dof_reaching_task(duration=0.0)
+
+
+def test_memory_bound_of_the_plan_grid_and_of_many_dofs():
+    """The two terms of the task's estimate, each where it dominates: 3 n^2 (H) for a fine
+    grid, (D N + 1) 3 n D (the optimum's unit roll-outs) for 100 DOFs of one basis each."""
+    from dmpopt.exceptions import ResourceLimitError
+
+    one = paper_reaching_task(dt=0.01).dmp
+    n = 50_001
+    with pytest.raises(ResourceLimitError, match=rf"needs about {8 * 3 * n**2 / 1024**3:.3g} GiB"):
+        RewardTask(one, dt=0.5 / (n - 1))
+    dofs, n = 100, 10_001
+    many = one.replace(
+        weights=np.zeros((dofs, 1)),
+        start=np.zeros(dofs),
+        goal=np.ones(dofs),
+        centres=np.array([0.5]),
+        widths=np.ones(1),
+    )
+    needed = 8 * (dofs + 1) * 3 * n * dofs / 1024**3
+    assert needed > 8 * 3 * n**2 / 1024**3  # the second term dominates
+    with pytest.raises(ResourceLimitError, match=rf"\(1e\+04 steps\) needs about {needed:.3g} GiB"):
+        RewardTask(many, dt=0.5 / (n - 1))
+
+
+def test_policy_features_are_the_command_derivative_at_each_state(coarse):
+    """d mu_k / d w_i at the state of step k, by the symbolic output function with the weight
+    raised by one (the command is affine in the weights): phi_i(x_k) / tau^2."""
+    dmp = coarse.dmp
+    step = symbolic.step_function(dmp.signature)
+    output = symbolic.output_function(dmp.signature)
+    parameters = dmp.parameters()
+    state = np.zeros(dmp.signature.n_states)
+    expected = []
+    for _ in range(coarse.n_actions):
+        base = float(output(state=state, **parameters)["acceleration"])
+        row = []
+        for i in range(coarse.n_basis):
+            raised = dict(parameters, forcing_weights=np.eye(coarse.n_basis)[i][None])
+            row.append(float(output(state=state, **raised)["acceleration"]) - base)
+        expected.append(row)
+        state = np.asarray(step(state=state, dt=coarse.dt, **parameters)["next_state"]).ravel()
+    np.testing.assert_allclose(coarse.policy_features, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_via_point_at_the_horizon_scores_the_last_sample(coarse):
+    """A via point at t = T is rewarded on the last sample (written plainly)."""
+    task = RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPoint(0.5, (0.4,), 7.0),))
+    plans = task.rollouts(np.ones((1, 1, 10)))
+    y, yd = plans[0, 0, -1, 0], plans[0, 1, -1, 0]
+    expected = -7.0 * (y - 0.4) ** 2 - 1000 * (y - 1.0) ** 2 - yd**2
+    assert task.rewards(plans)[0, -1] == pytest.approx(expected, rel=1e-12)
+    with pytest.raises(
+        InvalidInputError,
+        match=r"^via_points\[0\] must be a ViaPointReward, got int; a reward task scores "
+        r"closeness: ViaPointReward\(time, position, weight\)$",
+    ):
+        RewardTask(coarse.dmp, dt=0.01, via_points=(1,))

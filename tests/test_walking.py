@@ -246,7 +246,7 @@ def test_detector_accepts_integer_flags_equal_times_and_stores_positions():
         ((0.5, 1.0), None, r"in_contact must be two booleans"),
         (("a", "b"), None, r"in_contact must be two booleans"),
         ((True, True), np.zeros((2, 2)), r"positions has shape \(2, 2\), expected \(2, 3\)"),
-        ((True, True), np.full((2, 3), np.nan), r"positions"),
+        ((True, True), np.full((2, 3), np.nan), r"^positions\[0, 0\] is nan"),
     ],
 )
 def test_detector_refuses_bad_flags_and_positions(flags, positions, match):

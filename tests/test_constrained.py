@@ -771,3 +771,39 @@ def test_proxsuite_failure_is_reported_not_returned_as_an_answer():
         np.testing.assert_allclose(solution.x, key, atol=1e-5 * (1 + np.abs(key).max()))
     else:
         assert solution.status != "QPSolverOutput.PROXQP_SOLVED"
+
+
+def test_nlp_without_balls_reaches_clarabels_optimum_of_the_same_qp():
+    """IPOPT on the NLP with only linear rows (2 DOFs, velocity limits active) returns
+    Clarabel's solution of the stacked QP: the objective of every DOF, its Hessian and
+    gradient, and the rows are the QP's."""
+    from dmpopt.fitting import nlp
+
+    plan = plain_plan()
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
+    )
+    key = clarabel(*problem.full_qp())
+    x, success, status, _, iterations = nlp.solve_nlp(problem)
+    assert success and status == "Solve_Succeeded" and iterations > 0
+    np.testing.assert_allclose(x.ravel(), key, atol=1e-5)
+
+
+def test_euclidean_via_point_off_the_path_is_met_on_its_sphere():
+    """The via point lies off the unconstrained plan, so its ball is active: the plan passes
+    on its sphere, at the radius minus a margin of 1e-6 (units of the length scale, 1 here)
+    to IPOPT's accuracy."""
+    point = np.array([0.6, 0.5])
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        via_points=[ViaPoint(0.5, point, tolerance=0.02, norm="ball")],
+    )
+    fit, report = solve_fitting_problem(problem)
+    distance = np.linalg.norm(report.trajectory.positions[50] - point)
+    assert problem.length_scale == 1.0
+    assert 0.02 - 2e-6 <= distance <= 0.02

@@ -807,3 +807,40 @@ def test_euclidean_via_point_off_the_path_is_met_on_its_sphere():
     distance = np.linalg.norm(report.trajectory.positions[50] - point)
     assert problem.length_scale == 1.0
     assert 0.02 - 2e-6 <= distance <= 0.02
+
+
+@pytest.mark.parametrize(
+    ("n_steps", "n_basis", "n_dofs", "bounds", "n_via", "values"),
+    [
+        (10_000_000, 10, 1, None, 0, 3 * 10_000_000 * 10),  # 3 n N: the plan's responses
+        (7_000_000, 10, 1, "limits", 0, (4 * 7_000_000 + 3) * 10),  # rows N: 4 limits a sample
+        (70_000_000, 1, 4, None, 0, 70_000_000 * 4),  # n D: the demonstration's samples
+        (10, 17_000, 1, None, 0, 17_000**2),  # N^2: the Hessian
+    ],
+)
+def test_problem_size_bound_counts_each_term_in_bytes(
+    n_steps, n_basis, n_dofs, bounds, n_via, values
+):
+    """Each term of the size estimate where it dominates, 8 bytes a value (written plainly):
+    the message states it in GiB to three digits, so a wrong factor shows."""
+    from dmpopt.exceptions import ResourceLimitError
+    from dmpopt.fitting.constrained import _check_problem_size
+
+    limits = Bounds(velocity=1.0) if bounds else None
+    with pytest.raises(
+        ResourceLimitError,
+        match=rf"^a constrained fit with {n_steps} samples, {n_basis} basis functions, {n_dofs} "
+        rf"DOFs and {n_via} via-points needs about {8 * values / 1024**3:.3g} GiB; .*: lower "
+        r"n_samples \(constraints hold at every sample; a few hundred suffice\), n_basis or the "
+        "number of via-points$",
+    ):
+        _check_problem_size(n_steps, n_basis, n_dofs, limits, n_via)
+
+
+def test_problem_size_accepts_the_via_point_bound_itself():
+    from dmpopt.exceptions import ResourceLimitError
+    from dmpopt.fitting.constrained import MAX_VIA_POINTS, _check_problem_size
+
+    _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS)
+    with pytest.raises(ResourceLimitError, match=r"^via_points holds 10001 via-points"):
+        _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS + 1)

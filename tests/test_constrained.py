@@ -845,5 +845,7 @@ def test_problem_size_accepts_the_via_point_bound_itself():
     from dmpopt.fitting.constrained import MAX_VIA_POINTS, _check_problem_size
 
     _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS)
+    with pytest.raises(InvalidInputError, match=r"^n_basis must be an integer >= 1"):
+        _check_problem_size(10, 0, 2, None, 0)
     with pytest.raises(ResourceLimitError, match=r"^via_points holds 10001 via-points"):
         _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS + 1)

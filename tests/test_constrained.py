@@ -849,3 +849,25 @@ def test_problem_size_accepts_the_via_point_bound_itself():
         _check_problem_size(10, 0, 2, None, 0)
     with pytest.raises(ResourceLimitError, match=r"^via_points holds 10001 via-points"):
         _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS + 1)
+
+
+def test_infeasibility_message_lists_every_dof_of_a_group_in_full():
+    """A velocity limit far too tight for both DOFs: one group, both DOFs, the whole message."""
+    plan = plain_plan()
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        bounds=Bounds(velocity=0.05 * np.abs(plan.velocities).max(0)),
+    )
+    with pytest.raises(InfeasibleProblem) as caught:
+        solve_fitting_problem(problem)
+    assert list(caught.value.relaxations) == ["end_position"]
+    assert caught.value.relaxations["end_position"][1] == [0, 1]
+    amount = caught.value.relaxations["end_position"][0]
+    assert str(caught.value) == (
+        f"infeasible constrained fit ({caught.value.stats['status']}): 'end_position' on DOF(s) "
+        f"[0, 1] by {amount:.4g} [physical units]; relax these constraints by at least that "
+        "much (plus the safety margin of 1e-06 units), lengthen the duration or move the goal "
+        "(the problem is attached as .problem)"
+    )

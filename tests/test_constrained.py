@@ -871,3 +871,41 @@ def test_infeasibility_message_lists_every_dof_of_a_group_in_full():
         "much (plus the safety margin of 1e-06 units), lengthen the duration or move the goal "
         "(the problem is attached as .problem)"
     )
+
+
+def test_solve_blocks_adds_the_time_and_iterations_of_every_solve(monkeypatch):
+    """Each solve reports 0.25 s and 3 iterations (patched): two blocks, each failed by the
+    first backend and solved by the fallback, sum to 1 s and 12 iterations; a block both
+    fail returns its state so far (success False, the working sets of the solved blocks)."""
+    hessian, gradient, matrix, lower, upper = random_qp(3, 4, 12)
+    real_backend, real_solve = qp._backend_solve, qp.solve_qp
+
+    def daqp_fails(solver, *args):
+        x, z, success, status = real_backend(solver, *args)
+        return x, z, success and solver != "daqp", status
+
+    def fixed_cost(*args, **kwargs):
+        return real_solve(*args, **kwargs)._replace(solve_time=0.25, iterations=3)
+
+    monkeypatch.setattr(qp, "_backend_solve", daqp_fails)
+    monkeypatch.setattr(qp, "solve_qp", fixed_cost)
+    blocks = (hessian, np.stack([gradient, -gradient]), matrix)
+    both = qp.solve_blocks(*blocks, np.stack([lower] * 2), np.stack([upper] * 2), solver="daqp")
+    assert (both.solve_time, both.iterations, both.status) == (1.0, 12, "Successful return.")
+    twice = np.vstack([matrix, matrix[:1]])  # row 0 twice: disjoint bounds, infeasible
+    low, high = np.append(lower, lower[0]), np.append(upper, upper[0])
+    apart_low, apart_high = low.copy(), high.copy()
+    apart_low[-1], apart_high[-1] = upper[0] + 1.0, upper[0] + 2.0
+    stopped = qp.solve_blocks(
+        hessian,
+        np.stack([gradient] * 3),
+        twice,
+        np.stack([low, apart_low, low]),
+        np.stack([high, apart_high, high]),
+        solver="daqp",
+    )
+    assert stopped.success is False and stopped.failed_block == 1
+    assert (stopped.solve_time, stopped.iterations) == (1.0, 12)
+    assert stopped.active.dtype == bool and stopped.active.shape == (3, twice.shape[0])
+    np.testing.assert_array_equal(stopped.active[0, :-1], both.active[0])
+    assert not stopped.active[1:].any()

@@ -319,8 +319,8 @@ def test_scale_rows_is_the_same_constraint_in_units():
     rng = np.random.default_rng(1)
     matrix, offset = rng.normal(size=(5, 3)), rng.normal(size=(5, 2))
     lower = np.array([[-1.0, -np.inf], [0.0, 0.0], [-2.0, -1.0], [-np.inf, -1.0], [0.5, 0.5]])
-    upper = np.array([[1.0, 2.0], [0.0, 3.0], [np.inf, 1.0], [1.0, np.inf], [0.5, 0.5]])
-    unit, margin = 0.7, 1e-3
+    upper = np.array([[1.0, 2.0], [0.0, 3.0], [np.inf, 1.0], [1.0, np.inf], [0.5, 0.502]])
+    unit, margin = 0.7, 1e-3  # the last row: 0.002 wide, above 2 margin unit = 0.0014
     rows = qp.scale_rows(matrix, offset, lower, upper, unit, margin)
     np.testing.assert_allclose(np.linalg.norm(rows.matrix, axis=1), 1.0)
     np.testing.assert_allclose(rows.matrix * rows.norms[:, None] * unit, matrix)
@@ -871,6 +871,13 @@ def test_infeasibility_message_lists_every_dof_of_a_group_in_full():
         "much (plus the safety margin of 1e-06 units), lengthen the duration or move the goal "
         "(the problem is attached as .problem)"
     )
+
+
+def test_solve_qp_reports_a_solve_time_within_the_call():
+    hessian, gradient, matrix, lower, upper = random_qp(5, 4, 12)
+    begin = time.perf_counter()
+    solution = solve_qp(hessian, gradient, matrix, lower, upper)
+    assert solution.success and 0.0 <= solution.solve_time <= time.perf_counter() - begin
 
 
 def test_solve_blocks_adds_the_time_and_iterations_of_every_solve(monkeypatch):

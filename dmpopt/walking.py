@@ -155,7 +155,7 @@ class HeelStrikeDetector:
                 f"time must not decrease between updates, got {time!r} after {self._time!r}"
             )
         self._time = time
-        flags = np.asarray(in_contact) if in_contact is not None else np.asarray(None)
+        flags = np.asarray(in_contact)
         if flags.shape != (2,) or flags.dtype.kind not in "biu":
             raise InvalidInputError(
                 f"in_contact must be two booleans (one per foot), got {in_contact!r}"

@@ -2,6 +2,7 @@
 
 import dataclasses
 import os
+import time
 
 import numpy as np
 import pytest
@@ -318,8 +319,8 @@ def test_scale_rows_is_the_same_constraint_in_units():
     rng = np.random.default_rng(1)
     matrix, offset = rng.normal(size=(5, 3)), rng.normal(size=(5, 2))
     lower = np.array([[-1.0, -np.inf], [0.0, 0.0], [-2.0, -1.0], [-np.inf, -1.0], [0.5, 0.5]])
-    upper = np.array([[1.0, 2.0], [0.0, 3.0], [np.inf, 1.0], [1.0, np.inf], [0.5, 0.5]])
-    unit, margin = 0.7, 1e-3
+    upper = np.array([[1.0, 2.0], [0.0, 3.0], [np.inf, 1.0], [1.0, np.inf], [0.5, 0.502]])
+    unit, margin = 0.7, 1e-3  # the last row: 0.002 wide, above 2 margin unit = 0.0014
     rows = qp.scale_rows(matrix, offset, lower, upper, unit, margin)
     np.testing.assert_allclose(np.linalg.norm(rows.matrix, axis=1), 1.0)
     np.testing.assert_allclose(rows.matrix * rows.norms[:, None] * unit, matrix)
@@ -771,3 +772,147 @@ def test_proxsuite_failure_is_reported_not_returned_as_an_answer():
         np.testing.assert_allclose(solution.x, key, atol=1e-5 * (1 + np.abs(key).max()))
     else:
         assert solution.status != "QPSolverOutput.PROXQP_SOLVED"
+
+
+def test_nlp_without_balls_reaches_clarabels_optimum_of_the_same_qp():
+    """IPOPT on the NLP with only linear rows (2 DOFs, velocity limits active) returns
+    Clarabel's solution of the stacked QP: the objective of every DOF, its Hessian and
+    gradient, and the rows are the QP's."""
+    from dmpopt.fitting import nlp
+
+    plan = plain_plan()
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
+    )
+    key = clarabel(*problem.full_qp())
+    begin = time.perf_counter()
+    x, success, status, solve_time, iterations = nlp.solve_nlp(problem)
+    assert 0.0 <= solve_time <= time.perf_counter() - begin  # within the call's wall time
+    assert success and status == "Solve_Succeeded" and iterations > 0
+    np.testing.assert_allclose(x.ravel(), key, atol=1e-5)
+
+
+def test_euclidean_via_point_off_the_path_is_met_on_its_sphere():
+    """The via point lies off the unconstrained plan, so its ball is active: the plan passes
+    on its sphere, at the radius minus a margin of 1e-6 (units of the length scale, 1 here)
+    to IPOPT's accuracy."""
+    point = np.array([0.6, 0.5])
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        via_points=[ViaPoint(0.5, point, tolerance=0.02, norm="ball")],
+    )
+    fit, report = solve_fitting_problem(problem)
+    distance = np.linalg.norm(report.trajectory.positions[50] - point)
+    assert problem.length_scale == 1.0
+    assert 0.02 - 2e-6 <= distance <= 0.02
+
+
+@pytest.mark.parametrize(
+    ("n_steps", "n_basis", "n_dofs", "bounds", "n_via", "values"),
+    [
+        (10_000_000, 10, 1, None, 0, 3 * 10_000_000 * 10),  # 3 n N: the plan's responses
+        (7_000_000, 10, 1, "limits", 0, (4 * 7_000_000 + 3) * 10),  # rows N: 4 limits a sample
+        (70_000_000, 1, 4, None, 0, 70_000_000 * 4),  # n D: the demonstration's samples
+        (10, 17_000, 1, None, 0, 17_000**2),  # N^2: the Hessian
+    ],
+)
+def test_problem_size_bound_counts_each_term_in_bytes(
+    n_steps, n_basis, n_dofs, bounds, n_via, values
+):
+    """Each term of the size estimate where it dominates, 8 bytes a value (written plainly):
+    the message states it in GiB to three digits, so a wrong factor shows."""
+    from dmpopt.exceptions import ResourceLimitError
+    from dmpopt.fitting.constrained import _check_problem_size
+
+    limits = Bounds(velocity=1.0) if bounds else None
+    with pytest.raises(
+        ResourceLimitError,
+        match=rf"^a constrained fit with {n_steps} samples, {n_basis} basis functions, {n_dofs} "
+        rf"DOFs and {n_via} via-points needs about {8 * values / 1024**3:.3g} GiB; .*: lower "
+        r"n_samples \(constraints hold at every sample; a few hundred suffice\), n_basis or the "
+        "number of via-points$",
+    ):
+        _check_problem_size(n_steps, n_basis, n_dofs, limits, n_via)
+
+
+def test_problem_size_accepts_the_via_point_bound_itself():
+    from dmpopt.exceptions import ResourceLimitError
+    from dmpopt.fitting.constrained import MAX_VIA_POINTS, _check_problem_size
+
+    _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS)
+    with pytest.raises(InvalidInputError, match=r"^n_basis must be an integer >= 1"):
+        _check_problem_size(10, 0, 2, None, 0)
+    with pytest.raises(ResourceLimitError, match=r"^via_points holds 10001 via-points"):
+        _check_problem_size(10, 5, 2, None, MAX_VIA_POINTS + 1)
+
+
+def test_infeasibility_message_lists_every_dof_of_a_group_in_full():
+    """A velocity limit far too tight for both DOFs: one group, both DOFs, the whole message."""
+    plan = plain_plan()
+    problem = build_fitting_problem(
+        DEMO,
+        reference=REFERENCES["velocity"],
+        n_samples=101,
+        bounds=Bounds(velocity=0.05 * np.abs(plan.velocities).max(0)),
+    )
+    with pytest.raises(InfeasibleProblem) as caught:
+        solve_fitting_problem(problem)
+    assert list(caught.value.relaxations) == ["end_position"]
+    assert caught.value.relaxations["end_position"][1] == [0, 1]
+    amount = caught.value.relaxations["end_position"][0]
+    assert str(caught.value) == (
+        f"infeasible constrained fit ({caught.value.stats['status']}): 'end_position' on DOF(s) "
+        f"[0, 1] by {amount:.4g} [physical units]; relax these constraints by at least that "
+        "much (plus the safety margin of 1e-06 units), lengthen the duration or move the goal "
+        "(the problem is attached as .problem)"
+    )
+
+
+def test_solve_qp_reports_a_solve_time_within_the_call():
+    hessian, gradient, matrix, lower, upper = random_qp(5, 4, 12)
+    begin = time.perf_counter()
+    solution = solve_qp(hessian, gradient, matrix, lower, upper)
+    assert solution.success and 0.0 <= solution.solve_time <= time.perf_counter() - begin
+
+
+def test_solve_blocks_adds_the_time_and_iterations_of_every_solve(monkeypatch):
+    """Each solve reports 0.25 s and 3 iterations (patched): two blocks, each failed by the
+    first backend and solved by the fallback, sum to 1 s and 12 iterations; a block both
+    fail returns its state so far (success False, the working sets of the solved blocks)."""
+    hessian, gradient, matrix, lower, upper = random_qp(3, 4, 12)
+    real_backend, real_solve = qp._backend_solve, qp.solve_qp
+
+    def daqp_fails(solver, *args):
+        x, z, success, status = real_backend(solver, *args)
+        return x, z, success and solver != "daqp", status
+
+    def fixed_cost(*args, **kwargs):
+        return real_solve(*args, **kwargs)._replace(solve_time=0.25, iterations=3)
+
+    monkeypatch.setattr(qp, "_backend_solve", daqp_fails)
+    monkeypatch.setattr(qp, "solve_qp", fixed_cost)
+    blocks = (hessian, np.stack([gradient, -gradient]), matrix)
+    both = qp.solve_blocks(*blocks, np.stack([lower] * 2), np.stack([upper] * 2), solver="daqp")
+    assert (both.solve_time, both.iterations, both.status) == (1.0, 12, "Successful return.")
+    twice = np.vstack([matrix, matrix[:1]])  # row 0 twice: disjoint bounds, infeasible
+    low, high = np.append(lower, lower[0]), np.append(upper, upper[0])
+    apart_low, apart_high = low.copy(), high.copy()
+    apart_low[-1], apart_high[-1] = upper[0] + 1.0, upper[0] + 2.0
+    stopped = qp.solve_blocks(
+        hessian,
+        np.stack([gradient] * 3),
+        twice,
+        np.stack([low, apart_low, low]),
+        np.stack([high, apart_high, high]),
+        solver="daqp",
+    )
+    assert stopped.success is False and stopped.failed_block == 1
+    assert (stopped.solve_time, stopped.iterations) == (1.0, 12)
+    assert stopped.active.dtype == bool and stopped.active.shape == (3, twice.shape[0])
+    np.testing.assert_array_equal(stopped.active[0, :-1], both.active[0])
+    assert not stopped.active[1:].any()

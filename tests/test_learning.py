@@ -614,6 +614,23 @@ BAD = {
         r"plans has shape \(1, 3, 5, 1\), expected \(K, 3, 51, 1\)",
     ),
     "evaluate": (lambda t: t.evaluate(3), "exploration must be an Exploration"),
+    "evaluate without noise": (
+        lambda t: t.evaluate(type("Half", (), {"weights": t.initial_weights[None]})()),
+        r"^exploration must be an Exploration .*, got Half",
+    ),
+    "plans not finite": (
+        lambda t: t.rewards(np.full((1, 3, t.n_steps, 1), np.nan)),
+        r"^plans\[0, 0, 0, 0\] is nan",
+    ),
+    "noise not finite": (
+        lambda t: t.rollouts(t.initial_weights, np.full((1, t.n_actions, 1), np.nan)),
+        r"^acceleration_noise\[0, 0, 0\] is nan",
+    ),
+    "weights not finite": (
+        lambda t: t.rollouts(np.full((1, 10), np.inf)),
+        r"^weights\[0, 0\] is inf",
+    ),
+    "goals not finite": (lambda t: multi_dof_reaching_task(goals=[np.nan]), r"^goals\["),
     "n_basis": (lambda t: paper_reaching_task(n_basis=0), "n_basis must be an integer >= 1"),
     "goals": (
         lambda t: multi_dof_reaching_task(goals=[[1.0]]),
@@ -877,3 +894,127 @@ def test_make_method_builds_the_named_method_from_the_task(coarse, name, kind, c
         assert first.exploration_std == 1.5
     first.tell(coarse.evaluate(a))
     assert capsys.readouterr().out == ""
+
+
+def test_task_builders_pass_duration_step_and_delay_on():
+    """The builders' duration, dt and delayed reach the task (not the RewardTask defaults)."""
+    for build in (multi_dof_reaching_task, via_point_task):
+        task = build(duration=0.3, dt=0.01, delayed=True)
+        assert (task.duration, task.dt, task.delayed, task.n_steps) == (0.3, 0.01, True, 31)
+    task = paper_reaching_task(dt=0.01, delayed=True)
+    assert (task.duration, task.dt, task.delayed) == (0.5, 0.01, True)
+
+
+def test_task_arrays_are_read_only(coarse):
+    """The class docstring promises read-only values: H, the features and the optimum."""
+    for values in (coarse.noise_response, coarse.policy_features, coarse.optimal_weights):
+        with pytest.raises(ValueError, match="read-only"):
+            values.flat[0] = 1.0
+
+
+def test_memory_bounds_of_a_task_and_of_a_batch_count_their_bytes():
+    """Bytes written plainly: H holds 3 n^2 values, the optimum's unit roll-outs
+    (D N + 1) 3 n D, a batch K 3 n D, 8 bytes each; the messages state them in GiB."""
+    from dmpopt.exceptions import ResourceLimitError
+
+    small = paper_reaching_task(dt=0.01)
+    dofs, n_basis, n = 10, 2000, 501
+    wide = small.dmp.replace(
+        weights=np.zeros((dofs, n_basis)),
+        start=np.zeros(dofs),
+        goal=np.ones(dofs),
+        centres=np.linspace(0.0, 1.0, n_basis),
+        widths=np.ones(n_basis),
+    )
+    needed = 8 * (dofs * n_basis + 1) * 3 * n * dofs / 1024**3
+    with pytest.raises(
+        ResourceLimitError,
+        match=rf"^a task of 0.5 s with dt = 0.001 s \(501 steps\) needs about {needed:.3g} GiB;"
+        r" .*: raise dt \(the paper uses 1 ms over 0.5 s\) or shorten the duration$",
+    ):
+        RewardTask(wide)
+    six = multi_dof_reaching_task(dt=0.01, n_basis=2)
+    k = 400_000
+    needed = 8 * k * 3 * six.n_steps * 6 / 1024**3
+    with pytest.raises(
+        ResourceLimitError,
+        match=rf"^plans of {k} roll-outs needs about {needed:.3g} GiB; .*: evaluate the batch in "
+        "smaller chunks$",
+    ):
+        six.rollouts(np.zeros((k, 6, 2)))
+
+
+def test_task_basis_and_builder_checks():
+    """The builders' DMP has the discrete basis of its own gains (distinct centres); a goal
+    of the wrong shape and a zero duration are refused by name."""
+    from dmpopt import basis
+
+    task = paper_reaching_task(dt=0.01)
+    centres, widths = basis.discrete_basis(10, task.dmp.gains[:4])
+    np.testing.assert_array_equal(task.dmp.centres, centres)
+    np.testing.assert_array_equal(task.dmp.widths, widths)
+    assert np.unique(task.dmp.centres).size == 10
+    with pytest.raises(ShapeError, match=r"^goal has shape \(1, 2\), expected \(2,\)"):
+        via_point_task(goal=[[1.0, 0.0]])
+    with pytest.raises(InvalidInputError, match=r"^goal\[0\] is nan"):
+        via_point_task(goal=[np.nan, 0.0])
+    with pytest.raises(InvalidInputError, match=r"^duration must be a finite number > 0, got 0"):
+        multi_dof_reaching_task(duration=0.0)
+
+
+def test_memory_bound_of_the_plan_grid_and_of_many_dofs():
+    """The two terms of the task's estimate, each where it dominates: 3 n^2 (H) for a fine
+    grid, (D N + 1) 3 n D (the optimum's unit roll-outs) for 100 DOFs of one basis each."""
+    from dmpopt.exceptions import ResourceLimitError
+
+    one = paper_reaching_task(dt=0.01).dmp
+    n = 50_001
+    with pytest.raises(ResourceLimitError, match=rf"needs about {8 * 3 * n**2 / 1024**3:.3g} GiB"):
+        RewardTask(one, dt=0.5 / (n - 1))
+    dofs, n = 100, 10_001
+    many = one.replace(
+        weights=np.zeros((dofs, 1)),
+        start=np.zeros(dofs),
+        goal=np.ones(dofs),
+        centres=np.array([0.5]),
+        widths=np.ones(1),
+    )
+    needed = 8 * (dofs + 1) * 3 * n * dofs / 1024**3
+    assert needed > 8 * 3 * n**2 / 1024**3  # the second term dominates
+    with pytest.raises(ResourceLimitError, match=rf"\(1e\+04 steps\) needs about {needed:.3g} GiB"):
+        RewardTask(many, dt=0.5 / (n - 1))
+
+
+def test_policy_features_are_the_command_derivative_at_each_state(coarse):
+    """d mu_k / d w_i at the state of step k, by the symbolic output function with the weight
+    raised by one (the command is affine in the weights): phi_i(x_k) / tau^2."""
+    dmp = coarse.dmp
+    step = symbolic.step_function(dmp.signature)
+    output = symbolic.output_function(dmp.signature)
+    parameters = dmp.parameters()
+    state = np.zeros(dmp.signature.n_states)
+    expected = []
+    for _ in range(coarse.n_actions):
+        base = float(output(state=state, **parameters)["acceleration"])
+        row = []
+        for i in range(coarse.n_basis):
+            raised = dict(parameters, forcing_weights=np.eye(coarse.n_basis)[i][None])
+            row.append(float(output(state=state, **raised)["acceleration"]) - base)
+        expected.append(row)
+        state = np.asarray(step(state=state, dt=coarse.dt, **parameters)["next_state"]).ravel()
+    np.testing.assert_allclose(coarse.policy_features, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_via_point_at_the_horizon_scores_the_last_sample(coarse):
+    """A via point at t = T is rewarded on the last sample (written plainly)."""
+    task = RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPoint(0.5, (0.4,), 7.0),))
+    plans = task.rollouts(np.ones((1, 1, 10)))
+    y, yd = plans[0, 0, -1, 0], plans[0, 1, -1, 0]
+    expected = -7.0 * (y - 0.4) ** 2 - 1000 * (y - 1.0) ** 2 - yd**2
+    assert task.rewards(plans)[0, -1] == pytest.approx(expected, rel=1e-12)
+    with pytest.raises(
+        InvalidInputError,
+        match=r"^via_points\[0\] must be a ViaPointReward, got int; a reward task scores "
+        r"closeness: ViaPointReward\(time, position, weight\)$",
+    ):
+        RewardTask(coarse.dmp, dt=0.01, via_points=(1,))

@@ -66,14 +66,23 @@ def _list(studies: dict) -> int:
     return 0
 
 
-def _seed(text: str) -> int:
-    try:
-        seed = int(text)
-    except ValueError:
-        seed = None
-    if seed is None or seed < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return seed
+def _integer_at_least(minimum: int):
+    """An argparse type: the integers >= ``minimum``, anything else refused in one line."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}")
+        return value
+
+    return parse
+
+
+_seed = _integer_at_least(0)
+_workers = _integer_at_least(1)
 
 
 def _writable_folder(text: str) -> Path:
@@ -106,16 +115,6 @@ def _check_targets(out: Path, names: list[str]) -> None:
 
 def _left(target: Path, existed: bool) -> str:
     return f"{target} left unchanged" if existed else f"{target} not written"
-
-
-def _workers(text: str) -> int:
-    try:
-        workers = int(text)
-    except ValueError:
-        workers = None
-    if workers is None or workers < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
-    return workers
 
 
 def _study_options(module, runner) -> dict:

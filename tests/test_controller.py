@@ -118,6 +118,36 @@ def test_overlapping_posture_tasks_blend_by_weight(upper_body):
         arm.damping = np.ones(3)
 
 
+def test_posture_task_rows_check_what_is_assigned(upper_body):
+    """Assigning a row of a posture task writes that row only; gains must be finite and
+    >= 0 (named), a position reference outside the limits warns, other rows do not."""
+    arm = PostureTask(upper_body, "right_arm", stiffness=30.0)
+    upper = np.asarray(upper_body.position_upper)[arm.configuration_indices]
+    rows = ("reference_position", "reference_velocity", "reference_acceleration", "stiffness",
+            "damping", "target")  # fmt: skip
+    for index, name in enumerate(rows):
+        before = arm.state.copy()
+        value = 0.5 * upper + index  # inside the limits for the position
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # inside the limits, or not a position: no warning
+            setattr(arm, name, value if index else 0.5 * upper)
+        expected = before.copy()
+        expected[index] = value if index else 0.5 * upper
+        np.testing.assert_array_equal(arm.state, expected)
+        np.testing.assert_array_equal(getattr(arm, name), expected[index])
+        assert getattr(PostureTask, name).name == name  # the class holds the descriptor
+    for name in ("stiffness", "damping"):
+        with pytest.raises(InvalidInputError, match=f"^{name} must be finite and >= 0"):
+            setattr(arm, name, -1e-12)
+        with pytest.raises(InvalidInputError, match=f"^{name} must be finite"):
+            setattr(arm, name, np.inf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        arm.reference_velocity = arm.reference_acceleration = arm.target = -1e3  # any value
+    with pytest.warns(UserWarning, match="outside its position limits"):
+        arm.reference_position = upper + 0.5
+
+
 def test_frame_task_acceleration_by_finite_differences(upper_body):
     """A dominant hand task reaches its desired acceleration, checked by differentiating the
     hand velocity numerically (Jacobian, drift and frame conventions together)."""

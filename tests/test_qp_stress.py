@@ -320,6 +320,48 @@ def test_infeasible_tick_gives_the_relaxed_answer(upper_body):
     assert np.all(np.abs(tau) <= limit)
 
 
+def test_infeasible_standing_tick_gives_the_relaxed_answer(talos):
+    """Standing Talos with torque limits at 2 %: the QP with contacts is infeasible; the tick
+    returns the relaxed QP's solution (slacks on the contact equalities and the bound rows,
+    weight 1e4 each; torque and cone rows hard): its objective is Clarabel's optimum of that
+    problem to 1e-7 (the torques themselves are ill-conditioned in it)."""
+    controller, _, _ = standing(talos, talos.reference_configuration, torque_limit_scale=0.02)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    tau = controller.compute_torques(q, v)
+    assert controller.stats.last_answer == "relaxed"
+    problem = full_qp(controller, q, v)
+    n, n_force = problem["hessian"].shape[0], problem["a"].shape[0]
+    n_bound, n_act = controller._current._bounds[1].size, talos.n_actuated
+    assert n_force == 12  # two soles, six rows each
+    # min cost(y) + 1e4/2 (|s_c|^2 + |s_b|^2)  s.t.  A y - s_c = b;  torque and cone rows;
+    # l <= qdd_j + s_j <= u
+    hessian = scipy.linalg.block_diag(problem["hessian"], 1e4 * np.eye(n_force + n_bound))
+    equality = np.hstack([problem["a"], -np.eye(n_force), np.zeros((n_force, n_bound))])
+    rows = np.hstack([problem["c"], np.zeros((problem["c"].shape[0], n_force + n_bound))])
+    bound_rows = slice(n_act, n_act + n_bound)
+    rows[bound_rows, n + n_force :] = np.eye(n_bound)
+    gradient = np.r_[problem["gradient"], np.zeros(n_force + n_bound)]
+    best = clarabel(hessian, gradient, rows, problem["lower"], problem["upper"],
+                    equality, problem["b"])  # fmt: skip
+
+    def relaxed_cost(y):  # with the best slacks for y
+        bound = problem["c"][bound_rows] @ y
+        lower, upper = problem["lower"][bound_rows], problem["upper"][bound_rows]
+        slacks = np.r_[problem["a"] @ y - problem["b"], np.clip(bound, lower, upper) - bound]
+        return cost(problem, y) + 0.5e4 * slacks @ slacks
+
+    y = controller_y(controller)
+    assert np.abs(best[n : n + n_force]).max() > 1e-4  # the feet do accelerate
+    assert abs(relaxed_cost(y) - relaxed_cost(best[:n])) < 1e-7 * abs(relaxed_cost(best[:n]))
+    hard = np.r_[np.arange(n_act), np.arange(n_act + n_bound, rows.shape[0])]
+    c_y = problem["c"][hard] @ y
+    assert np.all(c_y >= problem["lower"][hard] - 1e-6)
+    assert np.all(c_y <= problem["upper"][hard] + 1e-6)
+    limit = 0.02 * talos.torque_limit
+    np.testing.assert_allclose(tau, problem["c"][:n_act] @ y - problem["lower"][:n_act] - limit,
+                               atol=1e-6 * limit.max())  # fmt: skip
+
+
 def test_spent_time_budget_gives_the_hold_answer(upper_body):
     """With no time left, the tick holds the last valid torque: proxsuite stops after one
     call of 3 outer iterations (of at most 10 inner ones) and the relaxed QP is not tried."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -116,21 +117,26 @@ class Task:
         return self._error.copy()
 
 
-def _posture_row(index: int, name: str, doc: str, nonnegative: bool = False) -> property:
-    """Row ``index`` of a PostureTask's state block; assigning writes into the row."""
+@dataclass(frozen=True)
+class _PostureRow:
+    """Row ``index`` of a PostureTask's state block, as an attribute: reading gives a view of
+    the row, assigning writes into it (checked). A descriptor, so that its code runs when the
+    attribute is used, not when the class is built."""
 
-    def get(self) -> np.ndarray:
-        return self._state[index]
+    index: int
+    name: str
+    nonnegative: bool = False
 
-    def set(self, value) -> None:
-        value = _vector(value, self._state.shape[1], name)
-        if nonnegative and not (np.isfinite(value).all() and (value >= 0).all()):
-            raise InvalidInputError(f"{name} must be finite and >= 0")
-        if index == 0:
-            self._warn_outside_limits(value)
-        self._state[index] = value
+    def __get__(self, task, owner=None):
+        return self if task is None else task._state[self.index]
 
-    return property(get, set, doc=doc)
+    def __set__(self, task, value) -> None:
+        value = _vector(value, task._state.shape[1], self.name)
+        if self.nonnegative and (value < 0).any():  # finite: _vector checked
+            raise InvalidInputError(f"{self.name} must be finite and >= 0")
+        if self.index == 0:
+            task._warn_outside_limits(value)
+        task._state[self.index] = value
 
 
 class PostureTask(Task):
@@ -156,6 +162,15 @@ class PostureTask(Task):
     damping : float or ndarray, shape (n_joints,), optional
         :math:`K_d` [1/s]; default :math:`2\sqrt{K_p}` (critical damping).
 
+    Attributes
+    ----------
+    reference_position, reference_velocity, reference_acceleration : ndarray, shape (n_joints,)
+        Desired joint positions [rad], velocities [rad/s] and accelerations [rad/s^2].
+    stiffness, damping : ndarray, shape (n_joints,)
+        :math:`K_p` [1/s^2] and :math:`K_d` [1/s]; assigning checks them (finite, >= 0).
+    target : ndarray, shape (n_joints,)
+        Desired joint accelerations of the last update.
+
     Notes
     -----
     The reference starts at ``robot.reference_configuration`` with zero velocity and
@@ -164,15 +179,13 @@ class PostureTask(Task):
 
     # The task's arrays are the rows of one block, shape (7, n_joints), that a controller copies
     # each tick into one block for all its posture tasks (one compiled call for their gradient).
-    reference_position = _posture_row(0, "reference_position", "Desired joint positions [rad].")
-    reference_velocity = _posture_row(1, "reference_velocity", "Desired joint velocities [rad/s].")
-    reference_acceleration = _posture_row(
-        2, "reference_acceleration", "Desired joint accelerations [rad/s^2]."
-    )
-    stiffness = _posture_row(3, "stiffness", ":math:`K_p` [1/s^2].", nonnegative=True)
-    damping = _posture_row(4, "damping", ":math:`K_d` [1/s].", nonnegative=True)
-    target = _posture_row(5, "target", "Desired joint accelerations of the last update.")
-    _error = _posture_row(6, "_error", "Position error of the last update [rad].")
+    reference_position = _PostureRow(0, "reference_position")
+    reference_velocity = _PostureRow(1, "reference_velocity")
+    reference_acceleration = _PostureRow(2, "reference_acceleration")
+    stiffness = _PostureRow(3, "stiffness", nonnegative=True)
+    damping = _PostureRow(4, "damping", nonnegative=True)
+    target = _PostureRow(5, "target")
+    _error = _PostureRow(6, "_error")
 
     def __init__(self, robot, joints=None, weight: float = 1.0, stiffness=10.0, damping=None):
         joints = robot.actuated_joint_names if joints is None else joints

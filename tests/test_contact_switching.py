@@ -18,6 +18,7 @@ from dmpopt.control import (
     PointContact,
     PostureTask,
     SoleContact,
+    Task,
 )
 from dmpopt.exceptions import InvalidInputError
 from robots.biped import foot_positions
@@ -595,18 +596,32 @@ def test_removal_before_the_first_tick_ramps_from_max_normal_force(talos):
 
 
 # ---------------------------------------------------------------- fixed base, normal equations
+class ElbowTask(Task):
+    """A user's task on the left elbow (fixed base): qdd_j* = 9 (0.3 - q_j), weight 2."""
+
+    def __init__(self, robot):
+        self.index = robot.velocity_indices(["arm_left_4_joint"])[0]
+        self.weight, self.jacobian = 2.0, np.eye(robot.nv)[[self.index]]
+        self.target, self._error = np.zeros(1), np.zeros(1)
+
+    def update(self, q, v, data):
+        self._error[0] = 0.3 - q[self.index]
+        self.target[0] = 9.0 * self._error[0]
+
+
 @pytest.mark.parametrize("posture", [False, True])
 def test_fixed_base_tick_solves_the_normal_equations(posture):
     """Fixed base, no limit binding: qdd minimises sum_k w_k |J_k qdd - b_k|^2 + eps_a |qdd|^2,
     so (sum_k w_k J_k^T J_k + eps_a I) qdd = sum_k w_k J_k^T b_k, solved here with numpy. A hand
-    task of weight 5 alone (the Cholesky path without posture terms), or with a posture task
-    on every joint (the Woodbury path)."""
+    task of weight 5 with a user's joint task (the Cholesky path without posture terms), or
+    with a posture task on every joint (the Woodbury path)."""
     from robots import load_talos
 
     robot = load_talos("reduced", fixed_base=True)
     rng = np.random.default_rng(11)
     hand = FrameTask(robot, "gripper_left_base_link", weight=5.0, stiffness=10.0)
-    tasks = [hand] + [PostureTask(robot, weight=0.5, stiffness=4.0)] * posture
+    elbow = ElbowTask(robot)  # a user's task: its rows need the tick's q
+    tasks = [hand, PostureTask(robot, weight=0.5, stiffness=4.0) if posture else elbow]
     controller = InverseDynamicsController(
         robot, tasks, max_iterations=1, time_budget=1.0, joint_limit_horizon=None
     )
@@ -615,10 +630,14 @@ def test_fixed_base_tick_solves_the_normal_equations(posture):
     current = placement(robot, q, hand.frame)
     hand.set_target(current * pin.exp6(0.01 * rng.normal(size=6)), 0.05 * rng.normal(size=6))
     controller.compute_torques(q, v)
-    assert controller.stats.last_answer == "direct"
+    assert controller.stats.last_answer == "direct" and controller.stats.last_iterations == 0
     normal, right = 1e-6 * np.eye(robot.nv), np.zeros(robot.nv)  # eps_a = 1e-6 by default
     for task in tasks:
-        jacobian, target, weight = task_rows(robot, task, q, v)
+        if task is elbow:  # w |qdd_j - 9 (0.3 - q_j)|^2
+            jacobian = np.eye(robot.nv)[[elbow.index]]
+            target, weight = 9.0 * (0.3 - q[[elbow.index]]), 2.0
+        else:
+            jacobian, target, weight = task_rows(robot, task, q, v)
         normal += weight * jacobian.T @ jacobian
         right += weight * jacobian.T @ target
     expected = np.linalg.solve(normal, right)

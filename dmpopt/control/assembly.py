@@ -40,7 +40,7 @@ class Assembly:
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.computeJointJacobians(model, data)
             self._update_rows(q, v)
-        self._stack_posture(q, v)
+        self._stack_posture()
         if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
             return False
         self._tau[:] = pin.rnea(model, data, q, v, x)
@@ -85,10 +85,10 @@ class Assembly:
     def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
         """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
         -w qdd* over x."""
-        self._stack_posture(q, v)
+        self._stack_posture()
         kernels.posture_gradient(*self._posture_arguments, q, v)
 
-    def _stack_posture(self, q: np.ndarray, v: np.ndarray) -> None:
+    def _stack_posture(self) -> None:
         """Copy the posture tasks' references and gains into the stacked block (one call);
         their PD law is evaluated there, for all of them by one compiled call."""
         if self._posture_blocks:

@@ -26,32 +26,19 @@ _COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
 _DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
 _ACTIVE_SET = "ACTIVE_SET_SOLVED"  # ... of a QP solved by active-set iterations alone
 _NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
-_RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
-_BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
 _MIRRORED_SETTINGS = (
     "eps_abs", "eps_rel", "eps_duality_gap_abs", "max_iter", "max_iter_in", "verbose",
 )  # fmt: skip
-# [rad] how far past a position limit the acceleration bounds let a joint go: a joint resting
-# exactly at its limit then leaves its bound slack.
-JOINT_LIMIT_TOLERANCE = 1e-3
 # Inner iterations per outer iteration of proxsuite (its default 1500): with max_iter, the cap
 # on one solve's iterations.
 _MAX_INNER_ITERATIONS = 10
-# Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
-_RELAXATION_WEIGHT = 1e4
 # Active-set refinement rounds after proxsuite (each one KKT solve).
 _REFINEMENT_ROUNDS = 10
 # Active-set rounds from the previous tick's active set before proxsuite is called.
 _WARM_ROUNDS = 5
-# Share of the time budget the exact QP may use; the rest is left to the relaxed QP.
-_EXACT_SHARE = 0.5
 # proxsuite runs in calls of this many outer iterations, the time budget checked between
 # (always the same calls, so that the time taken does not change the answer).
 _CHUNK_ITERATIONS = 3
-# Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
-_CONE_RELEASE_MARGIN = 1e-3
-# Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
-_MIN_PIVOT_RATIO = 1e-9
 
 
 @dataclass

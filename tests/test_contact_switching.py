@@ -644,6 +644,41 @@ def test_fixed_base_tick_solves_the_normal_equations(posture):
     np.testing.assert_allclose(controller.joint_accelerations, expected, rtol=1e-7, atol=1e-8)
 
 
+def test_fixed_base_with_a_foot_contact_equals_the_reference_qp():
+    """Talos on a test stand (pelvis fixed) with the left sole on a step (a contact at its
+    current place) and torque limits at 1 %, which bind, while the posture and the right foot
+    pull: the tick's accelerations are the optimum of the QP written out in reference_qp
+    (Clarabel), to 1e-6 relative."""
+    from robots import load_talos
+    from robots.talos import TALOS_SOLE_CORNERS
+
+    stand = load_talos("full", fixed_base=True)  # a user's model: a fixed base with feet
+    robot = dataclasses.replace(stand, foot_frames=(LEFT,), sole_corners=TALOS_SOLE_CORNERS)
+    rng = np.random.default_rng(5)
+    tasks = [
+        PostureTask(robot, weight=0.1, stiffness=10.0),
+        FrameTask(robot, RIGHT, weight=5.0, stiffness=50.0),
+    ]
+    q = pin.integrate(robot.model, robot.reference_configuration, 0.1 * rng.normal(size=robot.nv))
+    q = np.clip(q, robot.position_lower, robot.position_upper)
+    v = 0.3 * rng.normal(size=robot.nv)
+    random_targets(robot, rng, tasks, q)
+    step = SoleContact(robot, LEFT, friction_coefficient=0.5)
+    step.reference_placement = placement(robot, q, LEFT)
+    controller = InverseDynamicsController(
+        robot, tasks, [step], tolerance=1e-10, max_iterations=10_000, time_budget=1.0,
+        joint_limit_horizon=None, torque_limit_scale=0.01,
+    )  # fmt: skip
+    norm = np.linalg.norm
+    tau = controller.compute_torques(q, v)
+    assert controller.stats.last_answer == "solved"
+    assert np.sum(np.abs(tau) >= controller.torque_limit * (1 - 1e-9)) >= 3  # rows bind
+    qdd, force = reference_qp(robot, tasks, [step], q, v, controller.torque_limit)
+    np.testing.assert_allclose(controller.joint_accelerations, qdd, rtol=0, atol=1e-6 * norm(qdd))
+    # the wrench only enters through J^T f with 1e-8 regularisation: the same to 1e-2 N
+    np.testing.assert_allclose(controller.contact_wrenches.ravel(), force, rtol=0, atol=1e-2)
+
+
 def test_no_tick_compiles_a_kernel_whatever_the_state_arrays(talos):
     """numba compiles one variant of a kernel per argument type; a read-only, writable or
     integer state, in any mix, must not make a tick compile one (a compilation takes tens

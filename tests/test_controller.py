@@ -564,9 +564,11 @@ def test_joint_limits_hold_in_simulation(upper_body, horizon):
         assert abs(state.q[q_head] - 0.7) < 1e-3  # the head still gets there
 
 
-def test_joint_limits_standing(talos):
-    """Standing Talos with an arm moving fast toward its limit: the accelerations of the tick
-    (through the eliminated QP, then the QP with bound rows) respect the bound formula."""
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_joint_limits_standing(talos, side):
+    """Standing Talos with an arm moving fast toward its upper (side 1) or lower (side -1)
+    limit: the accelerations of the tick (through the eliminated QP, then the QP with bound
+    rows) respect the bound formula."""
     controller, _ = standing_controller(talos, joint_limit_horizon=0.05)
     arm = PostureTask(talos, "left_arm", weight=10.0, stiffness=400.0)
     controller = InverseDynamicsController(
@@ -575,16 +577,18 @@ def test_joint_limits_standing(talos):
     )  # fmt: skip
     joint = "arm_left_4_joint"
     i_q, i_v = talos.configuration_indices([joint])[0], talos.velocity_indices([joint])[0]
+    limit = talos.position_upper[i_q] if side > 0 else talos.position_lower[i_q]
     reference = arm.reference_position.copy()
-    reference[3] = talos.position_upper[i_q] + 0.5
+    reference[3] = limit + side * 0.5
     arm.set_reference(reference)
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
-    q[i_q], v[i_v] = talos.position_upper[i_q] - 0.05, 1.5
+    q[i_q], v[i_v] = limit - side * 0.05, side * 1.5
     controller.compute_torques(q, v)
     h, margin = 0.05, 1e-3  # the bounds aim 1e-3 rad past the limit (JOINT_LIMIT_TOLERANCE)
-    bound = min(
-        (talos.position_upper[i_q] + margin - q[i_q]) / h**2 - 2 * v[i_v] / h,
-        (talos.velocity_limit[i_v] - v[i_v]) / h,
+    # side * qdd <= min((|limit + margin - q|) / h^2 - 2 side v / h, (v_max - side v) / h)
+    bound = side * min(
+        side * (limit + side * margin - q[i_q]) / h**2 - 2 * side * v[i_v] / h,
+        (talos.velocity_limit[i_v] - side * v[i_v]) / h,
     )
     assert controller.stats.n_torque_limited == 1 and controller.stats.n_fallbacks == 0
     assert controller.joint_accelerations[i_v] == pytest.approx(bound, abs=1e-4)  # brakes

@@ -557,6 +557,21 @@ def test_added_contact_ramps_up_from_zero_and_a_cancelled_removal_restores_it(ta
     assert controller.active_contacts == (LEFT, RIGHT)
 
 
+def test_two_transitions_at_once_both_ramp(talos):
+    """A removal of the left sole over 0.4 s begun with an addition of the right one over
+    0.2 s: both bounds move on each tick; the right sole's bound binds, 1500 * 0.05 / 0.2 N
+    at 0.05 s, and the left one's, 1500 * (1 - 0.3 / 0.4) N at 0.3 s."""
+    controller, com = talos_controller(talos, inactive=[RIGHT], time_budget=1.0)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    controller.remove_contact(LEFT, transition_time=0.4)  # the first ramp in order
+    controller.add_contact(RIGHT, transition_time=0.2)
+    controller.compute_torques(q, v, 0.0)
+    controller.compute_torques(q, v, 0.05)
+    assert controller.contact_force(RIGHT)[2] == pytest.approx(375.0, abs=1e-6)
+    controller.compute_torques(q, v, 0.3)
+    assert controller.contact_force(LEFT)[2] == pytest.approx(375.0, abs=1e-6)
+
+
 def test_contact_frame_and_reference_are_checked_by_name(talos):
     """contact_force, add_contact and the time of a tick during a transition name the
     argument; a reference with a NaN translation or a rotation 0.1 % off orthonormal is
@@ -579,8 +594,9 @@ def test_contact_frame_and_reference_are_checked_by_name(talos):
     controller.remove_contact(RIGHT)
     controller.add_contact(RIGHT)
     controller.remove_contact(RIGHT, transition_time=0.25)
-    with pytest.raises(InvalidInputError, match="^t must be a finite number"):
-        controller.compute_torques(*state, float("nan"))
+    for bad in (float("nan"), "later", True):
+        with pytest.raises(InvalidInputError, match="^t must be a finite number"):
+            controller.compute_torques(*state, bad)
 
 
 def test_removal_before_the_first_tick_ramps_from_max_normal_force(talos):

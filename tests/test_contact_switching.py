@@ -476,6 +476,37 @@ def test_planar_biped_stands_on_one_point_foot(biped):
 
 
 # ---------------------------------------------------------------- point feet in three dimensions
+@pytest.mark.parametrize("shortest", ["x_max", "y_max", "x_min", "y_min"])
+def test_sole_contact_cone_rows_are_the_written_ones(talos, shortest):
+    """A sole whose shortest half-side is each side in turn: the cone margins of random
+    wrenches equal h - G w with G, h as contact_rows writes them (CoP fraction 0.8,
+    normal force in [3, 700] N); the defaults and each argument's name."""
+    half = {"x_max": 0.10, "x_min": -0.09, "y_max": 0.07, "y_min": -0.06}
+    half[shortest] = 0.5 * half[shortest]
+    corners = [(x, y, 0.0) for x in (half["x_min"], half["x_max"])
+               for y in (half["y_min"], half["y_max"])]  # fmt: skip
+    robot = dataclasses.replace(talos, sole_corners=np.array(corners))
+    contact = SoleContact(robot, LEFT, friction_coefficient=0.4, min_normal_force=3.0,
+                          max_normal_force=700.0, cop_fraction=0.8, damping=7.0)  # fmt: skip
+    q, v = robot.reference_configuration, np.zeros(robot.nv)
+    contact.reference_placement = placement(robot, q, LEFT)
+    _, _, cone, bound = contact_rows(robot, contact, q, v)
+    wrenches = np.random.default_rng(3).normal(scale=[20, 20, 300, 10, 10, 5], size=(50, 6))
+    for wrench in wrenches:
+        np.testing.assert_allclose(contact.cone_margin(wrench), bound - cone @ wrench,
+                                   rtol=0, atol=1e-9)  # fmt: skip
+    assert contact.damping == 7.0 and contact.stiffness == 10.0
+    default = SoleContact(talos, LEFT)
+    assert (default.friction_coefficient, default.min_normal_force, default.max_normal_force,
+            default.cop_fraction) == (0.7, 1.0, 5000.0, 1.0)  # fmt: skip
+    assert default.damping == pytest.approx(2.0 * np.sqrt(10.0), rel=1e-12)
+    for bad in (0.0, 1.5, [0.5, 0.5]):
+        with pytest.raises(InvalidInputError, match=r"^cop_fraction must be in \(0, 1\]"):
+            SoleContact(talos, LEFT, cop_fraction=bad)
+    with pytest.raises(InvalidInputError, match="^cop_fraction"):
+        SoleContact(talos, LEFT, cop_fraction="half")
+
+
 def test_point_contact_defaults_and_pyramid_in_three_dimensions(talos, biped):
     """A point foot of a robot in space: force (fx, fy, fz) in world axes, |fx|, |fy| <=
     (mu / sqrt 2) fz, 1 N <= fz <= 5000 N, mu = 0.7, Kp = 10, Kd = 2 sqrt(Kp) by default;

@@ -568,6 +568,7 @@ def test_added_contact_ramps_up_from_zero_and_a_cancelled_removal_restores_it(ta
     controller.add_contact(RIGHT, transition_time=0.2)
     controller.compute_torques(q, v, 0.0)
     assert controller.active_contacts == (LEFT, RIGHT)
+    assert controller.contact_force(RIGHT)[2] == pytest.approx(0.0, abs=1e-6)  # bound 0
     controller.compute_torques(q, v, 0.05)
     assert controller.contact_force(RIGHT)[2] == pytest.approx(375.0, abs=1e-6)
     controller.compute_torques(q, v, 0.2)  # the ramp is over: bound back to 1500 N
@@ -586,6 +587,21 @@ def test_added_contact_ramps_up_from_zero_and_a_cancelled_removal_restores_it(ta
     controller.add_contact(RIGHT, reference)
     assert controller.contacts[1].reference_placement.isApprox(reference)
     assert controller.active_contacts == (LEFT, RIGHT)
+
+
+def test_hold_answer_after_a_switch_is_the_torque_of_the_previous_set(talos):
+    """Torque limits at 2 % (the QPs are infeasible): the first tick on a new contact set
+    that runs out of time holds the last torque of the previous set (a relaxed answer), not
+    the new set's clipped bias torque."""
+    controller, _ = talos_controller(talos, time_budget=1.0, torque_limit_scale=0.02)
+    q, v = talos.reference_configuration, np.zeros(talos.nv)
+    last = controller.compute_torques(q, v)
+    assert controller.stats.last_answer == "relaxed"
+    controller.remove_contact(RIGHT)
+    controller.time_budget = 1e-12
+    held = controller.compute_torques(q, v)
+    assert controller.active_contacts == (LEFT,) and controller.stats.last_answer == "hold"
+    np.testing.assert_array_equal(held, last)
 
 
 def test_two_transitions_at_once_both_ramp(talos):

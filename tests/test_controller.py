@@ -600,6 +600,26 @@ def test_joint_limits_standing(talos, side):
     assert controller.joint_accelerations[i_v] == pytest.approx(bound, abs=1e-4)  # brakes
 
 
+def test_active_set_iterations_add_the_most_violated_row_each_round():
+    """min |x - t|^2 / 2 in the box [-1, 1]^4 with t = (3, 2.5, 2, 0.5), from no active row:
+    each round adds the most violated bound (rows 0, 1, 2), the fourth solve is certified,
+    x = clip(t, -1, 1); with three rounds allowed, no answer after three solves."""
+    from dmpopt.control.qp_stages import _active_set
+
+    target = np.array([3.0, 2.5, 2.0, 0.5])
+    problem = (np.eye(4), -target, None, None, np.eye(4), -np.ones(4), np.ones(4))
+    for rounds, expected in ((4, (np.clip(target, -1, 1), 4)), (3, (None, 3)), (2, (None, 2))):
+        at_upper, at_lower = np.zeros(4, bool), np.zeros(4, bool)
+        x, solves = _active_set(problem, at_upper, at_lower, 1e-9, rounds)
+        assert solves == expected[1]
+        if expected[0] is None:
+            assert x is None
+        else:
+            np.testing.assert_allclose(x, expected[0], rtol=0, atol=1e-12)
+            np.testing.assert_array_equal(at_upper, [True, True, True, False])
+            assert not at_lower.any()
+
+
 def test_acceleration_bounds_formula(upper_body):
     h = 0.1
     lower, upper = np.zeros(3), np.zeros(3)

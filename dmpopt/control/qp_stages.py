@@ -162,8 +162,6 @@ def _active_set(
     """
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
     n = hessian.shape[0]
-    if in_matrix is None:  # no inequality rows
-        in_matrix, lower, upper = np.zeros((0, n)), np.zeros(0), np.zeros(0)
     for solves in range(1, rounds + 1):
         rows = np.flatnonzero(at_upper | at_lower)
         bounds = np.where(at_upper, upper, lower)[rows]

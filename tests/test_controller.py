@@ -1,5 +1,6 @@
 """Tests of dmpopt.control: QP inverse dynamics, its tasks and contacts, computed torque."""
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -644,6 +645,59 @@ def test_acceleration_bounds_formula(upper_body):
         InverseDynamicsController(
             upper_body, [posture], joint_limit_horizon=0.05, limited_joints=["elbow"]
         )
+
+
+def test_construction_checks_name_the_argument(upper_body, talos):
+    """Each positive setting refuses 0, a negative, inf, a bool and a string by name; tasks
+    and contacts refuse a bare item, the wrong kind (naming both) and another robot's."""
+    posture = PostureTask(upper_body)
+    for name in ("acceleration_regularization", "force_regularization", "tolerance",
+                 "time_budget", "torque_limit_scale"):  # fmt: skip
+        for bad in (0.0, -1.0, np.inf, True, "fast"):
+            with pytest.raises(InvalidInputError, match=f"^{name} must be a finite number > 0"):
+                InverseDynamicsController(upper_body, [posture], **{name: bad})
+    with pytest.raises(InvalidInputError, match="^tasks and contacts must be sequences"):
+        InverseDynamicsController(upper_body, posture)
+    sole = SoleContact(talos, talos.foot_frames[0])
+    with pytest.raises(InvalidInputError,
+                       match="^tasks holds SoleContact, expected Task objects$"):  # fmt: skip
+        InverseDynamicsController(talos, [sole])
+    with pytest.raises(
+        InvalidInputError,
+        match="^contacts holds PostureTask, expected SoleContact or PointContact objects$",
+    ):
+        InverseDynamicsController(talos, [PostureTask(talos)], [PostureTask(talos)])
+    with pytest.raises(ShapeError, match="^tasks: a PostureTask was built for another robot"):
+        InverseDynamicsController(upper_body, [PostureTask(talos)])
+    with pytest.raises(ShapeError, match="^contacts: a SoleContact was built for another robot"):
+        InverseDynamicsController(upper_body, [posture], [sole])
+
+
+def test_default_limited_joints_have_both_position_limits(upper_body):
+    """By default only joints with two finite position limits get acceleration bounds: an
+    elbow without a lower limit takes a -200 rad/s^2 reference at rest (bounded, it would
+    stop at -v_max / h = -20 v_max); limited_joints names a group as well."""
+    names = list(upper_body.actuated_joint_names)
+    elbow = names.index("arm_left_4_joint")
+    i_q = upper_body.configuration_indices(["arm_left_4_joint"])[0]
+    lower = np.array(upper_body.position_lower, dtype=float)
+    lower[i_q] = -np.inf
+    robot = dataclasses.replace(upper_body, position_lower=lower)
+    posture = PostureTask(robot, stiffness=0.0, damping=0.0)
+    acceleration = np.zeros(robot.nv)
+    acceleration[elbow] = -200.0
+    posture.set_reference(robot.reference_configuration, None, acceleration)
+    controller = InverseDynamicsController(
+        robot, [posture], time_budget=1.0, torque_limit_scale=100.0
+    )
+    controller.compute_torques(robot.reference_configuration, np.zeros(robot.nv))
+    assert -200.0 < -20.0 * robot.velocity_limit[elbow]  # the bound would bind
+    assert controller.joint_accelerations[elbow] == pytest.approx(-200.0, rel=1e-6)
+    arm = InverseDynamicsController(
+        upper_body, [posture], limited_joints="left_arm", torque_limit_scale=100.0
+    )
+    arm.compute_torques(upper_body.reference_configuration, np.zeros(upper_body.nv))
+    assert arm.joint_accelerations[elbow] == pytest.approx(-20.0 * robot.velocity_limit[elbow])
 
 
 # ---------------------------------------------------------------- the reduced QPs

@@ -656,6 +656,9 @@ def test_construction_checks_name_the_argument(upper_body, talos):
         for bad in (0.0, -1.0, np.inf, True, "fast"):
             with pytest.raises(InvalidInputError, match=f"^{name} must be a finite number > 0"):
                 InverseDynamicsController(upper_body, [posture], **{name: bad})
+    for bad in (0, True, 2.5, "ten"):
+        with pytest.raises(InvalidInputError, match="^max_iterations must be an integer >= 1"):
+            InverseDynamicsController(upper_body, [posture], max_iterations=bad)
     with pytest.raises(InvalidInputError, match="^tasks and contacts must be sequences"):
         InverseDynamicsController(upper_body, posture)
     sole = SoleContact(talos, talos.foot_frames[0])

@@ -435,3 +435,62 @@ def test_half_turn_along_a_coordinate_axis():
     matrix = goal_transform("rotation", np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]))
     np.testing.assert_allclose(matrix @ [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], atol=1e-15)
     np.testing.assert_allclose(matrix.T @ matrix, np.eye(3), atol=1e-15)
+
+
+# ---------------------------------------------------------------- checks by name, stored values
+def test_discrete_dmp_stores_read_only_float_arrays_and_names_each_bad_argument():
+    """Lists and integers are stored as read-only float arrays and Python floats; each bad
+    argument is refused with its own name and what fixes its size."""
+    arguments = dict(
+        weights=[[0, 1, 2], [3, 4, 5]], start=[0, 1], goal=[1, 3], tau=2, centres=[1, 0.5, 0.1],
+        widths=[1, 2, 3], reference_displacement=[1, 2], alpha_z=np.array(24), beta_z=6,
+        alpha_v=np.int64(20), beta_v=5, alpha_g=12,
+    )  # fmt: skip
+    dmp = DiscreteDMP(**arguments)
+    for name in ("weights", "start", "goal", "centres", "widths", "reference_displacement",
+                 "scaled_start_velocity"):  # fmt: skip
+        value = getattr(dmp, name)
+        assert isinstance(value, np.ndarray) and value.dtype == float, name
+        assert not value.flags.writeable, name
+    for name in ("tau", "alpha_z", "beta_z", "alpha_v", "beta_v", "alpha_g"):
+        assert type(getattr(dmp, name)) is float, name
+    bad = {
+        "centres": ([0.5, 0.1], r"^centres has shape \(2,\), expected \(3,\) to match 3 basis "
+                                r"functions$"),
+        "widths": ([1, 2], r"^widths has shape \(2,\), expected \(3,\) to match 3 basis "
+                           r"functions$"),
+        "reference_displacement": ([1, 2, 3], r"^reference_displacement has shape \(3,\), "
+                                              r"expected \(2,\) to match weights$"),
+        "weights": (np.zeros((0, 3)), r"^weights has shape \(0, 3\): a DMP needs at least one "
+                                      r"DOF"),
+    }  # fmt: skip
+    for name, (value, message) in bad.items():
+        with pytest.raises(ShapeError, match=message):
+            DiscreteDMP(**{**arguments, name: value})
+    for widths in ([1, 0, 3], [1, -2, 3]):
+        with pytest.raises(InvalidInputError, match="^widths must all be positive"):
+            DiscreteDMP(**{**arguments, "widths": widths})
+    for name in ("tau", "alpha_z", "beta_z", "alpha_v", "beta_v", "alpha_g"):
+        with pytest.raises(InvalidInputError, match=f"^{name} must be"):
+            DiscreteDMP(**{**arguments, name: 0.0})
+
+
+def test_rhythmic_dmp_stores_read_only_floats_and_names_each_bad_argument():
+    from dmpopt import RhythmicDMP
+
+    arguments = dict(weights=np.zeros((2, 3, 2)), setpoint=[0, 1], tau=1, centres=[0, 2, 4],
+                     widths=[1, 1, 1], amplitude=2, alpha_r=np.array(3), alpha_E=4, k=1)  # fmt: skip
+    dmp = RhythmicDMP(**arguments)
+    assert isinstance(dmp.setpoint, np.ndarray) and not dmp.setpoint.flags.writeable
+    assert dmp.setpoint.dtype == float
+    for name in ("tau", "amplitude", "alpha_r", "alpha_E", "k"):
+        assert type(getattr(dmp, name)) is float, name
+        with pytest.raises(InvalidInputError, match=f"^{name} must be"):
+            RhythmicDMP(**{**arguments, name: 0.0})
+    flat = RhythmicDMP(**{**arguments, "weights": np.arange(12.0).reshape(2, 6)})
+    np.testing.assert_array_equal(flat.weights, np.arange(12.0).reshape(2, 3, 2))
+    with pytest.raises(ShapeError, match=r"^weights has shape \(0, 3, 2\): a DMP needs"):
+        RhythmicDMP(**{**arguments, "weights": np.zeros((0, 3, 2))})
+    assert dmp.canonical_state() == dmp.canonical_state(0.0)
+    with pytest.raises(InvalidInputError, match="^phase"):
+        dmp.canonical_state("east")

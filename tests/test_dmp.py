@@ -478,8 +478,10 @@ def test_discrete_dmp_stores_read_only_float_arrays_and_names_each_bad_argument(
 def test_rhythmic_dmp_stores_read_only_floats_and_names_each_bad_argument():
     from dmpopt import RhythmicDMP
 
-    arguments = dict(weights=np.zeros((2, 3, 2)), setpoint=[0, 1], tau=1, centres=[0, 2, 4],
-                     widths=[1, 1, 1], amplitude=2, alpha_r=np.array(3), alpha_E=4, k=1)  # fmt: skip
+    arguments = dict(
+        weights=np.zeros((2, 3, 2)), setpoint=[0, 1], tau=1, centres=[0, 2, 4], widths=[1, 1, 1],
+        amplitude=2, alpha_r=np.array(3), alpha_E=4, k=1,
+    )  # fmt: skip
     dmp = RhythmicDMP(**arguments)
     assert isinstance(dmp.setpoint, np.ndarray) and not dmp.setpoint.flags.writeable
     assert dmp.setpoint.dtype == float

@@ -10,7 +10,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import DiscreteDMP, InvalidInputError, ShapeError, Stepper, stepper, symbolic
+from dmpopt import (
+    DiscreteDMP,
+    InvalidInputError,
+    ResourceLimitError,
+    ShapeError,
+    Stepper,
+    stepper,
+    symbolic,
+)
 from dmpopt.basis import discrete_phase
 from dmpopt.dmp import goal_transform
 
@@ -496,3 +504,45 @@ def test_rhythmic_dmp_stores_read_only_floats_and_names_each_bad_argument():
     assert dmp.canonical_state() == dmp.canonical_state(0.0)
     with pytest.raises(InvalidInputError, match="^phase"):
         dmp.canonical_state("east")
+
+
+def test_memory_estimates_of_plans_and_features_in_bytes(monkeypatch):
+    """A plan of n steps holds 8 n (6 (y, z, goal and the N features) + 6 D) bytes, the phase
+    features 8 n (2 N + 8): with the budget lowered below them, the refusals print these
+    sizes (3 digits) and the remedy; a plan over 1/16 of the budget is computed without the
+    response cache and equals the cached one."""
+    from dmpopt import validation
+
+    dmp = DiscreteDMP(
+        weights=np.arange(6.0).reshape(2, 3), start=[0, 1], goal=[1, 3], tau=1.0,
+        centres=[1, 0.5, 0.1], widths=[1, 2, 3], goal_scaling="translation",
+    )  # fmt: skip
+    cached = dmp.rollout(1.0, 1e-3)
+    n, plan_bytes, feature_bytes = 1001, 8 * 1001 * (6 * (2 + 1 + 3) + 6 * 2), 8 * 1001 * (6 + 8)
+    assert plan_bytes > 16 * feature_bytes / 5
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 1.5 * plan_bytes)  # < 24 n (3 + N) 16
+    uncached = dmp.rollout(1.0, 1e-3)
+    np.testing.assert_array_equal(uncached.positions, cached.positions)
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 0.9 * feature_bytes)
+    budget = f"{0.9 * feature_bytes / 1024**3:.3g}"
+    with pytest.raises(ResourceLimitError) as refused:
+        dmp.rollout(1.0, 1e-3)
+    assert str(refused.value) == (
+        f"a plan of 1 s at dt = 0.001 s needs {n:.3g} samples and about "
+        f"{plan_bytes / 1024**3:.3g} GiB; dmpopt allows at most {validation.MAX_SAMPLES:.3g} "
+        f"samples (dmpopt.validation.MAX_SAMPLES) and {budget} GiB "
+        "(dmpopt.validation.MEMORY_BUDGET): raise dt or shorten duration (by default the "
+        "convergence time or three periods, both proportional to tau)"
+    )
+    with pytest.raises(ResourceLimitError) as refused:
+        dmp.phase_features(n, 1e-3)
+    assert str(refused.value).startswith(
+        f"phase_features({n}, 0.001) needs {n:.3g} samples and about "
+        f"{feature_bytes / 1024**3:.3g} GiB;"
+    )
+    assert str(refused.value).endswith(": ask for fewer samples")
+    assert dmp.phase_features(1, 1e-3).shape == (1, 3)  # one sample is allowed
+    with pytest.raises(InvalidInputError, match="^n_steps"):
+        dmp.phase_features(0, 1e-3)
+    with pytest.raises(InvalidInputError, match="^duration"):
+        dmp.rollout(0.0, 1e-3)

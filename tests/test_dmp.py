@@ -546,3 +546,18 @@ def test_memory_estimates_of_plans_and_features_in_bytes(monkeypatch):
         dmp.phase_features(0, 1e-3)
     with pytest.raises(InvalidInputError, match="^duration"):
         dmp.rollout(0.0, 1e-3)
+
+
+def test_rhythmic_affine_plan_defaults_are_rest_at_phase_zero():
+    """RhythmicDMP.affine_plan() starts at rest with the oscillator at phase 0: the same plan
+    as with both given, unlike a start velocity of 1 or a phase of 1 rad."""
+    from dmpopt import RhythmicDMP
+
+    dmp = RhythmicDMP(weights=np.arange(12.0).reshape(2, 3, 2), setpoint=[0, 1], tau=0.5,
+                      centres=[0, 2, 4], widths=[1, 1, 1])  # fmt: skip
+    default = dmp.affine_plan(2.0).evaluate(dmp.forcing_weights())
+    given = dmp.affine_plan(2.0, start_velocity=0.0, phase=0.0).evaluate(dmp.forcing_weights())
+    np.testing.assert_array_equal(default, given)
+    for other in (dict(start_velocity=1.0), dict(phase=1.0)):
+        moved = dmp.affine_plan(2.0, **other).evaluate(dmp.forcing_weights())
+        assert np.abs(moved - default).max() > 1e-3

@@ -61,7 +61,7 @@ def _vector(value, size: int, name: str) -> np.ndarray:
 def _gains(stiffness, damping, size: int) -> tuple[np.ndarray, np.ndarray]:
     kp = _vector(stiffness, size, "stiffness")
     kd = 2.0 * np.sqrt(kp) if damping is None else _vector(damping, size, "damping")
-    if np.any(kp < 0) or np.any(kd < 0) or not np.all(np.isfinite(kp) & np.isfinite(kd)):
+    if np.any(kp < 0) or np.any(kd < 0):  # finite: _vector checked
         raise InvalidInputError("stiffness and damping must be finite and >= 0")
     return kp, kd
 

@@ -987,3 +987,63 @@ def test_hold_answer_of_a_first_tick_is_the_clipped_bias_torque(talos, upper_bod
     com.target_position[:] = target
     standing.compute_torques(q, v)
     assert standing.stats.last_answer == "direct"
+
+
+HAND = "gripper_left_base_link"
+
+
+def test_task_defaults_checks_and_names(upper_body):
+    """Defaults of the three tasks (weight 1; K_p 50 CoM, 100 frame, 10 posture; K_d 2 sqrt K_p
+    unless given), each argument's name, the frame rows allowed, the group of a posture task,
+    and its warning: once per joint, not at the limit itself, from the caller's line."""
+    com, frame, posture = ComTask(upper_body), FrameTask(upper_body, HAND), PostureTask(upper_body)
+    for task, kp in ((com, 50.0), (frame, 100.0), (posture, 10.0)):
+        assert task.weight == 1.0
+        np.testing.assert_array_equal(task.stiffness, kp)
+        np.testing.assert_allclose(task.damping, 2.0 * np.sqrt(kp), rtol=1e-15)
+    np.testing.assert_array_equal(ComTask(upper_body, damping=3.0).damping, 3.0)
+    np.testing.assert_array_equal(FrameTask(upper_body, HAND, damping=4.0).damping, 4.0)
+    for bad, message in ((0.0, "^weight must be a finite number > 0"),
+                         (np.inf, "^weight must be a finite number > 0"),
+                         ([1.0, 2.0], "^weight must be a finite number > 0"),
+                         ("heavy", "^weight must be numbers")):  # fmt: skip
+        with pytest.raises(InvalidInputError, match=message):
+            ComTask(upper_body, weight=bad)
+    for name in ("stiffness", "damping"):
+        with pytest.raises(ShapeError, match=f"^{name} has shape"):
+            ComTask(upper_body, **{name: [1.0, 2.0]})
+    with pytest.raises(InvalidInputError, match="^stiffness and damping must be finite and >= 0"):
+        ComTask(upper_body, stiffness=1.0, damping=-1.0)
+    with pytest.raises(InvalidInputError, match="^stiffness and damping must be finite and >= 0"):
+        ComTask(upper_body, stiffness=-1.0, damping=1.0)
+    com.set_target([0.1, 0.2, 0.3], velocity=[1.0, 2.0, 3.0], acceleration=[4.0, 5.0, 6.0])
+    np.testing.assert_array_equal(com.target_velocity, [1.0, 2.0, 3.0])
+    for name in ("position", "velocity", "acceleration"):
+        values = {"position": [0.0, 0.0, 0.0], name: [1.0, 2.0]}
+        with pytest.raises(ShapeError, match=f"^{name} has shape"):
+            com.set_target(**values)
+    for rows in ([5], [0], [0, 5]):
+        assert FrameTask(upper_body, HAND, components=rows).rows.tolist() == rows
+    for rows in ([], [-1], [6]):
+        with pytest.raises(InvalidInputError, match="expected indices in 0..5"):
+            FrameTask(upper_body, HAND, components=rows)
+    arm = PostureTask(upper_body, "left_arm")
+    assert arm.joint_names == tuple(upper_body.joint_groups["left_arm"])
+    upper = np.asarray(upper_body.position_upper)[arm.configuration_indices]
+    lower = np.asarray(upper_body.position_lower)[arm.configuration_indices]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        arm.set_reference(upper)  # at the limits: no warning
+        arm.set_reference(lower)
+    outside = upper.copy()
+    outside[3] += 0.5
+    name = arm.joint_names[3]
+    with pytest.warns(UserWarning) as caught:
+        arm.set_reference(outside)
+        arm.set_reference(outside)  # once per joint
+    assert len(caught) == 1 and caught[0].filename == __file__
+    assert str(caught[0].message) == (
+        f"PostureTask: reference {outside[3]:.4g} rad of {name!r} is outside its position "
+        f"limits [{lower[3]:.4g}, {upper[3]:.4g}]; the joint stops at its limit (clip the "
+        "reference to silence this)"
+    )

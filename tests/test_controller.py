@@ -1047,3 +1047,31 @@ def test_task_defaults_checks_and_names(upper_body):
         f"limits [{lower[3]:.4g}, {upper[3]:.4g}]; the joint stops at its limit (clip the "
         "reference to silence this)"
     )
+
+
+def test_answer_counters_add_up_over_ticks(upper_body):
+    """Two infeasible ticks (an elbow 5 mm before its limit at 4 rad/s, torques at 2 %) are
+    two relaxed, torque-limited ticks; two ticks asking 500 rad/s^2 of every joint are two
+    solved, torque-limited ones; every counter counts each tick once."""
+    posture = PostureTask(upper_body, weight=1.0, stiffness=10.0)
+    weak = InverseDynamicsController(
+        upper_body, [posture], torque_limit_scale=0.02, time_budget=1.0
+    )
+    i_q, i_v = (f(["arm_left_4_joint"])[0] for f in (upper_body.configuration_indices,
+                                                     upper_body.velocity_indices))  # fmt: skip
+    q, v = upper_body.reference_configuration.copy(), np.zeros(upper_body.nv)
+    q[i_q], v[i_v] = upper_body.position_upper[i_q] - 0.005, 4.0
+    for _ in range(2):
+        weak.compute_torques(q, v)
+    stats = weak.stats
+    assert (stats.n_ticks, stats.n_relaxed, stats.n_torque_limited) == (2, 2, 2)
+    assert (stats.n_solved, stats.n_direct, stats.n_fallbacks) == (0, 0, 0)
+    strong = InverseDynamicsController(upper_body, [posture], time_budget=1.0)
+    q = upper_body.reference_configuration
+    posture.set_reference(q, None, np.full(upper_body.nv, 500.0))
+    for _ in range(2):
+        strong.compute_torques(q, np.zeros(upper_body.nv))
+    stats = strong.stats
+    assert (stats.n_ticks, stats.n_solved, stats.n_torque_limited) == (2, 2, 2)
+    assert (stats.n_relaxed, stats.n_direct, stats.n_fallbacks) == (0, 0, 0)
+    assert stats.last_answer == "solved"

@@ -526,6 +526,34 @@ def test_point_contact_defaults_and_pyramid_in_three_dimensions(talos, biped):
     np.testing.assert_array_equal(planar.components, [0, 2])
 
 
+@pytest.mark.parametrize("kind", [SoleContact, PointContact])
+def test_contact_friction_and_force_checks_name_the_contact_and_argument(kind, talos):
+    """Both contact kinds accept mu > 0 finite and 0 <= f_min < f_max < inf (f_min = 0 and
+    0.5 N included) and refuse the rest with a message naming the kind and the argument."""
+    for mu, f_min, f_max in ((1e-3, 0.0, 1.0), (2.0, 0.5, 0.6)):
+        contact = kind(talos, LEFT, friction_coefficient=mu, min_normal_force=f_min,
+                       max_normal_force=f_max)  # fmt: skip
+        assert (contact.friction_coefficient, contact.min_normal_force,
+                contact.max_normal_force) == (mu, f_min, f_max)  # fmt: skip
+        assert contact.wrench_upper[-2:].tolist() == [-f_min, f_max]
+    for bad in (0.0, -0.5, float("nan"), float("inf"), [0.5, 0.5]):
+        with pytest.raises(InvalidInputError,
+                           match=rf"^{kind.__name__}: friction_coefficient must be finite and > 0"):  # fmt: skip
+            kind(talos, LEFT, friction_coefficient=bad)
+    with pytest.raises(InvalidInputError, match="^friction_coefficient must be numbers"):
+        kind(talos, LEFT, friction_coefficient="rough")
+    for f_min, f_max in ((-1.0, 10.0), (10.0, 10.0), (20.0, 10.0), (1.0, float("inf")),
+                         ([1.0, 2.0], [3.0, 4.0])):  # fmt: skip
+        with pytest.raises(InvalidInputError, match=rf"^{kind.__name__}: expected finite 0 <= "
+                           "min_normal_force < max_normal_force"):  # fmt: skip
+            kind(talos, LEFT, min_normal_force=f_min, max_normal_force=f_max)
+    for ragged in ("strong", [3.0, 4.0]):
+        with pytest.raises(InvalidInputError, match="^min_normal_force/max_normal_force must be"):
+            kind(talos, LEFT, max_normal_force=ragged)
+    with pytest.raises(InvalidInputError, match=rf"^{kind.__name__}: frame='head_1_link'"):
+        kind(talos, "head_1_link")
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_talos_on_two_point_feet_equals_the_reference_qp(seed, talos):
     """Talos on two point feet (3-D forces in world axes): the tick is the optimum of the

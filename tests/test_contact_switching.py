@@ -536,9 +536,9 @@ def test_contact_friction_and_force_checks_name_the_contact_and_argument(kind, t
         assert (contact.friction_coefficient, contact.min_normal_force,
                 contact.max_normal_force) == (mu, f_min, f_max)  # fmt: skip
         assert contact.wrench_upper[-2:].tolist() == [-f_min, f_max]
+    refused = rf"^{kind.__name__}: friction_coefficient must be finite and > 0"
     for bad in (0.0, -0.5, float("nan"), float("inf"), [0.5, 0.5]):
-        with pytest.raises(InvalidInputError,
-                           match=rf"^{kind.__name__}: friction_coefficient must be finite and > 0"):  # fmt: skip
+        with pytest.raises(InvalidInputError, match=refused):
             kind(talos, LEFT, friction_coefficient=bad)
     with pytest.raises(InvalidInputError, match="^friction_coefficient must be numbers"):
         kind(talos, LEFT, friction_coefficient="rough")

@@ -477,6 +477,8 @@ def test_nan_written_into_a_task_never_reaches_the_torques(upper_body, with_hand
     tau = controller.compute_torques(q, v)
     assert np.isfinite(tau).all() and controller.stats.n_fallbacks == 1
     np.testing.assert_array_equal(tau, good)  # the last valid torque
+    stats = controller.stats  # refused before proxsuite, which can call such a QP solved
+    assert (stats.last_status, stats.last_iterations) == ("NON_FINITE_PROBLEM", 0)
 
 
 # ---------------------------------------------------------------- computed torque
@@ -599,6 +601,13 @@ def test_joint_limits_standing(talos, side):
     )
     assert controller.stats.n_torque_limited == 1 and controller.stats.n_fallbacks == 0
     assert controller.joint_accelerations[i_v] == pytest.approx(bound, abs=1e-4)  # brakes
+    # At rest with the arm's reference inside its limits the bound rows are slack: the next
+    # tick still starts with them and releases them, the one after starts without them.
+    arm.set_reference(talos.reference_configuration[arm.configuration_indices])
+    rest = talos.reference_configuration, np.zeros(talos.nv)
+    for _ in range(3):
+        controller.compute_torques(*rest)
+    assert controller.stats.n_torque_limited == 2 and controller.stats.last_answer == "direct"
 
 
 def test_active_set_iterations_add_the_most_violated_row_each_round():

@@ -120,7 +120,7 @@ class Assembly:
     def _assemble_y(self) -> None:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
         rows, n_base, n, n_cost = self._rows, self._n_base, self._n, self._n_cost
-        mapped, used = self._mapped, rows[: self._dynamics_rows.start]
+        mapped, used = self._mapped, rows[: self._dynamics_start]
         if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
             n_act, mass, rhs = self._n_act, self._mass, self._base_rhs
             np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
@@ -157,7 +157,7 @@ class Assembly:
         else:
             torque[:] = 0.0
         torque[:, :n_act] += mass[n_base:, n_base:]
-        contact = self._rows[self._n_cost : self._dynamics_rows.start, n_base : self._nv]
+        contact = self._rows[self._n_cost : self._dynamics_start, n_base : self._nv]
         torque[:, n_act:n] -= self._force_scale * contact.T
         np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
         self._in_matrix[:n_act] = torque[:, :n]

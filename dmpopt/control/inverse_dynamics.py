@@ -264,9 +264,6 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         for task, rows in zip(self._stacked_tasks, self._task_rows):
             self._row_scale[rows] = np.sqrt(task.weight)
         self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
-        self._contact_rows = tuple(
-            slice(n_cost + a.start, n_cost + a.stop) for a in self._force_slices
-        )
         # Each tick the tasks and contacts compute their rows into their own arrays, which are
         # copied here (the controller never rebinds a user's object), each group by one call.
         self._row_groups = tuple(
@@ -277,7 +274,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             )
             if items
         )
-        self._dynamics_rows = slice(n_cost + n_force, n_cost + n_force + n_base)
+        self._dynamics_start = n_cost + n_force  # first base-dynamics row
 
         # Constant Hessian diagonal over x: eps_a on qdd plus the posture weights, eps_f on the
         # wrenches. The posture tasks' linear terms -w qdd* go to posture_gradient.

@@ -62,6 +62,8 @@ def task_rows(robot, task, q, v):
     """(J, b, w) of a task, w |J qdd - b|^2, from the PD law a* = a_ref + Kp e + Kd (v_ref - v)
     of dmpopt.control.tasks, written out."""
     model, nv = robot.model, robot.nv
+    if isinstance(task, ElbowTask):  # a fixed base: q and v share indices
+        return np.eye(nv)[[task.index]], 9.0 * (0.3 - q[[task.index]]), task.weight
     if isinstance(task, PostureTask):
         jacobian = np.eye(nv)[task.velocity_indices]
         target = (
@@ -343,6 +345,18 @@ def test_switching_input_errors(talos):
                 talos, [com], [SoleContact(talos, LEFT), SoleContact(talos, LEFT)]
             ),
             "contacts holds 2 contacts on 'left_sole_link'",
+        ),
+        (
+            lambda: InverseDynamicsController(
+                talos, [com], [SoleContact(talos, LEFT), PointContact(talos, RIGHT)]
+            ),
+            "contacts mixes SoleContact and PointContact",
+        ),
+        (
+            lambda: InverseDynamicsController(
+                talos, [com], controller.contacts, inactive=["head_1_link"]
+            ),
+            "^inactive='head_1_link' is not the frame of a contact",
         ),
         (
             lambda: SoleContact(talos, LEFT, cop_fraction=1.5),
@@ -739,7 +753,7 @@ def test_fixed_base_with_a_foot_contact_equals_the_reference_qp():
     """Talos on a test stand (pelvis fixed) with the left sole on a step (a contact at its
     current place) and torque limits at 1 %, which bind, while the posture and the right foot
     pull: the tick's accelerations are the optimum of the QP written out in reference_qp
-    (Clarabel), to 1e-6 relative."""
+    (Clarabel), to 1e-6 relative; again with a user's elbow task added."""
     from robots import load_talos
     from robots.talos import TALOS_SOLE_CORNERS
 
@@ -768,6 +782,16 @@ def test_fixed_base_with_a_foot_contact_equals_the_reference_qp():
     np.testing.assert_allclose(controller.joint_accelerations, qdd, rtol=0, atol=1e-6 * norm(qdd))
     # the wrench only enters through J^T f with 1e-8 regularisation: the same to 1e-2 N
     np.testing.assert_allclose(controller.contact_wrenches.ravel(), force, rtol=0, atol=1e-2)
+    # with a user's task, whose rows need the tick's q (accelerations only: with it pulling,
+    # Clarabel leaves the 1e-8 regularisation of the wrench unresolved)
+    tasks.append(ElbowTask(robot))
+    controller = InverseDynamicsController(
+        robot, tasks, [step], tolerance=1e-10, max_iterations=10_000, time_budget=1.0,
+        joint_limit_horizon=None, torque_limit_scale=0.01,
+    )  # fmt: skip
+    controller.compute_torques(q, v)
+    qdd, _ = reference_qp(robot, tasks, [step], q, v, controller.torque_limit)
+    np.testing.assert_allclose(controller.joint_accelerations, qdd, rtol=0, atol=1e-6 * norm(qdd))
 
 
 def test_no_tick_compiles_a_kernel_whatever_the_state_arrays(talos):

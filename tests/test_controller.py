@@ -683,6 +683,11 @@ def test_construction_checks_name_the_argument(upper_body, talos):
         InverseDynamicsController(upper_body, [PostureTask(talos)])
     with pytest.raises(ShapeError, match="^contacts: a SoleContact was built for another robot"):
         InverseDynamicsController(upper_body, [posture], [sole])
+    unlimited = upper_body.torque_limit.copy()
+    unlimited[2] = 0.0  # a model without the effort limit of one joint
+    robot = dataclasses.replace(upper_body, torque_limit=unlimited)
+    with pytest.raises(InvalidInputError, match=r"^robot.torque_limit must be > 0 for every"):
+        InverseDynamicsController(robot, [PostureTask(robot)])
 
 
 def test_default_limited_joints_have_both_position_limits(upper_body):
@@ -995,7 +1000,7 @@ def test_hold_answer_of_a_first_tick_is_the_clipped_bias_torque(talos, upper_bod
     assert standing.stats.last_answer == "hold"
     com.target_position[:] = target
     standing.compute_torques(q, v)
-    assert standing.stats.last_answer == "direct"
+    assert standing.stats.last_answer == "direct" and standing.stats.last_iterations == 0
 
 
 HAND = "gripper_left_base_link"

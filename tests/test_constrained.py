@@ -10,7 +10,7 @@ import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dmpopt.exceptions import FittingFailed, InfeasibleProblem, InvalidInputError
+from dmpopt.exceptions import FittingFailed, InfeasibleProblem, InvalidInputError, ShapeError
 from dmpopt.fitting import groups, qp
 from dmpopt.fitting.constrained import (
     Bounds,
@@ -149,8 +149,11 @@ def test_unreachable_euclidean_via_point_is_reported_as_such():
         )
     assert not isinstance(caught.value, InfeasibleProblem)
     message = str(caught.value)
-    assert message.startswith("the ipopt solver failed (Infeasible_Problem_Detected)")
-    assert "Euclidean via-point may be out of reach" in message
+    assert message == (
+        "the ipopt solver failed (Infeasible_Problem_Detected) although the linear constraints "
+        "can hold; so a Euclidean via-point may be out of reach of them: widen its tolerance, "
+        "move it or relax the bounds"
+    )
     assert caught.value.stats["solver"] == "ipopt" and caught.value.problem is not None
     assert set(caught.value.stats) == {"solver", "status", "solve_time", "iterations"}
 
@@ -206,6 +209,44 @@ def test_invalid_requests_are_rejected():
         build_fitting_problem(
             DEMO, reference=REFERENCES["velocity"], via_points=[ViaPoint(2.0, [0.0, 0.0])]
         )
+
+
+def test_problem_records_its_request_and_names_each_bad_argument():
+    """The problem keeps the objective, bounds and via-points it was built for; a start,
+    goal or start velocity that is not numbers, or not one entry per DOF, is refused by name."""
+    bounds, via = Bounds(velocity=5.0), ViaPoint(0.5, [0.55, 0.45], tolerance=0.01)
+    problem = build_fitting_problem(
+        DEMO, reference=REFERENCES["velocity"], n_samples=101, bounds=bounds, via_points=[via]
+    )
+    assert (problem.objective, problem.bounds, problem.via_points) == ("position", bounds, (via,))
+    for name in ("start", "goal", "start_velocity"):
+        with pytest.raises(InvalidInputError, match=f"^{name} must be an array of real numbers"):
+            build_fitting_problem(DEMO, reference=REFERENCES["velocity"], **{name: "here"})
+        with pytest.raises(ShapeError, match=rf"^{name} has shape \(3,\), expected \(2,\)"):
+            build_fitting_problem(DEMO, reference=REFERENCES["velocity"], **{name: [0.0] * 3})
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_constrained_fit_scales_with_the_demonstration(form):
+    """Eq. (1)-(4) are linear in the positions: a demonstration, its limits and via-points all
+    scaled by s = 40 (metres instead of 2.5 cm units) give weights scaled by s, the fit being
+    the same problem in other units."""
+    s = 40.0
+    plan = plain_plan(form)
+    limit = 0.8 * np.abs(plan.velocities).max(0)
+    via = [0.55, 0.45]
+    small, _ = fit_weights_constrained(
+        DEMO, reference=REFERENCES[form], n_samples=101, bounds=Bounds(velocity=limit),
+        via_points=[ViaPoint(0.5, via, tolerance=0.01)],
+    )  # fmt: skip
+    large_demo = Trajectory.from_positions(DEMO.times, s * DEMO.positions)
+    large, _ = fit_weights_constrained(
+        large_demo, reference=fit_discrete(large_demo, 20, form=form), n_samples=101,
+        bounds=Bounds(velocity=s * limit),
+        via_points=[ViaPoint(0.5, s * np.array(via), tolerance=s * 0.01)],
+    )  # fmt: skip
+    scale = np.abs(small.weights).max()
+    np.testing.assert_allclose(large.weights, s * small.weights, rtol=0, atol=1e-6 * s * scale)
 
 
 # ---------------------------------------------------------------------------------------
@@ -652,6 +693,32 @@ def test_an_answer_that_violates_a_limit_on_the_rollout_is_refused(monkeypatch):
             n_samples=101,
             bounds=Bounds(velocity=0.9 * np.abs(plan.velocities).max(0)),
         )
+    # with a generous velocity limit only the end position is violated: that one is named
+    with pytest.raises(FittingFailed, match=r"^the daqp answer violates 'end_position' by"):
+        fit_weights_constrained(
+            DEMO, reference=REFERENCES["velocity"], n_samples=101,
+            bounds=Bounds(velocity=5.0 * np.abs(plan.velocities).max(0)),
+        )  # fmt: skip
+
+
+def test_a_failed_qp_solve_is_reported_with_its_status_and_remedy(monkeypatch):
+    """A QP solve that reports failure, even with a finite answer, is not used: the error
+    names the solver, its status and the remedy."""
+    from dmpopt.fitting import constrained
+
+    real_solve = constrained.solve_blocks
+
+    def failing(*args, **kwargs):
+        return real_solve(*args, **kwargs)._replace(success=False, status="stalled")
+
+    monkeypatch.setattr(constrained, "solve_blocks", failing)
+    with pytest.raises(FittingFailed) as caught:
+        fit_weights_constrained(DEMO, reference=REFERENCES["velocity"], n_samples=101,
+                                bounds=Bounds(velocity=5.0))  # fmt: skip
+    assert str(caught.value) == (
+        "the daqp solver failed (stalled) although the linear constraints can hold; try "
+        "another solver ('daqp', 'qpoases') or a larger regularization"
+    )
 
 
 def test_relative_violations_divide_by_each_group_s_unit():

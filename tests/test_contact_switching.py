@@ -247,6 +247,36 @@ def test_one_foot_tick_equals_the_reference_qp(robot_name, seed, talos, biped):
     assert np.linalg.norm(x_controller - x_reference) <= 1e-6 * np.linalg.norm(x_reference)
 
 
+def test_consecutive_ticks_at_unrelated_states_each_equal_the_reference_qp(talos):
+    """One controller, Talos on its left sole with torque limits at 4 %, ticks at unrelated
+    random states and targets: each tick starts from the last one's active set and warm
+    start, and each answer is still the optimum of the QP written out in reference_qp."""
+    rng = np.random.default_rng(21)
+    tasks = [
+        PostureTask(talos, weight=0.1, stiffness=10.0),
+        ComTask(talos, weight=10.0, stiffness=50.0),
+        FrameTask(talos, RIGHT, weight=5.0, stiffness=100.0),
+    ]
+    contact = SoleContact(talos, LEFT, friction_coefficient=0.5)
+    controller = InverseDynamicsController(
+        talos, tasks, [contact], tolerance=1e-10, max_iterations=10_000, time_budget=1.0,
+        joint_limit_horizon=None, torque_limit_scale=0.04,
+    )  # fmt: skip
+    binding = []
+    for _ in range(4):
+        q = pin.integrate(talos.model, talos.reference_configuration,
+                          0.15 * rng.normal(size=talos.nv))  # fmt: skip
+        v = 0.5 * rng.normal(size=talos.nv)
+        random_targets(talos, rng, tasks, q)
+        contact.reference_placement = placement(talos, q, LEFT)
+        tau = controller.compute_torques(q, v)
+        binding.append(int(np.sum(np.abs(tau) >= controller.torque_limit * (1 - 1e-9))))
+        qdd, _ = reference_qp(talos, tasks, [contact], q, v, controller.torque_limit)
+        error = np.linalg.norm(controller.joint_accelerations - qdd)
+        assert error <= 1e-6 * np.linalg.norm(qdd)
+    assert controller.stats.n_solved == 4 and min(binding) >= 3, binding
+
+
 # ---------------------------------------------------------------- transitions
 def test_removal_ramps_the_normal_force_bound_then_drops_the_contact(talos):
     """During a 0.25 s transition the right sole's normal force stays under the linear bound

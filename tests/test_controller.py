@@ -5,6 +5,7 @@ import warnings
 
 import numpy as np
 import pinocchio as pin
+import proxsuite
 import pytest
 
 from dmpopt.control import (
@@ -688,6 +689,19 @@ def test_construction_checks_name_the_argument(upper_body, talos):
     robot = dataclasses.replace(upper_body, torque_limit=unlimited)
     with pytest.raises(InvalidInputError, match=r"^robot.torque_limit must be > 0 for every"):
         InverseDynamicsController(robot, [PostureTask(robot)])
+
+
+def test_solver_defaults(upper_body):
+    """The documented defaults: eps_abs = duality-gap tolerance = 1e-6 (no relative one), 50
+    outer iterations of at most 10 inner ones, stopping on the duality gap too, a 5 ms budget,
+    proxsuite's PrimalDualLDLT factorisation."""
+    controller = InverseDynamicsController(upper_body, [PostureTask(upper_body)])
+    settings = controller.qp.settings
+    assert (settings.eps_abs, settings.eps_rel, settings.eps_duality_gap_abs) == (1e-6, 0.0, 1e-6)
+    assert (settings.max_iter, settings.max_iter_in, settings.check_duality_gap) == (50, 10, True)
+    assert controller.time_budget == 5e-3
+    backend = proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT
+    assert controller.qp.which_dense_backend() == backend
 
 
 def test_default_limited_joints_have_both_position_limits(upper_body):

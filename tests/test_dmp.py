@@ -471,6 +471,8 @@ def test_discrete_dmp_stores_read_only_float_arrays_and_names_each_bad_argument(
                                               r"expected \(2,\) to match weights$"),
         "weights": (np.zeros((0, 3)), r"^weights has shape \(0, 3\): a DMP needs at least one "
                                       r"DOF"),
+        "start": ([0, 1, 2], r"^start has shape \(3,\), expected \(2,\) to match weights "
+                             r"\(2, 3\)$"),
     }  # fmt: skip
     for name, (value, message) in bad.items():
         with pytest.raises(ShapeError, match=message):
@@ -501,6 +503,8 @@ def test_rhythmic_dmp_stores_read_only_floats_and_names_each_bad_argument():
     np.testing.assert_array_equal(flat.weights, np.arange(12.0).reshape(2, 3, 2))
     with pytest.raises(ShapeError, match=r"^weights has shape \(0, 3, 2\): a DMP needs"):
         RhythmicDMP(**{**arguments, "weights": np.zeros((0, 3, 2))})
+    with pytest.raises(InvalidInputError, match="^weights must be an array of real numbers"):
+        RhythmicDMP(**{**arguments, "weights": "flat"})
     assert dmp.canonical_state() == dmp.canonical_state(0.0)
     with pytest.raises(InvalidInputError, match="^phase"):
         dmp.canonical_state("east")

@@ -1,6 +1,7 @@
 """Tests of dmpopt.control: QP inverse dynamics, its tasks and contacts, computed torque."""
 
 import dataclasses
+import math
 import warnings
 
 import numpy as np
@@ -689,6 +690,48 @@ def test_construction_checks_name_the_argument(upper_body, talos):
     robot = dataclasses.replace(upper_body, torque_limit=unlimited)
     with pytest.raises(InvalidInputError, match=r"^robot.torque_limit must be > 0 for every"):
         InverseDynamicsController(robot, [PostureTask(robot)])
+
+
+def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_one(
+    upper_body, monkeypatch
+):
+    """Torque limits binding on a fixed base: the first tick's QP goes to proxsuite, whose
+    multipliers seed the active set that one KKT solve then certifies; the next tick at the
+    same state starts from that set (one KKT solve, no proxsuite call)."""
+    from dmpopt.control import qp_stages
+
+    calls = []
+
+    def recorded(problem, at_upper, at_lower, tolerance, rounds):
+        seeded = int(at_upper.sum() + at_lower.sum())
+        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds)
+        calls.append((rounds, seeded, solution is not None, solves))
+        return solution, solves
+
+    real = qp_stages._active_set
+    monkeypatch.setattr(qp_stages, "_active_set", recorded)
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
+                                           time_budget=1.0)  # fmt: skip
+    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
+    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    first = controller.compute_torques(q, v)
+    binding = int(np.sum(np.abs(first) >= controller.torque_limit * (1 - 1e-9)))
+    assert binding >= 3 and controller.stats.last_status == "PROXQP_SOLVED"
+    cold = controller.stats.last_iterations
+    assert calls == [(qp_stages._REFINEMENT_ROUNDS, binding, True, 1)]
+    second = controller.compute_torques(q, v)
+    assert calls[1:] == [(qp_stages._WARM_ROUNDS, binding, True, 1)]
+    assert (controller.stats.last_status, controller.stats.last_iterations) == (
+        "ACTIVE_SET_SOLVED", 1)  # fmt: skip
+    np.testing.assert_allclose(second, first, rtol=0, atol=1e-9)
+    # proxsuite again on that QP (as after a failed certificate): cold, it repeats the first
+    # solve; warm from its own answer, it needs fewer iterations, counted as proxsuite counts
+    qp, stage = controller._current, controller._current._limited
+    assert qp._run(stage, True, math.inf) and controller.stats.last_iterations == cold
+    assert qp._run(stage, False, math.inf)
+    warm = controller.stats.last_iterations
+    assert warm < cold and warm == stage.qp.results.info.iter  # one call: proxsuite's count
 
 
 def test_solver_defaults(upper_body):

@@ -43,8 +43,8 @@ def _entries(name: str) -> list[list[str]]:
 def main():
     by_hand = {words[0] for words in _entries("mutation_hand_kills.txt")}
     verdicts = {words[0]: words[1] for words in _entries("mutation_verdicts.txt")}
-    columns = ("killed", "timeout", "killed by hand", "equivalent", "unreachable", "removed",
-               "work-only", "survived")  # fmt: skip
+    columns = ("killed", "timeout", "segfault", "killed by hand", "equivalent", "unreachable",
+               "removed", "work-only", "survived")  # fmt: skip
     print(f"{'module':32s} {'mutants':>7s} " + " ".join(f"{c[:8]:>8s}" for c in columns)
           + f" {'score':>6s} {'score*':>6s}")  # fmt: skip
     not_killed = []
@@ -52,7 +52,7 @@ def main():
         codes = json.loads(meta.read_text())["exit_code_by_key"]
         statuses = {name: status_by_exit_code[code] for name, code in codes.items()}
         for name, status in statuses.items():
-            if status in CAUGHT:
+            if status in CAUGHT or status == "not checked":
                 continue
             if name in by_hand:
                 statuses[name] = "killed by hand"

@@ -324,11 +324,12 @@ def affine_errors(form, dt):
     return relative_error(plan_of(trajectory), key)
 
 
-def paper_kernel_errors(form, dt):
+def paper_kernel_errors(form, dt, turns=0):
     """Eq. (12)/(14) with the printed kernel exp(-h (mod(angle, 2 pi) - c)^2), over a
     stretch that does not cross the kernel's jump at angle 0 (phase 0.7 -> 4.7, or the
-    energy oscillator's angle 6.0 -> 1.0, which turns clockwise)."""
-    phase, duration = (0.7, 0.6) if form == "phase" else (6.0, 0.5)
+    energy oscillator's angle 6.0 -> 1.0, which turns clockwise); the phase oscillator
+    ``turns`` periods later, where mod(phase, 2 pi) is the same."""
+    phase, duration = (0.7 + 2 * np.pi * turns, 0.6) if form == "phase" else (6.0, 0.5)
     dmp, eq = rhythmic_case(form, seed=6, kernel="paper")
     times = grid(duration, dt)
     canonical = rhythmic_canonical(form, dmp.amplitude, 1.5, phase)
@@ -422,6 +423,13 @@ def test_printed_kernel_matches_plain_equations(form):
     """kernel="paper": eqs. (12) and (14) with the kernel as printed."""
     errors = paper_kernel_errors(form, 1e-3)
     assert np.all(errors < FACTOR * np.array(MEASURED["paper", form])), errors
+
+
+def test_printed_kernel_wraps_the_phase_of_later_periods():
+    """Two periods on (phase 0.7 + 4 pi -> 4.7 + 4 pi) the printed kernel sees the same
+    mod(phase, 2 pi): the same errors against the plain equations."""
+    errors = paper_kernel_errors("phase", 1e-3, turns=2)
+    assert np.all(errors < FACTOR * np.array(MEASURED["paper", "phase"])), errors
 
 
 @pytest.mark.parametrize("goal_scaling", ["paper", "rotation"])
@@ -872,3 +880,17 @@ def test_periodic_filter_starts_on_its_steady_cycle():
             z[k + 1] = decay * z[k] + (1 - decay) * alpha_z / 4 * (g - 0.5 * (y[k] + y[k + 1]))
         z[0] = z[-1]
     np.testing.assert_allclose(_filtered(unit, demo, periodic=True), z, rtol=1e-13, atol=1e-13)
+
+
+def test_simulate_starts_its_samples_at_the_initial_state():
+    """symbolic.simulate's first sample is the initial state given, not memory left by
+    np.empty; the next one has moved on."""
+    from dmpopt import symbolic
+
+    signature = symbolic.Signature("velocity", 1, 1, "gaussian")
+    initial = np.array([0.7, -0.4, 0.9, 0.3])
+    values = symbolic.parameters(goal=1.0, canonical_target=1.0,
+                                 gains=np.array([25.0, 6.25, 25.0, 6.25]))  # fmt: skip
+    states, *_ = symbolic.simulate(signature, 2, initial, 1e-3, values)
+    np.testing.assert_array_equal(states[0], initial)
+    assert np.all(np.isfinite(states[1])) and not np.array_equal(states[1], initial)

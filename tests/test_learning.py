@@ -944,6 +944,22 @@ def test_memory_bounds_of_a_task_and_of_a_batch_count_their_bytes():
         six.rollouts(np.zeros((k, 6, 2)))
 
 
+def test_batch_and_covariance_bounds_are_eight_bytes_a_value(monkeypatch):
+    """PI-BB with 10 weights and 10 roll-outs needs 8 * 10 * 10 bytes for a batch and as much
+    for its covariance: a budget of exactly 800 bytes is enough, 799 is not."""
+    from dmpopt import validation
+    from dmpopt.exceptions import ResourceLimitError
+
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 800.0)
+    PIBB(np.zeros((2, 5)), 0.1, n_rollouts=10)
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 799.0)
+    with pytest.raises(ResourceLimitError, match="^10 roll-outs of 10 values each needs about"):
+        PIBB(np.zeros((2, 5)), 0.1, n_rollouts=10)
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 8.0 * 10 * 12)  # batches of 12 values
+    with pytest.raises(ResourceLimitError, match="^a covariance over 12 weights needs about"):
+        PIBB(np.zeros((2, 6)), 0.1, n_rollouts=10)
+
+
 def test_task_basis_and_builder_checks():
     """The builders' DMP has the discrete basis of its own gains (distinct centres); a goal
     of the wrong shape and a zero duration are refused by name."""

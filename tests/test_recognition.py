@@ -920,3 +920,25 @@ def test_documented_defaults_of_the_curves(dmp, demo):
     """normalised_plan samples 200 points; first_part keeps the first half."""
     assert normalised_plan(dmp).shape == (200, 2)
     np.testing.assert_array_equal(first_part(demo).times, first_part(demo, 0.5).times)
+
+
+def test_plan_metric_factor_of_a_singular_metric_is_finite():
+    """Each basis function three times over: the plan metric G is singular and numpy's
+    eigenvalues of its null space round to about -1e-19; the factor stays finite (those
+    are clipped to 0) and L L^T = G."""
+    from dmpopt import DiscreteDMP
+    from dmpopt.recognition.features import plan_metric_factor
+
+    centres = np.repeat(np.exp(-np.linspace(0.0, 3.0, 6)), 3)
+    dmp = DiscreteDMP(
+        weights=np.zeros((2, 18)), start=[0, 0], goal=[1, 1], tau=1.0, centres=centres,
+        widths=np.full(18, 20.0), goal_scaling="translation",
+    )  # fmt: skip
+    factor = plan_metric_factor(dmp)
+    unit = dmp.with_tau(1.0)
+    duration = unit.convergence_time
+    response = unit.affine_plan(duration, duration / 199, start_velocity=0.0).weight_response[0]
+    gram = response.T @ response / 200
+    assert np.linalg.eigvalsh(gram).min() < 0.0  # the case this test is about
+    assert np.isfinite(factor).all()
+    np.testing.assert_allclose(factor @ factor.T, gram, rtol=0, atol=1e-12 * np.abs(gram).max())

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import os
 import warnings
 
 import numpy as np
@@ -1112,7 +1113,9 @@ def test_task_defaults_checks_and_names(upper_body):
     with pytest.warns(UserWarning) as caught:
         arm.set_reference(outside)
         arm.set_reference(outside)  # once per joint
-    assert len(caught) == 1 and caught[0].filename == __file__
+    assert len(caught) == 1
+    if not os.environ.get("MUTANT_UNDER_TEST"):  # mutmut's trampoline adds a frame
+        assert caught[0].filename == __file__  # the warning points at the caller
     assert str(caught[0].message) == (
         f"PostureTask: reference {outside[3]:.4g} rad of {name!r} is outside its position "
         f"limits [{lower[3]:.4g}, {upper[3]:.4g}]; the joint stops at its limit (clip the "

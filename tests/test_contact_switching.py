@@ -591,6 +591,8 @@ def test_contact_friction_and_force_checks_name_the_contact_and_argument(kind, t
         with pytest.raises(InvalidInputError, match=rf"^{kind.__name__}: expected finite 0 <= "
                            "min_normal_force < max_normal_force"):  # fmt: skip
             kind(talos, LEFT, min_normal_force=f_min, max_normal_force=f_max)
+    gentle = kind(talos, LEFT, stiffness=0.0, damping=0.5)  # gains >= 0, any size
+    assert (gentle.stiffness, gentle.damping) == (0.0, 0.5)
     for ragged in ("strong", [3.0, 4.0]):
         with pytest.raises(InvalidInputError, match="^min_normal_force/max_normal_force must be"):
             kind(talos, LEFT, max_normal_force=ragged)
@@ -748,15 +750,19 @@ class ElbowTask(Task):
 def test_fixed_base_tick_solves_the_normal_equations(posture):
     """Fixed base, no limit binding: qdd minimises sum_k w_k |J_k qdd - b_k|^2 + eps_a |qdd|^2,
     so (sum_k w_k J_k^T J_k + eps_a I) qdd = sum_k w_k J_k^T b_k, solved here with numpy. A hand
-    task of weight 5 with a user's joint task (the Cholesky path without posture terms), or
-    with a posture task on every joint (the Woodbury path)."""
+    task of weight 5 and one on the other hand's height and roll, with a user's joint task (the
+    Cholesky path without posture terms), or with a posture task on every joint (the Woodbury
+    path)."""
     from robots import load_talos
 
     robot = load_talos("reduced", fixed_base=True)
     rng = np.random.default_rng(11)
     hand = FrameTask(robot, "gripper_left_base_link", weight=5.0, stiffness=10.0)
     elbow = ElbowTask(robot)  # a user's task: its rows need the tick's q
-    tasks = [hand, PostureTask(robot, weight=0.5, stiffness=4.0) if posture else elbow]
+    # the right hand's height and roll only: a position and an orientation row
+    other = FrameTask(robot, "gripper_right_base_link", weight=3.0, stiffness=20.0,
+                      components=[2, 3])  # fmt: skip
+    tasks = [hand, other, PostureTask(robot, weight=0.5, stiffness=4.0) if posture else elbow]
     controller = InverseDynamicsController(
         robot, tasks, max_iterations=1, time_budget=1.0, joint_limit_horizon=None
     )
@@ -764,6 +770,8 @@ def test_fixed_base_tick_solves_the_normal_equations(posture):
     v = 0.1 * rng.normal(size=robot.nv)
     current = placement(robot, q, hand.frame)
     hand.set_target(current * pin.exp6(0.01 * rng.normal(size=6)), 0.05 * rng.normal(size=6))
+    current = placement(robot, q, other.frame)
+    other.set_target(current * pin.exp6(0.02 * rng.normal(size=6)))
     controller.compute_torques(q, v)
     assert controller.stats.last_answer == "direct" and controller.stats.last_iterations == 0
     normal, right = 1e-6 * np.eye(robot.nv), np.zeros(robot.nv)  # eps_a = 1e-6 by default

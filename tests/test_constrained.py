@@ -218,6 +218,26 @@ def test_two_infeasible_groups_are_listed_in_one_message():
     )
 
 
+def test_bounds_of_one_side_equal_limits_and_names():
+    """A lower position bound alone is accepted (no upper one) and holds on the rollout;
+    position_lower == position_upper is allowed, a crossing refused for the DOF that
+    crosses; each field and a via-point's tolerance name themselves."""
+    lower = np.array([-0.02, -0.05])
+    _, report = fit_weights_constrained(DEMO, reference=REFERENCES["velocity"], n_samples=101,
+                                        bounds=Bounds(position_lower=lower))  # fmt: skip
+    assert np.all(report.trajectory.positions >= lower - 1e-9)
+    pinned = Bounds(position_lower=[0.0, 1.0], position_upper=[0.0, 1.0])
+    np.testing.assert_array_equal(pinned.position_lower, pinned.position_upper)
+    crossing = r"^position_lower exceeds position_upper for DOF\(s\) \[1\]"
+    with pytest.raises(InvalidInputError, match=crossing):
+        Bounds(position_lower=[0.0, 1.5], position_upper=[0.0, 1.0])
+    for name in ("position_lower", "position_upper", "velocity", "acceleration", "jerk"):
+        with pytest.raises(InvalidInputError, match=f"^{name} must be an array of real numbers"):
+            Bounds(**{name: "high"})
+    with pytest.raises(InvalidInputError, match="^tolerance must be an array of real numbers"):
+        ViaPoint(0.5, [0.0, 0.0], tolerance="loose")
+
+
 def test_invalid_requests_are_rejected():
     """Wrong objective, negative limits and via-points outside the plan are refused."""
     with pytest.raises(InvalidInputError, match="objective must be one of"):

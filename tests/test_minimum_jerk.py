@@ -1,14 +1,17 @@
 """Minimum-jerk baselines: closed form, via-points, and the bounded QP."""
 
+import importlib
+
 import numpy as np
 import pytest
 import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dmpopt.exceptions import InfeasibleProblem
+from dmpopt.exceptions import InfeasibleProblem, InvalidInputError
 from dmpopt.fitting.constrained import Bounds, ViaPoint
 from dmpopt.fitting.minimum_jerk import (
+    jerk_response,
     minimum_jerk,
     minimum_jerk_constrained,
     minimum_jerk_via_points,
@@ -185,3 +188,99 @@ def test_active_limits_are_tightened_by_the_margin_in_their_unit(quantity):
     unit = length / duration**power
     np.testing.assert_allclose(np.abs(values(plan)).max(), limit - margin * unit, rtol=1e-9)
     assert report.violations[quantity] == 0.0 and report.iterations >= 1 and report.solve_time > 0
+
+
+def test_sampling_defaults_and_grid():
+    """dt = 1 ms by default, samples at k dt from 0 to the duration; n_segments = 60 by
+    default (the same plan as asked for explicitly)."""
+    plan = minimum_jerk([0.0], [1.0], 0.5)
+    np.testing.assert_allclose(plan.times, np.arange(501) * 1e-3, rtol=0, atol=1e-12)
+    coarse = minimum_jerk([0.0], [1.0], 1.2, 0.1)
+    np.testing.assert_allclose(coarse.times, np.arange(13) * 0.1, rtol=0, atol=1e-12)
+    default, _ = minimum_jerk_constrained([0.0], [1.0], 1.0, dt=0.01)
+    explicit, _ = minimum_jerk_constrained([0.0], [1.0], 1.0, dt=0.01, n_segments=60)
+    np.testing.assert_array_equal(default.positions, explicit.positions)
+    other, _ = minimum_jerk_constrained([0.0], [1.0], 1.0, dt=0.01, n_segments=61)
+    assert np.abs(other.positions - default.positions).max() > 1e-9
+
+
+def test_arguments_are_checked_by_name():
+    """start, goal, via_points and each via-point's position and tolerance name themselves;
+    a via-point exactly at the end is accepted, one after it refused."""
+    from dmpopt.exceptions import ShapeError
+
+    for name in ("start", "goal"):
+        with pytest.raises(InvalidInputError, match=f"^{name} must be an array of real numbers"):
+            minimum_jerk(**{"start": [0.0], "goal": [1.0], name: "here"}, duration=1.0)
+    with pytest.raises(InvalidInputError, match="^via_points must be a sequence"):
+        minimum_jerk_via_points([0.0], [1.0], 1.0, "halfway")
+    with pytest.raises(InvalidInputError, match="^via_points must be a sequence"):
+        minimum_jerk_constrained([0.0], [1.0], 1.0, via_points="halfway")
+    two = ([0.0, 0.0], [1.0, 1.0])
+    with pytest.raises(ShapeError, match=r"^via_points\[0\]\.position has shape \(3,\)"):
+        minimum_jerk_via_points(*two, 1.0, [ViaPoint(0.5, [0.5] * 3)])
+    with pytest.raises(ShapeError, match=r"^via_points\[0\]\.tolerance has shape \(3,\)"):
+        minimum_jerk_constrained(*two, 1.0, via_points=[ViaPoint(0.5, [0.5] * 2, [0.1] * 3)])
+    end, _ = minimum_jerk_constrained([0.0], [1.0], 1.0, dt=0.01,
+                                      via_points=[ViaPoint(1.0, [1.0])])  # fmt: skip
+    assert end.positions[-1, 0] == pytest.approx(1.0, abs=1e-6)
+    with pytest.raises(InvalidInputError, match=r"^via_points\[0\]\.time = 1\.1 s is after"):
+        minimum_jerk_constrained([0.0], [1.0], 1.0, via_points=[ViaPoint(1.1, [1.0])])
+
+
+def test_two_via_points_are_met_with_continuous_derivatives():
+    """Three quintic segments through two via-points: each point met at its time, velocity
+    and acceleration continuous across them (finite differences of the 1 ms plan), rest at
+    both ends."""
+    vias = [ViaPoint(0.3, [0.6, -0.2]), ViaPoint(0.7, [0.2, 0.5])]
+    plan = minimum_jerk_via_points([0.0, 0.0], [1.0, 1.0], 1.0, vias, dt=1e-3)
+    for via in vias:
+        k = int(round(via.time / 1e-3))
+        np.testing.assert_allclose(plan.positions[k], via.position, rtol=0, atol=1e-9)
+        for values in (plan.velocities, plan.accelerations):
+            jump = np.abs(values[k + 1] - 2 * values[k] + values[k - 1]).max()
+            assert jump < 1e-3 * np.abs(values).max()
+    np.testing.assert_allclose(plan.velocities[[0, -1]], 0.0, atol=1e-9)
+    np.testing.assert_allclose(plan.positions[-1], [1.0, 1.0], atol=1e-9)
+
+
+def test_memory_estimates_are_eight_bytes_a_value(monkeypatch):
+    """The refusals count 8 bytes a value: 4 n D for a sampled plan, 3 n S for the jerk
+    responses, 7 n S for the constrained QP (n samples, D DOFs, S segments); a budget of
+    exactly that much is enough, a byte less is not, and the message names the remedy."""
+    from dmpopt import validation
+    from dmpopt.exceptions import ResourceLimitError
+
+    n, segments = 101, 60
+    cases = [
+        (8.0 * 4 * n * 2, lambda: minimum_jerk([0.0, 0.0], [1.0, 1.0], 1.0, 0.01),
+         r"^sampling 1 s every 0\.01 s \(2 DOFs\) needs .*: raise dt or shorten the duration$"),
+        (8.0 * 3 * n * segments, lambda: jerk_response(np.linspace(0.0, 1.0, n), segments),
+         r"^jerk responses at 101 times for 60 segments needs .*: lower n_segments or use "
+         r"fewer times$"),
+        (8.0 * 7 * n * segments, lambda: minimum_jerk_constrained([0.0], [1.0], 1.0, dt=0.01),
+         r"^a minimum-jerk QP with 101 samples and 60 jerk segments needs .*: lower "
+         r"n_segments or sample more coarsely \(raise dt\)$"),
+    ]  # fmt: skip
+    for n_bytes, call, message in cases:
+        monkeypatch.setattr(validation, "MEMORY_BUDGET", n_bytes)
+        call()
+        monkeypatch.setattr(validation, "MEMORY_BUDGET", n_bytes - 1)
+        with pytest.raises(ResourceLimitError, match=message):
+            call()
+    module = importlib.import_module("dmpopt.fitting.minimum_jerk")
+
+    monkeypatch.setattr(module, "MEMORY_BUDGET", 32 * 100)  # n_samples <= budget / 32 D
+    minimum_jerk([0.0], [1.0], 1.0, n_samples=100)
+    with pytest.raises(ResourceLimitError, match="^n_samples = 101 exceeds the bound 100 "):
+        minimum_jerk([0.0], [1.0], 1.0, n_samples=101)
+
+
+def test_a_constrained_via_point_of_the_wrong_size_is_named():
+    """A via-point with three entries for two DOFs: the library's ShapeError naming it (it
+    used to reach numpy's vstack first)."""
+    from dmpopt.exceptions import ShapeError
+
+    with pytest.raises(ShapeError, match=r"^via_points\[0\]\.position has shape \(3,\)"):
+        minimum_jerk_constrained([0.0, 0.0], [1.0, 1.0], 1.0,
+                                 via_points=[ViaPoint(0.5, [0.5] * 3)])  # fmt: skip

@@ -343,6 +343,7 @@ def minimum_jerk_constrained(
         "lower n_segments or sample more coarsely (raise dt)",
     )
     response = jerk_response(times, n_segments)
+    vias = _via_rows(via_points, duration, n_segments, n_dofs)  # checks their sizes
     length = _length_scale(start, goal, via_points)
     units = dict(
         zip(QUANTITIES, [length, length / duration, length / duration**2, length / duration**3])
@@ -354,7 +355,6 @@ def minimum_jerk_constrained(
     groups = end_groups(goal, (0.0, 0.0, 0.0), times.size) + limit_groups(
         bounds, times.size, n_dofs
     )
-    vias = _via_rows(via_points, duration, n_segments, n_dofs)
     rows = _constraint_rows(groups, vias, response, free, step, start, units, margin)
     qp = solve_blocks(
         np.eye(n_segments),

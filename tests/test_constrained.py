@@ -135,6 +135,15 @@ def test_euclidean_via_point_uses_the_nlp():
     assert report.solver == "ipopt" and report.status == "Solve_Succeeded"
     assert report.iterations > 0 and report.working_sets is None
     assert np.linalg.norm(report.trajectory.positions[50] - point) <= 0.02 + 1e-7
+    # a box via-point after the ball one holds too
+    box = ViaPoint(0.8, [0.8, 0.95], tolerance=0.01)
+    _, both = fit_weights_constrained(
+        DEMO, reference=REFERENCES["velocity"], n_samples=101,
+        via_points=[ViaPoint(0.5, point, tolerance=0.02, norm="ball"), box],
+    )  # fmt: skip
+    assert np.linalg.norm(both.trajectory.positions[50] - point) <= 0.02 + 1e-7
+    assert np.abs(both.trajectory.positions[80] - box.position).max() <= 0.01 + 1e-7
+    assert np.abs(report.trajectory.positions[80] - box.position).max() > 0.02  # it binds
 
 
 def test_unreachable_euclidean_via_point_is_reported_as_such():

@@ -228,11 +228,11 @@ def test_arguments_are_checked_by_name():
         minimum_jerk_constrained([0.0], [1.0], 1.0, via_points=[ViaPoint(1.1, [1.0])])
 
 
-def test_two_via_points_are_met_with_continuous_derivatives():
-    """Three quintic segments through two via-points: each point met at its time, velocity
+def test_three_via_points_are_met_with_continuous_derivatives():
+    """Four quintic segments through three via-points: each point met at its time, velocity
     and acceleration continuous across them (finite differences of the 1 ms plan), rest at
     both ends."""
-    vias = [ViaPoint(0.3, [0.6, -0.2]), ViaPoint(0.7, [0.2, 0.5])]
+    vias = [ViaPoint(0.3, [0.6, -0.2]), ViaPoint(0.5, [0.1, 0.3]), ViaPoint(0.7, [0.2, 0.5])]
     plan = minimum_jerk_via_points([0.0, 0.0], [1.0, 1.0], 1.0, vias, dt=1e-3)
     for via in vias:
         k = int(round(via.time / 1e-3))
@@ -272,7 +272,8 @@ def test_memory_estimates_are_eight_bytes_a_value(monkeypatch):
 
     monkeypatch.setattr(module, "MEMORY_BUDGET", 32 * 100)  # n_samples <= budget / 32 D
     minimum_jerk([0.0], [1.0], 1.0, n_samples=100)
-    with pytest.raises(ResourceLimitError, match="^n_samples = 101 exceeds the bound 100 "):
+    with pytest.raises(ResourceLimitError, match="^n_samples = 101 exceeds the bound 100 .*; "
+                       "sample more coarsely$"):  # fmt: skip
         minimum_jerk([0.0], [1.0], 1.0, n_samples=101)
 
 
@@ -284,3 +285,15 @@ def test_a_constrained_via_point_of_the_wrong_size_is_named():
     with pytest.raises(ShapeError, match=r"^via_points\[0\]\.position has shape \(3,\)"):
         minimum_jerk_constrained([0.0, 0.0], [1.0, 1.0], 1.0,
                                  via_points=[ViaPoint(0.5, [0.5] * 3)])  # fmt: skip
+
+
+def test_a_box_via_point_binds_at_the_edge_of_its_band_and_a_hold_stays():
+    """0 -> 1 in 1 s passes 0.5 at mid-time; a via-point 0.3 +- 0.05 there is met at the
+    band's upper edge 0.35 (the nearest to the free path), not inside or at 0.25. A move from
+    1 to 1 (no extent) stays at 1, at rest."""
+    via = ViaPoint(0.5, [0.3], tolerance=0.05)
+    plan, _ = minimum_jerk_constrained([0.0], [1.0], 1.0, dt=0.01, via_points=[via], margin=0.0)
+    assert plan.positions[50, 0] == pytest.approx(0.35, abs=1e-6)
+    hold, _ = minimum_jerk_constrained([1.0], [1.0], 1.0, dt=0.01)
+    np.testing.assert_allclose(hold.positions, 1.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(hold.velocities, 0.0, rtol=0, atol=1e-9)

@@ -433,6 +433,16 @@ def test_without_a_compiler_the_vm_gives_identical_steps(
     assert leftovers == []
 
 
+def test_without_a_compiler_on_the_path_the_warning_says_so(monkeypatch, tmp_path, small_dmp):
+    """No $CC and no cc or gcc on PATH: the VM fallback's warning names that and the fix."""
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path / "cache"))
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))  # an empty folder: no compiler on it
+    with pytest.warns(RuntimeWarning, match=r"no cc or gcc on PATH \(install gcc, or set CC "
+                      r"to a C compiler\)"):  # fmt: skip
+        assert small_dmp.stepper(1e-3, compile=True).compiled is False
+
+
 def test_stepper_says_whether_its_step_is_compiled(monkeypatch, tmp_path, small_dmp):
     """``Stepper.compiled``: False on the VM fallback (what the studies report), True with C."""
     monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path / "cache"))

@@ -701,7 +701,7 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
     same state starts from that set (one KKT solve, no proxsuite call)."""
     from dmpopt.control import qp_stages
 
-    calls = []
+    real, calls = qp_stages._active_set, []
 
     def recorded(problem, at_upper, at_lower, tolerance, rounds):
         seeded = int(at_upper.sum() + at_lower.sum())
@@ -709,7 +709,6 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
         calls.append((rounds, seeded, solution is not None, solves))
         return solution, solves
 
-    real = qp_stages._active_set
     monkeypatch.setattr(qp_stages, "_active_set", recorded)
     posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
     controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,

@@ -563,7 +563,7 @@ def test_joint_limits_hold_in_simulation(upper_body, horizon):
     reference[elbow], reference[head] = elbow_limit + 0.3, 0.7
     posture.set_reference(reference)
     controller = InverseDynamicsController(
-        upper_body, [posture], joint_limit_horizon=horizon, time_budget=1.0  # a busy machine
+        upper_body, [posture], joint_limit_horizon=horizon, time_budget=1.0
     )
     simulator = Simulator(upper_body.model, 1e-3)
     state = simulator.reset(upper_body.reference_configuration)

@@ -499,9 +499,7 @@ def test_planar_biped_stands_on_one_point_foot(biped):
     com = ComTask(biped, weight=10.0, stiffness=50.0)
     torso = FrameTask(biped, "torso", weight=1.0, stiffness=5.0, components="orientation")
     contacts = [PointContact(biped, f, friction_coefficient=0.8) for f in biped.foot_frames]
-    controller = InverseDynamicsController(
-        biped, [posture, com, torso], contacts, time_budget=1.0
-    )
+    controller = InverseDynamicsController(biped, [posture, com, torso], contacts, time_budget=1.0)
     c0 = pin.centerOfMass(biped.model, biped.create_data(), q0)
     left_x = foot_positions(biped, q0)[1, 0]
     right0 = placement(biped, q0, right).translation

@@ -130,6 +130,7 @@ def discrete_basis(n_basis: int, gains: tuple) -> tuple[np.ndarray, np.ndarray]:
     measured on LASA, it lowers the reproduction error by a quarter against half height).
     One basis function is allowed: its normalised activation is 1 whatever its width, so
     the forcing term is :math:`w v` (its width is set as if the spacing were the whole phase).
+    ``gains`` are a DMP's :attr:`~dmpopt.dmp.DiscreteDMP.gains`; the first four are read.
     """
     n_basis = check_n_basis(n_basis)
     end = convergence_time("velocity", gains[:4])

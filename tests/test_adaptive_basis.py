@@ -6,6 +6,7 @@ from problems import minimum_jerk_demo
 
 from dmpopt import InvalidInputError, Trajectory, fit_discrete, reproduction_error
 from dmpopt.basis import discrete_basis
+from dmpopt.fitting import adaptive_basis
 from dmpopt.fitting.adaptive_basis import _numbers, fit_adaptive
 
 DEMO = minimum_jerk_demo(n_dofs=2, n_steps=401)
@@ -128,3 +129,135 @@ def test_chosen_dmp_generalises_like_the_scaling_promises(goal_scaling):
 def test_bad_input_is_refused_with_the_argument_named(call, match):
     with pytest.raises(InvalidInputError, match=match):
         call()
+
+
+# ---------------------------------------------------------------- the search, on a known landscape
+SCALES = tuple(2.0**k for k in range(-3, 4))  # 1/8 ... 8, the factor 1 at index 3
+
+
+def _scripted(monkeypatch, landscape):
+    """Replace the held-out score by ``landscape(n_basis, width_scale)`` and record the
+    calls: the growth and width logic then runs on errors known in advance."""
+    calls = []
+
+    def score(self, n_basis, scale, train):
+        calls.append((n_basis, scale))
+        return landscape(n_basis, scale)
+
+    monkeypatch.setattr(adaptive_basis._Demo, "validation_error", score)
+    return calls
+
+
+@pytest.mark.parametrize("best", [0, 1, 2, 3, 4, 5, 6])
+def test_width_descent_from_the_factor_one_reaches_the_minimum(monkeypatch, best):
+    """A unimodal landscape over the factors, lowest at index ``best``: the descent starts at
+    the factor 1, tries both of its neighbours, walks one factor at a time towards the
+    minimum (each step to the better neighbour) and stops there, having tried exactly the
+    factors from the start to one past the minimum."""
+    calls = _scripted(monkeypatch, lambda n, s: 1.0 + (np.log2(s) + 3 - best) ** 2)
+    choice = fit_adaptive(DEMO, 1e-9, width_scales=SCALES, min_basis=8, max_basis=8)
+    assert choice.width_scale == SCALES[best] and choice.validation_error == 1.0
+    low, high = min(best, 3), max(best, 3)
+    tried = set(range(max(low - 1, 0), min(high + 1, 6) + 1))
+    assert {SCALES.index(s) for _, s in calls} == tried
+
+
+def test_width_descent_takes_the_better_of_two_falling_neighbours(monkeypatch):
+    """Both neighbours of the factor 1 are lower; the lower one (above) wins."""
+    errors = {0.125: 9.0, 0.25: 8.0, 0.5: 1.5, 1.0: 2.0, 2.0: 1.2, 4.0: 1.4, 8.0: 9.0}
+    _scripted(monkeypatch, lambda n, s: errors[s])
+    choice = fit_adaptive(DEMO, 1e-9, width_scales=SCALES, min_basis=8, max_basis=8)
+    assert choice.width_scale == 2.0
+
+
+def test_growth_follows_the_documented_defaults(monkeypatch):
+    """Defaults: 5 basis functions first, 1.5 times more each step (rounded up), up to 200;
+    an error that falls by 10 % per step never stalls, so every number is tried."""
+    calls = _scripted(monkeypatch, lambda n, s: 0.9**n * (1.0 + abs(np.log2(s))))
+    choice = fit_adaptive(_curve(n_steps=399), 1e-30)  # 200 training rows
+    numbers = [5, 8, 12, 18, 27, 41, 62, 93, 140, 200]
+    assert sorted({n for n, _ in calls}) == numbers
+    assert (choice.n_basis, choice.width_scale, choice.stopped) == (200, 1.0, "max_basis")
+
+
+def test_growth_by_a_factor_near_one_adds_one_basis_function(monkeypatch):
+    calls = _scripted(monkeypatch, lambda n, s: 1.0 / n)
+    fit_adaptive(DEMO, 1e-30, width_scales=(1.0,), min_basis=5, max_basis=9, growth=1.01)
+    assert [n for n, _ in calls] == [5, 6, 7, 8, 9]
+
+
+@pytest.mark.parametrize(
+    "errors, min_improvement, stopped, chosen",
+    [
+        # each step lowers the best by 1 % < 2 %: two stale steps end growth at the first
+        ({5: 1.0, 8: 0.99, 12: 0.985, 18: 0.1}, 0.02, "no improvement", 5),
+        # one stale step, then a real improvement: growth goes on
+        ({5: 1.0, 8: 0.99, 12: 0.5, 18: 0.495, 27: 0.494}, 0.02, "no improvement", 12),
+        # an equal error lowers the best by 0 %, enough for min_improvement = 0
+        ({5: 1.0, 8: 1.0, 12: 1.0, 18: 0.2}, 0.0, "tolerance", 18),
+        # exactly at the tolerance (0.2) stops growth
+        ({5: 1.0, 8: 0.5, 12: 0.2, 18: 0.01}, 0.02, "tolerance", 12),
+    ],
+)
+def test_growth_stops_as_documented(monkeypatch, errors, min_improvement, stopped, chosen):
+    _scripted(monkeypatch, lambda n, s: errors[n])
+    choice = fit_adaptive(
+        DEMO, 0.2, width_scales=(1.0,), max_basis=27, min_improvement=min_improvement
+    )
+    assert (choice.stopped, choice.n_basis, choice.validation_error) == (
+        stopped,
+        chosen,
+        errors[chosen],
+    )
+
+
+# ---------------------------------------------------------------- what the fits are trained on
+def test_held_out_samples_are_the_odd_ones():
+    """An outlier of 1 at odd sample 201 of a demo the layout fits closely: held out, it is
+    the validation error alone, 1 / sqrt(200) (200 held-out samples), and it leaves the
+    fit untouched."""
+    demo = minimum_jerk_demo(n_dofs=1, n_steps=401)
+    positions = demo.positions.copy()
+    positions[201] += 1.0
+    spiked = Trajectory(demo.times, positions, demo.velocities, demo.accelerations)
+    choice = fit_adaptive(spiked, 1e-9, width_scales=(1.0,), min_basis=15, max_basis=15)
+    assert choice.validation_error == pytest.approx(1.0 / np.sqrt(200), rel=1e-3)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+@pytest.mark.parametrize("method", ["position", "least_squares", "lwr"])
+def test_one_layout_gives_fit_discrete_for_every_option(form, method):
+    """As test_one_layout_gives_fit_discrete, for a demo that starts moving, both forms and
+    gains other than the defaults."""
+    demo = _curve()
+    moving = Trajectory.from_positions(demo.times[50:] - demo.times[50], demo.positions[50:])
+    options = dict(method=method, form=form, alpha_z=16.0, alpha_v=12.0, regularization=1e-6)
+    choice = fit_adaptive(moving, 1e-30, width_scales=(1.0,), min_basis=9, max_basis=9, **options)
+    expected = fit_discrete(moving, 9, **options)
+    assert (choice.dmp.form, choice.dmp.alpha_z, choice.dmp.alpha_v) == (form, 16.0, 12.0)
+    scale = np.abs(expected.weights).max()
+    np.testing.assert_allclose(choice.dmp.weights, expected.weights, rtol=1e-9, atol=1e-9 * scale)
+    np.testing.assert_allclose(choice.dmp.start_velocity, moving.velocities[0], rtol=1e-12)
+
+
+def test_short_demos_down_to_six_samples():
+    """Six samples: four train (0, 2, 4 and the last), two are held out; max_basis may equal
+    the training rows. A 20-sample demo fits from 5 basis functions (fewer than the 30 of
+    fit_discrete's default)."""
+    six = minimum_jerk_demo(n_dofs=1, n_steps=6)
+    choice = fit_adaptive(six, 1e-30, width_scales=(1.0,), min_basis=4, max_basis=4)
+    assert choice.n_basis == 4
+    twenty = minimum_jerk_demo(n_dofs=1, n_steps=20)
+    assert fit_adaptive(twenty, 1e-30, width_scales=(1.0,), max_basis=8).n_basis <= 8
+
+
+@pytest.mark.parametrize(
+    "scales, match",
+    [
+        ((0.0, 1.0), "width_scales must be a finite number > 0, got 0.0"),
+        ((1.0, 1.0), r"width_scales must be sorted ascending without repeats, got \(1.0, 1.0\)"),
+    ],
+)
+def test_width_scales_are_positive_and_distinct(scales, match):
+    with pytest.raises(InvalidInputError, match=match):
+        fit_adaptive(DEMO, 0.1, width_scales=scales)

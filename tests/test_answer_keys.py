@@ -656,6 +656,107 @@ def test_lwr_weights_are_per_basis_weighted_least_squares():
     np.testing.assert_allclose(dmp.weights, key, rtol=0, atol=5e-11 * np.abs(key).max())
 
 
+def test_least_squares_weights_are_ridge_regression_on_eq_7_features():
+    """The same closed forms as the LWR key; the global regression of the forcing targets on
+    the features psi_i v / sum_j psi_j with a ridge lambda = 1e-3 trace(A^T A) / N."""
+    duration, n = 1.0, 1001
+    t = np.linspace(0, duration, n)
+    start, goal = np.array([0.3, -1.0]), np.array([1.5, 0.5])
+    y, yd, ydd = (np.outer(q, goal - start) for q in quintic(0.0, 1.0, duration, t))
+    demo = Trajectory(t, y + start, yd, ydd)
+    options = dict(form="acceleration", method="least_squares", goal_scaling="translation")
+    dmp = fit_discrete(demo, 12, regularization=1e-3, **options)
+    tau = dmp.tau
+    phase = canonical_phase(t, tau)
+    phase_velocity = (ALPHA / 2) ** 2 * (t / tau) * np.exp(-(ALPHA / 2) * t / tau)
+    r = goal + (start - goal) * np.exp(-(ALPHA / 2) * t / tau)[:, None]
+    targets = tau**2 * ydd - ALPHA * (ALPHA / 4 * (r - (y + start)) - tau * yd)
+    psi = np.exp(-dmp.widths * (phase[:, None] - dmp.centres) ** 2)
+    features = psi * phase_velocity[:, None] / psi.sum(axis=1, keepdims=True)
+    gram = features.T @ features
+    ridge = 1e-3 * np.trace(gram) / 12
+    key = np.linalg.solve(gram + ridge * np.eye(12), features.T @ targets).T
+    # measured 1.7e-11 of the largest weight (the library's phase is RK4 at 0.5 ms / tau)
+    np.testing.assert_allclose(dmp.weights, key, rtol=0, atol=7e-11 * np.abs(key).max())
+
+
+def test_position_weights_solve_the_goal_constrained_ridge_problem():
+    """method="position": min |R w - (y - y_free)|^2 + lambda |w|^2 with the last sample
+    held to the goal, lambda = 1e-2 trace(R^T R) / N. R and y_free come from rollouts of
+    the fitted DMP with each weight set to one (the plan is affine in the weights); the
+    KKT system is solved here."""
+    demo = minimum_jerk_demo(n_dofs=1, n_steps=201)
+    moving = Trajectory.from_positions(demo.times[20:] - demo.times[20], demo.positions[20:])
+    dmp = fit_discrete(moving, 8, regularization=1e-2, goal_scaling="translation")
+    dt = moving.duration / (moving.n_steps - 1)
+
+    def plan(weights):
+        return dmp.replace(weights=weights).rollout(moving.duration, dt).positions[:, 0]
+
+    free = plan(np.zeros((1, 8)))
+    response = np.column_stack([plan(np.eye(8)[[i]]) - free for i in range(8)])
+    gram = response.T @ response
+    kkt = np.zeros((9, 9))
+    kkt[:8, :8] = gram + 1e-2 * np.trace(gram) / 8 * np.eye(8)
+    kkt[:8, 8] = kkt[8, :8] = response[-1]
+    residual = moving.positions[:, 0] - free
+    rhs = np.r_[response.T @ residual, residual[-1]]
+    key = np.linalg.solve(kkt, rhs)[:8]
+    # measured 6.9e-15 of the largest weight
+    np.testing.assert_allclose(dmp.weights[0], key, rtol=0, atol=3e-14 * np.abs(key).max())
+    assert abs(plan(dmp.weights)[-1] - moving.positions[-1, 0]) < 1e-12
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+@pytest.mark.parametrize("method", ["least_squares", "lwr"])
+def test_rhythmic_regressions_are_plain_least_squares(form, method):
+    """tau = P / (2 pi); the canonical state on its limit cycle from phase 0 at the demo's
+    first sample (t0 = 2 s): (phi, r) = (t / tau, A) for eq. (11), (x, tau x') = (A cos,
+    -A sin)(t / tau) for eq. (13); the features of eqs. (12) and (14) with von Mises kernels;
+    targets f = tau y' - z of eq. (15) with the periodic filter about the demo's mean; then
+    ridge regression (lambda = 1e-3 trace / 2N) or LWR per basis function (2 x 2 weighted
+    least squares, unnormalised psi)."""
+    base = periodic_demo()
+    demo = Trajectory.from_positions(base.times + 2.0, base.positions)
+    n_basis, amplitude, alpha_z, period = 8, 1.5, 20.0, 0.8
+    dmp = fit_rhythmic(
+        demo, n_basis, period=period, form=form, method=method, amplitude=amplitude,
+        alpha_z=alpha_z, regularization=1e-3,
+    )  # fmt: skip
+    tau = period / (2 * np.pi)
+    assert dmp.tau == pytest.approx(tau, rel=1e-15)
+    t = demo.times - demo.times[0]
+    angle = t / tau if form == "phase" else -t / tau
+    carrier = amplitude * np.c_[np.cos(t / tau), np.sin(angle)]
+    centres, widths = rhythmic_basis(n_basis, "von_mises")
+    psi = np.exp(widths * (np.cos(angle[:, None] - centres) - 1.0))
+    y, setpoint = demo.positions, demo.positions.mean(axis=0)
+    z = np.empty_like(y)
+    z[0] = tau * demo.velocities[0]
+    for _ in range(2):
+        for k in range(demo.n_steps - 1):
+            decay = np.exp(-alpha_z * (demo.times[k + 1] - demo.times[k]) / tau)
+            z[k + 1] = decay * z[k] + (1 - decay) * alpha_z / 4 * (setpoint - (y[k] + y[k + 1]) / 2)
+        z[0] = z[-1]
+    targets = tau * demo.velocities - z
+    if method == "least_squares":
+        normalised = psi / psi.sum(axis=1, keepdims=True)
+        features = (normalised[:, :, None] * carrier[:, None, :]).reshape(len(t), -1)
+        gram = features.T @ features
+        ridge = 1e-3 * np.trace(gram) / (2 * n_basis)
+        key = np.linalg.solve(gram + ridge * np.eye(2 * n_basis), features.T @ targets).T
+    else:
+        key = np.empty((demo.n_dofs, n_basis, 2))
+        for i in range(n_basis):
+            moments = (psi[:, i, None] * carrier).T @ carrier
+            key[:, i] = np.linalg.solve(moments, (psi[:, i, None] * carrier).T @ targets).T
+    actual = dmp.weights.reshape(demo.n_dofs, -1)
+    key = key.reshape(demo.n_dofs, -1)
+    # measured 2.3e-14 (least squares) and 4.4e-12 (LWR, 2 x 2 solves) of the largest weight
+    tolerance = 1e-13 if method == "least_squares" else 2e-11
+    np.testing.assert_allclose(actual, key, rtol=0, atol=tolerance * np.abs(key).max())
+
+
 # ---------------------------------------------------------------------------------------
 # Documented defaults and messages (found untested by mutation testing, docs/mutation.md)
 # ---------------------------------------------------------------------------------------

@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from problems import minimum_jerk_demo, periodic_demo
 
 from dmpopt import (
@@ -216,3 +218,212 @@ def test_still_demo_is_translated_and_paper_refused():
     np.testing.assert_allclose(plan, np.tile([0.3, -1.0], (len(plan), 1)), atol=1e-12)
     with pytest.raises(InvalidInputError, match=r"DOF\(s\) \[0, 1\] \(largest: without bound\)"):
         fit_discrete(demo, 10, goal_scaling="paper")
+
+
+# ---------------------------------------------------------------- arguments and documented bounds
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda d: fit_discrete(d, 10, regularization=-1.0),
+         r"^regularization must be a finite number >= 0, got -1.0$"),
+        (lambda d: fit_rhythmic(d, 10, regularization=-1.0),
+         r"^regularization must be a finite number >= 0, got -1.0$"),
+        (lambda d: fit_rhythmic(d, 10, warm_up_periods=-1),
+         r"^warm_up_periods must be an integer >= 0, got -1$"),
+        (lambda d: fit_rhythmic(d, 10, periodicity_tolerance=0.0),
+         r"^periodicity_tolerance must be a finite number > 0, got 0.0$"),
+        (lambda d: fit_to_accuracy(d, 0.0), r"^tolerance must be a finite number > 0, got 0.0$"),
+        (lambda d: fit_to_accuracy(d, 1e-3, candidates=5),
+         r"^candidates must be a sequence of integers, got 5$"),
+        (lambda d: fit_to_accuracy(d, 1e-3, candidates="ab"),
+         r"^candidates must be a sequence of integers, got 'ab'$"),
+        (lambda d: fit_to_accuracy(d, 1e-3, rhythmic="yes"),
+         r"^rhythmic must be True or False, got 'yes'$"),
+        (lambda d: fit_rhythmic(d.resampled(25), 15),
+         r"^n_basis = 15 gives 30 weights per DOF but demo has only 25 samples"),
+        (lambda d: fit_discrete(d.resampled(25), 26),
+         r"^n_basis = 26 gives 26 weights per DOF but demo has only 25 samples"),
+    ],
+)  # fmt: skip
+def test_bad_arguments_are_named_exactly(call, message):
+    with pytest.raises(InvalidInputError, match=message):
+        call(periodic_demo())
+
+
+@pytest.mark.parametrize("rhythmic", [False, True])
+def test_memory_bound_of_a_fit_is_its_regressors(monkeypatch, rhythmic):
+    """8 bytes x (12 n (F + 3 + D) + 3 (F + 1)^2) for n samples, F weights per DOF and D
+    DOFs: accepted at exactly that budget, refused one byte below, with the request named."""
+    from dmpopt import ResourceLimitError, validation
+
+    demo = periodic_demo(duration=1.6, n_steps=101)  # two periods, 3 DOFs
+    n_weights = 20 if rhythmic else 10
+    n_bytes = 8.0 * (12 * 101 * (n_weights + 3 + 3) + 3 * (n_weights + 1) ** 2)
+
+    def fit():
+        return fit_rhythmic(demo, 10, period=0.8) if rhythmic else fit_discrete(demo, 10)
+
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", n_bytes)
+    fit()
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", n_bytes - 1)
+    with pytest.raises(
+        ResourceLimitError,
+        match=r"^a fit of 10 basis functions to 101 samples needs 101 samples and about .*: "
+        r"lower n_basis or resample the demonstration to fewer samples$",
+    ):
+        fit()
+
+
+def test_as_many_weights_as_samples_is_a_determined_fit():
+    demo = minimum_jerk_demo(n_dofs=1, n_steps=12)
+    assert fit_discrete(demo, 12).n_basis == 12
+    coarse = periodic_demo().resampled(24)
+    options = dict(period=0.8, method="least_squares", periodicity_tolerance=np.inf)
+    assert fit_rhythmic(coarse, 12, **options).n_basis == 12
+
+
+def test_goal_amplification_is_the_largest_excursion_over_the_goal_distance():
+    """Answer key: max_t |y(t) - y0| / |g - y0| (rotation) and per DOF (paper), written
+    out for six samples whose first two and last two differ."""
+    from dmpopt.fitting.imitation import goal_amplification
+
+    positions = np.array([[0.0, 0.0], [3.0, 1.0], [5.0, -2.0], [4.0, 4.0], [2.0, 0.5], [1.0, 2.0]])
+    demo = Trajectory.from_positions(np.linspace(0.0, 1.0, 6), positions)
+    rotation, paper = goal_amplification(demo)
+    assert rotation == pytest.approx(np.hypot(4.0, 4.0) / np.hypot(1.0, 2.0), rel=1e-15)
+    np.testing.assert_allclose(paper, [5.0 / 1.0, 4.0 / 2.0], rtol=1e-15)
+
+
+def test_an_amplification_of_exactly_ten_is_allowed():
+    """MAX_GOAL_AMPLIFICATION = 10 is inclusive: a triangle from 0 up to 10 and down to 1
+    fits under 'rotation' and 'paper' (auto picks rotation); a second DOF up to 20 is the
+    only one 'paper' refuses."""
+    times = np.linspace(0.0, 1.0, 101)
+    up_to = lambda peak: np.interp(times, [0.0, 0.5, 1.0], [0.0, peak, 1.0])  # noqa: E731
+    demo = Trajectory.from_positions(times, up_to(10.0)[:, None])
+    assert fit_discrete(demo, 10).goal_scaling == "rotation"
+    assert fit_discrete(demo, 10, goal_scaling="rotation").goal_scaling == "rotation"
+    assert fit_discrete(demo, 10, goal_scaling="paper").goal_scaling == "paper"
+    two = Trajectory.from_positions(times, np.c_[up_to(10.0), up_to(20.0)])
+    with pytest.raises(InvalidInputError, match=r"DOF\(s\) \[1\] \(largest: 20-fold\) more"):
+        fit_discrete(two, 10, goal_scaling="paper")
+
+
+def test_a_non_uniform_demo_is_fitted_on_its_uniform_resampling():
+    uniform = minimum_jerk_demo(n_dofs=2, n_steps=301)
+    times = uniform.times**1.5  # denser at the start
+    positions = np.column_stack([np.interp(times, uniform.times, p) for p in uniform.positions.T])
+    demo = Trajectory.from_positions(times, positions)
+    expected = fit_discrete(demo.resampled(demo.n_steps), 15).weights
+    np.testing.assert_array_equal(fit_discrete(demo, 15).weights, expected)
+
+
+def test_fit_discrete_keeps_its_gains_and_defaults():
+    demo = minimum_jerk_demo(n_dofs=1)
+    dmp = fit_discrete(demo, 10, alpha_z=16.0, alpha_v=12.0)
+    assert (dmp.alpha_z, dmp.beta_z, dmp.alpha_v, dmp.beta_v) == (16.0, 4.0, 12.0, 3.0)
+    default = fit_discrete(demo)
+    assert (default.n_basis, default.form, default.alpha_z, default.alpha_v) == (
+        30, "velocity", 25.0, 25.0,
+    )  # fmt: skip
+
+
+# ---------------------------------------------------------------- reproduction_error
+def test_reproduction_error_of_a_dmps_own_plan_is_zero():
+    """A plan rolled out from a moving start (discrete) or from any start state (rhythmic) is
+    reproduced exactly: reproduction_error starts the DMP from the demo's first sample."""
+    discrete = fit_discrete(minimum_jerk_demo(n_dofs=2), 10)
+    plan = discrete.rollout(1.0, 0.005, start_velocity=[0.5, -0.3])
+    assert reproduction_error(discrete, plan) < 1e-13
+    default = discrete.rollout(1.0, 0.005)  # from the demo's start velocity (zero)
+    assert np.abs(plan.positions - default.positions).max() > 1e-3
+    rhythmic = fit_rhythmic(periodic_demo(), 10, period=0.8)
+    plan = rhythmic.rollout(1.6, 0.004, [0.3, -0.2, 0.1], [1.0, 0.0, -1.0])
+    assert reproduction_error(rhythmic, plan) < 1e-13
+
+
+# ---------------------------------------------------------------- fit_to_accuracy
+def test_fit_to_accuracy_accepts_an_error_equal_to_the_tolerance_and_passes_options():
+    demo = minimum_jerk_demo(n_dofs=1)
+    five = reproduction_error(fit_discrete(demo, 5, form="acceleration"), demo)
+    dmp = fit_to_accuracy(demo, five, candidates=(5, 10), form="acceleration")
+    assert (dmp.n_basis, dmp.form) == (5, "acceleration")
+
+
+# ---------------------------------------------------------------- periods
+def test_periodicity_mismatch_is_the_relative_rms_difference_one_period_later():
+    """Answer key: a plain loop over the samples i with t_i + P <= t_end (P = 500 samples),
+    DOF 0 drifting quadratically (its difference varies along the demo), DOF 1 periodic with
+    the larger range; velocities are the demo's own samples."""
+    from dmpopt.fitting.imitation import periodicity_mismatch
+
+    times = np.linspace(0.0, 2.0, 2001)
+    wave = 2 * np.pi * times / 0.5
+    positions = np.c_[1.0 + 0.1 * np.sin(wave) + 0.02 * times**2, 0.3 * np.cos(wave)]
+    demo = Trajectory.from_positions(times, positions)
+    key = []
+    for values in (demo.positions, demo.velocities):
+        difference = values[500:] - values[:-500]  # samples 0 .. 1500
+        rms = np.sqrt((difference**2).mean(axis=0))
+        key.append(rms.max() / (values.max(axis=0) - values.min(axis=0)).max())
+    assert key[1] < 0.5 * key[0]
+    np.testing.assert_allclose(periodicity_mismatch(demo, 0.5), key, rtol=1e-9)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    period=st.floats(0.2, 2.0),
+    cycles=st.floats(1.35, 4.0),
+    samples_per_period=st.integers(150, 1000),
+    scale=st.sampled_from([1e-6, 1e-3, 1.0, 1e6]),
+    offset=st.floats(-100.0, 100.0),
+)
+def test_period_estimate_is_accurate_at_any_scale(
+    period, cycles, samples_per_period, scale, offset
+):
+    """Measured at most 1.2e-5 relative over such demos (from 1.35 cycles, where the
+    spectrum's peak is its first bin, to 4; 150 to 1000 samples per period)."""
+    n_steps = int(cycles * samples_per_period) + 1
+    shape = periodic_demo(period=period, duration=cycles * period, n_steps=n_steps)
+    demo = Trajectory.from_positions(shape.times, offset + scale * shape.positions)
+    assert estimate_period(demo) == pytest.approx(period, rel=4e-5)
+
+
+def test_period_estimate_refuses_what_it_cannot_find():
+    with pytest.raises(InvalidInputError, match="pass period= explicitly"):
+        estimate_period(periodic_demo(period=0.8, duration=0.96, n_steps=961))  # 1.2 cycles
+    still = Trajectory.from_positions(np.linspace(0.0, 1.0, 50), np.ones((50, 2)))
+    with pytest.raises(InvalidInputError, match="^demo does not oscillate; pass period="):
+        estimate_period(still)
+
+
+# ---------------------------------------------------------------- fit_rhythmic's options
+def test_fit_rhythmic_defaults_and_options_reach_the_dmp():
+    demo = periodic_demo()
+    default = fit_rhythmic(demo)
+    assert (default.n_basis, default.form, default.kernel) == (15, "phase", "von_mises")
+    assert (default.amplitude, default.alpha_z) == (1.0, 25.0)
+    np.testing.assert_array_equal(default.setpoint, demo.positions.mean(axis=0))
+    np.testing.assert_array_equal(
+        default.weights, fit_rhythmic(demo, 15, warm_up_periods=2).weights
+    )
+    dmp = fit_rhythmic(demo, 10, form="energy", amplitude=2.0, kernel="paper", alpha_z=12.0)
+    assert (dmp.form, dmp.amplitude, dmp.kernel, dmp.alpha_z) == ("energy", 2.0, "paper", 12.0)
+    assert dmp.period == pytest.approx(0.8, rel=1e-4)
+
+
+def test_fit_rhythmic_periodicity_and_length_bounds_are_inclusive():
+    """A demo of 0.95 period is long enough; a demo exactly at periodicity_tolerance passes,
+    and np.inf disables the check."""
+    times = np.linspace(0.0, 0.95, 951)
+    short = Trajectory.from_positions(times, np.sin(2 * np.pi * times)[:, None])
+    fit_rhythmic(short, 5, period=1.0, periodicity_tolerance=np.inf)
+    from dmpopt.fitting.imitation import periodicity_mismatch
+
+    demo = periodic_demo()
+    drifting = Trajectory.from_positions(demo.times, demo.positions + 0.3 * demo.times[:, None])
+    with pytest.raises(InvalidInputError, match="is not periodic with period 0.8 s"):
+        fit_rhythmic(drifting, 10, period=0.8)
+    exact = max(periodicity_mismatch(drifting, 0.8))
+    fit_rhythmic(drifting, 10, period=0.8, periodicity_tolerance=exact)
+    fit_rhythmic(drifting, 10, period=0.8, periodicity_tolerance=np.inf)

@@ -210,10 +210,11 @@ def _training_rows(demo, max_basis: int) -> np.ndarray:
 
 
 def _numbers(first: int, last: int, growth: float) -> list:
-    """``first, ceil(first * growth), ...`` (each at least one more), up to ``last``."""
+    """``first, ceil(first * growth), ...`` up to ``last``; each is at least one more, as
+    ``n * growth`` rounds above ``n`` for any float ``growth > 1``."""
     numbers = [first]
     while numbers[-1] < last:
-        numbers.append(min(last, max(numbers[-1] + 1, int(np.ceil(numbers[-1] * growth)))))
+        numbers.append(min(last, int(np.ceil(numbers[-1] * growth))))
     return numbers
 
 
@@ -247,9 +248,10 @@ class _Demo:
         self.demo, self.method, self.regularization = demo, method, regularization
         self.zero = fitted.replace(weights=np.zeros_like(fitted.weights))
         self.dt = demo.duration / (demo.n_steps - 1)
-        velocity = demo.velocities[0]
-        self.free = self.zero.affine_plan(demo.duration, self.dt, start_velocity=velocity).free[0]
+        # the fitted DMP keeps the demo's start velocity: its plans start with it
+        self.free = self.zero.affine_plan(demo.duration, self.dt).free[0]
         if method != "position":
+            velocity = demo.velocities[0]
             initial = self.zero.initial_state(demo.positions[0], velocity, (0.0, 0.0))
             parameters = self.zero.parameters()
             self.states = symbolic.simulate(
@@ -266,7 +268,7 @@ class _Demo:
         and goal, as ``fit_discrete`` stores them.
         """
         demo, zero = self.demo, self.zero
-        centres, widths = basis.discrete_basis(n_basis, zero.gains[:4])
+        centres, widths = basis.discrete_basis(n_basis, zero.gains)
         unit = zero.replace(
             weights=np.zeros((demo.n_dofs, n_basis)), centres=centres, widths=scale * widths
         )

@@ -215,7 +215,7 @@ def fit_discrete(
         alpha_z=alpha_z,
         alpha_v=alpha_v,
     )
-    centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
+    centres, widths = basis.discrete_basis(n_basis, template.gains)
     tau = demo.duration / basis.convergence_time(form, template.gains)
     unit = template.replace(tau=tau, centres=centres, widths=widths)
     dt = demo.duration / (demo.n_steps - 1)
@@ -450,7 +450,13 @@ def estimate_period(demo: Trajectory) -> float:
             "demo covers too few cycles to estimate its period; pass period= explicitly"
         )
     mismatch = np.array([_self_mismatch(demo, shift) for shift in shifts])
-    k = int(np.clip(np.argmin(mismatch), 1, len(shifts) - 2))
+    k = int(np.argmin(mismatch))
+    if k in (0, len(shifts) - 1):
+        raise InvalidInputError(
+            f"demo's self-similarity has no minimum between {shifts[0]:.4g} s and "
+            f"{shifts[-1]:.4g} s around the spectral peak's period {guess:.4g} s (a "
+            "demonstration of at least 1.3 cycles has one): pass period= explicitly"
+        )
     left, centre, right = mismatch[k - 1 : k + 2]
     curvature = left - 2 * centre + right
     offset = 0.5 * (left - right) / curvature if curvature > 0 else 0.0
@@ -551,10 +557,11 @@ def fit_rhythmic(
         kernel=kernel,
         alpha_z=alpha_z,
     )
-    frequency = 1.0 if form == "phase" else template.k
-    unit = template.replace(tau=period * frequency / (2 * np.pi))
+    # one turn of the phase per period: d(phase)/d(t / tau) is 1 for eq. (11) and -k = -1
+    # for eq. (13) (the fit keeps k = 1; its oscillator turns clockwise)
+    unit = template.replace(tau=period / (2 * np.pi))
     dt = demo.duration / (demo.n_steps - 1)
-    direction = 1.0 if form == "phase" else -frequency  # d(phase)/d(t / tau)
+    direction = 1.0 if form == "phase" else -1.0
 
     if method == "position":
         n_warm = int(round(warm_up_periods * period / dt))

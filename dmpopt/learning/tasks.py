@@ -425,7 +425,7 @@ def _dmp(start, goal, duration: float, n_basis: int) -> DiscreteDMP:
         form="acceleration",
         goal_scaling="translation",
     )
-    centres, widths = basis.discrete_basis(n_basis, template.gains[:4])
+    centres, widths = basis.discrete_basis(n_basis, template.gains)
     tau = duration / basis.convergence_time("acceleration", template.gains)
     return template.replace(tau=tau, centres=centres, widths=widths)
 

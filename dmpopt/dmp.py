@@ -361,10 +361,18 @@ class _DmpCommon:
         )
         scale = np.array([1.0, self.tau, self.tau**2])[:, None, None]
         n_free = inputs.shape[0] - symbolic.n_features(self.form, self.n_basis)
+        free_inputs, weight_response = inputs[:n_free], response[:, :, n_free:]
+        if self.form != "acceleration":
+            # z(0) = tau yd(0) - f(0) (initial_state) is affine in the weights too: the
+            # response to W includes that of z(0) to -W feature(0), the free part keeps tau yd(0)
+            feature = self._features(canonical0)
+            free_inputs = free_inputs.copy()
+            free_inputs[1] += self.forcing_weights() @ feature
+            weight_response = weight_response - response[:, :, 1:2] * feature
         return AffinePlan(
             times=times,
-            free=response[:, :, :n_free] @ inputs[:n_free] / scale,
-            weight_response=response[:, :, n_free:] / scale,
+            free=response[:, :, :n_free] @ free_inputs / scale,
+            weight_response=weight_response / scale,
         )
 
     def _rollout(self, duration, dt, start, start_velocity, canonical0) -> Trajectory:
@@ -387,12 +395,14 @@ class _DmpCommon:
         velocity = vector("start_velocity", start_velocity, self.n_dofs, f"{self.n_dofs} DOFs")
         z = self.tau * velocity
         if self.form != "acceleration":
-            feature = symbolic.feature_function(self.signature)(
-                canonical0, np.asarray(self.centres), np.asarray(self.widths)
-            ).full()[:, 0]
-            z = z - self.forcing_weights() @ feature
+            z = z - self.forcing_weights() @ self._features(canonical0)
         rows = [start, z, start] if self.form == "acceleration" else [start, z]
         return np.concatenate([canonical0, *rows])
+
+    def _features(self, canonical) -> np.ndarray:
+        """The forcing term's features (eq. (7), (12) or (14)) at one canonical state."""
+        function = symbolic.feature_function(self.signature)
+        return function(canonical, np.asarray(self.centres), np.asarray(self.widths)).full()[:, 0]
 
     def _response_inputs(self, start, start_velocity, canonical0) -> np.ndarray:
         transformation = self.initial_state(start, start_velocity, canonical0)[2:]

@@ -427,3 +427,39 @@ def test_fit_rhythmic_periodicity_and_length_bounds_are_inclusive():
     exact = max(periodicity_mismatch(drifting, 0.8))
     fit_rhythmic(drifting, 10, period=0.8, periodicity_tolerance=exact)
     fit_rhythmic(drifting, 10, period=0.8, periodicity_tolerance=np.inf)
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+@pytest.mark.parametrize("warm_up_periods", [0, 2])
+def test_rhythmic_position_fit_minimises_the_documented_objective(form, warm_up_periods):
+    """Answer key: the objective J(w) = sum |plan_w - demo|^2 over the window after
+    ``warm_up_periods`` periods, the plan rolled out from the demo's first sample and
+    velocity with the oscillator at -n_warm dt / tau (phase 0 at the window; the phase runs
+    backwards in eq. (13)), n_warm = round(warm_up_periods P / dt). J is quadratic (no
+    ridge here), so at its minimum J(w + d) = J(w - d) for every d: weights fitted to another
+    window, start or phase break that symmetry. dt = 1.3 ms does not divide the period."""
+    period, dt = 0.8, 1.3e-3
+    demo = periodic_demo(period=period, duration=1308 * dt, n_steps=1309)
+    dmp = fit_rhythmic(
+        demo, 8, period=period, form=form, warm_up_periods=warm_up_periods, regularization=0.0
+    )
+    n_warm = round(warm_up_periods * period / dt)
+    direction = 1.0 if form == "phase" else -1.0
+
+    def objective(weights):
+        plan = dmp.replace(weights=weights).rollout(
+            (n_warm + demo.n_steps - 1) * dt,
+            dt,
+            demo.positions[0],
+            demo.velocities[0],
+            phase=-direction * n_warm * dt / dmp.tau,
+        )
+        return np.sum((plan.positions[n_warm:] - demo.positions) ** 2)
+
+    rng = np.random.default_rng(0)
+    at_minimum = objective(dmp.weights)
+    for _ in range(3):
+        step = 1e-2 * np.abs(dmp.weights).max() * rng.normal(size=dmp.weights.shape)
+        plus, minus = objective(dmp.weights + step), objective(dmp.weights - step)
+        curvature = plus + minus - 2 * at_minimum
+        assert curvature > 0 and abs(plus - minus) < 1e-6 * curvature

@@ -714,13 +714,13 @@ def test_position_weights_solve_the_goal_constrained_ridge_problem():
 @pytest.mark.parametrize("method", ["least_squares", "lwr"])
 def test_rhythmic_regressions_are_plain_least_squares(form, method):
     """tau = P / (2 pi); the canonical state on its limit cycle from phase 0 at the demo's
-    first sample (t0 = 2 s): (phi, r) = (t / tau, A) for eq. (11), (x, tau x') = (A cos,
+    first sample (t0 = 2.1 s): (phi, r) = (t / tau, A) for eq. (11), (x, tau x') = (A cos,
     -A sin)(t / tau) for eq. (13); the features of eqs. (12) and (14) with von Mises kernels;
     targets f = tau y' - z of eq. (15) with the periodic filter about the demo's mean; then
     ridge regression (lambda = 1e-3 trace / 2N) or LWR per basis function (2 x 2 weighted
     least squares, unnormalised psi)."""
     base = periodic_demo()
-    demo = Trajectory.from_positions(base.times + 2.0, base.positions)
+    demo = Trajectory.from_positions(base.times + 2.1, base.positions)  # 2.625 periods
     n_basis, amplitude, alpha_z, period = 8, 1.5, 20.0, 0.8
     dmp = fit_rhythmic(
         demo, n_basis, period=period, form=form, method=method, amplitude=amplitude,

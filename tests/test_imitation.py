@@ -42,6 +42,19 @@ def test_position_fit_hits_start_and_goal_exactly():
     np.testing.assert_allclose(plan.positions[-1], demo.positions[-1], atol=1e-9)
 
 
+@pytest.mark.parametrize("n_basis, regularization", [(10, 1e-9), (150, 0.0), (200, 1e-14)])
+def test_position_fit_plan_ends_at_the_goal_to_rounding(n_basis, regularization):
+    """The goal equality of the position fit holds to rounding even where its KKT system is
+    ill-conditioned (many basis functions, little or no ridge): the plan of the fitted
+    weights, at the demo's own samples, ends at the goal."""
+    demo = minimum_jerk_demo(n_dofs=2, seed=3)
+    dmp = fit_discrete(demo, n_basis, regularization=regularization, goal_scaling="translation")
+    dt = demo.duration / (demo.n_steps - 1)
+    plan = dmp.affine_plan(demo.duration, dt, start_velocity=demo.velocities[0])
+    end = plan.evaluate(dmp.forcing_weights())[0][-1]
+    np.testing.assert_allclose(end, demo.positions[-1], rtol=0, atol=1e-14)
+
+
 def test_reproduces_planar_figure_eight_stroke():
     times = np.linspace(0, 2, 1001)
     s = np.pi * (10 * (times / 2) ** 3 - 15 * (times / 2) ** 4 + 6 * (times / 2) ** 5)
@@ -392,6 +405,10 @@ def test_period_estimate_is_accurate_at_any_scale(
 def test_period_estimate_refuses_what_it_cannot_find():
     with pytest.raises(InvalidInputError, match="pass period= explicitly"):
         estimate_period(periodic_demo(period=0.8, duration=0.96, n_steps=961))  # 1.2 cycles
+    times = np.linspace(0.0, 1.0, 1001)  # a ramp with a ripple: the spectrum peaks at the
+    drifting = times + 0.01 * np.sin(20 * np.pi * times)  # ramp, whose "period" is no shift
+    with pytest.raises(InvalidInputError, match="self-similarity has no minimum between"):
+        estimate_period(Trajectory.from_positions(times, drifting[:, None]))
     still = Trajectory.from_positions(np.linspace(0.0, 1.0, 50), np.ones((50, 2)))
     with pytest.raises(InvalidInputError, match="^demo does not oscillate; pass period="):
         estimate_period(still)

@@ -85,14 +85,12 @@ def _ridge(features: np.ndarray, targets: np.ndarray, regularization: float, las
         kkt[:n, :n] = gram + lam * np.eye(n)
         kkt[:n, n] = row
         kkt[n, :n] = row
-        solution = np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
+        return np.linalg.solve(kkt, np.vstack([rhs, value[None, :]]))[:n]
     except np.linalg.LinAlgError as error:
         raise FittingFailed(
             f"the least-squares problem is singular with regularization = {regularization!r}; "
             "raise regularization (e.g. 1e-9) or lower n_basis"
         ) from error
-    # the KKT system is ill-conditioned: restore the equality to rounding precision
-    return solution + np.outer(row, value - row @ solution) / (row @ row)
 
 
 def _ratio(excursion, gap):

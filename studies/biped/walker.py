@@ -128,6 +128,7 @@ class WalkLog:
     duration: float = 0.0  # [s] simulated
     wall_time: float = 0.0  # [s]
     cpu_time: float = 0.0  # [s] process time, insensitive to other load on the machine
+    holds: int = 0  # QP ticks that gave the hold answer (time budget spent or no solution)
     distance: float = 0.0  # [m]
 
 
@@ -346,6 +347,8 @@ def walk(
     except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
         log.fell, log.diverged = True, f"{type(error).__name__}: {error}"
     log.wall_time = time.perf_counter() - start
+    if controller == "qp":
+        log.holds = law.controller.stats.n_fallbacks
     log.cpu_time = time.process_time() - cpu_start
     log.positive_work, log.absolute_work = DT * positive_work, DT * absolute_work
     log.duration = sim.t

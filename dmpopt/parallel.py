@@ -162,7 +162,10 @@ def _bar(runner: Runner, total: int, label: str):
 
 
 def _one_blas_thread() -> None:
-    """A worker's BLAS on one thread: the workers already fill the cores (Ray does the same)."""
+    """A worker's BLAS on one thread: the workers already fill the cores (Ray does the same).
+    threadpoolctl limits the libraries loaded so far: NumPy's and SciPy's are loaded first."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=1)
@@ -203,6 +206,10 @@ def _on_ray(function, inputs, runner, bar) -> list:
 def map_runs(function, inputs, runner: Runner | None = None, label: str = "runs") -> list:
     """``[function(x) for x in inputs]``, run where ``runner`` says, in the order of ``inputs``.
 
+    Every run uses one BLAS thread, in series as in processes or on Ray: a matrix product
+    split over threads rounds differently, and a chaotic run (a walk at the edge of a fall)
+    would then end differently depending on where it ran.
+
     ``function`` must be importable by name (a module-level function) when the runs leave
     this process (workers > 1 or Ray); each run then executes in another process, so it must
     not rely on state set up in this one. An exception in a run is raised here.
@@ -216,10 +223,13 @@ def map_runs(function, inputs, runner: Runner | None = None, label: str = "runs"
         if runner.ray is not None:
             results = _on_ray(function, inputs, runner, bar)
         elif runner.workers == 1:
+            from threadpoolctl import threadpool_limits
+
             results = []
-            for x in inputs:
-                results.append(function(x))
-                bar.update()
+            with threadpool_limits(limits=1):  # as in the workers: the same rounding
+                for x in inputs:
+                    results.append(function(x))
+                    bar.update()
         else:
             results = _in_processes(function, inputs, runner, bar)
     runner.wall_seconds += time.perf_counter() - start

@@ -50,6 +50,21 @@ def test_processes_give_the_serial_results_in_input_order():
     assert runner.record()["runs"] == len(jobs) + 1
 
 
+def _blas_threads(_) -> int:
+    from threadpoolctl import threadpool_info
+
+    return max(pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas")
+
+
+def test_every_run_uses_one_blas_thread_wherever_it_runs():
+    """The same rounding in series and in processes: a biped walk run in series (the
+    default BLAS threads) and in a worker (one thread) ended 2e-6 m apart, enough to flip
+    a trial at the edge of a fall."""
+    assert map_runs(_blas_threads, [0, 1], Runner(progress=False)) == [1, 1]
+    with Runner(workers=2, progress=False) as runner:
+        assert map_runs(_blas_threads, [0, 1], runner) == [1, 1]
+
+
 def test_ray_gives_the_serial_results_in_input_order():
     pytest.importorskip("ray")
     jobs = _jobs()

@@ -165,6 +165,7 @@ def _summary(log: WalkLog, mass: float) -> dict:
         "frequency_final": log.frequencies[-1],
         "cost_of_transport": cost_of_transport(log, mass),
         "real_time_factor_cpu": log.duration / log.cpu_time,
+        "qp_holds": log.holds,
     }
 
 

@@ -145,10 +145,12 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
     ]
 
 
-def _survived(job: tuple) -> bool:
-    """One randomised trial, an independent run of :func:`survival_by_arm`."""
+def _survived(job: tuple) -> tuple[bool, int]:
+    """One randomised trial, an independent run of :func:`survival_by_arm`: whether the
+    walker survived, and how many QP ticks gave the hold answer."""
     rule, walk_options = job
-    return rule.survived(walk(**walk_options))
+    log = walk(**walk_options)
+    return rule.survived(log), log.holds
 
 
 def survival_by_arm(
@@ -191,7 +193,8 @@ def survival_by_arm(
     survived_all = map_runs(_survived, jobs, runner, label="biped trials")
     results = {}
     for i, name in enumerate(ARMS):
-        outcomes = survived_all[i * len(disturbances) : (i + 1) * len(disturbances)]
+        runs = survived_all[i * len(disturbances) : (i + 1) * len(disturbances)]
+        outcomes = [outcome for outcome, _ in runs]
         n, survived = len(outcomes), int(sum(outcomes))
         low, high = wilson_interval(survived, n)
         results[name] = {
@@ -200,6 +203,7 @@ def survival_by_arm(
             "survived": survived,
             "n": n,
             "outcomes": outcomes,
+            "qp_holds": int(sum(holds for _, holds in runs)),
         }
     return results
 

@@ -43,7 +43,14 @@ import pinocchio as pin
 
 from dmpopt import fit_cartesian
 from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
-from studies.common import Progress, output_dir, pyplot, staged_output, write_metrics
+from studies.common import (
+    TIME_BUDGET,
+    Progress,
+    output_dir,
+    pyplot,
+    staged_output,
+    write_metrics,
+)
 from studies.humanoid import drumming_posture, mujoco_plant
 
 EXPECTED_SECONDS = {"full": 35, "quick": 25}  # wall seconds on the loaded 2-core machine
@@ -105,6 +112,7 @@ def build_controller(robot, q_start, hand: str):
         contacts,
         joint_limit_horizon=0.05,
         limited_joints="right_arm",
+        time_budget=TIME_BUDGET,
     )
     return controller, task
 

@@ -33,7 +33,7 @@ from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk, swing_re
 from dmpopt.validation import flag
 from robots import load_talos
 
-from .common import output_dir, pyplot, write_metrics
+from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
 
 DT = 1e-3  # [s] control and simulation period
 STEP_LENGTH = 0.2  # [m] the moving foot lands this far ahead of the stance foot
@@ -102,7 +102,9 @@ class Walker:
             for f in robot.foot_frames
         }
         contacts = [SoleContact(robot, f) for f in robot.foot_frames]
-        self.controller = InverseDynamicsController(robot, [posture, self.com_task, base], contacts)
+        self.controller = InverseDynamicsController(
+            robot, [posture, self.com_task, base], contacts, time_budget=TIME_BUDGET
+        )
         self._lift_off = np.round(plan.lift_off / DT).astype(int)  # ticks
         self._touchdown = np.round(plan.touchdown / DT).astype(int)
         self._transfer = int(round(DOUBLE_SUPPORT / DT))  # ticks of a double support

@@ -332,6 +332,8 @@ def _pushed(fall_above=None, diverge_above=None, calls=None):
                 if diverge_above is not None and impulse > diverge_above
                 else None,
                 impulse=impulse,
+                n_fallbacks=0,
+                tick_cpu_us=np.full(3, 100.0),
             )
             for impulse in impulses
         ]

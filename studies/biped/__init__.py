@@ -166,6 +166,8 @@ def _summary(log: WalkLog, mass: float) -> dict:
         "cost_of_transport": cost_of_transport(log, mass),
         "real_time_factor_cpu": log.duration / log.cpu_time,
         "qp_holds": log.holds,
+        "ticks_over_5ms": log.ticks_over_5ms,
+        "tick_us_max": log.tick_us_max,
     }
 
 
@@ -173,7 +175,8 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
     """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics.
 
     The randomised trials are independent runs, executed where ``runner`` says
-    (:mod:`dmpopt.parallel`; default: in series); the results do not depend on it.
+    (:mod:`dmpopt.parallel`; default: in series). A trial at the edge of a fall can end
+    differently in another process: proxsuite is not bitwise reproducible across processes.
     """
     from studies.humanoid import VIDEO_FPS, check_backend, write_videos
 

@@ -145,12 +145,12 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
     ]
 
 
-def _survived(job: tuple) -> tuple[bool, int]:
+def _survived(job: tuple) -> tuple[bool, int, int, float]:
     """One randomised trial, an independent run of :func:`survival_by_arm`: whether the
-    walker survived, and how many QP ticks gave the hold answer."""
+    walker survived, its QP hold answers, its ticks over 5 ms and its slowest tick [us]."""
     rule, walk_options = job
     log = walk(**walk_options)
-    return rule.survived(log), log.holds
+    return rule.survived(log), log.holds, log.ticks_over_5ms, log.tick_us_max
 
 
 def survival_by_arm(
@@ -167,7 +167,8 @@ def survival_by_arm(
     """Survival rate of each arm of :data:`ARMS` over ``disturbances`` with its Wilson CI.
 
     Every (arm, trial) walk is an independent run, executed where ``runner`` says
-    (:mod:`dmpopt.parallel`; default: in series); the results do not depend on it.
+    (:mod:`dmpopt.parallel`; default: in series). A trial at the edge of a fall can end
+    differently in another process: proxsuite is not bitwise reproducible across processes.
     """
     jobs = [
         (
@@ -194,7 +195,7 @@ def survival_by_arm(
     results = {}
     for i, name in enumerate(ARMS):
         runs = survived_all[i * len(disturbances) : (i + 1) * len(disturbances)]
-        outcomes = [outcome for outcome, _ in runs]
+        outcomes = [run[0] for run in runs]
         n, survived = len(outcomes), int(sum(outcomes))
         low, high = wilson_interval(survived, n)
         results[name] = {
@@ -203,7 +204,9 @@ def survival_by_arm(
             "survived": survived,
             "n": n,
             "outcomes": outcomes,
-            "qp_holds": int(sum(holds for _, holds in runs)),
+            "qp_holds": int(sum(run[1] for run in runs)),
+            "ticks_over_5ms": int(sum(run[2] for run in runs)),
+            "tick_us_max": float(max(run[3] for run in runs)),
         }
     return results
 

@@ -29,6 +29,7 @@ from dmpopt.sim import GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
 from robots import biped as biped_model
 
+from ..common import REAL_TIME_BUDGET_US, TIME_BUDGET
 from .gait import limit_cycle_start
 
 DT = 1e-3  # [s] simulation step; the PD law and the QP run every step
@@ -128,7 +129,9 @@ class WalkLog:
     duration: float = 0.0  # [s] simulated
     wall_time: float = 0.0  # [s]
     cpu_time: float = 0.0  # [s] process time, insensitive to other load on the machine
-    holds: int = 0  # QP ticks that gave the hold answer (time budget spent or no solution)
+    holds: int = 0  # QP ticks that gave the hold answer (no solution)
+    ticks_over_5ms: int = 0  # controller ticks over the real-time budget (thread CPU time)
+    tick_us_max: float = 0.0  # the slowest controller tick (thread CPU time) [us]
     distance: float = 0.0  # [m]
 
 
@@ -186,7 +189,9 @@ class QPControl:
         contacts = [
             PointContact(biped, frame, friction_coefficient=gains.friction) for frame in self.frames
         ]
-        self.controller = InverseDynamicsController(biped, [self.posture, self.pitch], contacts)
+        self.controller = InverseDynamicsController(
+            biped, [self.posture, self.pitch], contacts, time_budget=TIME_BUDGET
+        )
         self.lifted = [False, False]  # contact removed (or ramping out) since the last strike
         self.strike = (0, 0.0)  # (leg, time) of the last heel strike: the walk starts at one
         gait = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
@@ -303,6 +308,7 @@ def walk(
     base_force = np.zeros(3)
     desired, desired_velocity, desired_acceleration = np.empty(4), np.empty(4), np.empty(4)
     positive_work = absolute_work = 0.0
+    slow, slowest = 0, 0.0
     n_steps = int(round(duration / DT))
     push_step = int(round(disturbance.push_time / DT)) if disturbance.push_impulse else -1
     slope_step = int(round(disturbance.slope_time / DT)) if disturbance.slope_deg else -1
@@ -318,7 +324,11 @@ def walk(
                 position, velocity, acceleration = stepper.step()
                 desired[order], desired_velocity[order] = position, velocity
                 desired_acceleration[order] = acceleration
+            begin = time.thread_time_ns()
             torque = law.torques(state, desired, desired_velocity, desired_acceleration)
+            tick_us = (time.thread_time_ns() - begin) / 1e3
+            slow += tick_us > REAL_TIME_BUDGET_US
+            slowest = max(slowest, tick_us)
             base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
             joint_velocities = state.v[index]
             state = sim.step(torque, base_force)
@@ -349,6 +359,7 @@ def walk(
     log.wall_time = time.perf_counter() - start
     if controller == "qp":
         log.holds = law.controller.stats.n_fallbacks
+    log.ticks_over_5ms, log.tick_us_max = int(slow), slowest
     log.cpu_time = time.process_time() - cpu_start
     log.positive_work, log.absolute_work = DT * positive_work, DT * absolute_work
     log.duration = sim.t

@@ -16,6 +16,7 @@ from dmpopt.control import (
 )
 from dmpopt.sim import GroundContact, Simulator
 
+from ..common import TIME_BUDGET
 from .demos import DRUM_JOINTS
 from .parameters import (
     ARM_STIFFNESS,
@@ -83,7 +84,12 @@ def build_controller(
         tasks += [com, base] if base_task else [com]
         contacts = [SoleContact(robot, f, friction_coefficient=friction) for f in robot.foot_frames]
     controller = InverseDynamicsController(
-        robot, tasks, contacts, joint_limit_horizon=JOINT_LIMIT_HORIZON, limited_joints=limited
+        robot,
+        tasks,
+        contacts,
+        joint_limit_horizon=JOINT_LIMIT_HORIZON,
+        limited_joints=limited,
+        time_budget=TIME_BUDGET,
     )
     return controller, driven
 

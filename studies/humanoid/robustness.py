@@ -10,6 +10,7 @@ import numpy as np
 from dmpopt.parallel import map_runs
 from robots import load_talos
 
+from ..common import REAL_TIME_BUDGET_US
 from .controller import mujoco_plant, with_scaled_masses, with_scaled_torque_limits
 from .loop import RunLog, run_drumming
 from .metrics import rms
@@ -42,6 +43,9 @@ def summary(log: RunLog) -> dict:
         "qp_active_fraction": log.qp_active_fraction,
         "torque_limited_fraction": log.n_torque_limited / log.times.size,
         "torque_limit_use_max": float(log.torque_use.max()),
+        "qp_holds": log.n_fallbacks,
+        "ticks_over_5ms": int(np.count_nonzero(log.tick_cpu_us > REAL_TIME_BUDGET_US)),
+        "tick_us_max": float(log.tick_cpu_us.max()),
     }
 
 
@@ -118,7 +122,15 @@ def push_search(attempt, ladder, bisections: int) -> dict:
     def run(impulses):
         logs = attempt(list(impulses))
         for impulse, log in zip(impulses, logs):
-            tried.append({"impulse_ns": impulse, "fell": log.fell, "diverged": log.diverged})
+            tried.append(
+                {
+                    "impulse_ns": impulse,
+                    "fell": log.fell,
+                    "diverged": log.diverged,
+                    "qp_holds": log.n_fallbacks,
+                    "ticks_over_5ms": int(np.count_nonzero(log.tick_cpu_us > REAL_TIME_BUDGET_US)),
+                }
+            )
         return [(log, log.fell or log.diverged is not None) for log in logs]
 
     survived, fatal, shown = 0.0, None, None

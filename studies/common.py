@@ -22,8 +22,6 @@ in the next, and a push at the edge of a fall flipped between runs. The studies 
 ticks' CPU time against the 5 ms real-time budget (``ticks_over_5ms``) instead. (Runs in
 different processes can still differ in the last bits: proxsuite's solves are not bitwise
 reproducible across processes.)"""
-REAL_TIME_BUDGET_US = 5000.0
-"""The controller's default time budget [us], against which the studies count slow ticks."""
 
 
 def output_dir(out_dir) -> Path:

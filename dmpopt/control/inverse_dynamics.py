@@ -165,6 +165,10 @@ def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     return np.sort(pivots[:n_rows]) + n_base
 
 
+DEFAULT_TIME_BUDGET = 5e-3
+"""CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
+
+
 class ContactSetQP(Tick, Assembly, StageSolver):
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
@@ -182,7 +186,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         force_regularization: float = 1e-8,
         tolerance: float = 1e-6,
         max_iterations: int = 50,
-        time_budget: float = 5e-3,
+        time_budget: float = DEFAULT_TIME_BUDGET,
         raise_on_failure: bool = False,
         joint_limit_horizon: float | None = 0.05,
         limited_joints: str | Sequence[str] | None = None,

@@ -24,12 +24,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
 from robots import biped as biped_model
 
-from ..common import REAL_TIME_BUDGET_US, TIME_BUDGET
+from ..common import TIME_BUDGET
 from .gait import limit_cycle_start
 
 DT = 1e-3  # [s] simulation step; the PD law and the QP run every step
@@ -327,7 +328,7 @@ def walk(
             begin = time.thread_time_ns()
             torque = law.torques(state, desired, desired_velocity, desired_acceleration)
             tick_us = (time.thread_time_ns() - begin) / 1e3
-            slow += tick_us > REAL_TIME_BUDGET_US
+            slow += tick_us > 1e6 * DEFAULT_TIME_BUDGET
             slowest = max(slowest, tick_us)
             base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
             joint_velocities = state.v[index]

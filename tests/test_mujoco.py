@@ -23,7 +23,13 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from dmpopt.sim import GroundContact, MujocoSimulator, Simulator, render_animation
+from dmpopt.sim import (
+    GroundContact,
+    MujocoSimulator,
+    PlantParameters,
+    Simulator,
+    render_animation,
+)
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
 
@@ -408,7 +414,11 @@ def test_bad_simulator_arguments(talos, talos_sim):
     with pytest.raises(InvalidInputError, match="friction must be"):
         MujocoSimulator(model, urdf, friction=-1)
     with pytest.raises(InvalidInputError, match="damping must be"):
-        MujocoSimulator(model, urdf, damping=np.inf)
+        MujocoSimulator(model, urdf, plant=PlantParameters(damping=np.inf))
+    with pytest.raises(InvalidInputError, match="plant must be a PlantParameters"):
+        MujocoSimulator(model, urdf, plant={"damping": 1.0})
+    with pytest.raises(InvalidInputError, match="armature pattern 'leg_\\*_9' matches no"):
+        MujocoSimulator(model, urdf, plant=PlantParameters(armature={"leg_*_9": 0.1}))
     with pytest.raises(InvalidInputError, match="urdf '/no/such.urdf' is not a file"):
         MujocoSimulator(model, "/no/such.urdf")
     with pytest.raises(InvalidInputError, match="model must be a pinocchio.Model.*robot.model"):

@@ -15,17 +15,22 @@ and angular speed into a :class:`Fall`.
 from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt
 from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
+from dmpopt.sim.plant import IDEAL, PlantParameters, SensorNoise, nominal_model
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
 __all__ = [
+    "IDEAL",
     "Fall",
     "FallDetector",
     "GroundContact",
     "MujocoSimulator",
+    "PlantParameters",
+    "SensorNoise",
     "SimState",
     "Simulator",
     "TouchdownEvent",
     "base_tilt",
+    "nominal_model",
     "ground_forces",
     "render_animation",
 ]

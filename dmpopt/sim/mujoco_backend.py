@@ -13,21 +13,26 @@ Model
     reader drops them (the Talos gripper joints move independently in both).
 Contact
     MuJoCo's soft-constraint contact (default ``solref`` = (0.02 s, 1), ``solimp`` = (0.9, 0.95,
-    0.001 m)), elliptic friction cones with ``condim`` 3 (sliding friction only), between a flat
-    floor at z = 0 and one small sphere per contact point: the same ``(frame, offset)`` points as
-    the native simulator, each a sphere of ``contact_radius`` whose lowest point is the contact
-    point when the frame's z axis is vertical. The URDF collision geometry is kept for rendering
-    only (it collides with nothing), so only the contact points touch the floor, as in the
-    native simulator. ``SimState.contact_forces`` are the solver's contact forces
-    (``efc_force``), summed per point and rotated to the world frame.
+    0.001 m)), elliptic friction cones with ``condim`` 3 (sliding friction only), with a flat
+    floor at z = 0. The ``(frame, offset)`` contact points are the feet: a frame with three or
+    more points on its x-y plane (a sole's corners) gets a box, the rectangle they span and
+    ``SOLE_THICKNESS`` thick above it, so a sole rests flat, rolls on its edges and catches on
+    steps as the real one; a frame with fewer points gets a sphere of ``contact_radius`` per
+    point whose lowest point is the contact point (point feet). The rest of the body collides
+    with the floor through the URDF's collision geometry (links without any: capsules along
+    their sticks), so a fallen robot lies on the ground; the links that carry contact points
+    (and the static links fixed to them) collide only through their soles. Self-collision is
+    off. ``SimState.contact_forces`` are the solver's contact forces (``efc_force``) rotated to
+    the world frame, per point: a sole's contacts (at the box's corners on a flat floor) go to
+    the nearest corner.
 Integration
     Time step ``dt`` (1 ms by default), ``implicitfast`` integrator (damping implicit), Newton
-    solver. Torques enter as ``qfrc_applied`` without saturation, like the native simulator.
+    solver. Torques enter as ``qfrc_applied``, through the plant's saturation and delay.
 Joints
-    Armature, viscous damping and dry friction (``frictionloss``) are 0 by default on every
-    actuated joint, so the simulated robot is exactly the rigid-body model the controllers use
-    (the native simulator has none either); pass values, or ``None`` to keep the URDF's
-    ``<dynamics>`` (Talos: damping 0.5-1 N m s/rad, friction 1 N m). URDF position limits are
+    The plant (:class:`dmpopt.sim.PlantParameters`) sets each actuated joint's ``armature``,
+    ``damping`` and ``frictionloss``; the default :data:`dmpopt.sim.IDEAL` leaves them 0, so
+    the simulated robot is exactly the rigid-body model the controllers use. The URDF's
+    ``<dynamics>`` values are not read (pass them through the plant). URDF position limits are
     MuJoCo limit constraints (the native simulator has none).
 
 State conversion (the part where bugs hide): MuJoCo's free joint stores the quaternion as
@@ -67,14 +72,17 @@ from dmpopt.exceptions import (
     SimulationDiverged,
 )
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
+from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
 
-__all__ = ["MujocoSimulator", "render_animation"]
+__all__ = ["SOLE_THICKNESS", "MujocoSimulator", "render_animation"]
+
+SOLE_THICKNESS = 0.01  # [m] of the box that stands for a sole
+_FLOOR_BIT, _BODY_BIT = 1, 2  # contype bits: contact geometry of the feet, the rest of the body
 
 _PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
 _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
-_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
 _XYZ = np.arange(3)
 
@@ -174,9 +182,11 @@ class MujocoSimulator(Backend):
         Coulomb friction coefficient between the contact spheres and the floor [-].
     contact_radius : float
         Radius of the contact spheres [m].
-    armature, damping, joint_friction : float or None
-        Rotor inertia [kg m^2], viscous damping [N m s/rad] and dry friction [N m] of every
-        actuated joint; ``None`` keeps the URDF's values (armature: 0).
+    plant : PlantParameters
+        Joint armature, damping and friction, torque saturation, delay and sensor noise (see
+        :mod:`dmpopt.sim.plant`); default :data:`~dmpopt.sim.IDEAL`, the controller's model.
+    body_collisions : bool
+        Whether the links other than the feet collide with the floor (see Contact above).
     package_dirs : sequence of path, optional
         Where ``package://NAME/...`` is looked up as ``DIR/NAME/...``; defaults to the URDF's
         parent directories.
@@ -209,9 +219,8 @@ class MujocoSimulator(Backend):
         contact_points=(),
         friction: float = 1.0,
         contact_radius: float = 0.005,
-        armature: float | None = 0.0,
-        damping: float | None = 0.0,
-        joint_friction: float | None = 0.0,
+        plant: PlantParameters = IDEAL,
+        body_collisions: bool = True,
         package_dirs=None,
         fall_frame: str | None = None,
         fall_height: float | None = None,
@@ -229,13 +238,8 @@ class MujocoSimulator(Backend):
         self.max_speed = _positive("max_speed", max_speed)
         friction = _positive("friction", friction, allow_zero=True)
         contact_radius = _positive("contact_radius", contact_radius)
-        joint_values = {
-            "armature": _positive("armature", armature, allow_none=True, allow_zero=True),
-            "damping": _positive("damping", damping, allow_none=True, allow_zero=True),
-            "joint_friction": _positive(
-                "joint_friction", joint_friction, allow_none=True, allow_zero=True
-            ),
-        }
+        if not isinstance(body_collisions, (bool, np.bool_)):
+            raise InvalidInputError(f"body_collisions must be True or False, got {body_collisions!r}")
         urdf = Path(urdf)
         if not urdf.is_file():
             raise InvalidInputError(f"urdf {str(urdf)!r} is not a file; pass the robot's URDF path")
@@ -244,18 +248,21 @@ class MujocoSimulator(Backend):
         elif isinstance(package_dirs, (str, Path)):
             package_dirs = [package_dirs]
         self.model = model
-        self._base = _base_joint(model)
+        self._base = base_joint_kind(model)
         self.n_base_dofs = 0 if self._base is None else model.joints[1].nv
         self.n_actuated = model.nv - self.n_base_dofs
+        first = 1 if self._base is None else 2
+        self.plant = PlantRuntime(plant, model, self._base, model.names[first:])
 
         spec = self._spec(urdf, package_dirs)
         self._check_joints(spec, urdf)
-        self._set_joint_dynamics(spec, joint_values)
+        self._set_joint_dynamics(spec)
         self._add_floor(spec, friction)
         contact_points = _pairs(contact_points)
         self.contact_frames = [name for name, _ in contact_points]
-        for index, (name, offset) in enumerate(contact_points):
-            self._add_contact_point(spec, index, name, offset, contact_radius)
+        feet = self._add_feet(spec, contact_points, contact_radius)
+        if body_collisions:
+            self._collide_body(spec, feet)
         self.fall_detector, self._watched = fall_checks(
             model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height
         )
@@ -271,10 +278,7 @@ class MujocoSimulator(Backend):
         self._map_coordinates()
         self._check_mass(urdf)
         self._n_points = len(contact_points)
-        self._point_of_geom = np.full(self.mj_model.ngeom, -1)
-        names = [f"contact_point_{i}" for i in range(self._n_points)]
-        self._point_of_geom[[self.mj_model.geom(n).id for n in names]] = np.arange(self._n_points)
-        self._point_sites = np.array([self.mj_model.site(n).id for n in names], dtype=int)
+        self._index_contact_geoms(contact_points)
         self.reset(pin.neutral(model), np.zeros(model.nv))
 
     # ------------------------------------------------------------------ model building
@@ -302,7 +306,7 @@ class MujocoSimulator(Backend):
         for equality in list(spec.equalities):  # URDF <mimic>: Pinocchio's joints are free
             spec.delete(equality)
         spec.compiler.discardvisual = False  # keep the non-colliding geometry below
-        for geom in spec.geoms:  # URDF collision geometry: drawn, never in contact
+        for geom in spec.geoms:  # URDF collision geometry: see _collide_body
             geom.contype = geom.conaffinity = 0
         for body in spec.bodies[1:]:  # links without geometry (the planar biped): sticks
             if body.geoms or not body.explicitinertial:  # no mass from geometry
@@ -319,17 +323,14 @@ class MujocoSimulator(Backend):
                     )
         return spec
 
-    def _set_joint_dynamics(self, spec, values) -> None:
-        base_names = self._base_joint_names()
-        for joint in spec.joints:
-            if joint.name in base_names:
-                continue
-            if values["armature"] is not None:
-                joint.armature = values["armature"]
-            if values["damping"] is not None:
-                joint.damping = [values["damping"], 0.0, 0.0]
-            if values["joint_friction"] is not None:
-                joint.frictionloss = values["joint_friction"]
+    def _set_joint_dynamics(self, spec) -> None:
+        """The plant's armature, damping and friction on every actuated joint."""
+        plant = self.plant
+        for k, name in enumerate(plant.joint_names):
+            joint = spec.joint(name)
+            joint.armature = plant.armature[k]
+            joint.damping = [plant.damping[k], 0.0, 0.0]
+            joint.frictionloss = plant.friction[k]
 
     def _add_floor(self, spec, friction: float) -> None:
         mujoco = self._mj
@@ -341,8 +342,8 @@ class MujocoSimulator(Backend):
             rgba=_FLOOR_RGBA,
             friction=[friction, 0.005, 0.0001],
             condim=3,
-            contype=1,
-            conaffinity=1,
+            contype=_FLOOR_BIT,
+            conaffinity=_FLOOR_BIT | _BODY_BIT,
         )
 
     def _base_joint_names(self) -> list[str]:
@@ -369,25 +370,94 @@ class MujocoSimulator(Backend):
             )
         return self.model.frames[self.model.getFrameId(name)]
 
-    def _add_contact_point(self, spec, index: int, name: str, offset, radius: float) -> None:
-        """A site at the point and a sphere resting on it (lowest point when z is vertical)."""
-        frame = self._frame(name)
-        offset = _vector(f"offset of contact point {name!r}", offset, 3)
-        point = frame.placement.act(offset)
-        up = frame.placement.rotation[:, 2]
-        body = self._spec_body(spec, frame.parentJoint)
-        body.add_site(name=f"contact_point_{index}", pos=point)
-        body.add_geom(
-            name=f"contact_point_{index}",
-            type=self._mj.mjtGeom.mjGEOM_SPHERE,
-            size=[radius, 0, 0],
-            pos=point + radius * up,
-            contype=1,
-            conaffinity=0,
-            condim=3,
-            friction=[spec.geom("floor").friction[0], 0.005, 0.0001],
-            rgba=[0.9, 0.3, 0.2, 1.0],
-        )
+    def _add_feet(self, spec, contact_points, radius: float) -> set:
+        """A site at every contact point; a box per sole, a sphere per point foot.
+
+        Returns the names of the MjSpec bodies that carry contact geometry.
+        """
+        by_frame: dict[str, list[int]] = {}
+        points = []
+        for index, (name, offset) in enumerate(contact_points):
+            frame = self._frame(name)
+            offset = _vector(f"offset of contact point {name!r}", offset, 3)
+            points.append(offset)
+            by_frame.setdefault(name, []).append(index)
+            body = self._spec_body(spec, frame.parentJoint)
+            body.add_site(name=f"contact_point_{index}", pos=frame.placement.act(offset))
+        self._soles = {}
+        bodies = set()
+        friction = [spec.geom("floor").friction[0], 0.005, 0.0001]
+        for name, indices in by_frame.items():
+            frame = self._frame(name)
+            body = self._spec_body(spec, frame.parentJoint)
+            bodies.add(body.name)
+            local = np.array([points[i] for i in indices])
+            up = frame.placement.rotation[:, 2]
+            if len(indices) >= 3 and np.ptp(local[:, 2]) < 1e-9:
+                low, high = local[:, :2].min(axis=0), local[:, :2].max(axis=0)
+                centre = np.r_[(low + high) / 2, local[0, 2] + SOLE_THICKNESS / 2]
+                quaternion = np.empty(4)
+                self._mj.mju_mat2Quat(quaternion, frame.placement.rotation.reshape(-1))
+                body.add_geom(
+                    name=f"sole_{len(self._soles)}",
+                    type=self._mj.mjtGeom.mjGEOM_BOX,
+                    size=[*((high - low) / 2), SOLE_THICKNESS / 2],
+                    pos=frame.placement.act(centre),
+                    quat=quaternion,
+                    contype=_FLOOR_BIT,
+                    conaffinity=0,
+                    condim=3,
+                    friction=friction,
+                    rgba=[0.9, 0.3, 0.2, 1.0],
+                )
+                self._soles[f"sole_{len(self._soles)}"] = indices
+                continue
+            for index in indices:
+                body.add_geom(
+                    name=f"contact_point_{index}",
+                    type=self._mj.mjtGeom.mjGEOM_SPHERE,
+                    size=[radius, 0, 0],
+                    pos=frame.placement.act(points[index]) + radius * up,
+                    contype=_FLOOR_BIT,
+                    conaffinity=0,
+                    condim=3,
+                    friction=friction,
+                    rgba=[0.9, 0.3, 0.2, 1.0],
+                )
+        return bodies
+
+    def _collide_body(self, spec, feet: set) -> None:
+        """The links' collision geometry touches the floor, except on the feet's links (and the
+        static links fixed to them); links drawn as sticks get capsules that collide."""
+
+        def welded(body) -> list:
+            return [body] + [b for child in body.bodies if not child.joints for b in welded(child)]
+
+        skipped = {b.name for body in spec.bodies if body.name in feet for b in welded(body)}
+        for body in spec.bodies[1:]:
+            if body.name in skipped:
+                continue
+            for geom in body.geoms:
+                if geom.name.startswith(("sole_", "contact_point_")):
+                    continue
+                geom.contype, geom.conaffinity = _BODY_BIT, 0
+
+    def _index_contact_geoms(self, contact_points) -> None:
+        """Maps from MuJoCo geoms to contact points (spheres) or soles (boxes)."""
+        model = self.mj_model
+        names = [f"contact_point_{i}" for i in range(self._n_points)]
+        self._point_sites = np.array([model.site(n).id for n in names], dtype=int)
+        self._point_of_geom = np.full(model.ngeom, -1)
+        self._sole_of_geom = np.full(model.ngeom, -1)
+        self._sole_points = []
+        for index in range(self._n_points):
+            geom = self._mj.mj_name2id(model, self._mj.mjtObj.mjOBJ_GEOM, f"contact_point_{index}")
+            if geom >= 0:
+                self._point_of_geom[geom] = index
+        for k, (geom, indices) in enumerate(self._soles.items()):
+            self._sole_of_geom[model.geom(geom).id] = k
+            self._sole_points.append(np.array(indices, dtype=int))
+        self._contact_geoms = np.flatnonzero((self._point_of_geom >= 0) | (self._sole_of_geom >= 0))
 
     def _check_joints(self, spec, urdf: Path) -> None:
         """The model's joints are the URDF's, by name, and all have one axis."""
@@ -516,6 +586,8 @@ class MujocoSimulator(Backend):
         self.touchdown_events: list[TouchdownEvent] = []
         self._last_touchdowns: tuple = ()
         self.fall: Fall | None = None
+        self.plant.reset()
+        self.plant.draw()
         self._read_contacts()
         self._last_contact_time = t if self._in_contact.any() else None
         return self.state
@@ -579,7 +651,9 @@ class MujocoSimulator(Backend):
             )
         mujoco, model, data = self._mj, self.mj_model, self.mj_data
         force = np.zeros(self.model.nv)
-        force[self.n_base_dofs :] = _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
+        force[self.n_base_dofs :] = self.plant.actuate(
+            _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
+        )
         if base_force is not None:
             force[: self.n_base_dofs] = _vector("base_force", base_force, self.n_base_dofs)
         data.qfrc_applied[:] = 0.0
@@ -600,6 +674,7 @@ class MujocoSimulator(Backend):
         self.touchdown_events.extend(self._last_touchdowns)
         if self._in_contact.any():
             self._last_contact_time = self.t  # end of a step with contact
+        self.plant.draw()
         if self.fall_detector is not None:
             self._check_fall()
         return self.state
@@ -612,17 +687,23 @@ class MujocoSimulator(Backend):
         if not data.ncon:
             return
         contacts = data.contact
-        pairs = self._point_of_geom[contacts.geom]  # (n_contacts, 2): -1 for other geoms
-        # A sphere touches nothing but the floor: at most one contact per point.
-        points = pairs.max(axis=1)
-        ours = points >= 0
-        points = points[ours]
+        geoms = contacts.geom  # (n_contacts, 2)
+        ours = np.isin(geoms, self._contact_geoms)  # feet touch nothing but the floor
+        mine = ours.any(axis=1)
+        if not mine.any():
+            return
+        foot = np.where(ours[mine, 0], geoms[mine, 0], geoms[mine, 1])
         # Contact frame rows: the normal, from geom1 to geom2, then two tangents. With elliptic
         # cones efc_force holds each contact's normal and tangential forces in that frame.
-        sign = np.where(pairs[ours, 1] >= 0, 1.0, -1.0)
-        local = data.efc_force[contacts.efc_address[ours, None] + _XYZ] * sign[:, None]
-        frames = contacts.frame[ours].reshape(-1, 3, 3)
-        self._forces[points] = np.einsum("nij,ni->nj", frames, local)
+        sign = np.where(ours[mine, 1], 1.0, -1.0)
+        local = data.efc_force[contacts.efc_address[mine, None] + _XYZ] * sign[:, None]
+        forces = np.einsum("nij,ni->nj", contacts.frame[mine].reshape(-1, 3, 3), local)
+        points = self._point_of_geom[foot]
+        for k in np.flatnonzero(points < 0):  # a sole's contact: its nearest corner
+            corners = self._sole_points[self._sole_of_geom[foot[k]]]
+            distance = np.linalg.norm(self._positions[corners] - contacts.pos[mine][k], axis=1)
+            points[k] = corners[np.argmin(distance)]
+        np.add.at(self._forces, points, forces)
         self._in_contact[points] = True
 
     def _check_stable(self) -> None:
@@ -669,33 +750,6 @@ def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
             f"tau must be finite; entries {np.flatnonzero(~np.isfinite(array)).tolist()} are not"
         )
     return array
-
-
-def _base_joint(model: pin.Model):
-    """``"free"``, a list of ``(kind, axis)`` for a composite root, or None (fixed base)."""
-    if model.njoints < 2:
-        return None
-    root = model.joints[1]
-    name = root.shortname()
-    if name == "JointModelFreeFlyer":
-        return "free"
-    if name != "JointModelComposite":
-        if model.names[1] == "root_joint":
-            raise InvalidInputError(
-                f"root joint {name} is not supported; use a free flyer, a composite of "
-                "one-axis joints, or a fixed base"
-            )
-        return None
-    axes = []
-    for joint in root.extract().joints:
-        match = re.fullmatch(r"JointModel([PR])([XYZ])", joint.shortname())
-        if match is None:
-            raise InvalidInputError(
-                f"composite root joint part {joint.shortname()} is not supported; use "
-                "JointModelP{X,Y,Z} and JointModelR{X,Y,Z} parts"
-            )
-        axes.append((match.group(1), _AXES[match.group(2)]))
-    return axes
 
 
 # ---------------------------------------------------------------------------------- rendering

@@ -29,6 +29,7 @@ import pinocchio as pin
 from dmpopt.exceptions import InvalidInputError, SimulationDiverged
 from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
+from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.validation import real, real_array
 
 __all__ = ["Backend", "SimState", "Simulator", "TouchdownEvent"]
@@ -79,6 +80,10 @@ class SimState:
         Touchdowns that happened during this step.
     fall : Fall or None
         The fall that ended the simulation (time, cause, reason), None while standing.
+    q_measured, v_measured : ndarray, shape (nq,) and (nv,)
+        What the robot's sensors read: ``q`` and ``v`` plus the plant's measurement noise
+        (:class:`dmpopt.sim.SensorNoise`); equal to ``q`` and ``v`` without noise. Feed these
+        to a controller, measure with ``q`` and ``v``.
     """
 
     t: float
@@ -89,6 +94,14 @@ class SimState:
     contact_positions: np.ndarray
     touchdowns: tuple
     fall: Fall | None
+    q_measured: np.ndarray | None = None
+    v_measured: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.q_measured is None:
+            object.__setattr__(self, "q_measured", self.q)
+        if self.v_measured is None:
+            object.__setattr__(self, "v_measured", self.v)
 
     @property
     def fallen(self) -> bool:
@@ -108,14 +121,17 @@ class Backend:
     """What both simulation backends share: the state snapshot, falls and the push rules.
 
     A backend sets ``t``, ``dt``, ``fall``, ``_forces``, ``_in_contact``, ``_positions``,
-    ``_last_touchdowns`` and ``_pushes``, and implements ``_q_v()`` (Pinocchio's q, v) and
-    ``_locate(frame_name, offset)`` (the body a frame's point moves with, and the point in it).
+    ``_last_touchdowns``, ``_pushes`` and ``plant`` (a :class:`PlantRuntime`: it passes each
+    command through :meth:`PlantRuntime.actuate`, calls :meth:`PlantRuntime.draw` after each
+    step and reset), and implements ``_q_v()`` (Pinocchio's q, v) and ``_locate(frame_name,
+    offset)`` (the body a frame's point moves with, and the point in it).
     """
 
     @property
     def state(self) -> SimState:
         """The current :class:`SimState` (arrays are copies)."""
         q, v = self._q_v()
+        q_measured, v_measured = self.plant.measure(q, v)
         return SimState(
             t=self.t,
             q=q,
@@ -125,6 +141,8 @@ class Backend:
             contact_positions=self._positions.copy(),
             touchdowns=self._last_touchdowns,
             fall=self.fall,
+            q_measured=q_measured,
+            v_measured=v_measured,
         )
 
     @property
@@ -230,13 +248,13 @@ class Simulator(Backend):
         fall_height: float | None = None,
         max_speed: float = 1e3,
         falls: bool | FallDetector = True,
+        plant: PlantParameters = IDEAL,
     ):
         if not isinstance(model, pin.Model):
             raise InvalidInputError(
                 f"model must be a pinocchio.Model, got {type(model).__name__}; pass robot.model"
             )
         self.model = model
-        self.data = model.createData()
         self.dt = real(
             "dt",
             dt,
@@ -253,6 +271,8 @@ class Simulator(Backend):
         )
         self.n_base_dofs = self._check_base_dofs(n_base_dofs)
         self.n_actuated = model.nv - self.n_base_dofs
+        self._set_plant(plant)
+        self.data = self.model.createData()
         self._name_coordinates()
         contact_points = self._check_contact_points(contact_points)
         if contact_points and not isinstance(ground, GroundContact):
@@ -278,6 +298,52 @@ class Simulator(Backend):
         self.reset(pin.neutral(model), np.zeros(model.nv))
 
     # ------------------------------------------------------------------ set-up helpers
+    def _set_plant(self, plant: PlantParameters) -> None:
+        r"""The plant's runtime; armature into a copy of the model; friction's regularisation.
+
+        Coulomb friction is :math:`f_c \, \mathrm{clip}(\dot q / v_s, -1, 1)` with
+        :math:`v_s = \Delta t f_c / m` per joint (:math:`m` its inertia with armature in the
+        neutral posture), the narrowest band explicit Euler integrates without chattering.
+        """
+        model = self.model
+        names = [
+            model.names[j]
+            for j in range(1, model.njoints)
+            for _ in range(model.joints[j].nv)
+            if model.joints[j].idx_v >= self.n_base_dofs
+        ]
+        try:
+            base = base_joint_kind(model) if self.n_base_dofs else None
+        except InvalidInputError:  # a root the noise model does not know (e.g. planar)
+            base = None
+        self.plant = PlantRuntime(plant, model, base, names)
+        if self.plant.armature.any():
+            armature = np.zeros(model.nv)
+            armature[self.n_base_dofs :] = self.plant.armature
+            self.model = model = pin.Model(model)
+            model.armature = armature
+        inertia = np.diag(pin.crba(model, model.createData(), pin.neutral(model)))
+        inertia = inertia[self.n_base_dofs :]
+        stiff = self.dt * self.plant.damping / inertia
+        if (stiff >= 1.0).any():
+            joint = names[int(np.argmax(stiff))]
+            raise InvalidInputError(
+                f"damping of {joint!r} ({self.plant.damping.max():.3g} N m s/rad) is too stiff "
+                f"for explicit integration at dt = {self.dt:.3g} s (dt b / m >= 1); add armature, "
+                "reduce dt, or use MujocoSimulator (implicit damping)"
+            )
+        self._friction_band = np.maximum(self.dt * self.plant.friction / inertia, 1e-9)
+
+    def _joint_torques(self, tau: np.ndarray) -> np.ndarray:
+        """The plant's torque on the actuated joints: motors minus damping and friction."""
+        applied = self.plant.actuate(tau)
+        plant = self.plant
+        if plant.damping.any() or plant.friction.any():
+            speed = self.v[self.n_base_dofs :]
+            slip = np.clip(speed / self._friction_band, -1.0, 1.0)
+            applied = applied - plant.damping * speed - plant.friction * slip
+        return applied
+
     def _check_base_dofs(self, n_base_dofs) -> int:
         if n_base_dofs is None:
             return _detect_base_dofs(self.model)
@@ -375,6 +441,8 @@ class Simulator(Backend):
         self._last_touchdowns: tuple = ()
         self.fall: Fall | None = None
         self._last_contact_time: float | None = None
+        self.plant.reset()
+        self.plant.draw()
         if n_points:
             pin.computeJointJacobians(self.model, self.data, self.q)
             self._positions, _ = self._point_jacobians(self._point_list, self._point_placements)
@@ -471,6 +539,7 @@ class Simulator(Backend):
             )
         tau_full = self._tau
         self._set_forces(tau_full, tau, base_force)
+        tau_full[self.n_base_dofs :] = self._joint_torques(tau_full[self.n_base_dofs :])
         model, data = self.model, self.data
         pin.computeJointJacobians(model, data, self.q)
         generalized = tau_full
@@ -501,6 +570,7 @@ class Simulator(Backend):
         self._last_touchdowns = touchdowns
         if touchdowns:
             self.touchdown_events.extend(touchdowns)
+        self.plant.draw()
         if self.fall_detector is not None:
             self._check_fall()
         return self.state

@@ -27,11 +27,20 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
+from dmpopt.control import (
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    JointImpedance,
+    PostureTask,
+    SoleContact,
+)
 from dmpopt.exceptions import SimulationDiverged
+from dmpopt.sim import IDEAL, with_armature
 from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk, swing_reference
 from dmpopt.validation import flag
 from robots import load_talos
+from robots.plants import talos_realistic
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
 
@@ -78,10 +87,15 @@ class Walker:
     """The tasks, the controller and the contact switching of one walk plan.
 
     ``references(tick)`` sets the task targets and switches the contacts at the plan's
-    lift-offs and touchdowns.
+    lift-offs and touchdowns. With ``nominal_plant`` the controller's model carries its
+    armature and a :class:`JointImpedance` closes the joint loop (as in the humanoid study).
     """
 
-    def __init__(self, robot, q0, plan, swing_dmps):
+    def __init__(self, robot, q0, plan, swing_dmps, nominal_plant=None):
+        impedance = None
+        if nominal_plant is not None:
+            robot = with_armature(robot, nominal_plant)
+            impedance = JointImpedance.for_plant(robot, DT, nominal_plant)
         self.robot, self.plan, self.swing_dmps = robot, plan, swing_dmps
         data = robot.create_data()
         pin.framesForwardKinematics(robot.model, data, q0)
@@ -103,7 +117,11 @@ class Walker:
         }
         contacts = [SoleContact(robot, f) for f in robot.foot_frames]
         self.controller = InverseDynamicsController(
-            robot, [posture, self.com_task, base], contacts, time_budget=TIME_BUDGET
+            robot,
+            [posture, self.com_task, base],
+            contacts,
+            time_budget=TIME_BUDGET,
+            joint_impedance=impedance,
         )
         self._lift_off = np.round(plan.lift_off / DT).astype(int)  # ticks
         self._touchdown = np.round(plan.touchdown / DT).astype(int)
@@ -145,8 +163,9 @@ class Walker:
             task.set_target(placement, velocity, acceleration)
 
 
-def make_simulator(robot):
-    """MuJoCo with a contact sphere at each sole corner (left then right)."""
+def make_simulator(robot, plant=IDEAL):
+    """MuJoCo with the soles (left then right) on the floor and ``plant``'s joints, actuators
+    and sensors."""
     from dmpopt.sim import MujocoSimulator
 
     points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
@@ -158,6 +177,7 @@ def make_simulator(robot):
         FLOOR_FRICTION,
         fall_frame="base_link",
         fall_height=FALL_HEIGHT,
+        plant=plant,
     )
 
 
@@ -180,9 +200,9 @@ def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray]:
     return normal, margin
 
 
-def simulate(robot, q0, walker, duration: float, record_every: int = 0):
-    """Run the walk in MuJoCo for ``duration`` seconds; stop at a fall."""
-    simulator = make_simulator(robot)
+def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL):
+    """Run the walk in MuJoCo on ``plant`` for ``duration`` seconds; stop at a fall."""
+    simulator = make_simulator(robot, plant)
     state = simulator.reset(q0)
     data = robot.create_data()
     omega = 1.0 / walker.plan.time_constant
@@ -197,7 +217,7 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0):
         t = k * DT
         walker.references(k)
         begin = time.thread_time_ns()
-        tau = walker.controller.compute_torques(state.q, state.v, t)
+        tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3
         com[k] = pin.centerOfMass(robot.model, data, state.q, state.v)
         dcm[k] = com[k, :2] + data.vcom[0][:2] / omega

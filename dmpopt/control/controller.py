@@ -18,6 +18,7 @@ import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
 
+from .joint_impedance import JointImpedance
 from .inverse_dynamics import ContactSetQP, ControllerStats, _check_items, _check_positive
 from .tasks import Task
 
@@ -93,6 +94,10 @@ class InverseDynamicsController:
         point). The active ones' wrenches are decision variables.
     inactive : sequence of str
         Frames of ``contacts`` not active at construction (e.g. a foot in the air).
+    joint_impedance : JointImpedance, optional
+        A stiff joint loop around the QP's motion, added to its torques (for a plant that is
+        not the model: friction, damping, armature, delay; :mod:`.joint_impedance`). The
+        returned torques are then the sum, still within the torque limits.
     acceleration_regularization : float
         :math:`\epsilon_a`, keeps the Hessian positive definite when tasks leave joints free.
     force_regularization : float
@@ -186,9 +191,16 @@ class InverseDynamicsController:
         contacts: Sequence = (),
         *,
         inactive: Sequence[str] = (),
+        joint_impedance: JointImpedance | None = None,
         **settings,
     ):
         _check_items(robot, tasks, contacts)
+        if joint_impedance is not None and not isinstance(joint_impedance, JointImpedance):
+            raise InvalidInputError(
+                f"joint_impedance must be a JointImpedance or None, got "
+                f"{type(joint_impedance).__name__}"
+            )
+        self.joint_impedance = joint_impedance
         self.robot, self.model = robot, robot.model
         self.contacts = tuple(contacts)
         frames = [contact.frame for contact in self.contacts]
@@ -428,7 +440,11 @@ class InverseDynamicsController:
             _time(t, "t")
         if self._changed:
             self._switch()
-        return self._current.compute_torques(q, v)
+        torques = self._current.compute_torques(q, v)
+        if self.joint_impedance is None:
+            return torques
+        current = self._current
+        return self.joint_impedance.torques(q, v, current.joint_accelerations, torques)
 
     # ------------------------------------------------------------------ results
     @property
@@ -498,6 +514,8 @@ class InverseDynamicsController:
         """Back to the contacts active at construction, without transitions; forget the warm
         starts, the contact reference placements and the counters."""
         self._stats = ControllerStats()
+        if self.joint_impedance is not None:
+            self.joint_impedance.reset()
         for formulation in self._formulations.values():
             formulation.reset()
             formulation.stats = self._stats

@@ -15,7 +15,7 @@ and angular speed into a :class:`Fall`.
 from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt
 from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
-from dmpopt.sim.plant import IDEAL, PlantParameters, SensorNoise, nominal_model
+from dmpopt.sim.plant import IDEAL, PlantParameters, SensorNoise, with_armature
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
 __all__ = [
@@ -30,7 +30,7 @@ __all__ = [
     "Simulator",
     "TouchdownEvent",
     "base_tilt",
-    "nominal_model",
+    "with_armature",
     "ground_forces",
     "render_animation",
 ]

@@ -37,7 +37,7 @@ import pinocchio as pin
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.validation import real
 
-__all__ = ["IDEAL", "PlantParameters", "SensorNoise", "base_joint_kind", "nominal_model"]
+__all__ = ["IDEAL", "PlantParameters", "SensorNoise", "base_joint_kind", "with_armature"]
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _PER_JOINT = ("armature", "damping", "friction")
@@ -232,14 +232,15 @@ def _non_negative(name: str, value) -> float:
 IDEAL = PlantParameters(name="ideal")
 
 
-def nominal_model(model: pin.Model, armature: np.ndarray, n_base: int) -> pin.Model:
-    """A copy of ``model`` whose actuated joints carry ``armature`` (the controller's nominal
-    rotor inertia; Pinocchio adds it to the mass matrix, RNEA and ABA)."""
-    result = pin.Model(model)
-    values = np.zeros(model.nv)
-    values[n_base:] = armature
-    result.armature = values
-    return result
+def with_armature(robot, plant: PlantParameters):
+    """A copy of ``robot`` (a :class:`RobotModel`) whose model carries ``plant``'s armature on
+    its actuated joints: the controller's nominal rotor inertia (Pinocchio adds it to the mass
+    matrix, RNEA and ABA)."""
+    model = pin.Model(robot.model)
+    armature = np.zeros(model.nv)
+    armature[robot.n_base :] = plant.values("armature", robot.actuated_joint_names)
+    model.armature = armature
+    return dataclasses.replace(robot, model=model)
 
 
 def base_joint_kind(model: pin.Model):

@@ -19,6 +19,7 @@ The boom keeps the robot in the sagittal plane (the planar base); its pitch spri
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.sim import GroundContact, Simulator
+from dmpopt.sim import IDEAL, GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
 from robots import biped as biped_model
 
@@ -160,11 +161,22 @@ class PDControl:
 class QPControl:
     """QP inverse dynamics with DMP posture, torso pitch and switched point contacts."""
 
-    def __init__(self, biped, gains: QPGains = QP_GAINS):
+    def __init__(self, biped, gains: QPGains = QP_GAINS, nominal_plant=None):
         import pinocchio as pin
 
-        from dmpopt.control import FrameTask, InverseDynamicsController, PointContact, PostureTask
+        from dmpopt.control import (
+            FrameTask,
+            InverseDynamicsController,
+            JointImpedance,
+            PointContact,
+            PostureTask,
+        )
+        from dmpopt.sim import with_armature
 
+        impedance = None
+        if nominal_plant is not None:  # the model carries the armature; a joint loop
+            biped = with_armature(biped, nominal_plant)
+            impedance = JointImpedance.for_plant(biped, DT, nominal_plant)
         self.gains = gains
         self.frames = tuple(biped.foot_frames)
         self.posture = PostureTask(
@@ -191,7 +203,11 @@ class QPControl:
             PointContact(biped, frame, friction_coefficient=gains.friction) for frame in self.frames
         ]
         self.controller = InverseDynamicsController(
-            biped, [self.posture, self.pitch], contacts, time_budget=TIME_BUDGET
+            biped,
+            [self.posture, self.pitch],
+            contacts,
+            time_budget=TIME_BUDGET,
+            joint_impedance=impedance,
         )
         self.lifted = [False, False]  # contact removed (or ramping out) since the last strike
         self.strike = (0, 0.0)  # (leg, time) of the last heel strike: the walk starts at one
@@ -268,6 +284,8 @@ def walk(
     amplitude: float = 1.0,
     start_speed: float | None = None,
     progress=None,
+    plant=None,
+    nominal_plant=None,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
 
@@ -278,6 +296,10 @@ def walk(
     ``Disturbance(push_impulse, push_time)``. The DMP steps at ``CONTROL_EVERY * DT``; the
     controller (``"qp"`` or ``"pd"``) and the simulator (``"mujoco"`` or ``"native"``) at
     ``DT``. ``progress``: called with a message every ``PROGRESS_EVERY`` simulated seconds.
+    ``plant`` (:class:`dmpopt.sim.PlantParameters`, default ideal) is the simulated robot's
+    joints, actuators and sensors; the controller reads the measured state. With
+    ``nominal_plant`` the QP controller's model carries its armature and a
+    :class:`dmpopt.control.JointImpedance` closes the joint loop.
     """
     if controller not in CONTROLLERS:
         raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
@@ -294,12 +316,12 @@ def walk(
     stepper.set_tau(1.0 / frequency)
     q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
     q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
-    sim = make_simulator(biped, backend)
+    sim = make_simulator(biped, backend, plant)
     _perturb_masses(sim, disturbance)
     v = np.zeros(biped.model.nv)
     v[0] = start_speed + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
-    law = QPControl(biped) if controller == "qp" else PDControl(biped)
+    law = QPControl(biped, nominal_plant=nominal_plant) if controller == "qp" else PDControl(biped)
     law.frequency = frequency
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
     index = np.sort(biped.velocity_indices("gait"))
@@ -326,7 +348,8 @@ def walk(
                 desired[order], desired_velocity[order] = position, velocity
                 desired_acceleration[order] = acceleration
             begin = time.thread_time_ns()
-            torque = law.torques(state, desired, desired_velocity, desired_acceleration)
+            sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
+            torque = law.torques(sensed, desired, desired_velocity, desired_acceleration)
             tick_us = (time.thread_time_ns() - begin) / 1e3
             slow += tick_us > 1e6 * DEFAULT_TIME_BUDGET
             slowest = max(slowest, tick_us)
@@ -401,7 +424,7 @@ def n_moving_bodies(biped) -> int:
     return len(make_simulator(biped, "mujoco").mj_model.body_mass.nonzero()[0])
 
 
-def make_simulator(biped, backend: str):
+def make_simulator(biped, backend: str, plant=None):
     """The walker's simulator on ``backend``: "mujoco" or "native" (compliant ``GROUND``).
 
     Both flag a fall when the torso is below ``FALL_HEIGHT`` (the other thresholds derived from
@@ -418,6 +441,7 @@ def make_simulator(biped, backend: str):
             n_base_dofs=3,
             fall_frame=biped.torso_frame,
             fall_height=FALL_HEIGHT,
+            plant=plant or IDEAL,
         )
     from dmpopt.sim import MujocoSimulator
     from robots.biped import BIPED_URDF
@@ -430,4 +454,5 @@ def make_simulator(biped, backend: str):
         friction=GROUND.friction,
         fall_frame=biped.torso_frame,
         fall_height=FALL_HEIGHT,
+        plant=plant or IDEAL,
     )

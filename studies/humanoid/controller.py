@@ -11,10 +11,11 @@ from dmpopt.control import (
     ComTask,
     FrameTask,
     InverseDynamicsController,
+    JointImpedance,
     PostureTask,
     SoleContact,
 )
-from dmpopt.sim import GroundContact, Simulator
+from dmpopt.sim import IDEAL, GroundContact, Simulator, with_armature
 
 from ..common import TIME_BUDGET
 from .demos import DRUM_JOINTS
@@ -42,6 +43,7 @@ def build_controller(
     base_task: bool = True,
     com_sink: float | None = None,
     friction: float = CONTROLLER_FRICTION,
+    nominal_plant=None,
 ):
     """Inverse-dynamics controller holding ``q_start``; returns it and the DMP-driven task.
 
@@ -51,7 +53,14 @@ def build_controller(
     hand's arm for the figure-8) are kept within their position and velocity limits.
     ``com_sink`` [m] lowers the CoM target (default: the compliant ground's static
     compression, :func:`_sink`); ``friction`` is the soles' friction coefficient.
+    ``nominal_plant`` (a :class:`dmpopt.sim.PlantParameters`) is what the controller believes
+    of the joints: its model carries the plant's armature and a :class:`JointImpedance` closes
+    the joint loop around the QP's motion (None: the rigid-body model, no joint loop).
     """
+    impedance = None
+    if nominal_plant is not None:
+        robot = with_armature(robot, nominal_plant)
+        impedance = JointImpedance.for_plant(robot, DT, nominal_plant)
     actuated = np.sort(
         np.concatenate([robot.configuration_indices([n]) for n in robot.actuated_joint_names])
     )
@@ -90,6 +99,7 @@ def build_controller(
         joint_limit_horizon=JOINT_LIMIT_HORIZON,
         limited_joints=limited,
         time_budget=TIME_BUDGET,
+        joint_impedance=impedance,
     )
     return controller, driven
 
@@ -118,19 +128,21 @@ def _sink(robot) -> float:
     return pin.computeTotalMass(robot.model) * 9.81 / n_points / GROUND_STIFFNESS
 
 
-def mujoco_plant(friction: float = MUJOCO_FRICTION):
+def mujoco_plant(friction: float = MUJOCO_FRICTION, parameters=IDEAL):
     """A ``plant(robot, q_start) -> (simulator, q0)`` simulating in MuJoCo.
 
     MuJoCo's floor touches a 5 mm sphere at each sole corner (the URDF collision meshes touch
     nothing), with Coulomb ``friction``; the same fall options as :func:`make_simulator`, so
     the same thresholds (:mod:`dmpopt.sim.falls`). The robot starts with the soles on the
-    floor: MuJoCo's contacts sink by about a millimetre.
+    floor: MuJoCo's contacts sink by about a millimetre. ``parameters`` is the plant
+    (:class:`dmpopt.sim.PlantParameters`: joints, actuators, sensors).
     """
     from dmpopt.sim import MujocoSimulator
 
     def plant(robot, q_start):
         if not robot.floating_base:
-            return MujocoSimulator(robot.model, robot.source, DT), q_start.copy()
+            simulator = MujocoSimulator(robot.model, robot.source, DT, plant=parameters)
+            return simulator, q_start.copy()
         points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
         simulator = MujocoSimulator(
             robot.model,
@@ -140,6 +152,7 @@ def mujoco_plant(friction: float = MUJOCO_FRICTION):
             friction,
             fall_frame="base_link",
             fall_height=FALL_HEIGHT,
+            plant=parameters,
         )
         return simulator, q_start.copy()
 

@@ -102,7 +102,7 @@ def _closed_loop(
             frames.append(state.q.copy())
         desired[k] = reference() if k else first
         begin, cpu_begin = time.perf_counter_ns(), time.thread_time_ns()
-        tau = controller.compute_torques(state.q, state.v)
+        tau = controller.compute_torques(state.q_measured, state.v_measured)
         tick_cpu[k] = time.thread_time_ns() - cpu_begin
         tick_wall[k] = time.perf_counter_ns() - begin
         np.divide(np.abs(tau), limit, out=ratio)

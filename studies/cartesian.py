@@ -42,7 +42,16 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt import fit_cartesian
-from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
+from dmpopt.control import (
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    JointImpedance,
+    PostureTask,
+    SoleContact,
+)
+from dmpopt.sim import with_armature
+from robots.plants import talos_realistic
 from studies.common import (
     TIME_BUDGET,
     Progress,
@@ -92,7 +101,10 @@ def demonstration(start: pin.SE3, n: int = 501):
 
 def build_controller(robot, q_start, hand: str):
     """The controller and its 6-D hand task (humanoid study's standing set-up); the posture
-    task leaves out the hand's arm, which the hand task alone directs."""
+    task leaves out the hand's arm, which the hand task alone directs. The model carries the
+    realistic plant's armature and a joint loop closes around the QP (as in the humanoid
+    study)."""
+    robot = with_armature(robot, talos_realistic(robot))
     arm = set(robot.joint_groups["right_arm"])  # free for the hand task
     others = [name for name in robot.actuated_joint_names if name not in arm]
     posture = PostureTask(robot, others, weight=POSTURE_WEIGHT, stiffness=10.0)
@@ -113,6 +125,7 @@ def build_controller(robot, q_start, hand: str):
         joint_limit_horizon=0.05,
         limited_joints="right_arm",
         time_budget=TIME_BUDGET,
+        joint_impedance=JointImpedance.for_plant(robot, DT, talos_realistic(robot)),
     )
     return controller, task
 
@@ -122,7 +135,7 @@ def run_hand(robot, dmp, hand: str, duration: float, goal=None) -> dict:
     quaternion)`` is given to the stepper at :data:`GOAL_CHANGE_TIME`."""
     q_start = drumming_posture(robot)
     controller, task = build_controller(robot, q_start, hand)
-    simulator, q0 = mujoco_plant()(robot, q_start)
+    simulator, q0 = mujoco_plant(parameters=talos_realistic(robot))(robot, q_start)
     state = simulator.reset(q0, np.zeros(robot.nv))
     stepper = dmp.stepper(DT)
     frame = robot.model.getFrameId(hand)
@@ -142,7 +155,7 @@ def run_hand(robot, dmp, hand: str, duration: float, goal=None) -> dict:
             acceleration=np.r_[stepper.acceleration, stepper.angular_acceleration],
         )
         begin = time.perf_counter()
-        torques = controller.compute_torques(state.q, state.v)
+        torques = controller.compute_torques(state.q_measured, state.v_measured)
         ticks[k] = time.perf_counter() - begin
         pin.framesForwardKinematics(robot.model, data, state.q)
         placement = data.oMf[frame]

@@ -43,6 +43,7 @@ from robots import load_talos
 from robots.plants import talos_realistic
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
+from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_links
 
 DT = 1e-3  # [s] control and simulation period
 STEP_LENGTH = 0.2  # [m] the moving foot lands this far ahead of the stance foot
@@ -242,6 +243,21 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=ID
 
 
 # ------------------------------------------------------------------------------- the study
+def walk_sweep(robot, q0, quick: bool) -> dict:
+    """``plant_sweep`` of the walk (the quick plan's four steps and a closing one per case):
+    steps taken and falls against each plant parameter (:mod:`studies.plant_sweep`)."""
+    plan, swing_dmps = build_plan(robot, q0, quick=True)
+    preset = talos_realistic(robot)
+    cases = sweep_cases(preset, quick)
+    results = []
+    for _, _, plant, mass in cases:
+        walker = Walker(with_scaled_links(robot, mass), q0, plan, swing_dmps, preset)
+        log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
+        result = walk_metrics(log, plan, robot, 1.0)
+        results.append({k: result[k] for k in ("steps_taken", "steps_planned", "fell")})
+    return collect(cases, results)
+
+
 def build_plan(robot, q0, quick: bool):
     """Footsteps, the CoM/DCM plan and the swing DMPs from the robot's start posture."""
     data = robot.create_data()
@@ -426,10 +442,11 @@ def run_walk(out_dir, quick: bool = False) -> dict:
     out = output_dir(out_dir)
     robot, q0 = _robot_and_start()
     plan, swing_dmps = build_plan(robot, q0, quick)
-    walker = Walker(robot, q0, plan, swing_dmps)
+    realistic = talos_realistic(robot)
+    walker = Walker(robot, q0, plan, swing_dmps, realistic)
     record = 0 if quick else int(round(1.0 / (VIDEO_FPS * DT)))
     wall = time.perf_counter()
-    log, simulator, frames = simulate(robot, q0, walker, plan.duration, record)
+    log, simulator, frames = simulate(robot, q0, walker, plan.duration, record, realistic)
     wall = time.perf_counter() - wall
     metrics = walk_metrics(log, plan, robot, wall)
     stats = walker.controller.stats  # how each tick was answered
@@ -439,6 +456,15 @@ def run_walk(out_dir, quick: bool = False) -> dict:
             "hold": stats.n_fallbacks,
         }
     )  # fmt: skip
+    metrics["plant"] = realistic.name
+    metrics["plant_realistic"] = {k: metrics[k] for k in ("steps_taken", "steps_planned", "fell")}
+    ideal_log, _, _ = simulate(robot, q0, Walker(robot, q0, plan, swing_dmps), plan.duration)
+    ideal = walk_metrics(ideal_log, plan, robot, 1.0)
+    metrics["plant_ideal"] = {
+        k: ideal[k] for k in ("steps_taken", "steps_planned", "fell", "foothold_error_max_mm")
+    }
+    metrics["plant_sweep"] = walk_sweep(robot, q0, quick)
+    plot_sweep(metrics["plant_sweep"], "steps_taken", "steps taken", out / "walk_plant_sweep.png")
     plot_walk(log, plan, robot, out / "talos_walk.png")
     metrics["figure"] = "talos_walk.png"
     metrics["video"], metrics["video_skipped"] = None, "quick run" if quick else None

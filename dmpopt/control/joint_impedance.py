@@ -11,7 +11,9 @@ drifts away:
 .. math::
 
     \dot q_d \leftarrow \dot q_d + \Delta t\,\ddot q^* - \tfrac{\Delta t}{T}(\dot q_d - \dot q),
-    \qquad q_d \leftarrow q_d + \Delta t\,\dot q_d - \tfrac{\Delta t}{T}(q_d - q),
+    \qquad q_d \leftarrow q_d + \Delta t\,\dot q_d - \tfrac{\Delta t}{T}(q_d - q)
+
+(semi-implicit Euler, the velocity first, as the simulators integrate),
 
 and the torque sent to each actuated joint is
 
@@ -58,7 +60,8 @@ class JointImpedance:
     delay : int
         Nominal ticks of delay in the loop (sets the default bandwidth).
     bandwidth : float, optional
-        :math:`\\omega` [rad/s]; default from ``delay`` and ``dt``.
+        :math:`\\omega` [rad/s]; default from ``delay`` and ``dt``; 0 leaves only the
+        feed-forward.
     damping_ratio : float
         :math:`\\zeta`.
     time_constant : float
@@ -84,7 +87,7 @@ class JointImpedance:
         if bandwidth is None:
             bandwidth = PHASE_MARGIN_USED / ((delay + 1) * self.dt)
         self.bandwidth = real(
-            "bandwidth", bandwidth, minimum=0.0, open_minimum=True, expected="[rad/s] > 0"
+            "bandwidth", bandwidth, minimum=0.0, expected="[rad/s] >= 0 (0: no feedback)"
         )
         zeta = real("damping_ratio", damping_ratio, minimum=0.0, expected="a number >= 0")
         self.time_constant = real(
@@ -108,18 +111,23 @@ class JointImpedance:
         self._v_desired = np.zeros(n)
 
     @classmethod
-    def for_plant(cls, robot, dt: float, plant, **options) -> JointImpedance:
+    def for_plant(
+        cls, robot, dt: float, plant, feedback: bool = True, feedforward: bool = True, **options
+    ) -> JointImpedance:
         """The joint loop for a plant believed to be ``plant`` (a
         :class:`dmpopt.sim.PlantParameters`): its delay sets the bandwidth, its damping and
         friction are fed forward. ``robot`` should carry its armature
-        (:func:`dmpopt.sim.with_armature`)."""
+        (:func:`dmpopt.sim.with_armature`). ``feedback=False`` leaves only the feed-forward
+        (bandwidth 0), ``feedforward=False`` only the impedance."""
         names = robot.actuated_joint_names
+        if not feedback:
+            options["bandwidth"] = 0.0
         return cls(
             robot,
             dt,
             delay=plant.delay,
-            damping=plant.values("damping", names),
-            friction=plant.values("friction", names),
+            damping=plant.values("damping", names) if feedforward else 0.0,
+            friction=plant.values("friction", names) if feedforward else 0.0,
             **options,
         )
 
@@ -156,6 +164,6 @@ class JointImpedance:
             self._v_desired / FRICTION_SPEED
         )
         dt, pull = self.dt, self.dt / self.time_constant  # the desired state of the next tick
-        self._q_desired += dt * self._v_desired - pull * (self._q_desired - joints)
         self._v_desired += dt * accelerations[self.n_base :] - pull * (self._v_desired - speeds)
+        self._q_desired += dt * self._v_desired - pull * (self._q_desired - joints)
         return np.clip(torques + feedback + feedforward, -self.torque_limit, self.torque_limit)

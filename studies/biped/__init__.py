@@ -54,7 +54,10 @@ from dmpopt.parallel import Runner
 from robots import biped as biped_model
 from robots.biped import load_biped
 
+from robots.plants import biped_realistic
+
 from ..common import Progress, write_metrics
+from ..plant_sweep import collect, plot_sweep, sweep_cases
 from . import plots
 from .analysis import (
     ARMS,
@@ -80,9 +83,11 @@ from .walker import (
     GAINS,
     LOG_EVERY,
     QP_GAINS,
+    Disturbance,
     QPControl,
     WalkLog,
     make_simulator,
+    n_moving_bodies,
     walk,
 )
 
@@ -171,6 +176,26 @@ def _summary(log: WalkLog, mass: float) -> dict:
     }
 
 
+def _plant_case(biped, dmp, duration, plant, mass, nominal, qp, on) -> dict:
+    """One walk of the plant sweep: steps and fall. A link-mass case ``mass`` (the model's
+    links x ``mass``) gives the plant's moving bodies ``1 / mass`` of their mass instead."""
+    disturbance = None
+    if mass != 1.0:
+        disturbance = Disturbance(mass_scale=(1.0 / mass,) * n_moving_bodies(biped))
+    log = walk(
+        biped,
+        dmp,
+        duration,
+        MAIN_START,
+        **qp,
+        **on,
+        plant=plant,
+        nominal_plant=nominal,
+        disturbance=disturbance,
+    )
+    return {"steps": len(log.strikes), "fell": log.fell, "simulated_s": log.duration}
+
+
 def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", runner=None) -> dict:
     """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics.
 
@@ -240,7 +265,28 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
     survival = survival_by_arm(
         biped, dmp, final, disturbances, progress=progress, runner=runner, **qp, backend=backend
     )
+    progress("reality gap: the QP walk on the realistic plant, and the plant sweep")
+    realistic = biped_realistic(biped)
+    on_plant = {"plant": realistic, "nominal_plant": realistic}
+    real_walk = walk(biped, dmp, duration, MAIN_START, **qp, **on, **on_plant, progress=progress)
+    cases = sweep_cases(realistic, quick)
+    sweep_seconds = 3.0 if quick else 10.0
+    plant_sweep = collect(
+        cases,
+        [
+            _plant_case(biped, dmp, sweep_seconds, plant, mass, realistic, qp, on)
+            for _, _, plant, mass in cases
+        ],
+    )
     metrics = {
+        "plant_realistic": {
+            "steps_walked": len(real_walk.strikes),
+            "fell": real_walk.fell,
+            "duration_s": real_walk.duration,
+            "frequency_final": real_walk.frequencies[-1],
+            "parameters": realistic.describe(biped.actuated_joint_names),
+        },
+        "plant_sweep": plant_sweep,
         "controller": "qp_inverse_dynamics",
         "boom_pitch_stiffness_N_m_per_rad": 0.0,
         "steps_walked": len(main_walk.strikes),
@@ -297,6 +343,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
         progress("video of the walk")
     metrics["videos"], metrics["videos_skipped"] = write_videos(out_dir, clips, skip)
     progress("figures")
+    plot_sweep(plant_sweep, "steps", f"steps in {sweep_seconds:g} s", out_dir / "plant_sweep.png")
     plots.frequency_figure(
         out_dir / "biped_frequency.png",
         {s: log.frequencies for s, log in by_start.items()},

@@ -158,6 +158,14 @@ class PDControl:
         """The PD law does not switch."""
 
 
+#: Whether the biped's QP controller closes the stiff joint loop (JointImpedance) on a realistic
+#: plant. It does not: the walk relies on eq. (21) reading the legs' own timing at heel strike,
+#: and a stiff joint loop imposes the plan's timing instead, so the adaptation runs away (on the
+#: realistic plant: 105 steps, then a fall at 16.7 rad/s; without the loop 150 steps in 40 s, no
+#: fall). The nominal armature and the friction feed-forward stay.
+JOINT_LOOP = False
+
+
 class QPControl:
     """QP inverse dynamics with DMP posture, torso pitch and switched point contacts."""
 
@@ -174,9 +182,9 @@ class QPControl:
         from dmpopt.sim import with_armature
 
         impedance = None
-        if nominal_plant is not None:  # the model carries the armature; a joint loop
+        if nominal_plant is not None:  # the model carries the armature; friction fed forward
             biped = with_armature(biped, nominal_plant)
-            impedance = JointImpedance.for_plant(biped, DT, nominal_plant)
+            impedance = JointImpedance.for_plant(biped, DT, nominal_plant, feedback=JOINT_LOOP)
         self.gains = gains
         self.frames = tuple(biped.foot_frames)
         self.posture = PostureTask(

@@ -34,6 +34,9 @@ from .parameters import (
 )
 
 
+COPING = ("armature", "feedforward", "impedance")  # the parts of the control design
+
+
 # ------------------------------------------------------------------------ closed loop
 def build_controller(
     robot,
@@ -44,6 +47,7 @@ def build_controller(
     com_sink: float | None = None,
     friction: float = CONTROLLER_FRICTION,
     nominal_plant=None,
+    coping=COPING,
 ):
     """Inverse-dynamics controller holding ``q_start``; returns it and the DMP-driven task.
 
@@ -55,12 +59,22 @@ def build_controller(
     compression, :func:`_sink`); ``friction`` is the soles' friction coefficient.
     ``nominal_plant`` (a :class:`dmpopt.sim.PlantParameters`) is what the controller believes
     of the joints: its model carries the plant's armature and a :class:`JointImpedance` closes
-    the joint loop around the QP's motion (None: the rigid-body model, no joint loop).
+    the joint loop around the QP's motion (None: the rigid-body model, no joint loop);
+    ``coping`` names the parts used, for ablations: ``"armature"`` in the model, friction
+    ``"feedforward"``, the joint ``"impedance"``.
     """
     impedance = None
     if nominal_plant is not None:
-        robot = with_armature(robot, nominal_plant)
-        impedance = JointImpedance.for_plant(robot, DT, nominal_plant)
+        if "armature" in coping:
+            robot = with_armature(robot, nominal_plant)
+        if "feedforward" in coping or "impedance" in coping:
+            impedance = JointImpedance.for_plant(
+                robot,
+                DT,
+                nominal_plant,
+                feedback="impedance" in coping,
+                feedforward="feedforward" in coping,
+            )
     actuated = np.sort(
         np.concatenate([robot.configuration_indices([n]) for n in robot.actuated_joint_names])
     )

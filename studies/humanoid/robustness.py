@@ -10,6 +10,7 @@ import numpy as np
 from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.parallel import map_runs
 from robots import load_talos
+from robots.plants import talos_realistic
 
 from .controller import mujoco_plant, with_scaled_masses, with_scaled_torque_limits
 from .loop import RunLog, run_drumming
@@ -92,6 +93,7 @@ def run_scenario(scenario: Scenario) -> RunLog:
     if scenario.torque_scale is not None:
         controller_robot = with_scaled_torque_limits(controller_robot, scenario.torque_scale)
     push = None if scenario.push_ns is None else (PUSH_TIME, np.array([scenario.push_ns, 0, 0]))
+    plant = talos_realistic(robot)
     log = run_drumming(
         robot,
         scenario.dmps,
@@ -101,8 +103,9 @@ def run_scenario(scenario: Scenario) -> RunLog:
         build_options={
             "com_sink": 0.0,
             "friction": min(CONTROLLER_FRICTION, scenario.friction),
+            "nominal_plant": plant,
         },
-        plant=mujoco_plant(scenario.friction),
+        plant=mujoco_plant(scenario.friction, plant),
         push=push,
         record_every=int(round(1.0 / (VIDEO_FPS * DT))) if scenario.record else 0,
     )

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.parallel import Runner
 from robots import load_talos
+from robots.plants import talos_realistic
 
 from ..common import Progress, output_dir, write_metrics
 from ..talos_walk import keyframes, run_walk
@@ -15,7 +16,9 @@ from .controller import mujoco_plant, with_mass_error
 from .demos import DRUM_JOINTS, demonstrate_drumming
 from .figures import plot, video_clips, write_videos
 from .loop import run_drumming, run_figure8
+from ..plant_sweep import plot_sweep
 from .metrics import StudyRuns, fit_error, study_metrics
+from .plant import drumming_sweep, plant_comparison
 from .parameters import (
     ARM_STIFFNESS,
     BACKENDS,
@@ -62,13 +65,14 @@ class Durations:
     figure8: float
     fig4: float
     window: tuple
+    sweep: float  # each run of the plant comparison and sweep
 
     @classmethod
     def of(cls, quick: bool) -> Durations:
         """The quick run's (about 40 s simulated in all) or the full run's."""
         if quick:
-            return cls(3.0, 2.0, 4.0, 4.0, (1.0, 3.0))
-        return cls(10.0, 10.0, 10.0, 10.0, (CHANGE_START, CHANGE_END))
+            return cls(3.0, 2.0, 4.0, 4.0, (1.0, 3.0), 1.5)
+        return cls(10.0, 10.0, 10.0, 10.0, (CHANGE_START, CHANGE_END), 3.0)
 
 
 def check_backend(backend) -> str:
@@ -112,6 +116,14 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
     on_mujoco = backend == "mujoco"
     if on_mujoco:
         metrics["mujoco"] = mujoco_metrics(study.runs["none"], study.mujoco)
+        metrics["plant"] = plant_comparison(
+            floating, dmps, compile, study.runs["none"], quick, progress
+        )
+        metrics["plant_sweep"] = drumming_sweep(
+            floating, dmps, durations.sweep, compile, quick, progress
+        )
+        plot_sweep(metrics["plant_sweep"], "tracking_rms_rad", "drumming RMS [rad]",
+                   out / "plant_sweep.png", log_y=True)  # fmt: skip
         progress("Talos walk (reduced model): steps in place, then forward")
         metrics["walk"] = run_walk(out, quick)
     skip = "quick run" if quick else None if on_mujoco else "native backend (videos need MuJoCo)"
@@ -136,10 +148,11 @@ def simulate(
 ):
     """Every closed-loop run of the study on the standing ``robot``, as :class:`StudyRuns`."""
     on_mujoco = backend == "mujoco"
+    realistic = talos_realistic(robot)  # the plant, and what the controller believes of it
     standing = {
         "compile": compile,
-        "build_options": {"com_sink": 0.0} if on_mujoco else None,
-        "plant": mujoco_plant() if on_mujoco else None,
+        "build_options": {"com_sink": 0.0, "nominal_plant": realistic} if on_mujoco else None,
+        "plant": mujoco_plant(parameters=realistic) if on_mujoco else None,
     }
     record = int(round(1.0 / (VIDEO_FPS * DT))) if on_mujoco and not quick else 0
     modifications = [Modification(m.name, *durations.window) for m in MODIFICATIONS]

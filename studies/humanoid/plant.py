@@ -1,0 +1,86 @@
+"""The reality gap: drumming on the ideal and the realistic plant, the control design's parts,
+and the sweep of each plant parameter to the point of failure."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dmpopt.sim import IDEAL
+from robots.plants import talos_realistic
+
+from ..plant_sweep import collect, sweep_cases, with_scaled_links
+from .controller import mujoco_plant
+from .loop import run_drumming
+
+#: Ablation of the control design on the realistic plant: which parts the controller uses.
+DESIGNS = {
+    "rigid_model": (),
+    "armature": ("armature",),
+    "armature_feedforward": ("armature", "feedforward"),
+    "impedance_only": ("impedance",),
+    "full": ("armature", "feedforward", "impedance"),
+}
+
+
+def drum_summary(log) -> dict:
+    """Joint tracking of a drumming run and whether it fell."""
+    error = log.desired - log.actual
+    return {
+        "tracking_rms_rad": float(np.sqrt(np.mean(error**2))),
+        "tracking_max_rad": float(np.abs(error).max()),
+        "fell": bool(log.fell or log.diverged is not None),
+        "simulated_s": log.duration,
+    }
+
+
+def _drum(robot, dmps, duration, compile, plant, nominal, coping=DESIGNS["full"], plant_robot=None):
+    options = {"com_sink": 0.0, "nominal_plant": nominal, "coping": coping}
+    log = run_drumming(
+        plant_robot or robot,
+        dmps,
+        duration,
+        None,
+        compile=compile,
+        controller_robot=robot,
+        build_options=options,
+        plant=mujoco_plant(parameters=plant),
+    )
+    return drum_summary(log)
+
+
+def plant_comparison(robot, dmps, compile: bool, realistic_log, quick: bool, progress):
+    """``plant`` metrics: the ideal plant with the rigid-body controller (the earlier default),
+    the realistic plant with the study's controller (``realistic_log``), and the design's
+    ablation on the realistic plant (as long as ``realistic_log``; in a quick run only the
+    rigid-body controller beside the full design)."""
+    preset = talos_realistic(robot)
+    duration = realistic_log.duration
+    progress("reality gap: drumming on the ideal plant, and each part of the control design")
+    ideal = _drum(robot, dmps, duration, compile, IDEAL, None)
+    designs = ("rigid_model",) if quick else [name for name in DESIGNS if name != "full"]
+    ablation = {
+        name: _drum(robot, dmps, duration, compile, preset, preset, DESIGNS[name])
+        for name in designs
+    }
+    realistic = drum_summary(realistic_log)
+    ablation["full"] = realistic
+    return {
+        "ideal": ideal,
+        "realistic": {**realistic, "parameters": preset.describe(robot.actuated_joint_names)},
+        "design_ablation": ablation,
+        "design": "controller model with the nominal armature; nominal damping and Coulomb "
+        "friction fed forward; JointImpedance around the QP's accelerations (bandwidth "
+        "0.25 / ((delay + 1) dt), inertia 1 / (M^-1)_jj)",
+    }
+
+
+def drumming_sweep(robot, dmps, duration: float, compile: bool, quick: bool, progress) -> dict:
+    """``plant_sweep`` of drumming: tracking and falls against each plant parameter."""
+    preset = talos_realistic(robot)
+    cases = sweep_cases(preset, quick)
+    results = []
+    for parameter, value, plant, mass in cases:
+        progress(f"plant sweep, drumming: {parameter} = {value:g}")
+        believed = with_scaled_links(robot, mass)
+        results.append(_drum(believed, dmps, duration, compile, plant, preset, plant_robot=robot))
+    return collect(cases, results)

@@ -36,6 +36,8 @@ REALISTIC_NOISE = SensorNoise(
     base_linear_velocity=0.01,
     base_angular_velocity=0.005,
 )
+
+
 def talos_realistic(robot, seed: int = 0) -> PlantParameters:
     """The realistic Talos plant (see the module notes) for ``robot`` (a Talos RobotModel)."""
     armature = {"*": 0.1, "arm_*_[5-7]_joint": 0.02, "head_*": 0.02}

@@ -36,14 +36,15 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.exceptions import SimulationDiverged
-from dmpopt.sim import IDEAL, with_armature
 from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk, swing_reference
+from dmpopt.parallel import map_runs
+from dmpopt.sim import IDEAL, with_armature
 from dmpopt.validation import flag
 from robots import load_talos
 from robots.plants import talos_realistic
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
-from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_links
+from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_masses
 
 DT = 1e-3  # [s] control and simulation period
 STEP_LENGTH = 0.2  # [m] the moving foot lands this far ahead of the stance foot
@@ -243,19 +244,24 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=ID
 
 
 # ------------------------------------------------------------------------------- the study
-def walk_sweep(robot, q0, quick: bool) -> dict:
+def walk_sweep(quick: bool, runner=None) -> dict:
     """``plant_sweep`` of the walk (the quick plan's four steps and a closing one per case):
-    steps taken and falls against each plant parameter (:mod:`studies.plant_sweep`)."""
+    steps taken and falls against each plant parameter (:mod:`studies.plant_sweep`), the runs
+    where ``runner`` says."""
+    robot, _ = _robot_and_start()
+    cases = sweep_cases(talos_realistic(robot), quick)
+    inputs = [(plant, mass) for _, _, plant, mass in cases]
+    return collect(cases, map_runs(_sweep_case, inputs, runner, label="plant sweep, walk"))
+
+
+def _sweep_case(case) -> dict:
+    plant, mass = case
+    robot, q0 = _robot_and_start()
     plan, swing_dmps = build_plan(robot, q0, quick=True)
-    preset = talos_realistic(robot)
-    cases = sweep_cases(preset, quick)
-    results = []
-    for _, _, plant, mass in cases:
-        walker = Walker(with_scaled_links(robot, mass), q0, plan, swing_dmps, preset)
-        log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
-        result = walk_metrics(log, plan, robot, 1.0)
-        results.append({k: result[k] for k in ("steps_taken", "steps_planned", "fell")})
-    return collect(cases, results)
+    walker = Walker(with_scaled_masses(robot, mass), q0, plan, swing_dmps, talos_realistic(robot))
+    log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
+    result = walk_metrics(log, plan, robot, 1.0)
+    return {k: result[k] for k in ("steps_taken", "steps_planned", "fell")}
 
 
 def build_plan(robot, q0, quick: bool):
@@ -434,7 +440,7 @@ def keyframes(animation, path, n: int = 5) -> None:
     strip.save(path)
 
 
-def run_walk(out_dir, quick: bool = False) -> dict:
+def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     """Plan and simulate the walk; write ``talos_walk.png`` (and, unless ``quick``, a rendered
     ``talos_walk.webp`` and its ``talos_walk_keyframes.png`` when an OpenGL context exists)
     into ``out_dir``; return the metrics."""
@@ -463,7 +469,7 @@ def run_walk(out_dir, quick: bool = False) -> dict:
     metrics["plant_ideal"] = {
         k: ideal[k] for k in ("steps_taken", "steps_planned", "fell", "foothold_error_max_mm")
     }
-    metrics["plant_sweep"] = walk_sweep(robot, q0, quick)
+    metrics["plant_sweep"] = walk_sweep(quick, runner)
     plot_sweep(metrics["plant_sweep"], "steps_taken", "steps taken", out / "walk_plant_sweep.png")
     plot_walk(log, plan, robot, out / "talos_walk.png")
     metrics["figure"] = "talos_walk.png"

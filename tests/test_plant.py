@@ -262,7 +262,7 @@ def test_joint_impedance_holds_friction_to_its_static_deflection(rotor):
         worst = 0.0
         for k in range(3000):
             t = k * DT
-            q_ref, a_ref = np.sin(2.0 * t), -4.0 * np.sin(2.0 * t)
+            a_ref = -4.0 * np.sin(2.0 * t)
             tau = np.array([INERTIA * a_ref])
             if with_loop:
                 tau = loop.torques(state.q, state.v, np.array([a_ref]), tau)

@@ -18,8 +18,8 @@ import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
 
-from .joint_impedance import JointImpedance
 from .inverse_dynamics import ContactSetQP, ControllerStats, _check_items, _check_positive
+from .joint_impedance import JointImpedance
 from .tasks import Task
 
 __all__ = ["InverseDynamicsController"]

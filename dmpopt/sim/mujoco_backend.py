@@ -239,7 +239,9 @@ class MujocoSimulator(Backend):
         friction = _positive("friction", friction, allow_zero=True)
         contact_radius = _positive("contact_radius", contact_radius)
         if not isinstance(body_collisions, (bool, np.bool_)):
-            raise InvalidInputError(f"body_collisions must be True or False, got {body_collisions!r}")
+            raise InvalidInputError(
+                f"body_collisions must be True or False, got {body_collisions!r}"
+            )
         urdf = Path(urdf)
         if not urdf.is_file():
             raise InvalidInputError(f"urdf {str(urdf)!r} is not a file; pass the robot's URDF path")
@@ -443,21 +445,21 @@ class MujocoSimulator(Backend):
                 geom.contype, geom.conaffinity = _BODY_BIT, 0
 
     def _index_contact_geoms(self, contact_points) -> None:
-        """Maps from MuJoCo geoms to contact points (spheres) or soles (boxes)."""
+        """``_foot_code`` per MuJoCo geom: the contact point of a sphere, ``-2 - k`` for sole
+        ``k`` (its corners in row ``k`` of ``_sole_corners``), -1 for every other geom."""
         model = self.mj_model
         names = [f"contact_point_{i}" for i in range(self._n_points)]
         self._point_sites = np.array([model.site(n).id for n in names], dtype=int)
-        self._point_of_geom = np.full(model.ngeom, -1)
-        self._sole_of_geom = np.full(model.ngeom, -1)
-        self._sole_points = []
+        self._foot_code = np.full(model.ngeom, -1)
         for index in range(self._n_points):
             geom = self._mj.mj_name2id(model, self._mj.mjtObj.mjOBJ_GEOM, f"contact_point_{index}")
             if geom >= 0:
-                self._point_of_geom[geom] = index
+                self._foot_code[geom] = index
+        width = max((len(indices) for indices in self._soles.values()), default=0)
+        self._sole_corners = np.zeros((len(self._soles), width), dtype=int)
         for k, (geom, indices) in enumerate(self._soles.items()):
-            self._sole_of_geom[model.geom(geom).id] = k
-            self._sole_points.append(np.array(indices, dtype=int))
-        self._contact_geoms = np.flatnonzero((self._point_of_geom >= 0) | (self._sole_of_geom >= 0))
+            self._foot_code[model.geom(geom).id] = -2 - k
+            self._sole_corners[k] = np.resize(indices, width)  # repeats fill a short row
 
     def _check_joints(self, spec, urdf: Path) -> None:
         """The model's joints are the URDF's, by name, and all have one axis."""
@@ -687,22 +689,24 @@ class MujocoSimulator(Backend):
         if not data.ncon:
             return
         contacts = data.contact
-        geoms = contacts.geom  # (n_contacts, 2)
-        ours = np.isin(geoms, self._contact_geoms)  # feet touch nothing but the floor
-        mine = ours.any(axis=1)
+        codes = self._foot_code[contacts.geom]  # (n_contacts, 2): -1 for geoms of no foot
+        second = codes[:, 1] != -1  # feet touch nothing but the floor: one side at most
+        mine = second | (codes[:, 0] != -1)
         if not mine.any():
             return
-        foot = np.where(ours[mine, 0], geoms[mine, 0], geoms[mine, 1])
+        code = np.where(second, codes[:, 1], codes[:, 0])[mine]
         # Contact frame rows: the normal, from geom1 to geom2, then two tangents. With elliptic
         # cones efc_force holds each contact's normal and tangential forces in that frame.
-        sign = np.where(ours[mine, 1], 1.0, -1.0)
+        sign = np.where(second[mine], 1.0, -1.0)
         local = data.efc_force[contacts.efc_address[mine, None] + _XYZ] * sign[:, None]
         forces = np.einsum("nij,ni->nj", contacts.frame[mine].reshape(-1, 3, 3), local)
-        points = self._point_of_geom[foot]
-        for k in np.flatnonzero(points < 0):  # a sole's contact: its nearest corner
-            corners = self._sole_points[self._sole_of_geom[foot[k]]]
-            distance = np.linalg.norm(self._positions[corners] - contacts.pos[mine][k], axis=1)
-            points[k] = corners[np.argmin(distance)]
+        points = code.copy()
+        on_sole = code < -1
+        if on_sole.any():  # a sole's contact goes to its nearest corner
+            corners = self._sole_corners[-2 - code[on_sole]]  # (k, n_corners) point indices
+            offsets = self._positions[corners] - contacts.pos[mine][on_sole][:, None, :]
+            nearest = np.einsum("kcx,kcx->kc", offsets, offsets).argmin(axis=1)
+            points[on_sole] = corners[np.arange(corners.shape[0]), nearest]
         np.add.at(self._forces, points, forces)
         self._in_contact[points] = True
 

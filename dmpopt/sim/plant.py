@@ -212,8 +212,10 @@ class PlantParameters:
         """The parameters as plain numbers per joint (for metrics files)."""
         return {
             "name": self.name,
-            **{name: dict(zip(joint_names, self.values(name, joint_names).tolist()))
-               for name in (*_PER_JOINT, "torque_limit")},
+            **{
+                name: dict(zip(joint_names, self.values(name, joint_names).tolist()))
+                for name in (*_PER_JOINT, "torque_limit")
+            },
             "delay_ticks": int(self.delay),
             "noise": dataclasses.asdict(self.noise),
             "seed": int(self.seed),
@@ -304,7 +306,10 @@ class PlantRuntime:
         self._rotation_std = 0.0
         if base == "free":
             self._q_std[:3], self._rotation_std = noise.base_position, noise.base_orientation
-            self._v_std[:3], self._v_std[3:6] = noise.base_linear_velocity, noise.base_angular_velocity
+            self._v_std[:3], self._v_std[3:6] = (
+                noise.base_linear_velocity,
+                noise.base_angular_velocity,
+            )
         elif base is not None:
             for k, (kind, _) in enumerate(base):
                 positional = kind == "P"
@@ -312,8 +317,12 @@ class PlantRuntime:
                 self._v_std[k] = (
                     noise.base_linear_velocity if positional else noise.base_angular_velocity
                 )
-        base_noise = (noise.base_position, noise.base_orientation, noise.base_linear_velocity,
-                      noise.base_angular_velocity)
+        base_noise = (
+            noise.base_position,
+            noise.base_orientation,
+            noise.base_linear_velocity,
+            noise.base_angular_velocity,
+        )
         if n_base and base is None and any(base_noise):
             raise InvalidInputError(
                 "base noise needs a free-flyer root joint or a composite of one-axis joints; "

@@ -50,10 +50,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dmpopt.parallel import Runner
+from dmpopt.parallel import Runner, map_runs
 from robots import biped as biped_model
 from robots.biped import load_biped
-
 from robots.plants import biped_realistic
 
 from ..common import Progress, write_metrics
@@ -176,9 +175,12 @@ def _summary(log: WalkLog, mass: float) -> dict:
     }
 
 
-def _plant_case(biped, dmp, duration, plant, mass, nominal, qp, on) -> dict:
-    """One walk of the plant sweep: steps and fall. A link-mass case ``mass`` (the model's
+def _plant_case(case) -> dict:
+    """One QP walk of the plant sweep: steps and fall. A link-mass case ``mass`` (the model's
     links x ``mass``) gives the plant's moving bodies ``1 / mass`` of their mass instead."""
+    duration, plant, mass, backend = case
+    biped = load_biped()
+    _, dmp = learn_gait()
     disturbance = None
     if mass != 1.0:
         disturbance = Disturbance(mass_scale=(1.0 / mass,) * n_moving_bodies(biped))
@@ -187,10 +189,12 @@ def _plant_case(biped, dmp, duration, plant, mass, nominal, qp, on) -> dict:
         dmp,
         duration,
         MAIN_START,
-        **qp,
-        **on,
+        controller="qp",
+        boom_pitch_stiffness=0.0,
+        boom_pitch_damping=0.0,
+        backend=backend,
         plant=plant,
-        nominal_plant=nominal,
+        nominal_plant=biped_realistic(biped),
         disturbance=disturbance,
     )
     return {"steps": len(log.strikes), "fell": log.fell, "simulated_s": log.duration}
@@ -212,7 +216,8 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
     progress("learning the gait; compiling the DMP step (cached after the first run)")
     biped = load_biped()
     _, dmp = learn_gait()
-    on = {"seed": seed, "backend": backend}
+    realistic = biped_realistic(biped)  # the plant, and what the QP controller believes of it
+    on = {"seed": seed, "backend": backend, "plant": realistic, "nominal_plant": realistic}
     qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
     no_boom = dict(qp, controller="pd")
 
@@ -263,28 +268,28 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
     disturbances = random_disturbances(biped, n_trials, seed, RANGES)
     runner = runner or Runner()
     survival = survival_by_arm(
-        biped, dmp, final, disturbances, progress=progress, runner=runner, **qp, backend=backend
-    )
-    progress("reality gap: the QP walk on the realistic plant, and the plant sweep")
-    realistic = biped_realistic(biped)
-    on_plant = {"plant": realistic, "nominal_plant": realistic}
-    real_walk = walk(biped, dmp, duration, MAIN_START, **qp, **on, **on_plant, progress=progress)
+        biped, dmp, final, disturbances, progress=progress, runner=runner, **qp,
+        backend=backend, plant=realistic, nominal_plant=realistic,
+    )  # fmt: skip
+    progress("reality gap: the QP walk on the ideal plant, and the plant sweep")
+    ideal_walk = walk(biped, dmp, duration, MAIN_START, **qp, seed=seed, backend=backend)
     cases = sweep_cases(realistic, quick)
-    sweep_seconds = 3.0 if quick else 10.0
-    plant_sweep = collect(
-        cases,
-        [
-            _plant_case(biped, dmp, sweep_seconds, plant, mass, realistic, qp, on)
-            for _, _, plant, mass in cases
-        ],
-    )
+    sweep_seconds = 3.0 if quick else 8.0
+    inputs = [(sweep_seconds, plant, mass, backend) for _, _, plant, mass in cases]
+    plant_sweep = collect(cases, map_runs(_plant_case, inputs, runner, label="plant sweep"))
     metrics = {
         "plant_realistic": {
-            "steps_walked": len(real_walk.strikes),
-            "fell": real_walk.fell,
-            "duration_s": real_walk.duration,
-            "frequency_final": real_walk.frequencies[-1],
+            "steps_walked": len(main_walk.strikes),
+            "fell": main_walk.fell,
+            "duration_s": main_walk.duration,
+            "frequency_final": main_walk.frequencies[-1],
             "parameters": realistic.describe(biped.actuated_joint_names),
+        },
+        "plant_ideal": {
+            "steps_walked": len(ideal_walk.strikes),
+            "fell": ideal_walk.fell,
+            "duration_s": ideal_walk.duration,
+            "frequency_final": ideal_walk.frequencies[-1],
         },
         "plant_sweep": plant_sweep,
         "controller": "qp_inverse_dynamics",

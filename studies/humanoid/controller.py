@@ -33,7 +33,6 @@ from .parameters import (
     POSTURE_WEIGHT,
 )
 
-
 COPING = ("armature", "feedforward", "impedance")  # the parts of the control design
 
 
@@ -171,17 +170,6 @@ def mujoco_plant(friction: float = MUJOCO_FRICTION, parameters=IDEAL):
         return simulator, q_start.copy()
 
     return plant
-
-
-def with_scaled_masses(robot, scale: float):
-    """A copy of ``robot`` whose every link (pelvis included) has mass and inertia x ``scale``."""
-    model = pin.Model(robot.model)
-    for joint_id in range(1, model.njoints):
-        inertia = model.inertias[joint_id]
-        model.inertias[joint_id] = pin.Inertia(
-            inertia.mass * scale, inertia.lever, inertia.inertia * scale
-        )
-    return dataclasses.replace(robot, model=model, name=f"{robot.name}_all_mass_x{scale:g}")
 
 
 def with_scaled_torque_limits(robot, scale: float):

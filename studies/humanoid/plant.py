@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL
 from robots.plants import talos_realistic
 
-from ..plant_sweep import collect, sweep_cases, with_scaled_links
-from .controller import mujoco_plant
+from ..plant_sweep import collect, sweep_cases
+from .controller import mujoco_plant, with_scaled_masses
 from .loop import run_drumming
 
 #: Ablation of the control design on the realistic plant: which parts the controller uses.
@@ -74,13 +75,18 @@ def plant_comparison(robot, dmps, compile: bool, realistic_log, quick: bool, pro
     }
 
 
-def drumming_sweep(robot, dmps, duration: float, compile: bool, quick: bool, progress) -> dict:
-    """``plant_sweep`` of drumming: tracking and falls against each plant parameter."""
+def drumming_sweep(robot, dmps, duration: float, compile: bool, quick: bool, runner) -> dict:
+    """``plant_sweep`` of drumming: tracking and falls against each plant parameter (the runs
+    go where ``runner`` says)."""
     preset = talos_realistic(robot)
     cases = sweep_cases(preset, quick)
-    results = []
-    for parameter, value, plant, mass in cases:
-        progress(f"plant sweep, drumming: {parameter} = {value:g}")
-        believed = with_scaled_links(robot, mass)
-        results.append(_drum(believed, dmps, duration, compile, plant, preset, plant_robot=robot))
-    return collect(cases, results)
+    inputs = [(robot, dmps, duration, compile, plant, mass) for _, _, plant, mass in cases]
+    return collect(cases, map_runs(_sweep_case, inputs, runner, label="plant sweep, drumming"))
+
+
+def _sweep_case(case) -> dict:
+    robot, dmps, duration, compile, plant, mass = case
+    believed = robot if mass == 1.0 else with_scaled_masses(robot, mass)
+    return _drum(
+        believed, dmps, duration, compile, plant, talos_realistic(robot), plant_robot=robot
+    )

@@ -11,14 +11,13 @@ from robots import load_talos
 from robots.plants import talos_realistic
 
 from ..common import Progress, output_dir, write_metrics
+from ..plant_sweep import plot_sweep
 from ..talos_walk import keyframes, run_walk
 from .controller import mujoco_plant, with_mass_error
 from .demos import DRUM_JOINTS, demonstrate_drumming
 from .figures import plot, video_clips, write_videos
 from .loop import run_drumming, run_figure8
-from ..plant_sweep import plot_sweep
 from .metrics import StudyRuns, fit_error, study_metrics
-from .plant import drumming_sweep, plant_comparison
 from .parameters import (
     ARM_STIFFNESS,
     BACKENDS,
@@ -44,6 +43,7 @@ from .parameters import (
     WRIST_FLICK,
 )
 from .plan import MODIFICATIONS, Modification, learn_drumming, plan_rollout, stepper_compiles
+from .plant import drumming_sweep, plant_comparison
 from .robustness import loop_summary, mujoco_metrics, mujoco_scenarios
 from .summary import captions, summary_rows
 from .swing import (
@@ -119,13 +119,14 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
         metrics["plant"] = plant_comparison(
             floating, dmps, compile, study.runs["none"], quick, progress
         )
+        progress("plant sweep: drumming")
         metrics["plant_sweep"] = drumming_sweep(
-            floating, dmps, durations.sweep, compile, quick, progress
+            floating, dmps, durations.sweep, compile, quick, runner
         )
         plot_sweep(metrics["plant_sweep"], "tracking_rms_rad", "drumming RMS [rad]",
                    out / "plant_sweep.png", log_y=True)  # fmt: skip
         progress("Talos walk (reduced model): steps in place, then forward")
-        metrics["walk"] = run_walk(out, quick)
+        metrics["walk"] = run_walk(out, quick, runner)
     skip = "quick run" if quick else None if on_mujoco else "native backend (videos need MuJoCo)"
     clips = video_clips(floating, study) if skip is None else {}
     progress("figures" + ("" if skip else " and videos"))

@@ -29,8 +29,9 @@ the joint's inertia and a bandwidth, not from tuning: :math:`K = m\omega^2`,
 (armature included): the inertia the joint drives when the base and every other joint are free,
 the lightest it ever sees, so that the loop's bandwidth is at most :math:`\omega` in any
 contact state (on the 7 kg planar biped a ninth of :math:`M_{jj}` at the hips). The default
-bandwidth is the largest a loop delay of :math:`(d + 1)\,\Delta t` allows with a quarter radian of phase lost at the crossover,
-:math:`\omega = 0.25 / ((d + 1)\Delta t)` (125 rad/s at 1 kHz with one tick of delay).
+bandwidth is the largest a loop delay of :math:`(d + 1)\,\Delta t` allows with a quarter
+radian of phase lost at the crossover, :math:`\omega = 0.25 / ((d + 1)\Delta t)` (125 rad/s at
+1 kHz with one tick of delay).
 """
 
 from __future__ import annotations

@@ -95,13 +95,13 @@ their inverse kinematics), :mod:`.plan` (the DMPs, their online plan and settle 
 :mod:`.study` (``run`` and ``main``).
 """
 
+from ..plant_sweep import with_scaled_masses
 from .controller import (
     _sink,
     build_controller,
     make_simulator,
     mujoco_plant,
     with_mass_error,
-    with_scaled_masses,
     with_scaled_torque_limits,
 )
 from .demos import (

@@ -9,8 +9,8 @@ from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL
 from robots.plants import talos_realistic
 
-from ..plant_sweep import collect, sweep_cases
-from .controller import mujoco_plant, with_scaled_masses
+from ..plant_sweep import collect, sweep_cases, with_scaled_masses
+from .controller import mujoco_plant
 from .loop import run_drumming
 
 #: Ablation of the control design on the realistic plant: which parts the controller uses.

@@ -12,7 +12,8 @@ from dmpopt.parallel import map_runs
 from robots import load_talos
 from robots.plants import talos_realistic
 
-from .controller import mujoco_plant, with_scaled_masses, with_scaled_torque_limits
+from ..plant_sweep import with_scaled_masses
+from .controller import mujoco_plant, with_scaled_torque_limits
 from .loop import RunLog, run_drumming
 from .metrics import rms
 from .parameters import (

@@ -289,3 +289,25 @@ def test_joint_impedance_desired_state_is_pulled_to_the_measured_one(rotor):
     torques = [loop.torques(one, zero, zero, zero)[0] for _ in range(50)]
     gap = (1 - DT / 0.2) ** np.arange(50)  # the torque uses the desired state before its update
     np.testing.assert_allclose(torques, -loop.stiffness[0] * gap, rtol=1e-12)
+
+
+def test_joint_impedance_feeds_the_nominal_friction_forward(rotor):
+    """Without feedback (bandwidth 0), the torque is the QP's plus b v_d + f_c tanh(v_d / v_s)
+    with v_d the integrated desired speed (v_s = 0.05 rad/s), clipped to the torque limit."""
+    model, _ = rotor
+    robot = SimpleNamespace(
+        n_base=0, n_actuated=1, model=model, reference_configuration=np.zeros(1),
+        torque_limit=np.array([0.5]), actuated_joint_names=("spin",),
+    )  # fmt: skip
+    plant = PlantParameters(damping=0.3, friction=0.2, delay=1)
+    loop = JointImpedance.for_plant(robot, DT, plant, feedback=False, time_constant=1e6)
+    assert loop.bandwidth == 0.0 and loop.stiffness[0] == 0.0
+    zero, speed = np.zeros(1), 0.01
+    v_desired, got, expected = speed, [], []
+    loop.torques(zero, np.array([speed]), zero, zero)  # starts the desired state at v
+    for k in range(20):
+        accel = np.array([0.5 * k])
+        v_desired = v_desired + DT * accel[0] - (DT / 1e6) * (v_desired - speed)
+        got.append(loop.torques(zero, np.array([speed]), accel, np.array([0.1]))[0])
+        expected.append(min(0.1 + 0.3 * v_desired + 0.2 * np.tanh(v_desired / 0.05), 0.5))
+    np.testing.assert_allclose(got[1:], expected[:-1], rtol=1e-12)

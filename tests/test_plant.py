@@ -153,9 +153,9 @@ def test_parameters_per_joint_pattern_scaling_and_errors():
     plant = PlantParameters(armature={"*": 0.1, "arm_*": 0.02}, delay=2)
     np.testing.assert_array_equal(plant.values("armature", names), [0.1, 0.1, 0.02])
     np.testing.assert_array_equal(plant.values("torque_limit", names), [np.inf] * 3)
-    scaled = plant.scaled(armature=3.0, delay=5)
+    scaled = plant.scaled(armature=3.0, noise=2.0)
     np.testing.assert_allclose(scaled.values("armature", names), [0.3, 0.3, 0.06])
-    assert scaled.delay == 5 and IDEAL.is_ideal and not plant.is_ideal
+    assert scaled.delay == 2 and IDEAL.is_ideal and not plant.is_ideal
     with pytest.raises(InvalidInputError, match="damping must be a finite number >= 0"):
         PlantParameters(damping=-1.0)
     with pytest.raises(InvalidInputError, match="delay must be a whole number of ticks"):

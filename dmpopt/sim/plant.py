@@ -187,13 +187,11 @@ class PlantParameters:
         return result
 
     def scaled(self, **factors) -> PlantParameters:
-        """A copy with parameters multiplied: ``scaled(armature=3, noise=2)``; ``delay`` is set,
-        not scaled."""
+        """A copy with parameters multiplied: ``scaled(armature=3, noise=2)`` (the delay is a
+        whole number of ticks: ``dataclasses.replace(plant, delay=d)``)."""
         changes = {}
         for name, factor in factors.items():
-            if name == "delay":
-                changes[name] = factor
-            elif name == "noise":
+            if name == "noise":
                 changes[name] = self.noise.scaled(factor)
             elif name in (*_PER_JOINT, "torque_limit"):
                 value = getattr(self, name)
@@ -204,7 +202,7 @@ class PlantParameters:
             else:
                 raise InvalidInputError(
                     f"scaled() got {name!r}; expected armature, damping, friction, "
-                    "torque_limit, noise or delay"
+                    "torque_limit or noise (set delay with dataclasses.replace)"
                 )
         return dataclasses.replace(self, **changes)
 

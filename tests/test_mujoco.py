@@ -427,6 +427,12 @@ def test_bad_simulator_arguments(talos, talos_sim):
         MujocoSimulator(model, urdf, falls=False, fall_height=0.5)
 
 
+def test_floating_base_without_contact_points_is_refused(talos):
+    """MuJoCo too refuses a standing robot with nothing under its feet, naming the fix."""
+    with pytest.raises(InvalidInputError, match="but no contact_points: it would fall through"):
+        MujocoSimulator(talos.model, talos.source)
+
+
 def test_model_and_urdf_must_be_the_same_robot(talos):
     """Another robot's URDF, a model with other masses, a locked-joint model: named errors."""
     biped = load_biped()
@@ -436,7 +442,7 @@ def test_model_and_urdf_must_be_the_same_robot(talos):
     inertia = heavier.inertias[5]
     heavier.inertias[5] = pin.Inertia(inertia.mass * 1.1, inertia.lever, inertia.inertia * 1.1)
     with pytest.raises(InvalidInputError, match="not the same robot"):
-        MujocoSimulator(heavier, talos.source)
+        MujocoSimulator(heavier, talos.source, falls=False)
     upper_body = load_talos("full", fixed_base=True)
     with pytest.raises(InvalidInputError, match="in the URDF only .*leg_left_1_joint"):
         MujocoSimulator(upper_body.model, talos.source)

@@ -66,7 +66,13 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
+from dmpopt.sim.falls import (
+    Fall,
+    FallDetector,
+    base_tilt,
+    fall_checks,
+    refuse_floating_without_contacts,
+)
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
 
@@ -258,6 +264,9 @@ class MujocoSimulator(Backend):
             self._add_contact_point(spec, index, name, offset, contact_radius)
         self.fall_detector, self._watched = fall_checks(
             model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height
+        )
+        refuse_floating_without_contacts(
+            model, self.n_base_dofs, contact_points, falls, fall_height
         )
         try:
             self.mj_model = spec.compile()

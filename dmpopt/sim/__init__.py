@@ -14,7 +14,7 @@ and angular speed into a :class:`Fall`.
 
 from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt
-from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
+from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation, render_frame
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
 __all__ = [
@@ -28,4 +28,5 @@ __all__ = [
     "base_tilt",
     "ground_forces",
     "render_animation",
+    "render_frame",
 ]

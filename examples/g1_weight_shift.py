@@ -13,7 +13,14 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt import RobotModel
-from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
+from dmpopt.control import (
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    PostureTask,
+    SoleContact,
+    explain,
+)
 from dmpopt.robot import example_robot_data_dir
 from dmpopt.sim import MujocoSimulator, render_animation, render_frame
 
@@ -57,6 +64,8 @@ for k in range(700 if args.quick else 3000):
         controller.remove_task(swing)
         controller.add_contact(right, transition_time=0.2)
     state = simulator.step(controller.compute_torques(state.q, state.v, t))
+    if controller.stats.last_answer in ("relaxed", "hold") or k in (600, 1500):
+        print(f"t = {t:.3f} s: {explain(controller)}")  # what binds, and why
     frames += [state.q] if k % 40 == 0 else []
 print(f"fell: {state.fallen}; active contacts {controller.active_contacts}; {controller.stats}")
 args.output.mkdir(parents=True, exist_ok=True)

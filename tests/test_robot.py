@@ -165,3 +165,17 @@ def test_bad_input_messages(robot_dir):
     q = np.zeros(36)
     with pytest.raises(InvalidInputError, match=r"quaternion .* must have norm 1, got \[0.0"):
         RobotModel.from_urdf(urdf, base="free_flyer", reference=q)
+
+
+def test_armature_and_bad_reference_name(robot_dir):
+    """armature fills model.armature on the actuated joints; an unknown SRDF posture lists
+    the SRDF's postures."""
+    panda_dir = robot_dir / "panda_description"
+    urdf, srdf = panda_dir / "urdf" / "panda.urdf", panda_dir / "srdf" / "panda.srdf"
+    panda = RobotModel.from_urdf(urdf, srdf, armature=0.1)
+    np.testing.assert_array_equal(panda.model.armature, np.full(9, 0.1))
+    with pytest.raises(InvalidInputError) as error:
+        RobotModel.from_urdf(urdf, srdf, reference="home")
+    assert str(error.value) == (
+        "reference='home' is not a posture of the SRDF; expected one of ['default']"
+    )

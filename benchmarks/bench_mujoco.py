@@ -198,8 +198,9 @@ def main():
     robot = load_talos(args.variant)
     biped = load_biped()
     models = {
-        f"talos_{args.variant}": MujocoSimulator(robot.model, robot.source),
-        "planar_biped": MujocoSimulator(biped.model, BIPED_URDF),
+        # model agreement only: no floor needed (falls=False: floating is meant)
+        f"talos_{args.variant}": MujocoSimulator(robot.model, robot.source, falls=False),
+        "planar_biped": MujocoSimulator(biped.model, BIPED_URDF, falls=False),
     }
     print(f"Model agreement, worst over {args.states} random states (Pinocchio vs MuJoCo)")
     for name, simulator in models.items():

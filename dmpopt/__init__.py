@@ -75,6 +75,7 @@ __all__ = [
     "NoSolutionFound",
     "ResourceLimitError",
     "RhythmicDMP",
+    "RobotModel",
     "ShapeError",
     "SimulationDiverged",
     "Stepper",
@@ -99,3 +100,12 @@ __all__ = [
     "time_scaled",
     "uniform_time_scaling",
 ]
+
+
+def __getattr__(name: str):
+    # RobotModel loads Pinocchio: imported on first use, so `import dmpopt` stays light
+    if name == "RobotModel":
+        from .robot import RobotModel
+
+        return RobotModel
+    raise AttributeError(f"module 'dmpopt' has no attribute {name!r}")

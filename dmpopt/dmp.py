@@ -38,6 +38,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -48,9 +49,12 @@ from . import basis, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
 from .stepper import Stepper
 from .trajectory import Trajectory
-from .validation import check_resources, positive, real, real_array, vector
+from .validation import check_resources, flag, positive, real, real_array, vector
 
 GOAL_SCALINGS = ("paper", "rotation", "translation")
+#: A rhythmic stepper whose first acceleration exceeds this multiple of its limit cycle's largest
+#: warns (:meth:`RhythmicDMP.stepper`).
+FAR_ACCELERATION = 10.0
 RENAMED = {
     "time_constant": "tau",
     "stiffness": "alpha_z",
@@ -753,7 +757,50 @@ class RhythmicDMP(_DmpCommon):
         start = self.setpoint if start is None else start
         return self._affine(duration, dt, start, start_velocity, self.canonical_state(phase))
 
-    def stepper(self, dt=0.001, start=None, start_velocity=0.0, phase=0.0, compile=False):
-        """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`)."""
+    def limit_cycle_state(self, phase: float = 0.0, dt: float = 0.001):
+        """Position and velocity, shape (n_dofs,) each, on the limit cycle at ``phase`` [rad].
+
+        The plan of two periods (rounded up to whole steps of ``dt``) that ends at ``phase``:
+        its transient decays as :math:`e^{-\alpha_z t / (2\tau)}` (eq. (5), critically damped),
+        below :math:`10^{-60}` of the start's offset after two periods at :math:`\alpha_z = 25`.
+        """
+        dt = self.check_step(dt)
+        n_steps = int(np.ceil(2 * self.period / dt - 1e-9))  # 2 periods of 1000 dt: 2000 steps
+        rate = 2 * np.pi / self.period  # [rad/s]
+        plan = self.rollout(n_steps * dt, dt, phase=real("phase", phase) - rate * n_steps * dt)
+        return plan.positions[-1], plan.velocities[-1]
+
+    def stepper(
+        self, dt=0.001, start=None, start_velocity=0.0, phase=0.0, compile=False,
+        on_limit_cycle=False,
+    ):  # fmt: skip
+        """An online integrator for control loops (see :class:`dmpopt.stepper.Stepper`).
+
+        With ``on_limit_cycle=True`` it starts on the limit cycle at ``phase``
+        (:meth:`limit_cycle_state`) instead of at ``start`` with ``start_velocity``; a start
+        off the cycle whose first acceleration exceeds :data:`FAR_ACCELERATION` times the
+        cycle's largest warns (a robot tracking it would be jolted).
+        """
+        if flag("on_limit_cycle", on_limit_cycle):
+            if start is not None or np.any(np.asarray(start_velocity) != 0):
+                raise InvalidInputError(
+                    "on_limit_cycle=True sets the start and start_velocity from the limit cycle; "
+                    "pass either start (and start_velocity) or on_limit_cycle=True, not both"
+                )
+            start, start_velocity = self.limit_cycle_state(phase, dt)
+            return Stepper(self, dt, start, start_velocity, phase, compile)
         start = self.setpoint if start is None else start
-        return Stepper(self, dt, start, start_velocity, phase, compile)
+        stepper = Stepper(self, dt, start, start_velocity, phase, compile)
+        on_cycle = self.limit_cycle_state(phase, dt)
+        cycle = self.rollout(self.period, dt, *on_cycle, phase=phase).accelerations
+        cycle = np.abs(cycle).max(axis=0)
+        ratio = np.abs(stepper.acceleration) / np.maximum(cycle, 1e-9)
+        if ratio.max() > FAR_ACCELERATION:
+            dof = int(ratio.argmax())
+            warnings.warn(
+                f"the stepper's start asks {abs(stepper.acceleration[dof]):.4g} on DOF {dof} "
+                f"on its first step, {ratio[dof]:.3g} times the largest acceleration of the "
+                f"limit cycle ({cycle[dof]:.4g}); pass on_limit_cycle=True to start on the cycle",
+                stacklevel=2,
+            )
+        return stepper

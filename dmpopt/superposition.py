@@ -6,6 +6,7 @@ import numpy as np
 
 from .dmp import DiscreteDMP, RhythmicDMP
 from .exceptions import InvalidInputError, ShapeError
+from .stepper import Stepper
 from .trajectory import Trajectory
 from .validation import positive
 
@@ -30,7 +31,8 @@ def superpose(discrete: DiscreteDMP, rhythmic: RhythmicDMP, duration: float, dt:
         )
     duration, dt = positive("duration", duration), positive("dt", dt)
     setpoints = discrete.rollout(duration, dt).positions
-    stepper = rhythmic.with_setpoint(setpoints[0]).stepper(dt, start=setpoints[0])
+    # at rest on the first setpoint by design (the Stepper itself: no off-cycle warning)
+    stepper = Stepper(rhythmic.with_setpoint(setpoints[0]), dt, setpoints[0])
     samples = np.empty((3, len(setpoints), rhythmic.n_dofs))
     samples[:, 0] = stepper.position, stepper.velocity, stepper.acceleration
     for k in range(1, len(setpoints)):

@@ -141,17 +141,6 @@ def swing_leg_natural_frequency(
     return float(np.sqrt(mass * gravity * np.linalg.norm(com) / inertia))
 
 
-def _standing(model: pin.Model) -> np.ndarray:
-    """The stance of :data:`REFERENCE_JOINTS` with both feet on the ground (z = 0)."""
-    q = np.zeros(model.nq)
-    for name, angle in zip(GAIT_JOINTS, REFERENCE_JOINTS):
-        q[model.joints[model.getJointId(name)].idx_q] = angle
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    q[1] = -data.oMf[model.getFrameId("right_foot")].translation[2]
-    return q
-
-
 def load_biped(urdf_path: str | Path = BIPED_URDF) -> RobotModel:
     """Build the planar biped from its URDF with an (x, z, pitch) floating base.
 
@@ -171,29 +160,18 @@ def load_biped(urdf_path: str | Path = BIPED_URDF) -> RobotModel:
     path = Path(urdf_path)
     if not path.is_file():
         raise InvalidInputError(f"urdf_path {str(path)!r} does not exist")
-    base = pin.JointModelComposite()
-    base.addJoint(pin.JointModelPX())
-    base.addJoint(pin.JointModelPZ())
-    base.addJoint(pin.JointModelRY())
-    model = pin.buildModelFromUrdf(str(path), base)
-    model.name = "dmpopt_planar_biped"
-    unbounded = np.full(3, np.inf)
-    return RobotModel(
-        name="planar_biped",
-        model=model,
-        joint_groups={
+    robot = RobotModel.from_urdf(
+        path,
+        base="planar",
+        groups={
             "gait": GAIT_JOINTS,
             "right_leg": ("right_hip", "right_knee"),
             "left_leg": ("left_hip", "left_knee"),
         },
-        reference_configuration=_standing(model),
-        position_lower=np.concatenate([-unbounded, model.lowerPositionLimit[3:]]),
-        position_upper=np.concatenate([unbounded, model.upperPositionLimit[3:]]),
-        velocity_limit=np.concatenate([unbounded, model.velocityLimit[3:]]),
-        torque_limit=np.array(model.effortLimit[3:]),
-        base="planar",
-        foot_frames=("right_foot", "left_foot"),
-        sole_corners=np.zeros((1, 3)),
-        torso_frame="torso",
-        source=str(path),
+        feet={"right_foot": [[0.0, 0.0, 0.0]], "left_foot": [[0.0, 0.0, 0.0]]},
+        reference=dict(zip(GAIT_JOINTS, REFERENCE_JOINTS)),
+        torso="torso",
+        name="planar_biped",
     )
+    robot.model.name = "dmpopt_planar_biped"
+    return robot

@@ -1153,3 +1153,18 @@ def test_answer_counters_add_up_over_ticks(upper_body):
     assert (stats.n_ticks, stats.n_solved, stats.n_torque_limited) == (2, 2, 2)
     assert (stats.n_relaxed, stats.n_direct, stats.n_fallbacks) == (0, 0, 0)
     assert stats.last_answer == "solved"
+
+
+def test_sole_contact_without_corners_and_unknown_posture_group(upper_body):
+    """No silent traps: a SoleContact on a robot without sole corners and a PostureTask on a
+    misspelt group say what is wrong and how to fix it (not numpy's empty-reduction error or
+    a bare KeyError)."""
+    no_soles = dataclasses.replace(upper_body, foot_frames=("gripper_left_base_link",))
+    with pytest.raises(InvalidInputError, match=r"has no sole_corners.*RobotModel.from_urdf"):
+        SoleContact(no_soles, "gripper_left_base_link")
+    with pytest.raises(InvalidInputError) as error:
+        PostureTask(upper_body, "left_armm")
+    assert str(error.value).startswith(
+        "joints='left_armm' is not a joint group of 'talos_reduced_upper_body'; expected one of "
+        "['head', 'left_arm', 'left_gripper', 'right_arm', 'right_gripper', 'torso']"
+    )

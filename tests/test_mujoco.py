@@ -29,6 +29,7 @@ from dmpopt.sim import (
     PlantParameters,
     Simulator,
     render_animation,
+    render_frame,
 )
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
@@ -384,6 +385,34 @@ def test_render_animation_writes_frames(talos, talos_sim, tmp_path):
         render_animation(talos_sim, [q], tmp_path / "b.webp", width=64, height=48, max_bytes=10)
 
 
+def test_render_frame_camera_follows_a_frame(talos, talos_sim, tmp_path):
+    """A PNG still looking at a hand equals the still looking at the hand's world position
+    (Pinocchio's forward kinematics, computed here); another azimuth is another picture."""
+    from PIL import Image
+
+    q = np.array(talos.reference_configuration)
+    data = talos.create_data()
+    pin.framesForwardKinematics(talos.model, data, q)
+    hand = data.oMf[talos.model.getFrameId("gripper_left_base_link")].translation
+    camera = dict(width=64, height=48, distance=0.8, elevation=-20.0)
+    try:
+        by_frame = render_frame(
+            talos_sim, q, tmp_path / "f.png", target="gripper_left_base_link", **camera
+        )
+    except MissingDependency as error:
+        pytest.skip(f"no offscreen rendering here: {error}")
+    by_point = render_frame(talos_sim, q, tmp_path / "p.png", target=hand, **camera)
+    turned = render_frame(talos_sim, q, tmp_path / "t.png", target=hand, azimuth=45.0, **camera)
+    images = [np.asarray(Image.open(path)) for path in (by_frame, by_point, turned)]
+    assert images[0].shape == (48, 64, 3)
+    np.testing.assert_array_equal(images[0], images[1])
+    assert np.abs(images[0].astype(int) - images[2]).mean() > 1.0
+    with pytest.raises(InvalidInputError, match="target='hand' is not a frame of the model"):
+        render_frame(talos_sim, q, tmp_path / "x.png", target="hand")
+    with pytest.raises(InvalidInputError, match=r"must end in \.png"):
+        render_frame(talos_sim, q, tmp_path / "x.gif")
+
+
 def test_render_without_gl_context_says_why(talos_sim, monkeypatch, tmp_path):
     """A renderer that cannot get an OpenGL context becomes MissingDependency with the reason."""
 
@@ -437,6 +466,12 @@ def test_bad_simulator_arguments(talos, talos_sim):
         MujocoSimulator(model, urdf, falls=False, fall_height=0.5)
 
 
+def test_floating_base_without_contact_points_is_refused(talos):
+    """MuJoCo too refuses a standing robot with nothing under its feet, naming the fix."""
+    with pytest.raises(InvalidInputError, match="but no contact_points: it would fall through"):
+        MujocoSimulator(talos.model, talos.source)
+
+
 def test_model_and_urdf_must_be_the_same_robot(talos):
     """Another robot's URDF, a model with other masses, a locked-joint model: named errors."""
     biped = load_biped()
@@ -446,7 +481,7 @@ def test_model_and_urdf_must_be_the_same_robot(talos):
     inertia = heavier.inertias[5]
     heavier.inertias[5] = pin.Inertia(inertia.mass * 1.1, inertia.lever, inertia.inertia * 1.1)
     with pytest.raises(InvalidInputError, match="not the same robot"):
-        MujocoSimulator(heavier, talos.source)
+        MujocoSimulator(heavier, talos.source, falls=False)
     upper_body = load_talos("full", fixed_base=True)
     with pytest.raises(InvalidInputError, match="in the URDF only .*leg_left_1_joint"):
         MujocoSimulator(upper_body.model, talos.source)

@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-import robots.model
+import dmpopt.robot
 from dmpopt.exceptions import InvalidInputError, MissingDependency
 from robots import RobotModel, example_robot_data_dir, load_talos
 
@@ -125,7 +125,7 @@ def test_missing_data_package(monkeypatch):
     def not_installed(name):
         raise importlib.metadata.PackageNotFoundError(name)
 
-    monkeypatch.setattr(robots.model.importlib.metadata, "distribution", not_installed)
+    monkeypatch.setattr(dmpopt.robot.importlib.metadata, "distribution", not_installed)
     with pytest.raises(MissingDependency) as error:
         load_talos()
     assert str(error.value) == (

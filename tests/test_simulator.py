@@ -212,7 +212,7 @@ def test_non_finite_state_names_the_coordinate():
 def test_near_unit_quaternion_is_renormalised_others_refused():
     """|quat| = 1 + 1.25e-4 is renormalised; norms 0 and 2 are refused naming q[3:7]."""
     model = free_box()
-    sim = Simulator(model, 1e-3)
+    sim = Simulator(model, 1e-3, falls=False)
     q = box_at(1.0, model)
     q[3:7] = [0.0, 0.0, 0.6 * (1 + 1.25e-4), 0.8 * (1 + 1.25e-4)]
     assert np.linalg.norm(sim.reset(q).q[3:7]) == pytest.approx(1.0, abs=1e-15)
@@ -370,3 +370,15 @@ def test_push_through_point_jacobian_matches_newton_on_a_free_box():
         state = sim.step(np.zeros(0))
     inertia = model.inertias[1].inertia[1, 1]
     assert state.v[4] == pytest.approx(0.1 * 0.4 / inertia, rel=2e-2)  # spin about y
+
+
+def test_floating_base_without_contact_points_is_refused():
+    """A floating base under gravity with no contact points would fall through the floor with
+    no fall reported: refused with the fix; zero gravity or falls=False mean floating."""
+    with pytest.raises(
+        InvalidInputError,
+        match=r"floating base \(6 unactuated DOFs\) but no "
+        r"contact_points.*contact_points=robot.contact_points",
+    ):
+        Simulator(free_box(), 1e-3)
+    Simulator(free_box(), 1e-3, falls=False)

@@ -26,6 +26,7 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 from dmpopt.control.computed_torque import ComputedTorqueController  # noqa: E402
 from dmpopt.control.contacts import PointContact, SoleContact  # noqa: E402
 from dmpopt.control.controller import InverseDynamicsController  # noqa: E402
+from dmpopt.control.diagnostics import active_constraints, explain  # noqa: E402
 from dmpopt.control.inverse_dynamics import ControllerStats  # noqa: E402
 from dmpopt.control.joint_impedance import JointImpedance  # noqa: E402
 from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, Task  # noqa: E402
@@ -41,4 +42,6 @@ __all__ = [
     "PostureTask",
     "SoleContact",
     "Task",
+    "active_constraints",
+    "explain",
 ]

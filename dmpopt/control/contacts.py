@@ -83,6 +83,12 @@ class SoleContact:
         if fraction.shape != () or not 0 < fraction <= 1:
             raise InvalidInputError(f"cop_fraction must be in (0, 1], got {cop_fraction!r}")
         self.cop_fraction = float(fraction)
+        if len(robot.sole_corners) == 0:
+            raise InvalidInputError(
+                f"SoleContact: robot {robot.name!r} has no sole_corners, so the sole's extent is "
+                "unknown; build it with RobotModel.from_urdf(..., feet={frame: None}) (soles from "
+                "the collision geometry) or feet={frame: [[x, y], ...]} (corners in the foot frame)"
+            )
         corners = self.cop_fraction * np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)

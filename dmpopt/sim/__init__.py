@@ -14,7 +14,7 @@ and angular speed into a :class:`Fall`.
 
 from dmpopt.sim.contact import GroundContact, ground_forces
 from dmpopt.sim.falls import Fall, FallDetector, base_tilt
-from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation
+from dmpopt.sim.mujoco_backend import MujocoSimulator, render_animation, render_frame
 from dmpopt.sim.plant import IDEAL, PlantParameters, SensorNoise, with_armature
 from dmpopt.sim.simulator import SimState, Simulator, TouchdownEvent
 
@@ -33,4 +33,5 @@ __all__ = [
     "with_armature",
     "ground_forces",
     "render_animation",
+    "render_frame",
 ]

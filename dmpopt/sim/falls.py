@@ -383,3 +383,25 @@ def fall_checks(
     if fall_height is not None:
         return FallDetector(min_height=fall_height, max_tilt=np.inf), base
     return None, None
+
+
+def refuse_floating_without_contacts(model, n_base_dofs, contact_points, falls, fall_height):
+    """Refuse a floating base under gravity with nothing to stand on and no fall check.
+
+    Such a robot falls through the floor and, without contact points, no standing height is
+    known, so no fall would be reported. ``falls=False``, a :class:`FallDetector`, a
+    ``fall_height`` or zero gravity say the floating is meant.
+    """
+    if (
+        n_base_dofs
+        and not len(contact_points)
+        and falls is True
+        and fall_height is None
+        and np.any(model.gravity.linear != 0)
+    ):
+        raise InvalidInputError(
+            f"the model has a floating base ({n_base_dofs} unactuated DOFs) but no "
+            "contact_points: it would fall through the floor with no fall reported; pass "
+            "contact_points=robot.contact_points (the sole corners of a RobotModel), or "
+            "falls=False or a fall_height for a body meant to float"
+        )

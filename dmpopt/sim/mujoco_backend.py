@@ -71,7 +71,13 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
+from dmpopt.sim.falls import (
+    Fall,
+    FallDetector,
+    base_tilt,
+    fall_checks,
+    refuse_floating_without_contacts,
+)
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
@@ -267,6 +273,9 @@ class MujocoSimulator(Backend):
             self._collide_body(spec, feet)
         self.fall_detector, self._watched = fall_checks(
             model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height
+        )
+        refuse_floating_without_contacts(
+            model, self.n_base_dofs, contact_points, falls, fall_height
         )
         try:
             self.mj_model = spec.compile()
@@ -766,12 +775,15 @@ def render_animation(
     height: int = 360,
     distance: float = 3.0,
     max_bytes: int = 5_000_000,
+    target=None,
+    azimuth: float = 135.0,
+    elevation: float = -15.0,
 ) -> Path:
     """Render configurations offscreen and write an animated WebP or GIF.
 
-    The camera follows the root body from ``distance`` at a fixed azimuth and elevation. If the
-    file is larger than ``max_bytes``, every other frame is dropped (each shown twice as long)
-    until it fits.
+    The camera looks at ``target`` (default: the root body) from ``distance`` at ``azimuth``
+    and ``elevation``, following the target frame by frame. If the file is larger than
+    ``max_bytes``, every other frame is dropped (each shown twice as long) until it fits.
 
     Parameters
     ----------
@@ -786,9 +798,15 @@ def render_animation(
     width, height : int
         Image size [pixels].
     distance : float
-        Camera distance to the root body [m].
+        Camera distance to the target [m].
     max_bytes : int
         Size bound of the file.
+    target : str or array_like, shape (3,), optional
+        A frame of the Pinocchio model (a link, a hand, a sole) the camera follows, or a fixed
+        world point [m]. Default: the root body.
+    azimuth, elevation : float
+        Camera direction [deg]: azimuth about the vertical (MuJoCo's convention, 90 looks
+        along +y), elevation below the horizon negative.
 
     Returns
     -------
@@ -803,43 +821,15 @@ def render_animation(
     ResourceLimitError
         If even a single frame exceeds ``max_bytes``.
     """
-    if not isinstance(simulator, MujocoSimulator):
-        raise InvalidInputError(
-            f"simulator must be a MujocoSimulator, got {type(simulator).__name__}"
-        )
-    configurations = np.array(configurations, dtype=float, ndmin=2)
-    nq = simulator.model.nq
-    if configurations.ndim != 2 or configurations.shape[1] != nq or not len(configurations):
-        raise ShapeError(
-            f"configurations has shape {configurations.shape}, expected (n_frames, {nq})"
-        )
-    if not np.isfinite(configurations).all():
-        rows = np.flatnonzero(~np.isfinite(configurations).all(axis=1)).tolist()
-        raise InvalidInputError(f"configurations must be finite; rows {rows} are not")
-    path = Path(path)
-    if path.suffix.lower() not in (".webp", ".gif"):
-        raise InvalidInputError(f"path {str(path)!r} must end in .webp or .gif")
-    if not path.parent.is_dir():
-        raise InvalidInputError(
-            f"path {str(path)!r}: directory {str(path.parent)!r} does not exist"
-        )
+    configurations = _check_render(simulator, configurations, width, height)
+    path = _output_path(path, (".webp", ".gif"))
     fps = _positive("fps", fps)
-    for name, value in (("width", width), ("height", height)):
-        if not (isinstance(value, (int, np.integer)) and 16 <= value <= 4096):
-            raise InvalidInputError(
-                f"{name} must be an integer in [16, 4096] pixels, got {value!r}"
-            )
-    distance = _positive("distance", distance)
+    camera = _camera(simulator, target, distance, azimuth, elevation)
     max_bytes = _positive("max_bytes", max_bytes)
-    try:
-        from PIL import Image
-    except ImportError:
-        raise MissingDependency(
-            "writing animations needs Pillow; install it with `pip install 'dmpopt[plot]'`"
-        ) from None
+    image_class = _pillow()
     frames = [
-        Image.fromarray(f)
-        for f in _render_frames(simulator, configurations, width, height, distance)
+        image_class.fromarray(f)
+        for f in _render_frames(simulator, configurations, width, height, camera)
     ]
     duration = 1000.0 / fps  # [ms] per frame
     while True:
@@ -857,7 +847,110 @@ def render_animation(
         frames, duration = frames[::2], 2 * duration
 
 
-def _render_frames(simulator, configurations, width, height, distance) -> list[np.ndarray]:
+def render_frame(
+    simulator: MujocoSimulator,
+    q,
+    path,
+    width: int = 640,
+    height: int = 480,
+    target=None,
+    distance: float = 3.0,
+    azimuth: float = 135.0,
+    elevation: float = -15.0,
+) -> Path:
+    """Render one configuration offscreen and write it as a PNG still.
+
+    Parameters
+    ----------
+    simulator : MujocoSimulator
+        Provides the model; its simulation state is not changed.
+    q : array_like, shape (nq,)
+        A Pinocchio configuration.
+    path : str or Path
+        Output file, ``.png``.
+    width, height : int
+        Image size [pixels].
+    target, distance, azimuth, elevation
+        The camera, as in :func:`render_animation`.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    configurations = _check_render(simulator, [q], width, height, name="q")
+    path = _output_path(path, (".png",))
+    camera = _camera(simulator, target, distance, azimuth, elevation)
+    image_class = _pillow()
+    (image,) = _render_frames(simulator, configurations, width, height, camera)
+    image_class.fromarray(image).save(path)
+    return path
+
+
+def _check_render(simulator, configurations, width, height, name="configurations"):
+    if not isinstance(simulator, MujocoSimulator):
+        raise InvalidInputError(
+            f"simulator must be a MujocoSimulator, got {type(simulator).__name__}"
+        )
+    configurations = np.array(configurations, dtype=float, ndmin=2)
+    nq = simulator.model.nq
+    if configurations.ndim != 2 or configurations.shape[1] != nq or not len(configurations):
+        shape = configurations.shape if name == "configurations" else configurations.shape[1:]
+        expected = f"(n_frames, {nq})" if name == "configurations" else f"({nq},)"
+        raise ShapeError(f"{name} has shape {shape}, expected {expected}")
+    if not np.isfinite(configurations).all():
+        rows = np.flatnonzero(~np.isfinite(configurations).all(axis=1)).tolist()
+        raise InvalidInputError(f"{name} must be finite; rows {rows} are not")
+    for label, value in (("width", width), ("height", height)):
+        if not (isinstance(value, (int, np.integer)) and 16 <= value <= 4096):
+            raise InvalidInputError(
+                f"{label} must be an integer in [16, 4096] pixels, got {value!r}"
+            )
+    return configurations
+
+
+def _output_path(path, suffixes) -> Path:
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise InvalidInputError(f"path {str(path)!r} must end in {' or '.join(suffixes)}")
+    if not path.parent.is_dir():
+        raise InvalidInputError(
+            f"path {str(path)!r}: directory {str(path.parent)!r} does not exist"
+        )
+    return path
+
+
+def _pillow():
+    try:
+        from PIL import Image
+    except ImportError:
+        raise MissingDependency(
+            "writing images needs Pillow; install it with `pip install 'dmpopt[plot]'`"
+        ) from None
+    return Image
+
+
+def _camera(simulator, target, distance, azimuth, elevation) -> dict:
+    """Checked camera options: target (None, a frame id or a world point) and angles."""
+    model = simulator.model
+    if target is None or isinstance(target, str):
+        if target is not None and not model.existFrame(target):
+            raise InvalidInputError(
+                f"target={target!r} is not a frame of the model; pass a link or frame name "
+                "(e.g. a hand frame), a world point (x, y, z), or None for the root body"
+            )
+        target = None if target is None else model.getFrameId(target)
+    else:
+        target = real_array("target", target, shape=(3,), expected="a world point [m]")
+    return {
+        "target": target,
+        "distance": _positive("distance", distance),
+        "azimuth": real("azimuth", azimuth, expected="an angle [deg]"),
+        "elevation": real("elevation", elevation, expected="an angle [deg]"),
+    }
+
+
+def _render_frames(simulator, configurations, width, height, camera) -> list[np.ndarray]:
     """RGB images, shape (height, width, 3) each, of Pinocchio configurations."""
     mujoco = simulator._mj
     model = simulator.mj_model
@@ -872,14 +965,24 @@ def _render_frames(simulator, configurations, width, height, distance) -> list[n
             "MUJOCO_GL=osmesa (software) before importing mujoco"
         ) from None
     data = mujoco.MjData(model)
-    camera = mujoco.MjvCamera()
-    camera.distance, camera.azimuth, camera.elevation = distance, 135.0, -15.0
+    view = mujoco.MjvCamera()
+    view.distance, view.azimuth, view.elevation = (
+        camera["distance"], camera["azimuth"], camera["elevation"]
+    )  # fmt: skip
+    target = camera["target"]
+    frames = simulator.model.createData() if isinstance(target, (int, np.integer)) else None
     images = []
     with renderer:
         for q in configurations:
             data.qpos[:] = simulator.to_mujoco(q, np.zeros(simulator.model.nv))[0]
             mujoco.mj_forward(model, data)
-            camera.lookat[:] = data.xpos[1]  # the URDF root link
-            renderer.update_scene(data, camera)
+            if target is None:
+                view.lookat[:] = data.xpos[1]  # the URDF root link
+            elif frames is not None:
+                pin.framesForwardKinematics(simulator.model, frames, q)
+                view.lookat[:] = frames.oMf[target].translation
+            else:
+                view.lookat[:] = target
+            renderer.update_scene(data, view)
             images.append(renderer.render().copy())
     return images

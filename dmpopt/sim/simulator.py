@@ -28,7 +28,13 @@ import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError, SimulationDiverged
 from dmpopt.sim.contact import GroundContact, ground_forces
-from dmpopt.sim.falls import Fall, FallDetector, base_tilt, fall_checks
+from dmpopt.sim.falls import (
+    Fall,
+    FallDetector,
+    base_tilt,
+    fall_checks,
+    refuse_floating_without_contacts,
+)
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.validation import real, real_array
 
@@ -292,6 +298,9 @@ class Simulator(Backend):
         normal = (0.0, 0.0, 1.0) if ground is None else ground.normal
         self.fall_detector, self._watched = fall_checks(
             model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height, normal
+        )
+        refuse_floating_without_contacts(
+            model, self.n_base_dofs, contact_points, falls, fall_height
         )
         self._tau = np.zeros(model.nv)
         self.touchdown_events: list[TouchdownEvent] = []

@@ -221,9 +221,8 @@ def run_figure8(
     dmp = fit_rhythmic(figure8_demonstration(center), N_BASIS, period=FIGURE8_PERIOD)
     # Start on the limit cycle at phase 0 (the centre of the 8, where the hand is), with the
     # right-arm joint velocities that give the plan's hand velocity.
-    cycle = dmp.rollout(3 * dmp.period, DT, start=center)
-    start, start_velocity = cycle.positions[-1], cycle.velocities[-1]
-    stepper = dmp.stepper(DT, start=start, start_velocity=start_velocity, compile=compile)
+    _, start_velocity = dmp.limit_cycle_state(0.0, DT)
+    stepper = dmp.stepper(DT, on_limit_cycle=True, compile=compile)
     arm = robot.velocity_indices("right_arm")
     jacobian = pin.computeFrameJacobian(
         robot.model, data, q_start, frame_id, pin.LOCAL_WORLD_ALIGNED

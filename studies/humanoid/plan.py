@@ -55,9 +55,7 @@ def learn_drumming(demo: Demonstration) -> DrumDmps:
     start = np.empty(len(DRUM_JOINTS))
     start_velocity = np.empty(len(DRUM_JOINTS))
     for dmp, index in ((shared, others), (elbow, [elbow_index])):
-        # Three periods from the demonstrated start: the plan is on its limit cycle at phase 0.
-        plan = dmp.rollout(3 * dmp.period, DT, start=joints.positions[0, index])
-        start[index], start_velocity[index] = plan.positions[-1], plan.velocities[-1]
+        start[index], start_velocity[index] = dmp.limit_cycle_state(0.0, DT)
     return DrumDmps(shared, elbow, elbow_index, start, start_velocity)
 
 
@@ -99,13 +97,8 @@ class DrumPlan:
         i = dmps.elbow_index
         self._others = np.array([k for k in range(len(DRUM_JOINTS)) if k != i])
         self._elbow = i
-        start, velocity, others = dmps.start, dmps.start_velocity, self._others
-        self.shared = dmps.shared.stepper(
-            dt, start=start[others], start_velocity=velocity[others], compile=compile
-        )
-        self.elbow = dmps.elbow.stepper(
-            dt, start=start[[i]], start_velocity=velocity[[i]], compile=compile
-        )
+        self.shared = dmps.shared.stepper(dt, on_limit_cycle=True, compile=compile)
+        self.elbow = dmps.elbow.stepper(dt, on_limit_cycle=True, compile=compile)
         self.time = 0.0
         self._parameters = self._targets(False)
         self.position = np.empty(len(DRUM_JOINTS))
@@ -227,4 +220,4 @@ def settle_time(times, actual, ideal, start, end, tolerance) -> float | None:
 
 def stepper_compiles(dmps: DrumDmps) -> bool:
     """Whether the compiled DMP step is available (needs a C compiler)."""
-    return dmps.elbow.stepper(DT, start=dmps.start[[dmps.elbow_index]], compile=True).compiled
+    return dmps.elbow.stepper(DT, on_limit_cycle=True, compile=True).compiled

@@ -1,0 +1,148 @@
+"""What binds a tick of the inverse-dynamics controller, in words a user can act on.
+
+:func:`active_constraints` reads the last solution of an :class:`InverseDynamicsController`
+(its torques, joint accelerations and contact wrenches) and names every inequality row at
+its bound: a torque limit, a joint-limit acceleration bound, a friction, centre-of-pressure
+or normal-force row of a contact. :func:`explain` adds what the last answer was and, for a
+relaxed or hold answer, why. Neither changes the controller; both cost a few microseconds
+per row and are meant for a printout, not for every tick of a real-time loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+from .contacts import SoleContact
+
+__all__ = ["active_constraints", "explain"]
+
+#: A row is reported when its slack is below this fraction of its scale: the robot's weight
+#: for contact rows [N, or N m for the centre-of-pressure and yaw rows], the torque limit for
+#: torque rows (the controller's own release margins, 0.1 % and 1 %).
+CONE_MARGIN = 1e-3
+TORQUE_MARGIN = 1e-2
+#: Joint-limit acceleration bounds within this of the joint acceleration [rad/s^2].
+BOUND_MARGIN = 1e-2
+
+_SOLE_ROWS = (
+    "friction cone of {} (+x)",
+    "friction cone of {} (-x)",
+    "friction cone of {} (+y)",
+    "friction cone of {} (-y)",
+    "CoP of {} at its toe edge",
+    "CoP of {} at its heel edge",
+    "CoP of {} at its left edge",
+    "CoP of {} at its right edge",
+    "yaw friction of {} (+z)",
+    "yaw friction of {} (-z)",
+    "minimum normal force of {} (the foot is about to lift)",
+    "maximum normal force of {}",
+)
+
+_STATUS = {
+    "PROXQP_MAX_ITER_REACHED": "out of iterations (max_iterations) or of its share of the time "
+    "budget",
+    "PROXQP_PRIMAL_INFEASIBLE": "infeasible: no accelerations and wrenches meet every row at once",
+    "PROXQP_DUAL_INFEASIBLE": "unbounded (a task leaves a direction free)",
+    "NON_FINITE_PROBLEM": "a NaN or inf in a task target or the state",
+}
+
+
+def _contact_rows(contact) -> tuple[str, ...]:
+    if isinstance(contact, SoleContact):
+        return tuple(row.format(contact.frame) for row in _SOLE_ROWS)
+    axes = "xz" if contact.n_force == 2 else "xyz"
+    tangential = [
+        f"friction cone of {contact.frame} ({sign}{a})" for sign in "+-" for a in axes[:-1]
+    ]
+    return (
+        *tangential,
+        f"minimum normal force of {contact.frame} (the foot is about to lift)",
+        f"maximum normal force of {contact.frame}",
+    )
+
+
+def active_constraints(controller) -> list[str]:
+    """Names of the inequality rows at their bound in the controller's last solution.
+
+    Parameters
+    ----------
+    controller : InverseDynamicsController
+        After at least one :meth:`~InverseDynamicsController.compute_torques`.
+
+    Returns
+    -------
+    list of str
+        E.g. ``"CoP of right_sole_link at its heel edge (0.4 mm)"``, ``"torque limit of
+        leg_left_4_joint (upper)"``, ``"friction cone of left_sole_link (+x)"``,
+        ``"joint limit of arm_left_4_joint (lower acceleration bound)"``: contacts first (in
+        the order of :attr:`~InverseDynamicsController.active_contacts`), then torques, then
+        joint limits. Empty if nothing binds (a ``direct`` answer).
+    """
+    qp = controller._current
+    robot = qp.robot
+    names = []
+    weight = qp._force_scale
+    offset = 0
+    for contact, wrench in zip(qp.contacts, qp.contact_wrenches):
+        rows = _contact_rows(contact)
+        size = len(rows)
+        slack = qp._cone_upper[offset : offset + size] - contact.wrench_matrix @ wrench
+        offset += size
+        for index in np.flatnonzero(slack <= CONE_MARGIN * weight):
+            name = rows[index]
+            if name.startswith("CoP") and wrench[contact.normal_index] > 0:
+                name += f" ({1e3 * max(slack[index], 0.0) / wrench[contact.normal_index]:.1f} mm)"
+            names.append(name)
+    torques, limit = qp.torques, qp.torque_limit
+    for index in np.flatnonzero(np.abs(torques) >= (1.0 - TORQUE_MARGIN) * limit):
+        side = "upper" if torques[index] > 0 else "lower"
+        names.append(f"torque limit of {robot.actuated_joint_names[index]} ({side})")
+    bounds = qp._bounds
+    if bounds[1].size:
+        lower, upper = np.empty(bounds[1].size), np.empty(bounds[1].size)
+        kernels.acceleration_bounds((*bounds[:6], lower, upper), qp._q_tick, qp._v_tick)
+        accelerations = qp.joint_accelerations[bounds[1]]
+        joints = {
+            robot.model.joints[j].idx_v: robot.model.names[j] for j in range(1, robot.model.njoints)
+        }
+        for index in np.flatnonzero(accelerations >= upper - BOUND_MARGIN):
+            names.append(f"joint limit of {joints[bounds[1][index]]} (upper acceleration bound)")
+        for index in np.flatnonzero(accelerations <= lower + BOUND_MARGIN):
+            names.append(f"joint limit of {joints[bounds[1][index]]} (lower acceleration bound)")
+    return names
+
+
+def explain(controller) -> str:
+    """The last tick's answer, why (for a relaxed or hold answer), and what binds.
+
+    Returns
+    -------
+    str
+        One line, e.g. ``"relaxed: the QP with its inequality rows was not solved
+        (PROXQP_MAX_ITER_REACHED: out of iterations ...); the contact rows and joint-limit
+        bounds were relaxed, torque and cone rows kept. At their bounds: CoP of ..."``.
+    """
+    stats = controller.stats
+    status = stats.last_status
+    if stats.last_answer == "relaxed":  # last_status is the relaxed QP's: ask the exact one
+        status = controller._current._limited.qp.results.info.status.name
+    reason = f"{status}: {_STATUS[status]}" if status in _STATUS else status
+    binding = active_constraints(controller)
+    rows = "; ".join(binding) if binding else "nothing"
+    if stats.last_answer == "direct":
+        return "direct: no inequality row was needed"
+    if stats.last_answer == "solved":
+        return f"solved; at their bounds: {rows}"
+    if stats.last_answer == "relaxed":
+        return (
+            f"relaxed: the QP with its inequality rows was not solved ({reason}); the contact "
+            f"rows and joint-limit bounds were relaxed, torque and cone rows kept. At their "
+            f"bounds: {rows}"
+        )
+    return (
+        f"hold: neither the QP nor its relaxation was solved in the time budget ({reason}); "
+        f"the torques are the last valid ones, clipped to the limits. At their "
+        f"bounds on the last solved tick: {rows}"
+    )

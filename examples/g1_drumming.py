@@ -1,5 +1,6 @@
 """Unitree G1 standing and drumming: a rhythmic DMP on both arms, started on its limit cycle,
-tracked by the QP controller while the soles hold the robot up, in MuJoCo. Writes
+tracked by the QP controller while the soles hold the robot up, in MuJoCo, on a plant with joint
+friction, rotor inertia, delay and sensor noise that the controller knows only nominally. Writes
 ``g1_drumming.gif`` (``--quick``: a PNG still) into the output folder."""
 
 import argparse
@@ -9,9 +10,23 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt import RobotModel, Trajectory, fit_rhythmic
-from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
+from dmpopt.control import (
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    JointImpedance,
+    PostureTask,
+    SoleContact,
+)
 from dmpopt.robot import example_robot_data_dir
-from dmpopt.sim import MujocoSimulator, render_animation, render_frame
+from dmpopt.sim import (
+    MujocoSimulator,
+    PlantParameters,
+    SensorNoise,
+    render_animation,
+    render_frame,
+    with_armature,
+)
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("output", type=Path, help="folder for the animation")
@@ -24,6 +39,9 @@ g1 = RobotModel.from_urdf(
     feet=["left_ankle_roll_link", "right_ankle_roll_link"],  # soles from the collision spheres
     reference={f"{side}_{joint}": a for side in ("left", "right") for joint, a in bent.items()},
 )
+noise = SensorNoise(joint_position=1e-5, joint_velocity=0.005, base_orientation=1e-3)
+plant = PlantParameters(armature=0.02, damping=0.2, friction=0.3, delay=1, noise=noise)
+g1 = with_armature(g1, plant)  # the controller's model knows the nominal rotor inertia
 drum = [
     f"{side}_{joint}"
     for side in ("left", "right")
@@ -45,12 +63,17 @@ com = ComTask(g1, weight=10.0)
 com.set_target(pin.centerOfMass(g1.model, g1.create_data(), q0))
 pelvis = FrameTask(g1, "pelvis", weight=1.0, stiffness=50.0, components="orientation")
 soles = [SoleContact(g1, foot, cop_fraction=0.7) for foot in g1.foot_frames]
-controller = InverseDynamicsController(g1, [posture, arms, com, pelvis], soles)
-simulator = MujocoSimulator(g1.model, g1.source, dt, g1.contact_points, fall_frame="pelvis")
+loop = JointImpedance.for_plant(g1, dt, plant)  # copes with friction, damping and delay
+controller = InverseDynamicsController(
+    g1, [posture, arms, com, pelvis], soles, joint_impedance=loop
+)
+simulator = MujocoSimulator(
+    g1.model, g1.source, dt, g1.contact_points, fall_frame="pelvis", plant=plant
+)
 state, frames = simulator.reset(q0, v0), []
 for k in range(int((0.5 if args.quick else 4.0) / dt)):
     arms.set_reference(*stepper.step())
-    state = simulator.step(controller.compute_torques(state.q, state.v))
+    state = simulator.step(controller.compute_torques(state.q_measured, state.v_measured))
     frames += [state.q] if k % 40 == 0 else []
 print(f"fell: {state.fallen}; controller answers: {controller.stats}")
 args.output.mkdir(parents=True, exist_ok=True)

@@ -220,6 +220,10 @@ class Walking:
         ]
         controller = InverseDynamicsController(robot, tasks, contacts)
         swing = FrameTask(robot, RIGHT, weight=10.0, stiffness=400.0)
+        swing.set_target(self.right0)
+        if hasattr(controller, "prepare"):  # the contact sets of the walk, built before it
+            controller.prepare([LEFT])
+            controller.prepare([LEFT], tasks + [swing])
 
         def set_targets(k, target):
             com.set_target(target[0])

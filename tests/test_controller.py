@@ -1153,3 +1153,57 @@ def test_answer_counters_add_up_over_ticks(upper_body):
     assert (stats.n_ticks, stats.n_solved, stats.n_torque_limited) == (2, 2, 2)
     assert (stats.n_relaxed, stats.n_direct, stats.n_fallbacks) == (0, 0, 0)
     assert stats.last_answer == "solved"
+
+
+def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
+    """With the collector's threshold at one allocation, collections start around the ticks
+    but none inside one (compute_torques pauses the collector), and it is on again after."""
+    import gc
+
+    from dmpopt.control.inverse_dynamics import ContactSetQP
+
+    controller, _ = standing_controller(talos)
+    inside, collections = [False], []
+    tick = ContactSetQP._tick
+
+    def watched(self, q, v):
+        inside[0] = True
+        try:
+            return tick(self, q, v)
+        finally:
+            inside[0] = False
+
+    def watch(phase, info):
+        if phase == "start":
+            collections.append(inside[0])
+
+    monkeypatch.setattr(ContactSetQP, "_tick", watched)
+    threshold = gc.get_threshold()
+    gc.callbacks.append(watch)
+    gc.set_threshold(1)
+    try:
+        q, v = talos.reference_configuration, np.zeros(talos.nv)
+        for _ in range(5):
+            controller.compute_torques(q, v)
+            [[] for _ in range(3)]  # garbage between ticks: collections must start here
+    finally:
+        gc.set_threshold(*threshold)
+        gc.callbacks.remove(watch)
+    assert collections and not any(collections)
+    assert gc.isenabled()
+
+
+def test_control_loop_freezes_the_objects_made_before_it():
+    """Inside control_loop the objects alive at its start are in the permanent generation
+    (gc.get_freeze_count counts them) and none after it; an error inside unfreezes too."""
+    import gc
+
+    from dmpopt.control import control_loop
+
+    before = gc.get_freeze_count()
+    with control_loop():
+        assert gc.get_freeze_count() > before
+    assert gc.get_freeze_count() == before
+    with pytest.raises(ZeroDivisionError), control_loop():
+        1 / 0
+    assert gc.get_freeze_count() == before

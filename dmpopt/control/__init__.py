@@ -27,6 +27,7 @@ from dmpopt.control.computed_torque import ComputedTorqueController  # noqa: E40
 from dmpopt.control.contacts import PointContact, SoleContact  # noqa: E402
 from dmpopt.control.controller import InverseDynamicsController  # noqa: E402
 from dmpopt.control.inverse_dynamics import ControllerStats  # noqa: E402
+from dmpopt.control.realtime import control_loop  # noqa: E402
 from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, Task  # noqa: E402
 
 __all__ = [
@@ -39,4 +40,5 @@ __all__ = [
     "PostureTask",
     "SoleContact",
     "Task",
+    "control_loop",
 ]

@@ -708,9 +708,9 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
 
     real, calls = qp_stages._active_set, []
 
-    def recorded(problem, at_upper, at_lower, tolerance, rounds):
+    def recorded(problem, at_upper, at_lower, tolerance, rounds, duals=None):
         seeded = int(at_upper.sum() + at_lower.sum())
-        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds)
+        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds, duals)
         calls.append((rounds, seeded, solution is not None, solves))
         return solution, solves
 
@@ -731,7 +731,8 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
         "ACTIVE_SET_SOLVED", 1)  # fmt: skip
     np.testing.assert_allclose(second, first, rtol=0, atol=1e-9)
     # proxsuite again on that QP (as after a failed certificate): cold, it repeats the first
-    # solve; warm from its own answer, it needs fewer iterations, counted as proxsuite counts
+    # solve; warm from the certified optimum, it needs fewer iterations, counted as proxsuite
+    # counts
     qp, stage = controller._current, controller._current._limited
     assert qp._run(stage, True, math.inf) and controller.stats.last_iterations == cold
     assert qp._run(stage, False, math.inf)

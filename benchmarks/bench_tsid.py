@@ -35,7 +35,8 @@ pin 3.4.0 (``benchmarks/tsid-constraints.txt``) runs::
     PYTHONPATH=.:benchmarks /path/to/venv-tsid/bin/python benchmarks/bench_tsid.py
 
 Run from the repository root: ``PYTHONPATH=.:benchmarks python benchmarks/bench_tsid.py
-[--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking]``.
+[--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking]``; with ``--stages``, only
+the CPU time per stage of dmpopt's one-foot QP ticks (one replay of the walk).
 """
 
 from __future__ import annotations
@@ -297,6 +298,56 @@ def replay(scenario, ticks, with_tsid: bool, watch: _GcWatch):
     return cpu, answers, switched
 
 
+STAGES = {
+    "compute_torques": "whole tick",
+    "_assemble": "model terms, task and contact rows, posture",
+    "_update_rows": "  of which task and contact rows",
+    "_eliminated_tick": "elimination and direct solve (level 0)",
+    "_assemble_eliminated": "elimination (levels 1, 2)",
+    "_assemble_y": "base elimination over y",
+    "_assemble_torque_rows": "torque rows",
+    "_solve": "QP solve (active set, proxsuite)",
+}
+
+
+def stage_timers(scenario, ticks) -> None:
+    """CPU time per stage of dmpopt's one-foot ticks that need the QP (mean us per tick;
+    each stage inclusive of the ones it calls), on one replay of the walk."""
+    from dmpopt.control.inverse_dynamics import ContactSetQP
+
+    totals = {name: np.zeros(len(ticks)) for name in STAGES}
+    current = [0]
+    originals = {name: getattr(ContactSetQP, name) for name in STAGES}
+
+    def timed(name, method):
+        def wrapper(self, *args):
+            begin = time.thread_time_ns()
+            try:
+                return method(self, *args)
+            finally:
+                totals[name][current[0]] += (time.thread_time_ns() - begin) / 1e3
+
+        return wrapper
+
+    for name, method in originals.items():
+        setattr(ContactSetQP, name, timed(name, method))
+    try:
+        controller, set_targets, tick = scenario.dmpopt()
+        answers = []
+        for k, (q, v, t, target) in enumerate(ticks):
+            current[0] = k
+            set_targets(k, target)
+            tick(q, v, t)
+            answers.append(controller.stats.last_answer)
+    finally:
+        for name, method in originals.items():
+            setattr(ContactSetQP, name, method)
+    mask = (np.arange(len(ticks)) >= ONE_FOOT_TICK) & (np.array(answers) != "direct")
+    print(f"stage timers of the one-foot QP ticks ({mask.sum()} ticks), mean CPU us per tick:")
+    for name, label in STAGES.items():
+        print(f"  {label:45s} {totals[name][mask].mean():7.1f}")
+
+
 def _counts(answers) -> dict:
     values, counts = np.unique(answers, return_counts=True)
     return {str(value): int(count) for value, count in zip(values, counts)}
@@ -315,7 +366,14 @@ def main():
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated time [s]")
     parser.add_argument("--repeats", type=int, default=3, help="replays of each recording")
     parser.add_argument("--scenarios", nargs="*", default=list(SCENARIOS), choices=SCENARIOS)
+    parser.add_argument(
+        "--stages", action="store_true", help="only the stage timers of the one-foot ticks"
+    )
     args = parser.parse_args()
+    if args.stages:
+        scenario = Walking()
+        stage_timers(scenario, scenario.record(args.seconds))
+        return
     with_tsid = build_tsid is not None
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f}; pin {pin.__version__}")
     if not with_tsid:

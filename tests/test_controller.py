@@ -708,9 +708,9 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
 
     real, calls = qp_stages._active_set, []
 
-    def recorded(problem, at_upper, at_lower, tolerance, rounds, duals=None):
+    def recorded(problem, at_upper, at_lower, tolerance, rounds, duals=None, workspace=None):
         seeded = int(at_upper.sum() + at_lower.sum())
-        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds, duals)
+        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds, duals, workspace)
         calls.append((rounds, seeded, solution is not None, solves))
         return solution, solves
 

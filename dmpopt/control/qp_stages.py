@@ -106,7 +106,7 @@ class _Stage:
 
     __slots__ = (
         "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known", "stale", "warm", "certified",
+        "at_lower", "known", "stale", "warm", "certified", "workspace",
     )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
@@ -129,6 +129,7 @@ class _Stage:
         self.stale = False  # bounds changed since proxsuite last saw them: update with all
         self.warm = (np.zeros(n), np.zeros(n_eq), np.zeros(n_in))
         self.certified = False
+        self.workspace = _workspace(n, n_eq, n_in)
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -150,6 +151,7 @@ def _active_set(
     tolerance: float,
     rounds: int,
     duals: tuple | None = None,
+    workspace: tuple | None = None,
 ) -> tuple[np.ndarray | None, int]:
     r"""Primal-dual active-set iterations from the active set ``at_upper | at_lower``.
 
@@ -163,10 +165,12 @@ def _active_set(
     ``tolerance`` and every multiplier has the sign of its side (:math:`\nu \ge 0` at an
     upper bound, :math:`\le 0` at a lower one): the KKT conditions then hold exactly.
     Otherwise the rows of the wrong sign leave the set, or else the most violated row enters
-    it, for at most ``rounds`` solves. ``at_upper`` and ``at_lower`` are updated in place;
-    ``duals`` (y, z), if given, receive the multipliers of the certified optimum (those of the
-    equality rows, and of every inequality row: 0 if inactive, in proxsuite's convention
-    :math:`H x + g + A^\top y + C^\top z = 0`).
+    it, for at most ``rounds`` solves (one compiled call, :func:`kernels.active_set`).
+    ``at_upper`` and ``at_lower`` are updated in place; ``duals`` (y, z), if given, receive
+    the multipliers of the certified optimum (those of the equality rows, and of every
+    inequality row: 0 if inactive, in proxsuite's convention
+    :math:`H x + g + A^\top y + C^\top z = 0`). ``workspace``: :func:`_workspace` of the
+    problem, made here if not given.
 
     Returns
     -------
@@ -175,38 +179,27 @@ def _active_set(
     """
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
     n = hessian.shape[0]
-    for solves in range(1, rounds + 1):
-        rows = np.flatnonzero(at_upper | at_lower)
-        bounds = np.where(at_upper, upper, lower)[rows]
-        matrix, target = in_matrix[rows], bounds
-        if eq_matrix is not None:
-            matrix, target = np.vstack([eq_matrix, matrix]), np.concatenate([eq_vector, bounds])
-        m = matrix.shape[0]
-        kkt = np.zeros((n + m, n + m))
-        kkt[:n, :n], kkt[:n, n:], kkt[n:, :n] = hessian, matrix.T, matrix
-        solution = np.concatenate([-gradient, target])
-        if not kernels.solve_in_place(kkt, solution):  # dependent active rows
-            return None, solves
-        candidate, multipliers = solution[:n], solution[n + m - rows.size :]
-        slack = 1e-9 * max(1.0, float(np.abs(multipliers).max(initial=0.0)))
-        wrong = np.zeros_like(at_upper)
-        wrong[rows] = np.where(at_upper[rows], multipliers < -slack, multipliers > slack)
-        if wrong.any():  # these rows leave the active set
-            at_upper &= ~wrong
-            at_lower &= ~wrong
-            continue
-        values = in_matrix @ candidate
-        violation = np.maximum(values - upper, lower - values)
-        if not violation.size or violation.max() <= tolerance:
-            if duals is not None:
-                duals[0][:] = solution[n : n + m - rows.size]
-                duals[1][:] = 0.0
-                duals[1][rows] = multipliers
-            return candidate, solves
-        worst = int(np.argmax(violation))
-        at_upper[worst] = values[worst] > upper[worst]
-        at_lower[worst] = values[worst] < lower[worst]
-    return None, rounds
+    if eq_matrix is None:
+        eq_matrix, eq_vector = np.zeros((0, n)), np.zeros(0)
+    contiguous = np.ascontiguousarray  # one compiled variant: C-ordered arrays
+    arrays = tuple(
+        contiguous(a, dtype=float)
+        for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
+    )
+    if duals is None:
+        duals = np.zeros(eq_matrix.shape[0]), np.zeros(in_matrix.shape[0])
+    x = np.empty(n)
+    workspace = workspace or _workspace(n, eq_matrix.shape[0], in_matrix.shape[0])
+    solves = kernels.active_set(
+        arrays, at_upper, at_lower, float(tolerance), int(rounds), workspace, x, *duals
+    )
+    return (x, solves) if solves > 0 else (None, -solves)
+
+
+def _workspace(n: int, n_eq: int, n_in: int) -> tuple:
+    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes."""
+    size = n + n_eq + min(n, n_in)
+    return (np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64))
 
 
 class StageSolver:
@@ -239,7 +232,7 @@ class StageSolver:
         if stage.known:
             solution, solves = _active_set(
                 stage.problem, stage.at_upper, stage.at_lower, self.qp.settings.eps_abs,
-                _WARM_ROUNDS, stage.warm[1:],
+                _WARM_ROUNDS, stage.warm[1:], stage.workspace,
             )  # fmt: skip
             stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
             if solution is not None and self._certified(stage, solution):
@@ -314,7 +307,7 @@ class StageSolver:
         np.less(z, -noise, out=stage.at_lower)
         solution, _ = _active_set(
             stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS,
-            stage.warm[1:],
+            stage.warm[1:], stage.workspace,
         )  # fmt: skip
         if solution is not None and self._certified(stage, solution):
             return True

@@ -1208,3 +1208,31 @@ def test_control_loop_freezes_the_objects_made_before_it():
     with pytest.raises(ZeroDivisionError), control_loop():
         1 / 0
     assert gc.get_freeze_count() == before
+
+
+def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(upper_body):
+    """Torque limits binding on a fixed base: a warm proxsuite solve starts from the last
+    certified optimum and its multipliers, so its iterations and answer are the same whatever
+    proxsuite computed in between (its own iterates differ in their last bits between
+    processes; started from them, the solves of two processes drift apart)."""
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
+                                           time_budget=1.0)  # fmt: skip
+    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
+    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller.compute_torques(q, v)
+    qp, stage = controller._current, controller._current._limited
+    assert stage.certified
+
+    def warm_solve():
+        assert qp._run(stage, False, math.inf)
+        return controller.stats.last_iterations, qp._candidate.copy()
+
+    iterations, answer = warm_solve()
+    settings = stage.qp.settings
+    settings.max_iter, settings.initial_guess = 1, proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+    stage.qp.solve()  # proxsuite's last result is now a first iterate from scratch
+    settings.max_iter = 50
+    again, same = warm_solve()
+    assert again == iterations and again > 0
+    np.testing.assert_array_equal(same, answer)

@@ -141,6 +141,7 @@ def walking(with_tsid: bool) -> None:
         print(f"  TSID skipped: {tsid_missing}")
         return
     tsid_controller = TsidWalking(robot, records[0][0], 10.0, 400.0, 0.7)
+    tsid_controller.add_swing()
     times = []
     for q, v, t, com_target, swing_target in records:
         begin = time.thread_time_ns()

@@ -41,6 +41,7 @@ class TsidStats:
     n_cold_restarts: int = 0
     n_fallbacks: int = 0  # ticks where the solver failed and the previous torques were kept
     n_direct: int = 0
+    n_torque_limited: int = 0  # TSID always solves with its torque rows: not counted
 
 
 def _gains(task, stiffness: float, size: int) -> None:
@@ -118,8 +119,11 @@ class TsidController:
         return self.tau
 
 
-def build_tsid(robot, q_start, arm_joints=humanoid.DRUM_JOINTS, hand=None, base_task=True):
-    """TSID with the tasks of :func:`studies.humanoid.build_controller`, and the driven task."""
+def build_tsid(
+    robot, q_start, arm_joints=humanoid.DRUM_JOINTS, hand=None, base_task=True, friction=0.7
+):
+    """TSID with the tasks of :func:`studies.humanoid.build_controller`, and the driven task;
+    ``friction`` is the soles' friction coefficient. The CoM task is ``controller.com``."""
     model = robot.model
     root = tsid.FLOATING_BASE_SYSTEM if robot.floating_base else tsid.FIXED_BASE_SYSTEM
     wrapper = tsid.RobotWrapper(model, root, False)
@@ -185,7 +189,7 @@ def build_tsid(robot, q_start, arm_joints=humanoid.DRUM_JOINTS, hand=None, base_
                 foot,
                 np.asarray(robot.sole_corners).T.copy(),
                 np.array([0.0, 0.0, 1.0]),
-                0.7,
+                friction,
                 1.0,
                 5000.0,
             )
@@ -198,14 +202,19 @@ def build_tsid(robot, q_start, arm_joints=humanoid.DRUM_JOINTS, hand=None, base_
     bounds.setBounds(-limit, limit)
     formulation.addActuationTask(bounds, 1.0, 0, 0.0)
     parts.append(bounds)
-    return TsidController(robot, wrapper, formulation, contacts, parts), driven
+    controller = TsidController(robot, wrapper, formulation, contacts, parts)
+    controller.com = com if robot.floating_base else None
+    return controller, driven
 
 
 class TsidWalking:
-    """TSID on the one-foot tick of ``bench_controller.py --walking``: left sole contact, right
-    sole swing task, CoM, pelvis orientation and posture; targets set per tick."""
+    """TSID on the walking sequence of ``bench_controller.py --walking`` and
+    ``bench_tsid.py``: sole contacts on ``feet``, CoM, pelvis orientation and posture tasks;
+    a swing task on the right sole once :meth:`add_swing` is called; targets set per tick."""
 
-    def __init__(self, robot, q, swing_weight, swing_stiffness, cop_fraction):
+    def __init__(
+        self, robot, q, swing_weight, swing_stiffness, cop_fraction, feet=("left_sole_link",)
+    ):
         model = robot.model
         self.wrapper = wrapper = tsid.RobotWrapper(model, tsid.FLOATING_BASE_SYSTEM, False)
         self.formulation = tsid.InverseDynamicsFormulationAccForce("walk", wrapper, False)
@@ -225,31 +234,58 @@ class TsidWalking:
         self.swing = tsid.TaskSE3Equality("swing", wrapper, "right_sole_link")
         _gains(self.swing, swing_stiffness, 6)
         self.swing.useLocalFrame(False)
-        for task, weight in (
-            (self.posture, 0.1), (self.com, 10.0), (self.pelvis, 1.0), (self.swing, swing_weight)
-        ):  # fmt: skip
+        self.swing_weight = swing_weight
+        for task, weight in ((self.posture, 0.1), (self.com, 10.0), (self.pelvis, 1.0)):
             self.formulation.addMotionTask(task, weight, 1, 0.0)
-        self.contact = tsid.Contact6d(
-            "left", wrapper, "left_sole_link",
-            cop_fraction * np.asarray(robot.sole_corners).T.copy(), np.array([0.0, 0.0, 1.0]),
-            0.7, 1.0, 1500.0,
-        )  # fmt: skip
-        _gains(self.contact, 10.0, 6)
-        self.contact.setReference(data.oMf[model.getFrameId("left_sole_link")])
-        self.formulation.addRigidContact(self.contact, 1e-8, 1.0, 0)
+        self.contacts = []  # TSID keeps raw pointers: they must stay alive
+        for foot in feet:
+            contact = tsid.Contact6d(
+                foot, wrapper, foot,
+                cop_fraction * np.asarray(robot.sole_corners).T.copy(), np.array([0.0, 0.0, 1.0]),
+                0.7, 1.0, 1500.0,
+            )  # fmt: skip
+            _gains(contact, 10.0, 6)
+            contact.setReference(data.oMf[model.getFrameId(foot)])
+            self.formulation.addRigidContact(contact, 1e-8, 1.0, 0)
+            self.contacts.append(contact)
         self.bounds = tsid.TaskActuationBounds("torque-bounds", wrapper)
         limit = np.asarray(robot.torque_limit, dtype=float)
         self.bounds.setBounds(-limit, limit)
         self.formulation.addActuationTask(self.bounds, 1.0, 0, 0.0)
         self.solver = tsid.SolverHQuadProgFast("eiquadprog-fast")
-        self.solver.resize(self.formulation.nVar, self.formulation.nEq, self.formulation.nIn)
+        self._resize()
         self.failures = 0
+        self.swinging = False
 
-    def compute_torques(self, q, v, t, com_target, swing_target: pin.SE3) -> np.ndarray:
-        """One tick: targets, ``computeProblemData``, ``solve``, ``getActuatorForces``."""
+    def _resize(self) -> None:
+        form = self.formulation
+        self._size = (form.nVar, form.nEq, form.nIn)
+        self.solver.resize(*self._size)
+
+    def remove_contact(self, frame: str, transition_time: float) -> None:
+        """TSID's ``removeRigidContact``: the normal force ramps down over ``transition_time``."""
+        self.formulation.removeRigidContact(frame, transition_time)
+
+    def add_swing(self) -> None:
+        """Add the right sole's swing task (weight and stiffness of the constructor)."""
+        self.formulation.addMotionTask(self.swing, self.swing_weight, 1, 0.0)
+        self.swinging = True
+
+    def set_targets(self, com_target, swing_target: pin.SE3) -> None:
+        """The CoM target [m] and, once swinging, the right sole's target placement."""
         self.com.setReference(_sample(com_target))
-        self.swing.setReference(_sample(tsid.SE3ToVector(swing_target), size=6))
+        if self.swinging:
+            self.swing.setReference(_sample(tsid.SE3ToVector(swing_target), size=6))
+
+    def compute_torques(self, q, v, t, com_target=None, swing_target=None) -> np.ndarray:
+        """One tick: targets (if given), ``computeProblemData``, ``solve``,
+        ``getActuatorForces``."""
+        if com_target is not None:
+            self.set_targets(com_target, swing_target)
         problem = self.formulation.computeProblemData(t, q, v)
+        form = self.formulation
+        if self._size != (form.nVar, form.nEq, form.nIn):
+            self._resize()  # a contact or task was dropped or added: the problem changed size
         solution = self.solver.solve(problem)
         self.failures += solution.status != 0
         return self.formulation.getActuatorForces(solution)

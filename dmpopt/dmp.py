@@ -99,6 +99,16 @@ def _refuse_former_names(cls):
     return cls
 
 
+def _memo(instance, key, compute):
+    """A value derived from the fields of a frozen DMP, computed once per instance: a rollout
+    would otherwise redo the goal map, feature and step-limit evaluations each time
+    (``dataclasses.replace`` makes a new instance, with an empty memo)."""
+    memo = instance.__dict__.setdefault("_memo", {})
+    if key not in memo:
+        memo[key] = compute()
+    return memo[key]
+
+
 def goal_transform(goal_scaling: str, reference, displacement) -> np.ndarray:
     r"""Matrix :math:`M` that carries a plan demonstrated for the start-goal vector
     ``reference`` to one for ``displacement`` (module docstring), shape (n_dofs, n_dofs).
@@ -287,8 +297,18 @@ class _DmpCommon:
     @property
     def max_step(self) -> float:
         """Largest step [s] at which the RK4 integration is stable (:func:`basis.stable_step`)."""
-        return self.tau * basis.stable_step(
-            self.form, tuple(self.gains), float(self._canonical_target()), self._cycle_states()
+        return _memo(
+            self,
+            "max_step",
+            lambda: (
+                self.tau
+                * basis.stable_step(
+                    self.form,
+                    tuple(self.gains),
+                    float(self._canonical_target()),
+                    self._cycle_states(),
+                )
+            ),
         )
 
     def _cycle_states(self) -> tuple:
@@ -341,18 +361,23 @@ class _DmpCommon:
             "both proportional to tau)",
             n_samples=n_steps,
         )
-        key = (
-            self.form,
-            self.kernel,
-            self.n_basis,
-            n_steps,
-            dt / self.tau,
-            float(self._canonical_target()),
-            tuple(canonical0),
-            tuple(self.centres),
-            tuple(self.widths),
-            tuple(self.gains),
+        form, kernel, n_basis, target, centres, widths, gains = _memo(
+            self,
+            "response_key",
+            lambda: (
+                self.form,
+                self.kernel,
+                self.n_basis,
+                float(self._canonical_target()),
+                tuple(self.centres),
+                tuple(self.widths),
+                tuple(self.gains),
+            ),
         )
+        key = (
+            form, kernel, n_basis, n_steps, dt / self.tau, target, tuple(canonical0), centres,
+            widths, gains,
+        )  # fmt: skip
         times = np.arange(n_steps) * dt
         # the cache keeps 16 entries: keep out those that would hold over 1/16 of the budget
         small = 24.0 * n_steps * n_inputs <= validation.MEMORY_BUDGET / 16
@@ -383,13 +408,11 @@ class _DmpCommon:
         times, response, inputs = self._response_and_inputs(
             duration, dt, start, start_velocity, canonical0
         )
-        tau = self.tau
-        return Trajectory(
-            times,
-            response[0] @ inputs,
-            response[1] @ inputs / tau,
-            response[2] @ inputs / tau**2,
-        )
+        # one product for positions, velocities and accelerations: (3, n_steps, n_dofs)
+        plan = (response.reshape(-1, inputs.shape[0]) @ inputs).reshape(3, times.size, -1)
+        plan[1] /= self.tau
+        plan[2] /= self.tau**2
+        return Trajectory.trusted(times, plan[0], plan[1], plan[2])
 
     def initial_state(self, start, start_velocity, canonical0) -> np.ndarray:
         """The state vector that starts at ``start`` with ``start_velocity`` and the canonical
@@ -405,8 +428,14 @@ class _DmpCommon:
 
     def _features(self, canonical) -> np.ndarray:
         """The forcing term's features (eq. (7), (12) or (14)) at one canonical state."""
-        function = symbolic.feature_function(self.signature)
-        return function(canonical, np.asarray(self.centres), np.asarray(self.widths)).full()[:, 0]
+        canonical = tuple(float(value) for value in canonical)
+        last = self.__dict__.get("_last_features")  # rollouts repeat one canonical start
+        if last is None or last[0] != canonical:
+            function = symbolic.feature_function(self.signature)
+            centres, widths = np.asarray(self.centres), np.asarray(self.widths)
+            last = canonical, _frozen(function(canonical, centres, widths).full()[:, 0])
+            self.__dict__["_last_features"] = last
+        return last[1]
 
     def _response_inputs(self, start, start_velocity, canonical0) -> np.ndarray:
         transformation = self.initial_state(start, start_velocity, canonical0)[2:]
@@ -523,6 +552,8 @@ class DiscreteDMP(_DmpCommon):
     def goal_map(self, start=None, goal=None) -> np.ndarray:
         """Matrix :math:`M` that maps the stored weights to the current (or given) start and
         goal (module docstring), shape (n_dofs, n_dofs)."""
+        if start is None and goal is None:
+            return _memo(self, "goal_map", lambda: _frozen(self.goal_map(self.start, self.goal)))
         start = self.start if start is None else start
         goal = self.goal if goal is None else goal
         displacement = np.asarray(goal) - np.asarray(start)

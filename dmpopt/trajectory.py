@@ -87,6 +87,23 @@ class Trajectory:
             object.__setattr__(self, name, array)
 
     @classmethod
+    def trusted(cls, times, positions, velocities, accelerations) -> Trajectory:
+        """A trajectory from arrays that the library has just computed and that nothing else
+        references: float64, of matching shapes (n_steps, n_dofs), ``times`` strictly
+        increasing. They are made read-only, not validated or copied (a rollout would spend
+        most of its time on that). Arrays from users go through the constructor."""
+        trajectory = object.__new__(cls)
+        for name, array in (
+            ("times", times),
+            ("positions", positions),
+            ("velocities", velocities),
+            ("accelerations", accelerations),
+        ):
+            array.setflags(write=False)
+            object.__setattr__(trajectory, name, array)
+        return trajectory
+
+    @classmethod
     def from_positions(cls, times, positions, smoothing_window: int = 0) -> Trajectory:
         """Build a trajectory from sampled positions by differentiation.
 

@@ -20,6 +20,8 @@ from dmpopt.control import (
     SoleContact,
     Task,
 )
+from dmpopt.control import controller as controller_module
+from dmpopt.control.inverse_dynamics import ContactSetQP
 from dmpopt.exceptions import InvalidInputError
 from robots.biped import foot_positions
 
@@ -852,3 +854,52 @@ def test_no_tick_compiles_a_kernel_whatever_the_state_arrays(talos):
         controller.compute_torques(*state, 1e-3 * t)
     assert {f.__name__: len(f.signatures) for f in dispatchers} == before
     assert controller.stats.last_answer == "solved"
+
+
+def test_a_prepared_contact_set_is_switched_to_without_a_build_and_solves_the_qp(
+    talos, monkeypatch
+):
+    """prepare() builds the QP of a declared set (left sole, with a swing task added later)
+    before the loop: the switch to it builds none, and that tick is the optimum of the QP
+    written out in reference_qp (Clarabel), to 1e-6 relative."""
+    rng = np.random.default_rng(3)
+    tasks = [
+        PostureTask(talos, weight=0.1, stiffness=10.0),
+        ComTask(talos, weight=10.0, stiffness=50.0),
+        FrameTask(talos, "base_link", weight=1.0, stiffness=50.0, components="orientation"),
+    ]
+    swing = FrameTask(talos, RIGHT, weight=5.0, stiffness=100.0)
+    swing.set_target(placement(talos, talos.reference_configuration, RIGHT))
+    contacts = [SoleContact(talos, f, friction_coefficient=0.5) for f in (RIGHT, LEFT)]
+    controller = InverseDynamicsController(
+        talos, tasks, contacts, tolerance=1e-10, max_iterations=10_000, time_budget=1.0,
+        joint_limit_horizon=None,
+    )  # fmt: skip
+    controller.prepare([LEFT], tasks + [swing])
+    builds = []
+    monkeypatch.setattr(
+        controller_module, "ContactSetQP", lambda *a, **k: builds.append(a) or ContactSetQP(*a, **k)
+    )
+    q = pin.integrate(talos.model, talos.reference_configuration, 0.1 * rng.normal(size=talos.nv))
+    v = 0.5 * rng.normal(size=talos.nv)
+    random_targets(talos, rng, tasks + [swing], q)
+    contacts[1].reference_placement = placement(talos, q, LEFT)
+    controller.remove_contact(RIGHT)
+    controller.add_task(swing)
+    controller.compute_torques(q, v)
+    assert builds == [] and controller.active_contacts == (LEFT,)
+    assert controller.stats.last_answer in ("direct", "solved")
+    qdd, force = reference_qp(talos, tasks + [swing], [contacts[1]], q, v, controller.torque_limit)
+    x_controller = np.r_[controller.joint_accelerations, controller.contact_force(LEFT)]
+    x_reference = np.r_[qdd, force]
+    assert np.linalg.norm(x_controller - x_reference) <= 1e-6 * np.linalg.norm(x_reference)
+
+
+def test_prepare_names_its_argument_in_errors(talos):
+    controller, _ = talos_controller(talos)
+    with pytest.raises(InvalidInputError, match=r"wrap one in a list: \['left_sole_link'\]"):
+        controller.prepare(LEFT)
+    with pytest.raises(InvalidInputError, match="contacts='hand' is not the frame of a contact"):
+        controller.prepare(["hand"])
+    with pytest.raises(InvalidInputError, match="tasks is empty"):
+        controller.prepare([LEFT], [])

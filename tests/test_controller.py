@@ -708,9 +708,9 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
 
     real, calls = qp_stages._active_set, []
 
-    def recorded(problem, at_upper, at_lower, tolerance, rounds):
+    def recorded(problem, at_upper, at_lower, tolerance, rounds, duals=None, workspace=None):
         seeded = int(at_upper.sum() + at_lower.sum())
-        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds)
+        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds, duals, workspace)
         calls.append((rounds, seeded, solution is not None, solves))
         return solution, solves
 
@@ -731,7 +731,8 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
         "ACTIVE_SET_SOLVED", 1)  # fmt: skip
     np.testing.assert_allclose(second, first, rtol=0, atol=1e-9)
     # proxsuite again on that QP (as after a failed certificate): cold, it repeats the first
-    # solve; warm from its own answer, it needs fewer iterations, counted as proxsuite counts
+    # solve; warm from the certified optimum, it needs fewer iterations, counted as proxsuite
+    # counts
     qp, stage = controller._current, controller._current._limited
     assert qp._run(stage, True, math.inf) and controller.stats.last_iterations == cold
     assert qp._run(stage, False, math.inf)
@@ -1168,3 +1169,85 @@ def test_sole_contact_without_corners_and_unknown_posture_group(upper_body):
         "joints='left_armm' is not a joint group of 'talos_reduced_upper_body'; expected one of "
         "['head', 'left_arm', 'left_gripper', 'right_arm', 'right_gripper', 'torso']"
     )
+
+
+def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
+    """With the collector's threshold at one allocation, collections start around the ticks
+    but none inside one (compute_torques pauses the collector), and it is on again after."""
+    import gc
+
+    from dmpopt.control.inverse_dynamics import ContactSetQP
+
+    controller, _ = standing_controller(talos)
+    inside, collections = [False], []
+    tick = ContactSetQP._tick
+
+    def watched(self, q, v):
+        inside[0] = True
+        try:
+            return tick(self, q, v)
+        finally:
+            inside[0] = False
+
+    def watch(phase, info):
+        if phase == "start":
+            collections.append(inside[0])
+
+    monkeypatch.setattr(ContactSetQP, "_tick", watched)
+    threshold = gc.get_threshold()
+    gc.callbacks.append(watch)
+    gc.set_threshold(1)
+    try:
+        q, v = talos.reference_configuration, np.zeros(talos.nv)
+        for _ in range(5):
+            controller.compute_torques(q, v)
+            [[] for _ in range(3)]  # garbage between ticks: collections must start here
+    finally:
+        gc.set_threshold(*threshold)
+        gc.callbacks.remove(watch)
+    assert collections and not any(collections)
+    assert gc.isenabled()
+
+
+def test_control_loop_freezes_the_objects_made_before_it():
+    """Inside control_loop the objects alive at its start are in the permanent generation
+    (gc.get_freeze_count counts them) and none after it; an error inside unfreezes too."""
+    import gc
+
+    from dmpopt.control import control_loop
+
+    before = gc.get_freeze_count()
+    with control_loop():
+        assert gc.get_freeze_count() > before
+    assert gc.get_freeze_count() == before
+    with pytest.raises(ZeroDivisionError), control_loop():
+        1 / 0
+    assert gc.get_freeze_count() == before
+
+
+def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(upper_body):
+    """Torque limits binding on a fixed base: a warm proxsuite solve starts from the last
+    certified optimum and its multipliers, so its iterations and answer are the same whatever
+    proxsuite computed in between (its own iterates differ in their last bits between
+    processes; started from them, the solves of two processes drift apart)."""
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
+                                           time_budget=1.0)  # fmt: skip
+    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
+    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller.compute_torques(q, v)
+    qp, stage = controller._current, controller._current._limited
+    assert stage.certified
+
+    def warm_solve():
+        assert qp._run(stage, False, math.inf)
+        return controller.stats.last_iterations, qp._candidate.copy()
+
+    iterations, answer = warm_solve()
+    settings = stage.qp.settings
+    settings.max_iter, settings.initial_guess = 1, proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+    stage.qp.solve()  # proxsuite's last result is now a first iterate from scratch
+    settings.max_iter = 50
+    again, same = warm_solve()
+    assert again == iterations and again > 0
+    np.testing.assert_array_equal(same, answer)

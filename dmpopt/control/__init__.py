@@ -29,6 +29,7 @@ from dmpopt.control.controller import InverseDynamicsController  # noqa: E402
 from dmpopt.control.diagnostics import active_constraints, explain  # noqa: E402
 from dmpopt.control.inverse_dynamics import ControllerStats  # noqa: E402
 from dmpopt.control.joint_impedance import JointImpedance  # noqa: E402
+from dmpopt.control.realtime import control_loop  # noqa: E402
 from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, Task  # noqa: E402
 
 __all__ = [
@@ -43,5 +44,6 @@ __all__ = [
     "SoleContact",
     "Task",
     "active_constraints",
+    "control_loop",
     "explain",
 ]

@@ -93,7 +93,7 @@ from dmpopt.exceptions import InvalidInputError, ShapeError
 from . import kernels
 from .assembly import Assembly
 from .contacts import PointContact, SoleContact
-from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _arguments, _Stage
+from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _active_set, _arguments, _Stage
 from .tasks import FrameTask, PostureTask, Task
 from .tick import _RELEASE_MARGIN, Tick
 
@@ -474,7 +474,8 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             self._assemble_eliminated()
             self._accept(self._z_solution, eliminated=True)
         self._solve_direct()
-        kernels.solve_in_place(np.eye(1), np.ones(1))  # of _active_set
+        problem = (np.eye(1), np.ones(1), None, None, np.ones((1, 1)), -np.ones(1), np.ones(1))
+        _active_set(problem, np.zeros(1, bool), np.zeros(1, bool), 1e-9, 1)
         self.reset()
         for contact, reference in zip(self.contacts, references):
             contact.reference_placement = reference

@@ -22,6 +22,7 @@ import numpy as np
 
 __all__ = [
     "acceleration_bounds",
+    "active_set",
     "all_finite",
     "cholesky_solve",
     "eliminate",
@@ -446,3 +447,83 @@ def eliminated_tick(elimination, reduction, solve, q, v, x, tau) -> int:
     if feasible(tau, torque_limit, x, bounds, q, v, margin):
         return SOLVED
     return LIMITS_VIOLATED
+
+
+@_compile
+def active_set(problem, at_upper, at_lower, tolerance, rounds, workspace, x, y, z) -> int:
+    r"""Primal-dual active-set iterations (see :func:`dmpopt.control.qp_stages._active_set`)
+    as one compiled call: each round assembles the KKT matrix of the active rows in place in
+    ``workspace`` and solves it by :func:`solve_in_place`.
+
+    ``problem`` is (H, g, A, b, C, l, u) with A, b of zero rows if there are no equality
+    rows; ``workspace`` is (kkt, rhs, values, rows): a flat array of at least
+    :math:`(n + n_{eq} + n)^2` entries, and arrays of :math:`n + n_{eq} + n`, :math:`n_{in}`
+    and :math:`n_{in}` entries. More active rows than unknowns are dependent. On a certified
+    optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if inactive)
+    receive it and its multipliers. Returns the number of KKT solves, negative if no set
+    verified.
+    """
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    kkt, rhs, values, rows = workspace
+    n, n_eq, n_in = hessian.shape[0], eq_matrix.shape[0], in_matrix.shape[0]
+    for solves in range(1, rounds + 1):
+        n_active = 0
+        for i in range(n_in):
+            if at_upper[i] or at_lower[i]:
+                rows[n_active] = i
+                n_active += 1
+        m = n_eq + n_active
+        size = n + m
+        if n_active > n:  # dependent active rows
+            return -solves
+        matrix = kkt[: size * size].reshape(size, size)
+        matrix[:] = 0.0
+        matrix[:n, :n] = hessian
+        for i in range(n_eq):
+            for j in range(n):
+                matrix[n + i, j] = eq_matrix[i, j]
+                matrix[j, n + i] = eq_matrix[i, j]
+            rhs[n + i] = eq_vector[i]
+        for k in range(n_active):
+            row = rows[k]
+            for j in range(n):
+                matrix[n + n_eq + k, j] = in_matrix[row, j]
+                matrix[j, n + n_eq + k] = in_matrix[row, j]
+            rhs[n + n_eq + k] = upper[row] if at_upper[row] else lower[row]
+        for j in range(n):
+            rhs[j] = -gradient[j]
+        if not solve_in_place(matrix, rhs[:size]):  # dependent active rows
+            return -solves
+        largest = 0.0
+        for k in range(n_active):
+            largest = max(largest, abs(rhs[n + n_eq + k]))
+        slack = 1e-9 * max(1.0, largest)
+        wrong = False
+        for k in range(n_active):
+            row, multiplier = rows[k], rhs[n + n_eq + k]
+            if multiplier < -slack if at_upper[row] else multiplier > slack:
+                at_upper[row] = at_lower[row] = False  # leaves the active set
+                wrong = True
+        if wrong:
+            continue
+        worst, violation = -1, -np.inf
+        for i in range(n_in):
+            value = 0.0
+            for j in range(n):
+                value += in_matrix[i, j] * rhs[j]
+            values[i] = value
+            excess = max(value - upper[i], lower[i] - value)
+            if excess > violation or excess != excess:  # NaN: never certified
+                worst, violation = i, excess
+                if excess != excess:
+                    break
+        if worst < 0 or violation <= tolerance:  # (False for NaN)
+            x[:] = rhs[:n]
+            y[:] = rhs[n : n + n_eq]
+            z[:] = 0.0
+            for k in range(n_active):
+                z[rows[k]] = rhs[n + n_eq + k]
+            return solves
+        at_upper[worst] = values[worst] > upper[worst]
+        at_lower[worst] = values[worst] < lower[worst]
+    return -rounds

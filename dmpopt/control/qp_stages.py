@@ -22,6 +22,7 @@ from . import kernels
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+_WARM_GIVEN = proxsuite.proxqp.InitialGuess.WARM_START
 _COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
 _DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
 _ACTIVE_SET = "ACTIVE_SET_SOLVED"  # ... of a QP solved by active-set iterations alone
@@ -98,12 +99,14 @@ class _Stage:
     ``problem`` is (H, g, A, b, C, l, u), None for absent blocks: what the active-set
     iterations read. ``at_upper`` and ``at_lower`` mark the rows active at the last solution
     (``known``): the next tick starts from them. ``stale``: inequality bounds changed (a
-    contact transition), so the next proxsuite update passes them too.
+    contact transition), so the next proxsuite update passes them too. ``warm`` holds the
+    last certified optimum and its multipliers (x, y, z) (``certified``), proxsuite's next
+    warm start.
     """
 
     __slots__ = (
         "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known", "stale",
+        "at_lower", "known", "stale", "warm", "certified", "workspace",
     )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
@@ -124,6 +127,9 @@ class _Stage:
         self.at_lower = np.zeros(n_in, dtype=bool)
         self.known = False
         self.stale = False  # bounds changed since proxsuite last saw them: update with all
+        self.warm = (np.zeros(n), np.zeros(n_eq), np.zeros(n_in))
+        self.certified = False
+        self.workspace = _workspace(n, n_eq, n_in)
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -139,7 +145,13 @@ def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
 
 
 def _active_set(
-    problem: tuple, at_upper: np.ndarray, at_lower: np.ndarray, tolerance: float, rounds: int
+    problem: tuple,
+    at_upper: np.ndarray,
+    at_lower: np.ndarray,
+    tolerance: float,
+    rounds: int,
+    duals: tuple | None = None,
+    workspace: tuple | None = None,
 ) -> tuple[np.ndarray | None, int]:
     r"""Primal-dual active-set iterations from the active set ``at_upper | at_lower``.
 
@@ -153,7 +165,12 @@ def _active_set(
     ``tolerance`` and every multiplier has the sign of its side (:math:`\nu \ge 0` at an
     upper bound, :math:`\le 0` at a lower one): the KKT conditions then hold exactly.
     Otherwise the rows of the wrong sign leave the set, or else the most violated row enters
-    it, for at most ``rounds`` solves. ``at_upper`` and ``at_lower`` are updated in place.
+    it, for at most ``rounds`` solves (one compiled call, :func:`kernels.active_set`).
+    ``at_upper`` and ``at_lower`` are updated in place; ``duals`` (y, z), if given, receive
+    the multipliers of the certified optimum (those of the equality rows, and of every
+    inequality row: 0 if inactive, in proxsuite's convention
+    :math:`H x + g + A^\top y + C^\top z = 0`). ``workspace``: :func:`_workspace` of the
+    problem, made here if not given.
 
     Returns
     -------
@@ -162,39 +179,41 @@ def _active_set(
     """
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
     n = hessian.shape[0]
-    for solves in range(1, rounds + 1):
-        rows = np.flatnonzero(at_upper | at_lower)
-        bounds = np.where(at_upper, upper, lower)[rows]
-        matrix, target = in_matrix[rows], bounds
-        if eq_matrix is not None:
-            matrix, target = np.vstack([eq_matrix, matrix]), np.concatenate([eq_vector, bounds])
-        m = matrix.shape[0]
-        kkt = np.zeros((n + m, n + m))
-        kkt[:n, :n], kkt[:n, n:], kkt[n:, :n] = hessian, matrix.T, matrix
-        solution = np.concatenate([-gradient, target])
-        if not kernels.solve_in_place(kkt, solution):  # dependent active rows
-            return None, solves
-        candidate, multipliers = solution[:n], solution[n + m - rows.size :]
-        slack = 1e-9 * max(1.0, float(np.abs(multipliers).max(initial=0.0)))
-        wrong = np.zeros_like(at_upper)
-        wrong[rows] = np.where(at_upper[rows], multipliers < -slack, multipliers > slack)
-        if wrong.any():  # these rows leave the active set
-            at_upper &= ~wrong
-            at_lower &= ~wrong
-            continue
-        values = in_matrix @ candidate
-        violation = np.maximum(values - upper, lower - values)
-        if not violation.size or violation.max() <= tolerance:
-            return candidate, solves
-        worst = int(np.argmax(violation))
-        at_upper[worst] = values[worst] > upper[worst]
-        at_lower[worst] = values[worst] < lower[worst]
-    return None, rounds
+    if eq_matrix is None:
+        eq_matrix, eq_vector = np.zeros((0, n)), np.zeros(0)
+    contiguous = np.ascontiguousarray  # one compiled variant: C-ordered arrays
+    arrays = tuple(
+        contiguous(a, dtype=float)
+        for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
+    )
+    if duals is None:
+        duals = np.zeros(eq_matrix.shape[0]), np.zeros(in_matrix.shape[0])
+    x = np.empty(n)
+    workspace = workspace or _workspace(n, eq_matrix.shape[0], in_matrix.shape[0])
+    solves = kernels.active_set(
+        arrays, at_upper, at_lower, float(tolerance), int(rounds), workspace, x, *duals
+    )
+    return (x, solves) if solves > 0 else (None, -solves)
+
+
+def _workspace(n: int, n_eq: int, n_in: int) -> tuple:
+    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes."""
+    size = n + n_eq + min(n, n_in)
+    return (np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64))
 
 
 class StageSolver:
     """Solving a stage (mixed into :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`,
-    which provides ``qp``, ``stats`` and ``_take``)."""
+    which provides ``qp``, ``stats`` and ``_take``).
+
+    The answer of a solve is decided by the active-set certificate, never by proxsuite's
+    last bits: proxsuite's iterates differ in their last bits between processes for the same
+    inputs (its vectorised kernels depend on where its buffers lie in memory). Its answer is
+    only a guess of the active set, which :func:`_active_set` refines to the exact optimum,
+    and it is warm-started from the last certified optimum, not from its own iterates. So the
+    same problems give bitwise the same answers in any process, serial or parallel; only a
+    solve that no active set verifies takes proxsuite's answer to its tolerance.
+    """
 
     def _solve(self, stage: _Stage, deadline: float) -> bool:
         """Solve one stage: active-set iterations from its last active set, else proxsuite
@@ -208,15 +227,15 @@ class StageSolver:
         stats = self.stats
         if not math.isfinite(hessian.sum() + gradient.sum()):
             stats.last_status, stats.last_iterations = "NON_FINITE_PROBLEM", 0
-            stage.initialized = stage.known = False
+            stage.initialized = stage.known = stage.certified = False
             return False
         if stage.known:
             solution, solves = _active_set(
                 stage.problem, stage.at_upper, stage.at_lower, self.qp.settings.eps_abs,
-                _WARM_ROUNDS,
+                _WARM_ROUNDS, stage.warm[1:], stage.workspace,
             )  # fmt: skip
             stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
-            if solution is not None and self._take(stage, solution):
+            if solution is not None and self._certified(stage, solution):
                 return True
         qp = stage.qp
         if qp is not self.qp:
@@ -237,44 +256,65 @@ class StageSolver:
         stage.stale = False
         return solved
 
+    def _certified(self, stage: _Stage, solution: np.ndarray) -> bool:
+        """Take a certified optimum (its multipliers are in ``stage.warm``), if finite."""
+        stage.certified = self._take(stage, solution)
+        if stage.certified:
+            stage.warm[0][:] = solution
+        return stage.certified
+
     def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:
-        """proxsuite on one stage until ``deadline``; its answer refined by active-set
-        iterations from its active set.
+        """proxsuite on one stage until ``deadline``, from scratch (``cold``) or from the
+        last certified optimum; its active set refined by active-set iterations.
 
         proxsuite runs in calls of ``_CHUNK_ITERATIONS`` outer iterations (of at most 10
         inner ones), each warm from the last, up to ``max_iter`` while time is left: a solve
         ends at most one call after ``deadline``, and the calls do not depend on the time.
+        Whatever proxsuite's status, an active set of its answer that verifies is the
+        optimum; otherwise its answer is taken if it reports the QP solved.
         """
         qp = stage.qp
         settings = qp.settings
         limit, done, iterations = settings.max_iter, 0, 0
         chunk = min(limit, _CHUNK_ITERATIONS)
-        settings.initial_guess = _COLD if cold else _WARM
-        while True:
-            settings.max_iter = chunk
+        settings.max_iter = chunk
+        if cold or not stage.certified:
+            settings.initial_guess = _COLD
             qp.solve()
-            settings.initial_guess = _WARM  # any next call goes on from this result
+        else:
+            settings.initial_guess = _WARM_GIVEN
+            qp.solve(*stage.warm)
+        settings.initial_guess = _WARM  # any next call goes on from this result
+        while True:
             info = qp.results.info
             done, iterations = done + chunk, iterations + int(info.iter)
             if info.status != _MAX_ITER or done >= limit or time.thread_time() >= deadline:
                 break
             chunk = min(_CHUNK_ITERATIONS, limit - done)
+            settings.max_iter = chunk
+            qp.solve()
         settings.max_iter = limit
         stats = self.stats
         stats.last_status = info.status.name
         stats.last_iterations = iterations
-        if info.status != _SOLVED:
-            return False
         results = qp.results
         z = results.z
+        if not math.isfinite(z.sum()):
+            stage.certified = False
+            return False
         noise = 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))  # its zeros are ~1e-19
         np.greater(z, noise, out=stage.at_upper)
         np.less(z, -noise, out=stage.at_lower)
         solution, _ = _active_set(
-            stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS
-        )
-        if solution is None:  # no active set verified: proxsuite's answer, to its tolerance
-            solution = results.x
-            np.greater(z, noise, out=stage.at_upper)
-            np.less(z, -noise, out=stage.at_lower)
-        return self._take(stage, solution)
+            stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS,
+            stage.warm[1:], stage.workspace,
+        )  # fmt: skip
+        if solution is not None and self._certified(stage, solution):
+            return True
+        stage.certified = False
+        if info.status != _SOLVED:
+            return False
+        # no active set verified: proxsuite's answer, to its tolerance
+        np.greater(z, noise, out=stage.at_upper)
+        np.less(z, -noise, out=stage.at_lower)
+        return self._take(stage, results.x)

@@ -8,6 +8,7 @@ relaxed QP or a spent time budget the hold answer.
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 
@@ -41,7 +42,25 @@ class Tick:
         -------
         ndarray, shape (n_actuated,)
             Torques of the actuated joints [N m], within the torque limits, always finite.
+
+        Notes
+        -----
+        Python's cyclic garbage collector is paused during the tick (and resumed after it,
+        if it was on), so that no collection, which can take tens of milliseconds in a
+        process with many objects, runs inside a tick; the tick itself creates no reference
+        cycles. :func:`dmpopt.control.control_loop` keeps the collections between ticks
+        short too.
         """
+        if not gc.isenabled():
+            return self._tick(q, v)
+        gc.disable()
+        try:
+            return self._tick(q, v)
+        finally:
+            gc.enable()
+
+    def _tick(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """:meth:`compute_torques` with the collector paused."""
         if q.shape != (self.model.nq,) or v.shape != (self._nv,):
             raise ShapeError(
                 f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "

@@ -52,6 +52,7 @@ from .fitting import (
     solve_fitting_problem,
 )
 from .io import load, save
+from .promp import ProMP, blend, coactivate, fit_promp
 from .retiming import retime, time_scaled, uniform_time_scaling
 from .stepper import Stepper
 from .superposition import superpose
@@ -73,6 +74,7 @@ __all__ = [
     "InvalidInputError",
     "MissingDependency",
     "NoSolutionFound",
+    "ProMP",
     "ResourceLimitError",
     "RhythmicDMP",
     "ShapeError",
@@ -80,9 +82,12 @@ __all__ = [
     "Stepper",
     "Trajectory",
     "ViaPoint",
+    "blend",
     "build_fitting_problem",
+    "coactivate",
     "fit_cartesian",
     "fit_discrete",
+    "fit_promp",
     "fit_rhythmic",
     "fit_to_accuracy",
     "fit_weights_constrained",

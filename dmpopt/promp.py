@@ -164,7 +164,9 @@ class ProMP:
         """
         phases = self._phases(times)
         rows = features(phases, self.centres, self.widths)[derivative] / self.duration**derivative
-        return np.kron(rows, np.eye(self.n_dofs)) @ _dof_major(self.n_dofs, self.n_basis)
+        blocks = np.kron(np.eye(self.n_dofs), rows)  # rows d * n_times + k
+        blocks = blocks.reshape(self.n_dofs, rows.shape[0], -1).transpose(1, 0, 2)
+        return blocks.reshape(rows.shape[0] * self.n_dofs, -1)
 
     def mean_trajectory(self, times) -> Trajectory:
         """The trajectory of the mean weights at ``times`` [s]."""
@@ -278,12 +280,6 @@ class ProMP:
             - np.log(np.diag(factor)).sum()
             - 0.5 * residual.size * np.log(2 * np.pi)
         )
-
-
-def _dof_major(n_dofs: int, n_basis: int) -> np.ndarray:
-    """Permutation from basis-major stacking (kron order) to DOF-major weights."""
-    permutation = np.arange(n_dofs * n_basis).reshape(n_dofs, n_basis).T.ravel()
-    return np.eye(n_dofs * n_basis)[permutation]
 
 
 def _per_dof(name: str, value, n_dofs: int, minimum=None) -> np.ndarray:

@@ -6,12 +6,12 @@ Both published forms are terms :math:`C_t` added to the transformation system,
 from the stepper's current position :math:`y` and velocity :math:`\dot y` (:func:`run_coupled`
 does the loop). Positions in any unit; the terms are in that unit (as :math:`\tau \dot z`).
 
-* :class:`SteeringAngle` ([Hoffmann2009]_, eq. (11)): :math:`C_t = \gamma R \dot y\, \varphi
+* :class:`SteeringAngle` ([Hoffmann2009]_): :math:`C_t = \gamma R \dot y\, \varphi
   \exp(-\beta\varphi)` with :math:`\varphi` the angle between the velocity and the direction
   to the obstacle and :math:`R` the rotation by :math:`\pi/2` about :math:`(o - y) \times
   \dot y`: the velocity is turned away from the obstacle, the more the more directly it
   heads at it.
-* :class:`PotentialField` ([Park2008]_, eqs. (9)-(12)): :math:`C_t = -\nabla_y U` with the
+* :class:`PotentialField` ([Park2008]_): :math:`C_t = -\nabla_y U` with the
   dynamic potential :math:`U = \lambda (-\cos\theta)^\beta \|\dot y\| / p(y)` while
   approaching (:math:`\theta > \pi/2`, the angle between the velocity and :math:`y - o`) and
   0 otherwise, :math:`p(y)` the distance to the obstacle's surface.
@@ -124,7 +124,7 @@ def _spheres(obstacles, kind: str) -> tuple:
 
 @dataclass(frozen=True, eq=False)
 class SteeringAngle:
-    r"""Steering-angle coupling term of [Hoffmann2009]_, eq. (11), summed over obstacles.
+    r"""Steering-angle coupling term of [Hoffmann2009]_, summed over obstacles.
 
     .. math:: C_t = \gamma\, R\,\dot y\; \varphi \exp(-\beta\varphi), \qquad
               \varphi = \arccos\frac{(o - y)^T \dot y}{\|o - y\|\,\|\dot y\|}
@@ -137,7 +137,8 @@ class SteeringAngle:
     ----------
     obstacles : Sphere or sequence of Sphere
     gamma : float
-        :math:`\gamma` [1/s when velocities are in unit/s], the strength (Hoffmann: 1000).
+        :math:`\gamma` [s] (:math:`C_t` in the unit of the positions), the strength
+        (Hoffmann: 1000).
     beta : float
         :math:`\beta` [1/rad], how fast the term fades with the angle (Hoffmann: 20/pi).
     """
@@ -180,7 +181,7 @@ class SteeringAngle:
 
 @dataclass(frozen=True, eq=False)
 class PotentialField:
-    r"""Dynamic potential field of [Park2008]_, eqs. (9)-(12), summed over obstacles.
+    r"""Dynamic potential field of [Park2008]_, summed over obstacles.
 
     With :math:`x = y - o`, :math:`\cos\theta = \dot y^T x / (\|\dot y\|\|x\|)` and
     :math:`p = \|x\| - \rho` the distance to the sphere of radius :math:`\rho`,
@@ -197,7 +198,7 @@ class PotentialField:
     ----------
     obstacles : Sphere or sequence of Sphere
     strength : float
-        :math:`\lambda` [unit^2 / s ... such that C_t is in unit], Park: 1.
+        :math:`\lambda` [unit^2 s] (:math:`C_t` in the unit of the positions); Park: 1.
     exponent : float
         :math:`\beta` (Park: 2).
     """

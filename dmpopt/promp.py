@@ -23,7 +23,7 @@ and/or velocities at given times) is Gaussian conditioning,
 .. math:: K = \Sigma\Psi(R + \Psi^T\Sigma\Psi)^{-1}, \quad \mu' = \mu + K(o - \Psi^T\mu),
           \quad \Sigma' = \Sigma - K\Psi^T\Sigma.
 
-Blending and co-activation ([Paraschos2013]_, Section 2.3) combine the trajectory
+Blending and co-activation ([Paraschos2013]_) combine the trajectory
 distributions of several ProMPs at each time as the product of their Gaussians raised to
 their activations :math:`\alpha_i(t)`:
 :math:`\Sigma_t^{-1} = \sum_i \alpha_i \Sigma_{i,t}^{-1}`,

@@ -56,7 +56,7 @@ from dmpopt.fitting import minimum_jerk
 from dmpopt.obstacles import Box, PotentialField, Sphere, SteeringAngle, clearance, run_coupled
 from studies.common import Progress, median_time, output_dir, pyplot, write_metrics
 
-EXPECTED_SECONDS = {"full": 60, "quick": 15}  # wall seconds on the loaded 2-core machine
+EXPECTED_SECONDS = {"full": 90, "quick": 25}  # wall seconds on the loaded 2-core machine
 N_BASIS = 20
 N_EVAL = 100
 QUICK_SHAPES = ("Angle", "GShape")

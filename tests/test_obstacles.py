@@ -109,6 +109,23 @@ def test_coupled_stepper_avoids_an_obstacle_on_the_straight_path(term):
     assert np.linalg.norm(path.positions[-1] - [1.0, 0.0]) < 0.02
 
 
+def test_coupled_cartesian_stepper_avoids_a_sphere():
+    """A hand moving 1 m along x while turning, a ball of radius 0.1 m 30 mm off its path:
+    the steering-angle term fed by the Cartesian stepper keeps it outside (geometry:
+    uncoupled it passes 70 mm inside)."""
+    times = np.linspace(0.0, 1.0, 201)
+    s = 10 * times**3 - 15 * times**4 + 6 * times**5
+    positions = np.column_stack([s, 0 * s, 0 * s])
+    angles = 0.5 * s
+    orientations = np.column_stack([np.cos(angles / 2), 0 * s, 0 * s, np.sin(angles / 2)])
+    dmp = fit_cartesian(times, positions, orientations, 15)
+    ball = Sphere([0.5, 0.0, 0.03], 0.1)
+    plain = run_coupled(dmp.stepper(0.001), lambda p, v: np.zeros(3), 1500)
+    assert clearance(plain.positions, ball).min() == pytest.approx(-0.07, abs=1e-3)
+    path = run_coupled(dmp.stepper(0.001), SteeringAngle(ball), 1500)
+    assert clearance(path.positions, ball).min() > 0.0
+
+
 def test_cartesian_stepper_coupling_acts_as_on_the_position_dmp():
     """Answer key: the position part of a Cartesian DMP is its position DMP (same equations),
     so under the same coupling sequence its positions equal a dmpopt.Stepper's."""

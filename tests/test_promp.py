@@ -194,3 +194,22 @@ def test_errors_name_the_argument():
         ProMP(promp.mean, -np.eye(12), promp.centres, promp.widths, 1.0)
     with pytest.raises(InvalidInputError, match="activation must lie in"):
         blend(promp, promp, [0.0, 1.0], [0.5, 1.5])
+
+
+def test_mean_trajectory_derivatives_are_the_time_derivatives_of_its_positions():
+    """Answer key: central finite differences of mean_positions (step 1e-5 s: truncation
+    ~1e-10 relative on these smooth Gaussians of width ~0.2 s, rounding ~1e-11 / 1e-5)."""
+    promp = _random_promp(np.random.default_rng(10), duration=1.7)
+    times = np.linspace(0.1, 1.6, 7)
+    trajectory = promp.mean_trajectory(times)
+    h = 1e-5
+    plus, minus = promp.mean_positions(times + h), promp.mean_positions(times - h)
+    middle = promp.mean_positions(times)
+    scale = np.abs(trajectory.velocities).max()
+    np.testing.assert_allclose(trajectory.velocities, (plus - minus) / (2 * h), atol=1e-6 * scale)
+    second = (plus - 2 * middle + minus) / h**2
+    np.testing.assert_allclose(trajectory.accelerations, second, atol=1e-3 * np.abs(second).max())
+    conditioned = promp.condition(times[3], velocity=[0.5, -0.2])
+    np.testing.assert_allclose(
+        conditioned.mean_trajectory(times).velocities[3], [0.5, -0.2], atol=1e-10
+    )

@@ -287,7 +287,7 @@ def summary(metrics: dict) -> list[dict]:
         },
         {
             "claim": "obstacle avoidance: coupling terms online, keep-out fit offline",
-            "paper": "coupling terms: Section 3 mentions them, none given",
+            "paper": "not in the paper",
             "dmpopt": "; ".join(line(method) for method in METHODS),
             "anchor": anchor,
             "verdict": "beyond the paper",

@@ -42,6 +42,7 @@ from .fitting import (
     ViaPoint,
     build_fitting_problem,
     fit_discrete,
+    fit_keep_out,
     fit_rhythmic,
     fit_to_accuracy,
     fit_weights_constrained,
@@ -52,6 +53,7 @@ from .fitting import (
     solve_fitting_problem,
 )
 from .io import load, save
+from .promp import ProMP, blend, coactivate, fit_promp
 from .retiming import retime, time_scaled, uniform_time_scaling
 from .stepper import Stepper
 from .superposition import superpose
@@ -73,6 +75,7 @@ __all__ = [
     "InvalidInputError",
     "MissingDependency",
     "NoSolutionFound",
+    "ProMP",
     "ResourceLimitError",
     "RhythmicDMP",
     "RobotModel",
@@ -81,9 +84,13 @@ __all__ = [
     "Stepper",
     "Trajectory",
     "ViaPoint",
+    "blend",
     "build_fitting_problem",
+    "coactivate",
     "fit_cartesian",
     "fit_discrete",
+    "fit_keep_out",
+    "fit_promp",
     "fit_rhythmic",
     "fit_to_accuracy",
     "fit_weights_constrained",

@@ -489,13 +489,36 @@ class CartesianStepper:
             )
         self._function.set_inputs(tau=tau)
 
-    def step(self) -> tuple:
+    def step(self, coupling=None, angular_coupling=None) -> tuple:
         """Advance by ``dt``; return position, velocity, acceleration, orientation, angular
-        velocity and angular acceleration (copies, also kept as attributes)."""
+        velocity and angular acceleration (copies, also kept as attributes).
+
+        Parameters
+        ----------
+        coupling : array_like, shape (3,), optional
+            Additive term on the position's transformation system (added to ``tau * zdot``,
+            as in :meth:`dmpopt.Stepper.step`), e.g. an obstacle term of
+            :mod:`dmpopt.obstacles`; for this step only.
+        angular_coupling : array_like, shape (3,), optional
+            The same on the orientation's system (the log coordinates about the goal).
+        """
+        if coupling is not None or angular_coupling is not None:
+            terms = np.zeros(6)
+            if coupling is not None:
+                terms[:3] = vector("coupling", coupling, 3, "the 3-D position")
+            if angular_coupling is not None:
+                terms[3:] = vector("angular_coupling", angular_coupling, 3, "the 3-D rotation")
+            self._function.set_inputs(coupling=terms)
         self._function.evaluate()
         next_state, position, velocity, acceleration = (
             self._function.outputs[name] for name in ("next_state", *symbolic.PLAN_OUTPUTS)
         )
+        if coupling is not None or angular_coupling is not None:
+            self._function.set_inputs(coupling=0.0)
+            if not np.isfinite(next_state).all():
+                raise InvalidInputError(
+                    "the DMP state became non-finite; check the coupling terms and time constant"
+                )
         self._state[:] = next_state
         self.time += self.dt
         self._publish(position, velocity, acceleration)

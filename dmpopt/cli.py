@@ -17,7 +17,16 @@ import time
 import warnings
 from pathlib import Path
 
-STUDIES = ("imitation", "constrained", "rl", "recognition", "humanoid", "biped", "cartesian")
+STUDIES = (
+    "imitation",
+    "constrained",
+    "rl",
+    "recognition",
+    "humanoid",
+    "biped",
+    "cartesian",
+    "primitives",
+)
 
 
 class UsageError(Exception):

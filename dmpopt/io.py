@@ -21,6 +21,7 @@ import numpy as np
 from .cartesian import CartesianDMP
 from .dmp import RENAMED, DiscreteDMP, RhythmicDMP
 from .exceptions import FileFormatError, InvalidInputError
+from .promp import ProMP
 
 FORMAT = "dmpopt-dmp"
 VERSION = 2
@@ -28,9 +29,14 @@ VERSION = 2
 lacking a field (written before the field existed) gets the field's default. Version 2
 named the fields after the paper's symbols (``tau``, ``alpha_z``, ...); a version 1 file's
 fields are renamed on loading (:func:`_renamed`)."""
-CLASSES = {"DiscreteDMP": DiscreteDMP, "RhythmicDMP": RhythmicDMP, "CartesianDMP": CartesianDMP}
-"""The classes a file may hold (``CartesianDMP`` since the version 2 format, which it
-shares: its files do not change how older files read)."""
+CLASSES = {
+    "DiscreteDMP": DiscreteDMP,
+    "RhythmicDMP": RhythmicDMP,
+    "CartesianDMP": CartesianDMP,
+    "ProMP": ProMP,
+}
+"""The classes a file may hold (``CartesianDMP`` and ``ProMP`` since the version 2 format,
+which they share: their files do not change how older files read)."""
 SCALAR_TYPES = (type(None), bool, int, float, str)
 
 

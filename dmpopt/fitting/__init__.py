@@ -18,6 +18,7 @@ from .imitation import (
     forcing_targets,
     reproduction_error,
 )
+from .keep_out import fit_keep_out
 from .minimum_jerk import minimum_jerk, minimum_jerk_constrained, minimum_jerk_via_points
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "build_fitting_problem",
     "estimate_period",
     "fit_discrete",
+    "fit_keep_out",
     "fit_rhythmic",
     "fit_to_accuracy",
     "fit_weights_constrained",

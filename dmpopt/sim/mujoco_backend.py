@@ -290,6 +290,7 @@ class MujocoSimulator(Backend):
         self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._index_contact_geoms(contact_points)
+        self._force = np.zeros(model.nv)
         self.reset(pin.neutral(model), np.zeros(model.nv))
 
     # ------------------------------------------------------------------ model building
@@ -593,6 +594,7 @@ class MujocoSimulator(Backend):
         mujoco.mj_resetData(self.mj_model, data)
         data.qpos[:], data.qvel[:], data.time = qpos, qvel, t
         mujoco.mj_forward(self.mj_model, data)
+        self._qv = self.from_mujoco(data.qpos, data.qvel)
         self._pushes: list[_Push] = []
         self.touchdown_events: list[TouchdownEvent] = []
         self._last_touchdowns: tuple = ()
@@ -619,7 +621,9 @@ class MujocoSimulator(Backend):
         return self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)[1]
 
     def _q_v(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel)
+        """Pinocchio's (q, v) of the state after the last step or reset (copies)."""
+        q, v = self._qv
+        return q.copy(), v.copy()
 
     # ------------------------------------------------------------------ pushes
     def _apply_pushes(self) -> None:
@@ -661,7 +665,8 @@ class MujocoSimulator(Backend):
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         mujoco, model, data = self._mj, self.mj_model, self.mj_data
-        force = np.zeros(self.model.nv)
+        force = self._force
+        force[:] = 0.0
         force[self.n_base_dofs :] = self.plant.actuate(
             _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
         )
@@ -674,6 +679,7 @@ class MujocoSimulator(Backend):
             self._apply_pushes()
         mujoco.mj_step2(model, data)
         self._check_stable()
+        self._qv = self.from_mujoco(data.qpos, data.qvel)
         was_in_contact = self._in_contact
         self._read_contacts()  # contacts found and solved at the start of the step
         mujoco.mj_kinematics(model, data)  # body poses at the new state
@@ -708,13 +714,13 @@ class MujocoSimulator(Backend):
         # cones efc_force holds each contact's normal and tangential forces in that frame.
         sign = np.where(second[mine], 1.0, -1.0)
         local = data.efc_force[contacts.efc_address[mine, None] + _XYZ] * sign[:, None]
-        forces = np.einsum("nij,ni->nj", contacts.frame[mine].reshape(-1, 3, 3), local)
+        forces = np.matmul(local[:, None, :], contacts.frame[mine].reshape(-1, 3, 3))[:, 0]
         points = code.copy()
         on_sole = code < -1
         if on_sole.any():  # a sole's contact goes to its nearest corner
             corners = self._sole_corners[-2 - code[on_sole]]  # (k, n_corners) point indices
             offsets = self._positions[corners] - contacts.pos[mine][on_sole][:, None, :]
-            nearest = np.einsum("kcx,kcx->kc", offsets, offsets).argmin(axis=1)
+            nearest = np.square(offsets).sum(axis=2).argmin(axis=1)
             points[on_sole] = corners[np.arange(corners.shape[0]), nearest]
         np.add.at(self._forces, points, forces)
         self._in_contact[points] = True
@@ -737,7 +743,7 @@ class MujocoSimulator(Backend):
     # ------------------------------------------------------------------ falls
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
-        base, spin = self._watched.measure(*self.from_mujoco(self.mj_data.qpos, self.mj_data.qvel))
+        base, spin = self._watched.measure(*self._qv)
         last = self._last_contact_time
         self.fall = self.fall_detector.check(
             self.t,
@@ -749,6 +755,13 @@ class MujocoSimulator(Backend):
 
 
 def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
+    if (
+        type(tau) is np.ndarray
+        and tau.dtype == np.float64
+        and tau.shape == (n_actuated,)
+        and np.isfinite(tau).all()
+    ):
+        return tau  # the common case, checked in a few operations
     try:
         array = np.asarray(tau, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -15,6 +15,7 @@ import sys
 import tempfile
 import time
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 STUDIES = ("imitation", "constrained", "rl", "recognition", "humanoid", "biped", "cartesian")
@@ -111,6 +112,18 @@ def _check_targets(out: Path, names: list[str]) -> None:
                 f"--out {out}: {out / name} is a file, not a study folder; "
                 "move it away or choose another --out"
             )
+
+
+@contextmanager
+def _locked(out: Path):
+    """Hold ``--out`` for this run (studies.common.locked_folder); a second run is refused."""
+    from studies.common import FolderInUse, locked_folder
+
+    try:
+        with locked_folder(out):
+            yield
+    except FolderInUse as error:
+        raise UsageError(f"--out {error}") from None
 
 
 def _left(target: Path, existed: bool) -> str:
@@ -233,7 +246,7 @@ def main(argv=None) -> int:
             names = list(studies) if args.name == "all" else [args.name]
             out = _writable_folder(args.out)
             _check_targets(out, names)
-            with _runner(args.workers, args.ray) as runner:
+            with _locked(out), _runner(args.workers, args.ray) as runner:
                 return _run(studies, names, out, args.quick, args.seed, runner)
     except UsageError as error:
         print(f"dmpopt: error: {error}", file=sys.stderr)

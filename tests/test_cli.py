@@ -180,6 +180,73 @@ def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["imitation"]
 
 
+def test_a_second_run_into_the_same_out_is_refused_before_writing(capsys, monkeypatch, tmp_path):
+    """Another process holds --out (flock on the folder, taken here by a plain script): the
+    run is refused with one line and exit 2, writes nothing and starts no study (once two
+    runs at once mixed one seed's metrics with the other's figures). Once it is gone, the
+    run goes ahead."""
+    from studies import imitation
+
+    seeds = []
+    monkeypatch.setattr(imitation, "run", fake_run(seeds))
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import fcntl, os, sys, time\n"
+            f"fd = os.open({str(tmp_path)!r}, os.O_RDONLY)\n"
+            "fcntl.flock(fd, fcntl.LOCK_EX)\nprint('held', flush=True)\ntime.sleep(60)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout.readline() == "held\n"
+        code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (code, seeds, list(tmp_path.iterdir())) == (2, [], [])
+    assert err == (
+        f"dmpopt: error: --out {tmp_path} is being written by another dmpopt run (one run at "
+        "a time per output folder); wait for it to end or choose another --out\n"
+    )
+    assert run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))[0] == 0
+    assert seeds == [0]
+
+
+def test_two_runs_at_once_publish_one_complete_run(tmp_path):
+    """Two processes into one folder: while the first is inside staged_output (it waits for
+    a line on stdin there), the second is refused before writing; the folder then holds the
+    first run's files only."""
+    script = (
+        "import sys\n"
+        "from pathlib import Path\n"
+        "from studies.common import FolderInUse, staged_output\n"
+        "seed = sys.argv[1]\n"
+        "try:\n"
+        f"    with staged_output(Path({str(tmp_path)!r}) / 'study') as folder:\n"
+        "        (folder / 'figure.png').write_text(seed)\n"
+        "        print('inside', flush=True)\n"
+        "        sys.stdin.readline()\n"
+        "        (folder / 'metrics.json').write_text(seed)\n"
+        "except FolderInUse:\n"
+        "    sys.exit(3)\n"
+    )
+    environment = {**os.environ, "PYTHONPATH": str(REPO)}
+    pipes = {"stdin": subprocess.PIPE, "stdout": subprocess.PIPE, "text": True}
+    first = subprocess.Popen([sys.executable, "-c", script, "1"], env=environment, **pipes)
+    try:
+        assert first.stdout.readline() == "inside\n"
+        second = subprocess.run([sys.executable, "-c", script, "2"], env=environment, **pipes)
+        first.stdin.write("go\n")
+        first.stdin.close()
+        assert (first.wait(timeout=60), second.returncode, second.stdout) == (0, 3, "")
+    finally:
+        first.kill()
+    assert contents(tmp_path / "study") == {"figure.png": "1", "metrics.json": "1"}
+
+
 @pytest.mark.parametrize(
     "error", [FittingFailed("no fit for demo 3"), OSError(28, "No space left on device")]
 )

@@ -205,6 +205,28 @@ def test_a_phase_far_slower_than_the_movement_is_refused():
     )
 
 
+def test_a_stepper_too_large_to_build_is_refused_before_building():
+    """10^5 bases on 2 DOFs: 10^5 x (48 kB + 2 x 8 kB) = 5.96 GiB estimated for the symbolic
+    step, beyond the 2 GiB budget (it once took 183 s and 4.8 GB before a stepper existed)."""
+    n_basis = 10**5
+    dmp = DiscreteDMP(
+        np.zeros((2, n_basis)),
+        [0.0, 0.0],
+        [1.0, 1.0],
+        1.0,
+        np.linspace(0.0, 1.0, n_basis),
+        np.full(n_basis, 1e10),
+        goal_scaling="translation",
+    )
+    with pytest.raises(ResourceLimitError) as error:
+        dmp.stepper()
+    assert str(error.value) == (
+        f"a stepper of 2 DOFs x 100000 basis features needs about {6.4e9 / 1024**3:.3g} GiB; "
+        "dmpopt allows at most 2 GiB (dmpopt.validation.MEMORY_BUDGET): use fewer basis "
+        "functions (the symbolic step grows with their number times the DOFs)"
+    )
+
+
 def test_fast_gains_are_integrated_at_a_step_they_allow():
     """alpha_z = alpha_v = 1e6 (once "cannot convert float NaN to integer"): the same system
     as the defaults with tau divided by 4e4, so the convergence time in tau is 25/1e6 times

@@ -187,10 +187,12 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, run
     return code
 
 
-def _runner(workers: int, ray: str | None):
+def _runner(workers: int | None, ray: str | None):
     from .exceptions import DmpoptError
-    from .parallel import Runner
+    from .parallel import Runner, available_cores
 
+    if workers is None:
+        workers = 1 if ray is not None else available_cores()
     try:
         runner = Runner(workers=workers, ray=ray)
         if ray is not None:
@@ -221,9 +223,10 @@ def main(argv=None) -> int:
     run.add_argument("--seed", default=0, type=_seed, help="random seed, >= 0 (default: 0)")
     run.add_argument(
         "--workers",
-        default=1,
+        default=None,
         type=_workers,
-        help="independent runs (seeds, trials, folds) in N local processes (default: 1); "
+        help="independent runs (seeds, trials, folds) in N local processes (default: this "
+        "machine's cores; at most those and the runs; 1: in series, the same results); "
         "with --ray, the CPUs a local Ray may use",
     )
     run.add_argument(

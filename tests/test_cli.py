@@ -140,8 +140,12 @@ def test_list_shows_quick_and_full_times(capsys):
 
 
 def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_path):
-    """--workers N: a study taking ``runner`` gets Runner(workers=N); others run as before."""
+    """--workers N: a study taking ``runner`` gets Runner(workers=N); others run as before.
+    (The machine's cores are set to 4 here: more workers than cores are cut to them.)"""
+    from dmpopt import parallel
     from studies import constrained, imitation
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
 
     received = []
 
@@ -156,6 +160,31 @@ def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_p
         assert run_cli(capsys, *argv)[0] == 0
     assert len(received) == 1
     assert (received[0].workers, received[0].ray, received[0].backend) == (3, None, "processes")
+
+
+def test_workers_default_to_the_cores_and_are_cut_to_them_with_one_line(
+    capsys, monkeypatch, tmp_path
+):
+    """No --workers: one process per core; --workers 100000 (once one process per queued
+    run): the cores, with a one-line warning."""
+    from dmpopt import parallel
+    from studies import imitation
+
+    received = []
+
+    def run_with_runner(out_dir, quick=False, seed=0, runner=None):
+        received.append(runner.workers)
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
+    monkeypatch.setattr(imitation, "run", run_with_runner)
+    argv = ("study", "run", "imitation", "--out", str(tmp_path))
+    assert run_cli(capsys, *argv)[0] == 0
+    code, _, err = run_cli(capsys, *argv, "--workers", "100000")
+    assert (code, received) == (0, [4, 4])
+    assert err == (
+        "warning: workers=100000 is more than this machine's 4 cores; using 4 (more processes "
+        "than cores only share them)\n"
+    )
 
 
 def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path):

@@ -1034,3 +1034,39 @@ def test_via_point_at_the_horizon_scores_the_last_sample(coarse):
         r"closeness: ViaPointReward\(time, position, weight\)$",
     ):
         RewardTask(coarse.dmp, dt=0.01, via_points=(1,))
+
+
+def _one_update(cls, rule, scale, step_size=0.01):
+    rng = np.random.default_rng(0)
+    features = rng.normal(size=(20, 4))
+    optimizer = cls(
+        features, np.zeros((1, 4)), 0.5, n_rollouts=10, step_rule=rule, step_size=step_size, seed=1
+    )
+    noise = optimizer.ask().acceleration_noise[:, :, 0]
+    optimizer.tell(-np.sum((noise - 1.0) ** 2, axis=1) * scale)
+    return optimizer.mean
+
+
+@pytest.mark.parametrize("cls", [EpisodicNAC, EpisodicReinforce])
+def test_a_kl_step_does_not_depend_on_the_scale_of_the_returns(cls):
+    """Both gradients are linear in the returns and the KL rule normalises the step, so
+    returns times 2^990 (exact) give the same update bit for bit, and times 1e300 (each
+    return rounded to 2^-53 relative, a perturbation the update's linear map carries over,
+    amplified at most by the regression's condition number, below 1e3 here) to 1e-12; once
+    the update became 0 silently (its curvature overflowed)."""
+    reference = _one_update(cls, "kl", 1.0)
+    assert np.all(reference != 0.0)
+    np.testing.assert_array_equal(_one_update(cls, "kl", 2.0**990), reference)
+    np.testing.assert_allclose(_one_update(cls, "kl", 1e300), reference, rtol=1e-12)
+    scaled = _one_update(cls, "constant", 2.0**-20)  # a constant step scales with the returns
+    np.testing.assert_array_equal(scaled * 2.0**20, _one_update(cls, "constant", 1.0))
+
+
+def test_a_constant_step_beyond_the_float_range_is_refused():
+    with pytest.raises(InvalidInputError) as error:
+        _one_update(EpisodicNAC, "constant", 1e306, step_size=1e10)
+    assert str(error.value).startswith("the update overflows: returns up to ")
+    assert str(error.value).endswith(
+        " times step_size = 1e+10 (step_rule='constant') exceed the float range; rescale the "
+        "rewards or lower step_size"
+    )

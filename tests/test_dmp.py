@@ -227,6 +227,19 @@ def test_a_stepper_too_large_to_build_is_refused_before_building():
     )
 
 
+def test_a_goal_near_the_float_range_is_the_plan_scaled():
+    """Goal [1e200, 1e200] under "rotation": the plan is the original about the start,
+    rotated and scaled by |g' - y0| / |g - y0| (module docstring), finite (the norm of the
+    displacement once overflowed into a NaN start velocity that was blamed)."""
+    dmp = random_discrete(seed=16, scaled_start_velocity=[0.5, -0.2])
+    far = dmp.with_goal([1e200, 1e200])
+    plan, original = far.rollout(0.5), dmp.rollout(0.5)
+    np.testing.assert_allclose(dmp.goal_map(), np.eye(2), atol=1e-15)  # its demonstrated goal
+    mapped = dmp.start + (original.positions - dmp.start) @ far.goal_map().T
+    assert np.all(np.isfinite(plan.positions)) and np.all(np.isfinite(plan.accelerations))
+    np.testing.assert_allclose(plan.positions, mapped, rtol=1e-9, atol=1e-9 * 1e200)
+
+
 def test_fast_gains_are_integrated_at_a_step_they_allow():
     """alpha_z = alpha_v = 1e6 (once "cannot convert float NaN to integer"): the same system
     as the defaults with tau divided by 4e4, so the convergence time in tau is 25/1e6 times

@@ -1,7 +1,7 @@
 """Independent answer keys: the paper's equations written plainly here, against the library.
 
-Nothing in this file evaluates :mod:`dmpopt.symbolic`: the keys are the equations of
-/work/shared/paper/EQUATIONS.md (eqs. (5)-(7), (10), (11)-(12), (13)-(14)) in numpy,
+Nothing in this file evaluates :mod:`dmpopt.symbolic`: the keys are the paper's equations
+(eqs. (5)-(7), (10), (11)-(12), (13)-(14), written out in docs/glossary.md) in numpy,
 integrated by scipy's DOP853 at rtol = atol = 1e-12, or closed-form solutions.
 
 The library integrates with classical RK4 at the sample step (inputs held over the step).

@@ -653,13 +653,16 @@ def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):
 
 def test_the_learning_via_point_is_a_reward_term_under_its_own_name():
     """A task's via-point is a weighted reward, not the fit's hard ViaPoint: it is called
-    ViaPointReward; the former name dmpopt.learning.ViaPoint still resolves, with a warning."""
-    import dmpopt
+    ViaPointReward; the former name dmpopt.learning.ViaPoint (deprecated in 0.1.0) is gone,
+    and asking for it names both classes."""
     from dmpopt import learning
 
-    with pytest.warns(DeprecationWarning, match="ViaPointReward"):
-        former = learning.ViaPoint
-    assert former is learning.ViaPointReward and former is not dmpopt.ViaPoint
+    with pytest.raises(AttributeError) as error:
+        learning.ViaPoint  # noqa: B018
+    assert str(error.value) == (
+        "dmpopt.learning has no ViaPoint: a rewarded point of a task is ViaPointReward, the "
+        "hard constraint of a fit is dmpopt.ViaPoint"
+    )
     with pytest.raises(AttributeError, match="ViaPointt"):
         learning.ViaPointt  # noqa: B018
     task = via_point_task(via_time=0.2, via_position=(0.3, 0.6), dt=0.01)

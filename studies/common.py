@@ -21,7 +21,7 @@ TIME_BUDGET = 1.0
 ms). A simulated tick's answer then does not depend on the machine's load: with 5 ms, the hard
 ticks near a fall (some over 5 ms on the 2-core machine) got the hold answer in one run and not
 in the next, and a push at the edge of a fall flipped between runs. The studies report their
-ticks' CPU time against the 5 ms real-time budget (``ticks_over_5ms``) instead. (Runs in
+ticks' CPU time against the 5 ms real-time budget (``ticks_over_budget``) instead. (Runs in
 different processes can still differ in the last bits: proxsuite's solves are not bitwise
 reproducible across processes.)"""
 

@@ -445,7 +445,9 @@ class DiscreteDMP(_DmpCommon):
     alpha_z, beta_z : float
         :math:`\alpha_z, \beta_z` of eqs. (5) and (10) (default :math:`\beta_z = \alpha_z / 4`).
     alpha_v, beta_v : float
-        :math:`\alpha_v, \beta_v` of eq. (6) (default :math:`\beta_v = \alpha_v / 4`).
+        :math:`\alpha_v, \beta_v` of eq. (6) (default :math:`\beta_v = \alpha_v / 4`); the
+        canonical system may be at most :data:`MAX_PHASE_SLOWDOWN` times slower than the
+        transformation system (``alpha_v >= alpha_z / 50`` with the default damping).
     alpha_g : float
         :math:`\alpha_g` of eq. (10) (default :math:`\alpha_z / 2`).
     """

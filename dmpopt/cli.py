@@ -194,7 +194,11 @@ def _runner(workers: int | None, ray: str | None):
     if workers is None:
         workers = 1 if ray is not None else available_cores()
     try:
-        runner = Runner(workers=workers, ray=ray)
+        with warnings.catch_warnings(record=True) as caught:  # shown whatever the filters
+            warnings.simplefilter("always")
+            runner = Runner(workers=workers, ray=ray)
+        for warning in caught:
+            print(f"warning: {warning.message}", file=sys.stderr)
         if ray is not None:
             runner.connect()  # a wrong address or a missing ray fails now, not mid-study
     except DmpoptError as error:

@@ -11,13 +11,7 @@ import numpy as np
 
 from . import symbolic
 from .exceptions import InvalidInputError, ShapeError
-from .validation import check_resources, flag, positive, real, real_array, vector
-
-STEP_BYTES_PER_FEATURE, STEP_BYTES_PER_FEATURE_AND_DOF = 48e3, 8e3
-"""Memory [bytes] of the symbolic step per basis feature, plus per feature and DOF, a little
-above the 40 kB and 6.2 kB measured (peak resident size while building a velocity-form stepper
-of 1000 and 4000 bases, 1 and 4 DOFs; 1.3 s per 1000 bases): a stepper of 10^5 bases took
-183 s and 4.8 GB before :func:`check_resources` refused it."""
+from .validation import flag, positive, real, real_array, vector
 
 
 class Stepper:
@@ -56,12 +50,6 @@ class Stepper:
         self._discrete = dmp.form in symbolic.DISCRETE_FORMS
         self.dt = dmp.check_step(dt)
         self._max_step_per_tau = dmp.max_step / dmp.tau
-        n_features = dmp.signature.n_features
-        check_resources(
-            f"a stepper of {dmp.n_dofs} DOFs x {n_features} basis features",
-            n_features * (STEP_BYTES_PER_FEATURE + STEP_BYTES_PER_FEATURE_AND_DOF * dmp.n_dofs),
-            "use fewer basis functions (the symbolic step grows with their number times the DOFs)",
-        )
         step = symbolic.step_function(dmp.signature)
         compile = flag("compile", compile)
         self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)

@@ -432,6 +432,18 @@ def test_an_excursion_beyond_a_half_turn_from_the_goal_is_refused(demo):
     assert np.degrees(angle_between(plan.orientations, back).max()) < 0.1
 
 
+def test_a_cartesian_stepper_too_large_to_build_is_refused_before_building():
+    """6 DOFs x 30000 bases: 30000 x (48 kB + 6 x 8 kB) = 2.68 GiB estimated for the
+    symbolic step, beyond the 2 GiB budget (dmpopt.symbolic.STEP_BYTES_PER_FEATURE)."""
+    dmp = random_dmp(np.random.default_rng(0), n_basis=30000)
+    with pytest.raises(dmpopt.ResourceLimitError) as error:
+        dmp.stepper()
+    assert str(error.value).startswith(
+        "the symbolic step of 6 DOFs x 30000 basis features (a stepper's) needs about "
+        f"{30000 * 96e3 / 1024**3:.3g} GiB; dmpopt allows at most 2 GiB"
+    )
+
+
 def test_bad_fields_and_goals_are_refused_by_name(fitted):
     rng = np.random.default_rng(6)
     with pytest.raises(InvalidInputError, match=r"start_orientation has norm 2"):

@@ -221,9 +221,10 @@ def test_a_stepper_too_large_to_build_is_refused_before_building():
     with pytest.raises(ResourceLimitError) as error:
         dmp.stepper()
     assert str(error.value) == (
-        f"a stepper of 2 DOFs x 100000 basis features needs about {6.4e9 / 1024**3:.3g} GiB; "
-        "dmpopt allows at most 2 GiB (dmpopt.validation.MEMORY_BUDGET): use fewer basis "
-        "functions (the symbolic step grows with their number times the DOFs)"
+        "the symbolic step of 2 DOFs x 100000 basis features (a stepper's) needs about "
+        f"{6.4e9 / 1024**3:.3g} GiB; dmpopt allows at most 2 GiB (dmpopt.validation."
+        "MEMORY_BUDGET): use fewer basis functions (the step grows with their number times "
+        "the DOFs)"
     )
 
 

@@ -6,6 +6,7 @@ this module only chooses centres ``c_i`` and widths ``h_i``.
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import casadi as ca
@@ -86,6 +87,13 @@ def stable_step(form: str, gains: tuple, canonical_target: float, canonical_stat
     return float(min(_rk4_limit(value) for value in eigenvalues))
 
 
+def _time_step(form: str, gains: tuple) -> float:
+    """Step (``tau = 1``) of the reference integrations: 1e-4, or less for fast gains so that
+    the fastest eigenvalue times the step stays below 0.0025 (as with the default gains)."""
+    fastest = np.max(np.abs(np.concatenate(discrete_eigenvalues(form, gains))))
+    return min(1e-4, 0.0025 / fastest)
+
+
 @lru_cache(maxsize=16)
 def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRACTION) -> float:
     """Time, for ``tau = 1``, after which the unforced system stays ``fraction`` of the way to
@@ -95,7 +103,7 @@ def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRAC
     so it holds for any gains. Rollouts scale in time with ``tau``, so the convergence
     time of a system with time constant ``tau`` is ``tau`` times this value.
     """
-    dt, n_steps = 1e-4, 20001
+    dt, n_steps = _time_step(form, gains), 20001
     signature = symbolic.Signature(form, 1, 1, "gaussian")
     n_transformation = symbolic.n_transformation_states(form)
     initial = np.zeros(2 + n_transformation)
@@ -104,16 +112,70 @@ def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRAC
     error = np.abs(1.0 - positions)
     outside = np.nonzero(error > 1.0 - fraction)[0]
     if outside.size == 0 or outside[-1] == n_steps - 1:
-        raise InvalidInputError(f"the unforced {form} system with gains {gains} does not converge")
+        rates = np.abs(np.concatenate(discrete_eigenvalues(form, gains)).real)
+        raise InvalidInputError(
+            f"the unforced {form} system with gains {gains} does not come {fraction:g} of the "
+            f"way to its goal within {(n_steps - 1) * dt:.3g} tau (its modes decay at rates "
+            f"{rates.min():.4g} to {rates.max():.4g} per tau): use gains of one scale, e.g. "
+            "beta_z = alpha_z / 4 (critical damping, the default)"
+        )
     k = outside[-1]  # interpolate the crossing between samples k and k + 1
     part = (error[k] - (1.0 - fraction)) / (error[k] - error[k + 1])
     return float((k + part) * dt)
 
 
+def discrete_eigenvalues(form: str, gains: tuple) -> tuple[np.ndarray, np.ndarray]:
+    r"""Eigenvalues, for ``tau = 1``, of the canonical system (6) and of the linear part of the
+    transformation system (5) or (10), as ``(canonical, transformation)``.
+
+    Eq. (6) is :math:`\ddot x + \alpha_v \dot x + \alpha_v \beta_v x = \alpha_v \beta_v g`,
+    so its eigenvalues are the roots of :math:`s^2 + \alpha_v s + \alpha_v \beta_v`; eq. (5)
+    gives :math:`s^2 + \alpha_z s + \alpha_z \beta_z`, and eq. (10) adds :math:`-\alpha_g`
+    (the goal filter). The forcing term is an input that does not feed back.
+    """
+    alpha_z, beta_z, alpha_v, beta_v = gains[:4]
+    canonical = np.roots([1.0, alpha_v, alpha_v * beta_v])
+    transformation = np.roots([1.0, alpha_z, alpha_z * beta_z])
+    if form == "acceleration":
+        transformation = np.append(transformation, -gains[4])
+    return canonical, transformation
+
+
+def erlang_time(n_poles: int, fraction: float) -> float:
+    r"""The :math:`x` at which :math:`e^{-x} \sum_{j < n} x^j / j! = 1 - \mathrm{fraction}`.
+
+    The step response of :math:`n` poles at :math:`-1` has that distance left to its goal at
+    time :math:`x`, the tail of an Erlang distribution; it decreases from 1 to 0, so bisection
+    finds it.
+    """
+    remaining = 1.0 - fraction
+    low, high = 0.0, 10.0 * n_poles - math.log(remaining)
+    for _ in range(100):
+        x = 0.5 * (low + high)
+        tail = math.exp(-x) * sum(x**j / math.factorial(j) for j in range(n_poles))
+        low, high = (x, high) if tail > remaining else (low, x)
+    return 0.5 * (low + high)
+
+
+@lru_cache(maxsize=16)
+def settling_time(form: str, gains: tuple, fraction: float) -> float:
+    r"""Time, for ``tau = 1``, in which the canonical and transformation systems of a discrete
+    DMP together come ``fraction`` of the way to rest, each of their :math:`n` modes counted
+    as slow as the slowest, :math:`\lambda = \min |\mathrm{Re}\, s|`
+    (:func:`discrete_eigenvalues`): :math:`x / \lambda` with :math:`x` the Erlang tail's
+    crossing (:func:`erlang_time`). The forcing term is gated by the canonical velocity, so
+    the plan cannot rest before the canonical system does: a slow phase (small
+    :math:`\alpha_v`) lengthens the plan.
+    """
+    eigenvalues = np.concatenate(discrete_eigenvalues(form, gains))
+    rate = float(np.min(-eigenvalues.real))
+    return erlang_time(eigenvalues.size, fraction) / rate
+
+
 @lru_cache(maxsize=16)
 def discrete_phase(gains: tuple, times: tuple) -> np.ndarray:
     """Normalised phase of the canonical system (6) at ``times`` (for ``tau = 1``)."""
-    dt = 1e-4
+    dt = _time_step("velocity", gains)
     n_steps = int(np.ceil(max(times) / dt)) + 2
     signature = symbolic.Signature("velocity", 1, 1, "gaussian")
     parameters = symbolic.parameters(canonical_target=1.0, gains=np.array(gains))

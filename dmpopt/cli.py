@@ -15,6 +15,7 @@ import sys
 import tempfile
 import time
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 STUDIES = (
@@ -122,6 +123,18 @@ def _check_targets(out: Path, names: list[str]) -> None:
             )
 
 
+@contextmanager
+def _locked(out: Path):
+    """Hold ``--out`` for this run (studies.common.locked_folder); a second run is refused."""
+    from studies.common import FolderInUse, locked_folder
+
+    try:
+        with locked_folder(out):
+            yield
+    except FolderInUse as error:
+        raise UsageError(f"--out {error}") from None
+
+
 def _left(target: Path, existed: bool) -> str:
     return f"{target} left unchanged" if existed else f"{target} not written"
 
@@ -183,12 +196,18 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, run
     return code
 
 
-def _runner(workers: int, ray: str | None):
+def _runner(workers: int | None, ray: str | None):
     from .exceptions import DmpoptError
-    from .parallel import Runner
+    from .parallel import Runner, available_cores
 
+    if workers is None:
+        workers = 1 if ray is not None else available_cores()
     try:
-        runner = Runner(workers=workers, ray=ray)
+        with warnings.catch_warnings(record=True) as caught:  # shown whatever the filters
+            warnings.simplefilter("always")
+            runner = Runner(workers=workers, ray=ray)
+        for warning in caught:
+            print(f"warning: {warning.message}", file=sys.stderr)
         if ray is not None:
             runner.connect()  # a wrong address or a missing ray fails now, not mid-study
     except DmpoptError as error:
@@ -217,9 +236,10 @@ def main(argv=None) -> int:
     run.add_argument("--seed", default=0, type=_seed, help="random seed, >= 0 (default: 0)")
     run.add_argument(
         "--workers",
-        default=1,
+        default=None,
         type=_workers,
-        help="independent runs (seeds, trials, folds) in N local processes (default: 1); "
+        help="independent runs (seeds, trials, folds) in N local processes (default: this "
+        "machine's cores; at most those and the runs; 1: in series, the same results); "
         "with --ray, the CPUs a local Ray may use",
     )
     run.add_argument(
@@ -242,7 +262,7 @@ def main(argv=None) -> int:
             names = list(studies) if args.name == "all" else [args.name]
             out = _writable_folder(args.out)
             _check_targets(out, names)
-            with _runner(args.workers, args.ray) as runner:
+            with _locked(out), _runner(args.workers, args.ray) as runner:
                 return _run(studies, names, out, args.quick, args.seed, runner)
     except UsageError as error:
         print(f"dmpopt: error: {error}", file=sys.stderr)

@@ -67,9 +67,14 @@ RENAMED = {
 }
 """Former field names and the paper's symbols that replaced them (docs/glossary.md); in the
 energy form ``amplitude_rate`` became ``alpha_E``."""
+MAX_PHASE_SLOWDOWN = 50.0
+"""Largest accepted ratio of the transformation system's slowest rate to the canonical
+system's (eq. (6)): at the bound, with the default gains (``alpha_v = 0.5``), a fitted DMP's
+default plan lasts about 170 times its demonstration."""
 SETTLING_FRACTION = 0.9999
-"""Fraction of the way to its goal that the unforced system covers, from rest, in the time
-a default plan lasts beyond the convergence time (:attr:`DiscreteDMP.settling_time`)."""
+"""Fraction of the way to rest that the canonical and transformation systems together cover,
+counted as modes all as slow as the slowest, in the time a default plan lasts beyond the
+convergence time (:attr:`DiscreteDMP.settling_time`)."""
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
@@ -132,8 +137,8 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     The rotation is the smallest one: it turns the plane spanned by the two vectors and
     leaves its orthogonal complement alone. In one dimension it is a sign.
     """
-    source_norm = math.sqrt(source @ source)  # scalar arithmetic: called on every rollout
-    target_norm = math.sqrt(target @ target)
+    # scalar arithmetic (called on every rollout); hypot does not overflow for large goals
+    source_norm, target_norm = math.hypot(*source), math.hypot(*target)
     n = source.size
     if target_norm == 0.0:
         return np.zeros((n, n))
@@ -473,7 +478,9 @@ class DiscreteDMP(_DmpCommon):
     alpha_z, beta_z : float
         :math:`\alpha_z, \beta_z` of eqs. (5) and (10) (default :math:`\beta_z = \alpha_z / 4`).
     alpha_v, beta_v : float
-        :math:`\alpha_v, \beta_v` of eq. (6) (default :math:`\beta_v = \alpha_v / 4`).
+        :math:`\alpha_v, \beta_v` of eq. (6) (default :math:`\beta_v = \alpha_v / 4`); the
+        canonical system may be at most :data:`MAX_PHASE_SLOWDOWN` times slower than the
+        transformation system (``alpha_v >= alpha_z / 50`` with the default damping).
     alpha_g : float
         :math:`\alpha_g` of eq. (10) (default :math:`\alpha_z / 2`).
     """
@@ -536,6 +543,22 @@ class DiscreteDMP(_DmpCommon):
                 object.__setattr__(self, name, default)
             object.__setattr__(self, name, positive(name, getattr(self, name)))
         object.__setattr__(self, "alpha_v", positive("alpha_v", self.alpha_v))
+        self._check_phase_rate()
+
+    def _check_phase_rate(self):
+        """Refuse a canonical system over :data:`MAX_PHASE_SLOWDOWN` times slower than the
+        transformation system (their slowest rates, :func:`basis.discrete_eigenvalues`)."""
+        canonical, transformation = basis.discrete_eigenvalues(self.form, self.gains)
+        phase_rate, rate = np.min(-canonical.real), np.min(-transformation.real)
+        if phase_rate * MAX_PHASE_SLOWDOWN < rate * (1.0 - 1e-12):
+            raise InvalidInputError(
+                f"alpha_v = {self.alpha_v:.4g}, beta_v = {self.beta_v:.4g} make the canonical "
+                f"system (6) {rate / phase_rate:.4g} times slower than the transformation system "
+                f"(slowest rates {phase_rate:.4g} and {rate:.4g} per tau); at most "
+                f"{MAX_PHASE_SLOWDOWN:g} times is accepted, as the forcing term would outlast the "
+                "movement and the default plan (settling_time) last hundreds of its durations: "
+                f"pass alpha_v >= {2 * rate / MAX_PHASE_SLOWDOWN:.4g} (with beta_v = alpha_v / 4)"
+            )
 
     @property
     def gains(self) -> tuple:
@@ -588,11 +611,14 @@ class DiscreteDMP(_DmpCommon):
     @property
     def settling_time(self) -> float:
         """Default plan length [s]: :attr:`convergence_time` (the demonstration's duration
-        for a fitted DMP), then the time the unforced system needs from rest to come within
-        0.01 % of its goal (:data:`SETTLING_FRACTION`). The margin lets a movement still
-        under way at the end of its demonstration come to rest: the README's quickstart demo
-        ends at 3.7 units/s and its plan ends within 0.1 % of its extent from the goal."""
-        settle = basis.convergence_time(self.form, self.gains, SETTLING_FRACTION)
+        for a fitted DMP), then the time the canonical and transformation systems together
+        need to come 99.99 % of the way to rest (:data:`SETTLING_FRACTION`,
+        :func:`basis.settling_time`), from their eigenvalues, so it grows as ``alpha_v``
+        slows the phase. The margin lets a movement still under way at the end of its
+        demonstration come to rest: the README's quickstart demo ends at 3.7 units/s and its
+        plan ends 0.0024 % of its extent from the goal (below 0.01 % for demos ending
+        moving, at ``alpha_v`` from 1 to 25, in tests/test_dmp.py)."""
+        settle = basis.settling_time(self.form, tuple(self.gains), SETTLING_FRACTION)
         return self.convergence_time + self.tau * settle
 
     def phase_features(self, n_steps: int, dt: float) -> np.ndarray:

@@ -11,17 +11,20 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import secrets
 import zipfile
 from pathlib import Path
 
 import numpy as np
+from numpy.lib import format as npy
 
 from .cartesian import CartesianDMP
 from .dmp import RENAMED, DiscreteDMP, RhythmicDMP
-from .exceptions import FileFormatError, InvalidInputError
+from .exceptions import FileFormatError, InvalidInputError, ResourceLimitError
 from .promp import ProMP
+from .validation import check_resources
 
 FORMAT = "dmpopt-dmp"
 VERSION = 2
@@ -108,17 +111,21 @@ def load(path):
     ------
     FileFormatError
         If the file is missing, corrupt, not written by dmpopt, or of a newer version.
+    ResourceLimitError
+        If its arrays would need more than :data:`dmpopt.validation.MEMORY_BUDGET` (from the
+        file's headers, before anything is inflated).
     """
     path = _file_path(path)
     if not path.is_file():
         raise FileFormatError(f"no DMP file at {path}")
     try:
+        _check_sizes(path)
         with np.load(path, allow_pickle=False) as archive:
             if "header" not in archive.files:
                 raise FileFormatError(f"{path} is not a dmpopt DMP file (no header)")
             header = json.loads(str(archive["header"]))
             arrays = {name: archive[name] for name in archive.files if name != "header"}
-    except FileFormatError:
+    except (FileFormatError, ResourceLimitError):
         raise
     except (OSError, ValueError, zipfile.BadZipFile, json.JSONDecodeError, EOFError) as error:
         raise FileFormatError(f"{path} is corrupt or not a dmpopt DMP file: {error}") from error
@@ -135,7 +142,7 @@ def load(path):
         raise FileFormatError(f"{path} holds an unknown class {header.get('class')!r}")
     values = {**header.get("scalars", {}), **arrays}
     if version < 2:
-        values = _renamed(values)
+        values = _renamed(values, path)
     known = {field.name for field in dataclasses.fields(cls) if field.init}
     unknown = sorted(set(values) - known)
     if unknown:
@@ -148,12 +155,46 @@ def load(path):
         raise FileFormatError(f"{path} has inconsistent contents: {error}") from error
 
 
-def _renamed(values: dict) -> dict:
-    """Fields of a version 1 file under their version 2 names (:data:`dmpopt.dmp.RENAMED`)."""
-    renamed = {}
+def _check_sizes(path: Path) -> None:
+    """Refuse, before inflating anything, a file whose arrays would need more than
+    :data:`dmpopt.validation.MEMORY_BUDGET`: the sizes come from the zip's headers and from
+    each array's ``.npy`` header (shape and type), which must fit in its zip entry (a 10 MB
+    file that inflated to 4.8 GB ran a minute into a MemoryError)."""
+    readers = {(1, 0): npy.read_array_header_1_0, (2, 0): npy.read_array_header_2_0}
+    with zipfile.ZipFile(path) as archive:
+        members = archive.infolist()
+        check_resources(
+            f"load({str(path)!r}) of {len(members)} arrays",
+            sum(member.file_size for member in members),
+            "this is not a DMP file dmpopt wrote; check where it came from",
+        )
+        for member in members:
+            with archive.open(member) as stream:
+                version = npy.read_magic(stream)
+                if version not in readers:
+                    raise FileFormatError(f"{path}: {member.filename} is in .npy {version}")
+                shape, _, dtype = readers[version](stream)
+                n_bytes = math.prod(shape) * dtype.itemsize
+                if n_bytes > member.file_size:
+                    raise FileFormatError(
+                        f"{path} is corrupt: {member.filename} claims an array of {shape} "
+                        f"{dtype} ({n_bytes} bytes) in {member.file_size} bytes"
+                    )
+
+
+def _renamed(values: dict, path: Path) -> dict:
+    """Fields of a version 1 file under their version 2 names (:data:`dmpopt.dmp.RENAMED`);
+    a file holding a field under both names is refused (one would silently win)."""
+    renamed, sources = {}, {}
     for name, value in values.items():
         new = RENAMED.get(name, name)
         if name == "amplitude_rate" and values.get("form") == "energy":
             new = "alpha_E"
-        renamed[new] = value
+        if new in sources:
+            first, second = sorted((sources[new], name))
+            raise FileFormatError(
+                f"{path} is a version 1 file holding both {first!r} and {second!r}, two names "
+                f"of the field {new!r}; keep one (version 1 wrote the former names only)"
+            )
+        renamed[new], sources[new] = value, name
     return renamed

@@ -19,8 +19,11 @@ On a Ray cluster (``pip install 'dmpopt[ray]'``; docs/cluster.md)::
 from __future__ import annotations
 
 import multiprocessing
+import os
+import pickle
 import socket
 import time
+import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
@@ -36,6 +39,8 @@ class Runner:
     workers : int
         Without ``ray``: 1 runs in series in this process, N > 1 in N local processes. With
         ``ray="local"``: the number of CPUs the local Ray may use (1: all of this machine's).
+        More than this machine's cores (:func:`available_cores`) are cut to them, with a
+        warning; a :func:`map_runs` also starts no more processes than it has runs.
     ray : str, optional
         ``"local"`` starts a Ray instance on this machine for the runner's lifetime; ``"auto"``
         joins the cluster this machine belongs to (``ray start``); ``"HOST:PORT"`` joins the
@@ -51,6 +56,7 @@ class Runner:
     runs: int = field(default=0, init=False)
     _ray_started: bool = field(default=False, init=False, repr=False)
     _pool: ProcessPoolExecutor | None = field(default=None, init=False, repr=False)
+    _pool_size: int = field(default=0, init=False, repr=False)
 
     def __post_init__(self):
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
@@ -61,6 +67,14 @@ class Runner:
             raise InvalidInputError(
                 f"ray must be 'local', 'auto' or a head address 'HOST:PORT', got {self.ray!r}"
             )
+        cores = available_cores()
+        if self.ray in (None, "local") and self.workers > cores:
+            warnings.warn(
+                f"workers={self.workers} is more than this machine's {cores} cores; using "
+                f"{cores} (more processes than cores only share them)",
+                stacklevel=3,
+            )
+            self.workers = cores
 
     @property
     def backend(self) -> str:
@@ -139,6 +153,13 @@ class Runner:
         return ray.cluster_resources().get("CPU") if ray.is_initialized() else None
 
 
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the system tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
 def _check_reachable(address: str, timeout: float = 5.0) -> None:
     """Fail in seconds on a head that is not there (Ray itself retries for minutes)."""
     host, _, port = address.rpartition(":")
@@ -171,18 +192,60 @@ def _one_blas_thread() -> None:
     threadpool_limits(limits=1)
 
 
+def _check_picklable(function, inputs, where: str) -> None:
+    """Refuse, with the fix, a function or input that cannot be sent to another process
+    (a lambda, a nested function, a lock): otherwise the pickle error surfaces mid-run."""
+    name = getattr(function, "__qualname__", type(function).__name__)
+    try:
+        pickle.dumps(function)
+    except Exception as error:  # pickle raises PicklingError, TypeError or AttributeError
+        raise InvalidInputError(
+            f"function {name} cannot be sent to {where} ({type(error).__name__}: {error}); "
+            "define it with def at the top level of a module (not a lambda or a nested "
+            "function, and holding no lock or open file), or run in series with "
+            "Runner(workers=1)"
+        ) from None
+    for i, x in enumerate(inputs):
+        try:
+            pickle.dumps(x)
+        except Exception as error:
+            raise InvalidInputError(
+                f"inputs[{i}] cannot be sent to {where} ({type(error).__name__}: {error}); "
+                "pass plain data (numbers, arrays, strings, dataclasses of them), or run in "
+                "series with Runner(workers=1)"
+            ) from None
+
+
 def _in_processes(function, inputs, runner, bar) -> list:
+    size = min(runner.workers, len(inputs))
+    if runner._pool is not None and runner._pool_size < size:
+        runner._pool.shutdown()
+        runner._pool = None
     if runner._pool is None:  # kept for the runner's next map_runs; close() ends it
         context = multiprocessing.get_context("spawn")
-        runner._pool = ProcessPoolExecutor(
-            runner.workers, mp_context=context, initializer=_one_blas_thread
-        )
+        runner._pool = ProcessPoolExecutor(size, mp_context=context, initializer=_one_blas_thread)
+        runner._pool_size = size
     results = [None] * len(inputs)
     futures = {runner._pool.submit(function, x): i for i, x in enumerate(inputs)}
-    for future in as_completed(futures):
-        results[futures[future]] = future.result()
-        bar.update()
+    try:
+        for future in as_completed(futures):
+            results[futures[future]] = future.result()
+            bar.update()
+    except BaseException:  # Ctrl-C or a failed run: drop the queued runs, stop the workers
+        _stop(runner)
+        raise
     return results
+
+
+def _stop(runner: Runner) -> None:
+    """End the runner's pool at once: queued runs cancelled, running ones terminated."""
+    pool, runner._pool = runner._pool, None
+    processes = list((pool._processes or {}).values())  # the executor offers no public kill
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join()
 
 
 def _call(function, x):
@@ -212,12 +275,17 @@ def map_runs(function, inputs, runner: Runner | None = None, label: str = "runs"
 
     ``function`` must be importable by name (a module-level function) when the runs leave
     this process (workers > 1 or Ray); each run then executes in another process, so it must
-    not rely on state set up in this one. An exception in a run is raised here.
+    not rely on state set up in this one; a function or input that cannot be sent there is
+    refused before any run starts. An exception in a run is raised here, and Ctrl-C (or the
+    first failed run) cancels the queued runs and stops the running ones at once.
     """
     runner = runner or Runner()
     if not callable(function):
         raise InvalidInputError(f"function must be callable, got {type(function).__name__}")
     inputs = list(inputs)
+    if runner.ray is not None or (runner.workers > 1 and len(inputs) > 0):
+        where = "Ray" if runner.ray is not None else f"worker processes (workers={runner.workers})"
+        _check_picklable(function, inputs, where)
     start = time.perf_counter()
     with _bar(runner, len(inputs), label) as bar:
         if runner.ray is not None:

@@ -32,6 +32,12 @@ MAX_GRIDPOINTS = 100_000
 """Largest toppra grid :func:`retime` accepts (its time grows linearly with the grid)."""
 
 
+STILL_TOLERANCE = 16 * np.finfo(float).eps
+"""A DOF whose positions vary by at most this fraction of their magnitude stands still: its
+velocities and accelerations are rounding (a constant path's, by finite differences, gave a
+factor of 5.7e-14 where :func:`retime` refused)."""
+
+
 def _check_trajectory(trajectory) -> Trajectory:
     if not isinstance(trajectory, Trajectory):
         raise InvalidInputError(
@@ -123,7 +129,8 @@ def uniform_time_scaling(
     ------
     InvalidInputError
         Without any limit, or if the trajectory neither moves nor accelerates (every factor
-        then respects the limits: there is no smallest one).
+        then respects the limits: there is no smallest one), or its positions stand still
+        to rounding (:data:`STILL_TOLERANCE`).
     NoSolutionFound
         If gravity alone exceeds a torque limit somewhere on the path.
     """
@@ -152,7 +159,9 @@ def uniform_time_scaling(
             )
         need = np.where(dynamic > 0, dynamic / room_up, -dynamic / room_down)
         factor = max(factor, float(np.sqrt(np.max(need))))
-    if not factor > 0.0:
+    positions = trajectory.positions
+    still = np.ptp(positions, axis=0) <= STILL_TOLERANCE * np.max(np.abs(positions), axis=0)
+    if not factor > 0.0 or np.all(still):
         raise InvalidInputError(
             "trajectory neither moves nor accelerates, so every time scaling respects the "
             "limits and there is no smallest factor"

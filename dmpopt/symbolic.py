@@ -48,6 +48,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from .validation import check_resources
+
 DISCRETE_FORMS = ("velocity", "acceleration")
 RHYTHMIC_FORMS = ("phase", "energy")
 FORMS = DISCRETE_FORMS + RHYTHMIC_FORMS
@@ -339,10 +341,24 @@ def filter_step(form: str, z, position, dt, tau, goal, gains):
 # ---------------------------------------------------------------------------------------
 
 
+STEP_BYTES_PER_FEATURE, STEP_BYTES_PER_FEATURE_AND_DOF = 48e3, 8e3
+"""Memory [bytes] that building :func:`step_function` takes per basis feature, plus per
+feature and DOF: a little above the 40 kB and 6.2 kB measured (peak resident size while
+building steppers of 1000-4000 bases and 1-4 DOFs, all four forms; 0.6-1.3 s per 1000 bases).
+A stepper of 10^5 bases took 183 s and 4.8 GB before this bound refused it."""
+
+
 @lru_cache(maxsize=64)
 def step_function(signature: Signature) -> ca.Function:
     """One RK4 step: ``(state, dt, **parameters) -> (next_state, position, velocity,
-    acceleration)``, the last three at ``next_state``."""
+    acceleration)``, the last three at ``next_state``. Refused before it is built beyond
+    :data:`dmpopt.validation.MEMORY_BUDGET` (:data:`STEP_BYTES_PER_FEATURE`)."""
+    d, n = signature.n_dofs, signature.n_features
+    check_resources(
+        f"the symbolic step of {d} DOFs x {n} basis features (a stepper's)",
+        n * (STEP_BYTES_PER_FEATURE + STEP_BYTES_PER_FEATURE_AND_DOF * d),
+        "use fewer basis functions (the step grows with their number times the DOFs)",
+    )
     s = make_symbols(signature)
 
     def rate(x):

@@ -13,13 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
+from dmpopt.exceptions import DmpoptError
+
 PACKAGES = ("dmpopt", "numpy", "scipy", "casadi", "pin", "proxsuite", "toppra", "matplotlib")
 TIME_BUDGET = 1.0
 """CPU seconds per controller tick in the studies' simulations (the controller's default: 5
 ms). A simulated tick's answer then does not depend on the machine's load: with 5 ms, the hard
 ticks near a fall (some over 5 ms on the 2-core machine) got the hold answer in one run and not
 in the next, and a push at the edge of a fall flipped between runs. The studies report their
-ticks' CPU time against the 5 ms real-time budget (``ticks_over_5ms``) instead. (Runs in
+ticks' CPU time against the 5 ms real-time budget (``ticks_over_budget``) instead. (Runs in
 different processes can still differ in the last bits: proxsuite's solves are not bitwise
 reproducible across processes.)"""
 
@@ -29,6 +31,55 @@ def output_dir(out_dir) -> Path:
     path = Path(out_dir)
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+class FolderInUse(DmpoptError):
+    """Another process writes into the output folder."""
+
+
+_HELD: dict = {}
+"""Output folders this process has locked (resolved path -> open descriptor, depth)."""
+
+
+@contextmanager
+def locked_folder(folder):
+    """Hold ``folder`` for this process's writes; refuse if another process holds it.
+
+    The lock is ``flock`` on the folder itself (no lock file: the folder's contents stay the
+    results), released when the block ends or the process dies, so a killed run never leaves
+    a stale lock. Re-entrant within one process (the command locks ``--out``, each study's
+    :func:`staged_output` locks it again). Where ``fcntl`` is missing (Windows) there is no
+    lock, and one output folder must take one run at a time by hand.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not on POSIX
+        yield Path(folder)
+        return
+    path = Path(folder).resolve()
+    if path in _HELD:
+        descriptor, depth = _HELD[path]
+        _HELD[path] = (descriptor, depth + 1)
+    else:
+        descriptor = os.open(path, os.O_RDONLY)
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(descriptor)
+            raise FolderInUse(
+                f"{folder} is being written by another dmpopt run (one run at a time per "
+                "output folder); wait for it to end or choose another --out"
+            ) from None
+        _HELD[path] = (descriptor, 1)
+    try:
+        yield Path(folder)
+    finally:
+        descriptor, depth = _HELD[path]
+        if depth > 1:
+            _HELD[path] = (descriptor, depth - 1)
+        else:
+            del _HELD[path]
+            os.close(descriptor)  # releases the lock
 
 
 def _partial(target: Path) -> Path:
@@ -71,20 +122,23 @@ def staged_output(target):
     The folder is ``.<name>.partial`` next to ``target``. If the block raises (an error or
     Ctrl-C), it is deleted and ``target`` is left as it was, so ``target`` always holds one
     complete run. Leftovers of a run that was killed outright are cleaned on the next run.
-    One output folder takes one run at a time.
+    The folder holding ``target`` is locked (:func:`locked_folder`): a second process writing
+    there at the same time gets :class:`FolderInUse` before it writes anything.
 
     >>> with staged_output("results/rl") as folder:     # doctest: +SKIP
     ...     metrics = rl.run(folder)
     """
     target = Path(target)
-    _recover(target)
-    staged = _partial(target)
-    staged.mkdir(parents=True)
-    try:
-        yield staged
-        _swap(staged, target)
-    finally:
-        shutil.rmtree(staged, ignore_errors=True)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with locked_folder(target.parent):
+        _recover(target)
+        staged = _partial(target)
+        staged.mkdir(parents=True)
+        try:
+            yield staged
+            _swap(staged, target)
+        finally:
+            shutil.rmtree(staged, ignore_errors=True)
 
 
 def write_text_atomic(path, text: str) -> Path:

@@ -394,6 +394,56 @@ def test_bad_demonstrations_are_refused_by_name(demo):
         fit_cartesian(times, positions, orientations, n_basis=0)
 
 
+@pytest.mark.parametrize("degrees", [361.0, 540.0, 900.0])
+def test_a_turn_beyond_a_half_turn_is_measured_along_the_path(demo, degrees):
+    """Answer key: samples of a turn by `degrees` about one tilted axis, written with qexp;
+    the refusal states the angle turned (once 361 degrees was reported as 359, and turns of
+    540-900 degrees, whose ends are 180 or 0 degrees apart, were accepted)."""
+    times, positions, _ = demo
+    axis = np.array([0.3, 0.4, np.sqrt(0.75)])
+    fractions = np.linspace(0.0, 1.0, len(times))
+    turn = np.array([qexp(np.radians(degrees) * s * axis) for s in fractions])
+    message = (
+        f"orientations turn by {degrees:.1f} degrees along the path from the first sample to "
+        "the last (the goal), more than a half turn: a Cartesian DMP turns to its goal the "
+        "short way (at most 180 degrees from every sample); split the demonstration"
+    )
+    with pytest.raises(InvalidInputError) as error:
+        fit_cartesian(times, positions, turn)
+    assert str(error.value) == message
+
+
+def test_an_excursion_beyond_a_half_turn_from_the_goal_is_refused(demo):
+    """Out to 300 degrees and back to 60 about z: the sample at 300 is 240 from the goal,
+    though the first and last samples are 60 degrees apart."""
+    times, positions, _ = demo
+    n = len(times)
+    angles = np.r_[np.linspace(0.0, 300.0, n // 2), np.linspace(300.0, 60.0, n - n // 2)]
+    turn = np.array([qexp(np.radians([0.0, 0.0, a])) for a in angles])
+    with pytest.raises(
+        InvalidInputError, match=rf"turn by 240.0 degrees .* orientations\[{n // 2 - 1}\]"
+    ):
+        fit_cartesian(times, positions, turn)
+    # a smooth turn out to 171 degrees and back to 60: at most 111 from the goal, accepted
+    s = np.linspace(0.0, 1.0, n)
+    back = np.array([qexp(np.radians([0.0, 0.0, a])) for a in 60 * s + 140 * np.sin(np.pi * s)])
+    plan = fit_cartesian(times, positions, back, n_basis=30).rollout(times[-1], times[1])
+    # fit error 0.018 degrees (30 bases); a wrapped logarithm puts plans 158-176 degrees off
+    assert np.degrees(angle_between(plan.orientations, back).max()) < 0.1
+
+
+def test_a_cartesian_stepper_too_large_to_build_is_refused_before_building():
+    """6 DOFs x 30000 bases: 30000 x (48 kB + 6 x 8 kB) = 2.68 GiB estimated for the
+    symbolic step, beyond the 2 GiB budget (dmpopt.symbolic.STEP_BYTES_PER_FEATURE)."""
+    dmp = random_dmp(np.random.default_rng(0), n_basis=30000)
+    with pytest.raises(dmpopt.ResourceLimitError) as error:
+        dmp.stepper()
+    assert str(error.value).startswith(
+        "the symbolic step of 6 DOFs x 30000 basis features (a stepper's) needs about "
+        f"{30000 * 96e3 / 1024**3:.3g} GiB; dmpopt allows at most 2 GiB"
+    )
+
+
 def test_bad_fields_and_goals_are_refused_by_name(fitted):
     rng = np.random.default_rng(6)
     with pytest.raises(InvalidInputError, match=r"start_orientation has norm 2"):

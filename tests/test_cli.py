@@ -140,8 +140,12 @@ def test_list_shows_quick_and_full_times(capsys):
 
 
 def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_path):
-    """--workers N: a study taking ``runner`` gets Runner(workers=N); others run as before."""
+    """--workers N: a study taking ``runner`` gets Runner(workers=N); others run as before.
+    (The machine's cores are set to 4 here: more workers than cores are cut to them.)"""
+    from dmpopt import parallel
     from studies import constrained, imitation
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
 
     received = []
 
@@ -156,6 +160,31 @@ def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_p
         assert run_cli(capsys, *argv)[0] == 0
     assert len(received) == 1
     assert (received[0].workers, received[0].ray, received[0].backend) == (3, None, "processes")
+
+
+def test_workers_default_to_the_cores_and_are_cut_to_them_with_one_line(
+    capsys, monkeypatch, tmp_path
+):
+    """No --workers: one process per core; --workers 100000 (once one process per queued
+    run): the cores, with a one-line warning."""
+    from dmpopt import parallel
+    from studies import imitation
+
+    received = []
+
+    def run_with_runner(out_dir, quick=False, seed=0, runner=None):
+        received.append(runner.workers)
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
+    monkeypatch.setattr(imitation, "run", run_with_runner)
+    argv = ("study", "run", "imitation", "--out", str(tmp_path))
+    assert run_cli(capsys, *argv)[0] == 0
+    code, _, err = run_cli(capsys, *argv, "--workers", "100000")
+    assert (code, received) == (0, [4, 4])
+    assert err == (
+        "warning: workers=100000 is more than this machine's 4 cores; using 4 (more processes "
+        "than cores only share them)\n"
+    )
 
 
 def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path):
@@ -178,6 +207,73 @@ def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path)
     assert (code, err) == (130, f"interrupted: {tmp_path / 'imitation'} left unchanged\n")
     assert contents(tmp_path / "imitation") == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["imitation"]
+
+
+def test_a_second_run_into_the_same_out_is_refused_before_writing(capsys, monkeypatch, tmp_path):
+    """Another process holds --out (flock on the folder, taken here by a plain script): the
+    run is refused with one line and exit 2, writes nothing and starts no study (once two
+    runs at once mixed one seed's metrics with the other's figures). Once it is gone, the
+    run goes ahead."""
+    from studies import imitation
+
+    seeds = []
+    monkeypatch.setattr(imitation, "run", fake_run(seeds))
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import fcntl, os, sys, time\n"
+            f"fd = os.open({str(tmp_path)!r}, os.O_RDONLY)\n"
+            "fcntl.flock(fd, fcntl.LOCK_EX)\nprint('held', flush=True)\ntime.sleep(60)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout.readline() == "held\n"
+        code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (code, seeds, list(tmp_path.iterdir())) == (2, [], [])
+    assert err == (
+        f"dmpopt: error: --out {tmp_path} is being written by another dmpopt run (one run at "
+        "a time per output folder); wait for it to end or choose another --out\n"
+    )
+    assert run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))[0] == 0
+    assert seeds == [0]
+
+
+def test_two_runs_at_once_publish_one_complete_run(tmp_path):
+    """Two processes into one folder: while the first is inside staged_output (it waits for
+    a line on stdin there), the second is refused before writing; the folder then holds the
+    first run's files only."""
+    script = (
+        "import sys\n"
+        "from pathlib import Path\n"
+        "from studies.common import FolderInUse, staged_output\n"
+        "seed = sys.argv[1]\n"
+        "try:\n"
+        f"    with staged_output(Path({str(tmp_path)!r}) / 'study') as folder:\n"
+        "        (folder / 'figure.png').write_text(seed)\n"
+        "        print('inside', flush=True)\n"
+        "        sys.stdin.readline()\n"
+        "        (folder / 'metrics.json').write_text(seed)\n"
+        "except FolderInUse:\n"
+        "    sys.exit(3)\n"
+    )
+    environment = {**os.environ, "PYTHONPATH": str(REPO)}
+    pipes = {"stdin": subprocess.PIPE, "stdout": subprocess.PIPE, "text": True}
+    first = subprocess.Popen([sys.executable, "-c", script, "1"], env=environment, **pipes)
+    try:
+        assert first.stdout.readline() == "inside\n"
+        second = subprocess.run([sys.executable, "-c", script, "2"], env=environment, **pipes)
+        first.stdin.write("go\n")
+        first.stdin.close()
+        assert (first.wait(timeout=60), second.returncode, second.stdout) == (0, 3, "")
+    finally:
+        first.kill()
+    assert contents(tmp_path / "study") == {"figure.png": "1", "metrics.json": "1"}
 
 
 @pytest.mark.parametrize(

@@ -440,14 +440,37 @@ def test_failed_solve_can_raise(talos):
     assert error.value.stats.n_fallbacks == 1
 
 
+def test_states_are_checked_as_the_simulators_check_them(talos):
+    """A zero base quaternion is refused (once it was read as upright, with normal torques);
+    q and v as lists give the torques of arrays; a transition time must be a number."""
+    controller, _ = standing_controller(talos)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    expected = controller.compute_torques(q, v)
+    np.testing.assert_array_equal(controller.compute_torques(list(q), list(v)), expected)
+    q[3:7] = 0.0
+    with pytest.raises(InvalidInputError) as error:
+        controller.compute_torques(q, v)
+    assert str(error.value) == (
+        "q[3:7] of joint 'root_joint' has norm 0, expected a unit quaternion (x, y, z, w): pass "
+        "e.g. (0, 0, 0, 1) for no rotation, or pinocchio.normalize(model, q) if the orientation "
+        "is right but not scaled"
+    )
+    with pytest.raises(InvalidInputError) as error:
+        controller.remove_contact(talos.foot_frames[0], "0.2")
+    assert str(error.value) == (
+        "transition_time must be a finite number of seconds, got '0.2' (a str: pass a number)"
+    )
+    with pytest.raises(InvalidInputError) as error:
+        PostureTask(talos, "tail")
+    assert str(error.value).startswith("joints='tail' is not a joint group of 'talos_full'")
+
+
 def test_input_errors(talos, upper_body):
     """Wrong shapes and non-finite states are rejected with the expected sizes."""
     controller, _ = standing_controller(talos)
     with pytest.raises(ShapeError) as error:
         controller.compute_torques(np.zeros(50), np.zeros(50))
-    assert str(error.value) == (
-        "q and v have shapes (50,) and (50,), expected (51,) and (50,) for talos_full"
-    )
+    assert str(error.value) == "q has shape (50,), expected (51,) (the configuration of talos_full)"
     q = talos.reference_configuration.copy()
     q[10] = np.nan
     with pytest.raises(InvalidInputError):

@@ -2,16 +2,18 @@
 
 import dataclasses
 import errno
+import io as io_module
 import json
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 from problems import random_discrete, random_rhythmic
 
-from dmpopt import DiscreteDMP, FileFormatError, io, load, save
+from dmpopt import DiscreteDMP, FileFormatError, ResourceLimitError, io, load, save, validation
 
 DISCRETE = random_discrete(seed=5)
 
@@ -236,3 +238,75 @@ def test_a_version_2_file_with_a_former_name_is_refused(tmp_path):
     np.savez(path, **contents)
     with pytest.raises(FileFormatError, match=r"\['stiffness'\]"):
         load(path)
+
+
+def test_a_version_1_file_with_a_field_under_both_names_is_refused(tmp_path):
+    """time_constant (version 1) and tau (version 2) both present: one used to win silently."""
+    arrays = {"weights": np.ones((1, 2)), "start": [0.0], "goal": [1.0]}
+    arrays |= {"centres": np.array([0.2, 0.8]), "widths": np.array([5.0, 5.0])}
+    scalars = {"time_constant": 0.7, "tau": 0.9, "goal_scaling": "translation"}
+    path = _write_version_1(tmp_path / "v1.npz", "DiscreteDMP", scalars, arrays)
+    with pytest.raises(FileFormatError) as error:
+        load(path)
+    assert str(error.value) == (
+        f"{path} is a version 1 file holding both 'tau' and 'time_constant', two names of the "
+        "field 'tau'; keep one (version 1 wrote the former names only)"
+    )
+
+
+def _zip_of(path, members: dict, compression=zipfile.ZIP_DEFLATED):
+    """A zip of raw .npy bytes by name (np.savez's layout) written by hand."""
+    with zipfile.ZipFile(path, "w", compression) as archive:
+        for name, data in members.items():
+            archive.writestr(f"{name}.npy", data)
+    return path
+
+
+def _npy(array) -> bytes:
+    stream = io_module.BytesIO()
+    np.lib.format.write_array(stream, np.asarray(array))
+    return stream.getvalue()
+
+
+def test_a_file_inflating_beyond_the_memory_budget_is_refused_before_inflating(
+    tmp_path, monkeypatch
+):
+    """The budget lowered to 1 MiB and a 4 MiB array of zeros, deflated to a few kB: the zip
+    header's size (written by zipfile, the answer key) is refused before any array is read
+    (once, a 10 MB file that inflated to 4.8 GB ran a minute into a MemoryError)."""
+    monkeypatch.setattr(validation, "MEMORY_BUDGET", 2**20)
+    header = json.dumps({"format": "dmpopt-dmp", "version": 2, "class": "DiscreteDMP"})
+    members = {"header": _npy(np.array(header)), "weights": _npy(np.zeros(2**19))}
+    path = _zip_of(tmp_path / "bomb.npz", members)
+    with zipfile.ZipFile(path) as archive:
+        inflated = sum(member.file_size for member in archive.infolist())
+    assert path.stat().st_size < 20_000 and inflated > 2**22
+    reads = []
+    monkeypatch.setattr(np.lib.format, "read_array", lambda *a, **k: reads.append(a))
+    with pytest.raises(ResourceLimitError) as error:
+        load(path)
+    assert reads == []
+    assert str(error.value) == (
+        f"load({str(path)!r}) of 2 arrays needs about {inflated / 1024**3:.3g} GiB; dmpopt "
+        "allows at most 0.000977 GiB (dmpopt.validation.MEMORY_BUDGET): this is not a DMP file "
+        "dmpopt wrote; check where it came from"
+    )
+
+
+def test_an_array_header_claiming_more_than_its_entry_holds_is_refused(tmp_path):
+    """A .npy header announcing 10^11 floats in an entry of a few bytes: corrupt, refused
+    before numpy allocates the 800 GB it announces."""
+    stream = io_module.BytesIO()
+    npy_header = {"descr": "<f8", "fortran_order": False, "shape": (10**11,)}
+    np.lib.format.write_array_header_1_0(stream, npy_header)
+    stream.write(bytes(80))
+    header = json.dumps({"format": "dmpopt-dmp", "version": 2, "class": "DiscreteDMP"})
+    path = _zip_of(
+        tmp_path / "liar.npz", {"header": _npy(np.array(header)), "w": stream.getvalue()}
+    )
+    with pytest.raises(FileFormatError) as error:
+        load(path)
+    assert str(error.value) == (
+        f"{path} is corrupt: w.npy claims an array of (100000000000,) float64 (800000000000 "
+        f"bytes) in {len(stream.getvalue())} bytes"
+    )

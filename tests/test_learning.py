@@ -12,7 +12,7 @@ from dmpopt.learning import (
     EpisodicNAC,
     EpisodicReinforce,
     RewardTask,
-    ViaPoint,
+    ViaPointReward,
     enac_gradient,
     make_method,
     multi_dof_reaching_task,
@@ -582,19 +582,19 @@ BAD = {
         "delayed must be True or False",
     ),
     "via single": (
-        lambda t: RewardTask(t.dmp, dt=0.01, via_points=ViaPoint(0.1, (0.5,))),
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=ViaPointReward(0.1, (0.5,))),
         "via_points must be a sequence of ViaPoint",
     ),
     "via time": (
-        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.7, (0.5,)),)),
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPointReward(0.7, (0.5,)),)),
         r"via_points\[0\].time must be a finite number >= 0 and <= 0.5",
     ),
     "via position": (
-        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.1, (0.5, 1.0)),)),
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPointReward(0.1, (0.5, 1.0)),)),
         r"via_points\[0\].position has shape \(2,\), expected \(1,\)",
     ),
     "via weight": (
-        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPoint(0.1, (0.5,), -1.0),)),
+        lambda t: RewardTask(t.dmp, dt=0.01, via_points=(ViaPointReward(0.1, (0.5,), -1.0),)),
         r"via_points\[0\].weight must",
     ),
     "task size": (
@@ -739,7 +739,7 @@ def test_bad_inputs_name_the_argument(coarse, case):
 def test_values_on_the_bounds_are_accepted(coarse):
     """The bounds are inclusive where the messages say so."""
     RewardTask(coarse.dmp, duration=0.02, dt=0.01)
-    RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPoint(0.5, (0.5,), 0.0),), goal_weight=0.0)
+    RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPointReward(0.5, (0.5,), 0.0),), goal_weight=0.0)
     for rate in (0.0, 1.0):
         _pibb(coarse, decay=1.0, covariance_rate=rate)
     EpisodicNAC(coarse.policy_features, coarse.initial_weights, 1.0, n_rollouts=2, decay=0.0)
@@ -759,7 +759,7 @@ def test_per_step_rewards_with_jerk_and_via_point():
         velocity_weight=2.0,
         acceleration_weight=0.01,
         jerk_weight=1e-6,
-        via_points=(ViaPoint(0.2, (0.3,), 50.0),),
+        via_points=(ViaPointReward(0.2, (0.3,), 50.0),),
     )
     rng = np.random.default_rng(11)
     weights = 20 * rng.standard_normal((2, 1, task.n_basis))
@@ -1023,7 +1023,7 @@ def test_policy_features_are_the_command_derivative_at_each_state(coarse):
 
 def test_via_point_at_the_horizon_scores_the_last_sample(coarse):
     """A via point at t = T is rewarded on the last sample (written plainly)."""
-    task = RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPoint(0.5, (0.4,), 7.0),))
+    task = RewardTask(coarse.dmp, dt=0.01, via_points=(ViaPointReward(0.5, (0.4,), 7.0),))
     plans = task.rollouts(np.ones((1, 1, 10)))
     y, yd = plans[0, 0, -1, 0], plans[0, 1, -1, 0]
     expected = -7.0 * (y - 0.4) ** 2 - 1000 * (y - 1.0) ** 2 - yd**2
@@ -1034,3 +1034,39 @@ def test_via_point_at_the_horizon_scores_the_last_sample(coarse):
         r"closeness: ViaPointReward\(time, position, weight\)$",
     ):
         RewardTask(coarse.dmp, dt=0.01, via_points=(1,))
+
+
+def _one_update(cls, rule, scale, step_size=0.01):
+    rng = np.random.default_rng(0)
+    features = rng.normal(size=(20, 4))
+    optimizer = cls(
+        features, np.zeros((1, 4)), 0.5, n_rollouts=10, step_rule=rule, step_size=step_size, seed=1
+    )
+    noise = optimizer.ask().acceleration_noise[:, :, 0]
+    optimizer.tell(-np.sum((noise - 1.0) ** 2, axis=1) * scale)
+    return optimizer.mean
+
+
+@pytest.mark.parametrize("cls", [EpisodicNAC, EpisodicReinforce])
+def test_a_kl_step_does_not_depend_on_the_scale_of_the_returns(cls):
+    """Both gradients are linear in the returns and the KL rule normalises the step, so
+    returns times 2^990 (exact) give the same update bit for bit, and times 1e300 (each
+    return rounded to 2^-53 relative, a perturbation the update's linear map carries over,
+    amplified at most by the regression's condition number, below 1e3 here) to 1e-12; once
+    the update became 0 silently (its curvature overflowed)."""
+    reference = _one_update(cls, "kl", 1.0)
+    assert np.all(reference != 0.0)
+    np.testing.assert_array_equal(_one_update(cls, "kl", 2.0**990), reference)
+    np.testing.assert_allclose(_one_update(cls, "kl", 1e300), reference, rtol=1e-12)
+    scaled = _one_update(cls, "constant", 2.0**-20)  # a constant step scales with the returns
+    np.testing.assert_array_equal(scaled * 2.0**20, _one_update(cls, "constant", 1.0))
+
+
+def test_a_constant_step_beyond_the_float_range_is_refused():
+    with pytest.raises(InvalidInputError) as error:
+        _one_update(EpisodicNAC, "constant", 1e306, step_size=1e10)
+    assert str(error.value).startswith("the update overflows: returns up to ")
+    assert str(error.value).endswith(
+        " times step_size = 1e+10 (step_rule='constant') exceed the float range; rescale the "
+        "rewards or lower step_size"
+    )

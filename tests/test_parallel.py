@@ -122,3 +122,116 @@ def test_robot_models_survive_the_trip_to_a_worker():
     assert [inertia.mass for inertia in copy.model.inertias] == masses
     np.testing.assert_array_equal(copy.torque_limit, biped.torque_limit)
     assert copy.foot_frames == biped.foot_frames and copy.base == "planar"
+
+
+def test_workers_beyond_the_cores_are_cut_to_them_with_a_warning():
+    """Runner(workers=10**6) once started one process per queued run."""
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    with pytest.warns(UserWarning) as record:
+        runner = Runner(workers=10**6, progress=False)
+    assert [str(w.message) for w in record] == [
+        f"workers=1000000 is more than this machine's {cores} cores; using {cores} (more "
+        "processes than cores only share them)"
+    ]
+    assert runner.workers == cores
+
+
+def _pid(_) -> int:
+    import os
+
+    return os.getpid()
+
+
+def test_a_pool_starts_no_more_processes_than_runs():
+    import multiprocessing
+
+    with Runner(workers=2, progress=False) as runner:
+        if runner.workers < 2:
+            pytest.skip("one core: no pool")
+        assert len(set(map_runs(_pid, [0], runner))) == 1
+        assert len(multiprocessing.active_children()) == 1
+        map_runs(_pid, [0, 1, 2, 3], runner)  # more runs: the pool grows to the workers
+        assert len(multiprocessing.active_children()) == 2
+
+
+class _Holder:
+    def __init__(self):
+        import threading
+
+        self.lock = threading.Lock()
+
+    def __call__(self, x):
+        return x
+
+
+def test_what_cannot_reach_a_worker_is_refused_before_any_run():
+    """A lambda, a nested function, a lock: once multiprocessing's pickle traceback mid-run."""
+    import threading
+
+    def nested(x):
+        return x
+
+    runner = Runner(workers=2, progress=False)
+    if runner.workers < 2:
+        pytest.skip("one core: runs stay in this process")
+    where = "worker processes (workers=2)"
+    here = "test_what_cannot_reach_a_worker_is_refused_before_any_run"
+    fix = (
+        "define it with def at the top level of a module (not a lambda or a nested function, "
+        "and holding no lock or open file), or run in series with Runner(workers=1)"
+    )
+    cases = [
+        (lambda x: x, f"{here}.<locals>.<lambda>", "Can't pickle local object"),
+        (nested, f"{here}.<locals>.nested", "Can't pickle local object"),
+        (_Holder(), "_Holder", "cannot pickle '_thread.lock' object"),
+    ]
+    for function, name, reason in cases:
+        with pytest.raises(InvalidInputError) as error:
+            map_runs(function, [1, 2], runner)
+        message = str(error.value)
+        assert message.startswith(f"function {name} cannot be sent to {where} (")
+        assert reason in message and message.endswith(f"); {fix}")
+    with pytest.raises(InvalidInputError) as error:
+        map_runs(_pid, [1, threading.Lock()], runner)
+    assert str(error.value) == (
+        f"inputs[1] cannot be sent to {where} (TypeError: cannot pickle '_thread.lock' object); "
+        "pass plain data (numbers, arrays, strings, dataclasses of them), or run in series "
+        "with Runner(workers=1)"
+    )
+    assert runner._pool is None  # refused before a process started
+
+
+def _sleep_then_mark(path):
+    import time
+    from pathlib import Path
+
+    time.sleep(0.3)
+    Path(path).touch()
+
+
+def test_ctrl_c_cancels_the_queued_runs_and_stops_the_running_ones(tmp_path):
+    """KeyboardInterrupt once a first run has finished: no run finishes afterwards (once,
+    every queued run ran first, 90 s)."""
+    import _thread
+    import threading
+    import time
+
+    runner = Runner(workers=2, progress=False)
+    if runner.workers < 2:
+        pytest.skip("one core: runs stay in this process")
+    marks = [tmp_path / f"{k}.done" for k in range(40)]
+
+    def interrupt_after_a_first_run():
+        while not any(mark.exists() for mark in marks):
+            time.sleep(0.01)
+        _thread.interrupt_main()
+
+    threading.Thread(target=interrupt_after_a_first_run, daemon=True).start()
+    with pytest.raises(KeyboardInterrupt):
+        map_runs(_sleep_then_mark, [str(mark) for mark in marks], runner)
+    finished = sorted(tmp_path.iterdir())
+    assert runner._pool is None
+    time.sleep(1.0)  # over three runs' length: a run still going or queued would finish now
+    assert sorted(tmp_path.iterdir()) == finished and len(finished) < 10

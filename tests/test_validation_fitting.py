@@ -575,6 +575,22 @@ def test_uniform_time_scaling_of_a_motionless_trajectory_is_refused():
         uniform_time_scaling(still, velocity_limit=1.0)
 
 
+@pytest.mark.parametrize("value", [0.3, -7.0, 0.0])
+def test_a_constant_path_with_rounding_velocities_is_refused_as_retime_refuses_it(value):
+    """Positions constant, velocities and accelerations from finite differences (rounding,
+    once a factor of 5.7e-14): the same refusal as retime's."""
+    times = np.linspace(0.0, 1.0, 50)
+    still = Trajectory.from_positions(times, np.c_[np.full(50, value), np.full(50, 2 * value)])
+    message = (
+        "trajectory neither moves nor accelerates, so every time scaling respects the limits "
+        "and there is no smallest factor"
+    )
+    for call in (uniform_time_scaling, retime):
+        with pytest.raises(InvalidInputError) as error:
+            call(still, [1.0, 1.0], [1.0, 1.0])
+        assert str(error.value) == message
+
+
 def test_constrained_fit_holds_a_finite_end_tolerance_and_refuses_nan():
     """A finite tolerance bounds |y(T) - g|; NaN, which read as 'no limit', is refused."""
     _, report = fit(end_position_tolerance=1e-3)
@@ -637,13 +653,16 @@ def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):
 
 def test_the_learning_via_point_is_a_reward_term_under_its_own_name():
     """A task's via-point is a weighted reward, not the fit's hard ViaPoint: it is called
-    ViaPointReward; the former name dmpopt.learning.ViaPoint still resolves, with a warning."""
-    import dmpopt
+    ViaPointReward; the former name dmpopt.learning.ViaPoint (deprecated in 0.1.0) is gone,
+    and asking for it names both classes."""
     from dmpopt import learning
 
-    with pytest.warns(DeprecationWarning, match="ViaPointReward"):
-        former = learning.ViaPoint
-    assert former is learning.ViaPointReward and former is not dmpopt.ViaPoint
+    with pytest.raises(AttributeError) as error:
+        learning.ViaPoint  # noqa: B018
+    assert str(error.value) == (
+        "dmpopt.learning has no ViaPoint: a rewarded point of a task is ViaPointReward, the "
+        "hard constraint of a fit is dmpopt.ViaPoint"
+    )
     with pytest.raises(AttributeError, match="ViaPointt"):
         learning.ViaPointt  # noqa: B018
     task = via_point_task(via_time=0.2, via_position=(0.3, 0.6), dt=0.01)

@@ -9,6 +9,7 @@ contact-switching API (``remove_contact`` with a normal-force ramp, ``add_contac
 from __future__ import annotations
 
 import math
+import numbers
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Sequence
@@ -17,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
+from dmpopt.validation import real_array
 
 from .inverse_dynamics import ContactSetQP, ControllerStats, _check_items, _check_positive
 from .joint_impedance import JointImpedance
@@ -26,6 +28,8 @@ __all__ = ["InverseDynamicsController"]
 
 # Contact-set QPs kept at most (least recently used dropped): a walking gait meets four.
 _CACHE_SIZE = 16
+UNIT_NORM_TOLERANCE = 1e-3
+"""Largest accepted deviation from 1 of the norm of a state's quaternions (the simulators')."""
 
 
 @dataclass
@@ -64,13 +68,11 @@ def _duration(value) -> float:
 
 
 def _time(value, name: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        number = math.nan
-    if isinstance(value, bool) or not math.isfinite(number):
-        raise InvalidInputError(f"{name} must be a finite number of seconds, got {value!r}")
-    return number
+    real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+    if not (real and math.isfinite(value)):
+        kind = f" (a {type(value).__name__}: pass a number)" if not real else ""
+        raise InvalidInputError(f"{name} must be a finite number of seconds, got {value!r}{kind}")
+    return float(value)
 
 
 class InverseDynamicsController:
@@ -460,6 +462,7 @@ class InverseDynamicsController:
         ndarray, shape (n_actuated,)
             Torques of the actuated joints [N m], within the torque limits, always finite.
         """
+        q, v = self._check_state(q, v)
         if self._ramps:
             self._advance_transitions(t)
         elif t is not None:
@@ -471,6 +474,40 @@ class InverseDynamicsController:
             return torques
         current = self._current
         return self.joint_impedance.torques(q, v, current.joint_accelerations, torques)
+
+    def _check_state(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` and ``v`` (arrays or lists) as float arrays of the model's sizes, with unit
+        quaternions and unit complex numbers as the simulators require (a norm within
+        :data:`UNIT_NORM_TOLERANCE` of 1). Float arrays of the right shapes pass as they are
+        (the tick checks that they are finite)."""
+        model = self.model
+        name = self.robot.name
+        if not (isinstance(q, np.ndarray) and q.dtype == np.float64 and q.shape == (model.nq,)):
+            q = real_array("q", q, shape=(model.nq,), expected=f"the configuration of {name}")
+        if not (isinstance(v, np.ndarray) and v.dtype == np.float64 and v.shape == (model.nv,)):
+            v = real_array("v", v, shape=(model.nv,), expected=f"the velocity of {name}")
+        if pin.isNormalized(model, q, UNIT_NORM_TOLERANCE):
+            return q, v
+        if not np.isfinite(q).all():
+            raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
+        for joint in model.joints[1:]:
+            if joint.nq == joint.nv or joint.shortname() == "JointModelComposite":
+                continue
+            size = 4 if joint.shortname() in ("JointModelFreeFlyer", "JointModelSpherical") else 2
+            block = slice(joint.idx_q + joint.nq - size, joint.idx_q + joint.nq)
+            norm = np.linalg.norm(q[block])
+            if abs(norm - 1.0) > UNIT_NORM_TOLERANCE:
+                unit = "quaternion (x, y, z, w)" if size == 4 else "complex number (cos, sin)"
+                identity = "(0, 0, 0, 1)" if size == 4 else "(1, 0)"
+                raise InvalidInputError(
+                    f"q[{block.start}:{block.stop}] of joint {model.names[joint.id]!r} has norm "
+                    f"{norm:.4g}, expected a unit {unit}: pass e.g. {identity} for no rotation, "
+                    "or pinocchio.normalize(model, q) if the orientation is right but not scaled"
+                )
+        raise InvalidInputError(
+            "q has a non-unit quaternion or complex number inside a composite joint; pass a "
+            "normalised configuration (pinocchio.normalize(model, q))"
+        )
 
     # ------------------------------------------------------------------ results
     @property

@@ -189,7 +189,7 @@ class PostureTask(Task):
 
     def __init__(self, robot, joints=None, weight: float = 1.0, stiffness=10.0, damping=None):
         joints = robot.actuated_joint_names if joints is None else joints
-        # the indices first: an unknown group gets the robot's error naming its groups
+        # first: it names an unknown group or joint (the group lookup below raised KeyError)
         self.velocity_indices = np.asarray(robot.velocity_indices(joints), dtype=np.int64)
         self.joint_names = (
             tuple(robot.joint_groups[joints]) if isinstance(joints, str) else (tuple(joints))

@@ -192,7 +192,10 @@ def fit_discrete(
         Ridge weight relative to the mean diagonal of the normal equations.
     alpha_z, alpha_v : float
         :math:`\\alpha_z` of eq. (5) or (10) and :math:`\\alpha_v` of eq. (6) (each
-        :math:`\\beta = \\alpha / 4`).
+        :math:`\\beta = \\alpha / 4`), with ``alpha_v >= alpha_z / 50``
+        (:data:`dmpopt.dmp.MAX_PHASE_SLOWDOWN`); a smaller ``alpha_v`` lengthens the default
+        plan (:attr:`~dmpopt.DiscreteDMP.settling_time`), which lasts until the phase too is
+        at rest.
     """
     demo = _check_demo(demo)
     method = _check_method(method)

@@ -50,15 +50,10 @@ __all__ = [
 
 
 def __getattr__(name):
-    """``ViaPoint``: the former name of :class:`ViaPointReward`, kept with a warning."""
+    """No ``ViaPoint`` here: an AttributeError that names the two classes it could mean."""
     if name == "ViaPoint":
-        import warnings
-
-        warnings.warn(
-            "dmpopt.learning.ViaPoint is now ViaPointReward (a rewarded point; the hard "
-            "constraint of a fit is dmpopt.ViaPoint)",
-            DeprecationWarning,
-            stacklevel=2,
+        raise AttributeError(
+            "dmpopt.learning has no ViaPoint: a rewarded point of a task is ViaPointReward, "
+            "the hard constraint of a fit is dmpopt.ViaPoint"
         )
-        return ViaPointReward
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

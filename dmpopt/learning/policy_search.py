@@ -292,17 +292,27 @@ class _ActionSpaceGradient(PolicySearch):
 
     def tell(self, rewards) -> None:
         noise, returns = self._pending_returns(rewards)
-        direction = self.direction(self.scores(noise), returns)
+        # both gradients are linear in the returns: compute them for returns scaled into
+        # [-1, 1] by a power of two (exact), so that returns near the float range do not
+        # overflow the direction and its curvature (a KL step then silently became 0)
+        scale = float(np.ldexp(1.0, int(np.frexp(np.max(np.abs(returns)))[1])))
+        direction = self.direction(self.scores(noise), returns / scale)
         if not np.ptp(returns) > 0.0:
             # equal returns carry no gradient; the KL rule would scale round-off to a full step
             direction = np.zeros_like(direction)
-        if self.step_rule == "kl":
+        if self.step_rule == "kl":  # the step does not depend on the scale of the returns
             curvature = float(direction @ self.fisher() @ direction)
             step = np.sqrt(2.0 * self.step_size / curvature) if curvature > 0 else 0.0
         else:
-            step = self.step_size
+            step = self.step_size * scale
         step /= 1.0 + self.decay * self.n_updates
         change = step * direction
+        if not np.all(np.isfinite(change)):
+            raise InvalidInputError(
+                f"the update overflows: returns up to {np.max(np.abs(returns)):.3g} times "
+                f"step_size = {self.step_size:g} (step_rule='constant') exceed the float range; "
+                "rescale the rewards or lower step_size"
+            )
         n = self._weights.size
         self._weights = self._weights + change[:n].reshape(self._weights.shape)
         if self.learn_exploration:

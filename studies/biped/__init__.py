@@ -170,7 +170,7 @@ def _summary(log: WalkLog, mass: float) -> dict:
         "cost_of_transport": cost_of_transport(log, mass),
         "real_time_factor_cpu": log.duration / log.cpu_time,
         "qp_holds": log.holds,
-        "ticks_over_5ms": log.ticks_over_5ms,
+        "ticks_over_budget": log.ticks_over_budget,
         "tick_us_max": log.tick_us_max,
     }
 

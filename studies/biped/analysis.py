@@ -150,7 +150,7 @@ def _survived(job: tuple) -> tuple[bool, int, int, float]:
     walker survived, its QP hold answers, its ticks over 5 ms and its slowest tick [us]."""
     rule, walk_options = job
     log = walk(**walk_options)
-    return rule.survived(log), log.holds, log.ticks_over_5ms, log.tick_us_max
+    return rule.survived(log), log.holds, log.ticks_over_budget, log.tick_us_max
 
 
 def survival_by_arm(
@@ -205,7 +205,7 @@ def survival_by_arm(
             "n": n,
             "outcomes": outcomes,
             "qp_holds": int(sum(run[1] for run in runs)),
-            "ticks_over_5ms": int(sum(run[2] for run in runs)),
+            "ticks_over_budget": int(sum(run[2] for run in runs)),
             "tick_us_max": float(max(run[3] for run in runs)),
         }
     return results

@@ -132,7 +132,7 @@ class WalkLog:
     wall_time: float = 0.0  # [s]
     cpu_time: float = 0.0  # [s] process time, insensitive to other load on the machine
     holds: int = 0  # QP ticks that gave the hold answer (no solution)
-    ticks_over_5ms: int = 0  # controller ticks over the real-time budget (thread CPU time)
+    ticks_over_budget: int = 0  # controller ticks over the real-time budget (thread CPU time)
     tick_us_max: float = 0.0  # the slowest controller tick (thread CPU time) [us]
     distance: float = 0.0  # [m]
 
@@ -391,7 +391,7 @@ def walk(
     log.wall_time = time.perf_counter() - start
     if controller == "qp":
         log.holds = law.controller.stats.n_fallbacks
-    log.ticks_over_5ms, log.tick_us_max = int(slow), slowest
+    log.ticks_over_budget, log.tick_us_max = int(slow), slowest
     log.cpu_time = time.process_time() - cpu_start
     log.positive_work, log.absolute_work = DT * positive_work, DT * absolute_work
     log.duration = sim.t

@@ -51,7 +51,7 @@ def summary(log: RunLog) -> dict:
         "torque_limited_fraction": log.n_torque_limited / log.times.size,
         "torque_limit_use_max": float(log.torque_use.max()),
         "qp_holds": log.n_fallbacks,
-        "ticks_over_5ms": _slow_ticks(log),
+        "ticks_over_budget": _slow_ticks(log),
         "tick_us_max": float(log.tick_cpu_us.max()),
     }
 
@@ -137,7 +137,7 @@ def push_search(attempt, ladder, bisections: int) -> dict:
                     "fell": log.fell,
                     "diverged": log.diverged,
                     "qp_holds": log.n_fallbacks,
-                    "ticks_over_5ms": _slow_ticks(log),
+                    "ticks_over_budget": _slow_ticks(log),
                 }
             )
         return [(log, log.fell or log.diverged is not None) for log in logs]

@@ -288,6 +288,10 @@ def _contact_runs(log: WalkLog, plan, foot: int):
     ]
 
 
+def _statistic(function, values, *args) -> float | None:
+    return float(function(values, *args)) if values.size else None
+
+
 def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
     r"""What a reader needs to judge the walk.
 
@@ -355,8 +359,9 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
         "tick_us_median": float(np.median(log.tick_cpu_us)),
         "tick_us_p99": float(np.percentile(log.tick_cpu_us, 99)),
         "tick_us_max": float(log.tick_cpu_us.max()),
-        "tick_us_single_support_median": float(np.median(log.tick_cpu_us[single])),
-        "tick_us_single_support_p99": float(np.percentile(log.tick_cpu_us[single], 99)),
+        # None when the walk ended before its first single support (a sweep's failing plant)
+        "tick_us_single_support_median": _statistic(np.median, log.tick_cpu_us[single]),
+        "tick_us_single_support_p99": _statistic(np.percentile, log.tick_cpu_us[single], 99),
         "ticks_over_2ms": int(np.count_nonzero(log.tick_cpu_us > 2000)),
         "real_time_factor": float((t[-1] + DT) / wall),
         "step_length_m": STEP_LENGTH,

@@ -406,12 +406,12 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
 
 def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run):
     """Four rows with every column, their numbers formatted from the metrics; a caption for
-    each figure written (the quick run writes no video)."""
+    each figure written, the plant sweep's among them (the quick run writes no video)."""
     from studies.report import COLUMNS
 
     folder, quick = quick_run
     figures = {path.stem for path in folder.glob("*.png")}
-    assert len(figures) == 4 and figures <= set(quick["captions"])
+    assert len(figures) == 5 and figures <= set(quick["captions"])
     rows = quick["summary"]
     assert len(rows) == 4 and all(set(row) == set(COLUMNS) for row in rows)
     walk = quick["main_walk"]
@@ -454,3 +454,15 @@ def test_convergence_verdict_needs_every_start_settled_and_within_5_percent(
     row = _convergence_row(metrics)
     assert row["verdict"] == verdict
     assert " / ".join(str(n) for n in steps.values()) in row["dmpopt"]
+
+
+def test_quick_study_walks_on_the_realistic_plant(quick):
+    """The main QP walk runs on the realistic plant (docs/plant.md) and walks its 10 s; the
+    ideal plant's walk is beside it, and the plant sweep records steps and falls per value."""
+    real, ideal = quick["plant_realistic"], quick["plant_ideal"]
+    assert real["parameters"]["name"] == "biped_realistic" and real["parameters"]["delay_ticks"]
+    assert real["fell"] is False and real["steps_walked"] == quick["steps_walked"] >= 15
+    assert ideal["fell"] is False and ideal["steps_walked"] >= 15
+    (case,) = quick["plant_sweep"]["armature"]
+    assert case["value"] == 3.0 and set(case) == {"value", "steps", "fell", "simulated_s"}
+    assert quick["frequency_by_start_plant"] == quick["trials_plant"] == "ideal"

@@ -163,4 +163,9 @@ def captions(metrics: dict) -> dict:
             f"{walk['speed_m_per_s']:.2f} m/s: torso, thighs and shanks, point feet."
         ),
         "biped_walking": "The last seconds of the QP walk in MuJoCo.",
+        "plant_sweep": (
+            "The QP walk on the realistic plant with one plant parameter changed at a time "
+            "(armature, damping, friction and noise x the preset, delay in ticks, the model's "
+            "link masses x a factor): heel strikes in the sweep's walk; red crosses fell."
+        ),
     }

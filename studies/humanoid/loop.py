@@ -28,6 +28,7 @@ class RunLog:
     base: np.ndarray  # (n, 6) pelvis position [m] and roll, pitch, yaw [rad]
     com: np.ndarray  # (n, 3) [m]
     torque_use: np.ndarray  # (n_actuated,) max over the run of |tau| / limit
+    qp_torque_use: np.ndarray  # (n_actuated,) the same of the QP's torques (before a joint loop)
     torque_peak: np.ndarray  # (n,) max over the joints of |tau| / limit, each tick
     tick_wall_us: np.ndarray  # (n,) compute_torques, wall clock
     tick_cpu_us: np.ndarray  # (n,) compute_torques, CPU time of the thread
@@ -90,6 +91,7 @@ def _closed_loop(
     tick_wall = np.empty(n)
     tick_cpu = np.empty(n)
     torque_use = np.zeros(robot.n_actuated)
+    qp_torque_use = np.zeros(robot.n_actuated)
     torque_peak = np.empty(n)
     ratio = np.empty(robot.n_actuated)
     limit = np.asarray(robot.torque_limit)
@@ -108,6 +110,8 @@ def _closed_loop(
         np.divide(np.abs(tau), limit, out=ratio)
         np.maximum(torque_use, ratio, out=torque_use)
         torque_peak[k] = ratio.max()
+        np.divide(np.abs(getattr(controller, "torques", tau)), limit, out=ratio)
+        np.maximum(qp_torque_use, ratio, out=qp_torque_use)
         actual[k] = measure(state.q, data)
         if robot.floating_base:
             base[k, :3] = state.q[:3]
@@ -133,6 +137,7 @@ def _closed_loop(
         base=base[:n],
         com=com[:n],
         torque_use=torque_use,
+        qp_torque_use=qp_torque_use,
         torque_peak=torque_peak[:n],
         tick_wall_us=tick_wall[:n] / 1e3,
         tick_cpu_us=tick_cpu[:n] / 1e3,

@@ -54,7 +54,7 @@ CONTROLLER_FRICTION = (
 )
 FRICTIONS = (0.4, 0.7)  # floor friction of the low-friction scenarios (1.0 is the nominal run)
 LINK_MASS_SCALES = (0.9, 1.1)  # every link of the controller's model, mass and inertia
-TIGHT_TORQUE = 0.8  # torque limits at this fraction of the nominal run's peak torque use
+TIGHT_TORQUE = 0.8  # torque limits at this fraction of the nominal run's peak QP torque use
 PUSH_TIME = 0.5  # [s] when the push on the pelvis starts
 PUSH_DURATION = 0.1  # [s] the impulse is spread over this time
 PUSH_LADDER = (10.0, 20.0, 30.0, 40.0, 60.0, 80.0)  # [N s] forward impulses tried, in order

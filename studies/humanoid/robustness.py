@@ -167,7 +167,7 @@ def mujoco_scenarios(dmps, nominal: RunLog, quick: bool, compile: bool, runner=N
     """
     mode = "quick" if quick else "full"
     base = Scenario(dmps, SCENARIO_SECONDS[mode], compile)
-    tight = TIGHT_TORQUE * float(nominal.torque_use.max())
+    tight = TIGHT_TORQUE * float(nominal.qp_torque_use.max())  # the QP's own, before the joint loop
     names = [f"link_masses_x{scale:g}" for scale in LINK_MASS_SCALES]
     names += [f"friction_{friction:g}" for friction in FRICTIONS] + ["tight_torque_limits"]
     runs = [replace(base, mass_scale=scale) for scale in LINK_MASS_SCALES]

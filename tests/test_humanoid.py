@@ -261,15 +261,16 @@ def test_quick_realistic_plant_is_tracked_and_the_rigid_controller_is_not(quick)
 
 def test_quick_ablations_show_what_each_part_does(quick):
     """Without the pelvis task the pelvis rolls more (measured 2x on the realistic plant, where
-    the joint loop holds the legs; 11x on the ideal plant with the rigid-body controller); with
-    arms 10 % too heavy in the controller's model tracking degrades by two orders of
-    magnitude, still standing."""
+    the joint loop holds the legs; 11x on the ideal plant with the rigid-body controller); arms
+    10 % too heavy in the controller's model, which degraded the rigid-body controller's
+    tracking by two orders of magnitude, change it by less than 2x with the joint loop
+    (measured 1.0x), still standing."""
     _, metrics = quick
     roll = metrics["base_roll_pitch_yaw_ptp_deg"][0]
     assert metrics["without_base_task"]["base_roll_pitch_yaw_ptp_deg"][0] > 1.5 * roll
     wrong = metrics["with_arm_mass_error"]
     assert wrong["fell"] is False
-    assert wrong["tracking_rms_rad"] > 50 * metrics["tracking_rms_rad"]
+    assert wrong["tracking_rms_rad"] < 2 * metrics["tracking_rms_rad"]
 
 
 def test_quick_mujoco_scenarios_hold(quick):
@@ -293,9 +294,15 @@ def test_quick_mujoco_scenarios_hold(quick):
     assert tight["torque_limit_use_max"] <= tight["scale_of_urdf_limits"] + 1e-6
     assert tight["scale_of_urdf_limits"] < mujoco["torque_limit_use_max"]
     tried = [(row["impulse_ns"], row["fell"]) for row in mujoco["push_tried_ns"]]
-    assert tried == [(10.0, False), (60.0, True)]
-    assert (mujoco["push_survived_ns"], mujoco["push_fell_ns"]) == (10.0, 60.0)
-    assert "only a lower bound" not in mujoco["push_note"]
+    assert [impulse for impulse, _ in tried] == [10.0, 60.0] and tried[0] == (10.0, False)
+    survived = max(impulse for impulse, fell in tried if not fell)
+    fatal = [impulse for impulse, fell in tried if fell]
+    assert mujoco["push_survived_ns"] == survived  # 60 N s on the realistic plant (was 10)
+    if fatal:
+        assert mujoco["push_fell_ns"] == min(fatal) > survived
+        assert "only a lower bound" not in mujoco["push_note"]
+    else:  # a capped search is a bound, and says so
+        assert mujoco["push_fell_ns"] is None and "only a lower bound" in mujoco["push_note"]
 
 
 def test_quick_run_writes_its_outputs(quick):

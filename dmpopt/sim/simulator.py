@@ -234,9 +234,16 @@ class Simulator(Backend):
         lowest contact point in the neutral configuration (straight legs) as standing height;
         without contact points only ``fall_height``, if given, is checked; a fixed base never
         falls. A :class:`FallDetector` sets the thresholds; ``False`` switches the checks off.
+    plant : PlantParameters
+        Joint armature, damping and Coulomb friction, torque saturation, delay and sensor noise
+        (:mod:`dmpopt.sim.plant`); default :data:`~dmpopt.sim.IDEAL`, the model itself. Coulomb
+        friction is regularised (see :meth:`_set_plant`) and damping explicit: a damping too
+        stiff for ``dt`` is refused.
 
     Attributes
     ----------
+    plant : PlantRuntime
+        The plant's delay line and noise generator.
     fall_detector : FallDetector or None
         The thresholds in use (None: no fall checks).
     fall : Fall or None

@@ -250,3 +250,28 @@ def vector(name: str, value, size: int, reference: str) -> np.ndarray:
     if array.shape != (size,):
         raise ShapeError(f"{name} has shape {array.shape}, expected ({size},) to match {reference}")
     return array
+
+
+def unit_rotation_blocks(model, q: np.ndarray, tolerance: float) -> list[slice]:
+    """The slices of ``q`` that hold a unit quaternion (free flyer, spherical joint; order x, y,
+    z, w) or a unit complex number (planar, unbounded revolute joints), each checked: a norm
+    more than ``tolerance`` from 1 raises :class:`InvalidInputError` naming the joint and the
+    fix. Composite joints are left to the caller (``pinocchio.isNormalized``)."""
+    blocks = []
+    for joint_id in range(1, model.njoints):
+        joint = model.joints[joint_id]
+        if joint.nq == joint.nv or joint.shortname() == "JointModelComposite":
+            continue
+        size = 4 if joint.shortname() in ("JointModelFreeFlyer", "JointModelSpherical") else 2
+        block = slice(joint.idx_q + joint.nq - size, joint.idx_q + joint.nq)
+        norm = np.linalg.norm(q[block])
+        if abs(norm - 1.0) > tolerance:
+            unit = "quaternion (x, y, z, w)" if size == 4 else "complex number (cos, sin)"
+            identity = "(0, 0, 0, 1)" if size == 4 else "(1, 0)"
+            raise InvalidInputError(
+                f"q[{block.start}:{block.stop}] of joint {model.names[joint_id]!r} has norm "
+                f"{norm:.4g}, expected a unit {unit}: pass e.g. {identity} for no rotation, "
+                "or pinocchio.normalize(model, q) if the orientation is right but not scaled"
+            )
+        blocks.append(block)
+    return blocks

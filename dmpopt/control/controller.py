@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.validation import real_array
+from dmpopt.validation import real_array, unit_rotation_blocks
 
 from .inverse_dynamics import ContactSetQP, ControllerStats, _check_items, _check_positive
 from .joint_impedance import JointImpedance
@@ -490,20 +490,7 @@ class InverseDynamicsController:
             return q, v
         if not np.isfinite(q).all():
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
-        for joint in model.joints[1:]:
-            if joint.nq == joint.nv or joint.shortname() == "JointModelComposite":
-                continue
-            size = 4 if joint.shortname() in ("JointModelFreeFlyer", "JointModelSpherical") else 2
-            block = slice(joint.idx_q + joint.nq - size, joint.idx_q + joint.nq)
-            norm = np.linalg.norm(q[block])
-            if abs(norm - 1.0) > UNIT_NORM_TOLERANCE:
-                unit = "quaternion (x, y, z, w)" if size == 4 else "complex number (cos, sin)"
-                identity = "(0, 0, 0, 1)" if size == 4 else "(1, 0)"
-                raise InvalidInputError(
-                    f"q[{block.start}:{block.stop}] of joint {model.names[joint.id]!r} has norm "
-                    f"{norm:.4g}, expected a unit {unit}: pass e.g. {identity} for no rotation, "
-                    "or pinocchio.normalize(model, q) if the orientation is right but not scaled"
-                )
+        unit_rotation_blocks(model, q, UNIT_NORM_TOLERANCE)
         raise InvalidInputError(
             "q has a non-unit quaternion or complex number inside a composite joint; pass a "
             "normalised configuration (pinocchio.normalize(model, q))"

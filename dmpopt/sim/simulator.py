@@ -36,12 +36,11 @@ from dmpopt.sim.falls import (
     refuse_floating_without_contacts,
 )
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
-from dmpopt.validation import real, real_array
+from dmpopt.validation import real, real_array, unit_rotation_blocks
 
 __all__ = ["Backend", "SimState", "Simulator", "TouchdownEvent"]
 
 _BASE_DOFS = {"JointModelFreeFlyer": 6, "JointModelPlanar": 3}
-_QUATERNION_JOINTS = ("JointModelFreeFlyer", "JointModelSpherical")
 UNIT_NORM_TOLERANCE = 1e-3  # quaternions this close to unit norm are renormalised at reset
 
 
@@ -478,22 +477,8 @@ class Simulator(Backend):
             expected="configuration: base pose then joint positions",
             labels=self._q_names,
         )
-        for joint_id in range(1, model.njoints):
-            joint = model.joints[joint_id]
-            if joint.nq == joint.nv or joint.shortname() == "JointModelComposite":
-                continue
-            size = 4 if joint.shortname() in _QUATERNION_JOINTS else 2
-            block = slice(joint.idx_q + joint.nq - size, joint.idx_q + joint.nq)
-            norm = np.linalg.norm(q[block])
-            if abs(norm - 1.0) > UNIT_NORM_TOLERANCE:
-                unit = "quaternion (x, y, z, w)" if size == 4 else "complex number (cos, sin)"
-                identity = "(0, 0, 0, 1)" if size == 4 else "(1, 0)"
-                raise InvalidInputError(
-                    f"q[{block.start}:{block.stop}] of joint {model.names[joint_id]!r} has norm "
-                    f"{norm:.4g}, expected a unit {unit}: pass e.g. {identity} for no rotation, "
-                    "or pinocchio.normalize(model, q) if the orientation is right but not scaled"
-                )
-            q[block] /= norm
+        for block in unit_rotation_blocks(model, q, UNIT_NORM_TOLERANCE):
+            q[block] /= np.linalg.norm(q[block])
         if not pin.isNormalized(model, q, UNIT_NORM_TOLERANCE):
             raise InvalidInputError(
                 "q has a non-unit quaternion or complex number inside a composite joint; pass a "

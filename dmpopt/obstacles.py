@@ -98,10 +98,12 @@ def _obstacles(obstacles, n_dims: int) -> tuple:
     return obstacles
 
 
-def _state(position, velocity, n_dims: int) -> tuple:
+def _state(obstacles, position, velocity) -> tuple:
+    """``position`` and ``velocity`` checked against the obstacles' dimension, and the speed."""
+    n_dims = obstacles[0].centre.size
     position = real_array("position", np.atleast_1d(position), shape=(n_dims,))
     velocity = real_array("velocity", np.atleast_1d(velocity), shape=(n_dims,))
-    return position, velocity
+    return position, velocity, float(np.linalg.norm(velocity))
 
 
 def _spheres(obstacles, kind: str) -> tuple:
@@ -156,10 +158,8 @@ class SteeringAngle:
 
     def __call__(self, position, velocity) -> np.ndarray:
         """The coupling term at ``position`` moving at ``velocity``, shape (n_dims,)."""
-        n_dims = self.obstacles[0].centre.size
-        position, velocity = _state(position, velocity, n_dims)
-        speed = np.linalg.norm(velocity)
-        term = np.zeros(n_dims)
+        position, velocity, speed = _state(self.obstacles, position, velocity)
+        term = np.zeros(position.size)
         if speed == 0.0:
             return term
         for obstacle in self.obstacles:
@@ -216,8 +216,8 @@ class PotentialField:
 
     def potential(self, position, velocity) -> float:
         """:math:`U` summed over the obstacles (``inf`` inside one)."""
-        position, velocity = _state(position, velocity, self.obstacles[0].centre.size)
-        speed, total = np.linalg.norm(velocity), 0.0
+        position, velocity, speed = _state(self.obstacles, position, velocity)
+        total = 0.0
         for obstacle in self.obstacles:
             x = position - obstacle.centre
             distance = np.linalg.norm(x)
@@ -231,10 +231,8 @@ class PotentialField:
 
     def __call__(self, position, velocity) -> np.ndarray:
         """The coupling term :math:`-\\nabla_y U` at ``position`` and ``velocity``."""
-        n_dims = self.obstacles[0].centre.size
-        position, velocity = _state(position, velocity, n_dims)
-        speed = np.linalg.norm(velocity)
-        term = np.zeros(n_dims)
+        position, velocity, speed = _state(self.obstacles, position, velocity)
+        term = np.zeros(position.size)
         if speed == 0.0:
             return term
         for obstacle in self.obstacles:

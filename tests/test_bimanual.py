@@ -8,6 +8,7 @@
 """
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -211,3 +212,35 @@ def test_jacobian_inverse_inverts_the_library_log_jacobian():
     for e in [rng.normal(size=3) for _ in range(5)] + [np.array([1e-6, -2e-6, 0.0])]:
         jacobian = orientation_function()(e, np.zeros(3), np.zeros(3), IDENTITY)[3].full()
         np.testing.assert_allclose(left_jacobian_inverse(e) @ jacobian, np.eye(3), atol=1e-9)
+
+
+def test_damping_acts_on_the_time_derivative_of_the_error():
+    """With stiffness 0 the left term is (1 - share) d times the rate of the error: compared
+    with central differences of e_p(t) and of R_e(t) (omega_e = vee(dR_e/dt R_e^T)) along
+    hands turning and moving at known rates (second-order differences, h = 1e-5 s: error
+    O(h^2) times the third derivative, below 1e-6 here)."""
+    rng = np.random.default_rng(6)
+    relative = random_rotation(rng)
+    coupling = RelativePoseCoupling(
+        rng.normal(size=3), relative, stiffness=0.0, damping=1.0, angular_stiffness=0.0,
+        angular_damping=1.0, share=0.0,
+    )  # fmt: skip
+    p0, v = [rng.normal(size=3) for _ in range(2)], [rng.normal(size=3) for _ in range(2)]
+    q0, w = [random_rotation(rng) for _ in range(2)], [rng.normal(size=3) for _ in range(2)]
+
+    def pose(i, t):  # constant world velocity and angular velocity
+        turn = matrix_quaternion(pin.exp3(w[i] * t) @ rotation_matrix(q0[i]))
+        return p0[i] + v[i] * t, turn
+
+    def error_rotation(t):
+        left, right = rotation_matrix(pose(0, t)[1]), rotation_matrix(pose(1, t)[1])
+        return right @ (left @ rotation_matrix(relative)).T
+
+    h = 1e-5
+    rate = (coupling.error(pose(0, h), pose(1, h))[0] - coupling.error(pose(0, -h), pose(1, -h))[0])
+    rate /= 2 * h
+    spin = (error_rotation(h) - error_rotation(-h)) / (2 * h) @ error_rotation(0.0).T
+    states = [(p0[i], v[i], q0[i], w[i]) for i in range(2)]
+    linear, angular, _, _ = coupling.accelerations(*states)
+    np.testing.assert_allclose(linear, rate, atol=1e-6)
+    np.testing.assert_allclose(angular, [spin[2, 1], spin[0, 2], spin[1, 0]], atol=1e-6)

@@ -70,7 +70,20 @@ HANDS = ("left", "right")
 def rotation_matrix(quaternion) -> np.ndarray:
     """The rotation matrix of a unit quaternion ``(w, x, y, z)``, shape (3, 3)."""
     w, x, y, z = quaternion
-    return pin.Quaternion(w, x, y, z).toRotationMatrix()
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _cross(a, b) -> np.ndarray:
+    """``a x b`` of two 3-vectors (NumPy's cross is slow on single vectors)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
 
 
 def matrix_quaternion(rotation: np.ndarray) -> np.ndarray:
@@ -191,7 +204,7 @@ class RelativePoseCoupling:
         left, right = rotation_matrix(q_left), rotation_matrix(q_right)
         arm = left @ self.relative_position
         error = p_right - p_left - arm
-        rate = v_right - v_left - np.cross(w_left, arm)
+        rate = v_right - v_left - _cross(w_left, arm)
         error_rotation = right @ (left @ rotation_matrix(self.relative_orientation)).T
         angle = pin.log3(error_rotation)
         angular_rate = w_right - error_rotation @ w_left

@@ -211,7 +211,12 @@ class RelativePoseCoupling:
         linear = self.stiffness * error + self.damping * rate
         angular = self.angular_stiffness * angle + self.angular_damping * angular_rate
         right_share, left_share = self.share, 1.0 - self.share
-        return left_share * linear, left_share * angular, -right_share * linear, -right_share * angular
+        return (
+            left_share * linear,
+            left_share * angular,
+            -right_share * linear,
+            -right_share * angular,
+        )
 
 
 def relative_pose_error(coupling: RelativePoseCoupling, left_pose, right_pose) -> tuple:
@@ -290,7 +295,7 @@ class BimanualStepper:
         return relative_pose_error(self.coupling, left[::2], right[::2])
 
     def _log_terms(self, hand: str, linear, angular) -> tuple[np.ndarray, np.ndarray]:
-        """Coupling inputs of one stepper: :math:`\\tau^2 a` and :math:`\\tau^2 J(e)^{-1}\\alpha`."""
+        """Coupling inputs of one stepper: :math:`\\tau^2 a`, :math:`\\tau^2 J(e)^{-1}\\alpha`."""
         stepper = self._stepper(hand)
         goal = rotation_matrix(self._goal_orientations[hand])
         log = pin.log3(rotation_matrix(stepper.orientation) @ goal.T)

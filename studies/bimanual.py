@@ -371,9 +371,8 @@ def plans_only(setup, coupled: bool, duration: float) -> dict:
             pair.set_goal("right", position=right_dmp.goal + NEW_GOAL_SHIFT)
         if k == left_change:
             pair.set_goal("left", position=left_dmp.goal + NEW_GOAL_SHIFT)
-        errors[k] = pair.relative_pose_error() if coupled else relative_pose_error(
-            coupling, *(pair.state(hand)[::2] for hand in ("left", "right"))
-        )
+        plans = [pair.state(hand)[::2] for hand in ("left", "right")]
+        errors[k] = relative_pose_error(coupling, *plans)
     return {
         "plan_relative_error_mm": 1e3 * float(errors[:, 0].max()),
         "plan_relative_error_deg": float(np.degrees(errors[:, 1].max())),

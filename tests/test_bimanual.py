@@ -88,9 +88,7 @@ def test_relative_position_error_solves_the_linear_system(seed, k, share):
         errors[i] = pair.right.position - pair.left.position - offset
         pair.step()
     times = np.arange(n) * dt
-    expected, rate, acceleration, c0 = closed_form(
-        times, e0, np.zeros(3), tau, k, coupling.damping
-    )
+    expected, rate, acceleration, c0 = closed_form(times, e0, np.zeros(3), tau, k, coupling.damping)
     # The coupling is held over each step (zero-order hold) while RK4 integrates the rest
     # (error O(dt^4), negligible): the held term differs from the continuous one by at most
     # dt * max|d/dt (k e + d de/dt)| = dt * max|k de/dt + d d2e/dt2| (from the closed form).
@@ -237,10 +235,47 @@ def test_damping_acts_on_the_time_derivative_of_the_error():
         return right @ (left @ rotation_matrix(relative)).T
 
     h = 1e-5
-    rate = (coupling.error(pose(0, h), pose(1, h))[0] - coupling.error(pose(0, -h), pose(1, -h))[0])
+    rate = coupling.error(pose(0, h), pose(1, h))[0] - coupling.error(pose(0, -h), pose(1, -h))[0]
     rate /= 2 * h
     spin = (error_rotation(h) - error_rotation(-h)) / (2 * h) @ error_rotation(0.0).T
     states = [(p0[i], v[i], q0[i], w[i]) for i in range(2)]
     linear, angular, _, _ = coupling.accelerations(*states)
     np.testing.assert_allclose(linear, rate, atol=1e-6)
     np.testing.assert_allclose(angular, [spin[2, 1], spin[0, 2], spin[1, 0]], atol=1e-6)
+
+
+def test_a_free_box_falls_freely_then_rests_on_the_floor():
+    """A FreeBox in the MuJoCo scene (dmpopt.sim.mujoco_backend) is a free body outside the
+    robot's coordinates: released 0.3 m above the floor it falls as z0 - g t^2 / 2 (MuJoCo
+    integrates gravity exactly up to the step's first-order error, g dt t = 1e-3 m here),
+    then rests with its centre at its half height (contact penetration of MuJoCo's soft
+    contact, below 2 mm for a 1 kg box); the robot's mass check ignores it and reset puts it
+    back."""
+    mujoco = pytest.importorskip("mujoco")
+    del mujoco
+    from dmpopt.sim.mujoco_backend import FreeBox, MujocoSimulator
+    from robots.biped import BIPED_URDF, load_biped
+
+    biped = load_biped()
+    half, start = 0.05, np.array([2.0, 0.0, 0.35])
+    box = FreeBox("box", (half, half, half), 1.0, tuple(start))
+    sim = MujocoSimulator(
+        biped.model, BIPED_URDF, contact_points=biped.contact_points, falls=False,
+        free_bodies=[box],
+    )  # fmt: skip
+    q = pin.neutral(biped.model)
+    sim.reset(q)
+    np.testing.assert_allclose(sim.free_body_qpos, [*start, 1.0, 0.0, 0.0, 0.0])
+    dt, g = sim.dt, 9.81
+    torque = np.zeros(sim.n_actuated)
+    for _ in range(200):  # 0.2 s: 0.196 m of fall, still in the air
+        sim.step(torque)
+    t = 200 * dt
+    assert sim.free_body_qpos[2] == pytest.approx(start[2] - g * t**2 / 2, abs=g * dt * t)
+    for _ in range(800):
+        sim.step(torque)
+    assert sim.free_body_qpos[2] == pytest.approx(half, abs=2e-3)
+    sim.reset(q)
+    np.testing.assert_allclose(sim.free_body_qpos[:3], start)
+    with pytest.raises(InvalidInputError, match="repeat or are links of the robot"):
+        MujocoSimulator(biped.model, BIPED_URDF, free_bodies=[box, box], falls=False)

@@ -334,6 +334,7 @@ def carry(robot, setup, coupled: bool, duration: float, record_every: int = 0, s
             fell, n = True, k + 1
             break
     after = slice(hold, n)
+    before_hold = np.arange(n) < hold  # measured against the settled grasp from the hold on
     lifted = box_start[2] + LIFT + NEW_GOAL_SHIFT[2]
     return {
         "relative_pose_error_mm": 1e3 * float(measured_error[after, 0].max()),
@@ -344,8 +345,8 @@ def carry(robot, setup, coupled: bool, duration: float, record_every: int = 0, s
         "fell": bool(fell),
         "series": {
             "times": np.arange(n) * DT,
-            "measured_mm": 1e3 * measured_error[:n, 0],
-            "measured_deg": np.degrees(measured_error[:n, 1]),
+            "measured_mm": np.where(before_hold, np.nan, 1e3 * measured_error[:n, 0]),
+            "measured_deg": np.where(before_hold, np.nan, np.degrees(measured_error[:n, 1])),
             "plan_mm": 1e3 * plan_error[:n, 0],
             "box_z": box[:n, 2],
         },

@@ -279,3 +279,33 @@ def test_a_free_box_falls_freely_then_rests_on_the_floor():
     np.testing.assert_allclose(sim.free_body_qpos[:3], start)
     with pytest.raises(InvalidInputError, match="repeat or are links of the robot"):
         MujocoSimulator(biped.model, BIPED_URDF, free_bodies=[box, box], falls=False)
+
+
+def test_relative_angle_about_one_axis_solves_the_linear_system():
+    """Both hands turn about the world z axis only (goals the same orientation, the right
+    hand starting 0.2 rad further): rotations about one axis commute and J(e) acts as the
+    identity along it, so the relative angle obeys the same linear system with k_o, d_o.
+    Bound as in the position test (zero-order hold of the coupling)."""
+    tau, dt, n, k = 2.0, 1e-3, 400, 1000.0
+    weights = np.zeros((3, 10))
+    left = hand_dmp(weights, np.zeros(3), np.zeros(3), tau)
+    angle0 = 0.2
+    turned = np.array([np.cos(angle0 / 2), 0.0, 0.0, np.sin(angle0 / 2)])
+    right = left.with_start(orientation=turned)
+    coupling = RelativePoseCoupling(np.zeros(3), IDENTITY, angular_stiffness=k, share=0.3)
+    pair = BimanualStepper(left, right, coupling, dt)
+    angles = np.empty(n)
+    for i in range(n):
+        _, rotation = coupling.error(pair.state("left")[::2], pair.state("right")[::2])
+        np.testing.assert_allclose(rotation[:2], 0.0, atol=1e-12)  # about z only
+        angles[i] = rotation[2]
+        pair.step()
+    times = np.arange(n) * dt
+    expected, rate, acceleration, c0 = closed_form(
+        times, np.array([angle0]), np.zeros(1), tau, k, coupling.angular_damping
+    )
+    held = np.abs(k * rate + coupling.angular_damping * acceleration).max()
+    bound = 2.0 * tau**2 * dt * held / c0
+    assert np.abs(angles - expected[:, 0]).max() <= bound
+    uncoupled, *_ = closed_form(times, np.array([angle0]), np.zeros(1), tau, 0.0, 0.0)
+    assert bound < 0.2 * np.abs(uncoupled - expected).max()

@@ -64,7 +64,7 @@ from dmpopt.obstacles import Box, PotentialField, Sphere, SteeringAngle, clearan
 from studies.bimanual import bimanual_metrics
 from studies.common import Progress, median_time, output_dir, pyplot, write_metrics
 
-EXPECTED_SECONDS = {"full": 240, "quick": 35}  # wall seconds on the loaded 2-core machine
+EXPECTED_SECONDS = {"full": 300, "quick": 35}  # wall seconds on the loaded 2-core machine
 N_BASIS = 20
 N_EVAL = 100
 QUICK_SHAPES = ("Angle", "GShape")

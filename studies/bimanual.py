@@ -261,8 +261,9 @@ def hand_dmps(start_poses):
     return dmps
 
 
-def grasp_coupling(start_poses) -> RelativePoseCoupling:
-    """The coupling of the squeezed grasp: the right hand ``SQUEEZE`` nearer the left one."""
+def grasp_coupling(start_poses) -> tuple:
+    """The coupling of the squeezed grasp (the hands ``SQUEEZE`` nearer each other) and the
+    squeezed hand poses."""
     (left, left_q), (right, right_q) = start_poses
     inward = (left - right) / np.linalg.norm(left - right)
     squeezed = [(left - inward * SQUEEZE / 2, left_q), (right + inward * SQUEEZE / 2, right_q)]

@@ -37,8 +37,9 @@ Set-up (all choices are ours):
   ``box_drop_mm``: how far the box ends below where the carry should leave it (its start
   height plus ``LIFT`` and the new goal's rise); ``fell``: the robot fell (or the
   simulation diverged);
-* quick mode: the plans only (``plan_relative_error_mm``, no MuJoCo run, no video: the two
-  robot runs take about a minute on the loaded machine); the robot runs in the full study;
+* quick mode: the plans only, 1.5 s of them (``plan_relative_error_mm``; no MuJoCo run and
+  no video: the two robot runs take one to three minutes on the loaded machine); the robot
+  runs in the full study;
 * video (full mode, MuJoCo's offscreen renderer, ``VIDEO_FPS``): both runs side by side in
   time, ``bimanual_coupled.webp`` and ``bimanual_uncoupled.webp``.
 """
@@ -95,7 +96,7 @@ GOAL_CHANGE = 0.6  # [s] into the carry, the box's goal moves
 NEW_GOAL_SHIFT = np.array([0.05, -0.15, 0.02])  # [m] forward, to the right, up
 LEFT_SLOWER = 1.3  # the left plan's tau over the right one's
 LEFT_GOAL_DELAY = 0.2  # [s] the left plan learns of the new goal this much later
-RUN_SECONDS = {"full": 3.5, "quick": 2.5}  # [s] per run, hold included
+RUN_SECONDS = {"full": 3.5, "quick": 2.0}  # [s] per run, hold included
 VIDEO_FPS = 20.0
 VIDEO_SIZE = (320, 240)  # [pixels]
 HANDS = ("gripper_left_base_link", "gripper_right_base_link")

@@ -25,6 +25,7 @@ def test_quick_run_writes_metrics_and_figures(quick):
     assert {p.name for p in folder.glob("*.png")} == {
         "primitives_promp.png",
         "primitives_obstacles.png",
+        "primitives_bimanual.png",
     }
     assert (folder / "metrics.json").is_file()
     promp = metrics["promp"]
@@ -46,3 +47,13 @@ def test_quick_run_conditioning_is_exact_and_keep_out_clears(quick):
         row = metrics["obstacles"][method]
         assert row["collisions"] == 0 and row["clearance_min_mm"] > -1e-5
     assert metrics["obstacles"]["keep_out_box"]["collisions"] == 0
+
+
+def test_quick_run_coupling_holds_the_planned_relative_pose(quick):
+    """Quick mode runs the bimanual plans only: coupled, the perturbation (one hand slower,
+    told of the new goal later) moves the plans' relative pose by a fraction of what it does
+    uncoupled (the static factor alpha beta / (alpha beta + k tau^2) < 0.2 for the carry's
+    tau, dmpopt.bimanual)."""
+    _, metrics = quick
+    coupled, uncoupled = metrics["bimanual"]["coupled"], metrics["bimanual"]["uncoupled"]
+    assert coupled["plan_relative_error_mm"] < 0.2 * uncoupled["plan_relative_error_mm"]

@@ -45,6 +45,11 @@ depends on :math:`q`, MuJoCo's base linear acceleration is Pinocchio's plus
 :math:`R\,(\omega \times v_{lin})` (:math:`v_{lin}` the local linear velocity), and its bias
 forces are :math:`T^{-\top}` of Pinocchio's minus :math:`M_{mj} \dot T v`.
 
+Loose objects: ``free_bodies`` adds :class:`FreeBox` bodies (a free joint each, not part of
+the robot's state ``q, v``); they collide with the floor and with the robot's collision
+geometry (so ``body_collisions`` must stay on to hold one), start at their given pose at every
+``reset``, and :attr:`MujocoSimulator.free_body_qpos` reads their poses.
+
 Falls: the options ``falls``, ``fall_frame`` and ``fall_height`` of :class:`dmpopt.sim.Simulator`
 give the same thresholds (:func:`dmpopt.sim.falls.fall_checks`, standing height above the lowest
 contact point in the neutral configuration) and the same checks after each step; the first
@@ -58,6 +63,7 @@ from __future__ import annotations
 
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -82,7 +88,7 @@ from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_ki
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
 
-__all__ = ["SOLE_THICKNESS", "MujocoSimulator", "render_animation"]
+__all__ = ["SOLE_THICKNESS", "FreeBox", "MujocoSimulator", "render_animation"]
 
 SOLE_THICKNESS = 0.01  # [m] of the box that stands for a sole
 _FLOOR_BIT, _BODY_BIT = 1, 2  # contype bits: contact geometry of the feet, the rest of the body
@@ -91,6 +97,37 @@ _PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
 _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
 _FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
 _XYZ = np.arange(3)
+
+
+@dataclass(frozen=True)
+class FreeBox:
+    """A loose box in the MuJoCo scene (a free body), e.g. an object the robot carries.
+
+    Attributes
+    ----------
+    name : str
+        Body name in the MuJoCo model.
+    half_sizes : tuple of float
+        Half widths along the box's x, y, z axes [m].
+    mass : float
+        [kg], spread uniformly.
+    position : tuple of float
+        Initial centre, world frame [m].
+    orientation : tuple of float
+        Initial orientation, unit quaternion ``(w, x, y, z)``.
+    friction : float
+        Coulomb coefficient of its contacts (MuJoCo takes the larger of the two geoms').
+    torsional_friction : float
+        Friction against spinning about the contact normal [m] (MuJoCo's ``condim`` 4).
+    """
+
+    name: str
+    half_sizes: tuple
+    mass: float
+    position: tuple
+    orientation: tuple = (1.0, 0.0, 0.0, 0.0)
+    friction: float = 1.0
+    torsional_friction: float = 0.01
 
 
 def _import_mujoco():
@@ -203,6 +240,8 @@ class MujocoSimulator(Backend):
         True (derived thresholds), False (no checks) or a :class:`FallDetector`.
     max_speed : float
         Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s].
+    free_bodies : sequence of FreeBox
+        Loose boxes in the scene (module docstring, Loose objects); none by default.
 
     Attributes
     ----------
@@ -232,6 +271,7 @@ class MujocoSimulator(Backend):
         fall_height: float | None = None,
         falls: bool | FallDetector = True,
         max_speed: float = 1e3,
+        free_bodies=(),
     ):
         mujoco = _import_mujoco()
         self._mj = mujoco
@@ -271,6 +311,7 @@ class MujocoSimulator(Backend):
         feet = self._add_feet(spec, contact_points, contact_radius)
         if body_collisions:
             self._collide_body(spec, feet)
+        self._add_free_bodies(spec, free_bodies)
         self.fall_detector, self._watched = fall_checks(
             model, self.n_base_dofs, contact_points, falls, fall_frame, fall_height
         )
@@ -287,6 +328,14 @@ class MujocoSimulator(Backend):
             [warning.mjWARN_BADQACC, warning.mjWARN_BADQVEL, warning.mjWARN_BADQPOS], dtype=int
         )
         self._map_coordinates()
+        self._free_qpos = np.array(
+            [
+                self.mj_model.joint(f"{name}_free").qposadr[0] + k
+                for name in self.free_bodies
+                for k in range(7)
+            ],
+            dtype=int,
+        )
         self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._index_contact_geoms(contact_points)
@@ -357,6 +406,49 @@ class MujocoSimulator(Backend):
             contype=_FLOOR_BIT,
             conaffinity=_FLOOR_BIT | _BODY_BIT,
         )
+
+    def _add_free_bodies(self, spec, free_bodies) -> None:
+        """A body with a free joint and one box geom per :class:`FreeBox`."""
+        mujoco = self._mj
+        boxes = tuple(free_bodies)
+        for box in boxes:
+            if not isinstance(box, FreeBox):
+                raise InvalidInputError(
+                    f"free_bodies must hold FreeBox values, got {type(box).__name__}"
+                )
+        names = [box.name for box in boxes]
+        taken = {body.name for body in spec.bodies}
+        clashes = sorted(set(names) & taken) + sorted({n for n in names if names.count(n) > 1})
+        if clashes:
+            raise InvalidInputError(
+                f"free body names {clashes} repeat or are links of the robot; rename them"
+            )
+        for box in boxes:
+            half = _vector(f"half_sizes of {box.name!r}", box.half_sizes, 3)
+            orientation = _vector(f"orientation of {box.name!r}", box.orientation, 4)
+            body = spec.worldbody.add_body(
+                name=box.name,
+                pos=_vector(f"position of {box.name!r}", box.position, 3),
+                quat=orientation / np.linalg.norm(orientation),
+            )
+            body.add_freejoint(name=f"{box.name}_free")
+            body.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=half,
+                mass=_positive(f"mass of {box.name!r}", box.mass),
+                friction=[_positive("friction", box.friction), box.torsional_friction, 1e-4],
+                condim=4,
+                contype=_BODY_BIT,  # touches the floor (its conaffinity) and the robot's links
+                conaffinity=_BODY_BIT,
+                rgba=[0.75, 0.55, 0.3, 1.0],
+            )
+        self.free_bodies = tuple(names)
+
+    @property
+    def free_body_qpos(self) -> np.ndarray:
+        """Poses of the free bodies: per body position [m] and quaternion ``(w, x, y, z)``,
+        shape (7 * n_free_bodies,)."""
+        return self.mj_data.qpos[self._free_qpos].copy()
 
     def _base_joint_names(self) -> list[str]:
         """Names of the MuJoCo joints that stand for the Pinocchio root joint."""
@@ -495,7 +587,8 @@ class MujocoSimulator(Backend):
 
     def _check_mass(self, urdf: Path) -> None:
         """Same mass on the moving bodies (a fixed base's root link belongs to the world)."""
-        moving = self.mj_model.body_weldid != 0
+        robot = self.mj_model.body_rootid == self.mj_model.body_rootid[1]  # not free bodies
+        moving = (self.mj_model.body_weldid != 0) & robot
         mass, mj_mass = (
             pin.computeTotalMass(self.model),
             float(self.mj_model.body_mass[moving].sum()),
@@ -554,7 +647,7 @@ class MujocoSimulator(Backend):
         """
         q = _vector("q", q, self.model.nq)
         v = _vector("v", v, self.model.nv)
-        qpos, qvel = np.zeros(self.mj_model.nq), np.zeros(self.mj_model.nv)
+        qpos, qvel = self.mj_model.qpos0.copy(), np.zeros(self.mj_model.nv)  # free bodies: start
         if self._base == "free":
             norm = np.linalg.norm(q[3:7])
             if not norm > 1e-9:
@@ -791,6 +884,7 @@ def render_animation(
     target=None,
     azimuth: float = 135.0,
     elevation: float = -15.0,
+    free_body_qpos=None,
 ) -> Path:
     """Render configurations offscreen and write an animated WebP or GIF.
 
@@ -820,6 +914,9 @@ def render_animation(
     azimuth, elevation : float
         Camera direction [deg]: azimuth about the vertical (MuJoCo's convention, 90 looks
         along +y), elevation below the horizon negative.
+    free_body_qpos : array_like, shape (n_frames, 7 * n_free_bodies), optional
+        Poses of the simulator's free bodies per frame (its :attr:`MujocoSimulator.free_body_qpos`
+        at each frame); default their start poses.
 
     Returns
     -------
@@ -835,6 +932,13 @@ def render_animation(
         If even a single frame exceeds ``max_bytes``.
     """
     configurations = _check_render(simulator, configurations, width, height)
+    if free_body_qpos is not None:
+        free_body_qpos = real_array(
+            "free_body_qpos",
+            free_body_qpos,
+            shape=(len(configurations), simulator._free_qpos.size),
+            expected="one row of free-body poses per configuration",
+        )
     path = _output_path(path, (".webp", ".gif"))
     fps = _positive("fps", fps)
     camera = _camera(simulator, target, distance, azimuth, elevation)
@@ -842,7 +946,7 @@ def render_animation(
     image_class = _pillow()
     frames = [
         image_class.fromarray(f)
-        for f in _render_frames(simulator, configurations, width, height, camera)
+        for f in _render_frames(simulator, configurations, width, height, camera, free_body_qpos)
     ]
     duration = 1000.0 / fps  # [ms] per frame
     while True:
@@ -963,7 +1067,9 @@ def _camera(simulator, target, distance, azimuth, elevation) -> dict:
     }
 
 
-def _render_frames(simulator, configurations, width, height, camera) -> list[np.ndarray]:
+def _render_frames(
+    simulator, configurations, width, height, camera, free_body_qpos=None
+) -> list[np.ndarray]:
     """RGB images, shape (height, width, 3) each, of Pinocchio configurations."""
     mujoco = simulator._mj
     model = simulator.mj_model
@@ -986,8 +1092,10 @@ def _render_frames(simulator, configurations, width, height, camera) -> list[np.
     frames = simulator.model.createData() if isinstance(target, (int, np.integer)) else None
     images = []
     with renderer:
-        for q in configurations:
+        for k, q in enumerate(configurations):
             data.qpos[:] = simulator.to_mujoco(q, np.zeros(simulator.model.nv))[0]
+            if free_body_qpos is not None:
+                data.qpos[simulator._free_qpos] = free_body_qpos[k]
             mujoco.mj_forward(model, data)
             if target is None:
                 view.lookat[:] = data.xpos[1]  # the URDF root link

@@ -459,7 +459,7 @@ class GridCheck(NamedTuple):
     """Exact inverse dynamics of a plan against the requests on one grid."""
 
     dt: float  # [s]
-    torque_use: dict  # joint -> max |tau| / limit (limit without fraction... with it)
+    torque_use: dict  # joint -> max |tau| / limit (the limit with its fraction)
     cop_margin_min: float  # [m], nan without balance
     friction_use_max: float  # nan without balance
     worst: float  # largest normalised row value (<= 0: every request holds)
@@ -651,13 +651,17 @@ def _grid_check(dynamics: RobotDynamics, trajectory: Trajectory) -> GridCheck:
     )
 
 
-def _certificate(problem: DynamicsProblem, dmp, trajectory: Trajectory) -> Certificate:
+def certify(problem: DynamicsProblem, dmp) -> Certificate:
+    """Check ``dmp`` against ``problem``'s requests by exact inverse dynamics (no margin).
+
+    On the problem's samples and on a rollout every ``problem.check_step`` (between them).
+    """
+    if not isinstance(problem, DynamicsProblem):
+        raise InvalidInputError(f"problem must be a DynamicsProblem, got {type(problem).__name__}")
     kinematic = problem.kinematic
-    samples = _grid_check(problem.dynamics, trajectory)
+    samples = _grid_check(problem.dynamics, kinematic.rollout(dmp))
     fine_trajectory = dmp.rollout(
-        kinematic.duration,
-        problem.check_step,
-        start_velocity=kinematic.start_velocity,
+        kinematic.duration, problem.check_step, start_velocity=kinematic.start_velocity
     )
     fine = _grid_check(problem.dynamics, fine_trajectory)
     feasible = samples.worst <= 1e-9 and fine.worst <= 1e-9
@@ -768,7 +772,7 @@ def solve_dynamics_problem(problem: DynamicsProblem) -> DynamicsFit:
         status = "converged" if iterate.violation() <= 0.0 else "infeasible"
         if status == "converged" and tightenings < MAX_TIGHTENINGS:
             dmp = kinematic.dmp_for(kinematic.forcing_weights(iterate.x))
-            certificate = _certificate(problem, dmp, iterate.trajectory)
+            certificate = certify(problem, dmp)
             if not certificate.feasible:  # between the samples: tighten and go on
                 tightenings += 1
                 margin += 1.5 * max(certificate.fine.worst, certificate.samples.worst)
@@ -777,7 +781,7 @@ def solve_dynamics_problem(problem: DynamicsProblem) -> DynamicsFit:
         break
     final = iterate if iterate.violation() <= best.violation() else best
     dmp = kinematic.dmp_for(kinematic.forcing_weights(final.x))
-    certificate = _certificate(problem, dmp, final.trajectory)
+    certificate = certify(problem, dmp)
     report = DynamicsReport(
         status=status if final.violation() <= 0.0 else "infeasible",
         iterations=iterations,
@@ -870,6 +874,7 @@ __all__ = [
     "GridCheck",
     "RobotDynamics",
     "build_dynamics_problem",
+    "certify",
     "fit_weights_dynamics",
     "robot_dynamics",
     "solve_dynamics_problem",

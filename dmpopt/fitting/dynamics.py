@@ -49,7 +49,8 @@ step :math:`\delta` and one elastic variable :math:`t \ge 0`,
 
 (:math:`q` the exact quadratic objective, :math:`A` the kinematic rows) is solved by
 :func:`dmpopt.fitting.qp.solve_qp`. The step is accepted on the exact torques: the merit
-:math:`\phi = f + \rho \max(0, \max c)` must fall by at least a tenth of the QP's prediction;
+:math:`\phi = f + \rho \max(0, \max c + \text{margin} / 2)` must fall by at least a tenth of
+the QP's prediction (half the margin absorbs the curvature of rows held at the margin);
 :math:`\Delta` doubles after good steps on the boundary and shrinks by 4 after rejections.
 :math:`\rho` grows by 10 if the iterations stall at a violation. The QP's rows are generated
 lazily (:func:`dmpopt.fitting.qp.solve_qp`), warm-started by the last working set.
@@ -98,7 +99,7 @@ MAX_PENALTY = 1e5
 DEFAULT_SAMPLES = 200
 """Samples of the plan at which the rows hold, unless ``n_samples`` says otherwise."""
 STEP_TOLERANCE = 1e-6
-PREDICTION_TOLERANCE = 1e-7
+PREDICTION_TOLERANCE = 1e-6
 """Stop when the QP predicts a merit decrease below this fraction of the merit."""
 RESTART_RADIUS = 0.1
 FEASIBILITY_TOLERANCE = 1e-6
@@ -190,21 +191,26 @@ class RobotDynamics:
         sample, shape (3, n_steps, n_outputs, n_dofs) (``computeRNEADerivatives``)."""
         import pinocchio as pin
 
-        data = self.model.createData()
-        n_limited, n_dofs = self.limited_v.size, self.driven_v.size
-        out = np.empty((3, trajectory.n_steps, self.n_outputs, n_dofs))
-        columns = self.driven_v
-        root = self.to_world is not None
-        for i, sample in enumerate(
-            zip(trajectory.positions, trajectory.velocities, trajectory.accelerations)
-        ):
-            dq, dv, da = pin.computeRNEADerivatives(self.model, data, *self._state(*sample))
-            da = np.triu(da) + np.triu(da, 1).T  # Pinocchio fills the upper triangle of M
-            for k, matrix in enumerate((dq, dv, da)):
-                out[k, i, :n_limited] = matrix[np.ix_(self.limited_v, columns)]
-                if root:
-                    out[k, i, n_limited:] = self.to_world @ matrix[:6, columns]
-        return out
+        model, data = self.model, self.model.createData()
+        nv = model.nv
+        full = np.empty((3, trajectory.n_steps, nv, nv))
+        q, v, a = self._state(
+            trajectory.positions[0], trajectory.velocities[0], trajectory.accelerations[0]
+        )
+        for i in range(trajectory.n_steps):
+            q[self.driven_q] = trajectory.positions[i]
+            v[self.driven_v] = trajectory.velocities[i]
+            a[self.driven_v] = trajectory.accelerations[i]
+            dq, dv, da = pin.computeRNEADerivatives(model, data, q, v, a)
+            full[0, i], full[1, i], full[2, i] = dq, dv, da
+        # Pinocchio fills the upper triangle of dtau/da = M: mirror it
+        upper = np.triu(np.ones((nv, nv), dtype=bool))
+        full[2] = np.where(upper, full[2], np.swapaxes(full[2], 1, 2))
+        columns = full[..., self.driven_v]  # (3, n_steps, nv, n_dofs)
+        parts = [columns[:, :, self.limited_v]]
+        if self.to_world is not None:
+            parts.append(np.einsum("wr,ksrd->kswd", self.to_world, columns[:, :, :6]))
+        return np.concatenate(parts, axis=2)
 
     def constraint_values(self, outputs: np.ndarray) -> np.ndarray:
         """:math:`c = R y - r_0`, shape (n_steps, n_rows); <= 0 where every request holds."""
@@ -742,7 +748,7 @@ def solve_dynamics_problem(problem: DynamicsProblem) -> DynamicsFit:
                 history.append((iterate.objective, iterate.violation(), radius, 0.0))
                 continue
             step, working_set = solution.x[:-1], solution.active
-            merit = iterate.objective + rho * iterate.violation(margin)
+            merit = iterate.objective + rho * iterate.violation(0.5 * margin)
             trial = iterate.x + step
             model = 0.5 * trial @ hessian @ trial + gradient @ trial
             model += rho * max(0.0, float((values + matrix @ step).max()) + margin)
@@ -750,7 +756,7 @@ def solve_dynamics_problem(problem: DynamicsProblem) -> DynamicsFit:
             tiny = size <= STEP_TOLERANCE * (1.0 + float(np.abs(iterate.x).max()))
             if not (tiny or predicted <= PREDICTION_TOLERANCE * (1.0 + abs(merit))):
                 candidate = _evaluate(problem, trial, hessian, gradient)
-                actual = merit - (candidate.objective + rho * candidate.violation(margin))
+                actual = merit - (candidate.objective + rho * candidate.violation(0.5 * margin))
                 accepted = actual >= ACCEPT_RATIO * predicted
                 history.append((candidate.objective, candidate.violation(), radius, accepted))
                 if accepted:
@@ -766,7 +772,7 @@ def solve_dynamics_problem(problem: DynamicsProblem) -> DynamicsFit:
                     radius = 0.25 * size
                 continue
         # a stationary point of the merit (or a trust region too small to move)
-        if iterate.violation(margin) > FEASIBILITY_TOLERANCE and rho < MAX_PENALTY:
+        if iterate.violation(0.5 * margin) > FEASIBILITY_TOLERANCE and rho < MAX_PENALTY:
             rho, radius = 10.0 * rho, max(radius, RESTART_RADIUS)  # weigh the violation more
             continue
         status = "converged" if iterate.violation() <= 0.0 else "infeasible"

@@ -444,6 +444,8 @@ class DynamicsProblem:
     max_iterations : int
     solver : str
         QP backend (:func:`dmpopt.fitting.qp.solve_qp`).
+    fine_plan : AffinePlan
+        The plan every ``check_step``, affine in the weights (the certificate's grid).
     """
 
     kinematic: FittingProblem
@@ -454,6 +456,7 @@ class DynamicsProblem:
     check_step: float
     max_iterations: int
     solver: str
+    fine_plan: object = None
 
     def response(self) -> np.ndarray:
         """Plan response to the scaled variables: shape (3, n_steps, n_basis)."""
@@ -594,13 +597,18 @@ def build_dynamics_problem(
     if options.get("n_samples") is None:
         options["n_samples"] = min(DEFAULT_SAMPLES, demo.n_steps)
     kinematic = build_fitting_problem(demo, n_basis, solver=solver, **options)
+    step = min(real("check_step", check_step, minimum=1e-5), kinematic.dt / 2)
+    fine_plan = kinematic.dmp.affine_plan(
+        kinematic.duration, step, start_velocity=kinematic.start_velocity
+    )
     return DynamicsProblem(
+        fine_plan=fine_plan,
         kinematic=kinematic,
         dynamics=dynamics,
         torque_limits=torque_limits,
         balance=balance,
         margin=real("margin", margin, minimum=0.0, maximum=0.1, fix="keep it small, e.g. 1e-3"),
-        check_step=min(real("check_step", check_step, minimum=1e-5), kinematic.dt / 2),
+        check_step=step,
         max_iterations=integer("max_iterations", max_iterations, minimum=1, maximum=10_000),
         solver=check_solver(solver),
     )
@@ -665,10 +673,8 @@ def certify(problem: DynamicsProblem, dmp) -> Certificate:
     if not isinstance(problem, DynamicsProblem):
         raise InvalidInputError(f"problem must be a DynamicsProblem, got {type(problem).__name__}")
     kinematic = problem.kinematic
-    samples = _grid_check(problem.dynamics, kinematic.rollout(dmp))
-    fine_trajectory = dmp.rollout(
-        kinematic.duration, problem.check_step, start_velocity=kinematic.start_velocity
-    )
+    samples = _grid_check(problem.dynamics, kinematic.plan.trajectory(dmp.forcing_weights()))
+    fine_trajectory = problem.fine_plan.trajectory(dmp.forcing_weights())
     fine = _grid_check(problem.dynamics, fine_trajectory)
     feasible = samples.worst <= 1e-9 and fine.worst <= 1e-9
     return Certificate(samples, fine, feasible)

@@ -810,8 +810,9 @@ def solve_dynamics_problem(problem: DynamicsProblem) -> DynamicsFit:
         raise InfeasibleProblem(
             f"the requests cannot all hold at this duration: the least-violating plan found "
             f"has {_describe_violation(problem, final)} (after {iterations} SQP iterations); "
-            "lengthen the duration, raise the limits or lower cop_margin, or keep the path and "
-            "retime it (dmpopt.retiming.retime)",
+            "lengthen the duration, raise the limits"
+            + (" or lower cop_margin" if problem.balance is not None else "")
+            + ", or keep the path and retime it (dmpopt.retiming.retime)",
             problem=problem,
             stats={"fit": fit, "violation": final.violation()},
         )

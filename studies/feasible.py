@@ -86,7 +86,7 @@ def plans(robot, posture, demo, joints, limits, quick: bool) -> tuple[dict, dict
     bounds = Bounds(
         position_lower=limits["lower"], position_upper=limits["upper"], velocity=limits["velocity"]
     )
-    begin = time.perf_counter()
+    begin, cpu_begin = time.perf_counter(), time.process_time()
     fit, report = fit_weights_dynamics(
         demo,
         robot,
@@ -97,10 +97,11 @@ def plans(robot, posture, demo, joints, limits, quick: bool) -> tuple[dict, dict
         bounds=bounds,
         n_samples=100 if quick else None,
     )
-    fit_seconds = time.perf_counter() - begin
+    fit_seconds, fit_cpu = time.perf_counter() - begin, time.process_time() - cpu_begin
     info = {
         "sqp_iterations": report.iterations,
         "fit_seconds": fit_seconds,
+        "fit_cpu_seconds": fit_cpu,
         "qp_seconds": report.qp_time,
         "status": report.status,
         "n_samples": report.problem.kinematic.plan.times.size,

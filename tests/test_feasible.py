@@ -8,6 +8,9 @@ static CoP.
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from dmpopt import Trajectory, fit_discrete
 from dmpopt.exceptions import InfeasibleProblem, InvalidInputError
@@ -57,11 +60,17 @@ def swing_demo(duration: float = 0.5) -> Trajectory:
     return Trajectory.from_positions(times, (1.5 * s**3 * (10 - 15 * s + 6 * s**2))[:, None])
 
 
-def test_pendulum_torque_is_the_plain_formula():
-    """RNEA of the reduced model equals m l^2 qdd + m g l sin q (to rounding: 1e-9 N m)."""
+@settings(max_examples=25, deadline=None)
+@given(
+    arrays(np.float64, (3, 5), elements=st.floats(-10.0, 10.0, allow_nan=False)),
+)
+def test_pendulum_torque_is_the_plain_formula(states):
+    """RNEA of the reduced model equals m l^2 qdd + m g l sin q at any state (rounding of
+    terms below 1e3 N m: 1e-9 N m)."""
     dynamics = robot_dynamics(pendulum(), ["swing"], torque_limits=TorqueLimits())
-    demo = swing_demo()
-    assert np.allclose(dynamics.outputs(demo)[:, 0], plain_torque(demo), atol=1e-9)
+    q, v, a = (row[:, None] for row in states)
+    trajectory = Trajectory(np.arange(5.0), q, v, a)
+    assert np.allclose(dynamics.outputs(trajectory)[:, 0], plain_torque(trajectory), atol=1e-9)
 
 
 def test_fit_holds_the_torque_limit_where_the_plain_dmp_does_not():
@@ -178,3 +187,18 @@ def test_requests_refuse_bad_values():
         robot_dynamics(pendulum(), ["swing"], balance=Balance())
     with pytest.raises(InvalidInputError, match="'elbow', which is not a joint of 'pendulum'"):
         robot_dynamics(pendulum(), ["elbow"], torque_limits=TorqueLimits())
+
+
+@pytest.mark.slow
+def test_study_quick_meets_the_issue(tmp_path):
+    """The feasible study (quick): the plain DMP exceeds the limits, the dynamics-feasible DMP
+    holds them and the CoP margin at the demonstrated duration."""
+    from studies import feasible
+
+    metrics = feasible.run(tmp_path, quick=True)
+    methods = metrics["methods"]
+    assert methods["plain_dmp"]["torque_use_max"] > 1.0
+    fit = methods["dynamics_feasible"]
+    assert fit["torque_use_max"] <= 1.0 and fit["cop_margin_min_mm"] >= 0.0
+    assert fit["duration_s"] == pytest.approx(metrics["demo_duration_s"])
+    assert (tmp_path / "feasible.png").exists()

@@ -53,11 +53,11 @@ def plain_torque(trajectory: Trajectory) -> np.ndarray:
     return MASS * LENGTH**2 * qdd + MASS * GRAVITY * LENGTH * np.sin(q)
 
 
-def swing_demo(duration: float = 0.5) -> Trajectory:
-    """From hanging to 1.5 rad, minimum jerk, at 1 kHz."""
+def swing_demo(duration: float = 0.5, goal: float = 1.5) -> Trajectory:
+    """From hanging to ``goal`` [rad], minimum jerk, at 1 kHz."""
     times = np.linspace(0.0, duration, int(round(duration / 1e-3)) + 1)
     s = times / duration
-    return Trajectory.from_positions(times, (1.5 * s**3 * (10 - 15 * s + 6 * s**2))[:, None])
+    return Trajectory.from_positions(times, (goal * s**3 * (10 - 15 * s + 6 * s**2))[:, None])
 
 
 @settings(max_examples=25, deadline=None)
@@ -73,12 +73,14 @@ def test_pendulum_torque_is_the_plain_formula(states):
     assert np.allclose(dynamics.outputs(trajectory)[:, 0], plain_torque(trajectory), atol=1e-9)
 
 
-def test_fit_holds_the_torque_limit_where_the_plain_dmp_does_not():
-    """The plain DMP needs more than the limit; the fit's plan, at the same duration, stays
-    within it on a 0.25 ms grid by the plain formula (the margin 1e-3 of the limit covers the
-    linearisation; the certificate's tolerance is 1e-9 of the limit)."""
+@pytest.mark.parametrize("goal", [1.5, -1.5])
+def test_fit_holds_the_torque_limit_where_the_plain_dmp_does_not(goal):
+    """The plain DMP needs more than the limit (positive torques to 1.5 rad, negative ones to
+    -1.5 rad); the fit's plan, at the same duration, stays within it on a 0.25 ms grid by the
+    plain formula (the margin 1e-3 of the limit covers the linearisation; the certificate's
+    tolerance is 1e-9 of the limit)."""
     limit = 30.0
-    demo = swing_demo()
+    demo = swing_demo(goal=goal)
     plain = fit_discrete(demo, 10).rollout(demo.duration, 2.5e-4)
     assert np.abs(plain_torque(plain)).max() > 1.2 * limit
     problem = build_dynamics_problem(
@@ -88,7 +90,7 @@ def test_fit_holds_the_torque_limit_where_the_plain_dmp_does_not():
     fine = dmp.rollout(demo.duration, 2.5e-4, start_velocity=problem.kinematic.start_velocity)
     assert np.abs(plain_torque(fine)).max() <= limit * (1 + 1e-9)
     assert report.certificate.feasible and report.status == "converged"
-    assert abs(fine.positions[-1, 0] - 1.5) < 1e-6  # the goal, held at the end as by default
+    assert abs(fine.positions[-1, 0] - goal) < 1e-6  # the goal, held at the end as by default
 
 
 def test_chain_rule_matches_finite_differences():

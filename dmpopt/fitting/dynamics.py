@@ -32,7 +32,8 @@ Rows, normalised so that one unit means as much in each: torque :math:`\pm\tau_j
 1`; CoP rows divided by :math:`m g` :data:`BALANCE_LENGTH` (a CoP 1 cm outside counts as a
 torque 10 % over its limit); friction rows by :math:`m g`.
 
-Sequential QP (the S\ :math:`\ell_\infty`\ QP of [Fletcher1987]_). At the iterate :math:`x`,
+Sequential QP (an :math:`\ell_\infty`-penalty variant of the trust-region S\ :math:`\ell_1`\ QP
+method of [Fletcher1987]_). At the iterate :math:`x`,
 the rows are linearised by the chain rule through Pinocchio's analytical derivatives
 (``computeRNEADerivatives``):
 
@@ -85,7 +86,6 @@ from .problem import FittingProblem
 from .qp import INFINITY, check_solver, solve_qp
 from .requests import Balance, TorqueLimits
 
-GRAVITY = 9.81  # [m/s^2]
 BALANCE_LENGTH = 0.1
 """[m] A CoP this far outside its polygon counts as one unit of violation."""
 MAX_TIGHTENINGS = 3
@@ -94,7 +94,7 @@ ACCEPT_RATIO = 0.1
 ELASTIC_CURVATURE = 1e-6
 """Curvature of the elastic variable ``t`` in the QP (keeps it strictly convex for DAQP)."""
 PENALTY = 1e3
-"""Initial :math:`\rho`; it grows by 10 when the iterations stall at a violation."""
+r"""Initial :math:`\rho`; it grows by 10 when the iterations stall at a violation."""
 MAX_PENALTY = 1e5
 DEFAULT_SAMPLES = 200
 """Samples of the plan at which the rows hold, unless ``n_samples`` says otherwise."""
@@ -370,7 +370,8 @@ def robot_dynamics(
         )
     limit = limit * (1.0 if torque_limits is None else torque_limits.fraction)
     n_limited = limit.size
-    weight = float(pin.computeTotalMass(robot.model)) * GRAVITY
+    gravity = float(np.linalg.norm(robot.model.gravity.linear))
+    weight = float(pin.computeTotalMass(robot.model)) * gravity
     rows, offset, names = [], [], []
     for j, (name, value) in enumerate(zip(limited_names, limit)):
         for sign in (1.0, -1.0):

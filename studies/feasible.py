@@ -115,13 +115,27 @@ def plans(robot, posture, demo, joints, limits, quick: bool) -> tuple[dict, dict
     }
     return {
         "plain_dmp": plain,
-        "toppra": retimed.trajectory,
-        "time_scaling": time_scaled(plain, factor),
+        "toppra": on_control_grid(retimed.trajectory),
+        "time_scaling": on_control_grid(time_scaled(plain, factor)),
         "dynamics_feasible": fit.rollout(demo.duration, 1e-3),
     }, info
 
 
-def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo) -> dict:
+def on_control_grid(trajectory, dt: float = 1e-3):
+    """``trajectory`` sampled every ``dt`` (the controller's tick), linear interpolation."""
+    from dmpopt import Trajectory
+
+    times = np.arange(int(np.floor(trajectory.times[-1] / dt + 1e-9)) + 1) * dt
+    columns = [
+        np.column_stack(
+            [np.interp(times, trajectory.times, values[:, d]) for d in range(values.shape[1])]
+        )
+        for values in (trajectory.positions, trajectory.velocities, trajectory.accelerations)
+    ]
+    return Trajectory(times, *columns)
+
+
+def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo, limits) -> dict:
     """Torque use, CoP margin, duration and hand-path shape error of one plan (module notes)."""
     from dmpopt.fitting import Balance, TorqueLimits
     from dmpopt.fitting.dynamics import robot_dynamics
@@ -134,8 +148,13 @@ def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo) -> dict:
     use = np.abs(outputs[:, : len(joints)]) / dynamics.torque_limit
     hand = HandKinematics(robot).plan(posture, trajectory.positions)
     distance = np.linalg.norm(hand[:, None, :] - hand_demo[None, ::4, :], axis=2).min(axis=1)
+    speed = np.abs(trajectory.velocities) / limits["velocity"]
     return {
         "torque_use_max": float(use.max()),
+        "velocity_use_max": float(speed.max()),
+        "time_at_velocity_limit_s": float(
+            np.sum(np.gradient(trajectory.times)[speed.max(axis=1) >= 0.99])
+        ),
         "torque_use_per_joint": dict(zip(joints, use.max(axis=0).tolist())),
         "cop_margin_min_mm": float(1e3 * dynamics.cop_margin(outputs).min()),
         "friction_use_max": float(dynamics.friction_use(outputs).max()),
@@ -151,7 +170,8 @@ def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo) -> dict:
 
 
 def execute(robot, posture, joints, trajectory) -> dict:
-    """The plan played by the humanoid study's controller on MuJoCo's realistic Talos."""
+    """The plan (sampled every tick) played by the humanoid study's controller on MuJoCo's
+    realistic Talos."""
     from robots.plants import talos_realistic
     from studies.humanoid.controller import build_controller, mujoco_plant
     from studies.humanoid.demos import DRUM_JOINTS
@@ -266,7 +286,8 @@ def _summary(metrics: dict) -> list:
             "paper": "beyond the paper",
             "dmpopt": f"torque use {fit['torque_use_max']:.3f}, CoP margin "
             f"{fit['cop_margin_min_mm']:.1f} mm, {fit['duration_s']:.3f} s "
-            f"({metrics['sqp_iterations']} SQP iterations, {metrics['fit_seconds']:.1f} s)",
+            f"({metrics['sqp_iterations']} SQP iterations, {metrics['fit']['fit_cpu_seconds']:.2f} "
+            f"s CPU, {metrics['fit_seconds']:.1f} s wall)",
             "anchor": f"plain DMP: torque use {plain['torque_use_max']:.2f}, CoP margin "
             f"{plain['cop_margin_min_mm']:.0f} mm",
             "verdict": "holds" if held else "fails",
@@ -328,7 +349,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     methods, series, polygon = {}, {}, None
     for name in METHODS:
         progress(f"{LABELS[name]}: metrics and MuJoCo run")
-        values = plan_metrics(robot, posture, demo, joints, trajectories[name], hand_demo)
+        values = plan_metrics(robot, posture, demo, joints, trajectories[name], hand_demo, limits)
         series[name], polygon = values.pop("series"), values.pop("polygon")
         values["executed"] = (
             {"skipped": "quick mode: no MuJoCo runs"}

@@ -204,3 +204,52 @@ def test_study_quick_meets_the_issue(tmp_path):
     assert fit["torque_use_max"] <= 1.0 and fit["cop_margin_min_mm"] >= 0.0
     assert fit["duration_s"] == pytest.approx(metrics["demo_duration_s"])
     assert (tmp_path / "feasible.png").exists()
+
+
+def centroidal_cop(robot, posture, joints, trajectory, height):
+    """CoP from Pinocchio's centroidal momentum rate on the full model (answer key): the
+    ground's wrench is ``(dl/dt - m g, dk_G/dt)`` at the CoM ``c``, moved to the origin."""
+    model, data = robot.model, robot.create_data()
+    q_index, v_index = robot.configuration_indices(joints), robot.velocity_indices(joints)
+    mass = pin.computeTotalMass(model)
+    cops = []
+    for q_j, v_j, a_j in zip(trajectory.positions, trajectory.velocities, trajectory.accelerations):
+        q, v, a = posture.copy(), np.zeros(model.nv), np.zeros(model.nv)
+        q[q_index], v[v_index], a[v_index] = q_j, v_j, a_j
+        rate = pin.computeCentroidalMomentumTimeVariation(model, data, q, v, a)
+        force = rate.linear - mass * model.gravity.linear
+        moment = rate.angular + np.cross(data.com[0], force)
+        cops.append(
+            [(height * force[0] - moment[1]) / force[2], (height * force[1] + moment[0]) / force[2]]
+        )
+    return np.array(cops)
+
+
+def test_balance_fit_keeps_the_cop_inside_by_centroidal_dynamics():
+    """A fast two-joint arm swing whose plain plan brings the CoP nearer the edge than asked:
+    the fit's CoP, computed by centroidal dynamics on the full model, keeps the margin (the
+    samples' 1e-3 margin covers the linearisation) and equals the fit's own CoP to 1e-9 m."""
+    from robots import load_talos
+
+    robot = load_talos("reduced")
+    joints = ["arm_right_1_joint", "arm_right_4_joint"]
+    posture = np.array(robot.reference_configuration)
+    start = posture[robot.configuration_indices(joints)]
+    times = np.linspace(0.0, 0.35, 351)
+    s = times / times[-1]
+    positions = start + np.outer(s**3 * (10 - 15 * s + 6 * s**2), [-1.2, -1.0])
+    demo = Trajectory.from_positions(times, positions)
+    plain = fit_discrete(demo, 10).rollout(demo.duration, 1e-3)
+    loose = robot_dynamics(robot, joints, posture, balance=Balance())
+    plain_margin = loose.cop_margin(loose.outputs(plain)).min()
+    asked = plain_margin + 0.01  # more than the plain plan keeps
+    assert 0.0 < asked < 0.1
+    problem = build_dynamics_problem(
+        demo, robot, joints, 10, posture=posture, balance=Balance(cop_margin=asked), n_samples=40
+    )
+    dmp, report = solve_dynamics_problem(problem)
+    fine = problem.fine_plan.trajectory(dmp.forcing_weights())
+    cop = centroidal_cop(robot, posture, joints, fine, loose.sole_height)
+    assert np.allclose(cop, loose.cop(loose.outputs(fine)), atol=1e-9)
+    margin = np.min(loose.polygon[:, 2] - cop @ loose.polygon[:, :2].T, axis=1)
+    assert margin.min() >= asked - 1e-9 and report.certificate.feasible

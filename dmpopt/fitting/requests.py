@@ -1,7 +1,9 @@
 """What a constrained plan must respect: :class:`Bounds` at every sample and :class:`ViaPoint`.
 
 The same requests serve the constrained DMP fit (:mod:`dmpopt.fitting.constrained`) and the
-minimum-jerk baselines (:mod:`dmpopt.fitting.minimum_jerk`). :func:`bound_limits` turns a
+minimum-jerk baselines (:mod:`dmpopt.fitting.minimum_jerk`); :class:`TorqueLimits` and
+:class:`Balance` are the robot requests of the dynamics-feasible fit
+(:mod:`dmpopt.fitting.dynamics`). :func:`bound_limits` turns a
 :class:`Bounds` into one ``(name, quantity, lower, upper)`` entry per limited quantity, so
 both read the limits the same way.
 """

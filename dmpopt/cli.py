@@ -27,6 +27,7 @@ STUDIES = (
     "biped",
     "cartesian",
     "primitives",
+    "feasible",
 )
 
 

@@ -10,6 +10,14 @@ from .constrained import (
     fit_weights_constrained,
     solve_fitting_problem,
 )
+from .dynamics import (
+    DynamicsFit,
+    DynamicsProblem,
+    DynamicsReport,
+    build_dynamics_problem,
+    fit_weights_dynamics,
+    solve_dynamics_problem,
+)
 from .imitation import (
     estimate_period,
     fit_discrete,
@@ -20,13 +28,20 @@ from .imitation import (
 )
 from .keep_out import fit_keep_out
 from .minimum_jerk import minimum_jerk, minimum_jerk_constrained, minimum_jerk_via_points
+from .requests import Balance, TorqueLimits
 
 __all__ = [
+    "Balance",
     "Bounds",
     "ConstrainedFit",
+    "DynamicsFit",
+    "DynamicsProblem",
+    "DynamicsReport",
     "FitReport",
     "FittingProblem",
+    "TorqueLimits",
     "ViaPoint",
+    "build_dynamics_problem",
     "build_fitting_problem",
     "estimate_period",
     "fit_discrete",
@@ -34,10 +49,12 @@ __all__ = [
     "fit_rhythmic",
     "fit_to_accuracy",
     "fit_weights_constrained",
+    "fit_weights_dynamics",
     "forcing_targets",
     "minimum_jerk",
     "minimum_jerk_constrained",
     "minimum_jerk_via_points",
     "reproduction_error",
+    "solve_dynamics_problem",
     "solve_fitting_problem",
 ]

@@ -1,7 +1,9 @@
 """What a constrained plan must respect: :class:`Bounds` at every sample and :class:`ViaPoint`.
 
 The same requests serve the constrained DMP fit (:mod:`dmpopt.fitting.constrained`) and the
-minimum-jerk baselines (:mod:`dmpopt.fitting.minimum_jerk`). :func:`bound_limits` turns a
+minimum-jerk baselines (:mod:`dmpopt.fitting.minimum_jerk`); :class:`TorqueLimits` and
+:class:`Balance` are the robot requests of the dynamics-feasible fit
+(:mod:`dmpopt.fitting.dynamics`). :func:`bound_limits` turns a
 :class:`Bounds` into one ``(name, quantity, lower, upper)`` entry per limited quantity, so
 both read the limits the same way.
 """
@@ -109,6 +111,83 @@ class ViaPoint:
         object.__setattr__(self, "tolerance", tolerance)
 
 
+@dataclass(frozen=True, eq=False)
+class TorqueLimits:
+    """Joint torques within their limits at every sample (a dynamics-feasible fit's request).
+
+    Used by :func:`dmpopt.fitting.dynamics.build_dynamics_problem`, whose ``robot`` gives the
+    model and, by default, the limits.
+
+    Attributes
+    ----------
+    joints : sequence of str, optional
+        The joints whose torques are limited (default: the joints the DMP drives).
+    limit : float or array_like, shape (n_joints,), optional
+        Symmetric limits [N m] (default: the robot's ``torque_limit`` of those joints).
+    fraction : float
+        The limits used are ``fraction * limit`` (0 < fraction <= 1), e.g. 0.9 to keep room
+        for the feedback of the controller.
+    """
+
+    joints: tuple | None = None
+    limit: np.ndarray | None = None
+    fraction: float = 1.0
+
+    def __post_init__(self):
+        if self.joints is not None:
+            joints = (self.joints,) if isinstance(self.joints, str) else tuple(self.joints)
+            if not joints or not all(isinstance(name, str) for name in joints):
+                raise InvalidInputError(
+                    f"joints must be joint names (strings), got {self.joints!r}; pass None for "
+                    "the joints the DMP drives"
+                )
+            object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "limit", _optional_array("limit", self.limit, True))
+        object.__setattr__(
+            self,
+            "fraction",
+            real("fraction", self.fraction, minimum=0.0, maximum=1.0, open_minimum=True),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Balance:
+    """A standing robot stays balanced: the ground can supply the wrench the movement needs.
+
+    The centre of pressure (CoP) of the net contact wrench stays ``cop_margin`` inside the
+    support polygon (convex hull of the contact soles' corners) and the net horizontal force
+    inside the friction pyramid inscribed in the cone of coefficient ``friction`` (module
+    :mod:`dmpopt.fitting.dynamics`).
+
+    Attributes
+    ----------
+    contacts : sequence of str, optional
+        Sole frames on the ground, flat at one height (default: the robot's ``foot_frames``).
+    cop_margin : float
+        [m], >= 0.
+    friction : float
+        Coulomb coefficient, > 0.
+    """
+
+    contacts: tuple | None = None
+    cop_margin: float = 0.0
+    friction: float = 0.7
+
+    def __post_init__(self):
+        if self.contacts is not None:
+            contacts = (self.contacts,) if isinstance(self.contacts, str) else tuple(self.contacts)
+            if not contacts or not all(isinstance(name, str) for name in contacts):
+                raise InvalidInputError(
+                    f"contacts must be frame names (strings), got {self.contacts!r}; pass None "
+                    "for the robot's feet"
+                )
+            object.__setattr__(self, "contacts", contacts)
+        object.__setattr__(self, "cop_margin", real("cop_margin", self.cop_margin, minimum=0.0))
+        object.__setattr__(
+            self, "friction", real("friction", self.friction, minimum=0.0, open_minimum=True)
+        )
+
+
 def per_dof(name: str, value, n_dofs: int) -> np.ndarray:
     """``value`` as one entry per DOF: a single entry is repeated, else it must have n_dofs."""
     value = np.atleast_1d(value)
@@ -157,4 +236,13 @@ def bound_limits(bounds: Bounds | None, n_dofs: int) -> list[Limit]:
     return limits
 
 
-__all__ = ["Bounds", "Limit", "ViaPoint", "bound_limits", "check_bounds", "per_dof"]
+__all__ = [
+    "Balance",
+    "Bounds",
+    "Limit",
+    "TorqueLimits",
+    "ViaPoint",
+    "bound_limits",
+    "check_bounds",
+    "per_dof",
+]

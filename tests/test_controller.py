@@ -358,13 +358,14 @@ def test_construction_compiles_the_kernels_of_a_tick(talos, upper_body):
     fixed = InverseDynamicsController(
         upper_body, [PostureTask(upper_body), arm], joint_limit_horizon=0.05
     )
-    compiled = {name: len(getattr(kernels, name).signatures) for name in kernels.__all__}
+    names = [name for name in kernels.__all__ if hasattr(getattr(kernels, name), "signatures")]
+    compiled = {name: len(getattr(kernels, name).signatures) for name in names}
     rng = np.random.default_rng(3)
     for controller, robot in ((standing, talos), (fixed, upper_body)):
         q, v = random_state(robot, rng, spread=0.02, speed=0.1)
         for _ in range(3):
             controller.compute_torques(q, v)
-    assert {name: len(getattr(kernels, name).signatures) for name in kernels.__all__} == compiled
+    assert {name: len(getattr(kernels, name).signatures) for name in names} == compiled
 
 
 def test_solution_satisfies_equations_of_motion(talos):
@@ -664,7 +665,7 @@ def test_active_set_iterations_add_the_most_violated_row_each_round():
 def test_acceleration_bounds_formula(upper_body):
     h = 0.1
     lower, upper = np.zeros(3), np.zeros(3)
-    bounds = (
+    bounds = kernels.JointBounds(
         np.arange(3), np.arange(3), np.array([-1.0, -np.inf, -1.0]), np.array([1.0, np.inf, 1.0]),
         np.array([2.0, np.inf, 0.5]), h, lower, upper,
     )  # fmt: skip
@@ -707,7 +708,8 @@ def test_construction_checks_name_the_argument(upper_body, talos):
         InverseDynamicsController(talos, [sole])
     with pytest.raises(
         InvalidInputError,
-        match="^contacts holds PostureTask, expected SoleContact or PointContact objects$",
+        match=r"^contacts holds PostureTask, expected Contact \(SoleContact, PointContact, "
+        r"\.\.\.\) objects$",
     ):
         InverseDynamicsController(talos, [PostureTask(talos)], [PostureTask(talos)])
     with pytest.raises(ShapeError, match="^tasks: a PostureTask was built for another robot"):

@@ -41,7 +41,9 @@ class Assembly:
             pin.computeJointJacobians(model, data)
             self._update_rows(q, v)
         self._stack_posture()
-        if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
+        if not kernels.joint_space_accelerations(
+            self._posture, self._layout, self._woodbury, q, v, x
+        ):
             return False
         self._tau[:] = pin.rnea(model, data, q, v, x)
         return True
@@ -74,7 +76,7 @@ class Assembly:
 
         indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
-        self._posture_arguments = (  # of kernels.posture_gradient, without q and v
+        self._posture = kernels.PostureStack(
             self._posture_state,
             np.concatenate(indices + [t.configuration_indices for t in tasks]),
             np.concatenate(indices + [t.velocity_indices for t in tasks]),
@@ -86,7 +88,7 @@ class Assembly:
         """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
         -w qdd* over x."""
         self._stack_posture()
-        kernels.posture_gradient(*self._posture_arguments, q, v)
+        kernels.posture_gradient(self._posture, q, v)
 
     def _stack_posture(self) -> None:
         """Copy the posture tasks' references and gains into the stacked block (one call);
@@ -100,16 +102,16 @@ class Assembly:
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
         return kernels.eliminated_tick(
-            self._elimination_arguments, self._reduction_arguments, self._solve_arguments,
-            q, v, self._candidate, self._tau,
+            self._layout, self._dynamics, self._split, self._reduced, self._checks, q, v,
+            self._candidate, self._tau,
         )  # fmt: skip
 
     def _assemble_eliminated(self) -> int:
         """Hessian and gradient over z for the QP with cone rows: CONES_VIOLATED (to be
         solved with them), or ILL_CONDITIONED if the basic block is."""
-        if not kernels.eliminate(*self._elimination_arguments):
+        if not kernels.eliminate(self._layout, self._dynamics, self._split):
             return kernels.ILL_CONDITIONED
-        kernels.reduce_costs(*self._reduction_arguments)
+        kernels.reduce_costs(self._layout, self._split, self._reduced)
         return kernels.CONES_VIOLATED
 
     def _cones_released(self) -> bool:
@@ -163,7 +165,7 @@ class Assembly:
         self._in_matrix[:n_act] = torque[:, :n]
         np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
         np.add(self.torque_limit, torque[:, n], out=self._in_upper[:n_act])
-        lower, upper = self._bounds[6:]  # proxsuite takes |bound| >= 1e20 as none
+        lower, upper = self._bounds.lower, self._bounds.upper  # |bound| >= 1e20: none
         np.clip(lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][: lower.size])
         np.clip(upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][: upper.size])
 
@@ -171,14 +173,11 @@ class Assembly:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
         x, n_base = self._candidate, self._n_base
         if eliminated:  # x_B = U_c - U_N z
-            kernels.expand(self._elimination, self._basic, self._nonbasic_constant, solution, x)
+            kernels.expand(self._split, solution, x)
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
             x[n_base:] = solution
             if n_base:
                 base_map, n = self._base_map, self._n
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
-        kernels.torques(
-            self._mass, self._bias, self._rows, self._n_cost, n_base, self._force_scale, x,
-            self._tau,
-        )  # fmt: skip
+        kernels.torques(self._layout, self._dynamics, x, self._tau)

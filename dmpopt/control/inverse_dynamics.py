@@ -81,6 +81,7 @@ degraded answer within its time budget (see :class:`InverseDynamicsController`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -92,12 +93,10 @@ from dmpopt.exceptions import InvalidInputError, ShapeError
 
 from . import kernels
 from .assembly import Assembly
-from .contacts import PointContact, SoleContact
+from .contacts import Contact
 from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _active_set, _arguments, _Stage
 from .tasks import FrameTask, PostureTask, Task
 from .tick import _RELEASE_MARGIN, Tick
-
-CONTACT_TYPES = (SoleContact, PointContact)
 
 __all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 
@@ -123,16 +122,16 @@ def _check_positive(name: str, value) -> None:
 
 def _check_items(robot, tasks, contacts) -> None:
     """Tasks and contacts of the right types, built for this robot."""
-    if isinstance(tasks, Task) or isinstance(contacts, CONTACT_TYPES):
+    if isinstance(tasks, Task) or isinstance(contacts, Contact):
         raise InvalidInputError(
             "tasks and contacts must be sequences; wrap a single one in a list: [task]"
         )
     if not tasks:
         raise InvalidInputError("tasks is empty; give at least one task (e.g. PostureTask)")
-    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, CONTACT_TYPES)):
+    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, Contact)):
         for item in items:
             if not isinstance(item, kind):
-                expected = "Task" if kind is Task else "SoleContact or PointContact"
+                expected = "Task" if kind is Task else "Contact (SoleContact, PointContact, ...)"
                 raise InvalidInputError(
                     f"{name} holds {type(item).__name__!s}, expected {expected} objects"
                 )
@@ -165,6 +164,63 @@ def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     return np.sort(pivots[:n_rows]) + n_base
 
 
+@dataclass(frozen=True, eq=False)
+class AssembledQp:
+    r"""The QP of one tick with every inequality row, for inspection.
+
+    .. math:: \min_y \tfrac12 y^\top H y + g^\top y + c \quad\text{s.t.}\quad A y = b,
+              \quad l \le C y \le u
+
+    over :math:`y = (\ddot q_a, f / (m g))`: the actuated joint accelerations [rad/s^2 or
+    m/s^2] and the contact wrenches divided by the robot's weight ``force_scale`` (1 without
+    contacts), the base rows eliminated (see :mod:`dmpopt.control.inverse_dynamics`). The
+    constant :math:`c` makes the objective the full least-squares cost of the tasks and
+    regularisation. The controller's answer is its optimum (to the solver tolerance when a
+    tick's answer is ``solved`` without a certificate). Bounds of magnitude 1e20 mean none.
+
+    Attributes
+    ----------
+    hessian : ndarray, shape (n, n)
+    gradient : ndarray, shape (n,)
+    equality_matrix, equality_vector : ndarray, shapes (m, n) and (m,)
+        The contact rows :math:`J_c \ddot q = a^* - \dot J_c \dot q`.
+    inequality_matrix : ndarray, shape (p, n)
+        Torque rows, joint-limit acceleration-bound rows, then cone rows.
+    lower, upper : ndarray, shape (p,)
+    constant : float
+    force_scale : float
+        The robot's weight [N] (1.0 without contacts).
+    variable_names, equality_names, inequality_names : tuple of str
+        One name per variable, equality row and inequality row.
+    """
+
+    hessian: np.ndarray
+    gradient: np.ndarray
+    equality_matrix: np.ndarray
+    equality_vector: np.ndarray
+    inequality_matrix: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    constant: float
+    force_scale: float
+    variable_names: tuple[str, ...]
+    equality_names: tuple[str, ...]
+    inequality_names: tuple[str, ...]
+
+    def objective(self, y: np.ndarray) -> float:
+        """The cost :math:`\tfrac12 y^\top H y + g^\top y + c` of a point ``y``."""
+        y = np.asarray(y, dtype=float)
+        return float(0.5 * y @ self.hessian @ y + self.gradient @ y + self.constant)
+
+
+def _velocity_names(model: pin.Model, first: int) -> list[str]:
+    """Names of the velocity coordinates from ``first`` on (``joint`` or ``joint[k]``)."""
+    names = []
+    for joint, name in zip(model.joints[1:], model.names[1:]):
+        names += [name] if joint.nv == 1 else [f"{name}[{k}]" for k in range(joint.nv)]
+    return names[first:]
+
+
 DEFAULT_TIME_BUDGET = 5e-3
 """CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
 
@@ -180,7 +236,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self,
         robot,
         tasks: Sequence[Task],
-        contacts: Sequence[SoleContact] = (),
+        contacts: Sequence[Contact] = (),
         *,
         acceleration_regularization: float = 1e-6,
         force_regularization: float = 1e-8,
@@ -192,6 +248,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         limited_joints: str | Sequence[str] | None = None,
         torque_limit_scale: float = 1.0,
         dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
+        settings_source: proxsuite.proxqp.dense.QP | None = None,
     ):
         _check_items(robot, tasks, contacts)
         for name, value in (
@@ -241,7 +298,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
         # Arguments of kernels.acceleration_bounds (no joints without limits).
         self._bounds = self._joint_limits(joint_limit_horizon, limited_joints)
-        n_bound = self._bounds[1].size
+        n_bound = self._bounds.v_index.size
         # The QP's wrench unknowns are wrenches divided by the robot's weight: dimensionless
         # forces as large as the accelerations, so that proxsuite's absolute tolerance pins
         # the internal forces between the soles (which only eps_f determines).
@@ -279,6 +336,8 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             if items
         )
         self._dynamics_start = n_cost + n_force  # first base-dynamics row
+        self._layout = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
+        self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
 
         # Constant Hessian diagonal over x: eps_a on qdd plus the posture weights, eps_f on the
         # wrenches. The posture tasks' linear terms -w qdd* go to posture_gradient.
@@ -303,10 +362,9 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._zero_acceleration = np.zeros(nv)
         # Woodbury solve: W^-1 + J D^-1 J^T and J D^-1 over the frame-task rows.
         self._task_weights = self._row_scale[:n_task, 0] ** 2
-        self._woodbury = (  # arguments of kernels.joint_space_accelerations
-            self._rows, n_task, self._inverse_diagonal, self._task_weights,
-            np.zeros((n_task, nv)), np.zeros((n_task, n_task)), np.zeros((n_task, n_task)),
-            np.zeros(n_task),
+        self._woodbury = kernels.Woodbury(
+            self._inverse_diagonal, self._task_weights, np.zeros((n_task, nv)),
+            np.zeros((n_task, n_task)), np.zeros((n_task, n_task)), np.zeros(n_task),
         )  # fmt: skip
 
         # Cone rows over x (scaled wrenches): constant.
@@ -334,7 +392,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         n_limit = n_act + n_bound
         self._n_limit = n_limit
         self._in_matrix = np.zeros((n_limit + n_cone, n))
-        self._in_matrix[n_act + np.arange(n_bound), self._bounds[1] - n_base] = 1.0
+        self._in_matrix[n_act + np.arange(n_bound), self._bounds.v_index - n_base] = 1.0
         self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
         self._in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), cone_lower])
         self._in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
@@ -410,17 +468,15 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             self._z_solution = np.zeros(n_z)
             self._z_factor = np.zeros((n_z, n_z))
             # Arguments of the compiled stages (persistent arrays, filled in place).
-            self._elimination_arguments = (
-                self._rows, n_cost, nv, n_base, self._mass, self._bias, scale, basic,
-                self._nonbasic_constant, self._lu, self._elimination, _MIN_PIVOT_RATIO,
-            )  # fmt: skip
-            self._reduction_arguments = (
-                self._rows, n_task, basic, self._nonbasic_constant, self._elimination,
+            self._split = kernels.Split(
+                basic, self._nonbasic_constant, self._lu, self._elimination, _MIN_PIVOT_RATIO
+            )
+            self._reduced = kernels.ReducedCosts(
                 self._row_scale[:, 0].copy(), self._basic_scale, self._posture_gradient,
                 self._z_hessian_diagonal, self._z_matrix, self._z_target, self._z_hessian,
                 self._z_gradient,
             )  # fmt: skip
-            self._solve_arguments = (
+            self._checks = kernels.Checks(
                 self._z_factor, self._z_solution, self._z_cone_matrix, cone_upper,
                 self.torque_limit, self._bounds, self._bound_tolerance,
             )  # fmt: skip
@@ -448,6 +504,8 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.max_iter = int(max_iterations)
         self.qp.settings.eps_duality_gap_abs = tolerance
+        if settings_source is not None:  # another contact set's QP: one source for all sets
+            self.qp = settings_source
         self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
 
         self.stats = ControllerStats()
@@ -517,7 +575,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
                     f"limited_joints: {name!r} has no position limit (a continuous joint); "
                     "leave it out"
                 )
-        return (
+        return kernels.JointBounds(
             q_index, v_index,
             np.asarray(robot.position_lower, dtype=float)[q_index] - JOINT_LIMIT_TOLERANCE,
             np.asarray(robot.position_upper, dtype=float)[q_index] + JOINT_LIMIT_TOLERANCE,
@@ -533,14 +591,21 @@ class ContactSetQP(Tick, Assembly, StageSolver):
 
     @property
     def contact_wrenches(self) -> np.ndarray:
-        """Contact wrenches of the last solve, shape (n_contacts, 6) (copy).
+        """Contact wrenches (or forces) of the last solve, shape (n_contacts, width) (copy).
 
-        Rows are (fx, fy, fz, tx, ty, tz) [N, N m] in each sole frame, in contact order.
+        One row per contact in contact order: (fx, fy, fz, tx, ty, tz) [N, N m] in a sole
+        frame, a point force in world axes, a surface force in surface axes. ``width`` is the
+        largest contact's ``n_force``; a smaller contact's row is padded with zeros (a
+        point force has no torque about its point).
         """
         forces = self._solution[self._nv :]
         if not self.contacts:
             return np.zeros((0, 6))
-        return np.array([forces[rows] for rows in self._force_slices])
+        width = max(c.n_force for c in self.contacts)
+        wrenches = np.zeros((len(self.contacts), width))
+        for row, rows in zip(wrenches, self._force_slices):
+            row[: rows.stop - rows.start] = forces[rows]
+        return wrenches
 
     def set_normal_force_limit(self, index: int, limit: float) -> None:
         """Bound the normal force of contact ``index`` by ``limit`` [N] from the next tick
@@ -563,6 +628,54 @@ class ContactSetQP(Tick, Assembly, StageSolver):
     def torques(self) -> np.ndarray:
         """Torques returned by the last tick, shape (n_actuated,) (copy)."""
         return self._torques.copy()
+
+    def assembled_qp(self, q: np.ndarray, v: np.ndarray) -> AssembledQp:
+        """The QP of a tick at ``(q, v)`` with every inequality row (copies; see
+        :class:`AssembledQp`). Assembling it changes no answer of a later tick."""
+        np.copyto(self._q_tick, q)
+        np.copyto(self._v_tick, v)
+        q, v = self._q_tick, self._v_tick
+        self._assemble(q, v)
+        self._assemble_y()
+        kernels.acceleration_bounds(self._bounds, q, v)
+        self._assemble_torque_rows()
+        n, n_cost, mapped = self._n, self._n_cost, self._mapped
+        state, weights = self._posture.state, self._posture.weights
+        constant = 0.5 * mapped[:n_cost, n] @ mapped[:n_cost, n] + 0.5 * weights @ state[5] ** 2
+        joints = _velocity_names(self.model, self._n_base)
+        contact_rows = [
+            (contact, name) for contact in self.contacts for name in contact.force_names
+        ]
+        bounded, limited = _velocity_names(self.model, 0), self._bounds.v_index
+        return AssembledQp(
+            hessian=self._hessian.copy(),
+            gradient=self._gradient.copy(),
+            equality_matrix=mapped[n_cost:, :n].copy(),
+            equality_vector=mapped[n_cost:, n].copy(),
+            inequality_matrix=self._in_matrix.copy(),
+            lower=self._in_lower.copy(),
+            upper=self._in_upper.copy(),
+            constant=float(constant),
+            force_scale=float(self._force_scale),
+            variable_names=tuple(
+                [f"acceleration of {name}" for name in joints]
+                + [f"{name} of {contact.frame} / force_scale" for contact, name in contact_rows]
+            ),
+            equality_names=tuple(f"contact {c.frame} ({name})" for c, name in contact_rows),
+            inequality_names=tuple(
+                [f"torque limit of {name}" for name in joints]
+                + [f"joint limit of {bounded[i]} (acceleration bound)" for i in limited]
+                + [name for contact in self.contacts for name in contact.row_names]
+            ),
+        )
+
+    def continue_from(self, previous: ContactSetQP) -> None:
+        """Take over from the QP of another contact set on a switch: its last valid torque
+        (the hold answer) carries over; this QP starts from its path without inequality
+        rows."""
+        np.copyto(self._torques, previous._torques)
+        self._has_valid_torque = previous._has_valid_torque
+        self._level = 0
 
     def reset(self) -> None:
         """Forget the warm start, the contact reference placements and the counters."""

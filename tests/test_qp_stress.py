@@ -91,11 +91,9 @@ def clarabel(hessian, gradient, c, lower, upper, a=None, b=None):
 
 
 def controller_y(public):
-    controller = public._current
-    x = controller.joint_accelerations
-    n_base = controller._n_base
-    wrenches = controller.contact_wrenches.ravel() / controller._force_scale
-    return np.concatenate([x[n_base:], wrenches])
+    layout = public._current.layout
+    wrenches = public.contact_wrenches.ravel() / layout.force_scale
+    return np.concatenate([public.joint_accelerations[layout.n_base :], wrenches])
 
 
 def standing(robot, q_start, friction=0.7, **options):

@@ -121,12 +121,12 @@ class Assembly:
 
     def _assemble_y(self) -> None:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
-        rows, n_base, n, n_cost = self._rows, self._n_base, self._n, self._n_cost
-        mapped, used = self._mapped, rows[: self._dynamics_start]
+        rows, n_base, n, n_cost = self._rows, self.layout.n_base, self.layout.n, self.layout.n_cost
+        mapped, used = self._mapped, rows[: self.layout.dynamics_start]
         if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
-            n_act, mass, rhs = self._n_act, self._mass, self._base_rhs
+            n_act, mass, rhs = self.layout.n_act, self._mass, self._base_rhs
             np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
-            np.multiply(used[n_cost:, :n_base].T, self._force_scale, out=rhs[:, n_act:n])
+            np.multiply(used[n_cost:, :n_base].T, self.layout.force_scale, out=rhs[:, n_act:n])
             rhs[:, n] = self._bias[:n_base]
             _, solution, info = lapack.dposv(mass[:n_base, :n_base], rhs)
             if info != 0:  # M_bb not positive definite: only for a corrupted model
@@ -152,15 +152,16 @@ class Assembly:
 
     def _assemble_torque_rows(self) -> None:
         """tau = M_a qdd + h_a - J_ca^T f as rows over y, and the torque-limit bounds."""
-        n_base, n_act, n = self._n_base, self._n_act, self._n
+        n_base, n_act, n = self.layout.n_base, self.layout.n_act, self.layout.n
         mass, torque = self._mass, self._torque_rows
         if n_base:  # [M_ab X_y | M_ab X_c], qdd_b = X_y y - X_c
             np.dot(mass[n_base:, :n_base], self._base_map, out=torque)
         else:
             torque[:] = 0.0
         torque[:, :n_act] += mass[n_base:, n_base:]
-        contact = self._rows[self._n_cost : self._dynamics_start, n_base : self._nv]
-        torque[:, n_act:n] -= self._force_scale * contact.T
+        layout = self.layout
+        contact = self._rows[layout.n_cost : layout.dynamics_start, n_base : layout.nv]
+        torque[:, n_act:n] -= self.layout.force_scale * contact.T
         np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
         self._in_matrix[:n_act] = torque[:, :n]
         np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
@@ -171,13 +172,13 @@ class Assembly:
 
     def _accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
-        x, n_base = self._candidate, self._n_base
+        x, n_base = self._candidate, self.layout.n_base
         if eliminated:  # x_B = U_c - U_N z
             kernels.expand(self._split, solution, x)
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
             x[n_base:] = solution
             if n_base:
-                base_map, n = self._base_map, self._n
+                base_map, n = self._base_map, self.layout.n
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
         kernels.torques(self._layout, self._dynamics, x, self._tau)

@@ -53,7 +53,7 @@ def active_constraints(controller) -> list[str]:
     qp = controller._current
     robot = qp.robot
     names = []
-    weight = qp._force_scale
+    weight = qp.layout.force_scale
     offset = 0
     for contact, padded in zip(qp.contacts, qp.contact_wrenches):
         wrench = padded[: contact.n_force]

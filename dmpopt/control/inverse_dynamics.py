@@ -94,6 +94,7 @@ from dmpopt.exceptions import InvalidInputError, ShapeError
 from . import kernels
 from .assembly import Assembly
 from .contacts import Contact
+from .layout import build_layout
 from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _active_set, _arguments, _Stage
 from .tasks import FrameTask, PostureTask, Task
 from .tick import _RELEASE_MARGIN, Tick
@@ -213,23 +214,23 @@ class AssembledQp:
         return float(0.5 * y @ self.hessian @ y + self.gradient @ y + self.constant)
 
 
-def _velocity_names(model: pin.Model, first: int) -> list[str]:
-    """Names of the velocity coordinates from ``first`` on (``joint`` or ``joint[k]``)."""
-    names = []
-    for joint, name in zip(model.joints[1:], model.names[1:]):
-        names += [name] if joint.nv == 1 else [f"{name}[{k}]" for k in range(joint.nv)]
-    return names[first:]
-
-
 DEFAULT_TIME_BUDGET = 5e-3
 """CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
 
 
-class ContactSetQP(Tick, Assembly, StageSolver):
+class ContactSetQP(Tick, Assembly):
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
     stages (see the module docstring). The controller builds one per set it meets and keeps
-    them; the parameters are the controller's.
+    them; the parameters are the controller's (``settings_source``: the proxsuite QP whose
+    settings every stage takes, the controller's ``qp``).
+
+    Its parts: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`: sizes, blocks, row
+    names), the stages (:class:`~dmpopt.control.qp_stages._Stage`, each a proxsuite QP with
+    its warm start and active set), their solver (:class:`~dmpopt.control.qp_stages.
+    StageSolver`), and the arrays the compiled kernels fill (named structures of
+    :mod:`dmpopt.control.kernels`); the tick's flow (:class:`~dmpopt.control.tick.Tick`) and
+    the assembly (:class:`~dmpopt.control.assembly.Assembly`) are its methods.
     """
 
     def __init__(
@@ -276,18 +277,6 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self.contacts = tuple(contacts)
         self.raise_on_failure = raise_on_failure
 
-        nv, n_act, n_c = robot.nv, robot.n_actuated, len(self.contacts)
-        force_offsets = np.cumsum([0] + [c.n_force for c in self.contacts]).astype(int)
-        cone_offsets = np.cumsum([0] + [c.wrench_upper.size for c in self.contacts]).astype(int)
-        n_base, n_force = nv - n_act, int(force_offsets[-1])
-        n_x = nv + n_force  # unknowns x = (qdd, f / force_scale)
-        n = n_act + n_force  # unknowns y = (qdd_a, f / force_scale), base rows eliminated
-        n_cone = int(cone_offsets[-1])
-        self._force_slices = tuple(slice(a, b) for a, b in zip(force_offsets, force_offsets[1:]))
-        # Cone rows of each contact's normal-force bounds (its last two: -f_n <= -f_min, f_n <=
-        # f_max), which a transition changes.
-        self._normal_rows = tuple((int(b) - 2, int(b) - 1) for b in cone_offsets[1:])
-        self._nv, self._n_base, self._n_act, self._n = nv, n_base, n_act, n
         self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
         if not (self.torque_limit > 0).all():  # NaN too
             raise InvalidInputError(
@@ -298,12 +287,17 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
         # Arguments of kernels.acceleration_bounds (no joints without limits).
         self._bounds = self._joint_limits(joint_limit_horizon, limited_joints)
-        n_bound = self._bounds.v_index.size
-        # The QP's wrench unknowns are wrenches divided by the robot's weight: dimensionless
-        # forces as large as the accelerations, so that proxsuite's absolute tolerance pins
-        # the internal forces between the soles (which only eps_f determines).
-        scale = pin.computeTotalMass(self.model) * 9.81 if n_c else 1.0
-        self._force_scale = scale
+        self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
+        self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
+        # The QP's wrench unknowns are wrenches divided by the robot's weight (force_scale):
+        # dimensionless forces as large as the accelerations, so that proxsuite's absolute
+        # tolerance pins the internal forces between the soles (which only eps_f determines).
+        self.layout = layout = build_layout(
+            robot, self._stacked_tasks, self.contacts, self._bounds.v_index
+        )
+        nv, n_base, n_act, n_force = layout.nv, layout.n_base, layout.n_act, layout.n_force
+        n, n_x, n_cone, n_bound = layout.n, layout.n_x, layout.n_cone, layout.n_bound
+        n_task, n_cost, scale = layout.n_task, layout.n_cost, layout.force_scale
 
         # Linear rows [A | t] over x, each for A x = t (least squares or exact), in self._rows:
         # [tasks | base regularisation | contacts | base dynamics]
@@ -311,18 +305,10 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         # - base regularisation: qdd_b = 0, least squares with weight eps_a (used with y);
         # - contacts: J_c qdd = b_c;
         # - base dynamics: M_b qdd - J_cb^T f = -h_b (used for the elimination).
-        self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
-        self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
-        sizes = [task.target.size for task in self._stacked_tasks]
-        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
-        self._task_rows = tuple(slice(a, b) for a, b in zip(offsets[:-1], offsets[1:]))
-        n_task = int(offsets[-1])
-        n_cost = n_task + n_base
-        self._n_task, self._n_cost = n_task, n_cost
         self._rows = np.zeros((n_cost + n_force + n_base, n_x + 1))
         self._rows[n_task:n_cost, :n_base] = np.eye(n_base)
         self._row_scale = np.ones((n_cost, 1))  # square roots of the least-squares weights
-        for task, rows in zip(self._stacked_tasks, self._task_rows):
+        for task, rows in zip(self._stacked_tasks, layout.task_rows):
             self._row_scale[rows] = np.sqrt(task.weight)
         self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
         # Each tick the tasks and contacts compute their rows into their own arrays, which are
@@ -335,7 +321,6 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             )
             if items
         )
-        self._dynamics_start = n_cost + n_force  # first base-dynamics row
         self._layout = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
         self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
 
@@ -370,12 +355,10 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         # Cone rows over x (scaled wrenches): constant.
         cone_matrix = np.zeros((n_cone, n_x))
         cone_upper = np.full(n_cone, _NO_BOUND)
-        for contact, forces, a, b in zip(
-            self.contacts, self._force_slices, cone_offsets, cone_offsets[1:]
-        ):
-            cone_matrix[a:b, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
-            cone_upper[a:b] = contact.wrench_upper
-        self._cone_upper, self._n_limit = cone_upper, None  # n_limit set below
+        for contact, forces, cones in zip(self.contacts, layout.force_slices, layout.cone_slices):
+            cone_matrix[cones, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
+            cone_upper[cones] = contact.wrench_upper
+        self._cone_upper = cone_upper
         cone_lower = np.full(n_cone, -_NO_BOUND)
 
         # ---- QPs over y = x[n_base:] (base rows eliminated): without torque rows (used when
@@ -389,8 +372,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._gradient = np.zeros(n)
         self._eq_vector = self._mapped[n_cost:, n]
         # Inequality rows over y: torques, acceleration bounds (if any), cones.
-        n_limit = n_act + n_bound
-        self._n_limit = n_limit
+        n_limit = layout.n_limit
         self._in_matrix = np.zeros((n_limit + n_cone, n))
         self._in_matrix[n_act + np.arange(n_bound), self._bounds.v_index - n_base] = 1.0
         self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
@@ -446,7 +428,9 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         # basic accelerations, x_B = U_c - U_N z with [U_N | U_c] = G_B^-1 [G_N | t]; without
         # inequality rows (primary) and with the cone rows.
         self._basic = self._eliminated_cones = None
-        joints = _contact_joints(robot, self.contacts, n_base) if n_c else np.zeros(0, int)
+        joints = (
+            _contact_joints(robot, self.contacts, n_base) if self.contacts else np.zeros(0, int)
+        )
         if joints is not None and n_base + joints.size:
             basic = np.concatenate([np.arange(n_base), joints])
             nonbasic = np.setdiff1d(np.arange(n_x), basic)
@@ -506,12 +490,13 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self.qp.settings.eps_duality_gap_abs = tolerance
         if settings_source is not None:  # another contact set's QP: one source for all sets
             self.qp = settings_source
+        self._solver = StageSolver(self.qp)
         self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
 
         self.stats = ControllerStats()
         self._torques = np.zeros(n_act)
         self._tau = np.zeros(n_act)
-        self._q_tick, self._v_tick = np.zeros(self.model.nq), np.zeros(self._nv)
+        self._q_tick, self._v_tick = np.zeros(self.model.nq), np.zeros(self.layout.nv)
         self._solution = np.zeros(n_x)
         self._candidate = np.zeros(n_x)
         self._has_valid_torque = False
@@ -523,7 +508,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         configuration, and the stages used around proxsuite; then the controller is as new
         (contact references kept)."""
         references = [contact.reference_placement for contact in self.contacts]
-        state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self._nv)
+        state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self.layout.nv)
         self._level = 0  # the path of a tick without active inequality rows
         self.compute_torques(*state)  # copies the state: every kernel sees writable float64
         self._feasible(self.torque_limit, self._bound_tolerance, *state)
@@ -587,7 +572,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
     @property
     def joint_accelerations(self) -> np.ndarray:
         """Joint accelerations of the last solve, shape (nv,) (copy)."""
-        return self._solution[: self._nv].copy()
+        return self._solution[: self.layout.nv].copy()
 
     @property
     def contact_wrenches(self) -> np.ndarray:
@@ -598,12 +583,12 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         largest contact's ``n_force``; a smaller contact's row is padded with zeros (a
         point force has no torque about its point).
         """
-        forces = self._solution[self._nv :]
+        forces = self._solution[self.layout.nv :]
         if not self.contacts:
             return np.zeros((0, 6))
         width = max(c.n_force for c in self.contacts)
         wrenches = np.zeros((len(self.contacts), width))
-        for row, rows in zip(wrenches, self._force_slices):
+        for row, rows in zip(wrenches, self.layout.force_slices):
             row[: rows.stop - rows.start] = forces[rows]
         return wrenches
 
@@ -612,13 +597,13 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         (its lower bound becomes min(f_min, limit)); only the bound vectors change."""
         contact = self.contacts[index]
         lower = -min(contact.min_normal_force, limit)
-        rows = self._normal_rows[index]
+        rows = self.layout.normal_rows[index]
         if (self._cone_upper[list(rows)] == (lower, limit)).all():
             return
-        margin = _CONE_RELEASE_MARGIN * self._force_scale
+        margin = _CONE_RELEASE_MARGIN * self.layout.force_scale
         for row, value in zip(rows, (lower, limit)):
             self._cone_upper[row] = value
-            self._in_upper[self._n_limit + row] = value
+            self._in_upper[self.layout.n_limit + row] = value
             if self._basic is not None:
                 self._z_cone_release[row] = value - margin
         for stage in self._stages:
@@ -639,14 +624,9 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._assemble_y()
         kernels.acceleration_bounds(self._bounds, q, v)
         self._assemble_torque_rows()
-        n, n_cost, mapped = self._n, self._n_cost, self._mapped
+        n, n_cost, mapped = self.layout.n, self.layout.n_cost, self._mapped
         state, weights = self._posture.state, self._posture.weights
         constant = 0.5 * mapped[:n_cost, n] @ mapped[:n_cost, n] + 0.5 * weights @ state[5] ** 2
-        joints = _velocity_names(self.model, self._n_base)
-        contact_rows = [
-            (contact, name) for contact in self.contacts for name in contact.force_names
-        ]
-        bounded, limited = _velocity_names(self.model, 0), self._bounds.v_index
         return AssembledQp(
             hessian=self._hessian.copy(),
             gradient=self._gradient.copy(),
@@ -656,17 +636,10 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             lower=self._in_lower.copy(),
             upper=self._in_upper.copy(),
             constant=float(constant),
-            force_scale=float(self._force_scale),
-            variable_names=tuple(
-                [f"acceleration of {name}" for name in joints]
-                + [f"{name} of {contact.frame} / force_scale" for contact, name in contact_rows]
-            ),
-            equality_names=tuple(f"contact {c.frame} ({name})" for c, name in contact_rows),
-            inequality_names=tuple(
-                [f"torque limit of {name}" for name in joints]
-                + [f"joint limit of {bounded[i]} (acceleration bound)" for i in limited]
-                + [name for contact in self.contacts for name in contact.row_names]
-            ),
+            force_scale=float(self.layout.force_scale),
+            variable_names=self.layout.variable_names,
+            equality_names=self.layout.equality_names,
+            inequality_names=self.layout.inequality_names,
         )
 
     def continue_from(self, previous: ContactSetQP) -> None:

@@ -1013,6 +1013,13 @@ def test_placements_must_be_finite_rigid_motions(upper_body):
         hand.set_target("up")
     with pytest.raises(ShapeError, match=r"^velocity has shape \(2,\)"):
         hand.set_target(np.zeros(3), velocity=np.ones(2))
+    # a 3-vector velocity or acceleration (a position DMP's) is the linear part, angular 0
+    hand.set_target(np.zeros(3), [1.0, 2.0, 3.0], [4.0, 5.0, 6.0])
+    np.testing.assert_array_equal(hand.target_velocity, [1, 2, 3, 0, 0, 0])
+    np.testing.assert_array_equal(hand.target_acceleration, [4, 5, 6, 0, 0, 0])
+    hand.set_target(np.zeros(3), 0.5)  # a scalar: every component; acceleration omitted: 0
+    np.testing.assert_array_equal(hand.target_velocity, np.full(6, 0.5))
+    np.testing.assert_array_equal(hand.target_acceleration, np.zeros(6))
 
 
 def test_removed_task_no_longer_counts(upper_body):

@@ -759,8 +759,10 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
     # solve; warm from the certified optimum, it needs fewer iterations, counted as proxsuite
     # counts
     qp, stage = controller._current, controller._current._limited
-    assert qp._run(stage, True, math.inf) and controller.stats.last_iterations == cold
-    assert qp._run(stage, False, math.inf)
+    run = qp._solver._run  # one proxsuite solve and its refinement, as a tick makes it
+    assert run(stage, True, math.inf, qp.stats, qp._take)
+    assert controller.stats.last_iterations == cold
+    assert run(stage, False, math.inf, qp.stats, qp._take)
     warm = controller.stats.last_iterations
     assert warm < cold and warm == stage.qp.results.info.iter  # one call: proxsuite's count
 
@@ -1272,7 +1274,7 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     assert stage.certified
 
     def warm_solve():
-        assert qp._run(stage, False, math.inf)
+        assert qp._solver._run(stage, False, math.inf, qp.stats, qp._take)
         return controller.stats.last_iterations, qp._candidate.copy()
 
     iterations, answer = warm_solve()

@@ -524,7 +524,7 @@ def test_controller_inputs_get_named_errors(upper_body, talos):
         build(upper_body, [PostureTask(talos, "right_leg")])
     with pytest.raises(ShapeError, match="tasks: a ComTask was built for another robot"):
         build(upper_body, [posture, ComTask(talos)])
-    with pytest.raises(InvalidInputError, match="contacts holds str, expected SoleContact"):
+    with pytest.raises(InvalidInputError, match="contacts holds str, expected Contact"):
         build(talos, [PostureTask(talos)], ["left_sole_link"])
 
 

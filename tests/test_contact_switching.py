@@ -917,11 +917,7 @@ class KneeContact(Contact):
 
     n_force, normal_index = 3, 2
 
-    def __init__(self, robot, frame, **options):
-        super().__init__(robot, frame, **options)
-        self._set_cone()
-
-    def _friction_rows(self):
+    def friction_rows(self):
         m = self.friction_coefficient / np.sqrt(2.0)
         return np.array([[1, 0, -m], [0, 1, -m], [-1, 0, -m], [0, -1, -m]]), list("abcd")
 
@@ -929,7 +925,7 @@ class KneeContact(Contact):
         return pin.getFrameJacobian(self.model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
 
     def update(self, q, v, data):
-        placement = self._placement(data)
+        placement = self.placement(data)
         jacobian = self.contact_jacobian(data)
         drift = pin.getFrameClassicalAcceleration(
             self.model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED

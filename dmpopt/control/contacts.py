@@ -7,7 +7,7 @@ A new kind of contact is one subclass of :class:`Contact` that
 
 - sets ``n_force`` and ``normal_index`` (which force component is the normal force),
 - returns its friction (and centre-of-pressure) rows and their names from
-  :meth:`Contact._friction_rows` (the base appends the two normal-force rows
+  :meth:`Contact.friction_rows` (the base appends the two normal-force rows
   :math:`-f_n \le -f_{\min}` and :math:`f_n \le f_{\max}` last, which the controller's
   transitions move),
 - fills ``jacobian`` and ``target`` in :meth:`Contact.update` and gives
@@ -19,6 +19,8 @@ on a surface of any normal).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import pinocchio as pin
@@ -109,23 +111,29 @@ class Contact:
         self.reference_placement = None
         self.jacobian = np.zeros((self.n_force, robot.nv))
         self.target = np.zeros(self.n_force)
-
-    def _set_cone(self) -> None:
-        """Cone rows from :meth:`_friction_rows` and the two normal-force rows (call once the
-        subclass's geometry is set)."""
-        friction, names = self._friction_rows()
         if len(self.force_names) != self.n_force:
             self.force_names = tuple(f"f{k}" for k in range(self.n_force))
-        normal = np.eye(self.n_force)[self.normal_index]
-        self.wrench_matrix = np.vstack([friction, -normal, normal])
-        self.wrench_upper = np.zeros(self.wrench_matrix.shape[0])
-        self.wrench_upper[-2:] = -self.min_normal_force, self.max_normal_force
-        lift = f"minimum normal force of {self.frame} ({self._release})"
-        self.row_names = (*names, lift, f"maximum normal force of {self.frame}")
 
-    def _friction_rows(self) -> tuple[np.ndarray, list[str]]:
-        """Rows ``C f <= 0`` other than the normal-force bounds, and their names."""
-        raise NotImplementedError(f"{type(self).__name__} must implement _friction_rows")
+    @functools.cached_property
+    def _cone(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """Cone rows from :meth:`friction_rows` and the two normal-force rows, built on first
+        use (after the subclass's ``__init__`` has set its geometry)."""
+        friction, names = self.friction_rows()
+        normal = np.eye(self.n_force)[self.normal_index]
+        matrix = np.vstack([np.asarray(friction, dtype=float), -normal, normal])
+        upper = np.zeros(matrix.shape[0])
+        upper[-2:] = -self.min_normal_force, self.max_normal_force
+        lift = f"minimum normal force of {self.frame} ({self._release})"
+        return matrix, upper, (*names, lift, f"maximum normal force of {self.frame}")
+
+    wrench_matrix = property(lambda self: self._cone[0], doc="Cone rows C, shape (m, n_force).")
+    wrench_upper = property(lambda self: self._cone[1], doc="Cone bounds u, shape (m,).")
+    row_names = property(lambda self: self._cone[2], doc="One name per cone row.")
+
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
+        """Rows ``C f <= 0`` other than the normal-force bounds (friction, centre of
+        pressure), shape (m, n_force), and one name per row."""
+        raise NotImplementedError(f"{type(self).__name__} must implement friction_rows")
 
     def contact_jacobian(self, data: pin.Data) -> np.ndarray:
         """The contact rows' Jacobian, shape (n_force, nv), from the joint Jacobians in
@@ -156,8 +164,9 @@ class Contact:
         """Slack ``u - C f`` of each cone row for a wrench; >= 0 inside the cone."""
         return self.wrench_upper - self.wrench_matrix @ np.asarray(wrench, dtype=float)
 
-    def _placement(self, data: pin.Data) -> pin.SE3:
-        """The frame's placement in ``data``; the reference if none was set."""
+    def placement(self, data: pin.Data) -> pin.SE3:
+        """The frame's placement in ``data`` (after the kinematics); it becomes
+        ``reference_placement`` if that is None."""
         placement = pin.updateFramePlacement(self.model, data, self.frame_id)
         if self.reference_placement is None:
             self.reference_placement = placement.copy()
@@ -232,9 +241,8 @@ class SoleContact(Contact):
         corners = self.cop_fraction * np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)
-        self._set_cone()
 
-    def _friction_rows(self) -> tuple[np.ndarray, list[str]]:
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
         radius = min(-self.x_min, self.x_max, -self.y_min, self.y_max)
         #              fx   fy   fz             tx   ty   tz
@@ -267,7 +275,7 @@ class SoleContact(Contact):
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
-        placement = self._placement(data)
+        placement = self.placement(data)
         # error log6(M^-1 M_ref) = -log6(M_ref^-1 M)
         error = pin.log6(placement.actInv(self.reference_placement)).vector
         kernels.pd_task_rows(
@@ -321,9 +329,8 @@ class PointContact(Contact):
             damping,
         )  # fmt: skip
         self._error = np.zeros(6)
-        self._set_cone()
 
-    def _friction_rows(self) -> tuple[np.ndarray, list[str]]:
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         planar = self.n_force == 2
         mu = self.friction_coefficient if planar else self.friction_coefficient / np.sqrt(2.0)
         tangential = np.eye(self.n_force)[:-1]
@@ -343,7 +350,7 @@ class PointContact(Contact):
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Point Jacobian (world axes) and desired point acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
-        placement = self._placement(data)
+        placement = self.placement(data)
         error = self._error
         np.subtract(self.reference_placement.translation, placement.translation, out=error[:3])
         kernels.pd_task_rows(
@@ -421,9 +428,8 @@ class SurfaceContact(Contact):
         self._world_jacobian = np.zeros((3, robot.nv))
         self._world_target = np.zeros(3)
         self._error = np.zeros(6)
-        self._set_cone()
 
-    def _friction_rows(self) -> tuple[np.ndarray, list[str]]:
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
         matrix = np.array([[1.0, 0.0, -mu], [0.0, 1.0, -mu], [-1.0, 0.0, -mu], [0.0, -1.0, -mu]])
         names = [f"friction cone of {self.frame} ({s}t{i})" for s in "+-" for i in "12"]
@@ -437,7 +443,7 @@ class SurfaceContact(Contact):
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Point Jacobian and desired acceleration minus drift, in surface axes."""
         model, frame_id = self.model, self.frame_id
-        placement = self._placement(data)
+        placement = self.placement(data)
         error = self._error
         np.subtract(self.reference_placement.translation, placement.translation, out=error[:3])
         kernels.pd_task_rows(

@@ -41,7 +41,7 @@ class Assembly:
             pin.computeJointJacobians(model, data)
             self._update_rows(q, v)
         self._stack_posture()
-        if not kernels.joint_space_accelerations(
+        if not self._compiled.joint_space_accelerations(
             self._posture, self._layout, self._woodbury, q, v, x
         ):
             return False
@@ -88,7 +88,7 @@ class Assembly:
         """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
         -w qdd* over x."""
         self._stack_posture()
-        kernels.posture_gradient(self._posture, q, v)
+        self._compiled.posture_gradient(self._posture, q, v)
 
     def _stack_posture(self) -> None:
         """Copy the posture tasks' references and gains into the stacked block (one call);
@@ -101,7 +101,7 @@ class Assembly:
         :func:`kernels.eliminated_tick`)."""
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
-        return kernels.eliminated_tick(
+        return self._compiled.eliminated_tick(
             self._layout, self._dynamics, self._split, self._reduced, self._checks, q, v,
             self._candidate, self._tau,
         )  # fmt: skip
@@ -109,9 +109,9 @@ class Assembly:
     def _assemble_eliminated(self) -> int:
         """Hessian and gradient over z for the QP with cone rows: CONES_VIOLATED (to be
         solved with them), or ILL_CONDITIONED if the basic block is."""
-        if not kernels.eliminate(self._layout, self._dynamics, self._split):
+        if not self._compiled.eliminate(self._layout, self._dynamics, self._split):
             return kernels.ILL_CONDITIONED
-        kernels.reduce_costs(self._layout, self._split, self._reduced)
+        self._compiled.reduce_costs(self._layout, self._split, self._reduced)
         return kernels.CONES_VIOLATED
 
     def _cones_released(self) -> bool:
@@ -174,11 +174,11 @@ class Assembly:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
         x, n_base = self._candidate, self.layout.n_base
         if eliminated:  # x_B = U_c - U_N z
-            kernels.expand(self._split, solution, x)
+            self._compiled.expand(self._split, solution, x)
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
             x[n_base:] = solution
             if n_base:
                 base_map, n = self._base_map, self.layout.n
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
-        kernels.torques(self._layout, self._dynamics, x, self._tau)
+        self._compiled.torques(self._layout, self._dynamics, x, self._tau)

@@ -81,6 +81,7 @@ degraded answer within its time budget (see :class:`InverseDynamicsController`).
 from __future__ import annotations
 
 import math
+import types
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -500,7 +501,33 @@ class ContactSetQP(Tick, Assembly):
         self._solution = np.zeros(n_x)
         self._candidate = np.zeros(n_x)
         self._has_valid_torque = False
+        self._bind_kernels()
         self._compile_kernels()
+
+    def _bind_kernels(self) -> None:
+        """The compiled kernels of a tick, bound to the types of this QP's own arrays
+        (:func:`kernels.entry_point`: called without numba's type dispatch)."""
+        q, v, x, tau = self._q_tick, self._v_tick, self._candidate, self._tau
+        rows, dynamics, bounds = self._layout, self._dynamics, self._bounds
+        bound = {
+            "posture_gradient": (self._posture, q, v),
+            "acceleration_bounds": (bounds, q, v),
+            "feasible": (tau, self.torque_limit, x, bounds, q, v, self._bound_tolerance),
+            "torques": (rows, dynamics, x, tau),
+        }
+        if self._joint_space:
+            bound["joint_space_accelerations"] = (self._posture, rows, self._woodbury, q, v, x)
+        if self._basic is not None:
+            split, reduced, checks = self._split, self._reduced, self._checks
+            bound["eliminated_tick"] = (rows, dynamics, split, reduced, checks, q, v, x, tau)
+            bound["eliminate"] = (rows, dynamics, split)
+            bound["reduce_costs"] = (rows, split, reduced)
+            bound["expand"] = (split, self._z_accepted, x)
+        entry_points = {
+            name: kernels.entry_point(getattr(kernels, name), *arguments)
+            for name, arguments in bound.items()
+        }
+        self._compiled = types.SimpleNamespace(**entry_points)
 
     def _compile_kernels(self) -> None:
         """Compile (or load from numba's disk cache) the kernels a tick can use, so that no
@@ -515,7 +542,7 @@ class ContactSetQP(Tick, Assembly):
         kernels.acceleration_bounds(self._bounds, *state)
         if self._basic is not None:
             self._assemble_eliminated()
-            self._accept(self._z_solution, eliminated=True)
+            self._accept(self._z_accepted, eliminated=True)
         self._solve_direct()
         problem = (np.eye(1), np.ones(1), None, None, np.ones((1, 1)), -np.ones(1), np.ones(1))
         _active_set(problem, np.zeros(1, bool), np.zeros(1, bool), 1e-9, 1)

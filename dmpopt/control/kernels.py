@@ -38,6 +38,7 @@ __all__ = [
     "cholesky_solve",
     "eliminate",
     "eliminated_tick",
+    "entry_point",
     "expand",
     "feasible",
     "joint_space_accelerations",
@@ -176,6 +177,20 @@ class KktWorkspace(NamedTuple):
 # Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
 # the callers) instead of raising.
 _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
+
+
+def entry_point(kernel, *arguments):
+    """The compiled code of ``kernel`` for the numba types of ``arguments`` (compiled, or
+    loaded from the disk cache, if needed), to be called without numba's type dispatch.
+
+    numba's dispatch types each argument on every call; for a named structure (a NamedTuple
+    such as :class:`Rows`) it does so field by field in Python, about a microsecond per
+    structure. A controller's arrays never change type (it passes its own float64 arrays,
+    sized once), so it binds its kernels once and calls them directly. Only arguments of the
+    types given here may be passed to the result: call ``kernel`` itself for any other.
+    """
+    return kernel.compile(tuple(numba.typeof(argument) for argument in arguments))
+
 
 # eliminated_tick's outcomes
 SOLVED, CONES_VIOLATED, LIMITS_VIOLATED, ILL_CONDITIONED, CHOLESKY_FAILED = range(5)
@@ -599,21 +614,17 @@ def active_set(problem, at_upper, at_lower, tolerance, rounds, workspace, x, y, 
     as one compiled call: each round assembles the KKT matrix of the active rows in place in
     ``workspace`` and solves it by :func:`solve_in_place`.
 
-    ``problem`` is a :class:`QpArrays`; ``workspace`` a :class:`KktWorkspace`: a flat array
+    ``problem`` holds the fields of a :class:`QpArrays` and ``workspace`` those of a
+    :class:`KktWorkspace` (as plain tuples, or those NamedTuples): a flat array
     of at least :math:`(n + n_{eq} + n)^2` entries, and arrays of :math:`n + n_{eq} + n`,
     :math:`n_{in}` and :math:`n_{in}` entries. More active rows than unknowns are dependent.
     On a certified optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if
     inactive) receive it and its multipliers. Returns the number of KKT solves, negative if no set
     verified.
     """
-    hessian, gradient, eq_matrix, eq_vector = (
-        problem.hessian,
-        problem.gradient,
-        problem.eq_matrix,
-        problem.eq_vector,
-    )
-    in_matrix, lower, upper = problem.in_matrix, problem.lower, problem.upper
-    kkt, rhs, values, rows = workspace.kkt, workspace.rhs, workspace.values, workspace.rows
+    # unpacked by position: plain tuples are passed (numba types them faster than NamedTuples)
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    kkt, rhs, values, rows = workspace
     n, n_eq, n_in = hessian.shape[0], eq_matrix.shape[0], in_matrix.shape[0]
     for solves in range(1, rounds + 1):
         n_active = 0

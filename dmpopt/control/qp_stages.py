@@ -182,11 +182,9 @@ def _active_set(
     if eq_matrix is None:
         eq_matrix, eq_vector = np.zeros((0, n)), np.zeros(0)
     contiguous = np.ascontiguousarray  # one compiled variant: C-ordered arrays
-    arrays = kernels.QpArrays(
-        *(
-            contiguous(a, dtype=float)
-            for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
-        )
+    arrays = tuple(  # the fields of kernels.QpArrays, as a plain tuple (faster dispatch)
+        contiguous(a, dtype=float)
+        for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
     )
     if duals is None:
         duals = np.zeros(eq_matrix.shape[0]), np.zeros(in_matrix.shape[0])
@@ -199,11 +197,10 @@ def _active_set(
 
 
 def _workspace(n: int, n_eq: int, n_in: int) -> tuple:
-    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes."""
+    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes: the fields of
+    :class:`kernels.KktWorkspace`, as a plain tuple (faster dispatch)."""
     size = n + n_eq + min(n, n_in)
-    return kernels.KktWorkspace(
-        np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64)
-    )
+    return (np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64))
 
 
 class StageSolver:

@@ -124,7 +124,7 @@ class Tick:
                 self._assemble(q, v)
             if not mapped:
                 self._assemble_y()
-            kernels.acceleration_bounds(self._bounds, q, v)
+            self._compiled.acceleration_bounds(self._bounds, q, v)
             self._assemble_torque_rows()
             answer = "solved"
             solved = self._solve(self._limited, self._exact_deadline)
@@ -164,7 +164,7 @@ class Tick:
     def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
         """Whether the candidate's torques are within ``torque_limit`` and its accelerations
         ``margin`` inside their bounds (kernels.feasible)."""
-        return kernels.feasible(
+        return self._compiled.feasible(
             self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
         )
 
@@ -178,9 +178,11 @@ class Tick:
             return False
         if stage is self._relaxed:  # (y, slacks)
             solution = solution[: self.layout.n]
-        if stage is self._eliminated_cones:
+        if stage is self._eliminated_cones:  # the QP's own array: the type expand is bound to
             self._z_accepted[:] = solution
-        self._accept(solution, eliminated=stage is self._eliminated_cones)
+            self._accept(self._z_accepted, eliminated=True)
+        else:
+            self._accept(solution, eliminated=False)
         return True
 
     def _solve_relaxed(self) -> bool:

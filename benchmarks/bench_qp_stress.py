@@ -42,7 +42,6 @@ from dmpopt.control import (
     InverseDynamicsController,
     PostureTask,
     SoleContact,
-    kernels,
 )
 from dmpopt.exceptions import SimulationDiverged
 from robots import load_talos
@@ -100,19 +99,10 @@ SCENARIOS = {
 def full_qp(public, q, v):
     """The tick's QP over y = (qdd_a, f / weight) with every inequality row, and the constant
     that makes its objective the full least-squares cost: (H, g, A, b, C, l, u, constant)."""
-    controller = public._current  # the QP of the active contact set
-    controller._assemble(q, v)
-    controller._assemble_y()
-    kernels.acceleration_bounds(controller._bounds, q, v)
-    controller._assemble_torque_rows()
-    n, n_cost = controller._n, controller._n_cost
-    mapped = controller._mapped
-    state, weights = controller._posture_arguments[0], controller._posture_arguments[3]
-    constant = 0.5 * mapped[:n_cost, n] @ mapped[:n_cost, n] + 0.5 * weights @ state[5] ** 2
+    qp = public.assembled_qp(q, v)
     return (
-        controller._hessian.copy(), controller._gradient.copy(), mapped[n_cost:, :n].copy(),
-        mapped[n_cost:, n].copy(), controller._in_matrix.copy(), controller._in_lower.copy(),
-        controller._in_upper.copy(), constant,
+        qp.hessian, qp.gradient, qp.equality_matrix, qp.equality_vector, qp.inequality_matrix,
+        qp.lower, qp.upper, qp.constant,
     )  # fmt: skip
 
 
@@ -148,10 +138,9 @@ def reference_solution(problem):
 
 def controller_y(public):
     """The controller's last answer over y (wrenches divided by the robot's weight)."""
-    controller = public._current
-    x = controller._solution.copy()
-    x[controller._nv :] /= controller._force_scale
-    return x[controller._n_base :]
+    layout = public._current.layout
+    wrenches = public.contact_wrenches.ravel() / layout.force_scale
+    return np.concatenate([public.joint_accelerations[layout.n_base :], wrenches])
 
 
 def run(name, seconds, check):

@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError, MissingDependency
+from dmpopt.validation import real_array
 
 __all__ = ["BASES", "RobotModel", "example_robot_data_dir"]
 
@@ -331,6 +332,60 @@ class RobotModel:
     def create_data(self) -> pin.Data:
         """Create a :class:`pinocchio.Data` workspace for this model (one per thread or user)."""
         return self.model.createData()
+
+    def frame_placement(self, frame: str, q: np.ndarray | None = None) -> pin.SE3:
+        """World placement of ``frame`` in configuration ``q`` (default: the reference
+        configuration); for setting up targets, not for a control loop (it allocates)."""
+        if not (isinstance(frame, str) and self.model.existFrame(frame)):
+            known = [f.name for f in self.model.frames]
+            raise _unknown("frame", str(frame), known, self.name)
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, self._configuration(q))
+        return data.oMf[self.model.getFrameId(frame)].copy()
+
+    def center_of_mass(self, q: np.ndarray | None = None) -> np.ndarray:
+        """Centre of mass [m] in configuration ``q`` (default: the reference configuration),
+        shape (3,)."""
+        return pin.centerOfMass(self.model, self.model.createData(), self._configuration(q))
+
+    def sole_center(self, frame: str, q: np.ndarray | None = None) -> np.ndarray:
+        """World position [m] of the centre of the sole rectangle of foot ``frame`` in
+        configuration ``q`` (default: the reference configuration), shape (3,): where a CoM
+        held over one foot keeps the centre of pressure farthest from the sole's edges."""
+        if frame not in self.foot_frames:
+            raise InvalidInputError(
+                f"frame={frame!r} is not a foot frame of {self.name!r}; expected one of "
+                f"{self.foot_frames}"
+            )
+        corners = np.asarray(self.sole_corners, dtype=float)
+        middle = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+        return self.frame_placement(frame, q).act(middle)
+
+    def reference_state(
+        self, joints: str | Sequence[str] = (), positions=(), velocities=None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The reference configuration and zero velocity, with ``joints`` (a joint group or
+        joint names) at ``positions`` [rad or m] and ``velocities`` [rad/s or m/s]: a start
+        state, e.g. arms on a rhythmic DMP's limit cycle (``stepper.position``,
+        ``stepper.velocity``).
+
+        Returns
+        -------
+        (q, v) : ndarrays, shapes (nq,) and (nv,)
+        """
+        q, v = self.reference_configuration.copy(), np.zeros(self.model.nv)
+        q_index, v_index = self.configuration_indices(joints), self.velocity_indices(joints)
+        size, expected = (q_index.size,), f"one value per joint of {joints!r}"
+        q[q_index] = real_array("positions", positions, shape=size, expected=expected)
+        if velocities is not None:
+            v[v_index] = real_array("velocities", velocities, shape=size, expected=expected)
+        return q, v
+
+    def _configuration(self, q) -> np.ndarray:
+        if q is None:
+            return self.reference_configuration
+        expected = f"a configuration of {self.name}"
+        return real_array("q", q, shape=(self.model.nq,), expected=expected)
 
     def velocity_indices(self, joints: str | tuple[str, ...] | list[str]) -> np.ndarray:
         """Return the indices into the velocity vector of a joint group or of 1-DOF joints.

@@ -12,7 +12,6 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from dmpopt import RobotModel, control
 from dmpopt.robot import example_robot_data_dir
@@ -29,22 +28,17 @@ g1 = RobotModel.from_urdf(
     feet=["left_ankle_roll_link", "right_ankle_roll_link"],  # soles from the collision spheres
     reference={f"{side}_{joint}": a for side in ("left", "right") for joint, a in bent.items()},
 )
-left, right = g1.foot_frames
-q0, dt, data = g1.reference_configuration, 1e-3, g1.create_data()
-pin.framesForwardKinematics(g1.model, data, q0)
-c0 = pin.centerOfMass(g1.model, data, q0)
-middle = data.oMf[g1.model.getFrameId(left)].act(g1.sole_corners.mean(axis=0))  # sole centre
-right0 = data.oMf[g1.model.getFrameId(right)].copy()
+(left, right), dt = g1.foot_frames, 1e-3
+c0, middle, foot = g1.center_of_mass(), g1.sole_center(left), g1.frame_placement(right)
 
 posture, com = control.PostureTask(g1, weight=0.1), control.ComTask(g1, weight=10.0)
-posture.set_reference(q0[7:])
 pelvis = control.FrameTask(g1, "pelvis", weight=1.0, stiffness=50.0, components="orientation")
 soles = [control.SoleContact(g1, foot, cop_fraction=0.7) for foot in g1.foot_frames]
 # time_budget: CPU seconds per tick; 1 s in simulation (the 5 ms default is for a real robot)
 controller = control.InverseDynamicsController(g1, [posture, com, pelvis], soles, time_budget=1.0)
 swing = control.FrameTask(g1, right, weight=10.0, stiffness=400.0)
-simulator = MujocoSimulator(g1.model, g1.source, dt, g1.contact_points, fall_frame="pelvis")
-state, frames = simulator.reset(q0), []
+simulator = MujocoSimulator(g1.model, g1.source, dt, g1.contact_points)
+state, frames = simulator.reset(g1.reference_configuration), []
 for k in range(300 if args.quick else 3500):
     t, s = k * dt, min(k * dt / 1.0, 1.0)  # over 1 s: the soles are 6 cm wide
     com.set_target(np.r_[c0[:2] + s * s * (3 - 2 * s) * (middle[:2] - c0[:2]), c0[2]])
@@ -54,7 +48,7 @@ for k in range(300 if args.quick else 3500):
         controller.add_task(swing)
     if 1250 <= k < 2750:  # up 5 cm and down again (pressed 2 mm into the floor on landing)
         up = np.sin(np.pi * min((t - 1.25) / 1.2, 1.0)) ** 2
-        swing.set_target(right0.translation + [0, 0, 0.05 * up - 0.002 * (t > 1.85)])
+        swing.set_target(foot.translation + [0, 0, 0.05 * up - 0.002 * (t > 1.85)])
     if k == 2750:
         controller.remove_task(swing)
         controller.add_contact(right, transition_time=0.2)

@@ -22,6 +22,28 @@ def test_every_example_is_tested():
 
 
 @pytest.mark.parametrize("script", SCRIPTS, ids=lambda s: s.stem)
+def test_examples_stay_short(script):
+    """What a user copies is about 40 lines: at most 45 lines of code besides the module
+    docstring, imports, comments and blank lines (issue 27)."""
+    import ast
+
+    source = script.read_text()
+    tree = ast.parse(source)
+    skipped = set()
+    for node in tree.body:
+        if isinstance(node, (ast.Import, ast.ImportFrom)) or (
+            isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+        ):
+            skipped.update(range(node.lineno, node.end_lineno + 1))
+    code = [
+        line
+        for number, line in enumerate(source.splitlines(), 1)
+        if number not in skipped and line.strip() and not line.strip().startswith("#")
+    ]
+    assert len(code) <= 45, f"{script.name}: {len(code)} lines of code"
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=lambda s: s.stem)
 def test_example_runs_quick(script, tmp_path):
     """Each example ends without an error, reports no fall, and writes one PNG still."""
     environment = dict(os.environ, PYTHONPATH=str(EXAMPLES.parent))

@@ -70,9 +70,10 @@ def test_eliminate_solves_the_basic_block(seed):
     nonbasic = np.append(np.setdiff1d(np.arange(n_x), basic), n_x)
     lu, elimination = np.zeros((5, 5)), np.zeros((5, nonbasic.size))
     assert kernels.eliminate(
-        rows, n_cost, nv, n_base, np.asfortranarray(mass), bias, scale, basic, nonbasic, lu,
-        elimination, 1e-12,
-    )  # fmt: skip
+        kernels.Rows(rows, 0, n_cost, nv, n_base),
+        kernels.Dynamics(np.asfortranarray(mass), bias, scale),
+        kernels.Split(basic, nonbasic, lu, elimination, 1e-12),
+    )
     dynamics = rows[n_cost + n_force :]
     np.testing.assert_array_equal(dynamics[:, :nv], mass[:n_base])
     np.testing.assert_array_equal(
@@ -89,9 +90,10 @@ def test_eliminate_refuses_a_singular_basic_block():
     rows[1] = [1.0, 2.0, 0.0, 1.0]
     rows[2] = [2.0, 4.0, 1.0, 0.0]  # basic columns 0, 1 proportional
     ok = kernels.eliminate(
-        rows, 1, 3, 0, np.eye(3, order="F"), np.zeros(3), 1.0, np.array([0, 1]),
-        np.array([2, 3]), np.zeros((2, 2)), np.zeros((2, 2)), 1e-9,
-    )  # fmt: skip
+        kernels.Rows(rows, 0, 1, 3, 0),
+        kernels.Dynamics(np.eye(3, order="F"), np.zeros(3), 1.0),
+        kernels.Split(np.array([0, 1]), np.array([2, 3]), np.zeros((2, 2)), np.zeros((2, 2)), 1e-9),
+    )
     assert not ok
 
 
@@ -102,9 +104,10 @@ def test_posture_gradient_sums_overlapping_tasks():
     state[3] = [4.0, 9.0]  # stiffness
     q, v = np.array([0.0, 0.2]), np.zeros(3)
     gradient = np.full(4, np.nan)
-    kernels.posture_gradient(
-        state, np.array([1, 1]), np.array([2, 2]), np.array([1.0, 3.0]), gradient, q, v
+    stack = kernels.PostureStack(
+        state, np.array([1, 1]), np.array([2, 2]), np.array([1.0, 3.0]), gradient
     )
+    kernels.posture_gradient(stack, q, v)
     np.testing.assert_allclose(state[6], [0.1, -0.1])  # errors
     np.testing.assert_allclose(state[5], [0.4, -0.9])  # targets Kp e
     np.testing.assert_allclose(gradient, [0.0, 0.0, -(1.0 * 0.4 + 3.0 * -0.9), 0.0])
@@ -122,13 +125,14 @@ def test_joint_space_accelerations_minimise_the_cost(n_task):
     posture_weights = rng.uniform(0.5, 2.0, size=nv)
     gradient = np.zeros(nv)
     diagonal = posture_weights + 1e-6
-    posture = (state, np.arange(nv), np.arange(nv), posture_weights, gradient)
-    woodbury = (
-        rows, n_task, 1.0 / diagonal, weights, np.zeros((n_task, nv)),
-        np.zeros((n_task, n_task)), np.zeros((n_task, n_task)), np.zeros(n_task),
+    posture = kernels.PostureStack(state, np.arange(nv), np.arange(nv), posture_weights, gradient)
+    woodbury = kernels.Woodbury(
+        1.0 / diagonal, weights, np.zeros((n_task, nv)), np.zeros((n_task, n_task)),
+        np.zeros((n_task, n_task)), np.zeros(n_task),
     )  # fmt: skip
     q, v, x = np.zeros(nv), rng.normal(size=nv), np.zeros(nv)
-    assert kernels.joint_space_accelerations(posture, woodbury, q, v, x)
+    layout = kernels.Rows(rows, n_task, n_task, nv, 0)
+    assert kernels.joint_space_accelerations(posture, layout, woodbury, q, v, x)
     jacobian, target = rows[:, :nv], rows[:, nv]
     hessian = np.diag(diagonal) + jacobian.T @ (weights[:, None] * jacobian)
     expected = np.linalg.solve(hessian, jacobian.T @ (weights * target) - gradient)

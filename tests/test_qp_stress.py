@@ -25,7 +25,6 @@ from dmpopt.control import (
     InverseDynamicsController,
     PostureTask,
     SoleContact,
-    kernels,
     qp_stages,
 )
 from dmpopt.control.inverse_dynamics import JOINT_LIMIT_TOLERANCE
@@ -46,20 +45,17 @@ def upper_body():
 def full_qp(public, q, v):
     """The tick's QP over y = (qdd_a, f / weight) with every inequality row, and the constant
     that makes its objective the whole least-squares cost (so that the optimum is > 0)."""
-    controller = public._current  # the QP of the active contact set
-    controller._assemble(q, v)
-    controller._assemble_y()
-    kernels.acceleration_bounds(controller._bounds, q, v)
-    controller._assemble_torque_rows()
-    n, n_cost, mapped = controller._n, controller._n_cost, controller._mapped
-    state, weights = controller._posture_arguments[0], controller._posture_arguments[3]
-    constant = 0.5 * mapped[:n_cost, n] @ mapped[:n_cost, n] + 0.5 * weights @ state[5] ** 2
+    qp = public.assembled_qp(q, v)
     return dict(
-        hessian=controller._hessian.copy(), gradient=controller._gradient.copy(),
-        a=mapped[n_cost:, :n].copy(), b=mapped[n_cost:, n].copy(),
-        c=controller._in_matrix.copy(), lower=controller._in_lower.copy(),
-        upper=controller._in_upper.copy(), constant=constant,
-    )  # fmt: skip
+        hessian=qp.hessian,
+        gradient=qp.gradient,
+        a=qp.equality_matrix,
+        b=qp.equality_vector,
+        c=qp.inequality_matrix,
+        lower=qp.lower,
+        upper=qp.upper,
+        constant=qp.constant,
+    )
 
 
 def cost(problem, y):
@@ -95,11 +91,9 @@ def clarabel(hessian, gradient, c, lower, upper, a=None, b=None):
 
 
 def controller_y(public):
-    controller = public._current
-    x = controller.joint_accelerations
-    n_base = controller._n_base
-    wrenches = controller.contact_wrenches.ravel() / controller._force_scale
-    return np.concatenate([x[n_base:], wrenches])
+    layout = public._current.layout
+    wrenches = public.contact_wrenches.ravel() / layout.force_scale
+    return np.concatenate([public.joint_accelerations[layout.n_base :], wrenches])
 
 
 def standing(robot, q_start, friction=0.7, **options):
@@ -303,7 +297,7 @@ def test_infeasible_tick_gives_the_relaxed_answer(upper_body):
     tau = controller.compute_torques(q, v)
     assert controller.stats.last_answer == "relaxed" and controller.stats.n_relaxed == 1
     problem = full_qp(controller, q, v)
-    n, n_bound = problem["hessian"].shape[0], controller._current._bounds[1].size
+    n, n_bound = problem["hessian"].shape[0], controller._current._bounds.v_index.size
     n_act = upper_body.n_actuated
     # min cost(y) + 1e4/2 ||s||^2  s.t.  torque rows;  l <= qdd_j + s_j <= u
     hessian = scipy.linalg.block_diag(problem["hessian"], 1e4 * np.eye(n_bound))
@@ -337,7 +331,7 @@ def test_infeasible_standing_tick_gives_the_relaxed_answer(talos, elbow_speed):
     assert controller.stats.last_answer == "relaxed"
     problem = full_qp(controller, q, v)
     n, n_force = problem["hessian"].shape[0], problem["a"].shape[0]
-    n_bound, n_act = controller._current._bounds[1].size, talos.n_actuated
+    n_bound, n_act = controller._current._bounds.v_index.size, talos.n_actuated
     assert n_force == 12  # two soles, six rows each
     # min cost(y) + 1e4/2 (|s_c|^2 + |s_b|^2)  s.t.  A y - s_c = b;  torque and cone rows;
     # l <= qdd_j + s_j <= u
@@ -530,7 +524,7 @@ def test_controller_inputs_get_named_errors(upper_body, talos):
         build(upper_body, [PostureTask(talos, "right_leg")])
     with pytest.raises(ShapeError, match="tasks: a ComTask was built for another robot"):
         build(upper_body, [posture, ComTask(talos)])
-    with pytest.raises(InvalidInputError, match="contacts holds str, expected SoleContact"):
+    with pytest.raises(InvalidInputError, match="contacts holds str, expected Contact"):
         build(talos, [PostureTask(talos)], ["left_sole_link"])
 
 
@@ -550,8 +544,8 @@ def test_task_inputs_get_named_errors(upper_body, talos):
         hand.set_target([0.1, 0.2])
     with pytest.raises(InvalidInputError, match="placement must be finite with a rotation"):
         hand.set_target(pin.SE3(2.0 * np.eye(3), np.zeros(3)))
-    with pytest.raises(ShapeError, match=r"velocity has shape \(3,\), expected \(\) or \(6,\)"):
-        hand.set_target(np.zeros(3), velocity=np.zeros(3))
+    with pytest.raises(ShapeError, match=r"velocity has shape \(4,\), expected \(\), \(3,\) or"):
+        hand.set_target(np.zeros(3), velocity=np.zeros(4))
     com = ComTask(upper_body)
     with pytest.raises(InvalidInputError, match="position must be finite"):
         com.set_target([0.0, np.nan, 1.0])

@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from dmpopt import RobotModel
-from dmpopt.exceptions import InvalidInputError
+from dmpopt.exceptions import InvalidInputError, ShapeError
 from dmpopt.robot import example_robot_data_dir
 from robots import load_talos
 from robots.biped import load_biped
@@ -179,3 +179,31 @@ def test_armature_and_bad_reference_name(robot_dir):
     assert str(error.value) == (
         "reference='home' is not a posture of the SRDF; expected one of ['default']"
     )
+
+
+def test_g1_placements_com_sole_centre_and_start_state(g1):
+    """Set-up helpers: a frame's placement and the CoM (Pinocchio's own calls written out);
+    the sole centre is the middle of x in [-0.05, 0.12], y in [-0.03, 0.03] on the sole
+    frame, (0.035, 0, 0) in it; a start state sets the given joints and nothing else."""
+    model, data = g1.model, g1.create_data()
+    q = pin.integrate(model, g1.reference_configuration, np.full(g1.nv, 0.1))
+    pin.framesForwardKinematics(model, data, q)
+    sole = data.oMf[model.getFrameId(g1.foot_frames[0])]
+    assert g1.frame_placement(g1.foot_frames[0], q).isApprox(sole, 1e-12)
+    np.testing.assert_allclose(g1.center_of_mass(q), pin.centerOfMass(model, data, q), atol=1e-12)
+    np.testing.assert_allclose(
+        g1.sole_center(g1.foot_frames[0], q), sole.act(np.array([0.035, 0.0, 0.0])), atol=1e-12
+    )
+    arm = ["left_shoulder_pitch_joint", "left_elbow_joint"]
+    q0, v0 = g1.reference_state(arm, [0.3, 1.1], [2.0, -1.0])
+    changed = np.flatnonzero(q0 != g1.reference_configuration)
+    assert changed.tolist() == sorted(g1.configuration_indices(arm).tolist())
+    assert q0[g1.configuration_indices(arm)].tolist() == [0.3, 1.1]
+    assert np.flatnonzero(v0).tolist() == sorted(g1.velocity_indices(arm).tolist())
+    assert v0[g1.velocity_indices(arm)].tolist() == [2.0, -1.0]
+    with pytest.raises(InvalidInputError, match="frame 'left_sole' is not in the URDF"):
+        g1.frame_placement("left_sole")
+    with pytest.raises(InvalidInputError, match="^frame='pelvis' is not a foot frame"):
+        g1.sole_center("pelvis")
+    with pytest.raises(ShapeError, match="^positions"):
+        g1.reference_state(arm, [0.3])

@@ -24,17 +24,24 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
         sys.modules["numba"].core.config.reload_config()
 
 from dmpopt.control.computed_torque import ComputedTorqueController  # noqa: E402
-from dmpopt.control.contacts import PointContact, SoleContact  # noqa: E402
+from dmpopt.control.contacts import (  # noqa: E402
+    Contact,
+    PointContact,
+    SoleContact,
+    SurfaceContact,
+)
 from dmpopt.control.controller import InverseDynamicsController  # noqa: E402
 from dmpopt.control.diagnostics import active_constraints, explain  # noqa: E402
-from dmpopt.control.inverse_dynamics import ControllerStats  # noqa: E402
+from dmpopt.control.inverse_dynamics import AssembledQp, ControllerStats  # noqa: E402
 from dmpopt.control.joint_impedance import JointImpedance  # noqa: E402
 from dmpopt.control.realtime import control_loop  # noqa: E402
 from dmpopt.control.tasks import ComTask, FrameTask, PostureTask, Task  # noqa: E402
 
 __all__ = [
+    "AssembledQp",
     "ComTask",
     "ComputedTorqueController",
+    "Contact",
     "ControllerStats",
     "FrameTask",
     "InverseDynamicsController",
@@ -42,6 +49,7 @@ __all__ = [
     "PointContact",
     "PostureTask",
     "SoleContact",
+    "SurfaceContact",
     "Task",
     "active_constraints",
     "control_loop",

@@ -41,7 +41,9 @@ class Assembly:
             pin.computeJointJacobians(model, data)
             self._update_rows(q, v)
         self._stack_posture()
-        if not kernels.joint_space_accelerations(self._posture_arguments, self._woodbury, q, v, x):
+        if not self._compiled.joint_space_accelerations(
+            self._posture, self._layout, self._woodbury, q, v, x
+        ):
             return False
         self._tau[:] = pin.rnea(model, data, q, v, x)
         return True
@@ -74,7 +76,7 @@ class Assembly:
 
         indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
-        self._posture_arguments = (  # of kernels.posture_gradient, without q and v
+        self._posture = kernels.PostureStack(
             self._posture_state,
             np.concatenate(indices + [t.configuration_indices for t in tasks]),
             np.concatenate(indices + [t.velocity_indices for t in tasks]),
@@ -86,7 +88,7 @@ class Assembly:
         """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
         -w qdd* over x."""
         self._stack_posture()
-        kernels.posture_gradient(*self._posture_arguments, q, v)
+        self._compiled.posture_gradient(self._posture, q, v)
 
     def _stack_posture(self) -> None:
         """Copy the posture tasks' references and gains into the stacked block (one call);
@@ -99,17 +101,17 @@ class Assembly:
         :func:`kernels.eliminated_tick`)."""
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
-        return kernels.eliminated_tick(
-            self._elimination_arguments, self._reduction_arguments, self._solve_arguments,
-            q, v, self._candidate, self._tau,
+        return self._compiled.eliminated_tick(
+            self._layout, self._dynamics, self._split, self._reduced, self._checks, q, v,
+            self._candidate, self._tau,
         )  # fmt: skip
 
     def _assemble_eliminated(self) -> int:
         """Hessian and gradient over z for the QP with cone rows: CONES_VIOLATED (to be
         solved with them), or ILL_CONDITIONED if the basic block is."""
-        if not kernels.eliminate(*self._elimination_arguments):
+        if not self._compiled.eliminate(self._layout, self._dynamics, self._split):
             return kernels.ILL_CONDITIONED
-        kernels.reduce_costs(*self._reduction_arguments)
+        self._compiled.reduce_costs(self._layout, self._split, self._reduced)
         return kernels.CONES_VIOLATED
 
     def _cones_released(self) -> bool:
@@ -119,12 +121,12 @@ class Assembly:
 
     def _assemble_y(self) -> None:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
-        rows, n_base, n, n_cost = self._rows, self._n_base, self._n, self._n_cost
-        mapped, used = self._mapped, rows[: self._dynamics_start]
+        rows, n_base, n, n_cost = self._rows, self.layout.n_base, self.layout.n, self.layout.n_cost
+        mapped, used = self._mapped, rows[: self.layout.dynamics_start]
         if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
-            n_act, mass, rhs = self._n_act, self._mass, self._base_rhs
+            n_act, mass, rhs = self.layout.n_act, self._mass, self._base_rhs
             np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
-            np.multiply(used[n_cost:, :n_base].T, self._force_scale, out=rhs[:, n_act:n])
+            np.multiply(used[n_cost:, :n_base].T, self.layout.force_scale, out=rhs[:, n_act:n])
             rhs[:, n] = self._bias[:n_base]
             _, solution, info = lapack.dposv(mass[:n_base, :n_base], rhs)
             if info != 0:  # M_bb not positive definite: only for a corrupted model
@@ -150,35 +152,33 @@ class Assembly:
 
     def _assemble_torque_rows(self) -> None:
         """tau = M_a qdd + h_a - J_ca^T f as rows over y, and the torque-limit bounds."""
-        n_base, n_act, n = self._n_base, self._n_act, self._n
+        n_base, n_act, n = self.layout.n_base, self.layout.n_act, self.layout.n
         mass, torque = self._mass, self._torque_rows
         if n_base:  # [M_ab X_y | M_ab X_c], qdd_b = X_y y - X_c
             np.dot(mass[n_base:, :n_base], self._base_map, out=torque)
         else:
             torque[:] = 0.0
         torque[:, :n_act] += mass[n_base:, n_base:]
-        contact = self._rows[self._n_cost : self._dynamics_start, n_base : self._nv]
-        torque[:, n_act:n] -= self._force_scale * contact.T
+        layout = self.layout
+        contact = self._rows[layout.n_cost : layout.dynamics_start, n_base : layout.nv]
+        torque[:, n_act:n] -= self.layout.force_scale * contact.T
         np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
         self._in_matrix[:n_act] = torque[:, :n]
         np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
         np.add(self.torque_limit, torque[:, n], out=self._in_upper[:n_act])
-        lower, upper = self._bounds[6:]  # proxsuite takes |bound| >= 1e20 as none
+        lower, upper = self._bounds.lower, self._bounds.upper  # |bound| >= 1e20: none
         np.clip(lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][: lower.size])
         np.clip(upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][: upper.size])
 
     def _accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
-        x, n_base = self._candidate, self._n_base
+        x, n_base = self._candidate, self.layout.n_base
         if eliminated:  # x_B = U_c - U_N z
-            kernels.expand(self._elimination, self._basic, self._nonbasic_constant, solution, x)
+            self._compiled.expand(self._split, solution, x)
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
             x[n_base:] = solution
             if n_base:
-                base_map, n = self._base_map, self._n
+                base_map, n = self._base_map, self.layout.n
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
-        kernels.torques(
-            self._mass, self._bias, self._rows, self._n_cost, n_base, self._force_scale, x,
-            self._tau,
-        )  # fmt: skip
+        self._compiled.torques(self._layout, self._dynamics, x, self._tau)

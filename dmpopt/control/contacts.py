@@ -1,16 +1,26 @@
-r"""Rigid contacts of the inverse-dynamics QP: flat soles and point feet.
+r"""Rigid contacts of the inverse-dynamics QP: one :class:`Contact` base, one class per kind.
 
-A :class:`SoleContact` holds a sole still (a 6-D rigid contact) and bounds its contact wrench
-to a linearised friction cone with centre-of-pressure bounds. A :class:`PointContact` holds a
-point foot still with a force in a linearised friction pyramid (3-D, or in-plane on a planar
-robot). Both expose the same interface to the controller: ``n_force`` unknowns, ``update``
-writing ``jacobian`` and ``target`` (the contact rows :math:`J \ddot q = a^* - \dot J \dot q`
-with the Baumgarte law :math:`a^*` of :mod:`dmpopt.control.tasks`), ``contact_jacobian`` and
-the cone rows ``wrench_matrix f <= wrench_upper`` whose last two rows bound the normal force:
-:math:`-f_n \le -f_{\min}` and :math:`f_n \le f_{\max}`.
+A contact holds a frame still (the contact rows :math:`J \ddot q = a^* - \dot J \dot q`, with
+the Baumgarte law :math:`a^*` of :mod:`dmpopt.control.tasks`) and adds ``n_force`` unknowns,
+its wrench or force, bounded by the cone rows ``wrench_matrix f <= wrench_upper``.
+A new kind of contact is one subclass of :class:`Contact` that
+
+- sets ``n_force`` and ``normal_index`` (which force component is the normal force),
+- returns its friction (and centre-of-pressure) rows and their names from
+  :meth:`Contact.friction_rows` (the base appends the two normal-force rows
+  :math:`-f_n \le -f_{\min}` and :math:`f_n \le f_{\max}` last, which the controller's
+  transitions move),
+- fills ``jacobian`` and ``target`` in :meth:`Contact.update` and gives
+  :meth:`Contact.contact_jacobian`.
+
+The kinds dmpopt ships: :class:`SoleContact` (a flat sole, 6-D wrench), :class:`PointContact`
+(a point foot, force in world axes) and :class:`SurfaceContact` (a point, e.g. a hand, pressing
+on a surface of any normal).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import pinocchio as pin
@@ -20,14 +30,150 @@ from dmpopt.exceptions import InvalidInputError
 from . import kernels
 from .tasks import _array, _gain
 
-__all__ = ["PointContact", "SoleContact"]
+__all__ = ["Contact", "PointContact", "SoleContact", "SurfaceContact"]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
 _SPATIAL = np.arange(6)
+_LINEAR = np.arange(3)
 _ZERO_MOTION = np.zeros(6)
 
 
-class SoleContact:
+class Contact:
+    r"""Base class of a rigid contact: frame, friction, normal-force bounds, Baumgarte gains.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot.
+    frame : str
+        The contact frame (a frame of ``robot.model``).
+    friction_coefficient : float
+        :math:`\mu`.
+    min_normal_force, max_normal_force : float
+        Bounds on the normal force :math:`f_n` [N].
+    stiffness, damping : float
+        Baumgarte gains pulling the frame back to its reference placement [1/s^2], [1/s];
+        damping defaults to critical, :math:`2 \sqrt{K_p}`.
+
+    Attributes
+    ----------
+    n_force : int
+        Force unknowns (class attribute or set by the subclass).
+    normal_index : int
+        Index of the normal force in the contact's force vector.
+    force_names : tuple of str
+        Names of the force unknowns (``("fx", "fy", "fz", "tx", "ty", "tz")`` for a sole).
+    wrench_matrix, wrench_upper : ndarray
+        The cone rows :math:`C f \le u`, the normal-force rows last.
+    row_names : tuple of str
+        One name per cone row (what :func:`~dmpopt.control.active_constraints` prints).
+    jacobian, target : ndarray, shapes (n_force, nv) and (n_force,)
+        The contact rows of the last :meth:`update`.
+    reference_placement : pinocchio.SE3 or None
+        Placement held; None: the frame's placement at the next update.
+    """
+
+    n_force: int
+    normal_index: int
+    force_names: tuple[str, ...] = ()
+    _release = "the contact is about to release"  # what a binding minimum normal force means
+
+    def __init__(
+        self, robot, frame: str, friction_coefficient: float = 0.7,
+        min_normal_force: float = 1.0, max_normal_force: float = 5000.0,
+        stiffness: float = 10.0, damping: float | None = None,
+    ):  # fmt: skip
+        kind = type(self).__name__
+        if not isinstance(frame, str) or not robot.model.existFrame(frame):
+            raise InvalidInputError(
+                f"{kind}: frame={frame!r} is not a frame of {robot.name!r}; expected a frame "
+                f"name of robot.model (feet: {robot.foot_frames})"
+            )
+        mu = _array(friction_coefficient, "friction_coefficient")
+        if mu.shape != () or not (np.isfinite(mu) and mu > 0):
+            raise InvalidInputError(
+                f"{kind}: friction_coefficient must be finite and > 0, got {friction_coefficient!r}"
+            )
+        forces = _array([min_normal_force, max_normal_force], "min_normal_force/max_normal_force")
+        if forces.shape != (2,) or not 0 <= forces[0] < forces[1] < np.inf:
+            raise InvalidInputError(
+                f"{kind}: expected finite 0 <= min_normal_force < max_normal_force, got "
+                f"{min_normal_force!r} and {max_normal_force!r}"
+            )
+        self.model = robot.model
+        self.frame = frame
+        self.frame_id = robot.model.getFrameId(frame)
+        self.friction_coefficient = float(friction_coefficient)
+        self.min_normal_force, self.max_normal_force = float(forces[0]), float(forces[1])
+        self._stiffness, self._damping = np.zeros(6), np.zeros(6)  # the gains, per component
+        self.stiffness = stiffness
+        self.damping = 2.0 * np.sqrt(self.stiffness) if damping is None else damping
+        self.reference_placement = None
+        self.jacobian = np.zeros((self.n_force, robot.nv))
+        self.target = np.zeros(self.n_force)
+        if len(self.force_names) != self.n_force:
+            self.force_names = tuple(f"f{k}" for k in range(self.n_force))
+
+    @functools.cached_property
+    def _cone(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """Cone rows from :meth:`friction_rows` and the two normal-force rows, built on first
+        use (after the subclass's ``__init__`` has set its geometry)."""
+        friction, names = self.friction_rows()
+        normal = np.eye(self.n_force)[self.normal_index]
+        matrix = np.vstack([np.asarray(friction, dtype=float), -normal, normal])
+        upper = np.zeros(matrix.shape[0])
+        upper[-2:] = -self.min_normal_force, self.max_normal_force
+        lift = f"minimum normal force of {self.frame} ({self._release})"
+        return matrix, upper, (*names, lift, f"maximum normal force of {self.frame}")
+
+    wrench_matrix = property(lambda self: self._cone[0], doc="Cone rows C, shape (m, n_force).")
+    wrench_upper = property(lambda self: self._cone[1], doc="Cone bounds u, shape (m,).")
+    row_names = property(lambda self: self._cone[2], doc="One name per cone row.")
+
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
+        """Rows ``C f <= 0`` other than the normal-force bounds (friction, centre of
+        pressure), shape (m, n_force), and one name per row."""
+        raise NotImplementedError(f"{type(self).__name__} must implement friction_rows")
+
+    def contact_jacobian(self, data: pin.Data) -> np.ndarray:
+        """The contact rows' Jacobian, shape (n_force, nv), from the joint Jacobians in
+        ``data`` (used once, to choose the joints the elimination solves for)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement contact_jacobian")
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Fill :attr:`jacobian` and :attr:`target` for the state in ``data`` (after
+        ``computeAllTerms``); set ``reference_placement`` if None."""
+        raise NotImplementedError(f"{type(self).__name__} must implement update")
+
+    stiffness = property(
+        lambda self: float(self._stiffness[0]),
+        lambda self, value: self._stiffness.fill(_gain(value, "stiffness")),
+        doc="Baumgarte stiffness :math:`K_p` [1/s^2].",
+    )
+    damping = property(
+        lambda self: float(self._damping[0]),
+        lambda self, value: self._damping.fill(_gain(value, "damping")),
+        doc="Baumgarte damping :math:`K_d` [1/s].",
+    )
+
+    def normal_force(self, wrench: np.ndarray) -> float:
+        """The normal force [N] of a wrench (or force) of this contact."""
+        return float(np.asarray(wrench, dtype=float)[self.normal_index])
+
+    def cone_margin(self, wrench: np.ndarray) -> np.ndarray:
+        """Slack ``u - C f`` of each cone row for a wrench; >= 0 inside the cone."""
+        return self.wrench_upper - self.wrench_matrix @ np.asarray(wrench, dtype=float)
+
+    def placement(self, data: pin.Data) -> pin.SE3:
+        """The frame's placement in ``data`` (after the kinematics); it becomes
+        ``reference_placement`` if that is None."""
+        placement = pin.updateFramePlacement(self.model, data, self.frame_id)
+        if self.reference_placement is None:
+            self.reference_placement = placement.copy()
+        return placement
+
+
+class SoleContact(Contact):
     r"""A flat foot held still on the ground, with its contact wrench in a linearised cone.
 
     The contact wrench :math:`f = (f_x, f_y, f_z, \tau_x, \tau_y, \tau_z)` is expressed in the
@@ -47,13 +193,9 @@ class SoleContact:
     robot : RobotModel
         The robot; ``robot.sole_corners`` gives the sole's extent.
     frame : str
-        Sole frame, e.g. ``"left_sole_link"``.
-    friction_coefficient : float
-        :math:`\mu`.
-    min_normal_force, max_normal_force : float
-        Bounds on :math:`f_z` [N].
-    stiffness, damping : float
-        Baumgarte gains pulling the sole back to its reference placement.
+        Sole frame, one of ``robot.foot_frames``, e.g. ``"left_sole_link"``.
+    friction_coefficient, min_normal_force, max_normal_force, stiffness, damping
+        As :class:`Contact`.
     cop_fraction : float
         Fraction (0, 1] of the sole's extent (about the frame origin) the centre of pressure
         may use. On compliant ground a centre of pressure on the sole's edge unloads the
@@ -63,6 +205,8 @@ class SoleContact:
     n_wrench_rows = 12
     n_force = 6  #: wrench unknowns
     normal_index = 2  #: index of the normal force f_z in the wrench
+    force_names = ("fx", "fy", "fz", "tx", "ty", "tz")
+    _release = "the foot is about to lift"
 
     def __init__(
         self,
@@ -75,9 +219,14 @@ class SoleContact:
         damping: float | None = None,
         cop_fraction: float = 1.0,
     ):
-        _init_contact(
-            self, robot, frame, friction_coefficient, min_normal_force, max_normal_force,
-            stiffness, damping,
+        if frame not in robot.foot_frames:
+            raise InvalidInputError(
+                f"SoleContact: frame={frame!r} is not a foot frame of {robot.name!r}; "
+                f"expected one of {robot.foot_frames} (the sole rectangle belongs to the feet)"
+            )
+        super().__init__(
+            robot, frame, friction_coefficient, min_normal_force, max_normal_force, stiffness,
+            damping,
         )  # fmt: skip
         fraction = _array(cop_fraction, "cop_fraction")
         if fraction.shape != () or not 0 < fraction <= 1:
@@ -92,25 +241,8 @@ class SoleContact:
         corners = self.cop_fraction * np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)
-        self.wrench_matrix, self.wrench_upper = self._wrench_cone(
-            min_normal_force, max_normal_force
-        )
-        self.jacobian = np.zeros((6, robot.nv))
-        self.target = np.zeros(6)
 
-    stiffness = property(
-        lambda self: float(self._stiffness[0]),
-        lambda self, value: self._stiffness.fill(_gain(value, "stiffness")),
-        doc="Baumgarte stiffness :math:`K_p` [1/s^2].",
-    )
-    damping = property(
-        lambda self: float(self._damping[0]),
-        lambda self, value: self._damping.fill(_gain(value, "damping")),
-        doc="Baumgarte damping :math:`K_d` [1/s].",
-    )
-
-    def _wrench_cone(self, f_min: float, f_max: float) -> tuple[np.ndarray, np.ndarray]:
-        """Rows ``C f <= u`` of the linearised wrench cone."""
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
         radius = min(-self.x_min, self.x_max, -self.y_min, self.y_max)
         #              fx   fy   fz             tx   ty   tz
@@ -126,17 +258,14 @@ class SoleContact:
                 [0.0, 0.0, self.y_min, -1.0, 0.0, 0.0],  # CoP y >= y_min
                 [0.0, 0.0, -mu * radius, 0.0, 0.0, 1.0],  # tz <= mu' r fz
                 [0.0, 0.0, -mu * radius, 0.0, 0.0, -1.0],  # -tz <= mu' r fz
-                [0.0, 0.0, -1.0, 0.0, 0.0, 0.0],  # fz >= f_min
-                [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],  # fz <= f_max
             ]
         )
-        upper = np.zeros(self.n_wrench_rows)
-        upper[10], upper[11] = -f_min, f_max
-        return matrix, upper
-
-    def cone_margin(self, wrench: np.ndarray) -> np.ndarray:
-        """Slack ``u - C f`` of each cone row for a wrench, shape (12,); >= 0 inside the cone."""
-        return self.wrench_upper - self.wrench_matrix @ np.asarray(wrench, dtype=float)
+        names = [f"friction cone of {self.frame} ({axis})" for axis in ("+x", "-x", "+y", "-y")]
+        names += [
+            f"CoP of {self.frame} at its {edge} edge" for edge in ("toe", "heel", "left", "right")
+        ]
+        names += [f"yaw friction of {self.frame} ({sign}z)" for sign in "+-"]
+        return matrix, names
 
     def contact_jacobian(self, data: pin.Data) -> np.ndarray:
         """The contact rows' Jacobian (LOCAL), shape (6, nv), from the joint Jacobians in
@@ -146,9 +275,7 @@ class SoleContact:
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
-        placement = pin.updateFramePlacement(model, data, frame_id)
-        if self.reference_placement is None:
-            self.reference_placement = placement.copy()
+        placement = self.placement(data)
         # error log6(M^-1 M_ref) = -log6(M_ref^-1 M)
         error = pin.log6(placement.actInv(self.reference_placement)).vector
         kernels.pd_task_rows(
@@ -159,44 +286,11 @@ class SoleContact:
         )  # fmt: skip
 
 
-def _init_contact(
-    contact, robot, frame, friction_coefficient, min_normal_force, max_normal_force, stiffness,
-    damping,
-) -> None:  # fmt: skip
-    """Check and set what every contact has: frame, friction, normal-force bounds, gains."""
-    kind = type(contact).__name__
-    if frame not in robot.foot_frames:
-        raise InvalidInputError(
-            f"{kind}: frame={frame!r} is not a foot frame of {robot.name!r}; "
-            f"expected one of {robot.foot_frames}"
-        )
-    mu = _array(friction_coefficient, "friction_coefficient")
-    if mu.shape != () or not (np.isfinite(mu) and mu > 0):
-        raise InvalidInputError(
-            f"{kind}: friction_coefficient must be finite and > 0, got {friction_coefficient!r}"
-        )
-    forces = _array([min_normal_force, max_normal_force], "min_normal_force/max_normal_force")
-    if forces.shape != (2,) or not 0 <= forces[0] < forces[1] < np.inf:
-        raise InvalidInputError(
-            f"{kind}: expected finite 0 <= min_normal_force < max_normal_force, got "
-            f"{min_normal_force!r} and {max_normal_force!r}"
-        )
-    contact.model = robot.model
-    contact.frame = frame
-    contact.frame_id = robot.model.getFrameId(frame)
-    contact.friction_coefficient = float(friction_coefficient)
-    contact.min_normal_force, contact.max_normal_force = float(forces[0]), float(forces[1])
-    contact._stiffness, contact._damping = np.zeros(6), np.zeros(6)  # the gains, per component
-    contact.stiffness = stiffness
-    contact.damping = 2.0 * np.sqrt(contact.stiffness) if damping is None else damping
-    contact.reference_placement = None
-
-
-class PointContact:
+class PointContact(Contact):
     r"""A point foot held still on the ground, its force in a linearised friction pyramid.
 
-    The force :math:`f` is expressed in world axes at the foot point. The QP keeps the point's
-    acceleration at :math:`a^* = K_p (p_{\mathrm{ref}} - p) - K_d \dot p` (Baumgarte
+    The force :math:`f` is expressed in world axes at the frame's origin. The QP keeps the
+    point's acceleration at :math:`a^* = K_p (p_{\mathrm{ref}} - p) - K_d \dot p` (Baumgarte
     stabilisation, zero for a foot at rest at its reference) and imposes
     :math:`|f_x|, |f_y| \le (\mu/\sqrt 2) f_z` (the pyramid inscribed in the cone of
     coefficient :math:`\mu`) and :math:`f_{\min} \le f_z \le f_{\max}`. On a planar robot
@@ -208,14 +302,12 @@ class PointContact:
     robot : RobotModel
         The robot.
     frame : str
-        Foot frame (one of ``robot.foot_frames``), its origin the contact point.
-    friction_coefficient : float
-        :math:`\mu`.
-    min_normal_force, max_normal_force : float
-        Bounds on :math:`f_z` [N].
-    stiffness, damping : float
-        Baumgarte gains pulling the foot back to its reference position.
+        The contact frame (e.g. one of ``robot.foot_frames``), its origin the contact point.
+    friction_coefficient, min_normal_force, max_normal_force, stiffness, damping
+        As :class:`Contact`.
     """
+
+    _release = "the foot is about to lift"
 
     def __init__(
         self,
@@ -227,33 +319,28 @@ class PointContact:
         stiffness: float = 10.0,
         damping: float | None = None,
     ):
-        _init_contact(
-            self, robot, frame, friction_coefficient, min_normal_force, max_normal_force,
-            stiffness, damping,
-        )  # fmt: skip
         planar = robot.base == "planar"
         self.components = np.array([0, 2] if planar else [0, 1, 2], dtype=np.int64)
         self.n_force = self.components.size
         self.normal_index = self.n_force - 1
-        mu = self.friction_coefficient if planar else self.friction_coefficient / np.sqrt(2.0)
-        tangential = np.eye(self.n_force)[:-1]
-        self.wrench_matrix = np.vstack(
-            [
-                np.hstack([tangential[:, :-1], np.full((self.n_force - 1, 1), -mu)]),
-                np.hstack([-tangential[:, :-1], np.full((self.n_force - 1, 1), -mu)]),
-                -np.eye(self.n_force)[-1:],  # f_z >= f_min
-                np.eye(self.n_force)[-1:],  # f_z <= f_max
-            ]
-        )
-        self.wrench_upper = np.zeros(self.wrench_matrix.shape[0])
-        self.wrench_upper[-2:] = -self.min_normal_force, self.max_normal_force
-        self.jacobian = np.zeros((self.n_force, robot.nv))
-        self.target = np.zeros(self.n_force)
+        self.force_names = ("fx", "fz") if planar else ("fx", "fy", "fz")
+        super().__init__(
+            robot, frame, friction_coefficient, min_normal_force, max_normal_force, stiffness,
+            damping,
+        )  # fmt: skip
         self._error = np.zeros(6)
 
-    stiffness = SoleContact.stiffness
-    damping = SoleContact.damping
-    cone_margin = SoleContact.cone_margin
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
+        planar = self.n_force == 2
+        mu = self.friction_coefficient if planar else self.friction_coefficient / np.sqrt(2.0)
+        tangential = np.eye(self.n_force)[:-1]
+        slope = np.full((self.n_force - 1, 1), -mu)
+        matrix = np.vstack(
+            [np.hstack([tangential[:, :-1], slope]), np.hstack([-tangential[:, :-1], slope])]
+        )
+        axes = "x" if planar else "xy"
+        names = [f"friction cone of {self.frame} ({s}{a})" for s in "+-" for a in axes]
+        return matrix, names
 
     def contact_jacobian(self, data: pin.Data) -> np.ndarray:
         """The contact rows' Jacobian (world axes), shape (n_force, nv)."""
@@ -263,9 +350,7 @@ class PointContact:
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Point Jacobian (world axes) and desired point acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
-        placement = pin.updateFramePlacement(model, data, frame_id)
-        if self.reference_placement is None:
-            self.reference_placement = placement.copy()
+        placement = self.placement(data)
         error = self._error
         np.subtract(self.reference_placement.translation, placement.translation, out=error[:3])
         kernels.pd_task_rows(
@@ -274,3 +359,98 @@ class PointContact:
             pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
             _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
         )  # fmt: skip
+
+
+class SurfaceContact(Contact):
+    r"""A point (a hand, a fingertip, a tool tip) pressing on a surface of any orientation.
+
+    The force is expressed in surface axes :math:`(t_1, t_2, n)`: :math:`n` the surface's unit
+    normal pointing towards the robot (the direction the surface pushes), :math:`t_1, t_2`
+    tangent to it. The QP holds the point still, :math:`a^* = K_p (p_{\mathrm{ref}} - p) - K_d
+    \dot p` in world axes as :class:`PointContact`, and imposes
+    :math:`|f_{t_1}|, |f_{t_2}| \le (\mu/\sqrt 2) f_n` and
+    :math:`f_{\min} \le f_n \le f_{\max}`: a hand on a table has :math:`n = (0, 0, 1)`, a hand
+    on a wall in front of the robot :math:`n = (-1, 0, 0)`. A ``min_normal_force`` above 0
+    makes the robot press with at least that force.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot (3-D; not planar).
+    frame : str
+        The frame whose origin touches the surface (e.g. one of ``robot.hand_frames``).
+    normal : array_like, shape (3,)
+        The surface normal in world axes (normalised here).
+    friction_coefficient, min_normal_force, max_normal_force, stiffness, damping
+        As :class:`Contact`; ``min_normal_force`` defaults to 0.
+
+    Attributes
+    ----------
+    axes : ndarray, shape (3, 3)
+        Columns :math:`t_1, t_2, n` in world axes.
+    """
+
+    n_force = 3
+    normal_index = 2
+    force_names = ("ft1", "ft2", "fn")
+    _release = "the point is about to leave the surface"
+
+    def __init__(
+        self,
+        robot,
+        frame: str,
+        normal=(0.0, 0.0, 1.0),
+        friction_coefficient: float = 0.7,
+        min_normal_force: float = 0.0,
+        max_normal_force: float = 5000.0,
+        stiffness: float = 10.0,
+        damping: float | None = None,
+    ):
+        if robot.base == "planar":
+            raise InvalidInputError(
+                "SurfaceContact needs a 3-D robot; on a planar robot use PointContact"
+            )
+        n = _array(normal, "normal")
+        length = float(np.linalg.norm(n)) if n.shape == (3,) else 0.0
+        if not (np.isfinite(length) and length > 1e-9):
+            raise InvalidInputError(
+                f"SurfaceContact: normal must be a finite non-zero 3-vector, got {normal!r}"
+            )
+        super().__init__(
+            robot, frame, friction_coefficient, min_normal_force, max_normal_force, stiffness,
+            damping,
+        )  # fmt: skip
+        n = n / length
+        helper = np.eye(3)[int(np.argmin(np.abs(n)))]  # the world axis least along n
+        t1 = np.cross(helper, n)
+        t1 /= np.linalg.norm(t1)
+        self.axes = np.column_stack([t1, np.cross(n, t1), n])
+        self._world_jacobian = np.zeros((3, robot.nv))
+        self._world_target = np.zeros(3)
+        self._error = np.zeros(6)
+
+    def friction_rows(self) -> tuple[np.ndarray, list[str]]:
+        mu = self.friction_coefficient / np.sqrt(2.0)
+        matrix = np.array([[1.0, 0.0, -mu], [0.0, 1.0, -mu], [-1.0, 0.0, -mu], [0.0, -1.0, -mu]])
+        names = [f"friction cone of {self.frame} ({s}t{i})" for s in "+-" for i in "12"]
+        return matrix, names
+
+    def contact_jacobian(self, data: pin.Data) -> np.ndarray:
+        """The contact rows' Jacobian (surface axes), shape (3, nv)."""
+        jacobian = pin.getFrameJacobian(self.model, data, self.frame_id, _LWA)
+        return self.axes.T @ jacobian[:3]
+
+    def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
+        """Point Jacobian and desired acceleration minus drift, in surface axes."""
+        model, frame_id = self.model, self.frame_id
+        placement = self.placement(data)
+        error = self._error
+        np.subtract(self.reference_placement.translation, placement.translation, out=error[:3])
+        kernels.pd_task_rows(
+            self._world_target, self._world_jacobian, _LINEAR, error,
+            pin.getFrameJacobian(model, data, frame_id, _LWA), v,
+            pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
+            _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
+        )  # fmt: skip
+        np.dot(self.axes.T, self._world_jacobian, out=self.jacobian)
+        np.dot(self.axes.T, self._world_target, out=self.target)

@@ -16,11 +16,19 @@ from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
+import proxsuite
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.validation import real_array, unit_rotation_blocks
 
-from .inverse_dynamics import ContactSetQP, ControllerStats, _check_items, _check_positive
+from .inverse_dynamics import (
+    DEFAULT_TIME_BUDGET,
+    AssembledQp,
+    ContactSetQP,
+    ControllerStats,
+    _check_items,
+    _check_positive,
+)
 from .joint_impedance import JointImpedance
 from .tasks import Task
 
@@ -91,9 +99,11 @@ class InverseDynamicsController:
     tasks : sequence of Task
         Weighted tasks (:class:`~dmpopt.control.tasks.PostureTask`, ``FrameTask``,
         ``ComTask``). Keep a reference to update their targets between ticks.
-    contacts : sequence of SoleContact or PointContact
-        Every contact the robot may use, one per foot frame, all of one kind (sole or
-        point). The active ones' wrenches are decision variables.
+    contacts : sequence of Contact
+        Every contact the robot may use, one per frame, of any kinds
+        (:class:`~dmpopt.control.SoleContact`, ``PointContact``, ``SurfaceContact``, or a
+        subclass of :class:`~dmpopt.control.Contact` of your own). The active ones' wrenches
+        are decision variables.
     inactive : sequence of str
         Frames of ``contacts`` not active at construction (e.g. a foot in the air).
     joint_impedance : JointImpedance, optional
@@ -194,7 +204,16 @@ class InverseDynamicsController:
         *,
         inactive: Sequence[str] = (),
         joint_impedance: JointImpedance | None = None,
-        **settings,
+        acceleration_regularization: float = 1e-6,
+        force_regularization: float = 1e-8,
+        tolerance: float = 1e-6,
+        max_iterations: int = 50,
+        time_budget: float = DEFAULT_TIME_BUDGET,
+        raise_on_failure: bool = False,
+        joint_limit_horizon: float | None = 0.05,
+        limited_joints: str | Sequence[str] | None = None,
+        torque_limit_scale: float = 1.0,
+        dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
     ):
         _check_items(robot, tasks, contacts)
         if joint_impedance is not None and not isinstance(joint_impedance, JointImpedance):
@@ -212,10 +231,6 @@ class InverseDynamicsController:
                     f"contacts holds {frames.count(frame)} contacts on {frame!r}; give one "
                     "contact per foot frame"
                 )
-        if len({contact.n_force for contact in self.contacts}) > 1:
-            raise InvalidInputError(
-                "contacts mixes SoleContact and PointContact; give contacts of one kind"
-            )
         self._by_frame = dict(zip(frames, self.contacts))
         if isinstance(inactive, str):
             raise InvalidInputError(
@@ -226,7 +241,18 @@ class InverseDynamicsController:
         self._initial = tuple(f for f in frames if f not in set(inactive))
         self._active = self._initial
         self._tasks = tuple(tasks)
-        self._settings = settings
+        self._settings = dict(
+            acceleration_regularization=acceleration_regularization,
+            force_regularization=force_regularization,
+            tolerance=tolerance,
+            max_iterations=max_iterations,
+            time_budget=time_budget,
+            raise_on_failure=raise_on_failure,
+            joint_limit_horizon=joint_limit_horizon,
+            limited_joints=limited_joints,
+            torque_limit_scale=torque_limit_scale,
+            dense_backend=dense_backend,
+        )
         self._stats = ControllerStats()
         self._formulations: OrderedDict[tuple, ContactSetQP] = OrderedDict()
         self._ramps: dict[str, _Ramp] = {}
@@ -385,7 +411,7 @@ class InverseDynamicsController:
         formulation = self._current
         if self._stats.n_ticks and contact in formulation.contacts:
             index = formulation.contacts.index(contact)
-            return float(formulation.contact_wrenches[index, contact.normal_index])
+            return contact.normal_force(formulation.contact_wrenches[index])
         return contact.max_normal_force
 
     def _key(self) -> tuple:
@@ -397,9 +423,9 @@ class InverseDynamicsController:
         formulation = self._formulations.pop(key, None)
         if formulation is None:
             contacts = [self._by_frame[f] for f in self._active]
-            formulation = ContactSetQP(self.robot, self._tasks, contacts, **self._settings)
-            if self.qp is not None:
-                formulation.qp = self.qp  # the settings source of every QP
+            formulation = ContactSetQP(
+                self.robot, self._tasks, contacts, settings_source=self.qp, **self._settings
+            )
         self._formulations[key] = formulation
         if len(self._formulations) > _CACHE_SIZE:
             self._formulations.popitem(last=False)
@@ -410,9 +436,7 @@ class InverseDynamicsController:
         """Move to the QP of the current set; hold torque and normal-force bounds carried."""
         previous, current = self._current, self._formulation()
         if current is not previous:
-            current._torques[:] = previous._torques
-            current._has_valid_torque = previous._has_valid_torque
-            current._level = 0
+            current.continue_from(previous)
         for index, contact in enumerate(current.contacts):
             if contact.frame not in self._ramps:
                 current.set_normal_force_limit(index, contact.max_normal_force)
@@ -517,6 +541,16 @@ class InverseDynamicsController:
         """
         return self._current.contact_wrenches
 
+    def assembled_qp(self, q: np.ndarray, v: np.ndarray) -> AssembledQp:
+        """The QP of a tick at ``(q, v)`` for the contacts and tasks in use, with every
+        inequality row and the names of its variables and rows (see :class:`AssembledQp`);
+        for inspection, e.g. after a tick: ``qp = controller.assembled_qp(q, v)``, then
+        ``qp.objective(y)`` of any candidate. Changes no answer of a later tick."""
+        q, v = self._check_state(q, v)
+        if self._changed:
+            self._switch()
+        return self._current.assembled_qp(q, v)
+
     def contact_force(self, frame: str) -> np.ndarray:
         """The wrench (or point force) of the contact on ``frame`` at the last solve; zeros if
         it was not active."""
@@ -524,7 +558,7 @@ class InverseDynamicsController:
         formulation = self._current
         if contact not in formulation.contacts:
             return np.zeros(contact.n_force)
-        return formulation.contact_wrenches[formulation.contacts.index(contact)]
+        return formulation.contact_wrenches[formulation.contacts.index(contact), : contact.n_force]
 
     @property
     def torques(self) -> np.ndarray:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
-from .contacts import SoleContact
 
 __all__ = ["active_constraints", "explain"]
 
@@ -25,21 +24,6 @@ TORQUE_MARGIN = 1e-2
 #: Joint-limit acceleration bounds within this of the joint acceleration [rad/s^2].
 BOUND_MARGIN = 1e-2
 
-_SOLE_ROWS = (
-    "friction cone of {} (+x)",
-    "friction cone of {} (-x)",
-    "friction cone of {} (+y)",
-    "friction cone of {} (-y)",
-    "CoP of {} at its toe edge",
-    "CoP of {} at its heel edge",
-    "CoP of {} at its left edge",
-    "CoP of {} at its right edge",
-    "yaw friction of {} (+z)",
-    "yaw friction of {} (-z)",
-    "minimum normal force of {} (the foot is about to lift)",
-    "maximum normal force of {}",
-)
-
 _STATUS = {
     "PROXQP_MAX_ITER_REACHED": "out of iterations (max_iterations) or of its share of the time "
     "budget",
@@ -47,20 +31,6 @@ _STATUS = {
     "PROXQP_DUAL_INFEASIBLE": "unbounded (a task leaves a direction free)",
     "NON_FINITE_PROBLEM": "a NaN or inf in a task target or the state",
 }
-
-
-def _contact_rows(contact) -> tuple[str, ...]:
-    if isinstance(contact, SoleContact):
-        return tuple(row.format(contact.frame) for row in _SOLE_ROWS)
-    axes = "xz" if contact.n_force == 2 else "xyz"
-    tangential = [
-        f"friction cone of {contact.frame} ({sign}{a})" for sign in "+-" for a in axes[:-1]
-    ]
-    return (
-        *tangential,
-        f"minimum normal force of {contact.frame} (the foot is about to lift)",
-        f"maximum normal force of {contact.frame}",
-    )
 
 
 def active_constraints(controller) -> list[str]:
@@ -83,10 +53,11 @@ def active_constraints(controller) -> list[str]:
     qp = controller._current
     robot = qp.robot
     names = []
-    weight = qp._force_scale
+    weight = qp.layout.force_scale
     offset = 0
-    for contact, wrench in zip(qp.contacts, qp.contact_wrenches):
-        rows = _contact_rows(contact)
+    for contact, padded in zip(qp.contacts, qp.contact_wrenches):
+        wrench = padded[: contact.n_force]
+        rows = contact.row_names
         size = len(rows)
         slack = qp._cone_upper[offset : offset + size] - contact.wrench_matrix @ wrench
         offset += size
@@ -100,17 +71,21 @@ def active_constraints(controller) -> list[str]:
         side = "upper" if torques[index] > 0 else "lower"
         names.append(f"torque limit of {robot.actuated_joint_names[index]} ({side})")
     bounds = qp._bounds
-    if bounds[1].size:
-        lower, upper = np.empty(bounds[1].size), np.empty(bounds[1].size)
-        kernels.acceleration_bounds((*bounds[:6], lower, upper), qp._q_tick, qp._v_tick)
-        accelerations = qp.joint_accelerations[bounds[1]]
+    if bounds.v_index.size:
+        lower, upper = np.empty(bounds.v_index.size), np.empty(bounds.v_index.size)
+        bounds = bounds._replace(lower=lower, upper=upper)  # the QP's own arrays untouched
+        kernels.acceleration_bounds(bounds, qp._q_tick, qp._v_tick)
+        accelerations = qp.joint_accelerations[bounds.v_index]
         joints = {
             robot.model.joints[j].idx_v: robot.model.names[j] for j in range(1, robot.model.njoints)
         }
-        for index in np.flatnonzero(accelerations >= upper - BOUND_MARGIN):
-            names.append(f"joint limit of {joints[bounds[1][index]]} (upper acceleration bound)")
-        for index in np.flatnonzero(accelerations <= lower + BOUND_MARGIN):
-            names.append(f"joint limit of {joints[bounds[1][index]]} (lower acceleration bound)")
+        for side, binding in (
+            ("upper", accelerations >= upper - BOUND_MARGIN),
+            ("lower", accelerations <= lower + BOUND_MARGIN),
+        ):
+            for index in np.flatnonzero(binding):
+                joint = joints[bounds.v_index[index]]
+                names.append(f"joint limit of {joint} ({side} acceleration bound)")
     return names
 
 

@@ -81,6 +81,8 @@ degraded answer within its time budget (see :class:`InverseDynamicsController`).
 from __future__ import annotations
 
 import math
+import types
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -92,12 +94,11 @@ from dmpopt.exceptions import InvalidInputError, ShapeError
 
 from . import kernels
 from .assembly import Assembly
-from .contacts import PointContact, SoleContact
+from .contacts import Contact
+from .layout import build_layout
 from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _active_set, _arguments, _Stage
 from .tasks import FrameTask, PostureTask, Task
 from .tick import _RELEASE_MARGIN, Tick
-
-CONTACT_TYPES = (SoleContact, PointContact)
 
 __all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 
@@ -123,16 +124,16 @@ def _check_positive(name: str, value) -> None:
 
 def _check_items(robot, tasks, contacts) -> None:
     """Tasks and contacts of the right types, built for this robot."""
-    if isinstance(tasks, Task) or isinstance(contacts, CONTACT_TYPES):
+    if isinstance(tasks, Task) or isinstance(contacts, Contact):
         raise InvalidInputError(
             "tasks and contacts must be sequences; wrap a single one in a list: [task]"
         )
     if not tasks:
         raise InvalidInputError("tasks is empty; give at least one task (e.g. PostureTask)")
-    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, CONTACT_TYPES)):
+    for name, items, kind in (("tasks", tasks, Task), ("contacts", contacts, Contact)):
         for item in items:
             if not isinstance(item, kind):
-                expected = "Task" if kind is Task else "SoleContact or PointContact"
+                expected = "Task" if kind is Task else "Contact (SoleContact, PointContact, ...)"
                 raise InvalidInputError(
                     f"{name} holds {type(item).__name__!s}, expected {expected} objects"
                 )
@@ -165,22 +166,79 @@ def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
     return np.sort(pivots[:n_rows]) + n_base
 
 
+@dataclass(frozen=True, eq=False)
+class AssembledQp:
+    r"""The QP of one tick with every inequality row, for inspection.
+
+    .. math:: \min_y \tfrac12 y^\top H y + g^\top y + c \quad\text{s.t.}\quad A y = b,
+              \quad l \le C y \le u
+
+    over :math:`y = (\ddot q_a, f / (m g))`: the actuated joint accelerations [rad/s^2 or
+    m/s^2] and the contact wrenches divided by the robot's weight ``force_scale`` (1 without
+    contacts), the base rows eliminated (see :mod:`dmpopt.control.inverse_dynamics`). The
+    constant :math:`c` makes the objective the full least-squares cost of the tasks and
+    regularisation. The controller's answer is its optimum (to the solver tolerance when a
+    tick's answer is ``solved`` without a certificate). Bounds of magnitude 1e20 mean none.
+
+    Attributes
+    ----------
+    hessian : ndarray, shape (n, n)
+    gradient : ndarray, shape (n,)
+    equality_matrix, equality_vector : ndarray, shapes (m, n) and (m,)
+        The contact rows :math:`J_c \ddot q = a^* - \dot J_c \dot q`.
+    inequality_matrix : ndarray, shape (p, n)
+        Torque rows, joint-limit acceleration-bound rows, then cone rows.
+    lower, upper : ndarray, shape (p,)
+    constant : float
+    force_scale : float
+        The robot's weight [N] (1.0 without contacts).
+    variable_names, equality_names, inequality_names : tuple of str
+        One name per variable, equality row and inequality row.
+    """
+
+    hessian: np.ndarray
+    gradient: np.ndarray
+    equality_matrix: np.ndarray
+    equality_vector: np.ndarray
+    inequality_matrix: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    constant: float
+    force_scale: float
+    variable_names: tuple[str, ...]
+    equality_names: tuple[str, ...]
+    inequality_names: tuple[str, ...]
+
+    def objective(self, y: np.ndarray) -> float:
+        """The cost :math:`\tfrac12 y^\top H y + g^\top y + c` of a point ``y``."""
+        y = np.asarray(y, dtype=float)
+        return float(0.5 * y @ self.hessian @ y + self.gradient @ y + self.constant)
+
+
 DEFAULT_TIME_BUDGET = 5e-3
 """CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
 
 
-class ContactSetQP(Tick, Assembly, StageSolver):
+class ContactSetQP(Tick, Assembly):
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
     stages (see the module docstring). The controller builds one per set it meets and keeps
-    them; the parameters are the controller's.
+    them; the parameters are the controller's (``settings_source``: the proxsuite QP whose
+    settings every stage takes, the controller's ``qp``).
+
+    Its parts: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`: sizes, blocks, row
+    names), the stages (:class:`~dmpopt.control.qp_stages._Stage`, each a proxsuite QP with
+    its warm start and active set), their solver (:class:`~dmpopt.control.qp_stages.
+    StageSolver`), and the arrays the compiled kernels fill (named structures of
+    :mod:`dmpopt.control.kernels`); the tick's flow (:class:`~dmpopt.control.tick.Tick`) and
+    the assembly (:class:`~dmpopt.control.assembly.Assembly`) are its methods.
     """
 
     def __init__(
         self,
         robot,
         tasks: Sequence[Task],
-        contacts: Sequence[SoleContact] = (),
+        contacts: Sequence[Contact] = (),
         *,
         acceleration_regularization: float = 1e-6,
         force_regularization: float = 1e-8,
@@ -192,6 +250,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         limited_joints: str | Sequence[str] | None = None,
         torque_limit_scale: float = 1.0,
         dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
+        settings_source: proxsuite.proxqp.dense.QP | None = None,
     ):
         _check_items(robot, tasks, contacts)
         for name, value in (
@@ -219,18 +278,6 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self.contacts = tuple(contacts)
         self.raise_on_failure = raise_on_failure
 
-        nv, n_act, n_c = robot.nv, robot.n_actuated, len(self.contacts)
-        force_offsets = np.cumsum([0] + [c.n_force for c in self.contacts]).astype(int)
-        cone_offsets = np.cumsum([0] + [c.wrench_upper.size for c in self.contacts]).astype(int)
-        n_base, n_force = nv - n_act, int(force_offsets[-1])
-        n_x = nv + n_force  # unknowns x = (qdd, f / force_scale)
-        n = n_act + n_force  # unknowns y = (qdd_a, f / force_scale), base rows eliminated
-        n_cone = int(cone_offsets[-1])
-        self._force_slices = tuple(slice(a, b) for a, b in zip(force_offsets, force_offsets[1:]))
-        # Cone rows of each contact's normal-force bounds (its last two: -f_n <= -f_min, f_n <=
-        # f_max), which a transition changes.
-        self._normal_rows = tuple((int(b) - 2, int(b) - 1) for b in cone_offsets[1:])
-        self._nv, self._n_base, self._n_act, self._n = nv, n_base, n_act, n
         self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
         if not (self.torque_limit > 0).all():  # NaN too
             raise InvalidInputError(
@@ -241,12 +288,17 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
         # Arguments of kernels.acceleration_bounds (no joints without limits).
         self._bounds = self._joint_limits(joint_limit_horizon, limited_joints)
-        n_bound = self._bounds[1].size
-        # The QP's wrench unknowns are wrenches divided by the robot's weight: dimensionless
-        # forces as large as the accelerations, so that proxsuite's absolute tolerance pins
-        # the internal forces between the soles (which only eps_f determines).
-        scale = pin.computeTotalMass(self.model) * 9.81 if n_c else 1.0
-        self._force_scale = scale
+        self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
+        self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
+        # The QP's wrench unknowns are wrenches divided by the robot's weight (force_scale):
+        # dimensionless forces as large as the accelerations, so that proxsuite's absolute
+        # tolerance pins the internal forces between the soles (which only eps_f determines).
+        self.layout = layout = build_layout(
+            robot, self._stacked_tasks, self.contacts, self._bounds.v_index
+        )
+        nv, n_base, n_act, n_force = layout.nv, layout.n_base, layout.n_act, layout.n_force
+        n, n_x, n_cone, n_bound = layout.n, layout.n_x, layout.n_cone, layout.n_bound
+        n_task, n_cost, scale = layout.n_task, layout.n_cost, layout.force_scale
 
         # Linear rows [A | t] over x, each for A x = t (least squares or exact), in self._rows:
         # [tasks | base regularisation | contacts | base dynamics]
@@ -254,18 +306,10 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         # - base regularisation: qdd_b = 0, least squares with weight eps_a (used with y);
         # - contacts: J_c qdd = b_c;
         # - base dynamics: M_b qdd - J_cb^T f = -h_b (used for the elimination).
-        self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
-        self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
-        sizes = [task.target.size for task in self._stacked_tasks]
-        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
-        self._task_rows = tuple(slice(a, b) for a, b in zip(offsets[:-1], offsets[1:]))
-        n_task = int(offsets[-1])
-        n_cost = n_task + n_base
-        self._n_task, self._n_cost = n_task, n_cost
         self._rows = np.zeros((n_cost + n_force + n_base, n_x + 1))
         self._rows[n_task:n_cost, :n_base] = np.eye(n_base)
         self._row_scale = np.ones((n_cost, 1))  # square roots of the least-squares weights
-        for task, rows in zip(self._stacked_tasks, self._task_rows):
+        for task, rows in zip(self._stacked_tasks, layout.task_rows):
             self._row_scale[rows] = np.sqrt(task.weight)
         self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
         # Each tick the tasks and contacts compute their rows into their own arrays, which are
@@ -278,7 +322,8 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             )
             if items
         )
-        self._dynamics_start = n_cost + n_force  # first base-dynamics row
+        self._layout = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
+        self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
 
         # Constant Hessian diagonal over x: eps_a on qdd plus the posture weights, eps_f on the
         # wrenches. The posture tasks' linear terms -w qdd* go to posture_gradient.
@@ -303,21 +348,18 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._zero_acceleration = np.zeros(nv)
         # Woodbury solve: W^-1 + J D^-1 J^T and J D^-1 over the frame-task rows.
         self._task_weights = self._row_scale[:n_task, 0] ** 2
-        self._woodbury = (  # arguments of kernels.joint_space_accelerations
-            self._rows, n_task, self._inverse_diagonal, self._task_weights,
-            np.zeros((n_task, nv)), np.zeros((n_task, n_task)), np.zeros((n_task, n_task)),
-            np.zeros(n_task),
+        self._woodbury = kernels.Woodbury(
+            self._inverse_diagonal, self._task_weights, np.zeros((n_task, nv)),
+            np.zeros((n_task, n_task)), np.zeros((n_task, n_task)), np.zeros(n_task),
         )  # fmt: skip
 
         # Cone rows over x (scaled wrenches): constant.
         cone_matrix = np.zeros((n_cone, n_x))
         cone_upper = np.full(n_cone, _NO_BOUND)
-        for contact, forces, a, b in zip(
-            self.contacts, self._force_slices, cone_offsets, cone_offsets[1:]
-        ):
-            cone_matrix[a:b, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
-            cone_upper[a:b] = contact.wrench_upper
-        self._cone_upper, self._n_limit = cone_upper, None  # n_limit set below
+        for contact, forces, cones in zip(self.contacts, layout.force_slices, layout.cone_slices):
+            cone_matrix[cones, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
+            cone_upper[cones] = contact.wrench_upper
+        self._cone_upper = cone_upper
         cone_lower = np.full(n_cone, -_NO_BOUND)
 
         # ---- QPs over y = x[n_base:] (base rows eliminated): without torque rows (used when
@@ -331,10 +373,9 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self._gradient = np.zeros(n)
         self._eq_vector = self._mapped[n_cost:, n]
         # Inequality rows over y: torques, acceleration bounds (if any), cones.
-        n_limit = n_act + n_bound
-        self._n_limit = n_limit
+        n_limit = layout.n_limit
         self._in_matrix = np.zeros((n_limit + n_cone, n))
-        self._in_matrix[n_act + np.arange(n_bound), self._bounds[1] - n_base] = 1.0
+        self._in_matrix[n_act + np.arange(n_bound), self._bounds.v_index - n_base] = 1.0
         self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
         self._in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), cone_lower])
         self._in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
@@ -388,7 +429,9 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         # basic accelerations, x_B = U_c - U_N z with [U_N | U_c] = G_B^-1 [G_N | t]; without
         # inequality rows (primary) and with the cone rows.
         self._basic = self._eliminated_cones = None
-        joints = _contact_joints(robot, self.contacts, n_base) if n_c else np.zeros(0, int)
+        joints = (
+            _contact_joints(robot, self.contacts, n_base) if self.contacts else np.zeros(0, int)
+        )
         if joints is not None and n_base + joints.size:
             basic = np.concatenate([np.arange(n_base), joints])
             nonbasic = np.setdiff1d(np.arange(n_x), basic)
@@ -410,17 +453,15 @@ class ContactSetQP(Tick, Assembly, StageSolver):
             self._z_solution = np.zeros(n_z)
             self._z_factor = np.zeros((n_z, n_z))
             # Arguments of the compiled stages (persistent arrays, filled in place).
-            self._elimination_arguments = (
-                self._rows, n_cost, nv, n_base, self._mass, self._bias, scale, basic,
-                self._nonbasic_constant, self._lu, self._elimination, _MIN_PIVOT_RATIO,
-            )  # fmt: skip
-            self._reduction_arguments = (
-                self._rows, n_task, basic, self._nonbasic_constant, self._elimination,
+            self._split = kernels.Split(
+                basic, self._nonbasic_constant, self._lu, self._elimination, _MIN_PIVOT_RATIO
+            )
+            self._reduced = kernels.ReducedCosts(
                 self._row_scale[:, 0].copy(), self._basic_scale, self._posture_gradient,
                 self._z_hessian_diagonal, self._z_matrix, self._z_target, self._z_hessian,
                 self._z_gradient,
             )  # fmt: skip
-            self._solve_arguments = (
+            self._checks = kernels.Checks(
                 self._z_factor, self._z_solution, self._z_cone_matrix, cone_upper,
                 self.torque_limit, self._bounds, self._bound_tolerance,
             )  # fmt: skip
@@ -448,16 +489,45 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.max_iter = int(max_iterations)
         self.qp.settings.eps_duality_gap_abs = tolerance
+        if settings_source is not None:  # another contact set's QP: one source for all sets
+            self.qp = settings_source
+        self._solver = StageSolver(self.qp)
         self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
 
         self.stats = ControllerStats()
         self._torques = np.zeros(n_act)
         self._tau = np.zeros(n_act)
-        self._q_tick, self._v_tick = np.zeros(self.model.nq), np.zeros(self._nv)
+        self._q_tick, self._v_tick = np.zeros(self.model.nq), np.zeros(self.layout.nv)
         self._solution = np.zeros(n_x)
         self._candidate = np.zeros(n_x)
         self._has_valid_torque = False
+        self._bind_kernels()
         self._compile_kernels()
+
+    def _bind_kernels(self) -> None:
+        """The compiled kernels of a tick, bound to the types of this QP's own arrays
+        (:func:`kernels.entry_point`: called without numba's type dispatch)."""
+        q, v, x, tau = self._q_tick, self._v_tick, self._candidate, self._tau
+        rows, dynamics, bounds = self._layout, self._dynamics, self._bounds
+        bound = {
+            "posture_gradient": (self._posture, q, v),
+            "acceleration_bounds": (bounds, q, v),
+            "feasible": (tau, self.torque_limit, x, bounds, q, v, self._bound_tolerance),
+            "torques": (rows, dynamics, x, tau),
+        }
+        if self._joint_space:
+            bound["joint_space_accelerations"] = (self._posture, rows, self._woodbury, q, v, x)
+        if self._basic is not None:
+            split, reduced, checks = self._split, self._reduced, self._checks
+            bound["eliminated_tick"] = (rows, dynamics, split, reduced, checks, q, v, x, tau)
+            bound["eliminate"] = (rows, dynamics, split)
+            bound["reduce_costs"] = (rows, split, reduced)
+            bound["expand"] = (split, self._z_accepted, x)
+        entry_points = {
+            name: kernels.entry_point(getattr(kernels, name), *arguments)
+            for name, arguments in bound.items()
+        }
+        self._compiled = types.SimpleNamespace(**entry_points)
 
     def _compile_kernels(self) -> None:
         """Compile (or load from numba's disk cache) the kernels a tick can use, so that no
@@ -465,14 +535,14 @@ class ContactSetQP(Tick, Assembly, StageSolver):
         configuration, and the stages used around proxsuite; then the controller is as new
         (contact references kept)."""
         references = [contact.reference_placement for contact in self.contacts]
-        state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self._nv)
+        state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self.layout.nv)
         self._level = 0  # the path of a tick without active inequality rows
         self.compute_torques(*state)  # copies the state: every kernel sees writable float64
         self._feasible(self.torque_limit, self._bound_tolerance, *state)
         kernels.acceleration_bounds(self._bounds, *state)
         if self._basic is not None:
             self._assemble_eliminated()
-            self._accept(self._z_solution, eliminated=True)
+            self._accept(self._z_accepted, eliminated=True)
         self._solve_direct()
         problem = (np.eye(1), np.ones(1), None, None, np.ones((1, 1)), -np.ones(1), np.ones(1))
         _active_set(problem, np.zeros(1, bool), np.zeros(1, bool), 1e-9, 1)
@@ -517,7 +587,7 @@ class ContactSetQP(Tick, Assembly, StageSolver):
                     f"limited_joints: {name!r} has no position limit (a continuous joint); "
                     "leave it out"
                 )
-        return (
+        return kernels.JointBounds(
             q_index, v_index,
             np.asarray(robot.position_lower, dtype=float)[q_index] - JOINT_LIMIT_TOLERANCE,
             np.asarray(robot.position_upper, dtype=float)[q_index] + JOINT_LIMIT_TOLERANCE,
@@ -529,31 +599,38 @@ class ContactSetQP(Tick, Assembly, StageSolver):
     @property
     def joint_accelerations(self) -> np.ndarray:
         """Joint accelerations of the last solve, shape (nv,) (copy)."""
-        return self._solution[: self._nv].copy()
+        return self._solution[: self.layout.nv].copy()
 
     @property
     def contact_wrenches(self) -> np.ndarray:
-        """Contact wrenches of the last solve, shape (n_contacts, 6) (copy).
+        """Contact wrenches (or forces) of the last solve, shape (n_contacts, width) (copy).
 
-        Rows are (fx, fy, fz, tx, ty, tz) [N, N m] in each sole frame, in contact order.
+        One row per contact in contact order: (fx, fy, fz, tx, ty, tz) [N, N m] in a sole
+        frame, a point force in world axes, a surface force in surface axes. ``width`` is the
+        largest contact's ``n_force``; a smaller contact's row is padded with zeros (a
+        point force has no torque about its point).
         """
-        forces = self._solution[self._nv :]
+        forces = self._solution[self.layout.nv :]
         if not self.contacts:
             return np.zeros((0, 6))
-        return np.array([forces[rows] for rows in self._force_slices])
+        width = max(c.n_force for c in self.contacts)
+        wrenches = np.zeros((len(self.contacts), width))
+        for row, rows in zip(wrenches, self.layout.force_slices):
+            row[: rows.stop - rows.start] = forces[rows]
+        return wrenches
 
     def set_normal_force_limit(self, index: int, limit: float) -> None:
         """Bound the normal force of contact ``index`` by ``limit`` [N] from the next tick
         (its lower bound becomes min(f_min, limit)); only the bound vectors change."""
         contact = self.contacts[index]
         lower = -min(contact.min_normal_force, limit)
-        rows = self._normal_rows[index]
+        rows = self.layout.normal_rows[index]
         if (self._cone_upper[list(rows)] == (lower, limit)).all():
             return
-        margin = _CONE_RELEASE_MARGIN * self._force_scale
+        margin = _CONE_RELEASE_MARGIN * self.layout.force_scale
         for row, value in zip(rows, (lower, limit)):
             self._cone_upper[row] = value
-            self._in_upper[self._n_limit + row] = value
+            self._in_upper[self.layout.n_limit + row] = value
             if self._basic is not None:
                 self._z_cone_release[row] = value - margin
         for stage in self._stages:
@@ -563,6 +640,42 @@ class ContactSetQP(Tick, Assembly, StageSolver):
     def torques(self) -> np.ndarray:
         """Torques returned by the last tick, shape (n_actuated,) (copy)."""
         return self._torques.copy()
+
+    def assembled_qp(self, q: np.ndarray, v: np.ndarray) -> AssembledQp:
+        """The QP of a tick at ``(q, v)`` with every inequality row (copies; see
+        :class:`AssembledQp`). Assembling it changes no answer of a later tick."""
+        np.copyto(self._q_tick, q)
+        np.copyto(self._v_tick, v)
+        q, v = self._q_tick, self._v_tick
+        self._assemble(q, v)
+        self._assemble_y()
+        kernels.acceleration_bounds(self._bounds, q, v)
+        self._assemble_torque_rows()
+        n, n_cost, mapped = self.layout.n, self.layout.n_cost, self._mapped
+        state, weights = self._posture.state, self._posture.weights
+        constant = 0.5 * mapped[:n_cost, n] @ mapped[:n_cost, n] + 0.5 * weights @ state[5] ** 2
+        return AssembledQp(
+            hessian=self._hessian.copy(),
+            gradient=self._gradient.copy(),
+            equality_matrix=mapped[n_cost:, :n].copy(),
+            equality_vector=mapped[n_cost:, n].copy(),
+            inequality_matrix=self._in_matrix.copy(),
+            lower=self._in_lower.copy(),
+            upper=self._in_upper.copy(),
+            constant=float(constant),
+            force_scale=float(self.layout.force_scale),
+            variable_names=self.layout.variable_names,
+            equality_names=self.layout.equality_names,
+            inequality_names=self.layout.inequality_names,
+        )
+
+    def continue_from(self, previous: ContactSetQP) -> None:
+        """Take over from the QP of another contact set on a switch: its last valid torque
+        (the hold answer) carries over; this QP starts from its path without inequality
+        rows."""
+        np.copyto(self._torques, previous._torques)
+        self._has_valid_torque = previous._has_valid_torque
+        self._level = 0
 
     def reset(self) -> None:
         """Forget the warm start, the contact reference placements and the counters."""

@@ -16,17 +16,29 @@ The maths is that of :mod:`dmpopt.control.inverse_dynamics` and
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 __all__ = [
+    "Checks",
+    "Dynamics",
+    "JointBounds",
+    "KktWorkspace",
+    "PostureStack",
+    "QpArrays",
+    "ReducedCosts",
+    "Rows",
+    "Split",
+    "Woodbury",
     "acceleration_bounds",
     "active_set",
     "all_finite",
     "cholesky_solve",
     "eliminate",
     "eliminated_tick",
+    "entry_point",
     "expand",
     "feasible",
     "joint_space_accelerations",
@@ -38,9 +50,147 @@ __all__ = [
     "torques",
 ]
 
+
+class JointBounds(NamedTuple):
+    """Arguments of :func:`acceleration_bounds`: the bounded joints' entries in q and v, their
+    limits [rad, rad/s], the horizon h [s], and the bounds l, u [rad/s^2] written."""
+
+    q_index: np.ndarray
+    v_index: np.ndarray
+    position_lower: np.ndarray
+    position_upper: np.ndarray
+    velocity_limit: np.ndarray
+    horizon: float
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+class PostureStack(NamedTuple):
+    """The posture tasks stacked: ``state`` (7, n) rows of :func:`posture_law`, their joints'
+    entries in q and v, their weights, and the gradient over x written by
+    :func:`posture_gradient`."""
+
+    state: np.ndarray
+    q_index: np.ndarray
+    v_index: np.ndarray
+    weights: np.ndarray
+    gradient: np.ndarray
+
+
+class Rows(NamedTuple):
+    r"""The QP's linear rows :math:`[A \,|\, t]` over x (``matrix``): ``n_task`` task rows,
+    then up to ``n_cost`` the base regularisation, then the contact rows, then the base
+    dynamics; ``nv`` accelerations and ``n_base`` base coordinates."""
+
+    matrix: np.ndarray
+    n_task: int
+    n_cost: int
+    nv: int
+    n_base: int
+
+
+class Dynamics(NamedTuple):
+    """The model terms of a tick (mass matrix, bias forces, Fortran-ordered as Pinocchio gives
+    them) and the scale of the wrench unknowns (the robot's weight [N])."""
+
+    mass: np.ndarray
+    bias: np.ndarray
+    force_scale: float
+
+
+class Split(NamedTuple):
+    r"""The basic unknowns of the elimination and its result: ``basic`` and ``nonbasic``
+    columns of x (the constant column last), :math:`G_B` factored in ``lu``,
+    :math:`[U_N \,|\, U_c]` in ``elimination``, and the smallest accepted pivot ratio."""
+
+    basic: np.ndarray
+    nonbasic: np.ndarray
+    lu: np.ndarray
+    elimination: np.ndarray
+    min_pivot_ratio: float
+
+
+class ReducedCosts(NamedTuple):
+    r"""The least-squares cost over z of :func:`reduce_costs`: square roots of the task
+    weights per row and :math:`-\sqrt{d_B}`, the posture gradient over x and the diagonal
+    :math:`d_N`, then the arrays written (rows :math:`[Z | t_z]`, Hessian, gradient)."""
+
+    row_scale: np.ndarray
+    basic_scale: np.ndarray
+    posture: np.ndarray
+    diagonal: np.ndarray
+    matrix: np.ndarray
+    target: np.ndarray
+    hessian: np.ndarray
+    gradient: np.ndarray
+
+
+class Checks(NamedTuple):
+    """What :func:`eliminated_tick` solves into and checks: the Cholesky factor and z
+    written, the cone rows over z, the torque limits and the joint bounds with their
+    margin (negative: a tolerance)."""
+
+    factor: np.ndarray
+    z: np.ndarray
+    cone_matrix: np.ndarray
+    cone_upper: np.ndarray
+    torque_limit: np.ndarray
+    bounds: JointBounds
+    margin: float
+
+
+class Woodbury(NamedTuple):
+    """Arguments of :func:`joint_space_accelerations` besides the rows: :math:`D^{-1}`, the
+    task weights, and scratch arrays."""
+
+    inverse_diagonal: np.ndarray
+    task_weights: np.ndarray
+    scaled: np.ndarray
+    capacitance: np.ndarray
+    factor: np.ndarray
+    correction: np.ndarray
+
+
+class QpArrays(NamedTuple):
+    """A QP (H, g, A, b, C, l, u) for :func:`active_set`; A, b with zero rows if it has no
+    equality rows."""
+
+    hessian: np.ndarray
+    gradient: np.ndarray
+    eq_matrix: np.ndarray
+    eq_vector: np.ndarray
+    in_matrix: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+class KktWorkspace(NamedTuple):
+    """Scratch arrays of :func:`active_set`: a flat KKT matrix, its right-hand side, the
+    inequality rows' values and the active rows' indices."""
+
+    kkt: np.ndarray
+    rhs: np.ndarray
+    values: np.ndarray
+    rows: np.ndarray
+
+
 # Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
 # the callers) instead of raising.
 _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
+
+
+def entry_point(kernel, *arguments):
+    """The compiled code of ``kernel`` for the numba types of ``arguments`` (compiled, or
+    loaded from the disk cache, if needed), to be called without numba's type dispatch.
+
+    numba's dispatch types each argument on every call; for a named structure (a NamedTuple
+    such as :class:`Rows`) it does so field by field in Python, about a microsecond per
+    structure. A controller's arrays never change type (it passes its own float64 arrays,
+    sized once), so it binds its kernels once and calls them directly. Only arguments of the
+    types given here may be passed to the result: call ``kernel`` itself for any other.
+    """
+    return kernel.compile(tuple(numba.typeof(argument) for argument in arguments))
+
 
 # eliminated_tick's outcomes
 SOLVED, CONES_VIOLATED, LIMITS_VIOLATED, ILL_CONDITIONED, CHOLESKY_FAILED = range(5)
@@ -68,12 +218,13 @@ def acceleration_bounds(bounds, q, v):
     .. math:: u = \min\big(\tfrac{1}{h^2}(q_{max} - q) - \tfrac{2}{h}\dot q,\;
               \tfrac{1}{h}(\dot q_{max} - \dot q)\big)
 
-    and symmetrically for l. ``bounds`` is (q_index, v_index, position_lower, position_upper,
-    velocity_limit, h, lower, upper): the joints' entries in q and v, their limits, and the
-    arrays written. Infinite limits give infinite bounds; if l > u (a joint already past a
-    limit and moving fast), both become their mean.
+    and symmetrically for l, written into ``bounds.lower`` and ``bounds.upper``
+    (:class:`JointBounds`). Infinite limits give infinite bounds; if l > u (a joint already
+    past a limit and moving fast), both become their mean.
     """
-    q_index, v_index, position_lower, position_upper, velocity_limit, horizon, lower, upper = bounds
+    q_index, v_index, lower, upper = bounds.q_index, bounds.v_index, bounds.lower, bounds.upper
+    position_lower, position_upper = bounds.position_lower, bounds.position_upper
+    velocity_limit, horizon = bounds.velocity_limit, bounds.horizon
     stiffness, damping, rate = 1.0 / horizon**2, 2.0 / horizon, 1.0 / horizon
     for j in range(q_index.size):
         position, velocity = q[q_index[j]], v[v_index[j]]
@@ -99,7 +250,7 @@ def feasible(tau, torque_limit, x, bounds, q, v, margin) -> bool:
         if not abs(tau[i]) <= torque_limit[i]:
             return False
     acceleration_bounds(bounds, q, v)
-    v_index, lower, upper = bounds[1], bounds[6], bounds[7]
+    v_index, lower, upper = bounds.v_index, bounds.lower, bounds.upper
     for j in range(v_index.size):
         value = x[v_index[j]]
         if not (lower[j] + margin <= value and value <= upper[j] - margin):
@@ -124,10 +275,13 @@ def posture_law(state, q_index, v_index, q, v):
 
 
 @_compile
-def posture_gradient(state, q_index, v_index, weights, gradient, q, v):
-    r"""Posture targets (:func:`posture_law`) and their gradient terms :math:`-w \ddot q^*`,
-    summed per velocity index into ``gradient`` (zero elsewhere)."""
-    posture_law(state, q_index, v_index, q, v)
+def posture_gradient(posture, q, v):
+    r"""Posture targets (:func:`posture_law`) of a :class:`PostureStack` and their gradient
+    terms :math:`-w \ddot q^*`, summed per velocity index into ``posture.gradient`` (zero
+    elsewhere)."""
+    state, v_index, gradient = posture.state, posture.v_index, posture.gradient
+    weights = posture.weights
+    posture_law(state, posture.q_index, v_index, q, v)
     gradient[:] = 0.0
     for j in range(state.shape[1]):
         gradient[v_index[j]] -= weights[j] * state[5, j]
@@ -225,22 +379,24 @@ def solve_in_place(matrix, rhs) -> bool:
 
 
 @_compile
-def joint_space_accelerations(posture, woodbury, q, v, x) -> bool:
+def joint_space_accelerations(posture, rows, woodbury, q, v, x) -> bool:
     r"""Fixed base, posture tasks on every joint plus ``n_task`` frame-task rows: the
     accelerations ``x`` minimising the QP's cost, by the Woodbury identity
 
     .. math:: \ddot q = D^{-1} r - (J D^{-1})^\top (W^{-1} + J D^{-1} J^\top)^{-1}
               J D^{-1} r, \qquad r = J^\top W t - p,
 
-    with ``rows[:n_task] = [J | t]``, D the diagonal posture and regularisation weights
-    (``inverse_diagonal`` :math:`= D^{-1}`), W the task weights and p the posture gradient
-    (:func:`posture_gradient` with the arguments ``posture``). ``woodbury`` is (rows, n_task,
-    inverse_diagonal, task_weights, scaled, capacitance, factor, correction), the last four
-    scratch arrays. False if the small system fails (not expected: it is positive definite).
+    with the task rows ``rows.matrix[:n_task] = [J | t]`` (:class:`Rows`), D the diagonal
+    posture and regularisation weights (``woodbury.inverse_diagonal`` :math:`= D^{-1}`), W
+    the task weights and p the posture gradient (:func:`posture_gradient` of ``posture``).
+    False if the small system fails (not expected: it is positive definite).
     """
-    posture_gradient(*posture, q, v)
-    gradient = posture[-1]
-    rows, n_task, inverse_diagonal, task_weights, scaled, capacitance, factor, correction = woodbury
+    posture_gradient(posture, q, v)
+    gradient = posture.gradient
+    n_task, inverse_diagonal = rows.n_task, woodbury.inverse_diagonal
+    task_weights = woodbury.task_weights
+    scaled, capacitance, factor = woodbury.scaled, woodbury.capacitance, woodbury.factor
+    correction, rows = woodbury.correction, rows.matrix
     nv = x.size
     for i in range(nv):
         x[i] = -gradient[i]
@@ -274,19 +430,20 @@ def joint_space_accelerations(posture, woodbury, q, v, x) -> bool:
 
 
 @_compile
-def eliminate(
-    rows, n_cost, nv, n_base, mass, bias, force_scale, basic, nonbasic, lu, elimination,
-    min_pivot_ratio,
-) -> bool:  # fmt: skip
+def eliminate(layout, dynamics, split) -> bool:
     r"""Solve the base and contact rows for the basic accelerations.
 
     Fills the base-dynamics rows :math:`[M_b \,|\, -s J_{c,b}^\top \,|\, -h_b]` below the
-    contact rows of ``rows`` (``rows[n_cost:]``, :math:`[G \,|\, t]`), then
-    :math:`[U_N \,|\, U_c] = G_B^{-1} [G_N \,|\, t]` into ``elimination`` by Gaussian
-    elimination with partial pivoting (:math:`G_B` in ``lu``). ``nonbasic`` lists the
-    nonbasic columns and then the constant column. False if the smallest pivot is below
-    ``min_pivot_ratio`` times the largest (ill-conditioned :math:`G_B`).
+    contact rows of ``layout.matrix`` (from row ``n_cost``, :math:`[G \,|\, t]`;
+    :class:`Rows`, :class:`Dynamics`), then :math:`[U_N \,|\, U_c] = G_B^{-1} [G_N \,|\, t]`
+    into ``split.elimination`` by Gaussian elimination with partial pivoting (:math:`G_B` in
+    ``split.lu``; :class:`Split`). False if the smallest pivot is below
+    ``split.min_pivot_ratio`` times the largest (ill-conditioned :math:`G_B`).
     """
+    rows, n_cost, nv, n_base = layout.matrix, layout.n_cost, layout.nv, layout.n_base
+    mass, bias, force_scale = dynamics.mass, dynamics.bias, dynamics.force_scale
+    basic, nonbasic, lu, elimination = split.basic, split.nonbasic, split.lu, split.elimination
+    min_pivot_ratio = split.min_pivot_ratio
     n_con = basic.size
     n_contact = n_con - n_base
     first = n_cost + n_contact  # base-dynamics rows
@@ -339,18 +496,20 @@ def eliminate(
 
 
 @_compile
-def reduce_costs(
-    rows, n_task, basic, nonbasic, elimination, row_scale, basic_scale, posture, diagonal,
-    z_matrix, z_target, hessian, gradient,
-):  # fmt: skip
+def reduce_costs(layout, split, costs):
     r"""Hessian and gradient over the nonbasic unknowns z, with :math:`x_B = U_c - U_N z`.
 
     Each task row :math:`[A | t]` becomes :math:`\sqrt{w}\,[A_N - A_B U_N \,|\, t - A_B U_c]`
     and the regularisation of the basic unknowns :math:`-\sqrt{d_B}\,[U_N | U_c]`: the rows
-    :math:`[Z | t_z]` (``z_matrix``, ``z_target``); then :math:`H = Z^\top Z +
-    \mathrm{diag}(d_N)` and :math:`g = p_N - U_N^\top p_B - Z^\top t_z` with p the posture
-    gradient.
+    :math:`[Z | t_z]` (``costs.matrix``, ``costs.target``; :class:`ReducedCosts`); then
+    :math:`H = Z^\top Z + \mathrm{diag}(d_N)` and :math:`g = p_N - U_N^\top p_B - Z^\top t_z`
+    with p the posture gradient.
     """
+    rows, n_task = layout.matrix, layout.n_task
+    basic, nonbasic, elimination = split.basic, split.nonbasic, split.elimination
+    row_scale, basic_scale, posture = costs.row_scale, costs.basic_scale, costs.posture
+    diagonal, z_matrix, z_target = costs.diagonal, costs.matrix, costs.target
+    hessian, gradient = costs.hessian, costs.gradient
     n_con, n_z = basic.size, nonbasic.size - 1
     for r in range(n_task):
         for j in range(n_z):
@@ -385,8 +544,10 @@ def reduce_costs(
 
 
 @_compile
-def expand(elimination, basic, nonbasic, z, x):
-    r"""Unknowns x from the nonbasic ones z: :math:`x_N = z`, :math:`x_B = U_c - U_N z`."""
+def expand(split, z, x):
+    r"""Unknowns x from the nonbasic ones z: :math:`x_N = z`, :math:`x_B = U_c - U_N z`
+    (:class:`Split`)."""
+    elimination, basic, nonbasic = split.elimination, split.basic, split.nonbasic
     n_z = z.size
     for j in range(n_z):
         x[nonbasic[j]] = z[j]
@@ -398,10 +559,12 @@ def expand(elimination, basic, nonbasic, z, x):
 
 
 @_compile
-def torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau):
+def torques(layout, dynamics, x, tau):
     r"""Unscale the wrenches of x (in place) and read the torques off the equations of
     motion, :math:`\tau = M_a \ddot q + h_a - J_{c,a}^\top f`, with the contact Jacobians
-    :math:`J_c` the rows ``rows[n_cost:n_cost + n_f]``."""
+    :math:`J_c` the contact rows of ``layout`` (:class:`Rows`, :class:`Dynamics`)."""
+    rows, n_cost, n_base = layout.matrix, layout.n_cost, layout.n_base
+    mass, bias, force_scale = dynamics.mass, dynamics.bias, dynamics.force_scale
     nv = mass.shape[0]
     for k in range(nv, x.size):
         x[k] *= force_scale
@@ -416,35 +579,31 @@ def torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau):
 
 
 @_compile
-def eliminated_tick(elimination, reduction, solve, q, v, x, tau) -> int:
+def eliminated_tick(layout, dynamics, split, costs, checks, q, v, x, tau) -> int:
     """One tick without inequality rows on the eliminated QP: :func:`eliminate` and
-    :func:`reduce_costs` (their arguments as the tuples ``elimination`` and ``reduction``),
-    the Cholesky solve for z, the cone check, :func:`expand` and :func:`torques` with the
-    torque-limit and acceleration-bound check (:func:`feasible`); ``solve`` is (factor, z,
-    cone_matrix, cone_upper, torque_limit, bounds, bound_margin) with ``bounds`` as in
-    :func:`acceleration_bounds`.
+    :func:`reduce_costs`, the Cholesky solve for z, the cone check, :func:`expand` and
+    :func:`torques` with the torque-limit and acceleration-bound check (:func:`feasible`),
+    all as in :class:`Checks`.
 
     Returns SOLVED, CONES_VIOLATED (z, x and the torques are filled), LIMITS_VIOLATED,
     ILL_CONDITIONED (nothing is solved) or CHOLESKY_FAILED (Hessian not positive definite or
     solution not finite; Hessian and gradient are filled).
     """
-    if not eliminate(*elimination):
+    if not eliminate(layout, dynamics, split):
         return ILL_CONDITIONED
-    reduce_costs(*reduction)
-    rows, n_cost, _, n_base, mass, bias, force_scale, basic, nonbasic, _, matrix, _ = elimination
-    hessian, gradient = reduction[-2:]
-    factor, z, cone_matrix, cone_upper, torque_limit, bounds, margin = solve
-    if not cholesky_solve(hessian, factor, gradient, z):
+    reduce_costs(layout, split, costs)
+    z, cone_matrix, cone_upper = checks.z, checks.cone_matrix, checks.cone_upper
+    if not cholesky_solve(costs.hessian, checks.factor, costs.gradient, z):
         return CHOLESKY_FAILED
-    expand(matrix, basic, nonbasic, z, x)
-    torques(mass, bias, rows, n_cost, n_base, force_scale, x, tau)
+    expand(split, z, x)
+    torques(layout, dynamics, x, tau)
     for i in range(cone_matrix.shape[0]):
         value = 0.0
         for j in range(z.size):
             value += cone_matrix[i, j] * z[j]
         if value > cone_upper[i]:
             return CONES_VIOLATED
-    if feasible(tau, torque_limit, x, bounds, q, v, margin):
+    if feasible(tau, checks.torque_limit, x, checks.bounds, q, v, checks.margin):
         return SOLVED
     return LIMITS_VIOLATED
 
@@ -455,14 +614,15 @@ def active_set(problem, at_upper, at_lower, tolerance, rounds, workspace, x, y, 
     as one compiled call: each round assembles the KKT matrix of the active rows in place in
     ``workspace`` and solves it by :func:`solve_in_place`.
 
-    ``problem`` is (H, g, A, b, C, l, u) with A, b of zero rows if there are no equality
-    rows; ``workspace`` is (kkt, rhs, values, rows): a flat array of at least
-    :math:`(n + n_{eq} + n)^2` entries, and arrays of :math:`n + n_{eq} + n`, :math:`n_{in}`
-    and :math:`n_{in}` entries. More active rows than unknowns are dependent. On a certified
-    optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if inactive)
-    receive it and its multipliers. Returns the number of KKT solves, negative if no set
+    ``problem`` holds the fields of a :class:`QpArrays` and ``workspace`` those of a
+    :class:`KktWorkspace` (as plain tuples, or those NamedTuples): a flat array
+    of at least :math:`(n + n_{eq} + n)^2` entries, and arrays of :math:`n + n_{eq} + n`,
+    :math:`n_{in}` and :math:`n_{in}` entries. More active rows than unknowns are dependent.
+    On a certified optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if
+    inactive) receive it and its multipliers. Returns the number of KKT solves, negative if no set
     verified.
     """
+    # unpacked by position: plain tuples are passed (numba types them faster than NamedTuples)
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
     kkt, rhs, values, rows = workspace
     n, n_eq, n_in = hessian.shape[0], eq_matrix.shape[0], in_matrix.shape[0]

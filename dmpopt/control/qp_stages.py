@@ -182,7 +182,7 @@ def _active_set(
     if eq_matrix is None:
         eq_matrix, eq_vector = np.zeros((0, n)), np.zeros(0)
     contiguous = np.ascontiguousarray  # one compiled variant: C-ordered arrays
-    arrays = tuple(
+    arrays = tuple(  # the fields of kernels.QpArrays, as a plain tuple (faster dispatch)
         contiguous(a, dtype=float)
         for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
     )
@@ -197,14 +197,21 @@ def _active_set(
 
 
 def _workspace(n: int, n_eq: int, n_in: int) -> tuple:
-    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes."""
+    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes: the fields of
+    :class:`kernels.KktWorkspace`, as a plain tuple (faster dispatch)."""
     size = n + n_eq + min(n, n_in)
     return (np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64))
 
 
 class StageSolver:
-    """Solving a stage (mixed into :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`,
-    which provides ``qp``, ``stats`` and ``_take``).
+    """Solves the stages of one contact set's QP (a part of
+    :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`).
+
+    ``settings_source`` is the proxsuite QP whose settings (tolerances, iteration limits,
+    verbosity) every stage's proxsuite QP takes before a solve: the controller's ``qp``,
+    shared by the QPs of every contact set. A solve reports to the ``stats`` it is given and
+    hands each candidate optimum to ``accept(stage, solution) -> bool`` (the QP's expansion
+    into accelerations, wrenches and torques, False for a non-finite one).
 
     The answer of a solve is decided by the active-set certificate, never by proxsuite's
     last bits: proxsuite's iterates differ in their last bits between processes for the same
@@ -215,7 +222,12 @@ class StageSolver:
     solve that no active set verifies takes proxsuite's answer to its tolerance.
     """
 
-    def _solve(self, stage: _Stage, deadline: float) -> bool:
+    __slots__ = ("settings_source",)
+
+    def __init__(self, settings_source):
+        self.settings_source = settings_source
+
+    def solve(self, stage: _Stage, deadline: float, stats: ControllerStats, accept) -> bool:
         """Solve one stage: active-set iterations from its last active set, else proxsuite
         warm (cold on its first use), then once more cold if ``deadline`` (thread CPU time)
         allows.
@@ -224,46 +236,47 @@ class StageSolver:
         proxsuite can report such a problem solved.
         """
         hessian, gradient = stage.update_arguments[:2]
-        stats = self.stats
         if not math.isfinite(hessian.sum() + gradient.sum()):
             stats.last_status, stats.last_iterations = "NON_FINITE_PROBLEM", 0
             stage.initialized = stage.known = stage.certified = False
             return False
         if stage.known:
+            tolerance = self.settings_source.settings.eps_abs
             solution, solves = _active_set(
-                stage.problem, stage.at_upper, stage.at_lower, self.qp.settings.eps_abs,
-                _WARM_ROUNDS, stage.warm[1:], stage.workspace,
+                stage.problem, stage.at_upper, stage.at_lower, tolerance, _WARM_ROUNDS,
+                stage.warm[1:], stage.workspace,
             )  # fmt: skip
             stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
-            if solution is not None and self._certified(stage, solution):
+            if solution is not None and self._certified(stage, solution, accept):
                 return True
         qp = stage.qp
-        if qp is not self.qp:
-            settings, source = qp.settings, self.qp.settings
+        if qp is not self.settings_source:
+            settings, source = qp.settings, self.settings_source.settings
             for name in _MIRRORED_SETTINGS:
                 setattr(settings, name, getattr(source, name))
         if not stage.initialized:
             qp.init(*stage.init_arguments)
-            solved = self._run(stage, True, deadline)
+            solved = self._run(stage, True, deadline, stats, accept)
         else:
             qp.update(*(stage.init_arguments if stage.stale else stage.update_arguments))
-            solved = self._run(stage, False, deadline)
+            solved = self._run(stage, False, deadline, stats, accept)
             # proxsuite can also report a feasible QP infeasible from a stale warm start.
             if not solved and time.thread_time() < deadline:
                 stats.n_cold_restarts += 1
-                solved = self._run(stage, True, deadline)
+                solved = self._run(stage, True, deadline, stats, accept)
         stage.initialized = stage.known = solved
         stage.stale = False
         return solved
 
-    def _certified(self, stage: _Stage, solution: np.ndarray) -> bool:
+    @staticmethod
+    def _certified(stage: _Stage, solution: np.ndarray, accept) -> bool:
         """Take a certified optimum (its multipliers are in ``stage.warm``), if finite."""
-        stage.certified = self._take(stage, solution)
+        stage.certified = accept(stage, solution)
         if stage.certified:
             stage.warm[0][:] = solution
         return stage.certified
 
-    def _run(self, stage: _Stage, cold: bool, deadline: float) -> bool:
+    def _run(self, stage: _Stage, cold: bool, deadline: float, stats, accept) -> bool:
         """proxsuite on one stage until ``deadline``, from scratch (``cold``) or from the
         last certified optimum; its active set refined by active-set iterations.
 
@@ -294,7 +307,6 @@ class StageSolver:
             settings.max_iter = chunk
             qp.solve()
         settings.max_iter = limit
-        stats = self.stats
         stats.last_status = info.status.name
         stats.last_iterations = iterations
         results = qp.results
@@ -309,7 +321,7 @@ class StageSolver:
             stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS,
             stage.warm[1:], stage.workspace,
         )  # fmt: skip
-        if solution is not None and self._certified(stage, solution):
+        if solution is not None and self._certified(stage, solution, accept):
             return True
         stage.certified = False
         if info.status != _SOLVED:
@@ -317,4 +329,4 @@ class StageSolver:
         # no active set verified: proxsuite's answer, to its tolerance
         np.greater(z, noise, out=stage.at_upper)
         np.less(z, -noise, out=stage.at_lower)
-        return self._take(stage, results.x)
+        return accept(stage, results.x)

@@ -336,8 +336,9 @@ class FrameTask(Task):
         ----------
         placement : pinocchio.SE3 or ndarray, shape (3,)
             Desired placement; a 3-vector sets the position and keeps the orientation.
-        velocity, acceleration : ndarray, shape (6,), optional
-            Desired (linear, angular) velocity and acceleration in world-aligned axes; zero if
+        velocity, acceleration : ndarray, shape (6,) or (3,), optional
+            Desired (linear, angular) velocity and acceleration in world-aligned axes; a
+            3-vector is the linear part (angular zero), e.g. a position DMP's output; zero if
             omitted.
         """
         if isinstance(placement, pin.SE3):
@@ -359,10 +360,17 @@ class FrameTask(Task):
             if not np.isfinite(position).all():
                 raise InvalidInputError("placement must be finite; it holds NaN or inf")
             self.target_placement.translation = position
-        self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 6, "velocity")
-        self.target_acceleration[:] = (
-            0.0 if acceleration is None else _vector(acceleration, 6, "acceleration")
-        )
+        for name, value, slot in (
+            ("velocity", velocity, self.target_velocity),
+            ("acceleration", acceleration, self.target_acceleration),
+        ):
+            slot[:] = 0.0
+            if value is None:
+                continue
+            array = _array(value, name)
+            if array.shape not in ((), (3,), (6,)):
+                raise ShapeError(f"{name} has shape {array.shape}, expected (), (3,) or (6,)")
+            slot[: 3 if array.shape == (3,) else 6] = _vector(array, array.size, name)
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration."""

@@ -61,10 +61,10 @@ class Tick:
 
     def _tick(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """:meth:`compute_torques` with the collector paused."""
-        if q.shape != (self.model.nq,) or v.shape != (self._nv,):
+        if q.shape != (self.model.nq,) or v.shape != (self.layout.nv,):
             raise ShapeError(
                 f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
-                f"({self._nv},) for {self.robot.name}"
+                f"({self.layout.nv},) for {self.robot.name}"
             )
         # the tick's own float64 copies: numba compiles a kernel once per argument type
         # (read-only or writable, dtype), so a caller's read-only or integer state would
@@ -124,7 +124,7 @@ class Tick:
                 self._assemble(q, v)
             if not mapped:
                 self._assemble_y()
-            kernels.acceleration_bounds(self._bounds, q, v)
+            self._compiled.acceleration_bounds(self._bounds, q, v)
             self._assemble_torque_rows()
             answer = "solved"
             solved = self._solve(self._limited, self._exact_deadline)
@@ -164,30 +164,36 @@ class Tick:
     def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
         """Whether the candidate's torques are within ``torque_limit`` and its accelerations
         ``margin`` inside their bounds (kernels.feasible)."""
-        return kernels.feasible(
+        return self._compiled.feasible(
             self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
         )
+
+    def _solve(self, stage: _Stage, deadline: float) -> bool:
+        """Solve one stage by the QP's :class:`StageSolver`; its answer goes to :meth:`_take`."""
+        return self._solver.solve(stage, deadline, self.stats, self._take)
 
     def _take(self, stage: _Stage, solution: np.ndarray) -> bool:
         """Accept a stage's solution as the tick's candidate, if finite."""
         if not math.isfinite(solution.sum()):
             return False
         if stage is self._relaxed:  # (y, slacks)
-            solution = solution[: self._n]
-        if stage is self._eliminated_cones:
+            solution = solution[: self.layout.n]
+        if stage is self._eliminated_cones:  # the QP's own array: the type expand is bound to
             self._z_accepted[:] = solution
-        self._accept(solution, eliminated=stage is self._eliminated_cones)
+            self._accept(self._z_accepted, eliminated=True)
+        else:
+            self._accept(solution, eliminated=False)
         return True
 
     def _solve_relaxed(self) -> bool:
         """The QP with every inequality row, with slacks on its contact and acceleration-bound
         rows (assembled by the caller): always feasible (see the class notes)."""
-        stage, n = self._relaxed, self._n
+        stage, n = self._relaxed, self.layout.n
         hessian, gradient, equality, _, inequality = stage.problem[:5]
         hessian[:n, :n] = self._hessian
         gradient[:n] = self._gradient
         if equality is not None:
-            equality[:, :n] = self._mapped[self._n_cost :, :n]
+            equality[:, :n] = self._mapped[self.layout.n_cost :, :n]
         inequality[:, :n] = self._in_matrix
         stage.initialized = False  # solved from scratch: its last problem is unrelated
         return self._solve(stage, self._deadline)
@@ -215,7 +221,7 @@ class Tick:
                 stats=self.stats,
             )
         if not self._has_valid_torque:
-            self._torques[:] = self.data.nle[self._n_base :]
+            self._torques[:] = self.data.nle[self.layout.n_base :]
         np.clip(self._torques, -self.torque_limit, self.torque_limit, out=self._torques)
         for stage in self._stages:
             stage.initialized = False

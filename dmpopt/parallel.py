@@ -249,7 +249,12 @@ def _stop(runner: Runner) -> None:
 
 
 def _call(function, x):
-    return function(x)
+    """One run on a Ray worker, on one BLAS thread as everywhere else (a Ray worker may have
+    loaded its libraries with more)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return function(x)
 
 
 def _on_ray(function, inputs, runner, bar) -> list:

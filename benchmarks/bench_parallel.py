@@ -3,20 +3,76 @@
     python benchmarks/bench_parallel.py                  # local processes and a local Ray
     python benchmarks/bench_parallel.py --ray auto       # a running cluster (docs/cluster.md)
     python benchmarks/bench_parallel.py --biped-trials 6 # and the biped study's trials
+    python benchmarks/bench_parallel.py --compare results-serial results-default results-ray
 
 A run is a call of a function that returns at once, so the time per run is the backend's
 cost: sending the input, scheduling, and collecting the result. Two measures: one run at a
 time (latency, what a single slow trial pays) and a batch of runs (what a sweep pays per run).
+
+``--compare DIR DIR...`` instead compares the ``metrics.json`` of the same studies run into
+different output folders (e.g. ``dmpopt study run all --workers 1 --out DIR``, the default,
+``--ray``): every value must be bitwise the same, except those that measure time or say where
+the runs went (:data:`NOT_RESULTS`). It prints each study's count of compared values and each
+difference, and exits 1 if there is any.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import re
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from dmpopt.parallel import Runner, map_runs
+
+NOT_RESULTS = re.compile(
+    r"(^|\.)(parallel|versions)(\.|$)|wall|cpu|seconds|_us($|\.)|real_time_factor|"
+    r"ticks_over_budget|over_budget|elapsed|duration_s$|timing"
+)
+"""Paths of metric values that are measurements of time or of where the runs went."""
+
+
+def _leaves(value, path=""):
+    """(dotted path, value) of every leaf of a metrics record."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from _leaves(item, f"{path}.{key}" if path else str(key))
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            yield from _leaves(item, f"{path}[{i}]")
+    else:
+        yield path, value
+
+
+def compare(folders) -> int:
+    """Print the differing result values of the studies in ``folders``; their count."""
+    folders = [Path(f) for f in folders]
+    studies = sorted(
+        p.parent.name for p in folders[0].glob("*/metrics.json")
+        if all((f / p.parent.name / "metrics.json").is_file() for f in folders[1:])
+    )  # fmt: skip
+    differences = 0
+    for study in studies:
+        records = [json.loads((f / study / "metrics.json").read_text()) for f in folders]
+        leaves = [dict(_leaves(r)) for r in records]
+        keys = [k for k in leaves[0] if not NOT_RESULTS.search(k)]
+        changed = []
+        for key in keys:
+            values = [leaf.get(key, "<missing>") for leaf in leaves]
+            if any(v != values[0] for v in values[1:]):
+                changed.append((key, values))
+        extra = set().union(*(set(leaf) for leaf in leaves[1:])) - set(leaves[0])
+        changed += [(k, [leaf.get(k, "<missing>") for leaf in leaves]) for k in sorted(extra)
+                    if not NOT_RESULTS.search(k)]  # fmt: skip
+        print(f"{study:12s} {len(keys):6d} values compared, {len(changed)} differ")
+        for key, values in changed[:40]:
+            print(f"    {key}: " + " | ".join(repr(v) for v in values))
+        differences += len(changed)
+    return differences
 
 
 def _echo(x):
@@ -64,7 +120,12 @@ def main(argv=None) -> None:
         default=0,
         help="also time the biped study's randomised trials (4 arms x N walks) per backend",
     )
+    parser.add_argument(
+        "--compare", nargs="+", metavar="DIR", help="compare the metrics of these result folders"
+    )
     args = parser.parse_args(argv)
+    if args.compare:
+        sys.exit(1 if compare(args.compare) else 0)
     runners = {
         "serial": Runner(progress=False),
         f"processes ({args.workers})": Runner(workers=args.workers, progress=False),

@@ -137,10 +137,11 @@ class Runner:
                     ray.init(num_cpus=self.workers if self.workers > 1 else None, **options)
                 else:
                     ray.init(address=self.ray, **options)
-            except (ConnectionError, RuntimeError, ValueError) as error:
+            except Exception as error:  # noqa: BLE001 - a startup timeout is a bare Exception
                 raise InvalidInputError(
                     f"cannot start or join Ray at {self.ray!r} ({error}); start a cluster "
-                    "with 'ray start --head' or use ray='local'"
+                    "with 'ray start --head' or use ray='local' (a local Ray can time out "
+                    "starting on an overloaded machine: try again, or run without ray)"
                 ) from error
             self._ray_started = True
         return ray

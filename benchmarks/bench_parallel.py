@@ -30,10 +30,15 @@ import numpy as np
 from dmpopt.parallel import Runner, map_runs
 
 NOT_RESULTS = re.compile(
-    r"(^|\.)(parallel|versions)(\.|$)|wall|cpu|seconds|_us($|\.)|real_time_factor|"
+    r"(^|\.)(parallel|versions)(\.|$)|wall|cpu|seconds|_(us|ms)($|\.|_)|real_time_factor|"
     r"ticks_over_budget|over_budget|elapsed|duration_s$|timing"
 )
 """Paths of metric values that are measurements of time or of where the runs went."""
+_TIMES_IN_TEXT = re.compile(r"[-+.e\d]+ ?(ms|us|s)\b")  # "fit 57 ms" in a summary line
+
+
+def _comparable(value):
+    return _TIMES_IN_TEXT.sub("<time>", value) if isinstance(value, str) else value
 
 
 def _leaves(value, path=""):
@@ -62,7 +67,7 @@ def compare(folders) -> int:
         keys = [k for k in leaves[0] if not NOT_RESULTS.search(k)]
         changed = []
         for key in keys:
-            values = [leaf.get(key, "<missing>") for leaf in leaves]
+            values = [_comparable(leaf.get(key, "<missing>")) for leaf in leaves]
             if any(v != values[0] for v in values[1:]):
                 changed.append((key, values))
         extra = set().union(*(set(leaf) for leaf in leaves[1:])) - set(leaves[0])

@@ -31,7 +31,7 @@ from dmpopt.parallel import Runner, map_runs
 
 NOT_RESULTS = re.compile(
     r"(^|\.)(parallel|versions)(\.|$)|wall|cpu|seconds|_(us|ms)($|\.|_)|real_time_factor|"
-    r"ticks_over_budget|over_budget|elapsed|duration_s$|timing"
+    r"ticks_over|over_budget|elapsed|duration_s$|timing"
 )
 """Paths of metric values that are measurements of time or of where the runs went."""
 _TIMES_IN_TEXT = re.compile(r"[-+.e\d]+ ?(ms|us|s)\b")  # "fit 57 ms" in a summary line

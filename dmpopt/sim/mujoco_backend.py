@@ -56,6 +56,7 @@ defaults to ``egl`` (headless rendering) when unset at that moment.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from pathlib import Path
@@ -123,6 +124,13 @@ def _positive(name: str, value, allow_none=False, allow_zero=False) -> float | N
 
 
 def _vector(name: str, value, size: int) -> np.ndarray:
+    if (
+        type(value) is np.ndarray
+        and value.dtype == np.float64
+        and value.shape == (size,)
+        and math.isfinite(value.sum())
+    ):
+        return value  # the common case in a loop, checked in a few operations
     return real_array(name, value, shape=(size,))
 
 
@@ -792,7 +800,7 @@ def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
         type(tau) is np.ndarray
         and tau.dtype == np.float64
         and tau.shape == (n_actuated,)
-        and np.isfinite(tau).all()
+        and math.isfinite(tau.sum())  # a NaN or inf entry makes the sum NaN or inf
     ):
         return tau  # the common case, checked in a few operations
     try:

@@ -304,7 +304,9 @@ class MujocoSimulator(Backend):
         self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._index_contact_geoms(contact_points)
-        self.reset(pin.neutral(model), np.zeros(model.nv))
+        self.reset(pin.neutral(model), np.zeros(model.nv))  # compiles the state kernels
+        if self.fall_detector is not None:  # and the fall check's, before any timed step
+            self._watched.height_tilt_spin(*self._qv)
 
     # ------------------------------------------------------------------ model building
     def _spec(self, urdf: Path, package_dirs):

@@ -217,6 +217,9 @@ class MujocoSimulator(Backend):
     ----------
     model : pinocchio.Model
     mj_model, mj_data : mujoco.MjModel, mujoco.MjData
+        After a step, ``mj_data`` is as ``mj_step`` leaves it: ``qpos`` and ``qvel`` of the new
+        state, body poses and contacts of the start of the step (``mj_kinematics`` updates
+        the poses).
     n_base_dofs, n_actuated : int
     contact_frames : list of str
     touchdown_events : list of TouchdownEvent

@@ -4,6 +4,7 @@
     python benchmarks/bench_parallel.py --ray auto       # a running cluster (docs/cluster.md)
     python benchmarks/bench_parallel.py --biped-trials 6 # and the biped study's trials
     python benchmarks/bench_parallel.py --compare results-serial results-default results-ray
+    python benchmarks/bench_parallel.py --proxsuite      # proxsuite's answer and the heap
 
 A run is a call of a function that returns at once, so the time per run is the backend's
 cost: sending the input, scheduling, and collecting the result. Two measures: one run at a
@@ -14,6 +15,13 @@ different output folders (e.g. ``dmpopt study run all --workers 1 --out DIR``, t
 ``--ray``): every value must be bitwise the same, except those that measure time or say where
 the runs went (:data:`NOT_RESULTS`). It prints each study's count of compared values and each
 difference, and exits 1 if there is any.
+
+``--proxsuite`` shows why runs that solve QPs with proxsuite can differ in the last bits
+between serial, process and Ray runs: the same dense QP (same input arrays), solved by QP
+objects built after heap allocations of other sizes, gives answers that differ by ~1e-12
+(proxsuite's vectorised kernels depend on where its own buffers lie; 64-byte aligned inputs
+do not change that), while the same heap state gives the same bits. Which QPs a run solves
+after which allocations depends on what ran before in its process.
 """
 
 from __future__ import annotations
@@ -80,6 +88,30 @@ def compare(folders) -> int:
     return differences
 
 
+def proxsuite_heap(n: int = 44, n_eq: int = 12, n_in: int = 40, builds: int = 12) -> float:
+    """Largest difference between proxsuite's answers to one QP, each from a QP object built
+    after one more heap block of a random size (the blocks are kept alive)."""
+    import proxsuite
+
+    rng = np.random.default_rng(0)
+    root = rng.normal(size=(n, n))
+    problem = (
+        root @ root.T + np.eye(n), rng.normal(size=n), rng.normal(size=(n_eq, n)),
+        rng.normal(size=n_eq), rng.normal(size=(n_in, n)), np.full(n_in, -0.1),
+        np.full(n_in, 0.1),
+    )  # fmt: skip
+    answers, kept = [], []
+    for _ in range(builds):
+        kept.append(np.empty(int(rng.integers(1, 3000))))
+        qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
+        qp.settings.eps_abs = 1e-9
+        qp.init(*problem)
+        qp.solve()
+        answers.append(qp.results.x.copy())
+        kept.append(qp)
+    return max(float(np.abs(x - answers[0]).max()) for x in answers)
+
+
 def _echo(x):
     return x
 
@@ -128,7 +160,15 @@ def main(argv=None) -> None:
     parser.add_argument(
         "--compare", nargs="+", metavar="DIR", help="compare the metrics of these result folders"
     )
+    parser.add_argument(
+        "--proxsuite", action="store_true", help="proxsuite's answer against the heap state"
+    )
     args = parser.parse_args(argv)
+    if args.proxsuite:
+        worst = proxsuite_heap()
+        print(f"one QP, same inputs, QP objects built at 12 heap states: answers differ by "
+              f"up to {worst:.1e}")  # fmt: skip
+        return
     if args.compare:
         sys.exit(1 if compare(args.compare) else 0)
     runners = {

@@ -26,12 +26,22 @@ First, the model agreement (the answer key of ``tests/test_mujoco.py`` as number
 URDF in link positions [m] and rotation matrices, link velocities (local frame), the mass matrix
 and the bias forces (relative to their largest entry), after the coordinate change.
 
+Last, the step overhead (``--overhead`` prints only this): the CPU time of
+``MujocoSimulator.step`` against MuJoCo's own ``mj_step`` on the same state and the same applied
+forces, step by step in the same loop (before each step the MuJoCo data is copied into a
+shadow that runs ``mj_step`` with the forces the step applies, or, when the shadow goes
+first, those of the step before; the two alternate in going first, so that neither always
+finds the caches warm; thread time of each), for Talos drumming and the biped walking, each
+on the ideal and the realistic plant (:mod:`robots.plants`). The ratio of the medians is the
+overhead (the issue's bound: 1.5).
+
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
-[--states 20] [--video FILE.webp]``.
+[--states 20] [--video FILE.webp] [--overhead] [--overhead-seconds 2]``.
 """
 
 import argparse
 import time
+from contextlib import contextmanager
 
 import numpy as np
 import pinocchio as pin
@@ -39,20 +49,99 @@ import pinocchio as pin
 from dmpopt.sim import MujocoSimulator
 from robots import load_talos
 from robots.biped import BIPED_URDF, load_biped
+from robots.plants import realistic_plant
 from studies import biped as biped_study
 from studies import humanoid
 
 DT = humanoid.DT
 
 
-def make_plant(backend: str, robot, q_start: np.ndarray):
-    """The simulator of ``backend`` (same fall thresholds on both) and its start configuration."""
+def make_plant(backend: str, robot, q_start: np.ndarray, parameters=None):
+    """The simulator of ``backend`` (same fall thresholds on both) and its start configuration;
+    ``parameters``: the MuJoCo run's plant (default ideal)."""
     if backend == "native":
         return humanoid.make_simulator(robot, q_start)
-    return humanoid.mujoco_plant(friction=1.0)(robot, q_start)
+    if parameters is None:
+        return humanoid.mujoco_plant(friction=1.0)(robot, q_start)
+    return humanoid.mujoco_plant(friction=1.0, parameters=parameters)(robot, q_start)
 
 
-def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict:
+@contextmanager
+def step_timer():
+    """Time every ``MujocoSimulator.step`` and an ``mj_step`` of the same step (see the module
+    notes); yields the two lists of thread times [s], filled as the steps run."""
+    import mujoco
+
+    original = MujocoSimulator.step
+    steps, mj_steps, shadows = [], [], {}
+
+    def timed(simulator, tau, base_force=None):
+        model, data = simulator.mj_model, simulator.mj_data
+        shadow = shadows.setdefault(id(simulator), mujoco.MjData(model))
+        mujoco.mj_copyData(shadow, model, data)
+        shadow_first = len(steps) % 2 == 0  # each goes first every other step (warm caches)
+        if shadow_first:  # with the last step's applied forces, which the copy holds
+            begin = time.thread_time()
+            mujoco.mj_step(model, shadow)
+            mj_steps.append(time.thread_time() - begin)
+        begin = time.thread_time()
+        state = original(simulator, tau, base_force)
+        steps.append(time.thread_time() - begin)
+        if not shadow_first:
+            shadow.qfrc_applied[:] = data.qfrc_applied
+            begin = time.thread_time()
+            mujoco.mj_step(model, shadow)
+            mj_steps.append(time.thread_time() - begin)
+        return state
+
+    MujocoSimulator.step = timed
+    try:
+        yield steps, mj_steps
+    finally:
+        MujocoSimulator.step = original
+
+
+def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> dict:
+    """Median CPU time per step of ``MujocoSimulator.step`` and of ``mj_step`` [us], and their
+    ratio, for Talos drumming and the biped walking on the ideal and the realistic plant."""
+    _, gait = biped_study.learn_gait()
+    rows = {}
+    for plant in ("ideal", "realistic"):
+        with step_timer() as (steps, mj_steps):
+            parameters = realistic_plant(robot) if plant == "realistic" else None
+            run("mujoco", robot, dmps, talos_seconds, parameters=parameters)
+        rows[f"talos {plant}"] = steps, mj_steps
+        with step_timer() as (steps, mj_steps):
+            parameters = realistic_plant(biped) if plant == "realistic" else None
+            biped_study.walk(
+                biped, gait, biped_seconds, biped_study.DEMO_FREQUENCY, plant=parameters
+            )
+        rows[f"biped {plant}"] = steps, mj_steps
+    table = {}
+    for name, (steps, mj_steps) in rows.items():
+        step, mj_step = 1e6 * np.median(steps), 1e6 * np.median(mj_steps)
+        table[name] = {
+            "steps": len(steps),
+            "step_us": step,
+            "mj_step_us": mj_step,
+            "ratio": step / mj_step,
+            "mean_ratio": float(np.sum(steps) / np.sum(mj_steps)),
+        }
+    return table
+
+
+def print_overhead(table: dict) -> None:
+    print("MujocoSimulator.step against mj_step, median thread time per step")
+    header = ("steps", 7), ("step [us]", 11), ("mj_step [us]", 14), ("ratio", 7), ("(means)", 9)
+    print(f"{'':18s}" + "".join(f"{label:>{width}s}" for label, width in header))
+    for name, row in table.items():
+        print(
+            f"{name:18s}{row['steps']:7d}{row['step_us']:11.1f}{row['mj_step_us']:14.1f}"
+            f"{row['ratio']:7.2f}{row['mean_ratio']:9.2f}"
+        )
+
+
+def run(backend: str, robot, dmps, seconds: float, video_every: int = 0, parameters=None) -> dict:
     """Drum for ``seconds`` on ``backend``; tracking, falls, timing and recorded frames."""
     q_start = humanoid.drumming_posture(robot)
     q_start[robot.configuration_indices(list(humanoid.DRUM_JOINTS))] = dmps.start
@@ -60,7 +149,7 @@ def run(backend: str, robot, dmps, seconds: float, video_every: int = 0) -> dict
     v_start[robot.velocity_indices(list(humanoid.DRUM_JOINTS))] = dmps.start_velocity
     controller, task = humanoid.build_controller(robot, q_start)
     plan = humanoid.DrumPlan(dmps, DT)
-    simulator, q0 = make_plant(backend, robot, q_start)
+    simulator, q0 = make_plant(backend, robot, q_start, parameters)
     state = simulator.reset(q0, v_start)
     joints = robot.configuration_indices(list(humanoid.DRUM_JOINTS))
     n = int(round(seconds / DT))
@@ -194,9 +283,18 @@ def main():
     parser.add_argument("--biped-seconds", type=float, default=10.0, help="walking time [s]")
     parser.add_argument("--states", type=int, default=20, help="random states for agreement")
     parser.add_argument("--video", help="write the MuJoCo run as an animated .webp or .gif")
+    parser.add_argument("--overhead", action="store_true", help="only the step overhead")
+    parser.add_argument(
+        "--overhead-seconds", type=float, default=2.0, help="simulated time per overhead run [s]"
+    )
     args = parser.parse_args()
     robot = load_talos(args.variant)
     biped = load_biped()
+    if args.overhead:
+        dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
+        seconds = args.overhead_seconds
+        print_overhead(overhead(robot, dmps, biped, seconds, seconds))
+        return
     models = {
         # model agreement only: no floor needed (falls=False: floating is meant)
         f"talos_{args.variant}": MujocoSimulator(robot.model, robot.source, falls=False),
@@ -214,6 +312,7 @@ def main():
     )
     walks = {b: walk_biped(b, args.biped_seconds) for b in ("native", "mujoco")}
     print_table(f"Planar biped, {args.biped_seconds:g} s of walking", walks)
+    print_overhead(overhead(robot, dmps, biped, args.overhead_seconds, args.overhead_seconds))
     if args.video:
         from dmpopt.sim import render_animation
 

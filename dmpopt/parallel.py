@@ -137,10 +137,11 @@ class Runner:
                     ray.init(num_cpus=self.workers if self.workers > 1 else None, **options)
                 else:
                     ray.init(address=self.ray, **options)
-            except (ConnectionError, RuntimeError, ValueError) as error:
+            except Exception as error:  # noqa: BLE001 - a startup timeout is a bare Exception
                 raise InvalidInputError(
                     f"cannot start or join Ray at {self.ray!r} ({error}); start a cluster "
-                    "with 'ray start --head' or use ray='local'"
+                    "with 'ray start --head' or use ray='local' (a local Ray can time out "
+                    "starting on an overloaded machine: try again, or run without ray)"
                 ) from error
             self._ray_started = True
         return ray
@@ -249,7 +250,12 @@ def _stop(runner: Runner) -> None:
 
 
 def _call(function, x):
-    return function(x)
+    """One run on a Ray worker, on one BLAS thread as everywhere else (a Ray worker may have
+    loaded its libraries with more)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return function(x)
 
 
 def _on_ray(function, inputs, runner, bar) -> list:

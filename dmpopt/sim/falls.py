@@ -255,6 +255,7 @@ class BaseFrame:
     """
 
     def __init__(self, model: pin.Model, frame: str | None = None):
+        self._free = model.joints[1].shortname() == "JointModelFreeFlyer"
         self._joint = model.joints[1]
         self._data = self._joint.createData()
         self._placement = model.jointPlacements[1]
@@ -273,6 +274,24 @@ class BaseFrame:
         self._joint.calc(self._data, q, v)
         spin = math.hypot(*self._data.v.angular)
         return self._placement * self._data.M * self._offset, spin
+
+    def height_tilt_spin(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
+        """The frame's height above z = 0 [m], its tilt (:func:`base_tilt`) [rad] and the base's
+        spin [rad/s]: :meth:`measure`'s numbers, in one compiled call for a free flyer."""
+        if self._free:
+            from dmpopt.sim.kernels import free_base_measure
+
+            height, cosine, spin = free_base_measure(
+                q,
+                v,
+                self._placement.rotation,
+                self._placement.translation,
+                self._offset.rotation,
+                self._offset.translation,
+            )
+            return height, math.acos(min(1.0, max(-1.0, cosine))), spin
+        placement, spin = self.measure(q, v)
+        return float(placement.translation[2]), base_tilt(placement.rotation), spin
 
 
 def standing_height(

@@ -61,6 +61,7 @@ defaults to ``egl`` (headless rendering) when unset at that moment.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -80,10 +81,10 @@ from dmpopt.exceptions import (
 from dmpopt.sim.falls import (
     Fall,
     FallDetector,
-    base_tilt,
     fall_checks,
     refuse_floating_without_contacts,
 )
+from dmpopt.sim.kernels import STATE_OK, STATE_UNSTABLE, pinocchio_state, read_contacts
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
@@ -96,7 +97,8 @@ _FLOOR_BIT, _BODY_BIT = 1, 2  # contype bits: contact geometry of the feet, the 
 _PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
 _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
 _FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
-_XYZ = np.arange(3)
+_UNSTABLE = slice(3, 6)  # MuJoCo's warnings BADQPOS, BADQVEL, BADQACC: it reset the data
+_NONE = np.zeros(0, dtype=np.int32)
 
 
 @dataclass(frozen=True)
@@ -159,6 +161,13 @@ def _positive(name: str, value, allow_none=False, allow_zero=False) -> float | N
 
 
 def _vector(name: str, value, size: int) -> np.ndarray:
+    if (
+        type(value) is np.ndarray
+        and value.dtype == np.float64
+        and value.shape == (size,)
+        and math.isfinite(value.sum())
+    ):
+        return value  # the common case in a loop, checked in a few operations
     return real_array(name, value, shape=(size,))
 
 
@@ -247,6 +256,9 @@ class MujocoSimulator(Backend):
     ----------
     model : pinocchio.Model
     mj_model, mj_data : mujoco.MjModel, mujoco.MjData
+        After a step, ``mj_data`` is as ``mj_step`` leaves it: ``qpos`` and ``qvel`` of the new
+        state, body poses and contacts of the start of the step (``mj_kinematics`` updates
+        the poses).
     n_base_dofs, n_actuated : int
     contact_frames : list of str
     touchdown_events : list of TouchdownEvent
@@ -324,9 +336,14 @@ class MujocoSimulator(Backend):
             raise FileFormatError(f"MuJoCo could not compile {urdf.name}: {error}") from None
         self.mj_data = mujoco.MjData(self.mj_model)
         warning = mujoco.mjtWarning
-        self._unstable = np.array(
-            [warning.mjWARN_BADQACC, warning.mjWARN_BADQVEL, warning.mjWARN_BADQPOS], dtype=int
-        )
+        if (_UNSTABLE.start, _UNSTABLE.stop) != (
+            int(warning.mjWARN_BADQPOS),
+            int(warning.mjWARN_BADQACC) + 1,
+        ):
+            raise MissingDependency(  # pragma: no cover - a MuJoCo that renumbered them
+                f"this mujoco {mujoco.__version__} numbers its warnings differently; "
+                "install the version pinned by dmpopt[mujoco]"
+            )
         self._map_coordinates()
         self._free_qpos = np.array(
             [
@@ -339,8 +356,9 @@ class MujocoSimulator(Backend):
         self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._index_contact_geoms(contact_points)
-        self._force = np.zeros(model.nv)
-        self.reset(pin.neutral(model), np.zeros(model.nv))
+        self.reset(pin.neutral(model), np.zeros(model.nv))  # compiles the state kernels
+        if self.fall_detector is not None:  # and the fall check's, before any timed step
+            self._watched.height_tilt_spin(*self._qv)
 
     # ------------------------------------------------------------------ model building
     def _spec(self, urdf: Path, package_dirs):
@@ -547,21 +565,24 @@ class MujocoSimulator(Backend):
                 geom.contype, geom.conaffinity = _BODY_BIT, 0
 
     def _index_contact_geoms(self, contact_points) -> None:
-        """``_foot_code`` per MuJoCo geom: the contact point of a sphere, ``-2 - k`` for sole
-        ``k`` (its corners in row ``k`` of ``_sole_corners``), -1 for every other geom."""
+        """``_foot_code`` per MuJoCo geom: 0 for a geom of no foot, else ``1 + k`` with row
+        ``k`` of ``_foot_points`` the contact points of that geom (a sphere's one point, a
+        sole's corners; rows padded by repeating their points)."""
         model = self.mj_model
         names = [f"contact_point_{i}" for i in range(self._n_points)]
         self._point_sites = np.array([model.site(n).id for n in names], dtype=int)
-        self._foot_code = np.full(model.ngeom, -1)
+        self._foot_code = np.zeros(model.ngeom, dtype=int)
+        feet = []
         for index in range(self._n_points):
             geom = self._mj.mj_name2id(model, self._mj.mjtObj.mjOBJ_GEOM, f"contact_point_{index}")
             if geom >= 0:
-                self._foot_code[geom] = index
-        width = max((len(indices) for indices in self._soles.values()), default=0)
-        self._sole_corners = np.zeros((len(self._soles), width), dtype=int)
-        for k, (geom, indices) in enumerate(self._soles.items()):
-            self._foot_code[model.geom(geom).id] = -2 - k
-            self._sole_corners[k] = np.resize(indices, width)  # repeats fill a short row
+                feet.append((geom, [index]))
+        feet += [(model.geom(name).id, indices) for name, indices in self._soles.items()]
+        width = max((len(indices) for _, indices in feet), default=1)
+        self._foot_points = np.zeros((len(feet), width), dtype=int)
+        for k, (geom, indices) in enumerate(feet):
+            self._foot_code[geom] = 1 + k
+            self._foot_points[k] = np.resize(indices, width)  # repeats fill a short row
 
     def _check_joints(self, spec, urdf: Path) -> None:
         """The model's joints are the URDF's, by name, and all have one axis."""
@@ -617,6 +638,15 @@ class MujocoSimulator(Backend):
                 joint = mj_model.joint(f"{model.names[1]}_{k}")
                 qpos[k], dofs[k] = joint.qposadr[0], joint.dofadr[0]
         self._qpos_index, self._dof_index = qpos, dofs
+        n_base = self.n_base_dofs
+        self._actuated_dofs = _slice_if_contiguous(dofs[n_base:])
+        self._base_dofs = _slice_if_contiguous(dofs[:n_base])
+        self._quaternion = None  # MuJoCo's (w, x, y, z) of a free base in qpos
+        self._quaternion_start = -1
+        if self._base == "free":
+            self._quaternion_start = int(qpos[6])
+            self._quaternion = slice(int(qpos[6]), int(qpos[6]) + 4)
+        self._rotation = np.empty(9)  # buffers of the base rotation
 
     def _locate(self, frame_name: str, offset) -> tuple[int, np.ndarray]:
         """MuJoCo body of a frame and the point's position in that body's frame."""
@@ -633,9 +663,9 @@ class MujocoSimulator(Backend):
 
     # ------------------------------------------------------------------ state conversion
     def _base_rotation(self, qpos: np.ndarray) -> np.ndarray:
-        rotation = np.empty(9)
-        self._mj.mju_quat2Mat(rotation, qpos[self._qpos_index[[6, 3, 4, 5]]])
-        return rotation.reshape(3, 3)
+        """The free base's rotation matrix (3, 3), in a buffer reused by the next call."""
+        self._mj.mju_quat2Mat(self._rotation, qpos[self._quaternion])
+        return self._rotation.reshape(3, 3)
 
     def to_mujoco(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """MuJoCo ``(qpos, qvel)`` of Pinocchio ``(q, v)``.
@@ -663,19 +693,20 @@ class MujocoSimulator(Backend):
         return qpos, qvel
 
     def from_mujoco(self, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
-        """Pinocchio ``(q, v)`` of MuJoCo ``(qpos, qvel)``."""
-        q = np.asarray(qpos, dtype=float)[self._qpos_index]
-        v = np.asarray(qvel, dtype=float)[self._dof_index]
-        if self._base == "free":
-            v[:3] = self._base_rotation(qpos).T @ v[:3]  # world -> local
-        return q, v
+        """Pinocchio ``(q, v)`` of MuJoCo ``(qpos, qvel)`` (new arrays)."""
+        qpos = np.ascontiguousarray(qpos, dtype=float)
+        qvel = np.ascontiguousarray(qvel, dtype=float)
+        return pinocchio_state(
+            qpos, qvel, self._qpos_index, self._dof_index, self._quaternion_start, np.inf, _NONE
+        )[:2]
 
-    def _generalized_to_mujoco(self, force: np.ndarray, out: np.ndarray) -> None:
-        """Add Pinocchio generalised forces (nv,) to MuJoCo's ``out`` (power-preserving)."""
-        if self._base == "free":
+    def _apply_base_force(self, force: np.ndarray, out: np.ndarray) -> None:
+        """Write Pinocchio's generalised force on the base (n_base_dofs,) into MuJoCo's ``out``
+        (power-preserving: a free base's linear part rotated to the world frame)."""
+        if self._quaternion is not None:
             force = force.copy()
             force[:3] = self._base_rotation(self.mj_data.qpos) @ force[:3]
-        out[self._dof_index] += force
+        out[self._base_dofs] = force
 
     # ------------------------------------------------------------------ state
     def reset(self, q, v=None, t: float = 0.0) -> SimState:
@@ -758,93 +789,108 @@ class MujocoSimulator(Backend):
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         mujoco, model, data = self._mj, self.mj_model, self.mj_data
-        force = self._force
-        force[:] = 0.0
-        force[self.n_base_dofs :] = self.plant.actuate(
+        applied = data.qfrc_applied
+        applied[self._actuated_dofs] = self.plant.actuate(
             _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
         )
-        if base_force is not None:
-            force[: self.n_base_dofs] = _vector("base_force", base_force, self.n_base_dofs)
-        data.qfrc_applied[:] = 0.0
-        mujoco.mj_step1(model, data)  # kinematics and collisions at the current state
-        self._generalized_to_mujoco(force, data.qfrc_applied)
+        if base_force is None:
+            applied[self._base_dofs] = 0.0
+        else:
+            self._apply_base_force(_vector("base_force", base_force, self.n_base_dofs), applied)
         if self._pushes:
+            mujoco.mj_step1(model, data)  # kinematics and collisions at the current state
             self._apply_pushes()
-        mujoco.mj_step2(model, data)
-        self._check_stable()
-        self._qv = self.from_mujoco(data.qpos, data.qvel)
+            mujoco.mj_step2(model, data)
+        else:
+            mujoco.mj_step(model, data)
+        q, v, status = pinocchio_state(
+            data.qpos,
+            data.qvel,
+            self._qpos_index,
+            self._dof_index,
+            self._quaternion_start,
+            self.max_speed,
+            data.warning.number[_UNSTABLE],
+        )
+        if status == STATE_UNSTABLE:  # MuJoCo reset the data: never go on silently
+            self._raise_unstable()
+        if status != STATE_OK:
+            self._raise_too_fast()
+        self._qv = q, v
         was_in_contact = self._in_contact
         self._read_contacts()  # contacts found and solved at the start of the step
-        mujoco.mj_kinematics(model, data)  # body poses at the new state
-        started = np.flatnonzero(self._in_contact & ~was_in_contact)
-        self._last_touchdowns = tuple(
-            TouchdownEvent(self.t, int(i), self.contact_frames[i], self._positions[i].copy())
-            for i in started
-        )
-        self.touchdown_events.extend(self._last_touchdowns)
-        if self._in_contact.any():
-            self._last_contact_time = self.t  # end of a step with contact
+        in_contact = self._in_contact
+        if self._any_contact:
+            self._last_contact_time = data.time  # end of a step with contact
+            if (in_contact > was_in_contact).any():
+                self._record_touchdowns(np.flatnonzero(in_contact > was_in_contact))
+            else:
+                self._last_touchdowns = ()
+        else:
+            self._last_touchdowns = ()
         self.plant.draw()
         if self.fall_detector is not None:
             self._check_fall()
         return self.state
 
-    def _read_contacts(self) -> None:
-        """Forces, positions and contact flags of the contact points (start of the last step)."""
-        n, data = self._n_points, self.mj_data
-        self._positions = data.site_xpos[self._point_sites]
-        self._forces, self._in_contact = np.zeros((n, 3)), np.zeros(n, dtype=bool)
-        if not data.ncon:
-            return
-        contacts = data.contact
-        codes = self._foot_code[contacts.geom]  # (n_contacts, 2): -1 for geoms of no foot
-        second = codes[:, 1] != -1  # feet touch nothing but the floor: one side at most
-        mine = second | (codes[:, 0] != -1)
-        if not mine.any():
-            return
-        code = np.where(second, codes[:, 1], codes[:, 0])[mine]
-        # Contact frame rows: the normal, from geom1 to geom2, then two tangents. With elliptic
-        # cones efc_force holds each contact's normal and tangential forces in that frame.
-        sign = np.where(second[mine], 1.0, -1.0)
-        local = data.efc_force[contacts.efc_address[mine, None] + _XYZ] * sign[:, None]
-        forces = np.matmul(local[:, None, :], contacts.frame[mine].reshape(-1, 3, 3))[:, 0]
-        points = code.copy()
-        on_sole = code < -1
-        if on_sole.any():  # a sole's contact goes to its nearest corner
-            corners = self._sole_corners[-2 - code[on_sole]]  # (k, n_corners) point indices
-            offsets = self._positions[corners] - contacts.pos[mine][on_sole][:, None, :]
-            nearest = np.square(offsets).sum(axis=2).argmin(axis=1)
-            points[on_sole] = corners[np.arange(corners.shape[0]), nearest]
-        np.add.at(self._forces, points, forces)
-        self._in_contact[points] = True
+    def _record_touchdowns(self, started: np.ndarray) -> None:
+        self._last_touchdowns = tuple(
+            TouchdownEvent(self.t, int(i), self.contact_frames[i], self._positions[i].copy())
+            for i in started
+        )
+        self.touchdown_events.extend(self._last_touchdowns)
 
-    def _check_stable(self) -> None:
-        unstable = self.mj_data.warning.number[self._unstable]
-        if unstable.any():
-            kind = self._mj.mjtWarning(self._unstable[np.argmax(unstable > 0)])
-            raise SimulationDiverged(
-                f"MuJoCo reported {kind.name} at t = {self.t:.4f} s (it resets the state); "
-                "reduce dt or check the torques"
-            )
+    def _read_contacts(self) -> None:
+        """Forces, positions and contact flags of the contact points (start of the last step):
+        each MuJoCo contact of a foot geom goes to the nearest of that geom's contact points (a
+        sphere's own point, a sole's corners), its force rotated from the contact frame to the
+        world (:func:`dmpopt.sim.kernels.read_contacts`)."""
+        data = self.mj_data
+        self._positions = data.site_xpos[self._point_sites]
+        contacts = data.contact
+        self._forces, self._in_contact = read_contacts(
+            contacts.geom,
+            contacts.efc_address,
+            contacts.frame,
+            contacts.pos,
+            data.efc_force,
+            self._foot_code,
+            self._foot_points,
+            self._positions,
+        )
+        self._any_contact = self._in_contact.any()
+
+    def _raise_unstable(self) -> None:
+        numbers = self.mj_data.warning.number[_UNSTABLE]
+        kind = self._mj.mjtWarning(_UNSTABLE.start + int(np.argmax(numbers > 0)))
+        raise SimulationDiverged(
+            f"MuJoCo reported {kind.name} at t = {self.t:.4f} s (it resets the state); "
+            "reduce dt or check the torques"
+        )
+
+    def _raise_too_fast(self) -> None:
         fastest = np.abs(self.mj_data.qvel).max(initial=0.0)
-        if not np.isfinite(fastest) or fastest > self.max_speed:
-            raise SimulationDiverged(
-                f"|v| reached {fastest:.3g} > max_speed = {self.max_speed:.3g} at "
-                f"t = {self.t:.4f} s; reduce dt or check the torques"
-            )
+        raise SimulationDiverged(
+            f"|v| reached {fastest:.3g} > max_speed = {self.max_speed:.3g} at "
+            f"t = {self.t:.4f} s; reduce dt or check the torques"
+        )
 
     # ------------------------------------------------------------------ falls
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
-        base, spin = self._watched.measure(*self._qv)
+        height, tilt, spin = self._watched.height_tilt_spin(*self._qv)
         last = self._last_contact_time
+        t = self.mj_data.time
         self.fall = self.fall_detector.check(
-            self.t,
-            float(base.translation[2]),
-            base_tilt(base.rotation),
-            0.0 if last is None else self.t - last,
-            spin,
+            t, height, tilt, 0.0 if last is None else t - last, spin
         )
+
+
+def _slice_if_contiguous(indices: np.ndarray):
+    """``indices`` as a slice when they are consecutive (cheaper to index with), else as is."""
+    if indices.size and (np.diff(indices) == 1).all():
+        return slice(int(indices[0]), int(indices[-1]) + 1)
+    return indices
 
 
 def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
@@ -852,7 +898,7 @@ def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
         type(tau) is np.ndarray
         and tau.dtype == np.float64
         and tau.shape == (n_actuated,)
-        and np.isfinite(tau).all()
+        and math.isfinite(tau.sum())  # a NaN or inf entry makes the sum NaN or inf
     ):
         return tau  # the common case, checked in a few operations
     try:

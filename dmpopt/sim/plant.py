@@ -35,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
+from dmpopt.sim.kernels import turn_quaternion
 from dmpopt.validation import real
 
 __all__ = ["IDEAL", "PlantParameters", "SensorNoise", "base_joint_kind", "with_armature"]
@@ -297,6 +298,7 @@ class PlantRuntime:
         for name in _PER_JOINT:
             setattr(self, name, parameters.values(name, self.joint_names))
         self.torque_limit = parameters.values("torque_limit", self.joint_names)
+        self._lower_limit = -self.torque_limit
         self._saturate = bool(np.isfinite(self.torque_limit).any())
         n_base = model.nv - len(self.joint_names)
         noise = parameters.noise
@@ -335,40 +337,59 @@ class PlantRuntime:
 
     def reset(self) -> None:
         """Empty the delay line and restart the noise from the seed."""
-        self._queue: list[np.ndarray] = []
+        n, nq, nv = len(self.joint_names), self.model.nq, self.model.nv
+        self._line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
+        self._slot = 0  # the oldest command's row
+        self._filled = False
+        self._applied = np.zeros(n)
         self._rng = np.random.default_rng(self.parameters.seed)
-        self._q_noise = np.zeros(self.model.nq)
-        self._v_noise = np.zeros(self.model.nv)
+        self._draws = np.zeros(nq + nv + (3 if self._free else 0))  # one tick's normals
+        self._q_noise = np.zeros(nq)
+        self._v_noise = np.zeros(nv)
         self._rotation_noise = np.zeros(3)
 
     def actuate(self, tau: np.ndarray) -> np.ndarray:
         """The torque the motors apply this step for the command ``tau``: saturated, then
-        delayed by ``delay`` ticks (the first command is repeated until the line fills)."""
+        delayed by ``delay`` ticks (the first command is repeated until the line fills).
+
+        Returns a buffer of this runtime, valid until the next call."""
+        applied = self._applied
         if self._saturate:
-            tau = np.clip(tau, -self.torque_limit, self.torque_limit)
-        delay = self.parameters.delay
-        if not delay:
-            return tau
-        if not self._queue:
-            self._queue = [tau.copy() for _ in range(delay)]
-        self._queue.append(tau.copy())
-        return self._queue.pop(0)
+            np.maximum(tau, self._lower_limit, out=applied)
+            np.minimum(applied, self.torque_limit, out=applied)
+        else:
+            applied[:] = tau
+        if not self.parameters.delay:
+            return applied
+        line = self._line
+        if not self._filled:
+            line[:] = applied
+            self._filled = True
+        slot = self._slot
+        oldest = line[slot].copy()
+        line[slot] = applied
+        self._slot = (slot + 1) % line.shape[0]
+        applied[:] = oldest
+        return applied
 
     def draw(self) -> None:
-        """Draw this tick's measurement noise (once per step, so repeated reads agree)."""
+        """Draw this tick's measurement noise (once per step, so repeated reads agree): the
+        normals of q, of v, then of the base rotation, in one call."""
         if not self._noisy:
             return
-        self._q_noise = self._q_std * self._rng.standard_normal(self.model.nq)
-        self._v_noise = self._v_std * self._rng.standard_normal(self.model.nv)
+        draws, nq, nv = self._draws, self.model.nq, self.model.nv
+        self._rng.standard_normal(out=draws)
+        np.multiply(self._q_std, draws[:nq], out=self._q_noise)
+        np.multiply(self._v_std, draws[nq : nq + nv], out=self._v_noise)
         if self._free:
-            self._rotation_noise = self._rotation_std * self._rng.standard_normal(3)
+            np.multiply(self._rotation_std, draws[nq + nv :], out=self._rotation_noise)
 
     def measure(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The measured ``(q, v)``: the truth plus this tick's noise."""
+        """The measured ``(q, v)``: the truth plus this tick's noise (a free base's orientation
+        turned by the noise's rotation vector, in the base frame: ``R exp(noise)``)."""
         if not self._noisy:
             return q, v
         q_measured = q + self._q_noise
         if self._free:
-            rotation = pin.Quaternion(q[3:7]).toRotationMatrix() @ pin.exp3(self._rotation_noise)
-            q_measured[3:7] = pin.Quaternion(rotation).coeffs()
+            turn_quaternion(q, self._rotation_noise, q_measured)
         return q_measured, v + self._v_noise

@@ -47,6 +47,7 @@ from .validation import real, real_array
 
 __all__ = [
     "capture_foothold",
+    "capture_time",
     "clip_to_polygon",
     "convex_hull",
     "dcm",
@@ -174,6 +175,48 @@ def clip_to_polygon(point, polygon) -> np.ndarray:
         if distance < best_distance:
             best, best_distance = candidate, distance
     return np.array(best, dtype=float)
+
+
+def capture_time(dcm, zmp, omega: float, offset, lower, upper, shortest: float, longest: float):
+    r"""The longest time to touchdown [s] in ``[shortest, longest]`` whose capture-point
+    foothold :math:`f(\tau) = p + (\xi_0 - p)\, e^{\omega \tau} - b` has not run out of the
+    reachable box on the side the DCM diverges to (step timing adaptation, after [Khadiv2020]_): a DCM pushed far lands the foot
+    sooner, before it has run beyond the leg's reach.
+
+    Per axis with :math:`d = \xi_0 - p \ne 0`, :math:`f` stays below ``upper`` (``d > 0``) or
+    above ``lower`` (``d < 0``) while :math:`e^{\omega\tau} \le (\text{bound} + b - p) / d`;
+    the answer is the smallest such bound, clipped to ``[shortest, longest]`` (``shortest``
+    when even that leaves the box: the step goes to the box's edge).
+
+    Parameters
+    ----------
+    dcm, zmp : array_like, shape (2,)
+        :math:`\xi_0` and the stance ZMP :math:`p` held until touchdown [m].
+    omega : float
+        :math:`\omega` [1/s].
+    offset : array_like, shape (2,)
+        :math:`b`, the plan's end-of-step DCM minus its foothold [m].
+    lower, upper : array_like, shape (2,)
+        The reachable box [m].
+    shortest, longest : float
+        Bounds of the time to touchdown [s], 0 <= ``shortest`` <= ``longest``.
+    """
+    xi, p, b = _plane("dcm", dcm), _plane("zmp", zmp), _plane("offset", offset)
+    lower, upper = _plane("lower", lower), _plane("upper", upper)
+    w = _omega(omega)
+    shortest = real("shortest", shortest, minimum=0.0)
+    longest = real("longest", longest, minimum=shortest, fix="longest >= shortest")
+    best = longest
+    d = xi - p
+    for axis in range(2):
+        if d[axis] == 0.0:
+            continue
+        bound = upper[axis] if d[axis] > 0 else lower[axis]
+        ratio = (bound + b[axis] - p[axis]) / d[axis]
+        if ratio < 1.0:  # out of reach already at tau = 0
+            return shortest
+        best = min(best, float(np.log(ratio)) / w)
+    return max(best, shortest)
 
 
 def capture_foothold(

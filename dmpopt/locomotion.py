@@ -252,6 +252,11 @@ class WalkPlan:
         r"""DCM :math:`\xi` [m] at time(s) ``t``, shape (..., 2)."""
         return self._evaluate(t)[1]
 
+    def zmp_and_dcm(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """ZMP and DCM [m] at time(s) ``t`` (one evaluation), each of shape (..., 2)."""
+        zmp, dcm = self._evaluate(t)[:2]
+        return zmp, dcm
+
     def com(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """CoM position [m], velocity [m/s] and acceleration [m/s^2] at time(s) ``t``, each of
         shape (..., 3) (the height is constant)."""

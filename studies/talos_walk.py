@@ -35,8 +35,9 @@ from dmpopt.control import (
     PostureTask,
     SoleContact,
 )
+from dmpopt import balance
 from dmpopt.exceptions import SimulationDiverged
-from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk, swing_reference
+from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk
 from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL, with_armature
 from dmpopt.validation import flag
@@ -58,6 +59,16 @@ FALL_HEIGHT = 0.7  # [m] the pelvis has fallen when lower
 FLOOR_FRICTION = 1.0
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT, SWING_WEIGHT = 1e-2, 10.0, 1.0, 10.0
 COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
+DCM_GAIN = 4.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
+SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
+ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
+ADJUST_STOP = 0.1  # [s] and not in the last 0.1 s before the planned touchdown
+REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
+REACH_LATERAL = (0.15, 0.4)  # [m] its lateral distance from the stance foot (no crossing)
+TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
+SEARCH_SPEED, SEARCH_DEPTH = 0.15, 0.1  # [m/s], [m] a late foot goes down to find the ground
+SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
+PUSH_DURATION = 0.1  # [s] a push's impulse is spread over this
 
 
 @dataclass
@@ -85,25 +96,60 @@ def _sole_positions(robot, data) -> np.ndarray:
     return np.array([data.oMf[robot.model.getFrameId(f)].translation for f in robot.foot_frames])
 
 
-class Walker:
-    """The tasks, the controller and the contact switching of one walk plan.
+@dataclass
+class StepRecord:
+    """What happened to one step: when its foot left and reached the ground [s], where it
+    was sent (the swing's last target, after step adjustment) and where it landed [m]."""
 
-    ``references(tick)`` sets the task targets and switches the contacts at the plan's
-    lift-offs and touchdowns. With ``nominal_plant`` the controller's model carries its
-    armature and a :class:`JointImpedance` closes the joint loop (as in the humanoid study).
+    side: str
+    lift_off: float
+    touchdown: float | None = None
+    target: np.ndarray | None = None
+    landed: np.ndarray | None = None
+    from_contact: bool = False
+
+
+class Walker:
+    """The tasks, the controller, the contact switching and the balance feedback of a walk.
+
+    ``references(tick, state)`` sets the task targets from the measured ``state`` (a
+    :class:`dmpopt.sim.SimState`) and switches the contacts:
+
+    - release (start of a double support) and lift-off at the plan's times;
+    - touchdown when the simulator reports the swinging sole in contact (after half the
+      swing), early or late: the contact is added at the measured sole placement with a
+      force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
+      moved to the landed foothold (:meth:`WalkPlan.with_goal`). A foot still in the air at
+      the planned touchdown keeps going down at ``SEARCH_SPEED``;
+    - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
+      clipped to the support polygon of the feet in contact, gives the CoM its LIPM
+      acceleration; during each swing the capture-point foothold is recomputed from the
+      measured DCM every ``ADJUST_EVERY`` ticks, within the reachable box, and the swing
+      DMPs' goal changed online (:meth:`dmpopt.stepper.Stepper.set_goal`). Without it the
+      CoM task tracks the plan's CoM (the open-loop walk).
+
+    With ``nominal_plant`` the controller's model carries its armature and a
+    :class:`JointImpedance` closes the joint loop (as in the humanoid study).
     """
 
-    def __init__(self, robot, q0, plan, swing_dmps, nominal_plant=None):
+    def __init__(self, robot, q0, plan, swing_dmps, nominal_plant=None, feedback=True):
         impedance = None
         if nominal_plant is not None:
             robot = with_armature(robot, nominal_plant)
             impedance = JointImpedance.for_plant(robot, DT, nominal_plant)
         self.robot, self.plan, self.swing_dmps = robot, plan, swing_dmps
-        data = robot.create_data()
-        pin.framesForwardKinematics(robot.model, data, q0)
+        self.feedback = feedback
+        self.omega = 1.0 / plan.time_constant
+        self.data = robot.create_data()  # the measured state's kinematics
+        pin.framesForwardKinematics(robot.model, self.data, q0)
         self.sole_rotation = {
-            f: data.oMf[robot.model.getFrameId(f)].rotation.copy() for f in robot.foot_frames
+            f: self.data.oMf[robot.model.getFrameId(f)].rotation.copy() for f in robot.foot_frames
         }
+        self._ground = {f: self.data.oMf[robot.model.getFrameId(f)].translation[2]
+                        for f in robot.foot_frames}  # fmt: skip
+        self._frame_ids = [robot.model.getFrameId(f) for f in robot.foot_frames]
+        corners = np.asarray(robot.sole_corners)[:, :2]
+        self._polygon_corners = corners - SUPPORT_MARGIN * np.sign(corners)
         actuated = np.sort(
             np.concatenate([robot.configuration_indices([n]) for n in robot.actuated_joint_names])
         )
@@ -125,49 +171,196 @@ class Walker:
             time_budget=TIME_BUDGET,
             joint_impedance=impedance,
         )
-        self._lift_off = np.round(plan.lift_off / DT).astype(int)  # ticks
-        self._touchdown = np.round(plan.touchdown / DT).astype(int)
-        self._transfer = int(round(DOUBLE_SUPPORT / DT))  # ticks of a double support
+        self._transfer = DOUBLE_SUPPORT  # [s] a double support
         self._next = 0  # the step under way or next
-        self._swing = None  # the swing reference (Trajectory) of the step under way
+        self._released = False  # the next step's foot is being unloaded
+        self._swing = None  # (horizontal, vertical) DMP steppers of the step under way
+        self._reference = plan  # the plan at the lift-off of the step under way
+        self.records: list[StepRecord] = []
+        self.zmp_command = np.zeros(2)  # the last commanded ZMP [m]
+        self._polygon_key, self._polygon = None, None
 
     def _frame(self, step) -> str:
         return f"{step.side}_sole_link"
 
-    def references(self, tick: int) -> None:
-        """Targets at tick ``tick`` (time ``tick * DT``); contact and task switches at the
-        plan's ticks of release (start of a double support), lift-off and touchdown."""
-        plan, controller, steps = self.plan, self.controller, self.plan.footsteps
-        position, velocity, acceleration = plan.com(tick * DT)
-        self.com_task.set_target(position, velocity, acceleration)
+    def _measure(self, state):
+        """CoM [m], CoM velocity [m/s] and sole placements of the measured state."""
+        model, data = self.robot.model, self.data
+        pin.centerOfMass(model, data, state.q_measured, state.v_measured)
+        pin.updateFramePlacements(model, data)
+        return data.com[0], data.vcom[0]
+
+    def references(self, tick: int, state) -> None:
+        """Targets and contact switches at tick ``tick`` (time ``tick * DT``) from the
+        measured ``state``."""
+        t = tick * DT
+        com, com_velocity = self._measure(state)
+        steps = self.plan.footsteps
         i = self._next
-        if i < len(steps) and tick == self._touchdown[i]:
-            step = steps[i]
-            frame = self._frame(step)
-            controller.remove_task(self.swing_tasks[frame])
-            controller.add_contact(frame, pin.SE3(self.sole_rotation[frame], step.goal))
-            self._swing, self._next = None, i + 1
-        i = self._next  # a double support starts at the touchdown before it
-        if i < len(steps) and tick == self._lift_off[i] - self._transfer:
-            # The ramp ends half a tick early, so that the controller drops the contact at
-            # the lift-off tick, when the swing task comes in (no tick with neither).
-            controller.remove_contact(self._frame(steps[i]), max(self._transfer - 0.5, 0.0) * DT)
-        if i < len(steps) and tick == self._lift_off[i]:
-            step = steps[i]
-            self._swing = swing_reference(self.swing_dmps, step.start, step.goal, DT)
-            controller.add_task(self.swing_tasks[self._frame(step)])
         if self._swing is not None:
-            k = tick - self._lift_off[i]
-            task = self.swing_tasks[self._frame(steps[i])]
-            velocity, acceleration = np.zeros(6), np.zeros(6)
-            velocity[:3], acceleration[:3] = self._swing.velocities[k], self._swing.accelerations[k]
-            placement = pin.SE3(self.sole_rotation[task.frame], self._swing.positions[k])
-            task.set_target(placement, velocity, acceleration)
+            self._swinging(i, t, state, com, com_velocity)
+        i = self._next
+        if i < len(steps) and self._swing is None:
+            if not self._released and t >= self.plan.lift_off[i] - self._transfer - DT / 2:
+                # The ramp ends half a tick early, so that the controller drops the contact at
+                # the lift-off tick, when the swing task comes in (no tick with neither).
+                transfer = max(self._transfer - 0.5 * DT, 0.0)
+                self.controller.remove_contact(self._frame(steps[i]), transfer)
+                self._released = True
+            if t >= self.plan.lift_off[i] - DT / 2:
+                self._lift_off(i, t)
+        self._com_targets(t, com, com_velocity)
+
+    def _lift_off(self, i: int, t: float) -> None:
+        step = self.plan.footsteps[i]
+        dmps = self.swing_dmps
+        self._swing = tuple(
+            dmp.replace(start=step.start[axes], goal=step.goal[axes]).stepper(DT)
+            for dmp, axes in ((dmps.horizontal, slice(0, 2)), (dmps.vertical, slice(2, 3)))
+        )
+        self._reference, self._lift_tick = self.plan, int(round(t / DT))
+        self._touchdown_target = float(self.plan.touchdown[i])
+        self._swing_tau = dmps.horizontal.tau
+        self._target = step.goal.copy()
+        self.records.append(StepRecord(step.side, t, target=self._target))
+        self.controller.add_task(self.swing_tasks[self._frame(step)])
+        self._set_swing_target(i, first=True)
+
+    def _swinging(self, i, t, state, com, com_velocity) -> None:
+        """One tick of step ``i``'s swing: touchdown from contact, step adjustment, the swing
+        target."""
+        step = self.plan.footsteps[i]
+        frame = self._frame(step)
+        foot = self.robot.foot_frames.index(frame)
+        lift_off = self.plan.lift_off[i]
+        in_contact = state.in_contact.reshape(2, -1)[foot]
+        if t - lift_off >= 0.5 * (self._touchdown_target - lift_off) and in_contact.any():
+            self._touchdown(i, t, frame, foot)
+            return
+        if t >= self.plan.touchdown[i] - DT / 2:  # late: the single support goes on
+            self.plan = self.plan.with_touchdown(i, t + DT)
+        if (
+            self.feedback
+            and t < self._touchdown_target - ADJUST_STOP
+            and (int(round(t / DT)) - self._lift_tick) % ADJUST_EVERY == 0
+        ):
+            self._adjust_step(i, t, com, com_velocity)
+        self._set_swing_target(i, late=max(t - self._touchdown_target, 0.0))
+
+    def _adjust_step(self, i, t, com, com_velocity) -> None:
+        """Step adjustment from the measured DCM (:mod:`dmpopt.balance`): the time to
+        touchdown shortened if the capture-point foothold would leave the reachable box
+        (the swing DMPs sped up), then that foothold, clipped to the box (their goal)."""
+        reference = self._reference
+        step = reference.footsteps[i]
+        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
+        lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
+        lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
+        upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
+        zmp, end = reference.zmp(t), reference.dcm(reference.touchdown[i])
+        remaining = self._touchdown_target - t
+        shortened = balance.capture_time(
+            xi, zmp, self.omega, end - step.goal[:2], lower, upper,
+            min(SHORTEST_REMAINING, remaining), remaining,
+        )  # fmt: skip
+        foothold = balance.capture_foothold(
+            xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
+        )
+        faster = shortened < remaining - DT
+        if np.linalg.norm(foothold - self._target[:2]) < 1e-3 and not faster:
+            return
+        self._target = np.append(foothold, step.goal[2])
+        self.records[-1].target = self._target
+        self._swing[0].set_goal(self._target[:2])
+        if faster:
+            self._swing_tau *= shortened / remaining
+            for stepper in self._swing:
+                stepper.set_tau(self._swing_tau)
+            self._touchdown_target = t + shortened
+        self.plan = reference.with_goal(i, self._target)
+        if self._touchdown_target != reference.touchdown[i]:
+            self.plan = self.plan.with_touchdown(i, self._touchdown_target)
+
+    def _set_swing_target(self, i: int, first: bool = False, late: float = 0.0) -> None:
+        horizontal, vertical = self._swing
+        if first:
+            outputs = [(s.position, s.velocity, s.acceleration) for s in self._swing]
+        else:
+            outputs = [s.step() for s in self._swing]
+        position, velocity, acceleration = (np.concatenate(parts) for parts in zip(*outputs))
+        if late > 0.0:  # feel for the ground: down at SEARCH_SPEED, at most SEARCH_DEPTH
+            position[2] -= min(SEARCH_SPEED * late, SEARCH_DEPTH)
+            velocity[2] = -SEARCH_SPEED if SEARCH_SPEED * late < SEARCH_DEPTH else 0.0
+            acceleration[2] = 0.0
+        task = self.swing_tasks[self._frame(self.plan.footsteps[i])]
+        twist, twist_rate = np.zeros(6), np.zeros(6)
+        twist[:3], twist_rate[:3] = velocity, acceleration
+        task.set_target(pin.SE3(self.sole_rotation[task.frame], position), twist, twist_rate)
+
+    def _touchdown(self, i: int, t: float, frame: str, foot: int) -> None:
+        """The swinging foot reported in contact: its contact comes in (with a force ramp)
+        at the measured placement; the plan shifts to the touchdown time and foothold."""
+        placement = self.data.oMf[self._frame_ids[foot]].copy()
+        self.controller.remove_task(self.swing_tasks[frame])
+        self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
+        landed = placement.translation.copy()
+        self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
+        record = self.records[-1]
+        record.touchdown, record.landed, record.from_contact = t, landed, True
+        self._swing, self._released, self._next = None, False, i + 1
+
+    def _com_targets(self, t: float, com, com_velocity) -> None:
+        """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the
+        plan's CoM (open loop); the height follows the plan above the stance ground."""
+        height = self.plan.com_height + self._ground_offset()
+        if not self.feedback:
+            position, velocity, acceleration = self.plan.com(t)
+            position[2] = height
+            self.com_task.set_target(position, velocity, acceleration)
+            return
+        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
+        zmp_reference, dcm_reference = self.plan.zmp_and_dcm(t)
+        zmp = balance.dcm_feedback_zmp(xi, dcm_reference, zmp_reference, DCM_GAIN, self.omega)
+        polygon = self._support_polygon()
+        if polygon is not None:
+            zmp = balance.clip_to_polygon(zmp, polygon)
+        self.zmp_command = zmp
+        acceleration = np.append(balance.lipm_acceleration(com[:2], zmp, self.omega), 0.0)
+        position = np.array([com[0], com[1], height])
+        velocity = np.array([com_velocity[0], com_velocity[1], 0.0])
+        self.com_task.set_target(position, velocity, acceleration)
+
+    def _support_polygon(self):
+        """Convex hull of the soles in contact (shrunk by ``SUPPORT_MARGIN``), or None; kept
+        while the contact set is the same (a standing foot does not move)."""
+        active = self.controller.active_contacts
+        if self._polygon_key != active:
+            corners = []
+            for foot, frame in enumerate(self.robot.foot_frames):
+                if frame in active:
+                    placement = self.data.oMf[self._frame_ids[foot]]
+                    local = np.column_stack([self._polygon_corners, np.zeros(4)])
+                    corners.append(
+                        (placement.rotation @ local.T).T[:, :2] + placement.translation[:2]
+                    )
+            self._polygon_key = active
+            self._polygon = balance.convex_hull(np.vstack(corners)) if corners else None
+        return self._polygon
+
+    def _ground_offset(self) -> float:
+        """Height of the ground under the feet in contact relative to the start [m] (an
+        unplanned step down or up lowers or raises the CoM with it)."""
+        heights = [
+            self.data.oMf[self._frame_ids[k]].translation[2] - self._ground[f]
+            for k, f in enumerate(self.robot.foot_frames)
+            if f in self.controller.active_contacts
+        ]
+        return float(np.mean(heights)) if heights else 0.0
 
 
-def make_simulator(robot, plant=IDEAL):
-    """MuJoCo with the soles (left then right) on the floor and ``plant``'s joints, actuators
-    and sensors."""
+def make_simulator(robot, plant=IDEAL, boxes=()):
+    """MuJoCo with the soles (left then right) on the floor, ``boxes`` on it (see
+    :class:`dmpopt.sim.MujocoSimulator`) and ``plant``'s joints, actuators and sensors."""
     from dmpopt.sim import MujocoSimulator
 
     points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
@@ -180,6 +373,7 @@ def make_simulator(robot, plant=IDEAL):
         fall_frame="base_link",
         fall_height=FALL_HEIGHT,
         plant=plant,
+        boxes=boxes,
     )
 
 
@@ -202,9 +396,14 @@ def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray]:
     return normal, margin
 
 
-def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL):
-    """Run the walk in MuJoCo on ``plant`` for ``duration`` seconds; stop at a fall."""
-    simulator = make_simulator(robot, plant)
+def simulate(
+    robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL, push=None, boxes=()
+):
+    """Run the walk in MuJoCo on ``plant`` (and ``boxes`` on the floor) for ``duration``
+    seconds; stop at a fall. ``push = (time, impulse)``: a world-frame impulse [N s] on the
+    pelvis spread over ``PUSH_DURATION`` from ``time`` [s]."""
+    simulator = make_simulator(robot, plant, boxes)
+    push_tick = -1 if push is None else int(round(push[0] / DT))
     state = simulator.reset(q0)
     data = robot.create_data()
     omega = 1.0 / walker.plan.time_constant
@@ -217,7 +416,9 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=ID
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
-        walker.references(k)
+        if k == push_tick:
+            simulator.push_impulse("base_link", push[1], duration=PUSH_DURATION)
+        walker.references(k, state)
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3

@@ -180,8 +180,9 @@ def clip_to_polygon(point, polygon) -> np.ndarray:
 def capture_time(dcm, zmp, omega: float, offset, lower, upper, shortest: float, longest: float):
     r"""The longest time to touchdown [s] in ``[shortest, longest]`` whose capture-point
     foothold :math:`f(\tau) = p + (\xi_0 - p)\, e^{\omega \tau} - b` has not run out of the
-    reachable box on the side the DCM diverges to (step timing adaptation, after [Khadiv2020]_): a DCM pushed far lands the foot
-    sooner, before it has run beyond the leg's reach.
+    reachable box on the side the DCM diverges to (step timing adaptation, after
+    [Khadiv2020]_): a DCM pushed far lands the foot sooner, before it has run beyond the
+    leg's reach.
 
     Per axis with :math:`d = \xi_0 - p \ne 0`, :math:`f` stays below ``upper`` (``d > 0``) or
     above ``lower`` (``d < 0``) while :math:`e^{\omega\tau} \le (\text{bound} + b - p) / d`;

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from dmpopt import balance
 from dmpopt.control import (
     ComTask,
     FrameTask,
@@ -35,12 +36,14 @@ from dmpopt.control import (
     PostureTask,
     SoleContact,
 )
-from dmpopt import balance
 from dmpopt.exceptions import SimulationDiverged
+from dmpopt.fitting import fit_rhythmic
 from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk
 from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL, with_armature
+from dmpopt.trajectory import Trajectory
 from dmpopt.validation import flag
+from dmpopt.walking import heel_strike_phase
 from robots import load_talos
 from robots.plants import talos_realistic
 
@@ -66,8 +69,12 @@ ADJUST_STOP = 0.1  # [s] and not in the last 0.1 s before the planned touchdown
 REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
 REACH_LATERAL = (0.15, 0.4)  # [m] its lateral distance from the stance foot (no crossing)
 TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
-SEARCH_SPEED, SEARCH_DEPTH = 0.15, 0.1  # [m/s], [m] a late foot goes down to find the ground
+SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to find the ground
 SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
+SHORTEST_SWING = 0.3  # [s] and no sooner than this after lift-off
+MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, once airborne
+ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
+ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
 PUSH_DURATION = 0.1  # [s] a push's impulse is spread over this
 
 
@@ -81,6 +88,7 @@ class WalkLog:
     feet: np.ndarray  # (n, 2, 3) left, right sole frame positions [m]
     normal_force: np.ndarray  # (n, 2) measured left, right normal forces [N]
     cop_margin: np.ndarray  # (n, 2) measured CoP distance inside each sole [m] (nan unloaded)
+    yaw_moment: np.ndarray  # (n,) measured vertical moment of the ground on the soles [N m]
     tick_cpu_us: np.ndarray  # (n,)
     fell: bool
     diverged: str | None
@@ -132,7 +140,9 @@ class Walker:
     :class:`JointImpedance` closes the joint loop (as in the humanoid study).
     """
 
-    def __init__(self, robot, q0, plan, swing_dmps, nominal_plant=None, feedback=True):
+    def __init__(
+        self, robot, q0, plan, swing_dmps, nominal_plant=None, feedback=True, arm_swing=None
+    ):
         impedance = None
         if nominal_plant is not None:
             robot = with_armature(robot, nominal_plant)
@@ -148,6 +158,7 @@ class Walker:
         self._ground = {f: self.data.oMf[robot.model.getFrameId(f)].translation[2]
                         for f in robot.foot_frames}  # fmt: skip
         self._frame_ids = [robot.model.getFrameId(f) for f in robot.foot_frames]
+        self._com_height = pin.centerOfMass(robot.model, self.data, q0)[2]  # [m] world
         corners = np.asarray(robot.sole_corners)[:, :2]
         self._polygon_corners = corners - SUPPORT_MARGIN * np.sign(corners)
         actuated = np.sort(
@@ -155,6 +166,12 @@ class Walker:
         )
         posture = PostureTask(robot, weight=POSTURE_WEIGHT, stiffness=10.0)
         posture.set_reference(q0[actuated])
+        self.posture, self._posture_reference = posture, q0[actuated].copy()
+        self._arm_stepper = None
+        if arm_swing is not None:  # a rhythmic DMP on the elbows, phase-locked to the gait
+            names = list(robot.actuated_joint_names)
+            self._arm_joints = [names.index(j) for j in ARM_SWING_JOINTS]
+            self._arm_stepper = arm_swing.stepper(DT, on_limit_cycle=True)
         self.com_task = ComTask(robot, weight=COM_WEIGHT, stiffness=COM_STIFFNESS)
         base = FrameTask(
             robot, "base_link", weight=BASE_WEIGHT, stiffness=50.0, components="orientation"
@@ -210,6 +227,16 @@ class Walker:
             if t >= self.plan.lift_off[i] - DT / 2:
                 self._lift_off(i, t)
         self._com_targets(t, com, com_velocity)
+        if self._arm_stepper is not None:
+            self._swing_arms()
+
+    def _swing_arms(self) -> None:
+        position, velocity, acceleration = self._arm_stepper.step()
+        reference = self._posture_reference.copy()
+        velocities, accelerations = np.zeros_like(reference), np.zeros_like(reference)
+        reference[self._arm_joints] += position
+        velocities[self._arm_joints], accelerations[self._arm_joints] = velocity, acceleration
+        self.posture.set_reference(reference, velocities, accelerations)
 
     def _lift_off(self, i: int, t: float) -> None:
         step = self.plan.footsteps[i]
@@ -220,6 +247,7 @@ class Walker:
         )
         self._reference, self._lift_tick = self.plan, int(round(t / DT))
         self._touchdown_target = float(self.plan.touchdown[i])
+        self._airborne = False  # the sole has been seen out of contact in this swing
         self._swing_tau = dmps.horizontal.tau
         self._target = step.goal.copy()
         self.records.append(StepRecord(step.side, t, target=self._target))
@@ -233,8 +261,9 @@ class Walker:
         frame = self._frame(step)
         foot = self.robot.foot_frames.index(frame)
         lift_off = self.plan.lift_off[i]
-        in_contact = state.in_contact.reshape(2, -1)[foot]
-        if t - lift_off >= 0.5 * (self._touchdown_target - lift_off) and in_contact.any():
+        in_contact = state.in_contact.reshape(2, -1)[foot].any()
+        self._airborne |= not in_contact and t - lift_off >= MIN_SWING / 2
+        if self._airborne and in_contact and t - lift_off >= MIN_SWING:
             self._touchdown(i, t, frame, foot)
             return
         if t >= self.plan.touchdown[i] - DT / 2:  # late: the single support goes on
@@ -261,7 +290,8 @@ class Walker:
         remaining = self._touchdown_target - t
         shortened = balance.capture_time(
             xi, zmp, self.omega, end - step.goal[:2], lower, upper,
-            min(SHORTEST_REMAINING, remaining), remaining,
+            min(max(SHORTEST_REMAINING, self.plan.lift_off[i] + SHORTEST_SWING - t), remaining),
+            remaining,
         )  # fmt: skip
         foothold = balance.capture_foothold(
             xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
@@ -307,12 +337,14 @@ class Walker:
         self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
         record = self.records[-1]
         record.touchdown, record.landed, record.from_contact = t, landed, True
+        if self._arm_stepper is not None:  # eq. (21): the arms' oscillator at heel strike
+            self._arm_stepper.reset_phase(heel_strike_phase(foot))
         self._swing, self._released, self._next = None, False, i + 1
 
     def _com_targets(self, t: float, com, com_velocity) -> None:
         """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the
         plan's CoM (open loop); the height follows the plan above the stance ground."""
-        height = self.plan.com_height + self._ground_offset()
+        height = self._com_height + self._ground_offset()
         if not self.feedback:
             position, velocity, acceleration = self.plan.com(t)
             position[2] = height
@@ -377,47 +409,55 @@ def make_simulator(robot, plant=IDEAL, boxes=()):
     )
 
 
-def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray]:
-    """Measured normal force of each foot [N] and its CoP's distance inside the sole [m]."""
+def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray, float]:
+    """Measured normal force of each foot [N], its CoP's distance inside the sole [m], and
+    the vertical moment of the contact forces about each sole frame's origin, summed [N m]."""
     n_corners = len(robot.sole_corners)
     forces = state.contact_forces.reshape(2, n_corners, 3)
     points = state.contact_positions.reshape(2, n_corners, 3)
     normal = forces[:, :, 2].sum(axis=1)
     margin = np.full(2, np.nan)
     corners = np.asarray(robot.sole_corners)
+    yaw = 0.0
     for foot, frame in enumerate(robot.foot_frames):
+        placement = data.oMf[robot.model.getFrameId(frame)]
+        arms = points[foot] - placement.translation
+        yaw += float(np.sum(arms[:, 0] * forces[foot, :, 1] - arms[:, 1] * forces[foot, :, 0]))
         if normal[foot] > 1.0:
             cop = forces[foot, :, 2] @ points[foot] / normal[foot]
-            local = data.oMf[robot.model.getFrameId(frame)].actInv(cop)
+            local = placement.actInv(cop)
             margin[foot] = min(
                 local[0] - corners[:, 0].min(), corners[:, 0].max() - local[0],
                 local[1] - corners[:, 1].min(), corners[:, 1].max() - local[1],
             )  # fmt: skip
-    return normal, margin
+    return normal, margin, yaw
 
 
 def simulate(
     robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL, push=None, boxes=()
 ):
     """Run the walk in MuJoCo on ``plant`` (and ``boxes`` on the floor) for ``duration``
-    seconds; stop at a fall. ``push = (time, impulse)``: a world-frame impulse [N s] on the
-    pelvis spread over ``PUSH_DURATION`` from ``time`` [s]."""
+    seconds; stop at a fall. ``push = (step, delay, impulse)``: a world-frame impulse [N s]
+    on the pelvis, spread over ``PUSH_DURATION``, ``delay`` seconds after the lift-off of
+    step ``step`` (a fixed phase of its single support)."""
     simulator = make_simulator(robot, plant, boxes)
-    push_tick = -1 if push is None else int(round(push[0] / DT))
+    pushed = push is None
     state = simulator.reset(q0)
     data = robot.create_data()
     omega = 1.0 / walker.plan.time_constant
     n = int(round(duration / DT))
     com, dcm = np.zeros((n, 3)), np.zeros((n, 2))
     feet = np.zeros((n, 2, 3))
-    normal, margin = np.zeros((n, 2)), np.zeros((n, 2))
+    normal, margin, yaw = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n)
     tick = np.zeros(n)
     frames = []
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
-        if k == push_tick:
-            simulator.push_impulse("base_link", push[1], duration=PUSH_DURATION)
+        records = walker.records
+        if not pushed and len(records) > push[0] and t >= records[push[0]].lift_off + push[1]:
+            simulator.push_impulse("base_link", push[2], duration=PUSH_DURATION)
+            pushed = True
         walker.references(k, state)
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
@@ -426,7 +466,7 @@ def simulate(
         dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
         pin.updateFramePlacements(robot.model, data)
         feet[k] = _sole_positions(robot, data)
-        normal[k], margin[k] = _foot_loads(state, robot, data)
+        normal[k], margin[k], yaw[k] = _foot_loads(state, robot, data)
         if record_every and k % record_every == 0:
             frames.append(state.q.copy())
         try:
@@ -438,7 +478,7 @@ def simulate(
             n = k + 1
             break
     log = WalkLog(
-        np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], tick[:n],
+        np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], yaw[:n], tick[:n],
         fell, diverged,
     )  # fmt: skip
     return log, simulator, frames
@@ -461,20 +501,31 @@ def _sweep_case(case) -> dict:
     plan, swing_dmps = build_plan(robot, q0, quick=True)
     walker = Walker(with_scaled_masses(robot, mass), q0, plan, swing_dmps, talos_realistic(robot))
     log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
-    result = walk_metrics(log, plan, robot, 1.0)
+    result = walk_metrics(log, walker.plan, robot, 1.0, walker.records)
     return {k: result[k] for k in ("steps_taken", "steps_planned", "fell")}
 
 
-def build_plan(robot, q0, quick: bool):
+def build_plan(robot, q0, quick: bool, step_length: float = STEP_LENGTH):
     """Footsteps, the CoM/DCM plan and the swing DMPs from the robot's start posture."""
     data = robot.create_data()
     pin.framesForwardKinematics(robot.model, data, q0)
     com = pin.centerOfMass(robot.model, data, q0)
     left, right = _sole_positions(robot, data)
     n_in_place, n_forward = STEPS["quick" if quick else "full"]
-    steps = footstep_plan(left, right, n_in_place, n_forward, STEP_LENGTH)
-    plan = plan_walk(steps, com, com[2], SINGLE_SUPPORT, DOUBLE_SUPPORT, INITIAL_HOLD, FINAL_HOLD)
-    return plan, fit_swing_dmps(SINGLE_SUPPORT, 2 * STEP_LENGTH, FOOT_LIFT)
+    steps = footstep_plan(left, right, n_in_place, n_forward, step_length)
+    height = com[2] - left[2]  # above the ground the robot stands on
+    plan = plan_walk(steps, com, height, SINGLE_SUPPORT, DOUBLE_SUPPORT, INITIAL_HOLD, FINAL_HOLD)
+    return plan, fit_swing_dmps(SINGLE_SUPPORT, 2 * step_length, FOOT_LIFT)
+
+
+def fit_arm_swing(period: float = 2 * (SINGLE_SUPPORT + DOUBLE_SUPPORT)):
+    """The arm swing as a rhythmic DMP (2 DOFs: the offsets of ``ARM_SWING_JOINTS`` from the
+    posture) fitted to a demonstrated anti-phase sine of ``period`` [s]: at the left heel
+    strike (phase 0) the left elbow is at its mean and moving back, the right forward."""
+    times = np.linspace(0.0, 2 * period, 401)
+    wave = ARM_SWING_AMPLITUDE * np.sin(2 * np.pi * times / period)
+    demo = Trajectory.from_positions(times, np.column_stack([-wave, wave]))
+    return fit_rhythmic(demo, 10, period=period)
 
 
 def _contact_runs(log: WalkLog, plan, foot: int):
@@ -489,16 +540,22 @@ def _contact_runs(log: WalkLog, plan, foot: int):
     ]
 
 
+def _rms(values) -> float:
+    return np.sqrt(np.mean(values**2))
+
+
 def _statistic(function, values, *args) -> float | None:
     return float(function(values, *args)) if values.size else None
 
 
-def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
-    r"""What a reader needs to judge the walk.
+def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
+    r"""What a reader needs to judge the walk (``plan``: the walker's final plan, with the
+    touchdown times and footholds as they happened; ``records``: its :class:`StepRecord`).
 
-    - ``steps_taken``: steps whose sole is within 5 cm of its planned foothold 0.1 s after
-      the planned touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest
-      such distance.
+    - ``steps_taken``: steps whose sole is within 5 cm (horizontally) of its target 0.1 s
+      after its touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest such
+      distance. The target is the swing's last goal (after step adjustment) when
+      ``records`` are given, else the plan's foothold.
     - ``steps_in_place``, ``steps_forward``: planned steps of zero and positive length (the
       last forward one brings the feet side by side).
     - ``distance_m``: forward displacement of the measured CoM from start to end.
@@ -520,13 +577,15 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
     com_error = np.linalg.norm(log.com[:, :2] - planned_com[:, :2], axis=1)
     dcm_error = np.linalg.norm(log.dcm - plan.dcm(t), axis=1)
     landed, foothold_errors = 0, []
-    for step, touchdown in zip(plan.footsteps, plan.touchdown):
+    targets = [step.goal for step in plan.footsteps] if records is None else [
+        r.target for r in records
+    ]  # fmt: skip
+    for step, touchdown, target in zip(plan.footsteps, plan.touchdown, targets):
         k = int(round((touchdown + 0.1) / DT))
         if k >= t.size:
             break
-        error = np.linalg.norm(
-            log.feet[k, robot.foot_frames.index(f"{step.side}_sole_link")] - step.goal
-        )
+        foot = log.feet[k, robot.foot_frames.index(f"{step.side}_sole_link")]
+        error = np.linalg.norm((foot - target)[:2])
         foothold_errors.append(error)
         landed += error < 0.05
     slip, stance_force, cop_margin, swing_force = [], [], [], []
@@ -581,6 +640,7 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
         "stance_normal_force_min_fraction": float(min(stance_force, default=np.nan) / weight),
         "stance_cop_margin_min_mm": 1e3 * float(min(cop_margin, default=np.nan)),
         "swing_foot_normal_force_max_n": float(max(swing_force, default=np.nan)),
+        "yaw_moment_rms_nm": _statistic(_rms, log.yaw_moment[single]),
     }
 
 
@@ -630,6 +690,28 @@ def plot_walk(log: WalkLog, plan, robot, path) -> None:
     plt.close(fig)
 
 
+def _arm_swing_walk(_) -> dict:
+    robot, q0 = _robot_and_start()
+    plan, swing_dmps = build_plan(robot, q0, quick=False)
+    plant = talos_realistic(robot)
+    walker = Walker(robot, q0, plan, swing_dmps, plant, arm_swing=fit_arm_swing())
+    log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
+    return walk_metrics(log, walker.plan, robot, 1.0, walker.records)
+
+
+def arm_swing_effect(metrics: dict, runner=None) -> dict:
+    """The full walk again with the arm swing (:func:`fit_arm_swing`, phase-locked at each
+    touchdown): the RMS of the vertical ground moment on the soles in single support with
+    and without it [N m], and whether it fell."""
+    with_arms = map_runs(_arm_swing_walk, [None], runner, label="walk with arm swing")[0]
+    return {
+        "yaw_moment_rms_with": with_arms["yaw_moment_rms_nm"],
+        "yaw_moment_rms_without": metrics["yaw_moment_rms_nm"],
+        "fell_with": with_arms["fell"],
+        "steps_taken_with": with_arms["steps_taken"],
+    }
+
+
 def keyframes(animation, path, n: int = 5) -> None:
     """Side by side, ``n`` frames evenly spread over a rendered animation."""
     from PIL import Image
@@ -660,7 +742,8 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     wall = time.perf_counter()
     log, simulator, frames = simulate(robot, q0, walker, plan.duration, record, realistic)
     wall = time.perf_counter() - wall
-    metrics = walk_metrics(log, plan, robot, wall)
+    metrics = walk_metrics(log, walker.plan, robot, wall, walker.records)
+    metrics["touchdown_from_contact"] = all(r.from_contact for r in walker.records)
     stats = walker.controller.stats  # how each tick was answered
     metrics.update(
         qp_answers={
@@ -670,14 +753,23 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     )  # fmt: skip
     metrics["plant"] = realistic.name
     metrics["plant_realistic"] = {k: metrics[k] for k in ("steps_taken", "steps_planned", "fell")}
-    ideal_log, _, _ = simulate(robot, q0, Walker(robot, q0, plan, swing_dmps), plan.duration)
-    ideal = walk_metrics(ideal_log, plan, robot, 1.0)
+    ideal_walker = Walker(robot, q0, plan, swing_dmps)
+    ideal_log, _, _ = simulate(robot, q0, ideal_walker, plan.duration)
+    ideal = walk_metrics(ideal_log, ideal_walker.plan, robot, 1.0, ideal_walker.records)
     metrics["plant_ideal"] = {
         k: ideal[k] for k in ("steps_taken", "steps_planned", "fell", "foothold_error_max_mm")
     }
     metrics["plant_sweep"] = walk_sweep(quick, runner)
+    from .talos_walk_recovery import push_recovery, uneven_ground
+
+    metrics["push_recovery"] = push_recovery(quick, runner)
+    metrics["arm_swing"] = None if quick else arm_swing_effect(metrics, runner)
+    if quick:
+        metrics["step_down"] = metrics["step_up"] = None
+    else:
+        metrics.update(uneven_ground(runner))
     plot_sweep(metrics["plant_sweep"], "steps_taken", "steps taken", out / "walk_plant_sweep.png")
-    plot_walk(log, plan, robot, out / "talos_walk.png")
+    plot_walk(log, walker.plan, robot, out / "talos_walk.png")
     metrics["figure"] = "talos_walk.png"
     metrics["video"], metrics["video_skipped"] = None, "quick run" if quick else None
     if frames:

@@ -62,12 +62,13 @@ FALL_HEIGHT = 0.7  # [m] the pelvis has fallen when lower
 FLOOR_FRICTION = 1.0
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT, SWING_WEIGHT = 1e-2, 10.0, 1.0, 10.0
 COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
-DCM_GAIN = 4.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
+DCM_GAIN = 10.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
 SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
 ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
 ADJUST_STOP = 0.1  # [s] and not in the last 0.1 s before the planned touchdown
+ADJUST_DEADBAND = 0.03  # [m] a predicted DCM error at touchdown below this keeps the foothold
 REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
-REACH_LATERAL = (0.15, 0.4)  # [m] its lateral distance from the stance foot (no crossing)
+REACH_LATERAL = (0.15, 0.3)  # [m] its lateral distance from the stance foot (no crossing)
 TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
 SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to find the ground
 SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
@@ -132,7 +133,8 @@ class Walker:
     - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
       clipped to the support polygon of the feet in contact, gives the CoM its LIPM
       acceleration; during each swing the capture-point foothold is recomputed from the
-      measured DCM every ``ADJUST_EVERY`` ticks, within the reachable box, and the swing
+      measured DCM every ``ADJUST_EVERY`` ticks (once it moves the foothold by
+      ``ADJUST_DEADBAND`` or more), within the reachable box, and the swing
       DMPs' goal changed online (:meth:`dmpopt.stepper.Stepper.set_goal`). Without it the
       CoM task tracks the plan's CoM (the open-loop walk).
 
@@ -297,6 +299,9 @@ class Walker:
             xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
         )
         faster = shortened < remaining - DT
+        small = np.linalg.norm(foothold - step.goal[:2]) < ADJUST_DEADBAND
+        if small and np.allclose(self._target[:2], step.goal[:2]):
+            return  # a small error: the ZMP feedback alone handles it
         if np.linalg.norm(foothold - self._target[:2]) < 1e-3 and not faster:
             return
         self._target = np.append(foothold, step.goal[2])

@@ -132,6 +132,41 @@ def uneven_ground(runner=None) -> dict:
     return dict(zip(kinds, map_runs(terrain_trial, kinds, runner, label="walk terrain")))
 
 
+def push_video(out_dir, direction: str = "lateral", impulse: float = 40.0) -> dict:
+    """Render the walk pushed by ``impulse`` [N s] ``direction`` with the feedback into
+    ``out_dir/talos_walk_push.webp`` (and five keyframes); the run's outcome and the steps'
+    targets and footholds. Needs an OpenGL context (``MUJOCO_GL=egl``)."""
+    from dmpopt.exceptions import MissingDependency
+    from dmpopt.sim import render_animation
+
+    from .common import output_dir
+
+    out = output_dir(out_dir)
+    robot, q0 = walk._robot_and_start()
+    plan, swing_dmps = walk.build_plan(robot, q0, quick=True)
+    plant = talos_realistic(robot)
+    walker = walk.Walker(robot, q0, plan, swing_dmps, plant)
+    push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
+    record = int(round(1.0 / (2 * walk.VIDEO_FPS * walk.DT)))
+    log, simulator, frames = walk.simulate(robot, q0, walker, plan.duration, record, plant, push)
+    result = {
+        "direction": direction, "impulse_ns": impulse, "fell": bool(log.fell),
+        "targets": [np.round(r.target, 3).tolist() for r in walker.records],
+        "landed": [None if r.landed is None else np.round(r.landed, 3).tolist()
+                   for r in walker.records],
+        "video": None,
+    }  # fmt: skip
+    try:
+        render_animation(simulator, frames, out / "talos_walk_push.webp",
+                         fps=2 * walk.VIDEO_FPS, width=320, height=240, distance=2.5)  # fmt: skip
+        walk.keyframes(out / "talos_walk_push.webp", out / "talos_walk_push_keyframes.png", 6)
+        result["video"] = "talos_walk_push.webp"
+        result["keyframes"] = "talos_walk_push_keyframes.png"
+    except MissingDependency as error:
+        result["video_skipped"] = str(error)
+    return result
+
+
 def main(argv=None) -> None:
     """``python -m studies.talos_walk_recovery OUT_DIR [--quick]``: pushes and uneven ground."""
     import argparse
@@ -142,13 +177,15 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out_dir", nargs="?", default="results/talos_walk_recovery")
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--only", choices=("push", "terrain"), default=None)
+    parser.add_argument("--only", choices=("push", "terrain", "video"), default=None)
     args = parser.parse_args(argv)
     metrics = {}
     if args.only in (None, "push"):
         metrics["push_recovery"] = push_recovery(args.quick)
     if args.only in (None, "terrain"):
         metrics.update(uneven_ground())
+    if args.only in (None, "video"):
+        metrics["push_video"] = push_video(args.out_dir)
     write_metrics(args.out_dir, "talos_walk_recovery", metrics, {}, seed=0, quick=args.quick)
     print(json.dumps(metrics, indent=2))
 

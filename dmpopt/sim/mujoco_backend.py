@@ -206,7 +206,8 @@ class MujocoSimulator(Backend):
     boxes : sequence of (array_like, array_like[, float])
         Fixed boxes on the floor, as uneven ground: ``(centre, half_sizes)`` in the world
         frame [m], shape (3,) each, and optionally a pitch [rad] (rotation about y: a slope
-        along x). They touch what the floor touches, with the floor's friction.
+        along x, descending towards +x when positive). They touch what the floor touches,
+        with the floor's friction.
 
     Attributes
     ----------

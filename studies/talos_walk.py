@@ -62,11 +62,12 @@ FALL_HEIGHT = 0.7  # [m] the pelvis has fallen when lower
 FLOOR_FRICTION = 1.0
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT, SWING_WEIGHT = 1e-2, 10.0, 1.0, 10.0
 COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
-DCM_GAIN = 10.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
+DCM_GAIN = 5.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
 SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
 ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
 ADJUST_STOP = 0.1  # [s] and not in the last 0.1 s before the planned touchdown
 ADJUST_DEADBAND = 0.03  # [m] a predicted DCM error at touchdown below this keeps the foothold
+TIMING_THRESHOLD = 0.1  # [m] and one above this may shorten the step (step timing adaptation)
 REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
 REACH_LATERAL = (0.15, 0.3)  # [m] its lateral distance from the stance foot (no crossing)
 TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
@@ -290,11 +291,14 @@ class Walker:
         upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
         zmp, end = reference.zmp(t), reference.dcm(reference.touchdown[i])
         remaining = self._touchdown_target - t
-        shortened = balance.capture_time(
-            xi, zmp, self.omega, end - step.goal[:2], lower, upper,
-            min(max(SHORTEST_REMAINING, self.plan.lift_off[i] + SHORTEST_SWING - t), remaining),
-            remaining,
-        )  # fmt: skip
+        error = balance.predict_dcm(xi, zmp, self.omega, remaining) - end
+        shortened = remaining
+        if np.linalg.norm(error) > TIMING_THRESHOLD:  # pushed: land sooner if out of reach
+            shortest = max(SHORTEST_REMAINING, self.plan.lift_off[i] + SHORTEST_SWING - t)
+            shortened = balance.capture_time(
+                xi, zmp, self.omega, end - step.goal[:2], lower, upper,
+                min(shortest, remaining), remaining,
+            )  # fmt: skip
         foothold = balance.capture_foothold(
             xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
         )

@@ -9,7 +9,8 @@
   balance feedback (DCM feedback, step adjustment and timing) and without (the CoM tracks
   the plan). Quick mode: two lateral trials with the feedback.
 - Uneven ground: an unplanned step down (the robot starts on a ``STEP_HEIGHT`` platform whose
-  edge lies between two footholds) and step up (a box of that height ahead), with forward
+  edge lies between two footholds), step up (a box of that height ahead) and a ``SLOPE``
+  (2 degrees, rising from the same place), with forward
   steps of ``TERRAIN_STEP_LENGTH``; the footholds' horizontal distance from their adjusted
   targets.
 """
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dmpopt.parallel import map_runs
+from dmpopt.parallel import Runner, map_runs
 from robots.plants import talos_realistic
 
 from . import talos_walk as walk
@@ -28,11 +29,12 @@ RECOVERY_TIME = 2.0  # [s] after the push
 PUSH_DIRECTIONS = {"forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0),
                    "lateral": (0.0, 1.0, 0.0)}  # fmt: skip
 PUSH_RANGE = {"forward": 160.0, "backward": 160.0, "lateral": 80.0}  # [N s] bisection interval
-PUSH_TRIALS = {"quick": 2, "full": 5}  # bisection steps
+PUSH_TRIALS = {"quick": 2, "full": 4}  # bisection steps (full: range / 16 resolution)
 QUICK_PUSHES = (20.0, 40.0)  # [N s] the quick mode's two lateral trials
 STEP_HEIGHT = 0.04  # [m] the unplanned step down and up
 TERRAIN_STEP_LENGTH = 0.25  # [m] footholds clear of the edge at x = EDGE
-EDGE = 0.36  # [m] the platform's (step down) or the box's (step up) edge
+EDGE = 0.36  # [m] the platform's (step down), the box's (step up) or the slope's edge
+SLOPE = 0.035  # [rad] (2 degrees) the slope, ascending along x
 
 
 def push_trial(case) -> bool:
@@ -91,18 +93,24 @@ def push_recovery(quick: bool, runner=None) -> dict:
 
 def terrain_boxes(kind: str):
     """MuJoCo boxes of ``kind`` "step_down" (a platform under the start, its edge at EDGE) or
-    "step_up" (a box from EDGE on), and the start's height above the floor [m]."""
+    "step_up" (a box from EDGE on) or "slope" (rising at SLOPE from EDGE on), and the
+    start's height above the floor [m]."""
     h = STEP_HEIGHT
     if kind == "step_down":
         return [((EDGE / 2 - 1.0, 0.0, h / 2), (1.0 + EDGE / 2, 1.0, h / 2))], h
     if kind == "step_up":
         return [((EDGE + 1.5, 0.0, h / 2), (1.5, 1.0, h / 2))], 0.0
-    raise ValueError(f"kind must be 'step_down' or 'step_up', got {kind!r}")
+    if kind == "slope":  # a 1 cm thick slab whose top face rises from the floor at EDGE
+        normal = np.array([-np.sin(SLOPE), 0.0, np.cos(SLOPE)])  # pitch -SLOPE: ascending
+        top = np.array([EDGE + np.cos(SLOPE), 0.0, np.sin(SLOPE)])
+        return [(top - 0.01 * normal, (1.0, 1.0, 0.01), -SLOPE)], 0.0
+    raise ValueError(f"kind must be 'step_down', 'step_up' or 'slope', got {kind!r}")
 
 
 def terrain_trial(kind: str) -> dict:
     """The quick walk over ``kind`` ground, unplanned: ``fell``, the height, and the largest
-    horizontal distance of a landed foot from its adjusted target [mm]."""
+    horizontal distance of a landed foot from its adjusted target [mm] (the slope's
+    ``height_m`` is its rise under the last foothold)."""
     robot, q0 = walk._robot_and_start()
     boxes, lift = terrain_boxes(kind)
     q0 = q0.copy()
@@ -116,7 +124,7 @@ def terrain_trial(kind: str) -> dict:
     ]
     landed = [r.landed[2] - lift for r in walker.records if r.landed is not None]
     return {
-        "height_m": STEP_HEIGHT,
+        "height_m": STEP_HEIGHT if kind != "slope" else round(float(max(landed, default=0.0)), 4),
         "fell": bool(log.fell or log.diverged),
         "steps_landed": len(errors),
         "steps_planned": len(plan.footsteps),
@@ -127,8 +135,8 @@ def terrain_trial(kind: str) -> dict:
 
 
 def uneven_ground(runner=None) -> dict:
-    """Step down and step up (module docstring)."""
-    kinds = ["step_down", "step_up"]
+    """Step down, step up and slope (module docstring)."""
+    kinds = ["step_down", "step_up", "slope"]
     return dict(zip(kinds, map_runs(terrain_trial, kinds, runner, label="walk terrain")))
 
 
@@ -178,12 +186,14 @@ def main(argv=None) -> None:
     parser.add_argument("out_dir", nargs="?", default="results/talos_walk_recovery")
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--only", choices=("push", "terrain", "video"), default=None)
+    parser.add_argument("--workers", type=int, default=1, help="processes for the runs")
     args = parser.parse_args(argv)
+    runner = Runner(workers=args.workers)
     metrics = {}
     if args.only in (None, "push"):
-        metrics["push_recovery"] = push_recovery(args.quick)
+        metrics["push_recovery"] = push_recovery(args.quick, runner)
     if args.only in (None, "terrain"):
-        metrics.update(uneven_ground())
+        metrics.update(uneven_ground(runner))
     if args.only in (None, "video"):
         metrics["push_video"] = push_video(args.out_dir)
     write_metrics(args.out_dir, "talos_walk_recovery", metrics, {}, seed=0, quick=args.quick)

@@ -54,6 +54,7 @@ __all__ = [
     "dcm_feedback_zmp",
     "lipm_acceleration",
     "predict_dcm",
+    "recovery_zmp",
 ]
 
 
@@ -108,6 +109,36 @@ def predict_dcm(dcm, zmp, omega: float, t: float) -> np.ndarray:
     p = _plane("zmp", zmp)
     t = real("t", t, minimum=0.0)
     return p + (_plane("dcm", dcm) - p) * np.exp(_omega(omega) * t)
+
+
+def recovery_zmp(dcm, dcm_reference, zmp_reference, polygon, omega: float, t: float):
+    r"""The constant ZMP that brings the DCM back to the plan in ``t`` seconds, clipped to the
+    support polygon [m], shape (2,): the ankle's share of a recovery, the step's share being
+    what it leaves.
+
+    With the plan's ZMP :math:`p_r` constant (single support), holding
+    :math:`p = p_r + \Delta` makes the error :math:`e = \xi - \xi_r` reach
+    :math:`e(t) = (e - \Delta)\, E + \Delta`, :math:`E = e^{\omega t}`; it is zero for
+    :math:`\Delta = e\, E / (E - 1)`. That ZMP is clipped to ``polygon``
+    (:func:`clip_to_polygon`); :func:`predict_dcm` from it gives the DCM at ``t``, and
+    :func:`capture_foothold` the foothold that absorbs what is left.
+
+    Parameters
+    ----------
+    dcm, dcm_reference, zmp_reference : array_like, shape (2,)
+        :math:`\xi`, :math:`\xi_r` and :math:`p_r` now [m].
+    polygon : array_like, shape (n, 2)
+        The support polygon, counter-clockwise (:func:`convex_hull`).
+    omega : float
+        :math:`\omega` [1/s].
+    t : float
+        Time to touchdown [s], > 0.
+    """
+    error = _plane("dcm", dcm) - _plane("dcm_reference", dcm_reference)
+    t = real("t", t, minimum=0.0, open_minimum=True)
+    growth = np.exp(_omega(omega) * t)
+    needed = _plane("zmp_reference", zmp_reference) + error * growth / (growth - 1.0)
+    return clip_to_polygon(needed, polygon)
 
 
 def convex_hull(points) -> np.ndarray:

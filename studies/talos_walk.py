@@ -280,17 +280,24 @@ class Walker:
         self._set_swing_target(i, late=max(t - self._touchdown_target, 0.0))
 
     def _adjust_step(self, i, t, com, com_velocity) -> None:
-        """Step adjustment from the measured DCM (:mod:`dmpopt.balance`): the time to
-        touchdown shortened if the capture-point foothold would leave the reachable box
-        (the swing DMPs sped up), then that foothold, clipped to the box (their goal)."""
+        """Step adjustment from the measured DCM (:mod:`dmpopt.balance`): the DCM predicted
+        at touchdown with the stance sole's ZMP doing what it can (``recovery_zmp``); if
+        that leaves a large error, the time to touchdown shortened as far as needed to keep
+        the capture-point foothold in reach (the swing DMPs sped up); then that foothold,
+        clipped to the box (their goal)."""
         reference = self._reference
         step = reference.footsteps[i]
         xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
         lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
         lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
         upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
-        zmp, end = reference.zmp(t), reference.dcm(reference.touchdown[i])
+        zmp_reference, dcm_reference = reference.zmp_and_dcm(t)
+        end = reference.dcm(reference.touchdown[i])
         remaining = self._touchdown_target - t
+        # the ankle first: the ZMP that would cancel the DCM error, as far as the sole allows
+        zmp = balance.recovery_zmp(
+            xi, dcm_reference, zmp_reference, self._support_polygon(), self.omega, remaining
+        )
         error = balance.predict_dcm(xi, zmp, self.omega, remaining) - end
         shortened = remaining
         if np.linalg.norm(error) > TIMING_THRESHOLD:  # pushed: land sooner if out of reach

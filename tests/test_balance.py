@@ -20,6 +20,7 @@ from dmpopt.balance import (
     dcm_feedback_zmp,
     lipm_acceleration,
     predict_dcm,
+    recovery_zmp,
 )
 from dmpopt.exceptions import InvalidInputError, ShapeError
 
@@ -109,7 +110,9 @@ def test_clip_keeps_inner_points_and_projects_outer_ones_to_the_nearest_edge_poi
         assert clipped == pytest.approx(point, abs=0.0)
     else:
         assert clipped == pytest.approx(_brute_nearest(point, SQUARE), abs=2e-4)
-        assert clipped == pytest.approx(np.clip(point, 0.0, 1.0), abs=1e-12)  # a box: clip
+        # a box: clip. Two edges whose squared distances tie within rounding (eps d^2) may
+        # each win: their points differ by up to sqrt(2 eps) d ~ 1e-7 here (d < 4)
+        assert clipped == pytest.approx(np.clip(point, 0.0, 1.0), abs=1e-7)
 
 
 @settings(max_examples=30, deadline=None)
@@ -174,6 +177,26 @@ def test_capture_time_lands_the_foot_on_the_reach_boundary_or_keeps_the_plan(lat
         assert (beyond <= 1e-12).all()
     if 0.15 < tau < 0.5:  # the binding axis touches its bound
         assert np.max(beyond) == pytest.approx(0.0, abs=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.tuples(coordinate, coordinate), st.floats(0.05, 0.6))
+def test_recovery_zmp_returns_the_dcm_to_the_plan_or_stays_on_the_sole(error, t):
+    """Key: with the ZMP held at p the DCM is p + (xi - p) e^{omega t} (written here), and
+    the plan's, about its constant p_r, p_r + (xi_r - p_r) e^{omega t}: equal when the
+    needed ZMP lies on the sole; otherwise the ZMP is on the sole's edge."""
+    sole = np.array([[-0.1, -0.06], [0.1, -0.06], [0.1, 0.06], [-0.1, 0.06]])
+    p_r, xi_r = np.array([0.0, 0.0]), np.array([0.03, -0.02])
+    xi = xi_r + np.array(error)
+    zmp = recovery_zmp(xi, xi_r, p_r, sole, OMEGA, t)
+    growth = np.exp(OMEGA * t)
+    needed = p_r + (xi - xi_r) * growth / (growth - 1.0)
+    if (np.abs(needed) <= [0.1, 0.06]).all():
+        assert zmp == pytest.approx(needed, abs=1e-12)
+        dcm_at_t = zmp + (xi - zmp) * growth
+        assert dcm_at_t == pytest.approx(p_r + (xi_r - p_r) * growth, abs=1e-9)
+    else:
+        assert zmp == pytest.approx(np.clip(needed, [-0.1, -0.06], [0.1, 0.06]), abs=1e-12)
 
 
 @pytest.mark.parametrize(

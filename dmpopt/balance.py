@@ -32,7 +32,10 @@ from the next foothold,
 
 with :math:`T` the planned touchdown, :math:`f_r` the planned foothold, and :math:`f`
 clipped to the box the leg can reach (:func:`capture_foothold`). It moves the foothold by the
-predicted DCM error at touchdown, :math:`f - f_r = \xi(T) - \xi_r(T)`.
+predicted DCM error at touchdown, :math:`f - f_r = \xi(T) - \xi_r(T)`, predicted with the
+ZMP the stance sole can give towards cancelling it (:func:`recovery_zmp`): the ankle first,
+the step for what is left. When even the farthest reachable foothold is not enough, the
+step comes sooner (:func:`capture_time`, step timing adaptation [Khadiv2020]_).
 
 Symbols: :math:`\xi` ``dcm``, :math:`p` ``zmp``, :math:`\omega` ``omega`` [1/s],
 :math:`k` ``gain`` [1/s], :math:`b` ``offset``.

@@ -91,6 +91,8 @@ class WalkLog:
     normal_force: np.ndarray  # (n, 2) measured left, right normal forces [N]
     cop_margin: np.ndarray  # (n, 2) measured CoP distance inside each sole [m] (nan unloaded)
     yaw_moment: np.ndarray  # (n,) measured vertical moment of the ground on the soles [N m]
+    reference_com: np.ndarray  # (n, 2) the plan's CoM when the tick ran (it is re-planned) [m]
+    reference_dcm: np.ndarray  # (n, 2) the plan's DCM when the tick ran [m]
     tick_cpu_us: np.ndarray  # (n,)
     fell: bool
     diverged: str | None
@@ -361,13 +363,15 @@ class Walker:
         """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the
         plan's CoM (open loop); the height follows the plan above the stance ground."""
         height = self._com_height + self._ground_offset()
+        self.reference_com = self.plan.com(t)[0][:2]
+        zmp_reference, dcm_reference = self.plan.zmp_and_dcm(t)
+        self.reference_dcm = dcm_reference
         if not self.feedback:
             position, velocity, acceleration = self.plan.com(t)
             position[2] = height
             self.com_task.set_target(position, velocity, acceleration)
             return
         xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
-        zmp_reference, dcm_reference = self.plan.zmp_and_dcm(t)
         zmp = balance.dcm_feedback_zmp(xi, dcm_reference, zmp_reference, DCM_GAIN, self.omega)
         polygon = self._support_polygon()
         if polygon is not None:
@@ -463,6 +467,7 @@ def simulate(
     omega = 1.0 / walker.plan.time_constant
     n = int(round(duration / DT))
     com, dcm = np.zeros((n, 3)), np.zeros((n, 2))
+    reference_com, reference_dcm = np.zeros((n, 2)), np.zeros((n, 2))
     feet = np.zeros((n, 2, 3))
     normal, margin, yaw = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n)
     tick = np.zeros(n)
@@ -475,6 +480,7 @@ def simulate(
             simulator.push_impulse("base_link", push[2], duration=PUSH_DURATION)
             pushed = True
         walker.references(k, state)
+        reference_com[k], reference_dcm[k] = walker.reference_com, walker.reference_dcm
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3
@@ -494,7 +500,8 @@ def simulate(
             n = k + 1
             break
     log = WalkLog(
-        np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], yaw[:n], tick[:n],
+        np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], yaw[:n],
+        reference_com[:n], reference_dcm[:n], tick[:n],
         fell, diverged,
     )  # fmt: skip
     return log, simulator, frames
@@ -579,7 +586,8 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
       whole walk and over the single-support ticks (one foot in the air); ``ticks_over_2ms``
       counts the ticks in which the controller built the QP of a new contact set.
     - ``com_error_*``, ``dcm_error_*``: horizontal distance of the measured CoM and DCM
-      (:math:`c + \dot c / \omega`) from the plan [mm].
+      (:math:`c + \dot c / \omega`) from the plan in use at that tick (it is re-planned at
+      each touchdown and step adjustment) [mm].
     - ``foot_slip_max_mm``: largest horizontal drift of a sole while it stands (from 50 ms
       after it is set down until it lifts off).
     - ``stance_normal_force_min_*``, ``stance_cop_margin_min_mm``: the smallest measured
@@ -589,9 +597,8 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
       lift-off until 50 ms before touchdown (0: it does not scuff).
     """
     t = log.times
-    planned_com = plan.com(t)[0]
-    com_error = np.linalg.norm(log.com[:, :2] - planned_com[:, :2], axis=1)
-    dcm_error = np.linalg.norm(log.dcm - plan.dcm(t), axis=1)
+    com_error = np.linalg.norm(log.com[:, :2] - log.reference_com, axis=1)
+    dcm_error = np.linalg.norm(log.dcm - log.reference_dcm, axis=1)
     landed, foothold_errors = 0, []
     targets = [step.goal for step in plan.footsteps] if records is None else [
         r.target for r in records

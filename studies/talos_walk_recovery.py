@@ -29,7 +29,7 @@ RECOVERY_TIME = 2.0  # [s] after the push
 PUSH_DIRECTIONS = {"forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0),
                    "lateral": (0.0, 1.0, 0.0)}  # fmt: skip
 PUSH_RANGE = {"forward": 160.0, "backward": 160.0, "lateral": 80.0}  # [N s] bisection interval
-PUSH_TRIALS = {"quick": 2, "full": 4}  # bisection steps (full: range / 16 resolution)
+PUSH_TRIALS = {"quick": 2, "full": 3}  # bisection steps (full: range / 8 resolution)
 QUICK_PUSHES = (20.0, 40.0)  # [N s] the quick mode's two lateral trials
 STEP_HEIGHT = 0.04  # [m] the unplanned step down and up
 TERRAIN_STEP_LENGTH = 0.25  # [m] footholds clear of the edge at x = EDGE

@@ -185,7 +185,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out_dir", nargs="?", default="results/talos_walk_recovery")
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--only", choices=("push", "terrain", "video"), default=None)
+    parser.add_argument("--only", choices=("push", "terrain", "video", "arms"), default=None)
     parser.add_argument("--workers", type=int, default=1, help="processes for the runs")
     args = parser.parse_args(argv)
     runner = Runner(workers=args.workers)
@@ -194,6 +194,8 @@ def main(argv=None) -> None:
         metrics["push_recovery"] = push_recovery(args.quick, runner)
     if args.only in (None, "terrain"):
         metrics.update(uneven_ground(runner))
+    if args.only == "arms":  # also part of the study's full run (talos_walk.run_walk)
+        metrics["arm_swing"] = walk.arm_swing_effect(runner)
     if args.only in (None, "video"):
         metrics["push_video"] = push_video(args.out_dir)
     write_metrics(args.out_dir, "talos_walk_recovery", metrics, {}, seed=0, quick=args.quick)

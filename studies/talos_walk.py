@@ -579,8 +579,8 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
       after its touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest such
       distance. The target is the swing's last goal (after step adjustment) when
       ``records`` are given, else the plan's foothold.
-    - ``steps_in_place``, ``steps_forward``: planned steps of zero and positive length (the
-      last forward one brings the feet side by side).
+    - ``steps_in_place``, ``steps_forward``: steps that moved their foot less and more than
+      half ``STEP_LENGTH`` (the last forward one brings the feet side by side).
     - ``distance_m``: forward displacement of the measured CoM from start to end.
     - ``tick_us_*``: CPU time of the calling thread per ``compute_torques`` [us], over the
       whole walk and over the single-support ticks (one foot in the air); ``ticks_over_2ms``
@@ -627,12 +627,14 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
         cop_margin.append(np.nanmin(log.cop_margin[a:b, 1 - swing]))
         swing_force.append(log.normal_force[a + 50 : b - 50, swing].max(initial=0.0))
     weight = pin.computeTotalMass(robot.model) * 9.81
-    forward = [s.length for s in plan.footsteps if s.length > 0]
+    # a step "in place" moved less than half a step (its foothold is where it landed)
+    moved = [abs(s.length) >= 0.5 * STEP_LENGTH for s in plan.footsteps]
+    forward = [s.length for s, m in zip(plan.footsteps, moved) if m]
     single = np.array([plan.phase(time)[0] == "single" for time in t])
     return {
         "steps_planned": len(plan.footsteps),
-        "steps_in_place": sum(s.length == 0 for s in plan.footsteps),
-        "steps_forward": sum(s.length > 0 for s in plan.footsteps),
+        "steps_in_place": moved.count(False),
+        "steps_forward": moved.count(True),
         "steps_taken": int(landed),
         "distance_m": float(log.com[-1, 0] - log.com[0, 0]),
         "distance_planned_m": float(plan.com(plan.duration)[0][0] - plan.com(0.0)[0][0]),

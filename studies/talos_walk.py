@@ -129,8 +129,8 @@ class Walker:
 
     - release (start of a double support) and lift-off at the plan's times;
     - touchdown when the simulator reports the swinging sole in contact (after half the
-      swing), early or late: the contact is added at the measured sole placement with a
-      force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
+      swing), early or late: the contact is added at the measured sole position (flat) with
+      a force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
       moved to the landed foothold (:meth:`WalkPlan.with_goal`). A foot still in the air at
       the planned touchdown keeps going down at ``SEARCH_SPEED``;
     - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
@@ -348,10 +348,12 @@ class Walker:
     def _touchdown(self, i: int, t: float, frame: str, foot: int) -> None:
         """The swinging foot reported in contact: its contact comes in (with a force ramp)
         at the measured placement; the plan shifts to the touchdown time and foothold."""
-        placement = self.data.oMf[self._frame_ids[foot]].copy()
+        # held where it landed, flat as planned (the measured attitude at the first touch is
+        # the impact's: held, it would keep the sole on an edge)
+        landed = self.data.oMf[self._frame_ids[foot]].translation.copy()
+        placement = pin.SE3(self.sole_rotation[frame], landed)
         self.controller.remove_task(self.swing_tasks[frame])
         self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
-        landed = placement.translation.copy()
         self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
         record = self.records[-1]
         record.touchdown, record.landed, record.from_contact = t, landed, True

@@ -162,6 +162,7 @@ class Walker:
         }
         self._ground = {f: self.data.oMf[robot.model.getFrameId(f)].translation[2]
                         for f in robot.foot_frames}  # fmt: skip
+        self._level = dict(self._ground)  # [m] where each foot last landed
         self._frame_ids = [robot.model.getFrameId(f) for f in robot.foot_frames]
         self._com_height = pin.centerOfMass(robot.model, self.data, q0)[2]  # [m] world
         corners = np.asarray(robot.sole_corners)[:, :2]
@@ -354,6 +355,7 @@ class Walker:
         placement = pin.SE3(self.sole_rotation[frame], landed)
         self.controller.remove_task(self.swing_tasks[frame])
         self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
+        self._level[frame] = landed[2]
         self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
         record = self.records[-1]
         record.touchdown, record.landed, record.from_contact = t, landed, True
@@ -402,11 +404,12 @@ class Walker:
         return self._polygon
 
     def _ground_offset(self) -> float:
-        """Height of the ground under the feet in contact relative to the start [m] (an
-        unplanned step down or up lowers or raises the CoM with it)."""
+        """Height of the ground under the feet in contact relative to the start [m], from
+        where each landed (an unplanned step down or up lowers or raises the CoM with it; a
+        live measurement would feed a rising, unloading foot back into the CoM height)."""
         heights = [
-            self.data.oMf[self._frame_ids[k]].translation[2] - self._ground[f]
-            for k, f in enumerate(self.robot.foot_frames)
+            self._level[f] - self._ground[f]
+            for f in self.robot.foot_frames
             if f in self.controller.active_contacts
         ]
         return float(np.mean(heights)) if heights else 0.0

@@ -252,6 +252,11 @@ class WalkPlan:
         r"""DCM :math:`\xi` [m] at time(s) ``t``, shape (..., 2)."""
         return self._evaluate(t)[1]
 
+    def zmp_and_dcm(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """ZMP and DCM [m] at time(s) ``t`` (one evaluation), each of shape (..., 2)."""
+        zmp, dcm = self._evaluate(t)[:2]
+        return zmp, dcm
+
     def com(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """CoM position [m], velocity [m/s] and acceleration [m/s^2] at time(s) ``t``, each of
         shape (..., 3) (the height is constant)."""
@@ -263,6 +268,45 @@ class WalkPlan:
             np.concatenate([velocity, zero], axis=-1),
             np.concatenate([acceleration, zero], axis=-1),
         )
+
+    def _check_step(self, step) -> int:
+        i, n = integer("step", step, minimum=0), len(self.footsteps)
+        if i >= n:
+            raise InvalidInputError(f"step must be < {n}, the plan's number of steps, got {i}")
+        return i
+
+    def _start_com(self) -> np.ndarray:
+        return np.append(self.com_knots[0], self.com_height)
+
+    def with_touchdown(self, step: int, time: float) -> WalkPlan:
+        """The plan with step ``step``'s touchdown at ``time`` [s] (a foot that landed early
+        or late): its single support ends then and everything after shifts by the same
+        amount. The DCM and CoM are solved again."""
+        i = self._check_step(step)
+        lift_off = float(self.lift_off[i])
+        time = real("time", time, minimum=lift_off, open_minimum=True,
+                    fix=f"after step {i}'s lift-off at {lift_off:.4g} s")  # fmt: skip
+        times = self.knot_times.copy()
+        times[3 + 2 * i :] += time - self.touchdown[i]
+        return _solve(self.footsteps, times, self._start_com(), self.com_height,
+                      self.time_constant)  # fmt: skip
+
+    def with_goal(self, step: int, goal) -> WalkPlan:
+        """The plan with step ``step``'s foothold at ``goal`` (shape (3,), [m]) and every
+        later foothold moved by the same displacement (the rest of the walk translated, as
+        after a foot placed to recover balance). The DCM and CoM are solved again."""
+        i = self._check_step(step)
+        shift = _point("goal", goal) - self.footsteps[i].goal
+        first = self.footsteps[0]
+        feet = {first.side: first.start, SIDES[1 - SIDES.index(first.side)]: first.stance}
+        steps = []
+        for j, step_j in enumerate(self.footsteps):
+            other = SIDES[1 - SIDES.index(step_j.side)]
+            target = step_j.goal + shift if j >= i else step_j.goal
+            steps.append(Footstep(step_j.side, feet[step_j.side], target, feet[other]))
+            feet[step_j.side] = target
+        return _solve(steps, self.knot_times.copy(), self._start_com(), self.com_height,
+                      self.time_constant)  # fmt: skip
 
     def phase(self, t: float) -> tuple[str, int]:
         """``("double", i)`` before the lift-off of step ``i`` (``i = n_steps`` after the last
@@ -320,22 +364,36 @@ def plan_walk(
     initial_hold = real("initial_hold", initial_hold, minimum=0.0, open_minimum=True)
     final_hold = real("final_hold", final_hold, minimum=0.0, open_minimum=True)
 
-    times, points = [0.0, initial_hold], [com[:2], com[:2]]
-    lift_off, touchdown = [], []
-    for step in footsteps:  # double support (the ZMP moves onto the stance foot), single
+    times = [0.0, initial_hold]
+    for _ in footsteps:  # double support (the ZMP moves onto the stance foot), then single
         times += [times[-1] + double_support, times[-1] + double_support + single_support]
-        points += [step.stance[:2], step.stance[:2]]
-        lift_off.append(times[-2])
-        touchdown.append(times[-1])
+    if footsteps:
+        times.append(times[-1] + double_support)
+    times.append(times[-1] + final_hold)
+    return _solve(footsteps, np.array(times), com, float(com_height), tc)
+
+
+def _zmp_knots(footsteps, n_knots: int) -> np.ndarray:
+    """ZMP knots of a plan with knot times as built by :func:`plan_walk`: the start CoM is
+    filled in by the caller (rows 0 and 1), each step adds its stance foot twice, then the
+    middle of the last two feet."""
+    points = np.empty((n_knots, 2))
+    for i, step in enumerate(footsteps):
+        points[2 + 2 * i] = points[3 + 2 * i] = step.stance[:2]
     if footsteps:
         last = footsteps[-1]
-        times.append(times[-1] + double_support)
-        points.append(0.5 * (last.goal[:2] + last.stance[:2]))
-    times.append(times[-1] + final_hold)
-    points.append(points[-1])
-    times, points = np.array(times), np.array(points)
+        points[-2] = points[-1] = 0.5 * (last.goal[:2] + last.stance[:2])
+    return points
 
-    w, n = 1.0 / tc, len(times)
+
+def _solve(footsteps, times, com, com_height, tc) -> WalkPlan:
+    """The DCM backwards and the CoM forwards through the ZMP knots at ``times``."""
+    n = len(times)
+    points = _zmp_knots(footsteps, n)
+    points[:2] = com[:2]
+    if not footsteps:
+        points[-1] = com[:2]
+    w = 1.0 / tc
     dcm = np.empty((n, 2))
     dcm[-1] = points[-1]
     for k in range(n - 2, -1, -1):  # backwards: the DCM at the start of each segment
@@ -354,16 +412,17 @@ def plan_walk(
                 w, times[k], times[k + 1], points[k], points[k + 1], dcm[k + 1], positions[k],
                 times[k + 1],
             )[2]  # fmt: skip
+    steps = np.arange(len(footsteps))
     return WalkPlan(
-        footsteps=footsteps,
+        footsteps=tuple(footsteps),
         knot_times=times,
         zmp_knots=points,
         dcm_knots=dcm,
         com_knots=positions,
-        com_height=float(com_height),
+        com_height=com_height,
         time_constant=tc,
-        lift_off=np.array(lift_off),
-        touchdown=np.array(touchdown),
+        lift_off=times[2 + 2 * steps],
+        touchdown=times[3 + 2 * steps],
     )
 
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from dmpopt import balance
 from dmpopt.control import (
     ComTask,
     FrameTask,
@@ -36,10 +37,13 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.exceptions import SimulationDiverged
-from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk, swing_reference
+from dmpopt.fitting import fit_rhythmic
+from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk
 from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL, with_armature
+from dmpopt.trajectory import Trajectory
 from dmpopt.validation import flag
+from dmpopt.walking import heel_strike_phase
 from robots import load_talos
 from robots.plants import talos_realistic
 
@@ -58,6 +62,22 @@ FALL_HEIGHT = 0.7  # [m] the pelvis has fallen when lower
 FLOOR_FRICTION = 1.0
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT, SWING_WEIGHT = 1e-2, 10.0, 1.0, 10.0
 COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
+DCM_GAIN = 5.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
+SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
+ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
+ADJUST_STOP = 0.1  # [s] and not in the last 0.1 s before the planned touchdown
+ADJUST_DEADBAND = 0.03  # [m] a predicted DCM error at touchdown below this keeps the foothold
+TIMING_THRESHOLD = 0.1  # [m] and one above this may shorten the step (step timing adaptation)
+REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
+REACH_LATERAL = (0.15, 0.3)  # [m] its lateral distance from the stance foot (no crossing)
+TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
+SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to find the ground
+SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
+SHORTEST_SWING = 0.3  # [s] and no sooner than this after lift-off
+MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, once airborne
+ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
+ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
+PUSH_DURATION = 0.1  # [s] a push's impulse is spread over this
 
 
 @dataclass
@@ -70,6 +90,9 @@ class WalkLog:
     feet: np.ndarray  # (n, 2, 3) left, right sole frame positions [m]
     normal_force: np.ndarray  # (n, 2) measured left, right normal forces [N]
     cop_margin: np.ndarray  # (n, 2) measured CoP distance inside each sole [m] (nan unloaded)
+    yaw_moment: np.ndarray  # (n,) measured vertical moment of the ground on the soles [N m]
+    reference_com: np.ndarray  # (n, 2) the plan's CoM when the tick ran (it is re-planned) [m]
+    reference_dcm: np.ndarray  # (n, 2) the plan's DCM when the tick ran [m]
     tick_cpu_us: np.ndarray  # (n,)
     fell: bool
     diverged: str | None
@@ -85,30 +108,76 @@ def _sole_positions(robot, data) -> np.ndarray:
     return np.array([data.oMf[robot.model.getFrameId(f)].translation for f in robot.foot_frames])
 
 
-class Walker:
-    """The tasks, the controller and the contact switching of one walk plan.
+@dataclass
+class StepRecord:
+    """What happened to one step: when its foot left and reached the ground [s], where it
+    was sent (the swing's last target, after step adjustment) and where it landed [m]."""
 
-    ``references(tick)`` sets the task targets and switches the contacts at the plan's
-    lift-offs and touchdowns. With ``nominal_plant`` the controller's model carries its
-    armature and a :class:`JointImpedance` closes the joint loop (as in the humanoid study).
+    side: str
+    lift_off: float
+    touchdown: float | None = None
+    target: np.ndarray | None = None
+    landed: np.ndarray | None = None
+    from_contact: bool = False
+
+
+class Walker:
+    """The tasks, the controller, the contact switching and the balance feedback of a walk.
+
+    ``references(tick, state)`` sets the task targets from the measured ``state`` (a
+    :class:`dmpopt.sim.SimState`) and switches the contacts:
+
+    - release (start of a double support) and lift-off at the plan's times;
+    - touchdown when the simulator reports the swinging sole in contact (after half the
+      swing), early or late: the contact is added at the measured sole position (flat) with
+      a force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
+      moved to the landed foothold (:meth:`WalkPlan.with_goal`). A foot still in the air at
+      the planned touchdown keeps going down at ``SEARCH_SPEED``;
+    - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
+      clipped to the support polygon of the feet in contact, gives the CoM its LIPM
+      acceleration; during each swing the capture-point foothold is recomputed from the
+      measured DCM every ``ADJUST_EVERY`` ticks (once it moves the foothold by
+      ``ADJUST_DEADBAND`` or more), within the reachable box, and the swing
+      DMPs' goal changed online (:meth:`dmpopt.stepper.Stepper.set_goal`). Without it the
+      CoM task tracks the plan's CoM (the open-loop walk).
+
+    With ``nominal_plant`` the controller's model carries its armature and a
+    :class:`JointImpedance` closes the joint loop (as in the humanoid study).
     """
 
-    def __init__(self, robot, q0, plan, swing_dmps, nominal_plant=None):
+    def __init__(
+        self, robot, q0, plan, swing_dmps, nominal_plant=None, feedback=True, arm_swing=None
+    ):
         impedance = None
         if nominal_plant is not None:
             robot = with_armature(robot, nominal_plant)
             impedance = JointImpedance.for_plant(robot, DT, nominal_plant)
         self.robot, self.plan, self.swing_dmps = robot, plan, swing_dmps
-        data = robot.create_data()
-        pin.framesForwardKinematics(robot.model, data, q0)
+        self.feedback = feedback
+        self.omega = 1.0 / plan.time_constant
+        self.data = robot.create_data()  # the measured state's kinematics
+        pin.framesForwardKinematics(robot.model, self.data, q0)
         self.sole_rotation = {
-            f: data.oMf[robot.model.getFrameId(f)].rotation.copy() for f in robot.foot_frames
+            f: self.data.oMf[robot.model.getFrameId(f)].rotation.copy() for f in robot.foot_frames
         }
+        self._ground = {f: self.data.oMf[robot.model.getFrameId(f)].translation[2]
+                        for f in robot.foot_frames}  # fmt: skip
+        self._level = dict(self._ground)  # [m] where each foot last landed
+        self._frame_ids = [robot.model.getFrameId(f) for f in robot.foot_frames]
+        self._com_height = pin.centerOfMass(robot.model, self.data, q0)[2]  # [m] world
+        corners = np.asarray(robot.sole_corners)[:, :2]
+        self._polygon_corners = corners - SUPPORT_MARGIN * np.sign(corners)
         actuated = np.sort(
             np.concatenate([robot.configuration_indices([n]) for n in robot.actuated_joint_names])
         )
         posture = PostureTask(robot, weight=POSTURE_WEIGHT, stiffness=10.0)
         posture.set_reference(q0[actuated])
+        self.posture, self._posture_reference = posture, q0[actuated].copy()
+        self._arm_stepper = None
+        if arm_swing is not None:  # a rhythmic DMP on the elbows, phase-locked to the gait
+            names = list(robot.actuated_joint_names)
+            self._arm_joints = [names.index(j) for j in ARM_SWING_JOINTS]
+            self._arm_stepper = arm_swing.stepper(DT, on_limit_cycle=True)
         self.com_task = ComTask(robot, weight=COM_WEIGHT, stiffness=COM_STIFFNESS)
         base = FrameTask(
             robot, "base_link", weight=BASE_WEIGHT, stiffness=50.0, components="orientation"
@@ -125,49 +194,230 @@ class Walker:
             time_budget=TIME_BUDGET,
             joint_impedance=impedance,
         )
-        self._lift_off = np.round(plan.lift_off / DT).astype(int)  # ticks
-        self._touchdown = np.round(plan.touchdown / DT).astype(int)
-        self._transfer = int(round(DOUBLE_SUPPORT / DT))  # ticks of a double support
+        self._transfer = DOUBLE_SUPPORT  # [s] a double support
         self._next = 0  # the step under way or next
-        self._swing = None  # the swing reference (Trajectory) of the step under way
+        self._released = False  # the next step's foot is being unloaded
+        self._swing = None  # (horizontal, vertical) DMP steppers of the step under way
+        self._reference = plan  # the plan at the lift-off of the step under way
+        self.records: list[StepRecord] = []
+        self.zmp_command = np.zeros(2)  # the last commanded ZMP [m]
+        self._polygon_key, self._polygon = None, None
 
     def _frame(self, step) -> str:
         return f"{step.side}_sole_link"
 
-    def references(self, tick: int) -> None:
-        """Targets at tick ``tick`` (time ``tick * DT``); contact and task switches at the
-        plan's ticks of release (start of a double support), lift-off and touchdown."""
-        plan, controller, steps = self.plan, self.controller, self.plan.footsteps
-        position, velocity, acceleration = plan.com(tick * DT)
-        self.com_task.set_target(position, velocity, acceleration)
+    def _measure(self, state):
+        """CoM [m], CoM velocity [m/s] and sole placements of the measured state."""
+        model, data = self.robot.model, self.data
+        pin.centerOfMass(model, data, state.q_measured, state.v_measured)
+        pin.updateFramePlacements(model, data)
+        return data.com[0], data.vcom[0]
+
+    def references(self, tick: int, state) -> None:
+        """Targets and contact switches at tick ``tick`` (time ``tick * DT``) from the
+        measured ``state``."""
+        t = tick * DT
+        com, com_velocity = self._measure(state)
+        steps = self.plan.footsteps
         i = self._next
-        if i < len(steps) and tick == self._touchdown[i]:
-            step = steps[i]
-            frame = self._frame(step)
-            controller.remove_task(self.swing_tasks[frame])
-            controller.add_contact(frame, pin.SE3(self.sole_rotation[frame], step.goal))
-            self._swing, self._next = None, i + 1
-        i = self._next  # a double support starts at the touchdown before it
-        if i < len(steps) and tick == self._lift_off[i] - self._transfer:
-            # The ramp ends half a tick early, so that the controller drops the contact at
-            # the lift-off tick, when the swing task comes in (no tick with neither).
-            controller.remove_contact(self._frame(steps[i]), max(self._transfer - 0.5, 0.0) * DT)
-        if i < len(steps) and tick == self._lift_off[i]:
-            step = steps[i]
-            self._swing = swing_reference(self.swing_dmps, step.start, step.goal, DT)
-            controller.add_task(self.swing_tasks[self._frame(step)])
         if self._swing is not None:
-            k = tick - self._lift_off[i]
-            task = self.swing_tasks[self._frame(steps[i])]
-            velocity, acceleration = np.zeros(6), np.zeros(6)
-            velocity[:3], acceleration[:3] = self._swing.velocities[k], self._swing.accelerations[k]
-            placement = pin.SE3(self.sole_rotation[task.frame], self._swing.positions[k])
-            task.set_target(placement, velocity, acceleration)
+            self._swinging(i, t, state, com, com_velocity)
+        i = self._next
+        if i < len(steps) and self._swing is None:
+            if not self._released and t >= self.plan.lift_off[i] - self._transfer - DT / 2:
+                # The ramp ends half a tick early, so that the controller drops the contact at
+                # the lift-off tick, when the swing task comes in (no tick with neither).
+                transfer = max(self._transfer - 0.5 * DT, 0.0)
+                self.controller.remove_contact(self._frame(steps[i]), transfer)
+                self._released = True
+            if t >= self.plan.lift_off[i] - DT / 2:
+                self._lift_off(i, t)
+        self._com_targets(t, com, com_velocity)
+        if self._arm_stepper is not None:
+            self._swing_arms()
+
+    def _swing_arms(self) -> None:
+        position, velocity, acceleration = self._arm_stepper.step()
+        reference = self._posture_reference.copy()
+        velocities, accelerations = np.zeros_like(reference), np.zeros_like(reference)
+        reference[self._arm_joints] += position
+        velocities[self._arm_joints], accelerations[self._arm_joints] = velocity, acceleration
+        self.posture.set_reference(reference, velocities, accelerations)
+
+    def _lift_off(self, i: int, t: float) -> None:
+        step = self.plan.footsteps[i]
+        dmps = self.swing_dmps
+        self._swing = tuple(
+            dmp.replace(start=step.start[axes], goal=step.goal[axes]).stepper(DT)
+            for dmp, axes in ((dmps.horizontal, slice(0, 2)), (dmps.vertical, slice(2, 3)))
+        )
+        self._reference, self._lift_tick = self.plan, int(round(t / DT))
+        self._touchdown_target = float(self.plan.touchdown[i])
+        self._airborne = False  # the sole has been seen out of contact in this swing
+        self._swing_tau = dmps.horizontal.tau
+        self._target = step.goal.copy()
+        self.records.append(StepRecord(step.side, t, target=self._target))
+        self.controller.add_task(self.swing_tasks[self._frame(step)])
+        self._set_swing_target(i, first=True)
+
+    def _swinging(self, i, t, state, com, com_velocity) -> None:
+        """One tick of step ``i``'s swing: touchdown from contact, step adjustment, the swing
+        target."""
+        step = self.plan.footsteps[i]
+        frame = self._frame(step)
+        foot = self.robot.foot_frames.index(frame)
+        lift_off = self.plan.lift_off[i]
+        in_contact = state.in_contact.reshape(2, -1)[foot].any()
+        self._airborne |= not in_contact and t - lift_off >= MIN_SWING / 2
+        if self._airborne and in_contact and t - lift_off >= MIN_SWING:
+            self._touchdown(i, t, frame, foot)
+            return
+        if t >= self.plan.touchdown[i] - DT / 2:  # late: the single support goes on
+            self.plan = self.plan.with_touchdown(i, t + DT)
+        if (
+            self.feedback
+            and t < self._touchdown_target - ADJUST_STOP
+            and (int(round(t / DT)) - self._lift_tick) % ADJUST_EVERY == 0
+        ):
+            self._adjust_step(i, t, com, com_velocity)
+        self._set_swing_target(i, late=max(t - self._touchdown_target, 0.0))
+
+    def _adjust_step(self, i, t, com, com_velocity) -> None:
+        """Step adjustment from the measured DCM (:mod:`dmpopt.balance`): the DCM predicted
+        at touchdown with the stance sole's ZMP doing what it can (``recovery_zmp``); if
+        that leaves a large error, the time to touchdown shortened as far as needed to keep
+        the capture-point foothold in reach (the swing DMPs sped up); then that foothold,
+        clipped to the box (their goal)."""
+        reference = self._reference
+        step = reference.footsteps[i]
+        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
+        lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
+        lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
+        upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
+        zmp_reference, dcm_reference = reference.zmp_and_dcm(t)
+        end = reference.dcm(reference.touchdown[i])
+        remaining = self._touchdown_target - t
+        # the ankle first: the ZMP that would cancel the DCM error, as far as the sole allows
+        zmp = balance.recovery_zmp(
+            xi, dcm_reference, zmp_reference, self._support_polygon(), self.omega, remaining
+        )
+        error = balance.predict_dcm(xi, zmp, self.omega, remaining) - end
+        shortened = remaining
+        if np.linalg.norm(error) > TIMING_THRESHOLD:  # pushed: land sooner if out of reach
+            shortest = max(SHORTEST_REMAINING, self.plan.lift_off[i] + SHORTEST_SWING - t)
+            shortened = balance.capture_time(
+                xi, zmp, self.omega, end - step.goal[:2], lower, upper,
+                min(shortest, remaining), remaining,
+            )  # fmt: skip
+        foothold = balance.capture_foothold(
+            xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
+        )
+        faster = shortened < remaining - DT
+        small = np.linalg.norm(foothold - step.goal[:2]) < ADJUST_DEADBAND
+        if small and np.allclose(self._target[:2], step.goal[:2]):
+            return  # a small error: the ZMP feedback alone handles it
+        if np.linalg.norm(foothold - self._target[:2]) < 1e-3 and not faster:
+            return
+        self._target = np.append(foothold, step.goal[2])
+        self.records[-1].target = self._target
+        self._swing[0].set_goal(self._target[:2])
+        if faster:
+            self._swing_tau *= shortened / remaining
+            for stepper in self._swing:
+                stepper.set_tau(self._swing_tau)
+            self._touchdown_target = t + shortened
+        self.plan = reference.with_goal(i, self._target)
+        if self._touchdown_target != reference.touchdown[i]:
+            self.plan = self.plan.with_touchdown(i, self._touchdown_target)
+
+    def _set_swing_target(self, i: int, first: bool = False, late: float = 0.0) -> None:
+        horizontal, vertical = self._swing
+        if first:
+            outputs = [(s.position, s.velocity, s.acceleration) for s in self._swing]
+        else:
+            outputs = [s.step() for s in self._swing]
+        position, velocity, acceleration = (np.concatenate(parts) for parts in zip(*outputs))
+        if late > 0.0:  # feel for the ground: down at SEARCH_SPEED, at most SEARCH_DEPTH
+            position[2] -= min(SEARCH_SPEED * late, SEARCH_DEPTH)
+            velocity[2] = -SEARCH_SPEED if SEARCH_SPEED * late < SEARCH_DEPTH else 0.0
+            acceleration[2] = 0.0
+        task = self.swing_tasks[self._frame(self.plan.footsteps[i])]
+        twist, twist_rate = np.zeros(6), np.zeros(6)
+        twist[:3], twist_rate[:3] = velocity, acceleration
+        task.set_target(pin.SE3(self.sole_rotation[task.frame], position), twist, twist_rate)
+
+    def _touchdown(self, i: int, t: float, frame: str, foot: int) -> None:
+        """The swinging foot reported in contact: its contact comes in (with a force ramp)
+        at the measured placement; the plan shifts to the touchdown time and foothold."""
+        # held where it landed, flat as planned (the measured attitude at the first touch is
+        # the impact's: held, it would keep the sole on an edge)
+        landed = self.data.oMf[self._frame_ids[foot]].translation.copy()
+        placement = pin.SE3(self.sole_rotation[frame], landed)
+        self.controller.remove_task(self.swing_tasks[frame])
+        self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
+        self._level[frame] = landed[2]
+        self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
+        record = self.records[-1]
+        record.touchdown, record.landed, record.from_contact = t, landed, True
+        if self._arm_stepper is not None:  # eq. (21): the arms' oscillator at heel strike
+            self._arm_stepper.reset_phase(heel_strike_phase(foot))
+        self._swing, self._released, self._next = None, False, i + 1
+
+    def _com_targets(self, t: float, com, com_velocity) -> None:
+        """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the
+        plan's CoM (open loop); the height follows the plan above the stance ground."""
+        height = self._com_height + self._ground_offset()
+        self.reference_com = self.plan.com(t)[0][:2]
+        zmp_reference, dcm_reference = self.plan.zmp_and_dcm(t)
+        self.reference_dcm = dcm_reference
+        if not self.feedback:
+            position, velocity, acceleration = self.plan.com(t)
+            position[2] = height
+            self.com_task.set_target(position, velocity, acceleration)
+            return
+        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
+        zmp = balance.dcm_feedback_zmp(xi, dcm_reference, zmp_reference, DCM_GAIN, self.omega)
+        polygon = self._support_polygon()
+        if polygon is not None:
+            zmp = balance.clip_to_polygon(zmp, polygon)
+        self.zmp_command = zmp
+        acceleration = np.append(balance.lipm_acceleration(com[:2], zmp, self.omega), 0.0)
+        position = np.array([com[0], com[1], height])
+        velocity = np.array([com_velocity[0], com_velocity[1], 0.0])
+        self.com_task.set_target(position, velocity, acceleration)
+
+    def _support_polygon(self):
+        """Convex hull of the soles in contact (shrunk by ``SUPPORT_MARGIN``), or None; kept
+        while the contact set is the same (a standing foot does not move)."""
+        active = self.controller.active_contacts
+        if self._polygon_key != active:
+            corners = []
+            for foot, frame in enumerate(self.robot.foot_frames):
+                if frame in active:
+                    placement = self.data.oMf[self._frame_ids[foot]]
+                    local = np.column_stack([self._polygon_corners, np.zeros(4)])
+                    corners.append(
+                        (placement.rotation @ local.T).T[:, :2] + placement.translation[:2]
+                    )
+            self._polygon_key = active
+            self._polygon = balance.convex_hull(np.vstack(corners)) if corners else None
+        return self._polygon
+
+    def _ground_offset(self) -> float:
+        """Height of the ground under the feet in contact relative to the start [m], from
+        where each landed (an unplanned step down or up lowers or raises the CoM with it; a
+        live measurement would feed a rising, unloading foot back into the CoM height)."""
+        heights = [
+            self._level[f] - self._ground[f]
+            for f in self.robot.foot_frames
+            if f in self.controller.active_contacts
+        ]
+        return float(np.mean(heights)) if heights else 0.0
 
 
-def make_simulator(robot, plant=IDEAL):
-    """MuJoCo with the soles (left then right) on the floor and ``plant``'s joints, actuators
-    and sensors."""
+def make_simulator(robot, plant=IDEAL, boxes=()):
+    """MuJoCo with the soles (left then right) on the floor, ``boxes`` on it (see
+    :class:`dmpopt.sim.MujocoSimulator`) and ``plant``'s joints, actuators and sensors."""
     from dmpopt.sim import MujocoSimulator
 
     points = [(f, c) for f in robot.foot_frames for c in robot.sole_corners]
@@ -180,44 +430,62 @@ def make_simulator(robot, plant=IDEAL):
         fall_frame="base_link",
         fall_height=FALL_HEIGHT,
         plant=plant,
+        boxes=boxes,
     )
 
 
-def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray]:
-    """Measured normal force of each foot [N] and its CoP's distance inside the sole [m]."""
+def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray, float]:
+    """Measured normal force of each foot [N], its CoP's distance inside the sole [m], and
+    the vertical moment of the contact forces about each sole frame's origin, summed [N m]."""
     n_corners = len(robot.sole_corners)
     forces = state.contact_forces.reshape(2, n_corners, 3)
     points = state.contact_positions.reshape(2, n_corners, 3)
     normal = forces[:, :, 2].sum(axis=1)
     margin = np.full(2, np.nan)
     corners = np.asarray(robot.sole_corners)
+    yaw = 0.0
     for foot, frame in enumerate(robot.foot_frames):
+        placement = data.oMf[robot.model.getFrameId(frame)]
+        arms = points[foot] - placement.translation
+        yaw += float(np.sum(arms[:, 0] * forces[foot, :, 1] - arms[:, 1] * forces[foot, :, 0]))
         if normal[foot] > 1.0:
             cop = forces[foot, :, 2] @ points[foot] / normal[foot]
-            local = data.oMf[robot.model.getFrameId(frame)].actInv(cop)
+            local = placement.actInv(cop)
             margin[foot] = min(
                 local[0] - corners[:, 0].min(), corners[:, 0].max() - local[0],
                 local[1] - corners[:, 1].min(), corners[:, 1].max() - local[1],
             )  # fmt: skip
-    return normal, margin
+    return normal, margin, yaw
 
 
-def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL):
-    """Run the walk in MuJoCo on ``plant`` for ``duration`` seconds; stop at a fall."""
-    simulator = make_simulator(robot, plant)
+def simulate(
+    robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL, push=None, boxes=()
+):
+    """Run the walk in MuJoCo on ``plant`` (and ``boxes`` on the floor) for ``duration``
+    seconds; stop at a fall. ``push = (step, delay, impulse)``: a world-frame impulse [N s]
+    on the pelvis, spread over ``PUSH_DURATION``, ``delay`` seconds after the lift-off of
+    step ``step`` (a fixed phase of its single support)."""
+    simulator = make_simulator(robot, plant, boxes)
+    pushed = push is None
     state = simulator.reset(q0)
     data = robot.create_data()
     omega = 1.0 / walker.plan.time_constant
     n = int(round(duration / DT))
     com, dcm = np.zeros((n, 3)), np.zeros((n, 2))
+    reference_com, reference_dcm = np.zeros((n, 2)), np.zeros((n, 2))
     feet = np.zeros((n, 2, 3))
-    normal, margin = np.zeros((n, 2)), np.zeros((n, 2))
+    normal, margin, yaw = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n)
     tick = np.zeros(n)
     frames = []
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
-        walker.references(k)
+        records = walker.records
+        if not pushed and len(records) > push[0] and t >= records[push[0]].lift_off + push[1]:
+            simulator.push_impulse("base_link", push[2], duration=PUSH_DURATION)
+            pushed = True
+        walker.references(k, state)
+        reference_com[k], reference_dcm[k] = walker.reference_com, walker.reference_dcm
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3
@@ -225,7 +493,7 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=ID
         dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
         pin.updateFramePlacements(robot.model, data)
         feet[k] = _sole_positions(robot, data)
-        normal[k], margin[k] = _foot_loads(state, robot, data)
+        normal[k], margin[k], yaw[k] = _foot_loads(state, robot, data)
         if record_every and k % record_every == 0:
             frames.append(state.q.copy())
         try:
@@ -237,7 +505,8 @@ def simulate(robot, q0, walker, duration: float, record_every: int = 0, plant=ID
             n = k + 1
             break
     log = WalkLog(
-        np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], tick[:n],
+        np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], yaw[:n],
+        reference_com[:n], reference_dcm[:n], tick[:n],
         fell, diverged,
     )  # fmt: skip
     return log, simulator, frames
@@ -260,20 +529,31 @@ def _sweep_case(case) -> dict:
     plan, swing_dmps = build_plan(robot, q0, quick=True)
     walker = Walker(with_scaled_masses(robot, mass), q0, plan, swing_dmps, talos_realistic(robot))
     log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
-    result = walk_metrics(log, plan, robot, 1.0)
+    result = walk_metrics(log, walker.plan, robot, 1.0, walker.records)
     return {k: result[k] for k in ("steps_taken", "steps_planned", "fell")}
 
 
-def build_plan(robot, q0, quick: bool):
+def build_plan(robot, q0, quick: bool, step_length: float = STEP_LENGTH):
     """Footsteps, the CoM/DCM plan and the swing DMPs from the robot's start posture."""
     data = robot.create_data()
     pin.framesForwardKinematics(robot.model, data, q0)
     com = pin.centerOfMass(robot.model, data, q0)
     left, right = _sole_positions(robot, data)
     n_in_place, n_forward = STEPS["quick" if quick else "full"]
-    steps = footstep_plan(left, right, n_in_place, n_forward, STEP_LENGTH)
-    plan = plan_walk(steps, com, com[2], SINGLE_SUPPORT, DOUBLE_SUPPORT, INITIAL_HOLD, FINAL_HOLD)
-    return plan, fit_swing_dmps(SINGLE_SUPPORT, 2 * STEP_LENGTH, FOOT_LIFT)
+    steps = footstep_plan(left, right, n_in_place, n_forward, step_length)
+    height = com[2] - left[2]  # above the ground the robot stands on
+    plan = plan_walk(steps, com, height, SINGLE_SUPPORT, DOUBLE_SUPPORT, INITIAL_HOLD, FINAL_HOLD)
+    return plan, fit_swing_dmps(SINGLE_SUPPORT, 2 * step_length, FOOT_LIFT)
+
+
+def fit_arm_swing(period: float = 2 * (SINGLE_SUPPORT + DOUBLE_SUPPORT)):
+    """The arm swing as a rhythmic DMP (2 DOFs: the offsets of ``ARM_SWING_JOINTS`` from the
+    posture) fitted to a demonstrated anti-phase sine of ``period`` [s]: at the left heel
+    strike (phase 0) the left elbow is at its mean and moving back, the right forward."""
+    times = np.linspace(0.0, 2 * period, 401)
+    wave = ARM_SWING_AMPLITUDE * np.sin(2 * np.pi * times / period)
+    demo = Trajectory.from_positions(times, np.column_stack([-wave, wave]))
+    return fit_rhythmic(demo, 10, period=period)
 
 
 def _contact_runs(log: WalkLog, plan, foot: int):
@@ -288,24 +568,31 @@ def _contact_runs(log: WalkLog, plan, foot: int):
     ]
 
 
+def _rms(values) -> float:
+    return np.sqrt(np.mean(values**2))
+
+
 def _statistic(function, values, *args) -> float | None:
     return float(function(values, *args)) if values.size else None
 
 
-def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
-    r"""What a reader needs to judge the walk.
+def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
+    r"""What a reader needs to judge the walk (``plan``: the walker's final plan, with the
+    touchdown times and footholds as they happened; ``records``: its :class:`StepRecord`).
 
-    - ``steps_taken``: steps whose sole is within 5 cm of its planned foothold 0.1 s after
-      the planned touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest
-      such distance.
-    - ``steps_in_place``, ``steps_forward``: planned steps of zero and positive length (the
-      last forward one brings the feet side by side).
+    - ``steps_taken``: steps whose sole is within 5 cm (horizontally) of its target 0.1 s
+      after its touchdown (of ``steps_planned``); ``foothold_error_max_mm`` the largest such
+      distance. The target is the swing's last goal (after step adjustment) when
+      ``records`` are given, else the plan's foothold.
+    - ``steps_in_place``, ``steps_forward``: steps that moved their foot less and more than
+      half ``STEP_LENGTH`` (the last forward one brings the feet side by side).
     - ``distance_m``: forward displacement of the measured CoM from start to end.
     - ``tick_us_*``: CPU time of the calling thread per ``compute_torques`` [us], over the
       whole walk and over the single-support ticks (one foot in the air); ``ticks_over_2ms``
       counts the ticks in which the controller built the QP of a new contact set.
     - ``com_error_*``, ``dcm_error_*``: horizontal distance of the measured CoM and DCM
-      (:math:`c + \dot c / \omega`) from the plan [mm].
+      (:math:`c + \dot c / \omega`) from the plan in use at that tick (it is re-planned at
+      each touchdown and step adjustment) [mm].
     - ``foot_slip_max_mm``: largest horizontal drift of a sole while it stands (from 50 ms
       after it is set down until it lifts off).
     - ``stance_normal_force_min_*``, ``stance_cop_margin_min_mm``: the smallest measured
@@ -315,17 +602,18 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
       lift-off until 50 ms before touchdown (0: it does not scuff).
     """
     t = log.times
-    planned_com = plan.com(t)[0]
-    com_error = np.linalg.norm(log.com[:, :2] - planned_com[:, :2], axis=1)
-    dcm_error = np.linalg.norm(log.dcm - plan.dcm(t), axis=1)
+    com_error = np.linalg.norm(log.com[:, :2] - log.reference_com, axis=1)
+    dcm_error = np.linalg.norm(log.dcm - log.reference_dcm, axis=1)
     landed, foothold_errors = 0, []
-    for step, touchdown in zip(plan.footsteps, plan.touchdown):
+    targets = [step.goal for step in plan.footsteps] if records is None else [
+        r.target for r in records
+    ]  # fmt: skip
+    for step, touchdown, target in zip(plan.footsteps, plan.touchdown, targets):
         k = int(round((touchdown + 0.1) / DT))
         if k >= t.size:
             break
-        error = np.linalg.norm(
-            log.feet[k, robot.foot_frames.index(f"{step.side}_sole_link")] - step.goal
-        )
+        foot = log.feet[k, robot.foot_frames.index(f"{step.side}_sole_link")]
+        error = np.linalg.norm((foot - target)[:2])
         foothold_errors.append(error)
         landed += error < 0.05
     slip, stance_force, cop_margin, swing_force = [], [], [], []
@@ -344,12 +632,14 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
         cop_margin.append(np.nanmin(log.cop_margin[a:b, 1 - swing]))
         swing_force.append(log.normal_force[a + 50 : b - 50, swing].max(initial=0.0))
     weight = pin.computeTotalMass(robot.model) * 9.81
-    forward = [s.length for s in plan.footsteps if s.length > 0]
+    # a step "in place" moved less than half a step (its foothold is where it landed)
+    moved = [abs(s.length) >= 0.5 * STEP_LENGTH for s in plan.footsteps]
+    forward = [s.length for s, m in zip(plan.footsteps, moved) if m]
     single = np.array([plan.phase(time)[0] == "single" for time in t])
     return {
         "steps_planned": len(plan.footsteps),
-        "steps_in_place": sum(s.length == 0 for s in plan.footsteps),
-        "steps_forward": sum(s.length > 0 for s in plan.footsteps),
+        "steps_in_place": moved.count(False),
+        "steps_forward": moved.count(True),
         "steps_taken": int(landed),
         "distance_m": float(log.com[-1, 0] - log.com[0, 0]),
         "distance_planned_m": float(plan.com(plan.duration)[0][0] - plan.com(0.0)[0][0]),
@@ -380,6 +670,7 @@ def walk_metrics(log: WalkLog, plan, robot, wall: float) -> dict:
         "stance_normal_force_min_fraction": float(min(stance_force, default=np.nan) / weight),
         "stance_cop_margin_min_mm": 1e3 * float(min(cop_margin, default=np.nan)),
         "swing_foot_normal_force_max_n": float(max(swing_force, default=np.nan)),
+        "yaw_moment_rms_nm": _statistic(_rms, log.yaw_moment[single]),
     }
 
 
@@ -429,6 +720,29 @@ def plot_walk(log: WalkLog, plan, robot, path) -> None:
     plt.close(fig)
 
 
+def _arm_swing_walk(with_arms: bool) -> dict:
+    robot, q0 = _robot_and_start()
+    plan, swing_dmps = build_plan(robot, q0, quick=True)
+    plant = talos_realistic(robot)
+    arms = fit_arm_swing() if with_arms else None
+    walker = Walker(robot, q0, plan, swing_dmps, plant, arm_swing=arms)
+    log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant)
+    return walk_metrics(log, walker.plan, robot, 1.0, walker.records)
+
+
+def arm_swing_effect(runner=None) -> dict:
+    """The quick walk with and without the arm swing (:func:`fit_arm_swing`, phase-locked at
+    each touchdown): the RMS of the vertical ground moment on the soles in single support
+    [N m], and whether each fell."""
+    with_arms, without = map_runs(_arm_swing_walk, [True, False], runner, label="arm swing")
+    return {
+        "yaw_moment_rms_with": with_arms["yaw_moment_rms_nm"],
+        "yaw_moment_rms_without": without["yaw_moment_rms_nm"],
+        "fell_with": with_arms["fell"], "fell_without": without["fell"],
+        "steps_taken_with": with_arms["steps_taken"],
+    }  # fmt: skip
+
+
 def keyframes(animation, path, n: int = 5) -> None:
     """Side by side, ``n`` frames evenly spread over a rendered animation."""
     from PIL import Image
@@ -459,7 +773,8 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     wall = time.perf_counter()
     log, simulator, frames = simulate(robot, q0, walker, plan.duration, record, realistic)
     wall = time.perf_counter() - wall
-    metrics = walk_metrics(log, plan, robot, wall)
+    metrics = walk_metrics(log, walker.plan, robot, wall, walker.records)
+    metrics["touchdown_from_contact"] = all(r.from_contact for r in walker.records)
     stats = walker.controller.stats  # how each tick was answered
     metrics.update(
         qp_answers={
@@ -469,14 +784,23 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     )  # fmt: skip
     metrics["plant"] = realistic.name
     metrics["plant_realistic"] = {k: metrics[k] for k in ("steps_taken", "steps_planned", "fell")}
-    ideal_log, _, _ = simulate(robot, q0, Walker(robot, q0, plan, swing_dmps), plan.duration)
-    ideal = walk_metrics(ideal_log, plan, robot, 1.0)
+    ideal_walker = Walker(robot, q0, plan, swing_dmps)
+    ideal_log, _, _ = simulate(robot, q0, ideal_walker, plan.duration)
+    ideal = walk_metrics(ideal_log, ideal_walker.plan, robot, 1.0, ideal_walker.records)
     metrics["plant_ideal"] = {
         k: ideal[k] for k in ("steps_taken", "steps_planned", "fell", "foothold_error_max_mm")
     }
     metrics["plant_sweep"] = walk_sweep(quick, runner)
+    from .talos_walk_recovery import push_recovery, uneven_ground
+
+    metrics["push_recovery"] = push_recovery(quick, runner)
+    metrics["arm_swing"] = None if quick else arm_swing_effect(runner)
+    if quick:
+        metrics["step_down"] = metrics["step_up"] = None
+    else:
+        metrics.update(uneven_ground(runner))
     plot_sweep(metrics["plant_sweep"], "steps_taken", "steps taken", out / "walk_plant_sweep.png")
-    plot_walk(log, plan, robot, out / "talos_walk.png")
+    plot_walk(log, walker.plan, robot, out / "talos_walk.png")
     metrics["figure"] = "talos_walk.png"
     metrics["video"], metrics["video_skipped"] = None, "quick run" if quick else None
     if frames:

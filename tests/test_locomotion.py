@@ -424,3 +424,50 @@ def test_plan_walk_accepts_zero_double_support_and_names_the_step_index():
     steps = footstep_plan(LEFT, RIGHT, 0, 1, 0.1)
     with pytest.raises(InvalidInputError, match=r"footsteps\[2\] is a str, expected a Footstep"):
         plan_walk([*steps, "step"], COM, 0.87, 0.8, 0.3)
+
+
+# ------------------------------------------------------------------------ re-planning
+# Answer keys: the LIPM's time invariance (a late touchdown only delays what follows, so the
+# shifted plan's ZMP and DCM after it are the original's, delayed) and its translation
+# invariance (moving every foothold from the one after step i on by d moves the ZMP and the
+# DCM by d once the ZMP has left step i's stance foot); the footstep chain itself.
+@settings(max_examples=15, deadline=None)
+@given(step=st.integers(0, 5), delay=st.floats(-0.3, 0.4))
+def test_with_touchdown_delays_everything_after_it(step, delay):
+    plan = walk()
+    shifted = plan.with_touchdown(step, plan.touchdown[step] + delay)
+    assert shifted.touchdown[step] == pytest.approx(plan.touchdown[step] + delay)
+    assert shifted.lift_off[step] == plan.lift_off[step]
+    assert shifted.lift_off[step + 1 :] == pytest.approx(plan.lift_off[step + 1 :] + delay)
+    t = np.linspace(shifted.touchdown[step], shifted.duration, 50)
+    assert shifted.zmp(t) == pytest.approx(plan.zmp(t - delay), abs=1e-12)
+    assert shifted.dcm(t) == pytest.approx(plan.dcm(t - delay), abs=1e-12)
+    # the single support stretched or shortened: the ZMP stays on the stance foot
+    middle = 0.5 * (shifted.lift_off[step] + shifted.touchdown[step])
+    assert shifted.zmp(middle) == pytest.approx(plan.footsteps[step].stance[:2], abs=1e-12)
+
+
+@settings(max_examples=15, deadline=None)
+@given(step=st.integers(0, 4), dx=st.floats(-0.1, 0.1), dy=st.floats(-0.1, 0.1))
+def test_with_goal_translates_the_rest_of_the_walk(step, dx, dy):
+    plan = walk()
+    shift = np.array([dx, dy, 0.0])
+    moved = plan.with_goal(step, plan.footsteps[step].goal + shift)
+    for j, (old, new) in enumerate(zip(plan.footsteps, moved.footsteps)):
+        assert new.goal == pytest.approx(old.goal + (shift if j >= step else 0.0), abs=1e-15)
+    for before, after in zip(moved.footsteps, moved.footsteps[1:]):  # the chain holds
+        assert after.stance == pytest.approx(before.goal, abs=1e-15)
+    t = np.linspace(moved.lift_off[step + 1], moved.duration, 50)
+    assert moved.dcm(t) == pytest.approx(plan.dcm(t) + shift[:2], abs=1e-12)
+    assert moved.zmp(t) == pytest.approx(plan.zmp(t) + shift[:2], abs=1e-12)
+    assert moved.knot_times == pytest.approx(plan.knot_times, abs=0.0)
+
+
+def test_replanning_names_a_bad_step_or_time():
+    plan = walk()
+    with pytest.raises(InvalidInputError, match="^step must be < 6"):
+        plan.with_goal(6, [0.0, 0.0, 0.0])
+    with pytest.raises(InvalidInputError, match="^time must be"):
+        plan.with_touchdown(0, plan.lift_off[0])
+    with pytest.raises(ShapeError, match="^goal has shape"):
+        plan.with_goal(0, [0.0, 0.0])

@@ -582,3 +582,37 @@ def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator():
     assert native.distance > 1.0
     assert abs(on_mujoco.distance / native.distance - 1) < 0.15
     assert abs(len(on_mujoco.strikes) - len(native.strikes)) <= 1
+
+
+def test_boxes_on_the_floor_are_ground_where_they_stand():
+    """A 4 cm box, and a 0.1 rad slope: a vertical ray (MuJoCo's own ray casting) meets the
+    box top at 4 cm and the slope on the plane through the tilted box's top face (written
+    here from its centre and normal); bad boxes are named."""
+    import mujoco
+
+    biped = load_biped()
+    h, pitch = 0.04, 0.1
+    boxes = [((1.0, 0.0, h / 2), (0.2, 0.5, h / 2)), ((3.0, 0.0, 0.05), (0.5, 0.5, 0.01), pitch)]
+    sim = MujocoSimulator(biped.model, BIPED_URDF, contact_points=biped.contact_points,
+                          boxes=boxes)  # fmt: skip
+    geom = np.zeros(1, dtype=np.int32)
+    mujoco.mj_forward(sim.mj_model, sim.mj_data)  # world geometry placed
+
+    def ground(x):  # the ray runs beside the planar biped (y = 0.3)
+        return 5.0 - mujoco.mj_ray(sim.mj_model, sim.mj_data, np.array([x, 0.3, 5.0]),
+                                   np.array([0.0, 0.0, -1.0]), None, 1, -1, geom)  # fmt: skip
+
+    assert ground(1.0) == pytest.approx(h, abs=1e-9)
+    assert ground(2.0) == pytest.approx(0.0, abs=1e-9)
+    # the top face of the tilted box: the plane through (3, 0, 0) + R_y(pitch) (0, 0, 0.01)
+    normal = np.array([np.sin(pitch), 0.0, np.cos(pitch)])
+    top = np.array([3.0, 0.0, 0.05]) + 0.01 * normal
+    x = 3.2
+    expected = top[2] - normal[0] * (x - top[0]) / normal[2]
+    assert ground(x) == pytest.approx(expected, abs=1e-9)
+    with pytest.raises(InvalidInputError, match=r"boxes\[0\] half_sizes must be > 0"):
+        MujocoSimulator(biped.model, BIPED_URDF, contact_points=biped.contact_points,
+                        boxes=[((0, 0, 0), (0.1, 0.0, 0.1))])  # fmt: skip
+    with pytest.raises(InvalidInputError, match=r"boxes\[0\] must be"):
+        MujocoSimulator(biped.model, BIPED_URDF, contact_points=biped.contact_points,
+                        boxes=[((0, 0, 0),)])  # fmt: skip

@@ -251,6 +251,11 @@ class MujocoSimulator(Backend):
         Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s].
     free_bodies : sequence of FreeBox
         Loose boxes in the scene (module docstring, Loose objects); none by default.
+    boxes : sequence of (array_like, array_like[, float])
+        Fixed boxes on the floor, as uneven ground: ``(centre, half_sizes)`` in the world
+        frame [m], shape (3,) each, and optionally a pitch [rad] (rotation about y: a slope
+        along x, descending towards +x when positive). They touch what the floor touches,
+        with the floor's friction.
 
     Attributes
     ----------
@@ -284,6 +289,7 @@ class MujocoSimulator(Backend):
         falls: bool | FallDetector = True,
         max_speed: float = 1e3,
         free_bodies=(),
+        boxes=(),
     ):
         mujoco = _import_mujoco()
         self._mj = mujoco
@@ -318,6 +324,7 @@ class MujocoSimulator(Backend):
         self._check_joints(spec, urdf)
         self._set_joint_dynamics(spec)
         self._add_floor(spec, friction)
+        self._add_boxes(spec, boxes, friction)
         contact_points = _pairs(contact_points)
         self.contact_frames = [name for name, _ in contact_points]
         feet = self._add_feet(spec, contact_points, contact_radius)
@@ -467,6 +474,30 @@ class MujocoSimulator(Backend):
         """Poses of the free bodies: per body position [m] and quaternion ``(w, x, y, z)``,
         shape (7 * n_free_bodies,)."""
         return self.mj_data.qpos[self._free_qpos].copy()
+    def _add_boxes(self, spec, boxes, friction: float) -> None:
+        for k, box in enumerate(boxes):
+            if not isinstance(box, (tuple, list)) or len(box) not in (2, 3):
+                raise InvalidInputError(
+                    f"boxes[{k}] must be (centre, half_sizes) or (centre, half_sizes, pitch), "
+                    f"got {box!r}"
+                )
+            centre = real_array(f"boxes[{k}] centre", box[0], shape=(3,))
+            half = real_array(f"boxes[{k}] half_sizes", box[1], shape=(3,))
+            if (half <= 0).any():
+                raise InvalidInputError(f"boxes[{k}] half_sizes must be > 0 [m], got {half}")
+            pitch = real(f"boxes[{k}] pitch", box[2]) if len(box) == 3 else 0.0
+            spec.worldbody.add_geom(
+                name=f"box_{k}",
+                type=self._mj.mjtGeom.mjGEOM_BOX,
+                pos=centre,
+                size=half,
+                quat=[np.cos(pitch / 2), 0.0, np.sin(pitch / 2), 0.0],
+                rgba=[0.6, 0.62, 0.66, 1.0],
+                friction=[friction, 0.005, 0.0001],
+                condim=3,
+                contype=_FLOOR_BIT,
+                conaffinity=_FLOOR_BIT | _BODY_BIT,
+            )
 
     def _base_joint_names(self) -> list[str]:
         """Names of the MuJoCo joints that stand for the Pinocchio root joint."""

@@ -1,0 +1,206 @@
+"""The Talos walk pushed and on uneven ground (MuJoCo, realistic plant; :mod:`studies.talos_walk`).
+
+- Push recovery: an impulse on the pelvis ``PUSH_DELAY`` after the lift-off of step
+  ``PUSH_STEP`` (the first forward step, the left foot swinging; 30 % into its single
+  support), forward (+x), backward (-x) or lateral (+y, towards the swinging foot), spread
+  over ``PUSH_DURATION``. A run survives if the robot has not fallen ``RECOVERY_TIME`` after
+  the push. The largest survived impulse is found by bisection on ``[0, PUSH_RANGE]`` and
+  reported as a bound ("at least X N s": the largest impulse tried and survived), with the
+  balance feedback (DCM feedback, step adjustment and timing) and without (the CoM tracks
+  the plan). Quick mode: two lateral trials with the feedback.
+- Uneven ground: an unplanned step down (the robot starts on a ``STEP_HEIGHT`` platform whose
+  edge lies between two footholds), step up (a box of that height ahead) and a ``SLOPE``
+  (2 degrees, rising from the same place), with forward
+  steps of ``TERRAIN_STEP_LENGTH``; the footholds' horizontal distance from their adjusted
+  targets.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dmpopt.parallel import Runner, map_runs
+from robots.plants import talos_realistic
+
+from . import talos_walk as walk
+
+PUSH_STEP, PUSH_DELAY = 1, 0.18  # the step and the time after its lift-off [s] of a push
+RECOVERY_TIME = 2.0  # [s] after the push
+PUSH_DIRECTIONS = {"forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0),
+                   "lateral": (0.0, 1.0, 0.0)}  # fmt: skip
+PUSH_RANGE = {"forward": 160.0, "backward": 160.0, "lateral": 80.0}  # [N s] bisection interval
+PUSH_TRIALS = {"quick": 2, "full": 3}  # bisection steps (full: range / 8 resolution)
+QUICK_PUSHES = (20.0, 40.0)  # [N s] the quick mode's two lateral trials
+STEP_HEIGHT = 0.04  # [m] the unplanned step down and up
+TERRAIN_STEP_LENGTH = 0.25  # [m] footholds clear of the edge at x = EDGE
+EDGE = 0.36  # [m] the platform's (step down), the box's (step up) or the slope's edge
+SLOPE = 0.035  # [rad] (2 degrees) the slope, ascending along x
+
+
+def push_trial(case) -> bool:
+    """One pushed walk: ``case = (direction, impulse [N s], feedback)``; True if it survived."""
+    direction, impulse, feedback = case
+    robot, q0 = walk._robot_and_start()
+    plan, swing_dmps = walk.build_plan(robot, q0, quick=True)
+    plant = talos_realistic(robot)
+    walker = walk.Walker(robot, q0, plan, swing_dmps, plant, feedback=feedback)
+    duration = plan.lift_off[PUSH_STEP] + PUSH_DELAY + RECOVERY_TIME
+    push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
+    log, _, _ = walk.simulate(robot, q0, walker, duration, 0, plant, push=push)
+    return not (log.fell or log.diverged)
+
+
+def push_bisection(case) -> dict:
+    """Largest survived impulse of ``case = (direction, feedback, n_trials)`` by bisection on
+    ``[0, PUSH_RANGE]``: ``survived_ns`` (the bound) and ``fell_ns`` (the smallest that fell,
+    None if none did), with every trial."""
+    direction, feedback, n_trials = case
+    low, high, fell, trials = 0.0, PUSH_RANGE[direction], None, []
+    impulse = high / 2
+    for _ in range(n_trials):
+        survived = push_trial((direction, impulse, feedback))
+        trials.append((impulse, survived))
+        if survived:
+            low = impulse
+        else:
+            high = fell = impulse
+        impulse = 0.5 * (low + high)
+    return {"survived_ns": low, "fell_ns": fell, "trials": trials}
+
+
+def push_recovery(quick: bool, runner=None) -> dict:
+    """The push-recovery bounds with and without the feedback (module docstring)."""
+    if quick:
+        cases = [("lateral", impulse, True) for impulse in QUICK_PUSHES]
+        survived = map_runs(push_trial, cases, runner, label="walk pushes")
+        bound = max((i for i, ok in zip(QUICK_PUSHES, survived) if ok), default=0.0)
+        return {
+            "lateral_ns": bound, "forward_ns": None, "backward_ns": None,
+            "without_feedback": {"lateral_ns": None, "forward_ns": None, "backward_ns": None},
+            "trials": {"lateral": list(zip(QUICK_PUSHES, survived))},
+            "quick": True,
+        }  # fmt: skip
+    n = PUSH_TRIALS["full"]
+    cases = [(d, feedback, n) for feedback in (True, False) for d in PUSH_DIRECTIONS]
+    results = map_runs(push_bisection, cases, runner, label="walk push bisection")
+    out = {"without_feedback": {}, "trials": {}}
+    for (direction, feedback, _), result in zip(cases, results):
+        target = out if feedback else out["without_feedback"]
+        target[f"{direction}_ns"] = result["survived_ns"]
+        out["trials"][f"{direction}{'' if feedback else '_without_feedback'}"] = result["trials"]
+    return out
+
+
+def terrain_boxes(kind: str):
+    """MuJoCo boxes of ``kind`` "step_down" (a platform under the start, its edge at EDGE) or
+    "step_up" (a box from EDGE on) or "slope" (rising at SLOPE from EDGE on), and the
+    start's height above the floor [m]."""
+    h = STEP_HEIGHT
+    if kind == "step_down":
+        return [((EDGE / 2 - 1.0, 0.0, h / 2), (1.0 + EDGE / 2, 1.0, h / 2))], h
+    if kind == "step_up":
+        return [((EDGE + 1.5, 0.0, h / 2), (1.5, 1.0, h / 2))], 0.0
+    if kind == "slope":  # a 1 cm thick slab whose top face rises from the floor at EDGE
+        normal = np.array([-np.sin(SLOPE), 0.0, np.cos(SLOPE)])  # pitch -SLOPE: ascending
+        top = np.array([EDGE + np.cos(SLOPE), 0.0, np.sin(SLOPE)])
+        return [(top - 0.01 * normal, (1.0, 1.0, 0.01), -SLOPE)], 0.0
+    raise ValueError(f"kind must be 'step_down', 'step_up' or 'slope', got {kind!r}")
+
+
+def terrain_trial(kind: str) -> dict:
+    """The quick walk over ``kind`` ground, unplanned: ``fell``, the height, and the largest
+    horizontal distance of a landed foot from its adjusted target [mm] (the slope's
+    ``height_m`` is its rise under the last foothold)."""
+    robot, q0 = walk._robot_and_start()
+    boxes, lift = terrain_boxes(kind)
+    q0 = q0.copy()
+    q0[2] += lift
+    plan, swing_dmps = walk.build_plan(robot, q0, quick=True, step_length=TERRAIN_STEP_LENGTH)
+    plant = talos_realistic(robot)
+    walker = walk.Walker(robot, q0, plan, swing_dmps, plant)
+    log, _, _ = walk.simulate(robot, q0, walker, plan.duration, 0, plant, boxes=boxes)
+    errors = [
+        np.linalg.norm(r.landed[:2] - r.target[:2]) for r in walker.records if r.landed is not None
+    ]
+    landed = [r.landed[2] - lift for r in walker.records if r.landed is not None]
+    return {
+        "height_m": STEP_HEIGHT if kind != "slope" else round(float(max(landed, default=0.0)), 4),
+        "fell": bool(log.fell or log.diverged),
+        "steps_landed": len(errors),
+        "steps_planned": len(plan.footsteps),
+        "foothold_error_max_mm": 1e3 * float(max(errors, default=np.nan)),
+        "foothold_heights_mm": [round(1e3 * z, 1) for z in landed],
+        "touchdowns_from_contact": sum(r.from_contact for r in walker.records),
+    }
+
+
+def uneven_ground(runner=None) -> dict:
+    """Step down, step up and slope (module docstring)."""
+    kinds = ["step_down", "step_up", "slope"]
+    return dict(zip(kinds, map_runs(terrain_trial, kinds, runner, label="walk terrain")))
+
+
+def push_video(out_dir, direction: str = "lateral", impulse: float = 40.0) -> dict:
+    """Render the walk pushed by ``impulse`` [N s] ``direction`` with the feedback into
+    ``out_dir/talos_walk_push.webp`` (and five keyframes); the run's outcome and the steps'
+    targets and footholds. Needs an OpenGL context (``MUJOCO_GL=egl``)."""
+    from dmpopt.exceptions import MissingDependency
+    from dmpopt.sim import render_animation
+
+    from .common import output_dir
+
+    out = output_dir(out_dir)
+    robot, q0 = walk._robot_and_start()
+    plan, swing_dmps = walk.build_plan(robot, q0, quick=True)
+    plant = talos_realistic(robot)
+    walker = walk.Walker(robot, q0, plan, swing_dmps, plant)
+    push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
+    record = int(round(1.0 / (2 * walk.VIDEO_FPS * walk.DT)))
+    log, simulator, frames = walk.simulate(robot, q0, walker, plan.duration, record, plant, push)
+    result = {
+        "direction": direction, "impulse_ns": impulse, "fell": bool(log.fell),
+        "targets": [np.round(r.target, 3).tolist() for r in walker.records],
+        "landed": [None if r.landed is None else np.round(r.landed, 3).tolist()
+                   for r in walker.records],
+        "video": None,
+    }  # fmt: skip
+    try:
+        render_animation(simulator, frames, out / "talos_walk_push.webp",
+                         fps=2 * walk.VIDEO_FPS, width=320, height=240, distance=2.5)  # fmt: skip
+        walk.keyframes(out / "talos_walk_push.webp", out / "talos_walk_push_keyframes.png", 6)
+        result["video"] = "talos_walk_push.webp"
+        result["keyframes"] = "talos_walk_push_keyframes.png"
+    except MissingDependency as error:
+        result["video_skipped"] = str(error)
+    return result
+
+
+def main(argv=None) -> None:
+    """``python -m studies.talos_walk_recovery OUT_DIR [--quick]``: pushes and uneven ground."""
+    import argparse
+    import json
+
+    from .common import write_metrics
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir", nargs="?", default="results/talos_walk_recovery")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--only", choices=("push", "terrain", "video", "arms"), default=None)
+    parser.add_argument("--workers", type=int, default=1, help="processes for the runs")
+    args = parser.parse_args(argv)
+    runner = Runner(workers=args.workers)
+    metrics = {}
+    if args.only in (None, "push"):
+        metrics["push_recovery"] = push_recovery(args.quick, runner)
+    if args.only in (None, "terrain"):
+        metrics.update(uneven_ground(runner))
+    if args.only == "arms":  # also part of the study's full run (talos_walk.run_walk)
+        metrics["arm_swing"] = walk.arm_swing_effect(runner)
+    if args.only in (None, "video"):
+        metrics["push_video"] = push_video(args.out_dir)
+    write_metrics(args.out_dir, "talos_walk_recovery", metrics, {}, seed=0, quick=args.quick)
+    print(json.dumps(metrics, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,219 @@
+"""DCM feedback, support-polygon clipping and the capture-point foothold (dmpopt.balance).
+
+Answer keys: the LIPM's DCM dynamics xi' = omega (xi - p) solved in closed form here
+(a constant ZMP: xi(t) = p + (xi0 - p) exp(omega t)) and integrated with a fourth-order
+Runge-Kutta written here; the DCM error of the feedback law, e(t) = e(0) exp(-k t); the nearest
+point of a polygon found by brute force over densely sampled edges.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dmpopt.balance import (
+    capture_foothold,
+    capture_time,
+    clip_to_polygon,
+    convex_hull,
+    dcm,
+    dcm_feedback_zmp,
+    lipm_acceleration,
+    predict_dcm,
+    recovery_zmp,
+)
+from dmpopt.exceptions import InvalidInputError, ShapeError
+
+OMEGA = np.sqrt(9.81 / 0.87)  # [1/s] Talos' CoM height
+coordinate = st.floats(-0.5, 0.5, allow_nan=False)
+
+
+def _rk4(rate, x, dt, n):
+    for _ in range(n):
+        k1 = rate(x)
+        k2 = rate(x + 0.5 * dt * k1)
+        k3 = rate(x + 0.5 * dt * k2)
+        k4 = rate(x + dt * k3)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.tuples(coordinate, coordinate), st.tuples(coordinate, coordinate), st.floats(0.0, 0.8))
+def test_predicted_dcm_solves_the_lipm_about_a_constant_zmp(xi0, p, t):
+    """The closed form against the LIPM's CoM integrated by RK4 (x'' = omega^2 (x - p)), whose
+    DCM x + x'/omega is the prediction; RK4's global error ~ (omega h)^4 / 120 e^{omega t}
+    (h = t / 200 <= 4 ms) stays below 1e-8 m here."""
+    xi0, p = np.array(xi0), np.array(p)
+    x0 = np.zeros(2)
+    v0 = OMEGA * (xi0 - x0)  # a CoM at 0 whose DCM is xi0
+
+    def rate(state):
+        return np.concatenate([state[2:], OMEGA**2 * (state[:2] - p)])
+
+    n = 200
+    end = _rk4(rate, np.concatenate([x0, v0]), t / n, n)
+    expected = end[:2] + end[2:] / OMEGA
+    assert predict_dcm(xi0, p, OMEGA, t) == pytest.approx(expected, abs=1e-7)
+    assert dcm(end[:2], end[2:], OMEGA) == pytest.approx(expected, abs=1e-12)
+    assert lipm_acceleration(end[:2], p, OMEGA) == pytest.approx(rate(end)[2:], abs=1e-12)
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.tuples(coordinate, coordinate), st.floats(0.0, 10.0))
+def test_dcm_feedback_makes_the_error_decay_at_the_gain(error0, gain):
+    """The plan: xi_r(t) = p_r + (xi_r0 - p_r) e^{omega t} about a constant p_r. The plant
+    xi' = omega (xi - p_c) under the feedback, integrated by RK4 with h = 4 ms (global error
+    ~ (k h)^4 / 120 e(0) < 1e-8 m for k <= 10 1/s), must leave e(t) = e(0) e^{-k t}."""
+    p_r, xi_r0 = np.array([0.02, -0.01]), np.array([0.05, 0.03])
+    t_end, n = 0.6, 150
+
+    def reference(t):
+        return p_r + (xi_r0 - p_r) * np.exp(OMEGA * t)
+
+    def rate(state):  # state: xi, t
+        xi, t = state[:2], state[2]
+        zmp = dcm_feedback_zmp(xi, reference(t), p_r, gain, OMEGA)
+        return np.append(OMEGA * (xi - zmp), 1.0)
+
+    start = np.append(xi_r0 + np.array(error0), 0.0)
+    end = _rk4(rate, start, t_end / n, n)
+    expected = np.array(error0) * np.exp(-gain * t_end)
+    assert end[:2] - reference(t_end) == pytest.approx(expected, abs=1e-7)
+
+
+def test_zero_gain_holds_the_error_and_the_zmp_moves_by_it():
+    # p_c = p_r + (1 + 0) e: the ZMP shifts with the error, so xi' - xi_r' = omega (e - e) = 0
+    zmp = dcm_feedback_zmp([0.1, 0.0], [0.0, 0.0], [0.01, 0.02], 0.0, OMEGA)
+    assert zmp == pytest.approx([0.11, 0.02], abs=1e-15)
+
+
+SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+
+
+def _brute_nearest(point, polygon, n=4001):
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    edges = [a + s * (b - a) for a, b in zip(polygon, np.roll(polygon, -1, axis=0))]
+    samples = np.vstack(edges)
+    return samples[np.argmin(np.linalg.norm(samples - point, axis=1))]
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.tuples(st.floats(-2, 3), st.floats(-2, 3)))
+def test_clip_keeps_inner_points_and_projects_outer_ones_to_the_nearest_edge_point(point):
+    """Brute force over edges sampled every 1/4000 of their length: the nearest sample lies
+    within 1/8000 of an edge (x sqrt 2 for the distance) of the exact projection."""
+    point = np.array(point)
+    clipped = clip_to_polygon(point, SQUARE)
+    inside = (0.0 <= point).all() and (point <= 1.0).all()
+    if inside:
+        assert clipped == pytest.approx(point, abs=0.0)
+    else:
+        assert clipped == pytest.approx(_brute_nearest(point, SQUARE), abs=2e-4)
+        # a box: clip. Two edges whose squared distances tie within rounding (eps d^2) may
+        # each win: their points differ by up to sqrt(2 eps) d ~ 1e-7 here (d < 4)
+        assert clipped == pytest.approx(np.clip(point, 0.0, 1.0), abs=1e-7)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(-1, 1), st.floats(-1, 1)), min_size=3, max_size=12))
+def test_convex_hull_contains_every_point_and_its_vertices_are_input_points(points):
+    points = np.array(points)
+    hull = convex_hull(points)
+    if len(hull) < 3:
+        return  # collinear points: a segment or a point
+    for vertex in hull:
+        assert np.isclose(points, vertex).all(axis=1).any()
+    for point in points:  # inside or on the boundary: within rounding of the edge products
+        assert np.linalg.norm(clip_to_polygon(point, hull) - point) < 1e-9
+
+
+def test_two_soles_side_by_side_make_one_hull_of_their_outer_corners():
+    left = np.array([[0.1, 0.15], [-0.1, 0.15], [-0.1, 0.02], [0.1, 0.02]])
+    right = left * [1, -1]
+    hull = convex_hull(np.vstack([left, right]))
+    assert sorted(map(tuple, hull)) == sorted([(0.1, 0.15), (-0.1, 0.15), (-0.1, -0.15),
+                                               (0.1, -0.15)])  # fmt: skip
+    # between the feet, where neither sole is, the ZMP may still be (it is the polygon's)
+    assert clip_to_polygon([0.0, 0.0], hull) == pytest.approx([0.0, 0.0])
+
+
+def test_clip_to_a_segment_and_a_point():
+    segment = np.array([[0.0, 0.0], [1.0, 0.0]])
+    assert clip_to_polygon([0.5, 2.0], segment) == pytest.approx([0.5, 0.0])
+    assert clip_to_polygon([3.0, 1.0], [[0.2, 0.3]]) == pytest.approx([0.2, 0.3])
+
+
+def test_capture_foothold_moves_by_the_predicted_dcm_error_within_the_box():
+    """f = f_r + xi(T) - xi_r(T), xi(T) = p + (xi0 - p) e^{omega T} written here."""
+    xi0, p, remaining = np.array([0.03, 0.02]), np.array([0.0, -0.09]), 0.3
+    end_reference, foothold_reference = np.array([0.12, -0.01]), np.array([0.2, 0.09])
+    xi_end = p + (xi0 - p) * np.exp(OMEGA * remaining)
+    expected = foothold_reference + xi_end - end_reference
+    wide = capture_foothold(xi0, p, OMEGA, remaining, end_reference, foothold_reference,
+                            [-5, -5], [5, 5])  # fmt: skip
+    assert wide == pytest.approx(expected, abs=1e-12)
+    box = capture_foothold(xi0, p, OMEGA, remaining, end_reference, foothold_reference,
+                           [-0.1, 0.15], [0.1, 0.4])  # fmt: skip
+    assert box == pytest.approx(np.clip(expected, [-0.1, 0.15], [0.1, 0.4]), abs=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.05, 0.4), st.floats(-0.3, 0.3), st.floats(0.0, 0.05))
+def test_capture_time_lands_the_foot_on_the_reach_boundary_or_keeps_the_plan(lateral, forward, b):
+    """f(tau) = p + (xi0 - p) e^{omega tau} - b written here: at the time returned f has not
+    run out of the box on the side the DCM diverges to (d = xi0 - p), and lies on that side
+    when the time is strictly between the shortest and the longest."""
+    p, xi0 = np.array([0.0, -0.09]), np.array([forward * 0.3, -0.09 + lateral])
+    offset = np.array([0.02, b])
+    lower, upper = np.array([-0.25, 0.06]), np.array([0.4, 0.31])
+    tau = capture_time(xi0, p, OMEGA, offset, lower, upper, 0.15, 0.5)
+    assert 0.15 <= tau <= 0.5
+    d = xi0 - p
+    foothold = p + d * np.exp(OMEGA * tau) - offset
+    bound = np.where(d > 0, upper, lower)
+    beyond = np.sign(d) * (foothold - bound)  # > 0: out of reach on the diverging side
+    if tau > 0.15:
+        assert (beyond <= 1e-12).all()
+    if 0.15 < tau < 0.5:  # the binding axis touches its bound
+        assert np.max(beyond) == pytest.approx(0.0, abs=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.tuples(coordinate, coordinate), st.floats(0.05, 0.6))
+def test_recovery_zmp_returns_the_dcm_to_the_plan_or_stays_on_the_sole(error, t):
+    """Key: with the ZMP held at p the DCM is p + (xi - p) e^{omega t} (written here), and
+    the plan's, about its constant p_r, p_r + (xi_r - p_r) e^{omega t}: equal when the
+    needed ZMP lies on the sole; otherwise the ZMP is on the sole's edge."""
+    sole = np.array([[-0.1, -0.06], [0.1, -0.06], [0.1, 0.06], [-0.1, 0.06]])
+    p_r, xi_r = np.array([0.0, 0.0]), np.array([0.03, -0.02])
+    xi = xi_r + np.array(error)
+    zmp = recovery_zmp(xi, xi_r, p_r, sole, OMEGA, t)
+    growth = np.exp(OMEGA * t)
+    needed = p_r + (xi - xi_r) * growth / (growth - 1.0)
+    if (np.abs(needed) <= [0.1, 0.06]).all():
+        assert zmp == pytest.approx(needed, abs=1e-12)
+        dcm_at_t = zmp + (xi - zmp) * growth
+        assert dcm_at_t == pytest.approx(p_r + (xi_r - p_r) * growth, abs=1e-9)
+    else:
+        assert zmp == pytest.approx(np.clip(needed, [-0.1, -0.06], [0.1, 0.06]), abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    "call, error, match",
+    [
+        (lambda: dcm([0, 0, 0], [0, 0], OMEGA), ShapeError, "^com has shape"),
+        (lambda: dcm([0, 0], [0, 0], 0.0), InvalidInputError, "^omega"),
+        (lambda: dcm_feedback_zmp([0, 0], [0, 0], [0, 0], -1.0, OMEGA), InvalidInputError,
+         "^gain"),
+        (lambda: predict_dcm([0, 0], [0, 0], OMEGA, -0.1), InvalidInputError, "^t must"),
+        (lambda: clip_to_polygon([0, 0], SQUARE[::-1]), InvalidInputError, "clockwise"),
+        (lambda: clip_to_polygon([0, 0], np.zeros((0, 2))), ShapeError, "^polygon"),
+        (lambda: convex_hull([[0, 0, 0]]), ShapeError, "^points"),
+        (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0, 0], [1, 0], [0, 1]),
+         InvalidInputError, "^lower"),
+    ],
+)  # fmt: skip
+def test_bad_input_names_the_argument(call, error, match):
+    with pytest.raises(error, match=match):
+        call()

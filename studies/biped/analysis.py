@@ -321,3 +321,45 @@ def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
         f"within_{flat:.0%}_of_min_rad_s": [min(near), max(near)],
         "bound": None if edge is None else f"{edge} {best['frequency']:g} rad/s (sweep's edge)",
     }
+
+
+#: Human walking at preferred speed, normalised (dimensionless): step length / leg length and
+#: cadence x sqrt(l / g) for a 0.9 m leg at 0.7 m steps and 1.8 steps/s (Winter 2009, Ch. 1;
+#: Perry & Burnfield 2010, Ch. 1), Froude number v^2 / (g l) (Alexander 1989, about 0.25),
+#: the first peak of the vertical ground force in body weights (Winter 2009: 1.1-1.2) and the
+#: double-support share of the gait cycle (Perry & Burnfield 2010: two periods of about 10 %).
+HUMAN_GAIT = {
+    "step_length_per_leg_length": 0.78,
+    "cadence_froude_normalised": 0.55,
+    "froude_number": 0.25,
+    "impact_force_per_body_weight": 1.15,
+    "double_support_fraction": 0.2,
+}
+
+
+def gait_metrics(log: WalkLog, leg_length: float, mass: float, gravity: float = 9.81) -> dict:
+    """Normalised gait numbers of a walk, beside :data:`HUMAN_GAIT`.
+
+    Over the walk's heel strikes after the first two: step length (distance between the
+    landing points of successive strikes) / ``leg_length``, cadence (steps per second) x
+    sqrt(l / g), Froude number v^2 / (g l) of the mean speed, the mean peak vertical force in
+    the 50 ms after a strike / body weight, the share of time with both feet on the ground and
+    the stance foot's contact losses per step. Empty without three strikes.
+    """
+    strikes = log.strikes[2:]
+    if len(strikes) < 2:
+        return {}
+    times = np.array([t for t, _, _ in strikes])
+    places = np.array([x for _, _, x in strikes])
+    cadence = (len(strikes) - 1) / (times[-1] - times[0])
+    speed = (places[-1] - places[0]) / (times[-1] - times[0])
+    weight = mass * gravity
+    walk = {
+        "step_length_per_leg_length": float(np.mean(np.abs(np.diff(places))) / leg_length),
+        "cadence_froude_normalised": float(cadence * np.sqrt(leg_length / gravity)),
+        "froude_number": float(speed**2 / (gravity * leg_length)),
+        "impact_force_per_body_weight": float(np.mean(log.impact_forces[2:]) / weight),
+        "double_support_fraction": log.double_support_time / (log.duration - log.strikes[0][0]),
+        "stance_contact_losses_per_step": log.contact_losses / len(log.strikes),
+    }
+    return {"walker": walk, "human": HUMAN_GAIT}

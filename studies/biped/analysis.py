@@ -240,65 +240,6 @@ def reset_ablation(survival: dict) -> dict:
     return results
 
 
-def undisturbed_by_arm(
-    biped, dmp, frequency, duration, controller="qp", progress=None, **walk_on
-) -> dict:
-    """One walk of ``duration`` [s] per arm of :data:`ARMS` with no push, nominal masses and
-    flat ground: heel strikes, fall and time of the fall [s] (None without a fall)."""
-    results = {}
-    for name, (reset_phase, adapt) in ARMS.items():
-        log = walk(
-            biped,
-            dmp,
-            duration,
-            frequency,
-            adapt=adapt,
-            reset_phase=reset_phase,
-            controller=controller,
-            disturbance=Disturbance(),
-            **walk_on,
-        )
-        if progress:
-            progress(f"undisturbed walk: {name}")
-        results[name] = {
-            "steps": len(log.strikes),
-            "fell": log.fell,
-            "time_of_fall_s": log.duration if log.fell else None,
-        }
-    return results
-
-
-def fixed_frequency_sweep(
-    biped, dmp, frequencies, duration, controller="qp", progress=None, **walk_on
-) -> list[dict]:
-    """Walk at each fixed frequency (phase resetting on, adaptation off); CoT and step rate."""
-    rows = []
-    for frequency in frequencies:
-        log = walk(
-            biped,
-            dmp,
-            duration,
-            frequency,
-            adapt=False,
-            controller=controller,
-            log_every=10**9,
-            **walk_on,
-        )
-        durations = np.diff([t for t, _, _ in log.strikes])[2:]
-        rows.append(
-            {
-                "frequency": float(frequency),
-                "fell": log.fell,
-                "cost_of_transport": None if log.fell else cost_of_transport(log, biped.mass),
-                "speed_m_per_s": log.distance / log.duration,
-                "measured_frequency": float(np.pi / durations.mean()) if durations.size else None,
-            }
-        )
-        if progress:
-            progress(f"sweep {frequency:.2f} rad/s")
-    return rows
-
-
 def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
     """The cheapest frequency of a sweep and the band of frequencies within ``flat`` of it.
 

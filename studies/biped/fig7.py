@@ -44,6 +44,13 @@ INSENSITIVITY = {
     "target_speed=0.4": {"target_speed": 0.4},
     "target_speed=0.8": {"target_speed": 0.8},
 }
+INSENSITIVITY_FULL = (
+    "posture_stiffness=200",
+    "posture_stiffness=800",
+    "torso_pitch=0.25",
+    "placement_gain=0.2",
+    "target_speed=0.4",
+)
 INSENSITIVITY_QUICK = ("posture_stiffness=800", "placement_gain=0.2")
 #: The paper's joint PD without pitch torque, "modest tuning of the speed and amplitude"
 #: (Sec. 4.3): (stiffness [N m/rad], damping [N m s/rad], start speed [m/s], amplitude).

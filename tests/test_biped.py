@@ -569,3 +569,23 @@ def test_gait_metrics_of_a_regular_walk():
     assert walk["impact_force_per_body_weight"] == pytest.approx(2.0)
     assert walk["double_support_fraction"] == pytest.approx(0.1)
     assert walk["stance_contact_losses_per_step"] == pytest.approx(0.25)
+
+
+def test_verdict_needs_the_frequency_near_a_physical_resonance_estimate():
+    """Scaling and insensitivity of a resonance but 2.5x the nearest estimate: not at the
+    legs' resonance; within 10 % of one: locked. Fallen control walks are listed."""
+    from studies.biped.fig7 import verdict
+
+    base = 10.0
+    gravity = _settled_rows({0.5: base * 0.5**0.5, 1.0: base, 0.25: 1.0}, fell=(0.25,))
+    legs = _settled_rows({f: base * f**-0.5 for f in (0.8, 1.0)})
+    settings = _settled_rows({"a": base * 1.01})
+    starts = _settled_rows({5.0: base})
+    far = verdict(starts, gravity, legs, settings, base, {"leg": 4.0, "cost": None})
+    assert far["outcome"] == "not at the legs' resonance, nor clearly locked to the controller"
+    assert far["ratio_to_nearest_physical_estimate"] == pytest.approx(2.5)
+    assert "2.5x the leg (4.0)" in far["sentence"]
+    assert far["control_walks_fell"] == ["gravity x0.25"]
+    near = verdict(starts, gravity, legs, settings, base, {"leg": 9.5, "cost": 20.0})
+    assert near["outcome"] == "locked to the legs' resonance"
+    assert near["nearest_physical_estimate"] == "leg"

@@ -332,7 +332,6 @@ def run(
     gravity = {1.0: baseline_row, **rows("gravity")}
     legs = {1.0: baseline_row, **rows("legs")}
     settings = rows("setting")
-    verdict = fig7.verdict(starts, gravity, legs, settings, baseline)
 
     sweep = [
         fig7.sweep_row(key[1], log, biped.mass) for key, log in logs.items() if key[0] == "sweep"
@@ -346,6 +345,11 @@ def run(
         "swing leg, QP-loaded": swing["qp_controller"][0],
         "min CoT sweep": minimum["min_cost_of_transport_frequency"],
     }
+    physical = {
+        "passive swing leg": resonance["swing leg, passive"],
+        "least cost of transport": resonance["min CoT sweep"],
+    }
+    verdict = fig7.verdict(starts, gravity, legs, settings, baseline, physical)
     pd_rows = [_pd_row(key[1], log) for key, log in logs.items() if key[0] == "pd"]
 
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)

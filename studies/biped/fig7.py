@@ -65,6 +65,7 @@ PD_ATTEMPTS = (
 PD_ATTEMPTS_QUICK = PD_ATTEMPTS[:1]
 # thresholds of the verdict
 SCALING_TOLERANCE = 0.15  # |exponent - expected| for "scales as sqrt(g / l)"
+NEAR_RESONANCE = 0.1  # relative distance to a physical resonance estimate that counts as "at it"
 INSENSITIVE = 0.05  # relative change of the settled frequency that counts as "barely moves"
 SENSITIVE = 0.10  # relative change that counts as "moves with the controller"
 
@@ -113,14 +114,22 @@ def scaling_exponent(by_factor: dict) -> float | None:
 
 
 def verdict(
-    by_start: dict, gravity: dict, legs: dict, insensitivity: dict, baseline: float
+    by_start: dict,
+    gravity: dict,
+    legs: dict,
+    insensitivity: dict,
+    baseline: float,
+    physical_estimates: dict | None = None,
 ) -> dict:
     """The claim's verdict from the walks, with the numbers it rests on.
 
-    Resonance-locked: the settled frequency scales as :math:`g^{1/2}` and :math:`l^{-1/2}`
-    (exponents within ``SCALING_TOLERANCE``) and no controller setting moves it by more than
-    ``INSENSITIVE``. A fixed point of the controller: the gravity exponent is nearer 0 than
-    1/2, or a controller setting moves it by more than ``SENSITIVE``. Otherwise undecided.
+    Resonance-locked: the settled frequency is within ``NEAR_RESONANCE`` of one of the legs'
+    ``physical_estimates`` (name -> rad/s: the passive swing leg, the least cost of
+    transport; None entries ignored; no estimates: not required), scales as :math:`g^{1/2}`
+    and :math:`l^{-1/2}` (exponents within ``SCALING_TOLERANCE``) and no controller setting
+    moves it by more than ``INSENSITIVE``. A fixed point of the controller: the gravity
+    exponent is nearer 0 than 1/2, or a setting moves it by more than ``SENSITIVE``.
+    Otherwise undecided. Walks that fell count in none of these.
     """
     exponent_g, exponent_l = scaling_exponent(gravity), scaling_exponent(legs)
     changes = {
@@ -131,8 +140,13 @@ def verdict(
     largest = max((abs(c) for c in changes.values()), default=None)
     starts = [row["frequency_settled"] for row in by_start.values() if not row["fell"]]
     spread = max(starts) - min(starts) if starts else None
+    estimates = {k: v for k, v in (physical_estimates or {}).items() if v is not None}
+    nearest = min(estimates, key=lambda k: abs(np.log(baseline / estimates[k])), default=None)
+    ratio = None if nearest is None else baseline / estimates[nearest]
+    near = ratio is None or abs(ratio - 1.0) <= NEAR_RESONANCE
     resonant = (
-        exponent_g is not None
+        near
+        and exponent_g is not None
         and exponent_l is not None
         and abs(exponent_g - 0.5) <= SCALING_TOLERANCE
         and abs(exponent_l + 0.5) <= SCALING_TOLERANCE
@@ -146,17 +160,20 @@ def verdict(
         outcome = "locked to the legs' resonance"
     elif controller:
         outcome = "a fixed point of the controller, not of the legs"
+    elif not near:
+        outcome = "not at the legs' resonance, nor clearly locked to the controller"
     else:
         outcome = "undecided"
 
     def number(value, fmt):
         return "n/a" if value is None else format(value, fmt)
 
+    where = "" if nearest is None else f", {ratio:.1f}x the {nearest} ({estimates[nearest]:.1f})"
     sentence = (
         f"eq. (21) settles at {baseline:.1f} rad/s (starts spread {number(spread, '.1f')} "
-        f"rad/s); it scales as g^{number(exponent_g, '.2f')} and l^{number(exponent_l, '.2f')} "
-        f"(resonance: g^0.5, l^-0.5) and controller settings move it by up to "
-        f"{number(largest, '.0%')}: {outcome}"
+        f"rad/s){where}; it scales as g^{number(exponent_g, '.2f')} and "
+        f"l^{number(exponent_l, '.2f')} (resonance: g^0.5, l^-0.5) and controller settings "
+        f"move it by up to {number(largest, '.0%')}: {outcome}"
     )
     return {
         "outcome": outcome,
@@ -166,6 +183,15 @@ def verdict(
         "insensitivity_relative_change": changes,
         "largest_relative_change": largest,
         "starts_spread_rad_s": spread,
+        "nearest_physical_estimate": nearest,
+        "ratio_to_nearest_physical_estimate": ratio,
+        "control_walks_fell": [
+            f"{kind} x{factor:g}"
+            for kind, rows in (("gravity", gravity), ("leg length", legs))
+            for factor, row in rows.items()
+            if row["fell"]
+        ]
+        + [name for name, row in insensitivity.items() if row["fell"]],
     }
 
 

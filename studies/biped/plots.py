@@ -205,6 +205,7 @@ def controls_figure(path, baseline, gravity, legs, insensitivity) -> None:
     values = [insensitivity[n]["frequency_settled"] for n in names]
     colours = ["C3" if insensitivity[n]["fell"] else "C0" for n in names]
     ax_set.barh(names, values, color=colours, alpha=0.8)
+    ax_set.set_xlim(0.8 * min(values + [baseline]), 1.1 * max(values + [baseline]))
     ax_set.axvline(baseline, color="k", lw=1, label=f"baseline {baseline:.2f}")
     ax_set.axvspan(0.95 * baseline, 1.05 * baseline, color="g", alpha=0.15, label="within 5 %")
     ax_set.set_xlabel(r"settled $\omega$ [rad/s] (red: fell)")

@@ -33,10 +33,12 @@ mechanical cost of transport of a fixed-frequency sweep; and the sceptic's contr
 torso lean, foot-placement gain and target speed; a resonance-locked frequency barely moves).
 ``fig7.verdict`` is computed from them (:func:`studies.biped.fig7.verdict`).
 
-Phase resetting's effect on robustness (``reset_robustness``) is measured apart from "can it
-walk": the trials start at a frequency where every arm (resetting on and off, adaptation on
-and off, :data:`studies.biped.analysis.ARMS`) walks undisturbed (the candidate nearest the
-settled frequency), on the same seeded randomised disturbances (push, masses, slope), with
+Phase resetting's effect on robustness (``reset_robustness``) is meant apart from "can it
+walk": the trials start at the candidate frequency nearest the settled one at which every arm
+(resetting on and off, adaptation on and off, :data:`studies.biped.analysis.ARMS`) walks
+undisturbed, or, where no candidate has that, the one where most arms walk
+(``all_arms_walk_undisturbed`` then says False and the summary calls the comparison
+undecided); the same seeded randomised disturbances (push, masses, slope) for every arm, with
 Wilson intervals and a paired McNemar test. ``gait`` puts the long walk's step length,
 cadence, Froude number, impact force and double support beside human values.
 

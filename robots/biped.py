@@ -31,6 +31,7 @@ __all__ = [
     "leg_length",
     "leg_lengths",
     "load_biped",
+    "scaled_legs_urdf",
     "swing_leg_natural_frequency",
 ]
 
@@ -141,13 +142,64 @@ def swing_leg_natural_frequency(
     return float(np.sqrt(mass * gravity * np.linalg.norm(com) / inertia))
 
 
-def load_biped(urdf_path: str | Path = BIPED_URDF) -> RobotModel:
+LEG_LINKS = ("right_thigh", "right_shank", "left_thigh", "left_shank")
+LEG_JOINTS = ("right_knee", "right_ankle_fixed", "left_knee", "left_ankle_fixed")
+
+
+def scaled_legs_urdf(factor: float, path: str | Path) -> Path:
+    r"""Write a copy of ``biped.urdf`` whose legs are ``factor`` times as long; return its path.
+
+    Every length of the thighs and shanks (knee and foot offsets, centre-of-mass positions)
+    is multiplied by ``factor`` and their inertias about the centre of mass by
+    ``factor ** 2``; masses and the torso are unchanged. A leg swinging as a compound
+    pendulum then has :math:`m g d \propto f` and :math:`I \propto f^2`, so its natural
+    frequency :math:`\sqrt{m g d / I}` scales as :math:`1 / \sqrt{f}`.
+
+    Parameters
+    ----------
+    factor : float
+        Leg-length factor, > 0.
+    path : str or Path
+        Where to write the URDF (its folder must exist).
+    """
+    import xml.etree.ElementTree as ElementTree
+
+    if isinstance(factor, bool) or not isinstance(factor, (int, float, np.floating)):
+        raise InvalidInputError(f"factor must be a positive number, got {factor!r}")
+    if not (np.isfinite(factor) and factor > 0):
+        raise InvalidInputError(f"factor must be a positive finite number, got {factor!r}")
+    tree = ElementTree.parse(BIPED_URDF)
+    root = tree.getroot()
+
+    def scale_xyz(origin) -> None:
+        xyz = np.array(origin.get("xyz").split(), dtype=float) * factor
+        origin.set("xyz", " ".join(f"{value:.9g}" for value in xyz))
+
+    for link in root.iter("link"):
+        if link.get("name") in LEG_LINKS:
+            inertial = link.find("inertial")
+            scale_xyz(inertial.find("origin"))
+            inertia = inertial.find("inertia")
+            for key, value in inertia.attrib.items():
+                inertia.set(key, f"{float(value) * factor**2:.9g}")
+    for joint in root.iter("joint"):
+        if joint.get("name") in LEG_JOINTS:
+            scale_xyz(joint.find("origin"))
+    path = Path(path)
+    tree.write(path, xml_declaration=True, encoding="utf-8")
+    return path
+
+
+def load_biped(urdf_path: str | Path = BIPED_URDF, gravity: float = 9.81) -> RobotModel:
     """Build the planar biped from its URDF with an (x, z, pitch) floating base.
 
     Parameters
     ----------
     urdf_path : str or Path
-        Defaults to the packaged ``robots/biped.urdf``.
+        Defaults to the packaged ``robots/biped.urdf`` (:func:`scaled_legs_urdf` writes
+        leg-scaled copies).
+    gravity : float
+        Magnitude of the model's gravity, along -z [m/s^2].
 
     Returns
     -------
@@ -174,4 +226,9 @@ def load_biped(urdf_path: str | Path = BIPED_URDF) -> RobotModel:
         name="planar_biped",
     )
     robot.model.name = "dmpopt_planar_biped"
+    if isinstance(gravity, bool) or not isinstance(gravity, (int, float, np.floating)):
+        raise InvalidInputError(f"gravity must be a positive number [m/s^2], got {gravity!r}")
+    if not (np.isfinite(gravity) and gravity > 0):
+        raise InvalidInputError(f"gravity must be positive and finite [m/s^2], got {gravity!r}")
+    robot.model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
     return robot

@@ -315,26 +315,29 @@ def quick(quick_run):
     return quick_run[1]
 
 
-def test_quick_study_walks_through_the_qp_without_pitch_torque(quick):
-    """Headline of the quick run: the QP walker, no boom pitch torque, 10 s without a fall;
-    the PD baseline without the boom's pitch spring falls, with it walks."""
-    assert quick["controller"] == "qp_inverse_dynamics"
-    assert quick["boom_pitch_stiffness_N_m_per_rad"] == 0
-    assert quick["fell"] is False and quick["steps_walked"] >= 15
-    assert quick["pd_baseline"]["boom_pitch_0"]["fell"] is True
-    assert quick["pd_baseline"]["boom_pitch_500"]["fell"] is False
+def test_quick_study_walks_through_the_qp_and_records_why_not_pd(quick):
+    """Fig. 7's walks use the QP without pitch torque because the paper's PD without it falls:
+    the quick run's QP walk does not fall, its PD attempt does."""
+    fig7 = quick["fig7"]
+    assert fig7["controller"] == "qp" and quick["boom_pitch_stiffness_N_m_per_rad"] == 0
+    assert quick["main_walk"]["fell"] is False and quick["main_walk"]["steps_walked"] >= 4
+    (attempt,) = fig7["pd_without_pitch_torque"]
+    assert attempt["fell"] is True and attempt["simulated_s"] < 1.5
+    assert "every attempt" in fig7["why_not_pd"]
 
 
-def test_quick_study_frequencies_converge_from_below_and_above(quick):
-    """From 12 (below) and 13.5 rad/s (above) eq. (21) ends within 5 % in 8 s; from 5 and 8
-    rad/s it has climbed at least half-way towards them; no start falls."""
-    finals = {float(k): v for k, v in quick["frequency_final_by_start"].items()}
-    assert len(finals) >= 4
-    assert not any(quick["fell_by_start"].values())
-    assert abs(finals[12.0] / finals[13.5] - 1) < 0.05
-    target = 0.5 * (finals[12.0] + finals[13.5])
-    for start in (5.0, 8.0):
-        assert finals[start] - start > 0.5 * (target - start)
+def test_quick_study_reports_fig7_with_its_controls(quick):
+    """The issue's keys: four starts, the four resonance estimates, gravity and leg-length
+    scaling (factor 1 is the walk from 12 rad/s), settings beside the baseline, a verdict."""
+    fig7 = quick["fig7"]
+    assert set(fig7["frequency_final_by_start"]) == {"5", "8", "12", "13.5"}
+    assert len(fig7["resonance_estimates_rad_s"]) == 4
+    baseline = fig7["frequency_settled_by_start"]["12"]
+    assert fig7["gravity_scaling"]["1"] == fig7["leg_length_scaling"]["1"] == baseline
+    assert set(fig7["gravity_scaling"]) == {"1", "0.5"}
+    assert set(fig7["leg_length_scaling"]) == {"1", "1.25"}
+    assert fig7["insensitivity"]["baseline"] == baseline and len(fig7["insensitivity"]) == 3
+    assert fig7["verdict"].startswith("eq. (21) settles at")
 
 
 def test_quick_study_swing_leg_under_qp_is_near_sqrt_of_posture_stiffness(quick):
@@ -342,36 +345,29 @@ def test_quick_study_swing_leg_under_qp_is_near_sqrt_of_posture_stiffness(quick)
     the coupling through the torso task and the held hip (both modes within 20 %)."""
     from studies.biped.walker import QP_GAINS
 
-    swing = quick["resonance_estimate_rad_s"]["swing_leg_linearised"]
+    swing = quick["fig7"]["closed_loop_leg_frequencies_rad_s"]
     assert np.asarray(swing["qp_controller"]) == pytest.approx(
         np.sqrt(QP_GAINS.posture_stiffness), rel=0.2
     )
 
 
-def test_quick_study_reports_survival_per_arm(quick):
-    survival = quick["push_survival_rate"]
-    assert set(survival) == {"reset_and_adapt", "adapt_only", "reset_only", "neither"}
-    for arm in survival.values():
-        assert arm["n"] == 3 and arm["rate"] == arm["survived"] / 3
+def test_quick_study_reports_survival_per_arm_from_a_checked_start(quick):
+    """Each arm's survival with its Wilson interval; the trials' start is one of the
+    candidates, each of which records whether every arm walked undisturbed."""
+    robustness = quick["reset_robustness"]
+    assert set(robustness["arms"]) == {"reset_and_adapt", "adapt_only", "reset_only", "neither"}
+    for arm in robustness["arms"].values():
+        assert arm["n"] == 1 and arm["rate"] == arm["survived"]
         assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
+    candidates = robustness["candidates_walk_undisturbed"]
+    walking = candidates[f"{robustness['start_frequency_rad_s']:g}"]
+    assert robustness["all_arms_walk_undisturbed"] == all(walking.values())
     assert quick["videos"] == [] and quick["videos_skipped"] == "quick run"
 
 
-def test_quick_study_reports_the_undisturbed_walk_of_each_arm(quick):
-    """Undisturbed, 5 s (the longest trial): the arm with resetting and adaptation walks at
-    least 10 steps (about pi / omega = 0.3 s each) without a fall; a fall has its time."""
-    undisturbed = quick["undisturbed_by_arm"]
-    assert set(undisturbed) == {"reset_and_adapt", "adapt_only", "reset_only", "neither"}
-    assert undisturbed["reset_and_adapt"]["fell"] is False
-    assert undisturbed["reset_and_adapt"]["steps"] >= 10
-    for arm in undisturbed.values():
-        assert (arm["time_of_fall_s"] is None) == (not arm["fell"])
-        assert arm["fell"] is False or 0 < arm["time_of_fall_s"] < 5.0
-
-
 def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypatch):
-    """Real QP walks of one trial per arm (pushed, masses, slope) and the undisturbed walks:
-    the oscillator's phase is reset at heel strikes in the arms with resetting, never in
+    """Real QP walks of one trial per arm (pushed, masses, slope): the oscillator's phase is
+    reset at heel strikes in the arms with resetting, never in
     ``adapt_only`` and ``neither``. Counts Stepper.reset_phase calls, below every switch on
     the way to it."""
     from dmpopt.stepper import Stepper
@@ -399,33 +395,33 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
     rule = analysis.Survival(after=1.0, window=0.5)
     assert list(analysis.ARMS) == ["reset_and_adapt", "adapt_only", "reset_only", "neither"]
     analysis.survival_by_arm(biped, dmp, 8.0, [push], rule=rule, **qp)
-    analysis.undisturbed_by_arm(biped, dmp, 8.0, 1.3, **qp)
-    assert calls[1] == calls[3] == calls[5] == calls[7] == 0
-    assert min(calls[0], calls[2], calls[4], calls[6]) >= 1
+    assert calls[1] == calls[3] == 0
+    assert min(calls[0], calls[2]) >= 1
 
 
 def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run):
-    """Four rows with every column, their numbers formatted from the metrics; a caption for
-    each figure written, the plant sweep's among them (the quick run writes no video)."""
+    """Five rows with every column, their numbers formatted from the metrics; a caption for
+    each figure written (the quick run writes no plant sweep and no video)."""
     from studies.report import COLUMNS
 
     folder, quick = quick_run
     figures = {path.stem for path in folder.glob("*.png")}
-    assert len(figures) == 5 and figures <= set(quick["captions"])
-    rows = quick["summary"]
-    assert len(rows) == 4 and all(set(row) == set(COLUMNS) for row in rows)
-    walk = quick["main_walk"]
-    assert f"{walk['steps_walked']} steps in 10 s" in rows[0]["dmpopt"]
-    assert rows[0]["verdict"] == "reproduced"
-    on = quick["phase_reset_ablation"]["adaptation_on"]
-    assert f"McNemar p = {on['mcnemar_p']:.2g}" in rows[3]["dmpopt"]
-    assert set(quick["captions"]) >= {
+    assert figures == {
         "biped_frequency",
+        "biped_controls",
         "biped_survival",
         "biped_joints",
         "biped_stick_figure",
     }
-    assert "heel strike" in quick["captions"]["biped_joints"]
+    assert figures <= set(quick["captions"])
+    rows = quick["summary"]
+    assert len(rows) == 5 and all(set(row) == set(COLUMNS) for row in rows)
+    walk = quick["main_walk"]
+    assert f"{walk['steps_walked']} steps in 3 s" in rows[0]["dmpopt"]
+    assert rows[2]["dmpopt"] == quick["fig7"]["verdict"]
+    on = quick["reset_robustness"]["phase_reset_ablation"]["adaptation_on"]
+    assert f"McNemar p = {on['mcnemar_p']:.2g}" in rows[3]["dmpopt"]
+    assert quick["fig7"]["verdict"] in quick["captions"]["biped_controls"]
 
 
 @pytest.mark.parametrize(
@@ -445,24 +441,151 @@ def test_convergence_verdict_needs_every_start_settled_and_within_5_percent(
 ):
     from studies.biped.summary import _convergence_row
 
-    values = list(converged.values())
-    metrics = {
-        "frequency_converged_by_start": converged,
-        "frequency_converged_spread_rad_s": max(values) - min(values),
-        "steps_to_2pct_by_start": steps,
-    }
+    metrics = {"fig7": {"frequency_settled_by_start": converged}, "steps_to_2pct_by_start": steps}
     row = _convergence_row(metrics)
     assert row["verdict"] == verdict
     assert " / ".join(str(n) for n in steps.values()) in row["dmpopt"]
 
 
-def test_quick_study_walks_on_the_realistic_plant(quick):
-    """The main QP walk runs on the realistic plant (docs/plant.md) and walks its 10 s; the
-    ideal plant's walk is beside it, and the plant sweep records steps and falls per value."""
-    real, ideal = quick["plant_realistic"], quick["plant_ideal"]
-    assert real["parameters"]["name"] == "biped_realistic" and real["parameters"]["delay_ticks"]
-    assert real["fell"] is False and real["steps_walked"] == quick["steps_walked"] >= 15
-    assert ideal["fell"] is False and ideal["steps_walked"] >= 15
-    (case,) = quick["plant_sweep"]["armature"]
-    assert case["value"] == 3.0 and set(case) == {"value", "steps", "fell", "simulated_s"}
-    assert quick["frequency_by_start_plant"] == quick["trials_plant"] == "ideal"
+@pytest.mark.parametrize("factor", [0.8, 1.25, 2.0])
+def test_scaled_legs_swing_as_a_pendulum_one_over_sqrt_factor(factor, tmp_path):
+    """The straight leg is a compound pendulum about the hip, from the URDF's numbers: thigh
+    1 kg at 0.13 m with 0.00939 kg m^2 about its centre, shank 0.5 kg at 0.43 m with
+    0.0041 kg m^2; every length x f and every inertia x f^2 gives omega = sqrt(g S / J) with
+    S = sum m d f and J = sum (I + m d^2) f^2, so omega(f) = omega(1) / sqrt(f). Masses stay."""
+    path = biped_model.scaled_legs_urdf(factor, tmp_path / "legs.urdf")
+    scaled = biped_model.load_biped(path)
+    masses, levers, inertias = np.array([1.0, 0.5]), np.array([0.13, 0.43]), [0.00939, 0.0041]
+    moment = (masses * levers).sum() * factor
+    inertia = (np.array(inertias) + masses * levers**2).sum() * factor**2
+    assert biped_model.swing_leg_natural_frequency(scaled) == pytest.approx(
+        np.sqrt(GRAVITY * moment / inertia), rel=1e-6
+    )
+    assert biped_model.leg_length(scaled) == pytest.approx(0.6 * factor)
+    assert scaled.mass == pytest.approx(7.0)
+
+
+def test_scaled_legs_and_gravity_refuse_bad_values(tmp_path):
+    from dmpopt.exceptions import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="factor must be a positive"):
+        biped_model.scaled_legs_urdf(0.0, tmp_path / "legs.urdf")
+    with pytest.raises(InvalidInputError, match="gravity must be positive"):
+        biped_model.load_biped(gravity=-9.81)
+
+
+def test_passive_swing_leg_under_half_gravity_is_sqrt_2_slower():
+    """A passive pendulum's omega = sqrt(m g d / I): half the gravity, omega / sqrt(2). The
+    model's gravity is what the linearisation sees."""
+    from dmpopt.walking import closed_loop_frequencies
+
+    def passive(robot):
+        q = biped_model.configuration(robot, 0.0, 0.6, 0.0, [0.0, 0.0, 0.0, 0.0])
+        swing = robot.velocity_indices("gait")[:1]  # right hip, knee held straight
+        return closed_loop_frequencies(robot.model, q, swing, lambda q, v: np.zeros(1))[0]
+
+    full, half = biped_model.load_biped(), biped_model.load_biped(gravity=GRAVITY / 2)
+    assert passive(half) == pytest.approx(passive(full) / np.sqrt(2), rel=1e-6)
+
+
+def test_simulators_take_the_models_gravity_and_a_scaled_fall_height(tmp_path):
+    """MuJoCo simulates the model's gravity; the fall height scales with the leg length."""
+    from studies.biped.walker import FALL_HEIGHT, make_simulator
+
+    path = biped_model.scaled_legs_urdf(1.5, tmp_path / "legs.urdf")
+    robot = biped_model.load_biped(path, gravity=4.0)
+    sim = make_simulator(robot, "mujoco", urdf=path)
+    assert sim.mj_model.opt.gravity == pytest.approx([0.0, 0.0, -4.0])
+    assert sim.fall_detector.min_height == pytest.approx(1.5 * FALL_HEIGHT)
+
+
+def _settled_rows(values, fell=()):
+    return {k: {"frequency_settled": v, "fell": k in fell} for k, v in values.items()}
+
+
+def test_scaling_exponent_is_the_slope_of_a_power_law_over_walks_that_did_not_fall():
+    from studies.biped.fig7 import scaling_exponent
+
+    rows = _settled_rows({f: 7.0 * f**0.5 for f in (0.5, 0.75, 1.0)})
+    assert scaling_exponent(rows) == pytest.approx(0.5, abs=1e-12)
+    rows[2.0] = {"frequency_settled": 100.0, "fell": True}
+    assert scaling_exponent(rows) == pytest.approx(0.5, abs=1e-12)
+    assert scaling_exponent(_settled_rows({1.0: 7.0, 0.5: 3.0}, fell=(0.5,))) is None
+
+
+@pytest.mark.parametrize(
+    "gravity_exponent, leg_exponent, change, outcome",
+    [
+        (0.5, -0.5, 0.01, "locked to the legs' resonance"),
+        (0.45, -0.6, 0.04, "locked to the legs' resonance"),
+        (0.1, -0.1, 0.01, "a fixed point of the controller, not of the legs"),
+        (0.5, -0.5, 0.15, "a fixed point of the controller, not of the legs"),
+        (0.3, -0.5, 0.07, "undecided"),
+    ],
+)
+def test_verdict_follows_the_scaling_exponents_and_the_largest_setting_change(
+    gravity_exponent, leg_exponent, change, outcome
+):
+    """Resonance: g^(1/2), l^(-1/2) within 0.15 and settings within 5 %; controller: gravity
+    exponent nearer 0 than 1/2 or a setting moving it over 10 %; otherwise undecided."""
+    from studies.biped.fig7 import verdict
+
+    base = 10.0
+    gravity = _settled_rows({f: base * f**gravity_exponent for f in (0.5, 1.0)})
+    legs = _settled_rows({f: base * f**leg_exponent for f in (0.8, 1.0)})
+    settings = _settled_rows({"a": base * (1 + change), "b": base})
+    starts = _settled_rows({5.0: base, 12.0: base * 1.01})
+    result = verdict(starts, gravity, legs, settings, base)
+    assert result["outcome"] == outcome
+    assert result["gravity_exponent"] == pytest.approx(gravity_exponent, abs=1e-9)
+    assert result["largest_relative_change"] == pytest.approx(change)
+    assert result["sentence"].endswith(outcome)
+
+
+def test_trial_start_is_the_nearest_where_every_arm_walks():
+    from studies.biped.fig7 import choose_trial_start
+
+    every, three = {"a": True, "b": True}, {"a": True, "b": False}
+    candidates = {6.0: every, 10.0: three, 12.0: every}
+    assert choose_trial_start(candidates, 11.0) == (12.0, every)
+    assert choose_trial_start({6.0: three, 12.0: {"a": False, "b": False}}, 11.0)[0] == 6.0
+
+
+def test_gait_metrics_of_a_regular_walk():
+    """Strikes every 0.5 s, 0.3 m apart, from t = 1 s: step/leg 0.3 / 0.6, cadence 2 / s x
+    sqrt(l / g), Froude (0.6 m/s)^2 / (g l); impact as recorded, double support over the time
+    from the first strike (6 s of the 7 s walk)."""
+    from studies.biped.analysis import gait_metrics
+    from studies.biped.walker import WalkLog
+
+    log = WalkLog()
+    log.strikes = [(1.0 + 0.5 * k, k % 2, 0.3 * k) for k in range(12)]
+    log.impact_forces = [2.0 * 7.0 * GRAVITY] * 12
+    log.duration, log.double_support_time, log.contact_losses = 7.0, 0.6, 3
+    walk = gait_metrics(log, 0.6, 7.0, GRAVITY)["walker"]
+    assert walk["step_length_per_leg_length"] == pytest.approx(0.5)
+    assert walk["cadence_froude_normalised"] == pytest.approx(2.0 * np.sqrt(0.6 / GRAVITY))
+    assert walk["froude_number"] == pytest.approx(0.36 / (GRAVITY * 0.6))
+    assert walk["impact_force_per_body_weight"] == pytest.approx(2.0)
+    assert walk["double_support_fraction"] == pytest.approx(0.1)
+    assert walk["stance_contact_losses_per_step"] == pytest.approx(0.25)
+
+
+def test_verdict_needs_the_frequency_near_a_physical_resonance_estimate():
+    """Scaling and insensitivity of a resonance but 2.5x the nearest estimate: not at the
+    legs' resonance; within 10 % of one: locked. Fallen control walks are listed."""
+    from studies.biped.fig7 import verdict
+
+    base = 10.0
+    gravity = _settled_rows({0.5: base * 0.5**0.5, 1.0: base, 0.25: 1.0}, fell=(0.25,))
+    legs = _settled_rows({f: base * f**-0.5 for f in (0.8, 1.0)})
+    settings = _settled_rows({"a": base * 1.01})
+    starts = _settled_rows({5.0: base})
+    far = verdict(starts, gravity, legs, settings, base, {"leg": 4.0, "cost": None})
+    assert far["outcome"] == "not at the legs' resonance, nor clearly locked to the controller"
+    assert far["ratio_to_nearest_physical_estimate"] == pytest.approx(2.5)
+    assert "2.5x the leg (4.0)" in far["sentence"]
+    assert far["control_walks_fell"] == ["gravity x0.25"]
+    near = verdict(starts, gravity, legs, settings, base, {"leg": 9.5, "cost": 20.0})
+    assert near["outcome"] == "locked to the legs' resonance"
+    assert near["nearest_physical_estimate"] == "leg"

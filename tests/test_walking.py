@@ -390,3 +390,20 @@ def test_phase_reset_of_an_oscillator_on_the_right_leg():
     adaptation = FrequencyAdaptation(frequency=3.0, oscillator_leg=1)
     assert adaptation.on_heel_strike(HeelStrike(0.0, 1, np.zeros(3)))[0] == 0.0
     assert adaptation.on_heel_strike(HeelStrike(0.5, 0, np.zeros(3)))[0] == pytest.approx(np.pi)
+
+
+@pytest.mark.parametrize("rate, slope", [(6.0, 0.0), (3.0, 0.5), (1.0, 0.9)])
+def test_eq_21_settles_at_its_fixed_point_not_necessarily_the_legs(rate, slope):
+    """Eq. (21) settles where the measured step rate equals the oscillator's: for a walker
+    whose step rate pi / T_n is rate + slope * omega (slope 0: set by the legs alone; slope
+    near 1: the controller imposes its own timing), omega* = rate / (1 - slope), reached
+    geometrically as (1 - K (1 - slope))^n."""
+    from dmpopt.walking import adapt_frequency
+
+    gain, omega = 0.3, 13.0
+    expected = rate / (1 - slope)
+    for n in range(1, 1000):
+        omega = adapt_frequency(omega, np.pi / (rate + slope * omega), gain)
+        contraction = (1 - gain * (1 - slope)) ** n
+        assert abs(omega - expected) <= abs(13.0 - expected) * contraction * (1 + 1e-9) + 1e-12
+    assert omega == pytest.approx(expected, rel=1e-6)

@@ -240,65 +240,6 @@ def reset_ablation(survival: dict) -> dict:
     return results
 
 
-def undisturbed_by_arm(
-    biped, dmp, frequency, duration, controller="qp", progress=None, **walk_on
-) -> dict:
-    """One walk of ``duration`` [s] per arm of :data:`ARMS` with no push, nominal masses and
-    flat ground: heel strikes, fall and time of the fall [s] (None without a fall)."""
-    results = {}
-    for name, (reset_phase, adapt) in ARMS.items():
-        log = walk(
-            biped,
-            dmp,
-            duration,
-            frequency,
-            adapt=adapt,
-            reset_phase=reset_phase,
-            controller=controller,
-            disturbance=Disturbance(),
-            **walk_on,
-        )
-        if progress:
-            progress(f"undisturbed walk: {name}")
-        results[name] = {
-            "steps": len(log.strikes),
-            "fell": log.fell,
-            "time_of_fall_s": log.duration if log.fell else None,
-        }
-    return results
-
-
-def fixed_frequency_sweep(
-    biped, dmp, frequencies, duration, controller="qp", progress=None, **walk_on
-) -> list[dict]:
-    """Walk at each fixed frequency (phase resetting on, adaptation off); CoT and step rate."""
-    rows = []
-    for frequency in frequencies:
-        log = walk(
-            biped,
-            dmp,
-            duration,
-            frequency,
-            adapt=False,
-            controller=controller,
-            log_every=10**9,
-            **walk_on,
-        )
-        durations = np.diff([t for t, _, _ in log.strikes])[2:]
-        rows.append(
-            {
-                "frequency": float(frequency),
-                "fell": log.fell,
-                "cost_of_transport": None if log.fell else cost_of_transport(log, biped.mass),
-                "speed_m_per_s": log.distance / log.duration,
-                "measured_frequency": float(np.pi / durations.mean()) if durations.size else None,
-            }
-        )
-        if progress:
-            progress(f"sweep {frequency:.2f} rad/s")
-    return rows
-
-
 def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
     """The cheapest frequency of a sweep and the band of frequencies within ``flat`` of it.
 
@@ -321,3 +262,45 @@ def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:
         f"within_{flat:.0%}_of_min_rad_s": [min(near), max(near)],
         "bound": None if edge is None else f"{edge} {best['frequency']:g} rad/s (sweep's edge)",
     }
+
+
+#: Human walking at preferred speed, normalised (dimensionless): step length / leg length and
+#: cadence x sqrt(l / g) for a 0.9 m leg at 0.7 m steps and 1.8 steps/s (Winter 2009, Ch. 1;
+#: Perry & Burnfield 2010, Ch. 1), Froude number v^2 / (g l) (Alexander 1989, about 0.25),
+#: the first peak of the vertical ground force in body weights (Winter 2009: 1.1-1.2) and the
+#: double-support share of the gait cycle (Perry & Burnfield 2010: two periods of about 10 %).
+HUMAN_GAIT = {
+    "step_length_per_leg_length": 0.78,
+    "cadence_froude_normalised": 0.55,
+    "froude_number": 0.25,
+    "impact_force_per_body_weight": 1.15,
+    "double_support_fraction": 0.2,
+}
+
+
+def gait_metrics(log: WalkLog, leg_length: float, mass: float, gravity: float = 9.81) -> dict:
+    """Normalised gait numbers of a walk, beside :data:`HUMAN_GAIT`.
+
+    Over the walk's heel strikes after the first two: step length (distance between the
+    landing points of successive strikes) / ``leg_length``, cadence (steps per second) x
+    sqrt(l / g), Froude number v^2 / (g l) of the mean speed, the mean peak vertical force in
+    the 50 ms after a strike / body weight, the share of time with both feet on the ground and
+    the stance foot's contact losses per step. Empty without three strikes.
+    """
+    strikes = log.strikes[2:]
+    if len(strikes) < 2:
+        return {}
+    times = np.array([t for t, _, _ in strikes])
+    places = np.array([x for _, _, x in strikes])
+    cadence = (len(strikes) - 1) / (times[-1] - times[0])
+    speed = (places[-1] - places[0]) / (times[-1] - times[0])
+    weight = mass * gravity
+    walk = {
+        "step_length_per_leg_length": float(np.mean(np.abs(np.diff(places))) / leg_length),
+        "cadence_froude_normalised": float(cadence * np.sqrt(leg_length / gravity)),
+        "froude_number": float(speed**2 / (gravity * leg_length)),
+        "impact_force_per_body_weight": float(np.mean(log.impact_forces[2:]) / weight),
+        "double_support_fraction": log.double_support_time / (log.duration - log.strikes[0][0]),
+        "stance_contact_losses_per_step": log.contact_losses / len(log.strikes),
+    }
+    return {"walker": walk, "human": HUMAN_GAIT}

@@ -168,3 +168,50 @@ def stick_figure(path, biped, log, speed) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def controls_figure(path, baseline, gravity, legs, insensitivity) -> None:
+    """The sceptic's controls: settled frequency against gravity and leg-length factors beside
+    the resonance prediction (sqrt(g / l) from the baseline) and a controller-locked one (flat);
+    and against controller settings. Rows are :func:`studies.biped.fig7.settled` rows."""
+    plt = pyplot()
+    fig, (ax, ax_set) = plt.subplots(1, 2, figsize=(11, 4))
+    for label, rows, sign, marker in (
+        ("gravity x factor", gravity, 0.5, "o"),
+        ("leg length x factor", legs, -0.5, "s"),
+    ):
+        factors = sorted(rows)
+        values = [rows[f]["frequency_settled"] for f in factors]
+        fell = [rows[f]["fell"] for f in factors]
+        line = ax.plot(factors, values, marker=marker, label=f"{label} (measured)")[0]
+        for f, v, down in zip(factors, values, fell):
+            if down:
+                ax.plot(f, v, "rx", ms=9)
+        span = np.linspace(min(factors), max(factors), 50)
+        ax.plot(
+            span,
+            baseline * span**sign,
+            ls="--",
+            color=line.get_color(),
+            lw=1,
+            label=f"resonance-locked: x factor^{sign:g}",
+        )
+    ax.axhline(baseline, color="k", lw=1, ls=":", label="controller-locked (flat)")
+    ax.set_xlabel("factor on g or on leg length l")
+    ax.set_ylabel(r"settled $\omega$ [rad/s]")
+    ax.set_title("Scaling controls (red x: fell)")
+    ax.legend(fontsize=7)
+    names = list(insensitivity)
+    values = [insensitivity[n]["frequency_settled"] for n in names]
+    colours = ["C3" if insensitivity[n]["fell"] else "C0" for n in names]
+    ax_set.barh(names, values, color=colours, alpha=0.8)
+    ax_set.set_xlim(0.8 * min(values + [baseline]), 1.1 * max(values + [baseline]))
+    ax_set.axvline(baseline, color="k", lw=1, label=f"baseline {baseline:.2f}")
+    ax_set.axvspan(0.95 * baseline, 1.05 * baseline, color="g", alpha=0.15, label="within 5 %")
+    ax_set.set_xlabel(r"settled $\omega$ [rad/s] (red: fell)")
+    ax_set.set_title("Controller settings (not leg dynamics)")
+    ax_set.tick_params(axis="y", labelsize=7)
+    ax_set.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -38,7 +38,8 @@ DT = 1e-3  # [s] simulation step; the PD law and the QP run every step
 CONTROL_EVERY = 4  # the DMP steps every CONTROL_EVERY * DT
 COMPILE = True  # compiled DMP step (generated C, cached in ~/.cache/dmpopt)
 GROUND = GroundContact(stiffness=1e4, damping=150.0, friction=0.8)
-FALL_HEIGHT = 0.35  # [m] the walker has fallen when its torso is lower
+FALL_HEIGHT = 0.35  # [m] the walker has fallen when its torso is lower (0.6 m leg)
+LEG_LENGTH = 0.6  # [m] of robots/biped.urdf
 ADAPTATION_GAIN = 0.3  # K of eq. (21)
 LOG_EVERY = 10  # steps between logged samples
 START_SPEEDS = {"qp": 0.8, "pd": 0.35}  # [m/s] forward speed at the first heel strike
@@ -135,6 +136,9 @@ class WalkLog:
     ticks_over_budget: int = 0  # controller ticks over the real-time budget (thread CPU time)
     tick_us_max: float = 0.0  # the slowest controller tick (thread CPU time) [us]
     distance: float = 0.0  # [m]
+    double_support_time: float = 0.0  # [s] both feet on the ground, after the first strike
+    impact_forces: list = field(default_factory=list)  # [N] peak vertical force per strike
+    contact_losses: int = 0  # a stance foot (the last to strike) leaving the ground mid-stance
 
 
 class PDControl:
@@ -294,12 +298,17 @@ def walk(
     progress=None,
     plant=None,
     nominal_plant=None,
+    urdf=None,
+    qp_gains: QPGains = QP_GAINS,
+    pd_gains: Gains = GAINS,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
 
     The robot starts at the right heel strike of the DMP's limit cycle (``amplitude``: the
     DMPs' amplitude A of eq. (11)) with a forward speed of ``start_speed`` [m/s] (default
-    ``START_SPEEDS[controller]``) plus a seeded perturbation of +-0.02 m/s.
+    ``START_SPEEDS[controller]`` times :math:`\\sqrt{g l / (9.81 \\cdot 0.6)}` for a model with
+    another gravity ``g`` or leg length ``l``: the same Froude number) plus a seeded
+    perturbation of +-0.02 m/s.
     ``push_impulse`` [N s] at ``push_time`` is a shorthand for
     ``Disturbance(push_impulse, push_time)``. The DMP steps at ``CONTROL_EVERY * DT``; the
     controller (``"qp"`` or ``"pd"``) and the simulator (``"mujoco"`` or ``"native"``) at
@@ -307,7 +316,10 @@ def walk(
     ``plant`` (:class:`dmpopt.sim.PlantParameters`, default ideal) is the simulated robot's
     joints, actuators and sensors; the controller reads the measured state. With
     ``nominal_plant`` the QP controller's model carries its armature and a
-    :class:`dmpopt.control.JointImpedance` closes the joint loop.
+    :class:`dmpopt.control.JointImpedance` closes the joint loop. ``urdf``: the URDF ``biped``
+    was loaded from (default ``robots/biped.urdf``; a leg-scaled copy for the leg-length
+    control); the simulated gravity is the model's (:func:`robots.biped.load_biped`), so the
+    QP's model and the plant agree. ``qp_gains``, ``pd_gains``: the controller's gains.
     """
     if controller not in CONTROLLERS:
         raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
@@ -315,7 +327,8 @@ def walk(
         disturbance = Disturbance(push_impulse, push_time)
     rng = np.random.default_rng(seed)
     if start_speed is None:
-        start_speed = START_SPEEDS[controller]
+        froude = gravity(biped) * biped_model.leg_length(biped) / (9.81 * LEG_LENGTH)
+        start_speed = START_SPEEDS[controller] * np.sqrt(froude)
     dmp = dmp.with_amplitude(amplitude)
     start_position, start_velocity = limit_cycle_start(dmp, frequency, DT)
     stepper = dmp.stepper(
@@ -324,12 +337,15 @@ def walk(
     stepper.set_tau(1.0 / frequency)
     q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
     q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
-    sim = make_simulator(biped, backend, plant)
+    sim = make_simulator(biped, backend, plant, urdf)
     _perturb_masses(sim, disturbance)
     v = np.zeros(biped.model.nv)
     v[0] = start_speed + rng.uniform(-0.02, 0.02)
     state = sim.reset(q, v)
-    law = QPControl(biped, nominal_plant=nominal_plant) if controller == "qp" else PDControl(biped)
+    if controller == "qp":
+        law = QPControl(biped, qp_gains, nominal_plant=nominal_plant)
+    else:
+        law = PDControl(biped, pd_gains)
     law.frequency = frequency
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
     index = np.sort(biped.velocity_indices("gait"))
@@ -340,6 +356,7 @@ def walk(
     desired, desired_velocity, desired_acceleration = np.empty(4), np.empty(4), np.empty(4)
     positive_work = absolute_work = 0.0
     slow, slowest = 0, 0.0
+    impact = [None, 0.0, True]  # leg, time and contact of the last heel strike's foot
     n_steps = int(round(duration / DT))
     push_step = int(round(disturbance.push_time / DT)) if disturbance.push_impulse else -1
     slope_step = int(round(disturbance.slope_time / DT)) if disturbance.slope_deg else -1
@@ -368,6 +385,7 @@ def walk(
             work = np.abs(torque * joint_velocities).sum()
             absolute_work += work
             positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
+            _record_gait(log, state, impact)
             if state.touchdowns or not state.in_contact.all():
                 strike = detector.update(state.t, state.in_contact, state.contact_positions)
                 if strike is not None:
@@ -377,6 +395,8 @@ def walk(
                         stepper.reset_phase(phase)
                     stepper.set_tau(1.0 / new_frequency)
                     log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+                    log.impact_forces.append(0.0)
+                    impact[:] = strike.leg, strike.time, True
             if progress and k and k % progress_steps == 0:
                 progress(f"{state.t:.0f} of {duration:g} s simulated")
             if k % log_every == 0:
@@ -384,7 +404,7 @@ def walk(
                 log.q.append(state.q)
                 log.desired.append(desired[order])
             if state.fallen:
-                log.fell = True
+                log.fell, log.diverged = True, state.fall.reason
                 break
     except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
         log.fell, log.diverged = True, f"{type(error).__name__}: {error}"
@@ -398,6 +418,26 @@ def walk(
     log.distance = float(sim.q[0] - q[0])
     log.frequencies = adaptation.frequencies
     return log
+
+
+IMPACT_WINDOW = 0.05  # [s] after a heel strike in which its peak vertical force is taken
+
+
+def _record_gait(log: WalkLog, state, impact: list) -> None:
+    """Double support, the impact force of the last heel strike and stance-foot contact losses.
+
+    ``impact``: [leg, time, in contact] of the last heel strike's leg (the stance leg), updated.
+    """
+    leg, time, was_in_contact = impact
+    if leg is None:
+        return
+    if state.in_contact.all():
+        log.double_support_time += DT
+    if state.t - time <= IMPACT_WINDOW:
+        log.impact_forces[-1] = max(log.impact_forces[-1], float(state.contact_forces[leg, 2]))
+    touching = bool(state.in_contact[leg])
+    log.contact_losses += was_in_contact and not touching
+    impact[2] = touching
 
 
 def _perturb_masses(sim, disturbance: Disturbance) -> None:
@@ -424,7 +464,8 @@ def _tilt_gravity(sim, slope_deg: float) -> None:
     if not hasattr(sim, "mj_model"):
         raise InvalidInputError("slope_deg needs the MuJoCo backend; pass backend='mujoco'")
     angle = np.radians(slope_deg)
-    sim.mj_model.opt.gravity[:] = 9.81 * np.array([-np.sin(angle), 0.0, -np.cos(angle)])
+    magnitude = np.linalg.norm(sim.mj_model.opt.gravity)
+    sim.mj_model.opt.gravity[:] = magnitude * np.array([-np.sin(angle), 0.0, -np.cos(angle)])
 
 
 def n_moving_bodies(biped) -> int:
@@ -432,11 +473,23 @@ def n_moving_bodies(biped) -> int:
     return len(make_simulator(biped, "mujoco").mj_model.body_mass.nonzero()[0])
 
 
-def make_simulator(biped, backend: str, plant=None):
+def fall_height(biped) -> float:
+    """Torso height below which the walker has fallen [m]: ``FALL_HEIGHT`` for the 0.6 m leg,
+    in proportion to the leg length of a leg-scaled biped."""
+    return FALL_HEIGHT * biped_model.leg_length(biped) / LEG_LENGTH
+
+
+def gravity(biped) -> float:
+    """Magnitude of the model's gravity [m/s^2] (the plant simulates the same)."""
+    return float(np.linalg.norm(biped.model.gravity.linear))
+
+
+def make_simulator(biped, backend: str, plant=None, urdf=None):
     """The walker's simulator on ``backend``: "mujoco" or "native" (compliant ``GROUND``).
 
-    Both flag a fall when the torso is below ``FALL_HEIGHT`` (the other thresholds derived from
-    the biped, :mod:`dmpopt.sim.falls`).
+    Both flag a fall when the torso is below :func:`fall_height` (the other thresholds derived
+    from the biped, :mod:`dmpopt.sim.falls`) and simulate the model's gravity. ``urdf``: the
+    file ``biped`` was loaded from (default ``robots/biped.urdf``).
     """
     from studies.humanoid import check_backend
 
@@ -448,19 +501,21 @@ def make_simulator(biped, backend: str, plant=None):
             GROUND,
             n_base_dofs=3,
             fall_frame=biped.torso_frame,
-            fall_height=FALL_HEIGHT,
+            fall_height=fall_height(biped),
             plant=plant or IDEAL,
         )
     from dmpopt.sim import MujocoSimulator
     from robots.biped import BIPED_URDF
 
-    return MujocoSimulator(
+    sim = MujocoSimulator(
         biped.model,
-        BIPED_URDF,
+        urdf or BIPED_URDF,
         DT,
         biped.contact_points,
         friction=GROUND.friction,
         fall_frame=biped.torso_frame,
-        fall_height=FALL_HEIGHT,
+        fall_height=fall_height(biped),
         plant=plant or IDEAL,
     )
+    sim.mj_model.opt.gravity[:] = biped.model.gravity.linear
+    return sim

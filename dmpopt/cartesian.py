@@ -463,12 +463,15 @@ class CartesianStepper:
 
     def _reexpress(self, goal_orientation: np.ndarray) -> None:
         """Move the orientation states from the current goal's coordinates to the new one's."""
-        log = self._state[5:8]
+        # the state: canonical (2), then each transformation state of the 6 DOFs in turn,
+        # the orientation's 3 after the position's 3
+        names = self.dmp.position_dmp.equations.transformation_states
+        rows = {name: self._state[2 + 6 * i + 3 : 2 + 6 * i + 6] for i, name in enumerate(names)}
+        log, z = rows["y"], rows["z"]
         new_log = orientation_log(self.orientation, goal_orientation, "orientation")
-        z = self._state[11:14]
         z[:] = np.linalg.solve(_log_jacobian(new_log), _log_jacobian(log) @ z)
-        if self.dmp.form == "acceleration":  # the goal filter r, an orientation
-            filtered = self._state[17:20]
+        if "r" in rows:  # the goal filter r (acceleration form), an orientation
+            filtered = rows["r"]
             old = symbolic.orientation_function()(
                 filtered, np.zeros(3), np.zeros(3), self._goal_orientation
             )

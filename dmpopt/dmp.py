@@ -45,7 +45,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from . import basis, symbolic, validation
+from . import basis, forms, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
 from .stepper import Stepper
 from .trajectory import Trajectory
@@ -291,6 +291,16 @@ class _DmpCommon:
         return self.weights.shape[1]
 
     @property
+    def equations(self) -> forms.Form:
+        """The form's object: its equations, state layout and constants (:mod:`dmpopt.forms`)."""
+        return forms.FORMS[self.form]
+
+    @property
+    def gains(self) -> tuple:
+        """The form's constants, in the order of its ``gain_names`` (:mod:`dmpopt.forms`)."""
+        return tuple(getattr(self, name) for name in self.equations.gain_names)
+
+    @property
     def signature(self) -> symbolic.Signature:
         """Sizes and choices of the compiled system."""
         return symbolic.Signature(self.form, self.n_dofs, self.n_basis, self.kernel)
@@ -318,7 +328,7 @@ class _DmpCommon:
 
     def _cycle_states(self) -> tuple:
         """Canonical states at which the system is linearised for its stability limit."""
-        if isinstance(self, RhythmicDMP):
+        if not self.equations.discrete:
             angles = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
             return tuple(self.canonical_state(angle) for angle in angles)
         return ((0.0, 0.0),)
@@ -396,7 +406,7 @@ class _DmpCommon:
         scale = np.array([1.0, self.tau, self.tau**2])[:, None, None]
         n_free = inputs.shape[0] - symbolic.n_features(self.form, self.n_basis)
         free_inputs, weight_response = inputs[:n_free], response[:, :, n_free:]
-        if self.form != "acceleration":
+        if self.equations.forcing_on_velocity:
             # z(0) = tau yd(0) - f(0) (initial_state) is affine in the weights too: the
             # response to W includes that of z(0) to -W feature(0), the free part keeps tau yd(0)
             feature = self._features(canonical0)
@@ -425,10 +435,8 @@ class _DmpCommon:
         tau yd`` in eq. (10)) and ``r = start`` (eq. (10)). Shape (n_states,)."""
         start = vector("start", start, self.n_dofs, f"{self.n_dofs} DOFs")
         velocity = vector("start_velocity", start_velocity, self.n_dofs, f"{self.n_dofs} DOFs")
-        z = self.tau * velocity
-        if self.form != "acceleration":
-            z = z - self.forcing_weights() @ self._features(canonical0)
-        rows = [start, z, start] if self.form == "acceleration" else [start, z]
+        forcing = self.forcing_weights() @ self._features(canonical0)
+        rows = self.equations.initial_transformation(start, self.tau * velocity, forcing)
         return np.concatenate([canonical0, *rows])
 
     def _features(self, canonical) -> np.ndarray:
@@ -503,10 +511,7 @@ class DiscreteDMP(_DmpCommon):
     kernel: str = dataclasses.field(default="gaussian", init=False)
 
     def __post_init__(self):
-        if self.form not in symbolic.DISCRETE_FORMS:
-            raise InvalidInputError(
-                f"form must be one of {symbolic.DISCRETE_FORMS}, got {self.form!r}"
-            )
+        forms.get(self.form, "discrete")
         if self.goal_scaling not in GOAL_SCALINGS:
             raise InvalidInputError(
                 f"goal_scaling must be one of {GOAL_SCALINGS}, got {self.goal_scaling!r}"
@@ -559,12 +564,6 @@ class DiscreteDMP(_DmpCommon):
                 "movement and the default plan (settling_time) last hundreds of its durations: "
                 f"pass alpha_v >= {2 * rate / MAX_PHASE_SLOWDOWN:.4g} (with beta_v = alpha_v / 4)"
             )
-
-    @property
-    def gains(self) -> tuple:
-        """Constants in the order of :data:`symbolic.GAIN_NAMES`."""
-        values = (self.alpha_z, self.beta_z, self.alpha_v, self.beta_v)
-        return values + ((self.alpha_g,) if self.form == "acceleration" else ())
 
     def _goal_input(self) -> np.ndarray:
         return np.asarray(self.goal)
@@ -737,10 +736,7 @@ class RhythmicDMP(_DmpCommon):
     k: float = 1.0
 
     def __post_init__(self):
-        if self.form not in symbolic.RHYTHMIC_FORMS:
-            raise InvalidInputError(
-                f"form must be one of {symbolic.RHYTHMIC_FORMS}, got {self.form!r}"
-            )
+        forms.get(self.form, "rhythmic")
         if self.kernel not in ("von_mises", "paper"):
             raise InvalidInputError(f"kernel must be 'von_mises' or 'paper', got {self.kernel!r}")
         weights = real_array("weights", self.weights, empty=True)
@@ -756,36 +752,19 @@ class RhythmicDMP(_DmpCommon):
             object.__setattr__(self, name, positive(name, getattr(self, name)))
 
     @property
-    def gains(self) -> tuple:
-        """Constants in the order of :data:`symbolic.GAIN_NAMES`."""
-        if self.form == "phase":
-            return (self.alpha_z, self.beta_z, self.alpha_r)
-        return (self.alpha_z, self.beta_z, self.alpha_E, self.k)
-
-    @property
     def period(self) -> float:
         """Period of the oscillator [s]."""
-        scale = 1.0 if self.form == "phase" else 1.0 / self.k
-        return 2 * np.pi * self.tau * scale
+        return self.tau * self.equations.period(self.gains)
 
     def _goal_input(self) -> np.ndarray:
         return np.asarray(self.setpoint)
 
     def _canonical_target(self) -> float:
-        if self.form == "phase":
-            return self.amplitude
-        return 0.5 * (self.k * self.amplitude) ** 2
+        return self.equations.canonical_target(self.amplitude, self.gains)
 
     def canonical_state(self, phase: float = 0.0) -> tuple[float, float]:
         """The oscillator's state on its limit cycle at ``phase`` [rad]."""
-        phase = real("phase", phase)
-        if self.form == "phase":
-            return (phase, self.amplitude)
-        # x = A cos(theta), v = A k sin(theta) gives atan2(v, x) = theta for k = 1
-        return (
-            self.amplitude * float(np.cos(phase)),
-            self.amplitude * self.k * float(np.sin(phase)),
-        )
+        return self.equations.canonical_state(real("phase", phase), self.amplitude, self.gains)
 
     def forcing_weights(self) -> np.ndarray:
         """Weights flattened to (n_dofs, 2 n_basis), the layout of the features."""

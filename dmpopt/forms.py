@@ -266,14 +266,14 @@ class EnergyForm(_Rhythmic):
 FORMS = {
     form.name: form for form in (VelocityForm(), AccelerationForm(), PhaseForm(), EnergyForm())
 }
-"""Every form by name."""
-DISCRETE_FORMS = tuple(name for name, form in FORMS.items() if form.discrete)
-RHYTHMIC_FORMS = tuple(name for name, form in FORMS.items() if not form.discrete)
+"""Every form by name: a new form is one class above and one entry here."""
 
 
 def get(name: str, kind: str = "") -> Form:
     """The form called ``name``; ``kind`` ``"discrete"`` or ``"rhythmic"`` restricts it."""
-    names = {"discrete": DISCRETE_FORMS, "rhythmic": RHYTHMIC_FORMS}.get(kind, tuple(FORMS))
+    names = tuple(
+        key for key, form in FORMS.items() if not kind or form.discrete == (kind == "discrete")
+    )
     if not isinstance(name, str) or name not in names:
         raise InvalidInputError(f"form must be one of {names}, got {name!r}")
     return FORMS[name]

@@ -39,19 +39,14 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .forms import (  # noqa: F401 (re-exported: the kernels and the forms by name)
-    DISCRETE_FORMS,
+from .forms import (  # noqa: F401 (re-exported: the kernels)
     FORMS,
     KERNELS,
-    RHYTHMIC_FORMS,
     Form,
     basis_log_activations,
     normalised_activations,
 )
 from .validation import check_resources
-
-GAIN_NAMES = {name: form.gain_names for name, form in FORMS.items()}
-"""The constants of each form (:attr:`dmpopt.forms.Form.gain_names`)."""
 
 
 def n_transformation_states(form: str) -> int:
@@ -152,7 +147,7 @@ def make_symbols(signature: Signature) -> Symbols:
         forcing_weights=ca.SX.sym("forcing_weights", d, signature.n_features),
         centres=ca.SX.sym("centres", n),
         widths=ca.SX.sym("widths", n),
-        gains=ca.SX.sym("gains", len(GAIN_NAMES[signature.form])),
+        gains=ca.SX.sym("gains", len(FORMS[signature.form].gain_names)),
         coupling=ca.SX.sym("coupling", d),
         canonical_coupling=ca.SX.sym("canonical_coupling"),
     )

@@ -370,10 +370,17 @@ class _DmpCommon:
         canonical0 = tuple(canonical0)
         key = (duration, dt, canonical0)
         last = self.__dict__.get("_last_plan")
-        if last is None or last[0] != key or type(duration) is not float or type(dt) is not float:
+        if (
+            last is None
+            or last[0] != key
+            or type(duration) is not float
+            or type(dt) is not float
+            or not last[3] <= validation.MEMORY_BUDGET  # the bounds may have been lowered since
+            or last[1].size > validation.MAX_SAMPLES
+        ):
             last = (key, *self._plan_matrices(duration, dt, canonical0))
             self.__dict__["_last_plan"] = last
-        _, times, response = last
+        _, times, response, _ = last
         if start is None and start_velocity is None:  # the default start, kept with the DMP
             inputs = _memo(
                 self,
@@ -387,7 +394,8 @@ class _DmpCommon:
         return times, response, inputs
 
     def _plan_matrices(self, duration, dt, canonical0):
-        """Checked sample times and the response matrices of one DOF for them."""
+        """Checked sample times, the response matrices of one DOF for them, and the bytes a
+        plan of them takes (checked against the budget)."""
         duration = positive("duration", duration)
         dt = self.check_step(dt)
         n_steps = int(round(duration / dt)) + 1
@@ -396,9 +404,10 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
+        n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
-            8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs),
+            n_bytes,
             "raise dt or shorten duration (by default the convergence time or three periods, "
             "both proportional to tau)",
             n_samples=n_steps,
@@ -423,7 +432,7 @@ class _DmpCommon:
         times = _frozen(np.arange(n_steps) * dt)
         # the cache keeps 16 entries: keep out those that would hold over 1/16 of the budget
         small = 24.0 * n_steps * n_inputs <= validation.MEMORY_BUDGET / 16
-        return times, _response(key) if small else _response.__wrapped__(key)
+        return times, _response(key) if small else _response.__wrapped__(key), n_bytes
 
     def _affine(self, duration, dt, start, start_velocity, canonical0) -> AffinePlan:
         times, response, inputs = self._response_and_inputs(

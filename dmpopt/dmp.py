@@ -77,6 +77,13 @@ counted as modes all as slow as the slowest, in the time a default plan lasts be
 convergence time (:attr:`DiscreteDMP.settling_time`)."""
 
 
+PLACEMENT_FIELDS = frozenset(
+    ("start", "goal", "setpoint", "goal_scaling", "reference_displacement", "scaled_start_velocity")
+)
+"""Fields that say where a movement goes, not how it unfolds in time: the response matrices,
+step limit and start features do not depend on them (:meth:`DiscreteDMP.replace`)."""
+
+
 def _frozen(array: np.ndarray) -> np.ndarray:
     array = np.array(array, dtype=float)
     array.setflags(write=False)
@@ -306,8 +313,21 @@ class _DmpCommon:
         return symbolic.Signature(self.form, self.n_dofs, self.n_basis, self.kernel)
 
     def replace(self, **changes):
-        """Return a copy with some fields changed (validated again)."""
-        return dataclasses.replace(self, **changes)
+        """Return a copy with some fields changed (validated again).
+
+        A copy that differs only in where the movement goes (:data:`PLACEMENT_FIELDS`) keeps
+        what was derived from the other fields: the step limit, the last plan's response
+        matrices and the features at its start (a loop over goals then costs one product
+        per rollout)."""
+        copy = dataclasses.replace(self, **changes)
+        if set(changes) <= PLACEMENT_FIELDS:
+            memo = self.__dict__.get("_memo", {})
+            kept = {key: memo[key] for key in ("max_step", "response_key") if key in memo}
+            copy.__dict__["_memo"] = kept
+            for name in ("_last_plan", "_last_features"):
+                if name in self.__dict__:
+                    copy.__dict__[name] = self.__dict__[name]
+        return copy
 
     @property
     def max_step(self) -> float:
@@ -385,7 +405,9 @@ class _DmpCommon:
             inputs = _memo(
                 self,
                 ("inputs", canonical0),
-                lambda: _frozen(self._response_inputs(self.start, self.start_velocity, canonical0)),
+                lambda: _frozen(
+                    self._response_inputs(self.start, self.start_velocity, canonical0, True)
+                ),
             )
         else:
             start = self.start if start is None else start
@@ -477,9 +499,14 @@ class _DmpCommon:
         tau yd`` in eq. (10)) and ``r = start`` (eq. (10)). Shape (n_states,)."""
         start = vector("start", start, self.n_dofs, f"{self.n_dofs} DOFs")
         velocity = vector("start_velocity", start_velocity, self.n_dofs, f"{self.n_dofs} DOFs")
-        forcing = self.forcing_weights() @ self._features(canonical0)
-        rows = self.equations.initial_transformation(start, self.tau * velocity, forcing)
-        return np.concatenate([canonical0, *rows])
+        return np.concatenate([canonical0, *self._transformation0(start, velocity, canonical0)])
+
+    def _transformation0(self, start, velocity, canonical0, forcing_weights=None) -> list:
+        """The initial transformation states of checked ``start`` and ``velocity``
+        (:meth:`initial_state`), one row per state of the form."""
+        forcing_weights = self.forcing_weights() if forcing_weights is None else forcing_weights
+        forcing = forcing_weights @ self._features(canonical0)
+        return self.equations.initial_transformation(start, self.tau * velocity, forcing)
 
     def _features(self, canonical) -> np.ndarray:
         """The forcing term's features (eq. (7), (12) or (14)) at one canonical state."""
@@ -492,10 +519,17 @@ class _DmpCommon:
             self.__dict__["_last_features"] = last
         return last[1]
 
-    def _response_inputs(self, start, start_velocity, canonical0) -> np.ndarray:
-        transformation = self.initial_state(start, start_velocity, canonical0)[2:]
-        rows = transformation.reshape(-1, self.n_dofs)
-        return np.vstack([*rows, self._goal_input(), self.forcing_weights().T])
+    def _response_inputs(self, start, start_velocity, canonical0, checked=False) -> np.ndarray:
+        """The inputs the response matrices multiply: initial transformation states, goal,
+        forcing weights, shape (n_inputs, n_dofs). ``checked``: ``start`` and
+        ``start_velocity`` are the DMP's own (validated) arrays."""
+        if not checked:
+            start = vector("start", start, self.n_dofs, f"{self.n_dofs} DOFs")
+            n = self.n_dofs
+            start_velocity = vector("start_velocity", start_velocity, n, f"{n} DOFs")
+        weights = self.forcing_weights()
+        rows = self._transformation0(start, start_velocity, canonical0, weights)
+        return np.vstack([*rows, self._goal_input(), weights.T])
 
 
 @_refuse_former_names

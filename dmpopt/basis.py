@@ -143,6 +143,7 @@ def _jacobians(form: str) -> ca.Function:
     )
 
 
+@lru_cache(maxsize=64)  # every DiscreteDMP asks at construction (its phase-rate check)
 def discrete_eigenvalues(form: str, gains: tuple) -> tuple[np.ndarray, np.ndarray]:
     r"""Eigenvalues, for ``tau = 1``, of the canonical system (6) and of the linear part of the
     transformation system (5) or (10), as ``(canonical, transformation)``.
@@ -153,7 +154,10 @@ def discrete_eigenvalues(form: str, gains: tuple) -> tuple[np.ndarray, np.ndarra
     :math:`-\alpha_g` (the goal filter). The forcing term is an input that does not feed back.
     """
     canonical, transformation = _jacobians(form)(np.asarray(gains, dtype=float), np.zeros(2))
-    return np.linalg.eigvals(canonical.full()), np.linalg.eigvals(transformation.full())
+    eigenvalues = np.linalg.eigvals(canonical.full()), np.linalg.eigvals(transformation.full())
+    for values in eigenvalues:
+        values.setflags(write=False)  # shared by the cache
+    return eigenvalues
 
 
 def erlang_time(n_poles: int, fraction: float) -> float:

@@ -1,10 +1,9 @@
-r"""The one CasADi definition of every DMP system, and the functions built from it.
+r"""The DMP systems assembled from their forms, and every function built from them.
 
-Every numeric result of dmpopt (rollouts, online steps, fitting matrices, gradients) is
-evaluated from the expressions in this module; nothing re-implements them in numpy.
-
-The forms' equations and state layout are in :mod:`dmpopt.forms` (one object per form);
-this module builds every compiled function from them.
+Each form's equations are written once, in :mod:`dmpopt.forms`; this module assembles the
+whole system (canonical and transformation states of all DOFs) from them and builds the
+compiled functions. Every numeric result of dmpopt (rollouts, online steps, fitting matrices,
+gradients) is evaluated from these expressions; nothing re-implements them in numpy.
 
 The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
 phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried

@@ -42,6 +42,15 @@ def test_an_unknown_form_is_named_with_the_choices():
         random_rhythmic(form="velocity")
 
 
+def test_a_form_by_name_of_any_kind():
+    assert forms.get("energy") is forms.FORMS["energy"]
+    with pytest.raises(InvalidInputError) as error:
+        forms.get("jerk")
+    assert str(error.value) == (
+        "form must be one of ('velocity', 'acceleration', 'phase', 'energy'), got 'jerk'"
+    )
+
+
 class SlowPhaseForm(forms.VelocityForm):
     """A scratch discrete form: eq. (5) driven by a first-order phase, tau x' = alpha_v (1 - x)
     (its second canonical state v follows x' so that the features keep eq. (7)'s gate)."""
@@ -72,3 +81,18 @@ def test_a_new_form_is_one_class(monkeypatch):
     stepper = dmp.stepper(0.001)
     stepped = [stepper.position[0]] + [stepper.step()[0][0] for _ in range(plan.n_steps - 1)]
     np.testing.assert_allclose(stepped, plan.positions[:, 0], atol=1e-12)
+
+
+def test_von_mises_features_with_unequal_widths_are_eq_12_written_out():
+    """Eq. (12) with the periodic kernel psi_i = exp(h_i (cos(phi - c_i) - 1)) and widths that
+    differ (with equal widths a constant added to every log-activation cancels in the
+    normalisation, so only unequal ones test the kernel's constant)."""
+    from dmpopt import symbolic
+
+    centres, widths = np.array([0.0, 2.0, 4.0]), np.array([1.0, 2.5, 4.0])
+    phi, r = 1.3, 0.8
+    psi = np.exp(widths * (np.cos(phi - centres) - 1.0))
+    expected = np.outer(psi / psi.sum(), [r * np.cos(phi), r * np.sin(phi)]).ravel()
+    function = symbolic.feature_function(symbolic.Signature("phase", 1, 3, "von_mises"))
+    got = function([phi, r], centres, widths).full().ravel()
+    np.testing.assert_allclose(got, expected, rtol=1e-14)

@@ -232,6 +232,7 @@ def test_energy_oscillator_phase_and_reset_keep_its_amplitude():
     state round the ellipse of its current energy E = (v^2 + k^2 x^2) / 2, i.e. keeps
     hypot(x, v / k), all written out here."""
     dmp = random_rhythmic(seed=9, form="energy", k=2.0, amplitude=1.5)
+    assert dmp.period == 2 * np.pi * dmp.tau / 2.0  # x'' = -k^2 x / tau^2 on the cycle
     stepper = dmp.stepper(0.001, phase=0.7)
     x, v = stepper.state[:2]
     np.testing.assert_allclose([x, v], [1.5 * np.cos(0.7), 1.5 * 2.0 * np.sin(0.7)], rtol=1e-15)

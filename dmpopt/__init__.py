@@ -23,7 +23,7 @@ symbol                          meaning                                API name
 The full table, with units: ``docs/glossary.md``.
 """  # noqa: E501
 
-from .cartesian import CartesianDMP, CartesianStepper, CartesianTrajectory, fit_cartesian
+from .cartesian import CartesianDMP, CartesianStepper, CartesianTrajectory
 from .dmp import AffinePlan, DiscreteDMP, RhythmicDMP, similarity_transform
 from .exceptions import (
     DmpoptError,
@@ -41,6 +41,7 @@ from .fitting import (
     Bounds,
     ViaPoint,
     build_fitting_problem,
+    fit_cartesian,
     fit_discrete,
     fit_keep_out,
     fit_rhythmic,

@@ -12,7 +12,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from . import symbolic
+from . import forms, symbolic
 from .exceptions import InvalidInputError
 from .validation import integer
 
@@ -124,21 +124,40 @@ def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRAC
     return float((k + part) * dt)
 
 
+@lru_cache(maxsize=16)
+def _jacobians(form: str) -> ca.Function:
+    """``gains -> (canonical, transformation)``: Jacobians of the form's canonical and
+    transformation systems (one DOF, unforced) with respect to their states, from its
+    equations (:mod:`dmpopt.forms`); constant for the linear discrete systems."""
+    equations = forms.FORMS[form]
+    gains = ca.SX.sym("gains", len(equations.gain_names))
+    canonical = ca.SX.sym("canonical", 2)
+    transformation = ca.SX.sym("transformation", equations.n_transformation)
+    zero = ca.SX.zeros(1)
+    canonical_rate = equations.canonical_rhs(canonical, 1.0, gains, 0.0)
+    rate = equations.transformation_rhs(transformation, zero, zero, gains, 0.0)
+    return ca.Function(
+        "dmp_jacobians",
+        [gains, canonical],
+        [ca.jacobian(canonical_rate, canonical), ca.jacobian(rate, transformation)],
+    )
+
+
+@lru_cache(maxsize=64)  # every DiscreteDMP asks at construction (its phase-rate check)
 def discrete_eigenvalues(form: str, gains: tuple) -> tuple[np.ndarray, np.ndarray]:
     r"""Eigenvalues, for ``tau = 1``, of the canonical system (6) and of the linear part of the
     transformation system (5) or (10), as ``(canonical, transformation)``.
 
-    Eq. (6) is :math:`\ddot x + \alpha_v \dot x + \alpha_v \beta_v x = \alpha_v \beta_v g`,
-    so its eigenvalues are the roots of :math:`s^2 + \alpha_v s + \alpha_v \beta_v`; eq. (5)
-    gives :math:`s^2 + \alpha_z s + \alpha_z \beta_z`, and eq. (10) adds :math:`-\alpha_g`
-    (the goal filter). The forcing term is an input that does not feed back.
+    Both are linear, so these are the eigenvalues of their Jacobians (taken from the form's
+    equations): for eq. (6) the roots of :math:`s^2 + \alpha_v s + \alpha_v \beta_v`, for
+    eq. (5) those of :math:`s^2 + \alpha_z s + \alpha_z \beta_z`, and eq. (10) adds
+    :math:`-\alpha_g` (the goal filter). The forcing term is an input that does not feed back.
     """
-    alpha_z, beta_z, alpha_v, beta_v = gains[:4]
-    canonical = np.roots([1.0, alpha_v, alpha_v * beta_v])
-    transformation = np.roots([1.0, alpha_z, alpha_z * beta_z])
-    if form == "acceleration":
-        transformation = np.append(transformation, -gains[4])
-    return canonical, transformation
+    canonical, transformation = _jacobians(form)(np.asarray(gains, dtype=float), np.zeros(2))
+    eigenvalues = np.linalg.eigvals(canonical.full()), np.linalg.eigvals(transformation.full())
+    for values in eigenvalues:
+        values.setflags(write=False)  # shared by the cache
+    return eigenvalues
 
 
 def erlang_time(n_poles: int, fraction: float) -> float:

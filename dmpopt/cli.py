@@ -9,26 +9,21 @@ failures and Ctrl-C end with one line on stderr and a non-zero exit code (2: bad
 from __future__ import annotations
 
 import argparse
-import importlib
 import inspect
 import sys
 import tempfile
 import time
 import warnings
 from contextlib import contextmanager
+from importlib import metadata
 from pathlib import Path
 
-STUDIES = (
-    "imitation",
-    "constrained",
-    "rl",
-    "recognition",
-    "humanoid",
-    "biped",
-    "cartesian",
-    "primitives",
-    "feasible",
-)
+from .folders import FolderInUse, locked_folder, staged_output
+
+ENTRY_POINTS = "dmpopt.studies"
+"""The entry-point group that declares the studies (``available``: name -> module) and the
+results page (``write_report``); the repository's ``pyproject.toml`` fills it, so dmpopt never
+imports a studies package by name."""
 
 
 class UsageError(Exception):
@@ -42,16 +37,20 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
+def entry_point(name: str):
+    """The object declared as ``name`` in the :data:`ENTRY_POINTS` group, loaded."""
+    found = [point for point in metadata.entry_points(group=ENTRY_POINTS) if point.name == name]
+    if not found:
+        raise UsageError(
+            f"no studies are installed: the entry point {name!r} of the group {ENTRY_POINTS!r} "
+            "is missing; install dmpopt from its repository (pip install -e . or pip install .)"
+        )
+    return found[0].load()
+
+
 def available_studies() -> dict:
     """Study name -> module, for the studies installed with this version."""
-    found = {}
-    for name in STUDIES:
-        try:
-            found[name] = importlib.import_module(f"studies.{name}")
-        except ModuleNotFoundError as error:
-            if error.name != f"studies.{name}":
-                raise
-    return found
+    return entry_point("available")()
 
 
 def _summary(module) -> str:
@@ -126,9 +125,8 @@ def _check_targets(out: Path, names: list[str]) -> None:
 
 @contextmanager
 def _locked(out: Path):
-    """Hold ``--out`` for this run (studies.common.locked_folder); a second run is refused."""
-    from studies.common import FolderInUse, locked_folder
-
+    """Hold ``--out`` for this run (:func:`dmpopt.folders.locked_folder`); a second run is
+    refused."""
     try:
         with locked_folder(out):
             yield
@@ -150,8 +148,6 @@ def _run_one(name: str, module, target: Path, quick: bool, seed: int, runner=Non
     """Run one study into a staged folder that replaces ``target``; return the exit code."""
     from threadpoolctl import threadpool_limits
 
-    from studies.common import staged_output
-
     from .exceptions import DmpoptError
 
     start, existed = time.perf_counter(), target.exists()
@@ -172,8 +168,7 @@ def _run_one(name: str, module, target: Path, quick: bool, seed: int, runner=Non
 
 
 def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, runner=None) -> int:
-    from studies.report import write_report
-
+    write_report = entry_point("write_report")
     total = sum(_seconds(studies[n], quick) for n in names)
     print(
         f"running {', '.join(names)} ({'quick' if quick else 'full'}): "

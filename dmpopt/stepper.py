@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import symbolic
+from . import forms, symbolic
 from .exceptions import InvalidInputError, ShapeError
 from .validation import flag, positive, real, real_array, vector
 
@@ -42,12 +42,12 @@ class Stepper:
     """
 
     def __init__(self, dmp, dt: float, start, start_velocity=0.0, phase=0.0, compile=False):
-        if type(dmp).__name__ not in ("DiscreteDMP", "RhythmicDMP"):
+        if not isinstance(getattr(dmp, "equations", None), forms.Form):
             raise InvalidInputError(
                 f"dmp must be a DiscreteDMP or RhythmicDMP, got {type(dmp).__name__}"
             )
         self.dmp = dmp
-        self._discrete = dmp.form in symbolic.DISCRETE_FORMS
+        self._discrete = dmp.equations.discrete
         self.dt = dmp.check_step(dt)
         self._max_step_per_tau = dmp.max_step / dmp.tau
         step = symbolic.step_function(dmp.signature)
@@ -119,21 +119,15 @@ class Stepper:
         if self._discrete:
             raise InvalidInputError("reset_phase applies to rhythmic DMPs")
         phase = real("phase", phase)
-        first, second = self._state[0], self._state[1]
-        if self.dmp.form == "phase":
-            self._state[0] = phase
-        else:
-            amplitude = np.hypot(first, second / self.dmp.k)
-            self._state[0] = amplitude * np.cos(phase)
-            self._state[1] = amplitude * self.dmp.k * np.sin(phase)
+        form, gains = self.dmp.equations, self.dmp.gains
+        amplitude = form.amplitude_of(self._state[:2], gains)
+        self._state[:2] = form.canonical_state(phase, amplitude, gains)
 
     # -- state --------------------------------------------------------------------------
     @property
     def phase(self) -> float:
         """Normalised phase (discrete, 0 to 1) or oscillator angle [rad] (rhythmic)."""
-        if self.dmp.form == "energy":
-            return float(np.arctan2(self._state[1], self._state[0]))
-        return float(self._state[0])
+        return self.dmp.equations.phase_of(self._state)
 
     @property
     def state(self) -> np.ndarray:

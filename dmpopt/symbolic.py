@@ -1,19 +1,9 @@
-r"""The one CasADi definition of every DMP system, and the functions built from it.
+r"""The DMP systems assembled from their forms, and every function built from them.
 
-Every numeric result of dmpopt (rollouts, online steps, fitting matrices, gradients) is
-evaluated from the expressions in this module; nothing re-implements them in numpy.
-
-Four forms share one layout. The state of a system with ``D`` DOFs is the canonical state
-(two numbers, shared by all DOFs, Section 3.6) followed by the transformation states:
-
-================  ==========================  ===================================
-form              canonical state             transformation state
-================  ==========================  ===================================
-``velocity``      phase ``x``, ``v`` (eq. 6)  ``y``, ``z``                (eq. 5)
-``acceleration``  phase ``x``, ``v`` (eq. 6)  ``y``, ``z``, goal filter ``r`` (eq. 10)
-``phase``         ``phi``, amplitude ``r``    ``y``, ``z``     (eqs. 5, 11)
-``energy``        ``x``, ``v``     (eq. 13)   ``y``, ``z``     (eqs. 5, 13)
-================  ==========================  ===================================
+Each form's equations are written once, in :mod:`dmpopt.forms`; this module assembles the
+whole system (canonical and transformation states of all DOFs) from them and builds the
+compiled functions. Every numeric result of dmpopt (rollouts, online steps, fitting matrices,
+gradients) is evaluated from these expressions; nothing re-implements them in numpy.
 
 The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
 phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried
@@ -48,31 +38,24 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from .forms import (  # noqa: F401 (re-exported: the kernels)
+    FORMS,
+    KERNELS,
+    Form,
+    basis_log_activations,
+    normalised_activations,
+)
 from .validation import check_resources
-
-DISCRETE_FORMS = ("velocity", "acceleration")
-RHYTHMIC_FORMS = ("phase", "energy")
-FORMS = DISCRETE_FORMS + RHYTHMIC_FORMS
-KERNELS = ("gaussian", "von_mises", "paper")
-
-GAIN_NAMES = {
-    "velocity": ("alpha_z", "beta_z", "alpha_v", "beta_v"),
-    "acceleration": ("alpha_z", "beta_z", "alpha_v", "beta_v", "alpha_g"),
-    "phase": ("alpha_z", "beta_z", "alpha_r"),
-    "energy": ("alpha_z", "beta_z", "alpha_E", "k"),
-}
-"""The constants of each form, named after the paper's symbols (docs/glossary.md), in the
-order of the ``gains`` input of the compiled functions."""
 
 
 def n_transformation_states(form: str) -> int:
     """Transformation states per DOF: ``y, z`` and, in the acceleration form, ``r``."""
-    return 3 if form == "acceleration" else 2
+    return FORMS[form].n_transformation
 
 
 def n_features(form: str, n_basis: int) -> int:
     """Weights per DOF: one per basis (discrete), a 2-vector per basis (rhythmic)."""
-    return n_basis if form in DISCRETE_FORMS else 2 * n_basis
+    return FORMS[form].n_features(n_basis)
 
 
 @dataclass(frozen=True)
@@ -94,102 +77,15 @@ class Signature:
         """Length of the feature vector that multiplies the weights."""
         return n_features(self.form, self.n_basis)
 
+    @property
+    def equations(self) -> Form:
+        """The form's object (:mod:`dmpopt.forms`)."""
+        return FORMS[self.form]
+
 
 # ---------------------------------------------------------------------------------------
 # The equations
 # ---------------------------------------------------------------------------------------
-
-
-def normalised_activations(log_psi):
-    """Normalise log-activations ``log psi_i`` to ``psi_i / sum_j psi_j`` without underflow."""
-    shifted = log_psi - ca.mmax(log_psi)
-    psi = ca.exp(shifted)
-    return psi / ca.sum1(psi)
-
-
-def basis_log_activations(kernel: str, phase, centres, widths):
-    r"""Logarithm of the basis activations ``psi_i`` at ``phase``.
-
-    ``gaussian``: :math:`-h_i (x - c_i)^2`, eq. (7) on the discrete phase.
-    ``von_mises``: :math:`h_i (\cos(\phi - c_i) - 1)`, periodic, smooth at :math:`2\pi`.
-    ``paper``: :math:`-h_i (\mathrm{mod}(\phi, 2\pi) - c_i)^2`, eqs. (12) and (14) as printed.
-    """
-    if kernel == "gaussian":
-        return -widths * (phase - centres) ** 2
-    if kernel == "von_mises":
-        return widths * (ca.cos(phase - centres) - 1.0)
-    if kernel == "paper":
-        wrapped = ca.fmod(ca.fmod(phase, 2 * np.pi) + 2 * np.pi, 2 * np.pi)
-        return -widths * (wrapped - centres) ** 2
-    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
-
-
-def features(form: str, kernel: str, canonical, centres, widths):
-    r"""The vector that the weights multiply to give the forcing term.
-
-    Discrete, eq. (7): :math:`\psi_i v / \sum_j \psi_j` on the normalised phase.
-    Phase oscillator, eq. (12): :math:`\psi_i(\phi) \tilde v / \sum_j \psi_j` with
-    :math:`\tilde v = [r\cos\phi, r\sin\phi]`.
-    Energy oscillator, eq. (14): :math:`\psi_i(\theta) \tilde v / \sum_j \psi_j` with
-    :math:`\theta = \mathrm{atan2}(v, x)` and :math:`\tilde v = [x, v]`.
-    """
-    first, second = canonical[0], canonical[1]
-    if form in DISCRETE_FORMS:
-        psi = normalised_activations(basis_log_activations(kernel, first, centres, widths))
-        return psi * second
-    if form == "phase":
-        psi = normalised_activations(basis_log_activations(kernel, first, centres, widths))
-        carrier = ca.vertcat(second * ca.cos(first), second * ca.sin(first))
-    else:
-        angle = ca.atan2(second, first)
-        psi = normalised_activations(basis_log_activations(kernel, angle, centres, widths))
-        carrier = ca.vertcat(first, second)
-    return ca.vec(carrier @ psi.T)  # [psi_1 v1, psi_1 v2, psi_2 v1, ...]
-
-
-def canonical_rhs(form: str, canonical, target, gains, coupling):
-    r"""Time derivative, times ``tau``, of the canonical state.
-
-    Discrete, eq. (6) normalised: :math:`\tau \dot v = \alpha_v(\beta_v (1 - x) - v) + C`,
-    :math:`\tau \dot x = v`.
-    Phase oscillator, eq. (11): :math:`\tau\dot\phi = 1 + C`,
-    :math:`\tau \dot r = \alpha_r (A - r)`, ``target`` = A.
-    Energy oscillator, eq. (13): :math:`\tau \dot x = v`,
-    :math:`\tau \dot v = -\alpha_E (E - E_0) v - k^2 x + C`, ``target`` = :math:`E_0`.
-    """
-    first, second = canonical[0], canonical[1]
-    if form in DISCRETE_FORMS:
-        alpha_v, beta_v = gains[2], gains[3]
-        return ca.vertcat(second, alpha_v * (beta_v * (1 - first) - second) + coupling)
-    if form == "phase":
-        alpha_r = gains[2]
-        return ca.vertcat(1 + coupling, alpha_r * (target - second))
-    alpha_e, k = gains[2], gains[3]
-    energy = 0.5 * (second**2 + k**2 * first**2)
-    return ca.vertcat(second, -alpha_e * (energy - target) * second - k**2 * first + coupling)
-
-
-def transformation_rhs(form: str, transformation, goal, forcing, gains, coupling):
-    r"""Time derivative, times ``tau``, of the transformation states of all DOFs.
-
-    Velocity form, eq. (5): :math:`\tau\dot z = \alpha_z(\beta_z(g - y) - z) + C`,
-    :math:`\tau \dot y = z + f`.
-    Acceleration form, eq. (10): :math:`\tau\dot z = \alpha_z(\beta_z(r - y) - z) + f + C`,
-    :math:`\tau\dot y = z`, :math:`\tau \dot r = \alpha_g (g - r)`.
-    Rhythmic forms use eq. (5) with ``goal`` the setpoint of the oscillation.
-    """
-    n = goal.shape[0]
-    alpha_z, beta_z = gains[0], gains[1]
-    y, z = transformation[:n], transformation[n : 2 * n]
-    if form == "acceleration":
-        r = transformation[2 * n :]
-        alpha_g = gains[4]
-        return ca.vertcat(
-            z,
-            alpha_z * (beta_z * (r - y) - z) + forcing + coupling,
-            alpha_g * (goal - r),
-        )
-    return ca.vertcat(z + forcing, alpha_z * (beta_z * (goal - y) - z) + coupling)
 
 
 PARAMETER_NAMES = (
@@ -250,7 +146,7 @@ def make_symbols(signature: Signature) -> Symbols:
         forcing_weights=ca.SX.sym("forcing_weights", d, signature.n_features),
         centres=ca.SX.sym("centres", n),
         widths=ca.SX.sym("widths", n),
-        gains=ca.SX.sym("gains", len(GAIN_NAMES[signature.form])),
+        gains=ca.SX.sym("gains", len(FORMS[signature.form].gain_names)),
         coupling=ca.SX.sym("coupling", d),
         canonical_coupling=ca.SX.sym("canonical_coupling"),
     )
@@ -270,15 +166,15 @@ def function(name: str, inputs: dict, outputs: dict, options=None) -> ca.Functio
 
 def system_rhs(signature: Signature, s: Symbols, state):
     """Time derivative of the whole state (canonical then transformation), eqs. (5)-(14)."""
-    form = signature.form
+    form = signature.equations
     canonical, transformation = state[:2], state[2:]
-    phi = features(form, signature.kernel, canonical, s.centres, s.widths)
+    phi = form.features(signature.kernel, canonical, s.centres, s.widths)
     forcing = s.forcing_weights @ phi
-    canonical_rate = canonical_rhs(
-        form, canonical, s.canonical_target, s.gains, s.canonical_coupling
+    canonical_rate = form.canonical_rhs(
+        canonical, s.canonical_target, s.gains, s.canonical_coupling
     )
-    transformation_rate = transformation_rhs(
-        form, transformation, s.goal, forcing, s.gains, s.coupling
+    transformation_rate = form.transformation_rhs(
+        transformation, s.goal, forcing, s.gains, s.coupling
     )
     return ca.vertcat(canonical_rate, transformation_rate) / s.tau
 
@@ -298,7 +194,7 @@ def plan_outputs(signature: Signature, s: Symbols) -> dict:
     }
 
 
-def forcing_target(form: str, transformation, velocity, acceleration, tau, goal, gains):
+def forcing_target(form: Form, transformation, velocity, acceleration, tau, goal, gains):
     r"""The forcing term :math:`f` that gives the transformation system ``velocity`` and
     ``acceleration`` at ``transformation``: eq. (5) or (10) solved for :math:`f`.
 
@@ -309,27 +205,27 @@ def forcing_target(form: str, transformation, velocity, acceleration, tau, goal,
     - \tau \dot y)`.
     """
     n = goal.shape[0]
-    if form == "acceleration":
+    if form.forcing_on_velocity:
+        forced, rate = slice(0, n), tau * velocity
+    else:
         transformation = ca.vertcat(transformation[:n], tau * velocity, transformation[2 * n :])
         forced, rate = slice(n, 2 * n), tau**2 * acceleration
-    else:
-        forced, rate = slice(0, n), tau * velocity
-    unforced = transformation_rhs(form, transformation, goal, ca.SX.zeros(n), gains, 0.0)
+    unforced = form.transformation_rhs(transformation, goal, ca.SX.zeros(n), gains, 0.0)
     return rate - unforced[forced]
 
 
-def filter_step(form: str, z, position, dt, tau, goal, gains):
+def filter_step(form: Form, z, position, dt, tau, goal, gains):
     r"""Exact step ``dt`` of :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` (eq. (5)
     unforced) with the position :math:`y` held: the :math:`z` of eq. (15) along a
     demonstration.
 
     The equation is linear in :math:`z`, :math:`\dot z = a (z - z^*)`, so
     :math:`z(dt) = e^{a\,dt} z + (1 - e^{a\,dt}) z^*`; :math:`a` and the equilibrium
-    :math:`z^*` are read off :func:`transformation_rhs`.
+    :math:`z^*` are read off the form's ``transformation_rhs``.
     """
     n = goal.shape[0]
     zeros = ca.SX.zeros(n)
-    rate = transformation_rhs(form, ca.vertcat(position, z), goal, zeros, gains, 0.0)[n:] / tau
+    rate = form.transformation_rhs(ca.vertcat(position, z), goal, zeros, gains, 0.0)[n:] / tau
     slope = ca.diag(ca.jacobian(rate, z))
     equilibrium = -ca.substitute(rate, z, zeros) / slope
     decay = ca.exp(slope * dt)
@@ -394,7 +290,7 @@ def feature_function(signature: Signature) -> ca.Function:
     """``(canonical_state, centres, widths) -> features`` (the regressors of imitation)."""
     s = make_symbols(signature)
     canonical = ca.SX.sym("canonical", 2)
-    phi = features(signature.form, signature.kernel, canonical, s.centres, s.widths)
+    phi = signature.equations.features(signature.kernel, canonical, s.centres, s.widths)
     return ca.Function("dmp_features", [canonical, s.centres, s.widths], [phi])
 
 
@@ -403,7 +299,7 @@ def activation_function(signature: Signature) -> ca.Function:
     """``(canonical_state, centres, widths) -> psi`` (unnormalised, for local regression)."""
     s = make_symbols(signature)
     canonical = ca.SX.sym("canonical", 2)
-    phase = canonical[0] if signature.form != "energy" else ca.atan2(canonical[1], canonical[0])
+    phase = signature.equations.basis_phase(canonical)
     log_psi = basis_log_activations(signature.kernel, phase, s.centres, s.widths)
     return ca.Function("dmp_activations", [canonical, s.centres, s.widths], [ca.exp(log_psi)])
 
@@ -417,7 +313,7 @@ def forcing_target_function(signature: Signature) -> ca.Function:
     transformation = ca.SX.sym("transformation", signature.n_states - 2)
     velocity, acceleration = ca.SX.sym("velocity", d), ca.SX.sym("acceleration", d)
     target = forcing_target(
-        signature.form, transformation, velocity, acceleration, s.tau, s.goal, s.gains
+        signature.equations, transformation, velocity, acceleration, s.tau, s.goal, s.gains
     )
     inputs = {"transformation": transformation, "velocity": velocity}
     inputs |= {"acceleration": acceleration, "tau": s.tau, "goal": s.goal, "gains": s.gains}
@@ -431,7 +327,7 @@ def filter_function(signature: Signature) -> ca.Function:
     s = make_symbols(signature)
     d = signature.n_dofs
     z, position = ca.SX.sym("z", d), ca.SX.sym("position", d)
-    following = filter_step(signature.form, z, position, s.dt, s.tau, s.goal, s.gains)
+    following = filter_step(signature.equations, z, position, s.dt, s.tau, s.goal, s.gains)
     inputs = {"z": z, "position": position, "dt": s.dt}
     inputs |= {"tau": s.tau, "goal": s.goal, "gains": s.gains}
     return function("dmp_filter", inputs, {"next_z": following})

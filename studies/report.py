@@ -18,6 +18,7 @@ from pathlib import Path
 from dmpopt.exceptions import FileFormatError, InvalidInputError
 
 from .common import write_text_atomic
+from .registry import STUDIES
 
 COLUMNS = {
     "claim": "claim",
@@ -233,8 +234,6 @@ def write_report(out_dir, names=None) -> Path:
     Figures and metrics are read from the same folders, so the page always matches them;
     it replaces the previous page in one step.
     """
-    from dmpopt.cli import STUDIES
-
     out = Path(out_dir)
     if not out.is_dir():
         raise InvalidInputError(f"out_dir {str(out)!r} is not a folder; pass the results folder")

@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 import dmpopt
 from dmpopt import Trajectory, cli, fit_discrete, symbolic
 from dmpopt.exceptions import FittingFailed
-from studies.common import staged_output, write_text_atomic
+from dmpopt.folders import staged_output
+from studies.common import write_text_atomic
 from studies.report import write_report
 
 REPO = Path(__file__).resolve().parents[1]
@@ -119,6 +120,60 @@ def test_version(capsys):
         cli.main(["--version"])
     assert exit_.value.code == 0
     assert capsys.readouterr().out == f"dmpopt {dmpopt.__version__}\n"
+
+
+def test_the_library_never_imports_the_studies():
+    """Importing every dmpopt module (the command's too) loads no ``studies`` module, and no
+    dmpopt file names the package in an import: the command finds the studies through the
+    entry points of pyproject.toml. A one-line bug it catches: ``from studies.common import
+    staged_output`` back in dmpopt/cli.py."""
+    script = (
+        "import pkgutil, importlib, sys, dmpopt\n"
+        "for module in pkgutil.walk_packages(dmpopt.__path__, 'dmpopt.'):\n"
+        "    importlib.import_module(module.name)\n"
+        "print(sorted(n for n in sys.modules if n.split('.')[0] in ('studies', 'robots')))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO, check=True
+    )
+    assert done.stdout.strip() == "[]"
+    named = re.compile(r"^\s*(from|import)\s+studies\b", re.MULTILINE)
+    offenders = [
+        p.name for p in Path(dmpopt.__file__).parent.rglob("*.py") if named.search(p.read_text())
+    ]
+    assert offenders == []
+
+
+def test_pyproject_declares_the_studies_and_the_report():
+    """The entry points that the command loads name the registry's studies and the report."""
+    tomllib = pytest.importorskip("tomllib")
+    import importlib
+
+    import studies.registry
+    import studies.report
+
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["entry-points"]
+    points = declared[cli.ENTRY_POINTS]
+    loaded = {}
+    for name, target in points.items():
+        module, attribute = target.split(":")
+        loaded[name] = getattr(importlib.import_module(module), attribute)
+    assert loaded == {
+        "available": studies.registry.available,
+        "write_report": studies.report.write_report,
+    }
+    assert list(loaded["available"]()) == list(studies.registry.STUDIES)
+
+
+def test_without_the_entry_points_the_command_says_how_to_install(capsys, monkeypatch):
+    monkeypatch.setattr(cli.metadata, "entry_points", lambda group: [])
+    code, out, err = run_cli(capsys, "study", "list")
+    assert code == 2 and out == ""
+    assert err == (
+        "dmpopt: error: no studies are installed: the entry point 'available' of the group "
+        "'dmpopt.studies' is missing; install dmpopt from its repository (pip install -e . or "
+        "pip install .)\n"
+    )
 
 
 def test_list_shows_quick_and_full_times(capsys):
@@ -251,7 +306,7 @@ def test_two_runs_at_once_publish_one_complete_run(tmp_path):
     script = (
         "import sys\n"
         "from pathlib import Path\n"
-        "from studies.common import FolderInUse, staged_output\n"
+        "from dmpopt.folders import FolderInUse, staged_output\n"
         "seed = sys.argv[1]\n"
         "try:\n"
         f"    with staged_output(Path({str(tmp_path)!r}) / 'study') as folder:\n"

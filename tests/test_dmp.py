@@ -660,3 +660,25 @@ def test_rhythmic_affine_plan_defaults_are_rest_at_phase_zero():
     for other in (dict(start_velocity=1.0), dict(phase=1.0)):
         moved = dmp.affine_plan(2.0, **other).evaluate(dmp.forcing_weights())
         assert np.abs(moved - default).max() > 1e-3
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [{"goal": [0.3, -2.0]}, {"start": [1.0, 1.0]}, {"tau": 0.5}, {"alpha_v": 5.0}],
+    ids=lambda changes: next(iter(changes)),
+)
+def test_a_changed_copy_plans_as_a_dmp_built_afresh(changes):
+    """``replace`` keeps the last plan's response and the step limit only when the change is
+    where the movement goes (goal, start): every copy's plans equal those of the same DMP
+    constructed from its fields, with nothing kept (a copy keeping them after a change of
+    tau would plan on the old time scale)."""
+    dmp = random_discrete(seed=21)
+    dmp.rollout(0.5, 0.001)  # fills what a copy may keep
+    copy = dmp.replace(**changes)
+    fields = {f.name: getattr(copy, f.name) for f in dataclasses.fields(copy) if f.init}
+    fresh = DiscreteDMP(**fields)
+    for duration in (0.5, 0.3):
+        planned, expected = copy.rollout(duration, 0.001), fresh.rollout(duration, 0.001)
+        np.testing.assert_array_equal(planned.positions, expected.positions)
+        np.testing.assert_array_equal(planned.accelerations, expected.accelerations)
+    assert copy.max_step == fresh.max_step

@@ -224,3 +224,23 @@ def test_start_off_the_limit_cycle_warns():
         dmp.stepper(0.001, on_limit_cycle=True)
     with pytest.raises(InvalidInputError, match="pass either start .* or on_limit_cycle=True"):
         dmp.stepper(0.001, start=[0.0, 0.2], on_limit_cycle=True)
+
+
+def test_energy_oscillator_phase_and_reset_keep_its_amplitude():
+    """Energy form, eq. (13), with k = 2: the stepper starts on the cycle at x = A cos(p),
+    v = A k sin(p); its phase is the angle atan2(v, x) of eq. (14); a phase reset moves the
+    state round the ellipse of its current energy E = (v^2 + k^2 x^2) / 2, i.e. keeps
+    hypot(x, v / k), all written out here."""
+    dmp = random_rhythmic(seed=9, form="energy", k=2.0, amplitude=1.5)
+    assert dmp.period == 2 * np.pi * dmp.tau / 2.0  # x'' = -k^2 x / tau^2 on the cycle
+    stepper = dmp.stepper(0.001, phase=0.7)
+    x, v = stepper.state[:2]
+    np.testing.assert_allclose([x, v], [1.5 * np.cos(0.7), 1.5 * 2.0 * np.sin(0.7)], rtol=1e-15)
+    assert stepper.phase == np.arctan2(v, x)
+    _run(stepper, 300)
+    x, v = stepper.state[:2]
+    amplitude = np.hypot(x, v / 2.0)
+    stepper.reset_phase(2.0)
+    np.testing.assert_allclose(
+        stepper.state[:2], [amplitude * np.cos(2.0), amplitude * 2.0 * np.sin(2.0)], rtol=1e-14
+    )

@@ -1,5 +1,6 @@
 """Fitting DMP weights: imitation, constrained fits (QP), minimum-jerk baselines."""
 
+from .cartesian import fit_cartesian
 from .constrained import (
     Bounds,
     ConstrainedFit,
@@ -44,6 +45,7 @@ __all__ = [
     "build_dynamics_problem",
     "build_fitting_problem",
     "estimate_period",
+    "fit_cartesian",
     "fit_discrete",
     "fit_keep_out",
     "fit_rhythmic",

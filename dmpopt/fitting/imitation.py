@@ -263,10 +263,10 @@ def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> n
     state :math:`z` comes from :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` integrated
     along the demonstration (:func:`_filtered`).
     """
-    if dmp.form == "acceleration":
-        transformation = np.hstack([demo.positions, states[:, 2 + dmp.n_dofs :]])
-    else:
+    if dmp.equations.forcing_on_velocity:
         transformation = np.hstack([demo.positions, _filtered(dmp, demo, periodic=False)])
+    else:
+        transformation = np.hstack([demo.positions, states[:, 2 + dmp.n_dofs :]])
     return _solved_targets(dmp, demo, transformation)
 
 
@@ -337,7 +337,7 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
         .full()
         .T
     )
-    if dmp.form in symbolic.DISCRETE_FORMS:
+    if dmp.equations.vectors_per_basis == 1:
         carrier = regressors.sum(axis=1)[:, None, None]  # the phase velocity v
     else:
         carrier = regressors.reshape(n_steps, dmp.n_basis, 2).sum(axis=1)[:, :, None]
@@ -562,7 +562,7 @@ def fit_rhythmic(
     # for eq. (13) (the fit keeps k = 1; its oscillator turns clockwise)
     unit = template.replace(tau=period / (2 * np.pi))
     dt = demo.duration / (demo.n_steps - 1)
-    direction = 1.0 if form == "phase" else -1.0
+    direction = template.equations.turn_direction
 
     if method == "position":
         n_warm = int(round(warm_up_periods * period / dt))

@@ -1,6 +1,6 @@
 """Time per 1 kHz tick of the QP inverse-dynamics controller on Talos.
 
-Each case runs the humanoid study's own closed loop (:mod:`studies.humanoid`: the same
+Each case runs the humanoid study's own closed loop (:mod:`dmpopt_studies.humanoid`: the same
 controller, tasks, contacts, simulator and DMP plans) for ``--seconds`` of simulated time and
 times only ``InverseDynamicsController.compute_torques`` (model terms, QP assembly, solve):
 
@@ -43,8 +43,8 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from robots import load_talos
-from studies import humanoid
+from dmpopt_robots import load_talos
+from dmpopt_studies import humanoid
 
 try:
     from tsid_baseline import TsidWalking, build_tsid

@@ -48,7 +48,7 @@ def main():
         step = median_us(stepper.step, 5000)
         label = "compiled C" if compile_ else "casadi VM"
         print(f"online step, 30 DOFs, 50 bases ({label}): {step:.1f} us median  [<= 20 us]")
-    from studies import lasa
+    from dmpopt_studies import lasa
 
     demo = lasa.demonstrations("Angle")[0]
     lasa_dmp = fit_discrete(demo, 50)

@@ -26,9 +26,9 @@ TARGET = 0.5  # [s]
 
 
 def main(repeats: int = 3) -> None:
-    from robots import load_talos
-    from studies.humanoid.demos import drumming_posture
-    from studies.humanoid.swing import SWING_JOINTS, demonstrate_swing
+    from dmpopt_robots import load_talos
+    from dmpopt_studies.humanoid.demos import drumming_posture
+    from dmpopt_studies.humanoid.swing import SWING_JOINTS, demonstrate_swing
 
     robot = load_talos("full")
     posture = drumming_posture(robot)

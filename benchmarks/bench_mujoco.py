@@ -1,6 +1,6 @@
 """Standing Talos drumming: the native simulator against the MuJoCo backend, same everything else.
 
-Both runs use the humanoid study's pieces (:mod:`studies.humanoid`): the learned drumming DMPs,
+Both runs use the humanoid study's pieces (:mod:`dmpopt_studies.humanoid`): the learned drumming DMPs,
 ``build_controller`` (QP inverse dynamics at 1 kHz with the 12 DMP-driven arm joints as a
 posture task, CoM, pelvis orientation and two sole contacts) and the same start state (the
 drumming posture on the limit cycle). Only the plant differs:
@@ -17,7 +17,7 @@ time / time of plan + controller + simulator) and of the simulator step alone, e
 wall clock and by CPU time (process time for the loop, thread time for the step; the CPU
 figures are the ones to compare on a loaded machine).
 
-Then the planar biped of the walking study (:func:`studies.biped.walk`: DMP gait, PD, boom,
+Then the planar biped of the walking study (:func:`dmpopt_studies.biped.walk`: DMP gait, PD, boom,
 frequency adaptation) walks ``--biped-seconds`` on each backend: distance, heel strikes, the
 adapted frequency, falls (``walk(..., backend=...)``).
 
@@ -32,7 +32,7 @@ forces, step by step in the same loop (before each step the MuJoCo data is copie
 shadow that runs ``mj_step`` with the forces the step applies, or, when the shadow goes
 first, those of the step before; the two alternate in going first, so that neither always
 finds the caches warm; thread time of each), for Talos drumming and the biped walking, each
-on the ideal and the realistic plant (:mod:`robots.plants`). The ratio of the medians is the
+on the ideal and the realistic plant (:mod:`dmpopt_robots.plants`). The ratio of the medians is the
 overhead (the issue's bound: 1.5).
 
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
@@ -47,11 +47,11 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.sim import MujocoSimulator
-from robots import load_talos
-from robots.biped import BIPED_URDF, load_biped
-from robots.plants import realistic_plant
-from studies import biped as biped_study
-from studies import humanoid
+from dmpopt_robots import load_talos
+from dmpopt_robots.biped import BIPED_URDF, load_biped
+from dmpopt_robots.plants import realistic_plant
+from dmpopt_studies import biped as biped_study
+from dmpopt_studies import humanoid
 
 DT = humanoid.DT
 

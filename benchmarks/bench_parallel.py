@@ -134,10 +134,10 @@ def overhead(runner: Runner, batch: int = 400, single: int = 20) -> dict:
 
 def biped_trials(runner: Runner, n_trials: int) -> float:
     """Wall seconds of the biped study's randomised trials (4 arms x ``n_trials`` walks)."""
-    from robots.biped import load_biped
-    from studies.biped import RANGES
-    from studies.biped.analysis import random_disturbances, survival_by_arm
-    from studies.biped.gait import learn_gait
+    from dmpopt_robots.biped import load_biped
+    from dmpopt_studies.biped import RANGES
+    from dmpopt_studies.biped.analysis import random_disturbances, survival_by_arm
+    from dmpopt_studies.biped.gait import learn_gait
 
     biped, (_, dmp) = load_biped(), learn_gait()
     qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}

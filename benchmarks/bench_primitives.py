@@ -206,8 +206,8 @@ def main():
         return mp_worker(*arguments.worker)
     from threadpoolctl import threadpool_limits
 
-    from studies import primitives
-    from studies.lasa import demonstrations, shape_names
+    from dmpopt_studies import primitives
+    from dmpopt_studies.lasa import demonstrations, shape_names
 
     names = list(primitives.QUICK_SHAPES) if arguments.quick else shape_names()
     shapes = {name: demonstrations(name) for name in names}

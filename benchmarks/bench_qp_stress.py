@@ -44,8 +44,8 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.exceptions import SimulationDiverged
-from robots import load_talos
-from studies import humanoid
+from dmpopt_robots import load_talos
+from dmpopt_studies import humanoid
 
 WAVE_FREQUENCY, WAVE_AMPLITUDE = 3.0, 0.05  # [Hz], [rad]
 

@@ -51,8 +51,8 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
-from robots import load_talos
-from studies import humanoid
+from dmpopt_robots import load_talos
+from dmpopt_studies import humanoid
 
 try:
     from tsid_baseline import TsidWalking, build_tsid

@@ -1,4 +1,4 @@
-"""Controller tick time in the Talos walk of :mod:`studies.talos_walk` (MuJoCo, 1 kHz).
+"""Controller tick time in the Talos walk of :mod:`dmpopt_studies.talos_walk` (MuJoCo, 1 kHz).
 
 Runs the walk ``--repeats`` times (quick: one step in place, three forward and a closing
 step; ``--full``: two in place, ten forward) and times every ``compute_torques`` call by the
@@ -16,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from studies import talos_walk
+from dmpopt_studies import talos_walk
 
 
 def walk_ticks(full: bool):

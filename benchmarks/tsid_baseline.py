@@ -1,6 +1,6 @@
 """TSID on the humanoid study's tasks: the reference that dmpopt's controller is timed against.
 
-:func:`build_tsid` has the signature of :func:`studies.humanoid.build_controller` and sets up
+:func:`build_tsid` has the signature of :func:`dmpopt_studies.humanoid.build_controller` and sets up
 TSID (``pip install tsid``, C++ with Python bindings, eiquadprog's HQuadProgFast solver) with
 the same tasks, weights and gains:
 
@@ -28,7 +28,7 @@ if int(pin.__version__.split(".")[0]) >= 4:
     )
 import tsid  # noqa: E402
 
-from studies import humanoid
+from dmpopt_studies import humanoid
 
 if not hasattr(tsid, "RobotWrapper"):  # tsid 1.7 wheels nest the bindings one level down
     from tsid import tsid_pywrap as tsid
@@ -122,7 +122,7 @@ class TsidController:
 def build_tsid(
     robot, q_start, arm_joints=humanoid.DRUM_JOINTS, hand=None, base_task=True, friction=0.7
 ):
-    """TSID with the tasks of :func:`studies.humanoid.build_controller`, and the driven task;
+    """TSID with the tasks of :func:`dmpopt_studies.humanoid.build_controller`, and the driven task;
     ``friction`` is the soles' friction coefficient. The CoM task is ``controller.com``."""
     model = robot.model
     root = tsid.FLOATING_BASE_SYSTEM if robot.floating_base else tsid.FIXED_BASE_SYSTEM

@@ -6,7 +6,7 @@ floating base as a composite root joint at the hip point: translation along x (f
 translation along z (up) and rotation about y (pitch), so ``q = [x, z, pitch, joints...]`` and
 ``v`` has the same layout; the simulator treats these three coordinates as unactuated.
 
-:func:`load_biped` returns a :class:`robots.model.RobotModel` with ``base="planar"``, point
+:func:`load_biped` returns a :class:`dmpopt_robots.model.RobotModel` with ``base="planar"``, point
 feet ``("right_foot", "left_foot")`` and the joint group ``"gait"`` (:data:`GAIT_JOINTS`, the
 gait's order, not the model's). The functions below give the facts a walking controller needs.
 """

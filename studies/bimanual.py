@@ -8,9 +8,9 @@ same perturbation opens or squeezes the grasp.
 Set-up (all choices are ours):
 
 * robot: Talos (full model) standing, MuJoCo with the realistic plant
-  (:func:`robots.plants.talos_realistic`: armature, damping, friction, torque saturation, one
+  (:func:`dmpopt_robots.plants.talos_realistic`: armature, damping, friction, torque saturation, one
   tick of delay, sensor noise) and the humanoid study's controller design
-  (:mod:`studies.humanoid.controller`): :class:`dmpopt.control.InverseDynamicsController` at
+  (:mod:`dmpopt_studies.humanoid.controller`): :class:`dmpopt.control.InverseDynamicsController` at
   1 kHz with the nominal armature in its model, friction fed forward, a
   :class:`dmpopt.control.JointImpedance` around the QP's motion; tasks: whole-body posture,
   CoM, pelvis orientation, two sole contacts, and one full-pose :class:`FrameTask` per hand
@@ -68,10 +68,10 @@ from dmpopt.exceptions import MissingDependency, SimulationDiverged
 from dmpopt.fitting import minimum_jerk
 from dmpopt.sim import with_armature
 from dmpopt.sim.mujoco_backend import FreeBox, MujocoSimulator
-from robots.plants import talos_realistic
-from studies.common import TIME_BUDGET
-from studies.humanoid.demos import drumming_posture
-from studies.humanoid.parameters import (
+from dmpopt_robots.plants import talos_realistic
+from dmpopt_studies.common import TIME_BUDGET
+from dmpopt_studies.humanoid.demos import drumming_posture
+from dmpopt_studies.humanoid.parameters import (
     BASE_WEIGHT,
     COM_WEIGHT,
     CONTROLLER_FRICTION,
@@ -182,7 +182,7 @@ def box_centre(simulator: MujocoSimulator) -> np.ndarray:
 def build_controller(robot, q_start: np.ndarray, plant):
     """The humanoid study's controller design with one full-pose task per hand.
 
-    As :func:`studies.humanoid.controller.build_controller` on the realistic plant: the
+    As :func:`dmpopt_studies.humanoid.controller.build_controller` on the realistic plant: the
     nominal armature in the model, friction fed forward, the joint impedance; posture, CoM
     (at the start, no sink: MuJoCo), pelvis orientation, two sole contacts; both arms kept
     within their limits. Returns the controller and the two hand tasks (left, right).
@@ -386,7 +386,7 @@ def plans_only(setup, coupled: bool, duration: float) -> dict:
 def bimanual_metrics(out, quick: bool, progress=None) -> dict:
     """The ``bimanual`` metrics (module docstring), the figure ``primitives_bimanual.png`` and,
     in full mode, the two videos."""
-    from robots import load_talos
+    from dmpopt_robots import load_talos
 
     duration = RUN_SECONDS["quick" if quick else "full"]
     robot = load_talos("full")
@@ -437,7 +437,7 @@ def write_videos(out, runs: dict) -> tuple[list, str | None]:
 def plot(out, runs: dict, quick: bool) -> None:
     """primitives_bimanual.png: relative pose error over time, coupled and uncoupled (and the
     box's height on the robot)."""
-    from studies.common import pyplot
+    from dmpopt_studies.common import pyplot
 
     plt = pyplot()
     columns = 1 if quick else 2

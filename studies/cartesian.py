@@ -7,7 +7,7 @@ online is reached with the same motion.
 
 Set-up (all choices are ours):
 
-* robot: Talos (full URDF) standing on its two feet in MuJoCo (``studies.humanoid``'s plant:
+* robot: Talos (full URDF) standing on its two feet in MuJoCo (``dmpopt_studies.humanoid``'s plant:
   5 mm spheres at the sole corners, friction 1), 1 ms steps, from the humanoid study's
   drumming posture (bent elbows, hands in front of the belly);
 * demonstration (synthetic): the right hand, from its start pose, moves 6 cm forward, 4 cm
@@ -30,7 +30,7 @@ Metrics: ``position_rmse_mm``, ``orientation_rmse_deg`` (DMP plan against the de
 ``hand_tracking_deg`` (RMS of the hand's pose against the plan in the replay; the goal change
 under ``new_goal``), falls, the hand's final error to the new goal, controller tick times.
 
-Run: ``python -m studies.cartesian OUT_DIR [--quick]`` (quick: runs of 3 s instead of 5 s).
+Run: ``python -m dmpopt_studies.cartesian OUT_DIR [--quick]`` (quick: runs of 3 s instead of 5 s).
 """
 
 from __future__ import annotations
@@ -51,8 +51,8 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.sim import with_armature
-from robots.plants import talos_realistic
-from studies.common import (
+from dmpopt_robots.plants import talos_realistic
+from dmpopt_studies.common import (
     TIME_BUDGET,
     Progress,
     output_dir,
@@ -60,7 +60,7 @@ from studies.common import (
     staged_output,
     write_metrics,
 )
-from studies.humanoid import drumming_posture, mujoco_plant
+from dmpopt_studies.humanoid import drumming_posture, mujoco_plant
 
 EXPECTED_SECONDS = {"full": 35, "quick": 25}  # wall seconds on the loaded 2-core machine
 DT = 1e-3  # [s]
@@ -203,7 +203,7 @@ def tracking(robot, run: dict) -> dict:
 
 def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     """Run the study, write the figures and ``metrics.json`` into ``out_dir``; return them."""
-    from robots import load_talos
+    from dmpopt_robots import load_talos
 
     progress = Progress("cartesian")
     out = output_dir(out_dir)

@@ -25,7 +25,7 @@ within 5 % of the extent. Ratios against the unconstrained DMP are summarised by
 over the shapes where every method of the comparison succeeds; infeasible cases are counted
 and listed per method.
 
-Run: ``python -m studies.constrained OUT_DIR [--quick]``.
+Run: ``python -m dmpopt_studies.constrained OUT_DIR [--quick]``.
 """
 
 from __future__ import annotations

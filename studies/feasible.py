@@ -8,7 +8,7 @@ keep the shape and give up time: toppra's time-optimal retiming and uniform time
 under the same torque and velocity limits.
 
 Set-up (all choices are ours): standing Talos (full model), the forehand swing of the right arm
-of the humanoid study (:mod:`studies.humanoid.swing`, six joints) demonstrated ``SPEED`` times
+of the humanoid study (:mod:`dmpopt_studies.humanoid.swing`, six joints) demonstrated ``SPEED`` times
 faster (0.625 s instead of 1.25 s); the other joints at the drumming posture. Limits: the URDF's
 torque limits of the six joints, their velocity limits and position ranges, and the CoP
 ``COP_MARGIN`` inside the support polygon of both soles with friction ``FRICTION``. Metrics of
@@ -16,13 +16,13 @@ each plan by exact inverse dynamics at 1 kHz with the body still (the fit's mode
 use ``|tau| / limit``, the CoP's smallest margin inside the polygon (negative: outside),
 duration, and the shape error: the largest distance of the plan's hand path from the
 demonstrated one (timing-free, the body at the start posture). Each plan is then executed
-standing in MuJoCo on the realistic Talos plant (:func:`robots.plants.talos_realistic`: armature,
+standing in MuJoCo on the realistic Talos plant (:func:`dmpopt_robots.plants.talos_realistic`: armature,
 friction, torque saturation, delay, noise) by the humanoid study's controller, for its
 duration plus ``HOLD`` seconds: fall, joint tracking RMS, and the QP's relaxed and hold answers.
 Beside the four, the same fit asking for ``HEADROOM`` of the torque limits
 (``dynamics_feasible_headroom``): room for the controller's feedback and the joints' friction.
 
-Run: ``python -m studies.feasible OUT_DIR [--quick]``.
+Run: ``python -m dmpopt_studies.feasible OUT_DIR [--quick]``.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from .common import Progress, pyplot, write_metrics
 EXPECTED_SECONDS = {"full": 120, "quick": 20}  # wall seconds, loaded 2-core machine (37-110 s full)
 SPEED = 2.0  # the forehand demonstrated this many times faster than the humanoid study's
 COP_MARGIN = 0.01  # [m] the CoP at least this far inside the support polygon
-FRICTION = 0.7  # the controller's friction coefficient (studies.humanoid.parameters)
+FRICTION = 0.7  # the controller's friction coefficient (dmpopt_studies.humanoid.parameters)
 HOLD = 0.5  # [s] simulated after each plan's end, holding its last posture
 HEADROOM = 0.8  # the extra fit asks for this fraction of the torque limits
 METHODS = ("plain_dmp", "toppra", "time_scaling", "dynamics_feasible")
@@ -55,9 +55,9 @@ LABELS = {
 def setup():
     """Robot, posture, the fast demonstration, the joints and their limits."""
     from dmpopt import Trajectory
-    from robots import load_talos
-    from studies.humanoid.demos import drumming_posture
-    from studies.humanoid.swing import SWING_JOINTS, demonstrate_swing
+    from dmpopt_robots import load_talos
+    from dmpopt_studies.humanoid.demos import drumming_posture
+    from dmpopt_studies.humanoid.swing import SWING_JOINTS, demonstrate_swing
 
     robot = load_talos("full")
     posture = drumming_posture(robot)
@@ -155,7 +155,7 @@ def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo, limits) ->
     """Torque use, CoP margin, duration and hand-path shape error of one plan (module notes)."""
     from dmpopt.fitting import Balance, TorqueLimits
     from dmpopt.fitting.dynamics import robot_dynamics
-    from studies.humanoid.swing import HandKinematics
+    from dmpopt_studies.humanoid.swing import HandKinematics
 
     dynamics = robot_dynamics(
         robot, joints, posture, TorqueLimits(), Balance(cop_margin=0.0, friction=FRICTION)
@@ -188,11 +188,11 @@ def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo, limits) ->
 def execute(robot, posture, joints, trajectory) -> dict:
     """The plan (sampled every tick) played by the humanoid study's controller on MuJoCo's
     realistic Talos."""
-    from robots.plants import talos_realistic
-    from studies.humanoid.controller import build_controller, mujoco_plant
-    from studies.humanoid.demos import DRUM_JOINTS
-    from studies.humanoid.loop import _closed_loop
-    from studies.humanoid.parameters import DT
+    from dmpopt_robots.plants import talos_realistic
+    from dmpopt_studies.humanoid.controller import build_controller, mujoco_plant
+    from dmpopt_studies.humanoid.demos import DRUM_JOINTS
+    from dmpopt_studies.humanoid.loop import _closed_loop
+    from dmpopt_studies.humanoid.parameters import DT
 
     realistic = talos_realistic(robot)
     q_start = posture.copy()
@@ -359,7 +359,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     robot, posture, demo, joints, limits = setup()
     progress("plans: plain DMP, toppra, time scaling, dynamics-feasible fit")
     trajectories, fit = plans(robot, posture, demo, joints, limits, quick)
-    from studies.humanoid.swing import HandKinematics
+    from dmpopt_studies.humanoid.swing import HandKinematics
 
     hand_demo = HandKinematics(robot).plan(posture, demo.positions)
     methods, series, polygon = {}, {}, None

@@ -39,7 +39,7 @@ Set-up (all choices are ours):
   ``goal_error_mm`` (largest distance to the goal at the end), ``time_ms`` (mean wall time
   per scene: the rollout with the term, or the keep-out fit).
 
-Two-hand coupling (``bimanual``): :mod:`studies.bimanual` (its docstring has the set-up):
+Two-hand coupling (``bimanual``): :mod:`dmpopt_studies.bimanual` (its docstring has the set-up):
 standing Talos in MuJoCo carries a box held between its grippers by friction, the hands'
 Cartesian DMPs perturbed (one slower, one told of a new goal later), coupled by
 :class:`dmpopt.bimanual.RelativePoseCoupling` or not; in quick mode the plans only.
@@ -47,7 +47,7 @@ Cartesian DMPs perturbed (one slower, one told of a new goal later), coupled by
 movement_primitives 0.9.1's ProMP and obstacle coupling on the same data:
 ``benchmarks/bench_primitives.py`` (its own venv), numbers in ``docs/primitives.md``.
 
-Run: ``python -m studies.primitives OUT_DIR [--quick]`` (quick: 2 shapes, 1 scene, the
+Run: ``python -m dmpopt_studies.primitives OUT_DIR [--quick]`` (quick: 2 shapes, 1 scene, the
 bimanual plans without the robot).
 """
 
@@ -61,8 +61,8 @@ import numpy as np
 from dmpopt import Trajectory, fit_discrete, fit_keep_out, fit_promp
 from dmpopt.fitting import minimum_jerk
 from dmpopt.obstacles import Box, PotentialField, Sphere, SteeringAngle, clearance, run_coupled
-from studies.bimanual import bimanual_metrics
-from studies.common import Progress, median_time, output_dir, pyplot, write_metrics
+from dmpopt_studies.bimanual import bimanual_metrics
+from dmpopt_studies.common import Progress, median_time, output_dir, pyplot, write_metrics
 
 EXPECTED_SECONDS = {"full": 300, "quick": 35}  # wall seconds on the loaded 2-core machine
 N_BASIS = 20
@@ -225,7 +225,7 @@ def obstacle_metrics(scenes) -> tuple[dict, dict]:
 
 def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
     """Run the study, write the figures and ``metrics.json`` into ``out_dir``; return them."""
-    from studies.lasa import demonstrations, shape_names
+    from dmpopt_studies.lasa import demonstrations, shape_names
 
     progress = Progress("primitives")
     out = output_dir(out_dir)
@@ -378,7 +378,7 @@ def plot(out, demos, paths: dict, scene) -> None:
 
 
 def main(argv=None) -> None:
-    from studies.common import staged_output
+    from dmpopt_studies.common import staged_output
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out_dir")

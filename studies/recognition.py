@@ -607,7 +607,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
 
 
 def main(argv=None):
-    """Command line: ``python -m studies.recognition OUT_DIR [--quick] [--seed N]``."""
+    """Command line: ``python -m dmpopt_studies.recognition OUT_DIR [--quick] [--seed N]``."""
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

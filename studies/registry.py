@@ -1,7 +1,7 @@
 """The studies that the ``dmpopt`` command lists and runs, and the page it writes after them.
 
 dmpopt never imports this package by name: ``pyproject.toml`` declares :func:`available` and
-:func:`studies.report.write_report` under the entry-point group ``dmpopt.studies``, and the
+:func:`dmpopt_studies.report.write_report` under the entry-point group ``dmpopt.studies``, and the
 command loads them from there (:func:`dmpopt.cli.entry_point`). Adding a study is one name in
 :data:`STUDIES` (and its module).
 """

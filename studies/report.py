@@ -86,7 +86,7 @@ def rst_blocks(text: str) -> str:
 def _docstring(name: str) -> tuple[str, str]:
     """The study module's title line and the rest of its docstring."""
     try:
-        doc = importlib.import_module(f"studies.{name}").__doc__ or ""
+        doc = importlib.import_module(f"dmpopt_studies.{name}").__doc__ or ""
     except ImportError:
         doc = ""
     title, _, rest = doc.strip().partition("\n")

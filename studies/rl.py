@@ -20,7 +20,7 @@ What this study measures (reward and policy: :mod:`dmpopt.learning.tasks`):
 * whether the learned velocity profile is bell-shaped by a check that ``w = 0`` fails;
 * the same methods on a 6-DOF reach and a 2-DOF via-point task.
 
-Run: ``python -m studies.rl OUT_DIR [--quick] [--seed N] [--workers N]``.
+Run: ``python -m dmpopt_studies.rl OUT_DIR [--quick] [--seed N] [--workers N]``.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ Simulation: MuJoCo (:class:`dmpopt.sim.MujocoSimulator`), a 5 mm sphere at each 
 a floor of friction 1, 1 kHz control and simulation; falls as in the humanoid study (pelvis
 below 0.7 m).
 
-``python -m studies.talos_walk OUT_DIR [--quick]``; :func:`run_walk` returns the metrics.
+``python -m dmpopt_studies.talos_walk OUT_DIR [--quick]``; :func:`run_walk` returns the metrics.
 """
 
 from __future__ import annotations
@@ -44,8 +44,8 @@ from dmpopt.sim import IDEAL, with_armature
 from dmpopt.trajectory import Trajectory
 from dmpopt.validation import flag
 from dmpopt.walking import heel_strike_phase
-from robots import load_talos
-from robots.plants import talos_realistic
+from dmpopt_robots import load_talos
+from dmpopt_robots.plants import talos_realistic
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
 from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_masses
@@ -515,7 +515,7 @@ def simulate(
 # ------------------------------------------------------------------------------- the study
 def walk_sweep(quick: bool, runner=None) -> dict:
     """``plant_sweep`` of the walk (the quick plan's four steps and a closing one per case):
-    steps taken and falls against each plant parameter (:mod:`studies.plant_sweep`), the runs
+    steps taken and falls against each plant parameter (:mod:`dmpopt_studies.plant_sweep`), the runs
     where ``runner`` says."""
     robot, _ = _robot_and_start()
     cases = sweep_cases(talos_realistic(robot), quick)
@@ -819,7 +819,7 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
 
 
 def main(argv=None) -> None:
-    """Command line: ``python -m studies.talos_walk OUT_DIR [--quick]``."""
+    """Command line: ``python -m dmpopt_studies.talos_walk OUT_DIR [--quick]``."""
     import argparse
     import json
 

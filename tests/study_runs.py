@@ -10,7 +10,7 @@ from pathlib import Path
 @lru_cache(maxsize=None)
 def imitation_quick() -> Path:
     """Output folder of one quick imitation run (seed 1), deleted at exit."""
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     root = Path(tempfile.mkdtemp(prefix="dmpopt-imitation-"))
     atexit.register(shutil.rmtree, root, ignore_errors=True)

@@ -254,7 +254,7 @@ def test_a_free_box_falls_freely_then_rests_on_the_floor():
     mujoco = pytest.importorskip("mujoco")
     del mujoco
     from dmpopt.sim.mujoco_backend import FreeBox, MujocoSimulator
-    from robots.biped import BIPED_URDF, load_biped
+    from dmpopt_robots.biped import BIPED_URDF, load_biped
 
     biped = load_biped()
     half, start = 0.05, np.array([2.0, 0.0, 0.35])
@@ -319,8 +319,8 @@ def test_talos_carries_the_box_with_coupled_hands():
     the box ends within 2 cm of that (the grippers' tracking, a few millimetres, and the
     squeeze's give)."""
     pytest.importorskip("mujoco")
-    from robots import load_talos
-    from studies import bimanual
+    from dmpopt_robots import load_talos
+    from dmpopt_studies import bimanual
 
     robot = load_talos("full")
     run = bimanual.carry(robot, bimanual.carry_setup(robot), True, 3.0)

@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from dmpopt.sim import GroundContact, Simulator
-from robots import biped as biped_model
+from dmpopt_robots import biped as biped_model
 
 GRAVITY = 9.81
 
 
 @pytest.fixture(scope="module")
 def gait():
-    from studies.biped import learn_gait
+    from dmpopt_studies.biped import learn_gait
 
     return learn_gait()
 
@@ -57,7 +57,7 @@ def test_standing_biped_rests_at_spring_height_with_weight_on_feet(biped):
 def test_short_walk_does_not_fall_and_strikes_alternate(biped, gait, backend):
     """Seeded 6 s walk on each simulator: no fall, forward progress, alternating heel strikes
     with the phase reset to 0 (right) or pi (left) as eq. (21) says."""
-    from studies.biped import walk
+    from dmpopt_studies.biped import walk
 
     _, dmp = gait
     log = walk(biped, dmp, duration=6.0, frequency=5.0, adapt=True, seed=0, backend=backend)
@@ -106,7 +106,7 @@ def test_demonstration_puts_both_feet_on_the_ground_at_heel_strike(gait):
 def test_adaptation_moves_towards_the_measured_step_rate(biped, gait):
     """From the too-high demonstrated frequency the walker steps slower than pi / omega, so
     eq. (21) lowers omega, every update by K times the measured error."""
-    from studies.biped import ADAPTATION_GAIN, walk
+    from dmpopt_studies.biped import ADAPTATION_GAIN, walk
 
     _, dmp = gait
     log = walk(biped, dmp, duration=6.0, frequency=5.0, adapt=True, seed=0, log_every=10**9)
@@ -119,7 +119,7 @@ def test_adaptation_moves_towards_the_measured_step_rate(biped, gait):
 
 def test_unknown_backend_is_refused(biped, gait):
     from dmpopt.exceptions import InvalidInputError
-    from studies.biped import walk
+    from dmpopt_studies.biped import walk
 
     with pytest.raises(InvalidInputError, match="backend must be one of .*'native2'"):
         walk(biped, gait[1], duration=1.0, frequency=5.0, backend="native2")
@@ -127,7 +127,7 @@ def test_unknown_backend_is_refused(biped, gait):
 
 def test_mujoco_fall_height_matches_the_native_one(biped):
     """Both backends get the same fall options: the same thresholds, min height FALL_HEIGHT."""
-    from studies.biped.walker import FALL_HEIGHT, make_simulator
+    from dmpopt_studies.biped.walker import FALL_HEIGHT, make_simulator
 
     mujoco, native = (make_simulator(biped, b).fall_detector for b in ("mujoco", "native"))
     assert mujoco == native
@@ -136,7 +136,7 @@ def test_mujoco_fall_height_matches_the_native_one(biped):
 
 def test_wilson_interval_matches_newcombe_1998():
     """Newcombe (1998), Stat. Med. 17:857, Table I, method 3: 81/263, 15/148, 0/20, 1/29."""
-    from studies.biped.analysis import wilson_interval
+    from dmpopt_studies.biped.analysis import wilson_interval
 
     for (x, n), expected in (
         ((81, 263), (0.2553, 0.3662)),
@@ -153,7 +153,7 @@ def test_wilson_interval_matches_newcombe_1998():
 @pytest.mark.parametrize("x, n", [(3, 2), (-1, 5), (0, 0), (1, 2.5)])
 def test_wilson_interval_refuses_impossible_counts(x, n):
     from dmpopt.exceptions import InvalidInputError
-    from studies.biped.analysis import wilson_interval
+    from dmpopt_studies.biped.analysis import wilson_interval
 
     with pytest.raises(InvalidInputError, match="successes <= n"):
         wilson_interval(x, n)
@@ -161,7 +161,7 @@ def test_wilson_interval_refuses_impossible_counts(x, n):
 
 def _log(speed=0.4, strikes=(0, 1, 0, 1, 0, 1), height=0.55, fell=False, end=8.0):
     """A hand-made walk: base at ``speed`` m/s and ``height`` m, strikes every end/6 s."""
-    from studies.biped.walker import WalkLog
+    from dmpopt_studies.biped.walker import WalkLog
 
     times = np.arange(0.0, end + 1e-9, 0.01)
     q = [np.array([speed * t, height, 0, 0, 0, 0, 0]) for t in times]
@@ -183,7 +183,7 @@ def _log(speed=0.4, strikes=(0, 1, 0, 1, 0, 1), height=0.55, fell=False, end=8.0
     ],
 )
 def test_survival_rule_means_walking_on(log, survived):
-    from studies.biped.analysis import SURVIVAL
+    from dmpopt_studies.biped.analysis import SURVIVAL
 
     assert SURVIVAL.survived(log) is survived
 
@@ -191,8 +191,8 @@ def test_survival_rule_means_walking_on(log, survived):
 def test_survival_by_arm_counts_outcomes_and_intervals(monkeypatch):
     """Fake walks: the arm with phase resetting survives the pushes up to 2 N s, the others
     none; rates, counts and Wilson intervals follow from the outcomes written here."""
-    from studies.biped import analysis
-    from studies.biped.walker import Disturbance
+    from dmpopt_studies.biped import analysis
+    from dmpopt_studies.biped.walker import Disturbance
 
     def fake_walk(biped, dmp, duration, frequency, reset_phase, disturbance, **_):
         ok = reset_phase and disturbance.push_impulse <= 2.0
@@ -211,7 +211,7 @@ def test_survival_by_arm_counts_outcomes_and_intervals(monkeypatch):
 def test_reset_ablation_pairs_arms_with_the_adaptation_in_the_same_state():
     """Discordant pairs and the exact McNemar p-value written plainly: with 5 trials won only
     by resetting and 1 only without, p = 2 (C(6,0) + C(6,1)) / 2^6 = 14 / 64."""
-    from studies.biped.analysis import reset_ablation
+    from dmpopt_studies.biped.analysis import reset_ablation
 
     def arm(outcomes):
         return {"outcomes": outcomes, "rate": sum(outcomes) / len(outcomes)}
@@ -242,13 +242,13 @@ def test_reset_ablation_pairs_arms_with_the_adaptation_in_the_same_state():
     ],
 )
 def test_steps_to_within_reports_a_capped_result_as_a_bound(frequencies, expected):
-    from studies.biped.analysis import steps_to_within
+    from dmpopt_studies.biped.analysis import steps_to_within
 
     assert steps_to_within(frequencies) == expected
 
 
 def test_sweep_minimum_at_the_edge_of_the_sweep_is_a_bound():
-    from studies.biped.analysis import sweep_minimum
+    from dmpopt_studies.biped.analysis import sweep_minimum
 
     rows = [{"frequency": f, "cost_of_transport": c} for f, c in ((4.0, 0.2), (5.0, 0.3))]
     assert sweep_minimum(rows)["bound"] == "at most 4 rad/s (sweep's edge)"
@@ -259,7 +259,7 @@ def test_sweep_minimum_at_the_edge_of_the_sweep_is_a_bound():
 
 
 def test_sweep_minimum_reports_the_flat_band():
-    from studies.biped.analysis import sweep_minimum
+    from dmpopt_studies.biped.analysis import sweep_minimum
 
     rows = [
         {"frequency": f, "cost_of_transport": c}
@@ -276,7 +276,7 @@ def test_qp_contacts_switch_on_heel_strikes_not_on_the_dmp_phase(biped):
     back, and lift_phase of a step after it the right contact ramps out."""
     from types import SimpleNamespace
 
-    from studies.biped.walker import QP_GAINS, QPControl
+    from dmpopt_studies.biped.walker import QP_GAINS, QPControl
 
     law = QPControl(biped)
     law.frequency = 5.0
@@ -304,7 +304,7 @@ def test_qp_contacts_switch_on_heel_strikes_not_on_the_dmp_phase(biped):
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     """One quick run of the study, shared: (output folder, metrics)."""
-    from studies import biped as study
+    from dmpopt_studies import biped as study
 
     folder = tmp_path_factory.mktemp("biped")
     return folder, study.run(folder, quick=True)
@@ -343,7 +343,7 @@ def test_quick_study_reports_fig7_with_its_controls(quick):
 def test_quick_study_swing_leg_under_qp_is_near_sqrt_of_posture_stiffness(quick):
     """Exact inverse dynamics makes each joint follow qdd = -K_p e: omega = sqrt(K_p), up to
     the coupling through the torso task and the held hip (both modes within 20 %)."""
-    from studies.biped.walker import QP_GAINS
+    from dmpopt_studies.biped.walker import QP_GAINS
 
     swing = quick["fig7"]["closed_loop_leg_frequencies_rad_s"]
     assert np.asarray(swing["qp_controller"]) == pytest.approx(
@@ -371,8 +371,8 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
     ``adapt_only`` and ``neither``. Counts Stepper.reset_phase calls, below every switch on
     the way to it."""
     from dmpopt.stepper import Stepper
-    from studies.biped import analysis
-    from studies.biped.walker import Disturbance
+    from dmpopt_studies.biped import analysis
+    from dmpopt_studies.biped.walker import Disturbance
 
     calls = []
     reset_phase = Stepper.reset_phase
@@ -402,7 +402,7 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
 def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run):
     """Five rows with every column, their numbers formatted from the metrics; a caption for
     each figure written (the quick run writes no plant sweep and no video)."""
-    from studies.report import COLUMNS
+    from dmpopt_studies.report import COLUMNS
 
     folder, quick = quick_run
     figures = {path.stem for path in folder.glob("*.png")}
@@ -439,7 +439,7 @@ def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run)
 def test_convergence_verdict_needs_every_start_settled_and_within_5_percent(
     steps, converged, verdict
 ):
-    from studies.biped.summary import _convergence_row
+    from dmpopt_studies.biped.summary import _convergence_row
 
     metrics = {"fig7": {"frequency_settled_by_start": converged}, "steps_to_2pct_by_start": steps}
     row = _convergence_row(metrics)
@@ -490,7 +490,7 @@ def test_passive_swing_leg_under_half_gravity_is_sqrt_2_slower():
 
 def test_simulators_take_the_models_gravity_and_a_scaled_fall_height(tmp_path):
     """MuJoCo simulates the model's gravity; the fall height scales with the leg length."""
-    from studies.biped.walker import FALL_HEIGHT, make_simulator
+    from dmpopt_studies.biped.walker import FALL_HEIGHT, make_simulator
 
     path = biped_model.scaled_legs_urdf(1.5, tmp_path / "legs.urdf")
     robot = biped_model.load_biped(path, gravity=4.0)
@@ -504,7 +504,7 @@ def _settled_rows(values, fell=()):
 
 
 def test_scaling_exponent_is_the_slope_of_a_power_law_over_walks_that_did_not_fall():
-    from studies.biped.fig7 import scaling_exponent
+    from dmpopt_studies.biped.fig7 import scaling_exponent
 
     rows = _settled_rows({f: 7.0 * f**0.5 for f in (0.5, 0.75, 1.0)})
     assert scaling_exponent(rows) == pytest.approx(0.5, abs=1e-12)
@@ -528,7 +528,7 @@ def test_verdict_follows_the_scaling_exponents_and_the_largest_setting_change(
 ):
     """Resonance: g^(1/2), l^(-1/2) within 0.15 and settings within 5 %; controller: gravity
     exponent nearer 0 than 1/2 or a setting moving it over 10 %; otherwise undecided."""
-    from studies.biped.fig7 import verdict
+    from dmpopt_studies.biped.fig7 import verdict
 
     base = 10.0
     gravity = _settled_rows({f: base * f**gravity_exponent for f in (0.5, 1.0)})
@@ -543,7 +543,7 @@ def test_verdict_follows_the_scaling_exponents_and_the_largest_setting_change(
 
 
 def test_trial_start_is_the_nearest_where_every_arm_walks():
-    from studies.biped.fig7 import choose_trial_start
+    from dmpopt_studies.biped.fig7 import choose_trial_start
 
     every, three = {"a": True, "b": True}, {"a": True, "b": False}
     candidates = {6.0: every, 10.0: three, 12.0: every}
@@ -555,8 +555,8 @@ def test_gait_metrics_of_a_regular_walk():
     """Strikes every 0.5 s, 0.3 m apart, from t = 1 s: step/leg 0.3 / 0.6, cadence 2 / s x
     sqrt(l / g), Froude (0.6 m/s)^2 / (g l); impact as recorded, double support over the time
     from the first strike (6 s of the 7 s walk)."""
-    from studies.biped.analysis import gait_metrics
-    from studies.biped.walker import WalkLog
+    from dmpopt_studies.biped.analysis import gait_metrics
+    from dmpopt_studies.biped.walker import WalkLog
 
     log = WalkLog()
     log.strikes = [(1.0 + 0.5 * k, k % 2, 0.3 * k) for k in range(12)]
@@ -574,7 +574,7 @@ def test_gait_metrics_of_a_regular_walk():
 def test_verdict_needs_the_frequency_near_a_physical_resonance_estimate():
     """Scaling and insensitivity of a resonance but 2.5x the nearest estimate: not at the
     legs' resonance; within 10 % of one: locked. Fallen control walks are listed."""
-    from studies.biped.fig7 import verdict
+    from dmpopt_studies.biped.fig7 import verdict
 
     base = 10.0
     gravity = _settled_rows({0.5: base * 0.5**0.5, 1.0: base, 0.25: 1.0}, fell=(0.25,))

@@ -482,7 +482,7 @@ def test_bad_fields_and_goals_are_refused_by_name(fitted):
 
 def test_cartesian_study_quick(tmp_path):
     """Talos stands and its hand follows the pose plan, replayed and re-aimed online."""
-    from studies import cartesian
+    from dmpopt_studies import cartesian
 
     metrics = cartesian.run(tmp_path, quick=True)
     assert metrics["fell"] is False and metrics["new_goal"]["fell"] is False

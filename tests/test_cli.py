@@ -17,8 +17,8 @@ import dmpopt
 from dmpopt import Trajectory, cli, fit_discrete, symbolic
 from dmpopt.exceptions import FittingFailed
 from dmpopt.folders import staged_output
-from studies.common import write_text_atomic
-from studies.report import write_report
+from dmpopt_studies.common import write_text_atomic
+from dmpopt_studies.report import write_report
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -125,13 +125,13 @@ def test_version(capsys):
 def test_the_library_never_imports_the_studies():
     """Importing every dmpopt module (the command's too) loads no ``studies`` module, and no
     dmpopt file names the package in an import: the command finds the studies through the
-    entry points of pyproject.toml. A one-line bug it catches: ``from studies.common import
+    entry points of pyproject.toml. A one-line bug it catches: ``from dmpopt_studies.common import
     staged_output`` back in dmpopt/cli.py."""
     script = (
         "import pkgutil, importlib, sys, dmpopt\n"
         "for module in pkgutil.walk_packages(dmpopt.__path__, 'dmpopt.'):\n"
         "    importlib.import_module(module.name)\n"
-        "print(sorted(n for n in sys.modules if n.split('.')[0] in ('studies', 'robots')))\n"
+        "print(sorted(n for n in sys.modules if n.split('.')[0] in ('dmpopt_studies', 'dmpopt_robots')))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO, check=True
@@ -149,8 +149,8 @@ def test_pyproject_declares_the_studies_and_the_report():
     tomllib = pytest.importorskip("tomllib")
     import importlib
 
-    import studies.registry
-    import studies.report
+    import dmpopt_studies.registry
+    import dmpopt_studies.report
 
     declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["entry-points"]
     points = declared[cli.ENTRY_POINTS]
@@ -159,10 +159,10 @@ def test_pyproject_declares_the_studies_and_the_report():
         module, attribute = target.split(":")
         loaded[name] = getattr(importlib.import_module(module), attribute)
     assert loaded == {
-        "available": studies.registry.available,
-        "write_report": studies.report.write_report,
+        "available": dmpopt_studies.registry.available,
+        "write_report": dmpopt_studies.report.write_report,
     }
-    assert list(loaded["available"]()) == list(studies.registry.STUDIES)
+    assert list(loaded["available"]()) == list(dmpopt_studies.registry.STUDIES)
 
 
 def test_without_the_entry_points_the_command_says_how_to_install(capsys, monkeypatch):
@@ -198,7 +198,7 @@ def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_p
     """--workers N: a study taking ``runner`` gets Runner(workers=N); others run as before.
     (The machine's cores are set to 4 here: more workers than cores are cut to them.)"""
     from dmpopt import parallel
-    from studies import constrained, imitation
+    from dmpopt_studies import constrained, imitation
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 4)
 
@@ -223,7 +223,7 @@ def test_workers_default_to_the_cores_and_are_cut_to_them_with_one_line(
     """No --workers: one process per core; --workers 100000 (once one process per queued
     run): the cores, with a one-line warning."""
     from dmpopt import parallel
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     received = []
 
@@ -244,7 +244,7 @@ def test_workers_default_to_the_cores_and_are_cut_to_them_with_one_line(
 
 def test_interrupted_study_leaves_previous_output(capsys, monkeypatch, tmp_path):
     """Ctrl-C midway: one line, exit 130, the previous complete output intact, no leftovers."""
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     seeds = []
     monkeypatch.setattr(imitation, "run", fake_run(seeds))
@@ -269,7 +269,7 @@ def test_a_second_run_into_the_same_out_is_refused_before_writing(capsys, monkey
     run is refused with one line and exit 2, writes nothing and starts no study (once two
     runs at once mixed one seed's metrics with the other's figures). Once it is gone, the
     run goes ahead."""
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     seeds = []
     monkeypatch.setattr(imitation, "run", fake_run(seeds))
@@ -336,7 +336,7 @@ def test_two_runs_at_once_publish_one_complete_run(tmp_path):
 )
 def test_failed_study_leaves_nothing(capsys, monkeypatch, tmp_path, error):
     """A study that fails on its first run: one line, exit 1, no folder at all."""
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     monkeypatch.setattr(imitation, "run", fake_run([], error))
     code, _, err = run_cli(capsys, "study", "run", "imitation", "--out", str(tmp_path))

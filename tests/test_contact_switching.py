@@ -25,7 +25,7 @@ from dmpopt.control import (
 from dmpopt.control import controller as controller_module
 from dmpopt.control.inverse_dynamics import ContactSetQP
 from dmpopt.exceptions import InvalidInputError
-from robots.biped import foot_positions
+from dmpopt_robots.biped import foot_positions
 
 GRAVITY = 9.81
 RIGHT, LEFT = "right_sole_link", "left_sole_link"
@@ -762,7 +762,7 @@ def test_fixed_base_tick_solves_the_normal_equations(posture):
     task of weight 5 and one on the other hand's height and roll, with a user's joint task (the
     Cholesky path without posture terms), or with a posture task on every joint (the Woodbury
     path)."""
-    from robots import load_talos
+    from dmpopt_robots import load_talos
 
     robot = load_talos("reduced", fixed_base=True)
     rng = np.random.default_rng(11)
@@ -801,8 +801,8 @@ def test_fixed_base_with_a_foot_contact_equals_the_reference_qp():
     current place) and torque limits at 1 %, which bind, while the posture and the right foot
     pull: the tick's accelerations are the optimum of the QP written out in reference_qp
     (Clarabel), to 1e-6 relative; again with a user's elbow task added."""
-    from robots import load_talos
-    from robots.talos import TALOS_SOLE_CORNERS
+    from dmpopt_robots import load_talos
+    from dmpopt_robots.talos import TALOS_SOLE_CORNERS
 
     stand = load_talos("full", fixed_base=True)  # a user's model: a fixed base with feet
     robot = dataclasses.replace(stand, foot_frames=(LEFT,), sole_corners=TALOS_SOLE_CORNERS)

@@ -20,7 +20,7 @@ from dmpopt.control import (
     kernels,
 )
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
-from robots import load_talos
+from dmpopt_robots import load_talos
 
 
 @pytest.fixture(scope="module")

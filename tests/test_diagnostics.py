@@ -13,8 +13,8 @@ from dmpopt.control import (
     active_constraints,
     explain,
 )
-from robots import load_talos
-from robots.talos import TALOS_SOLE_CORNERS
+from dmpopt_robots import load_talos
+from dmpopt_robots.talos import TALOS_SOLE_CORNERS
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from test_simulator import GRAVITY, box_at, box_corners, free_box
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import FallDetector, GroundContact, Simulator, base_tilt
-from robots import biped as biped_model
+from dmpopt_robots import biped as biped_model
 
 GROUND = GroundContact(stiffness=2e4, damping=300.0, friction=0.8)
 
@@ -222,7 +222,7 @@ def test_biped_collapsing_without_torques_falls_below_half_its_leg(biped):
 def _push_standing_talos(robot, force, duration=1.5, push_time=0.3):
     """Talos standing under the humanoid study's QP controller, pushed forward at the pelvis
     for 0.1 s; returns the final state."""
-    from studies.humanoid import build_controller, make_simulator
+    from dmpopt_studies.humanoid import build_controller, make_simulator
 
     q_start = np.array(robot.reference_configuration)
     controller, _ = build_controller(robot, q_start)

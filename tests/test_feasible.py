@@ -96,7 +96,7 @@ def test_fit_holds_the_torque_limit_where_the_plain_dmp_does_not(goal):
 def test_chain_rule_matches_finite_differences():
     """d c / d x of the torque and balance rows (Talos, free flyer, two arm joints) equals
     central differences of the exact rows; step 1e-5 in x: error O(h^2) ~ 1e-9 relative."""
-    from robots import load_talos
+    from dmpopt_robots import load_talos
 
     robot = load_talos("reduced")
     joints = ["arm_right_1_joint", "arm_right_4_joint"]
@@ -127,7 +127,7 @@ def test_chain_rule_matches_finite_differences():
 def test_static_cop_is_the_centre_of_mass_projection():
     """Standing still, the CoP is the CoM's ground projection (Newton-Euler: the ground's
     moment about the CoM is zero); to rounding, 1e-9 m."""
-    from robots import load_talos
+    from dmpopt_robots import load_talos
 
     robot = load_talos("reduced")
     joints = ["arm_left_2_joint"]
@@ -195,7 +195,7 @@ def test_requests_refuse_bad_values():
 def test_study_quick_meets_the_issue(tmp_path):
     """The feasible study (quick): the plain DMP exceeds the limits, the dynamics-feasible DMP
     holds them and the CoP margin at the demonstrated duration."""
-    from studies import feasible
+    from dmpopt_studies import feasible
 
     metrics = feasible.run(tmp_path, quick=True)
     methods = metrics["methods"]
@@ -229,7 +229,7 @@ def test_balance_fit_keeps_the_cop_inside_by_centroidal_dynamics():
     """A fast two-joint arm swing whose plain plan brings the CoP nearer the edge than asked:
     the fit's CoP, computed by centroidal dynamics on the full model, keeps the margin (the
     samples' 1e-3 margin covers the linearisation) and equals the fit's own CoP to 1e-9 m."""
-    from robots import load_talos
+    from dmpopt_robots import load_talos
 
     robot = load_talos("reduced")
     joints = ["arm_right_1_joint", "arm_right_4_joint"]

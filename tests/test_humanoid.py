@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from dmpopt.exceptions import InvalidInputError, MissingDependency
-from robots import load_talos
-from studies import humanoid
-from studies.humanoid.parameters import SWING_FINISH_RAISE
+from dmpopt_robots import load_talos
+from dmpopt_studies import humanoid
+from dmpopt_studies.humanoid.parameters import SWING_FINISH_RAISE
 
 TRACKING_TOLERANCE = 0.01  # [rad] largest joint tracking error allowed in a short run
 
@@ -329,14 +329,14 @@ def test_quick_run_walks_the_planned_steps(quick):
 
 
 def test_module_runs_as_a_script():
-    """``python -m studies.humanoid --help`` reaches the study's command line."""
+    """``python -m dmpopt_studies.humanoid --help`` reaches the study's command line."""
     import subprocess
     import sys
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     result = subprocess.run(
-        [sys.executable, "-m", "studies.humanoid", "--help"],
+        [sys.executable, "-m", "dmpopt_studies.humanoid", "--help"],
         cwd=root,
         capture_output=True,
         text=True,

@@ -74,9 +74,9 @@ def test_the_library_has_no_import_cycle_and_never_imports_the_studies():
             node
             for node in ast.walk(tree)
             if isinstance(node, ast.Import)
-            and any(a.name.split(".")[0] == "studies" for a in node.names)
+            and any(a.name.split(".")[0] == "dmpopt_studies" for a in node.names)
             or isinstance(node, ast.ImportFrom)
-            and (node.module or "").split(".")[0] == "studies"
+            and (node.module or "").split(".")[0] == "dmpopt_studies"
             and not node.level
         ]
         assert named == [], name
@@ -88,3 +88,20 @@ def test_the_cycle_finder_finds_a_cycle():
     """Its answer key: a three-module loop and a self-standing pair, written out."""
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"e"}, "e": set()}
     assert _cycles(graph) == [["a", "b", "c"]]
+
+
+def test_every_package_folder_is_installed_under_its_name():
+    """pyproject.toml lists the packages by hand (studies/ and robots/ install as
+    dmpopt_studies and dmpopt_robots): a new package folder left out of the list would be
+    missing from the wheel."""
+    import tomllib
+
+    repo = ROOT.parent
+    setuptools = tomllib.loads((repo / "pyproject.toml").read_text())["tool"]["setuptools"]
+    names = {folder: name for name, folder in setuptools["package-dir"].items()}
+    found = set()
+    for init in repo.glob("*/**/__init__.py"):
+        top, *rest = init.parent.relative_to(repo).parts
+        if top in ("dmpopt", *names):
+            found.add(".".join([names.get(top, top), *rest]))
+    assert found == set(setuptools["packages"])

@@ -31,8 +31,8 @@ from dmpopt.sim import (
     render_animation,
     render_frame,
 )
-from robots import load_talos
-from robots.biped import BIPED_URDF, load_biped
+from dmpopt_robots import load_talos
+from dmpopt_robots.biped import BIPED_URDF, load_biped
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; read when mujoco is imported
 mujoco = pytest.importorskip("mujoco")
@@ -314,7 +314,7 @@ def test_limp_talos_falls_the_same_way_on_both_backends(talos, lift):
 # ------------------------------------------------------------------------- closed loop
 @pytest.fixture(scope="module")
 def drumming():
-    from studies import humanoid
+    from dmpopt_studies import humanoid
 
     return humanoid, humanoid.learn_drumming(humanoid.demonstrate_drumming())
 
@@ -391,7 +391,7 @@ import numpy as np
 import pinocchio as pin
 from dmpopt.exceptions import MissingDependency
 from dmpopt.sim import MujocoSimulator, render_frame
-from robots import load_talos
+from dmpopt_robots import load_talos
 
 talos, out = load_talos("full"), sys.argv[1]
 sim = MujocoSimulator(talos.model, talos.source, contact_points=talos.contact_points)
@@ -571,7 +571,7 @@ def test_missing_mujoco_names_the_extra(talos, monkeypatch):
 def test_planar_biped_walks_on_mujoco_as_on_the_native_simulator():
     """The walking study's gait (DMPs, PD, boom, frequency adaptation) on MuJoCo for 4 s: no
     fall, and distance and heel strikes within 15 % / one strike of the native simulator's."""
-    from studies import biped as study
+    from dmpopt_studies import biped as study
 
     biped = load_biped()
     _, dmp = study.learn_gait()

@@ -5,7 +5,7 @@ import pytest
 
 from dmpopt.exceptions import InvalidInputError, ShapeError
 from dmpopt.parallel import Runner, map_runs
-from studies.recognition import _nearest_accuracy
+from dmpopt_studies.recognition import _nearest_accuracy
 
 
 def _jobs():
@@ -112,7 +112,7 @@ def test_robot_models_survive_the_trip_to_a_worker():
     """A RobotModel pickles (worker processes get the model of the caller, not a reload)."""
     import pickle
 
-    from robots.biped import load_biped
+    from dmpopt_robots.biped import load_biped
 
     biped = load_biped()
     copy = pickle.loads(pickle.dumps(biped))

@@ -17,8 +17,8 @@ import pytest
 from dmpopt.control import JointImpedance
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import IDEAL, MujocoSimulator, PlantParameters, SensorNoise, Simulator
-from robots import load_talos
-from robots.plants import biped_realistic, talos_realistic
+from dmpopt_robots import load_talos
+from dmpopt_robots.plants import biped_realistic, talos_realistic
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 mujoco = pytest.importorskip("mujoco")
@@ -175,7 +175,7 @@ def test_presets_cover_every_actuated_joint():
     assert (preset.values("armature", names) > 0).all()
     assert (preset.values("friction", names) > 0).all()
     np.testing.assert_array_equal(preset.values("torque_limit", names), talos.torque_limit)
-    from robots.biped import load_biped
+    from dmpopt_robots.biped import load_biped
 
     biped = load_biped()
     assert biped_realistic(biped).values("armature", biped.actuated_joint_names).max() < 0.01

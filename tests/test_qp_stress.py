@@ -30,7 +30,7 @@ from dmpopt.control import (
 from dmpopt.control.inverse_dynamics import JOINT_LIMIT_TOLERANCE
 from dmpopt.exceptions import InvalidInputError, ShapeError, SimulationDiverged
 from dmpopt.sim import GroundContact, Simulator
-from robots import load_talos
+from dmpopt_robots import load_talos
 
 DT = 1e-3  # [s]
 GROUND_STIFFNESS = 2e4  # [N/m] per sole corner

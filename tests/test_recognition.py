@@ -399,7 +399,7 @@ def test_error_partial_inputs(dmp, demo):
 
 def test_nested_leave_one_out_table_matches_refits():
     """The study's nested LOO table: entry [i, j] is 1-NN trained without samples i and j."""
-    from studies.recognition import _loo_distance_predictions
+    from dmpopt_studies.recognition import _loo_distance_predictions
 
     rng = np.random.default_rng(3)
     features = rng.normal(size=(12, 3))

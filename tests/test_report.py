@@ -26,7 +26,7 @@ N_NESTED = 300  # keys of the nested dict: expanded, its table would print on se
 
 def _png(path, width=11.0, height=4.0):
     """A figure of a study's usual size (1320 x 480 px), so the printed length is realistic."""
-    from studies.common import pyplot
+    from dmpopt_studies.common import pyplot
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(width, height))
@@ -60,7 +60,7 @@ def results(tmp_path):
 
 
 def _write(folder, **kwargs) -> str:
-    from studies.report import write_report
+    from dmpopt_studies.report import write_report
 
     return write_report(folder, **kwargs).read_text()
 
@@ -96,7 +96,7 @@ def test_captions_come_from_the_metrics_and_titles_otherwise(results):
 
 
 def test_rst_double_back_quotes_and_roles_render_as_code():
-    from studies.report import inline_rst, rst_blocks
+    from dmpopt_studies.report import inline_rst, rst_blocks
 
     text = (
         "the ``walk``, ``step`` of :mod:`dmpopt.control` with :class:`~a.B` and **no** `boom` <x>"
@@ -136,7 +136,7 @@ def test_metrics_are_collapsed_flat_and_compact_with_the_raw_file_linked(results
 
 
 def test_short_values_answer_keys():
-    from studies.report import _short
+    from dmpopt_studies.report import _short
 
     assert _short(0.000123456) == "0.0001235"
     assert _short([1, 2.5, None]) == "[1, 2.5, None]"

@@ -10,8 +10,8 @@ import pytest
 from dmpopt import RobotModel
 from dmpopt.exceptions import InvalidInputError, ShapeError
 from dmpopt.robot import example_robot_data_dir
-from robots import load_talos
-from robots.biped import load_biped
+from dmpopt_robots import load_talos
+from dmpopt_robots.biped import load_biped
 
 ANSWER_KEY = json.loads(
     (Path(__file__).parent / "data" / "robot_models_answer_key.json").read_text()

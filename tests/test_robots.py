@@ -8,7 +8,7 @@ import pytest
 
 import dmpopt.robot
 from dmpopt.exceptions import InvalidInputError, MissingDependency
-from robots import RobotModel, example_robot_data_dir, load_talos
+from dmpopt_robots import RobotModel, example_robot_data_dir, load_talos
 
 
 @pytest.fixture(scope="module")

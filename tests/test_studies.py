@@ -24,7 +24,7 @@ def imitation_run():
 def test_imitation_full(tmp_path):
     """All 210 demos: the default fit's error, LWR at every basis count, the automatic
     choice within its tolerance, the goal-shift errors against their own references."""
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     metrics = imitation.run(tmp_path)
     assert metrics["n_demos"] == 210 and metrics["nonfinite"] == 0
@@ -49,7 +49,7 @@ RL_RATIO_95_AT_10000 = 6.57  # eREINFORCE / eNAC trials to 95 % at Fisher condit
 @pytest.fixture(scope="module")
 def rl_run(tmp_path_factory):
     """One quick RL run (seed 0), shared: (output folder, metrics)."""
-    from studies import rl
+    from dmpopt_studies import rl
 
     folder = tmp_path_factory.mktemp("studies") / "rl"
     return folder, rl.run(folder, quick=True)
@@ -163,7 +163,7 @@ def test_rl_summary_captions_and_parallel_record(rl_run):
 
 
 def test_recognition_quick(tmp_path):
-    from studies import recognition
+    from dmpopt_studies import recognition
 
     metrics = recognition.run(tmp_path, quick=True)
     assert 0.9 <= metrics["accuracy_loo"] <= 1.0
@@ -183,7 +183,7 @@ def test_report_links_every_figure(tmp_path, imitation_run):
     import re
     import shutil
 
-    from studies.report import write_report
+    from dmpopt_studies.report import write_report
 
     shutil.copytree(imitation_run[0], tmp_path / "imitation")
     page = write_report(tmp_path).read_text()
@@ -199,7 +199,7 @@ def test_report_embeds_listed_videos_and_says_why_they_were_skipped(tmp_path):
     import json
     import re
 
-    from studies.report import write_report
+    from dmpopt_studies.report import write_report
 
     for name, videos, skipped in (("humanoid", ["drumming.webp"], None), ("biped", [], "no GL")):
         (tmp_path / name).mkdir()

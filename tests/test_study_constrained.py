@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studies import constrained
+from dmpopt_studies import constrained
 
 
 def _case(shape, **methods):

@@ -4,10 +4,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robots import load_talos
-from studies import humanoid
-from studies.humanoid import swing
-from studies.humanoid.summary import captions, summary_rows
+from dmpopt_robots import load_talos
+from dmpopt_studies import humanoid
+from dmpopt_studies.humanoid import swing
+from dmpopt_studies.humanoid.summary import captions, summary_rows
 
 
 @pytest.fixture(scope="module")
@@ -174,7 +174,7 @@ def test_scenarios_do_not_depend_on_the_runner(dmps):
     processes: the same logs, in the order of the inputs (to round-off: the linear algebra
     of another process may sum in another order, 1e-13 rad measured)."""
     from dmpopt.parallel import Runner, map_runs
-    from studies.humanoid.robustness import Scenario, run_scenario
+    from dmpopt_studies.humanoid.robustness import Scenario, run_scenario
 
     base = Scenario(dmps, duration=0.05)
     scenarios = [Scenario(dmps, 0.05, mass_scale=1.1), Scenario(dmps, 0.05, push_ns=5.0)]

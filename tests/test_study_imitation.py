@@ -37,7 +37,7 @@ def saved():
 
 
 def _demos(saved):
-    from studies import lasa
+    from dmpopt_studies import lasa
 
     shapes, per_shape = saved["parameters"]["shapes"], saved["parameters"]["demos_per_shape"]
     return [lasa.demonstrations(name)[k] for name in shapes for k in range(per_shape)]
@@ -112,7 +112,7 @@ def test_goal_shift_references_are_written_out():
     """Answer keys: ours, the demo multiplied, as complex numbers about its start, by
     (g' - y0) / (g - y0); the paper's, each axis multiplied by its own (g'_d - y0_d) /
     (g_d - y0_d); the new goal moved by 20 % of |g - y0| on each axis."""
-    from studies import imitation, lasa
+    from dmpopt_studies import imitation, lasa
 
     demo = lasa.demonstrations("Sshape")[2]
     start, goal = demo.positions[0], demo.positions[-1]
@@ -179,7 +179,7 @@ def test_summary_and_captions_come_from_the_metrics(saved):
 )
 def test_bad_run_options_are_refused(tmp_path, options, match):
     from dmpopt import InvalidInputError
-    from studies import imitation
+    from dmpopt_studies import imitation
 
     with pytest.raises(InvalidInputError, match=match):
         imitation.run(tmp_path, **options)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from studies import primitives
+from dmpopt_studies import primitives
 
 
 def test_path_length_and_jerk_measures():

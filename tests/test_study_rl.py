@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dmpopt.learning import Exploration, make_method, optimise, paper_reaching_task
-from studies import rl
+from dmpopt_studies import rl
 
 
 @pytest.fixture(scope="module")

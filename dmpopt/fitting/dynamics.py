@@ -305,7 +305,7 @@ def robot_dynamics(
     if not isinstance(robot, RobotModel):
         raise InvalidInputError(
             f"robot must be a dmpopt.robot.RobotModel, got {type(robot).__name__}; build one with "
-            "RobotModel.from_urdf(...) or robots.load_talos()"
+            "RobotModel.from_urdf(...) or dmpopt_robots.load_talos()"
         )
     if torque_limits is not None and not isinstance(torque_limits, TorqueLimits):
         raise InvalidInputError(

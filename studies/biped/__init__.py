@@ -15,27 +15,27 @@ Set-up (all choices are ours, see ``robots/README.md``):
   so the walks use the QP inverse-dynamics controller of :mod:`dmpopt.control` (posture task
   on the DMP references, torso-pitch task leaning 0.2 rad, point contacts switched by the
   simulator's heel strikes, Raibert foot placement on the swing hip), see
-  :mod:`studies.biped.walker`. The PD's failure is measured, not assumed: the paper's PD at
+  :mod:`dmpopt_studies.biped.walker`. The PD's failure is measured, not assumed: the paper's PD at
   several gains, start speeds and DMP amplitudes ("modest tuning of the speed and amplitude")
   without pitch torque (``fig7.pd_without_pitch_torque``);
 * simulator: MuJoCo (:class:`dmpopt.sim.MujocoSimulator`, 5 mm spheres at the point feet,
   friction 0.8), 1 ms step; the DMP steps every 4 ms (compiled);
 * demonstration: normative sagittal hip and knee angles (Winter 2009, Perry 2010), the left
-  leg half a cycle after the right (:mod:`studies.biped.gait`);
+  leg half a cycle after the right (:mod:`dmpopt_studies.biped.gait`);
 * eq. (21): :class:`dmpopt.walking.FrequencyAdaptation` at each heel strike.
 
-The test (:mod:`studies.biped.fig7`): eq. (21) from four starts; beside it the legs' resonance
+The test (:mod:`dmpopt_studies.biped.fig7`): eq. (21) from four starts; beside it the legs' resonance
 estimated without eq. (21): the swing leg linearised (hip held) passive, under the paper's PD
 gains and under the QP (:func:`dmpopt.walking.closed_loop_frequencies`), and the least
 mechanical cost of transport of a fixed-frequency sweep; and the sceptic's controls from
 12 rad/s: gravity and leg length scaled (a resonance-locked frequency moves as
 :math:`\sqrt{g / l}`), and controller settings that are not leg dynamics (posture gains,
 torso lean, foot-placement gain and target speed; a resonance-locked frequency barely moves).
-``fig7.verdict`` is computed from them (:func:`studies.biped.fig7.verdict`).
+``fig7.verdict`` is computed from them (:func:`dmpopt_studies.biped.fig7.verdict`).
 
 Phase resetting's effect on robustness (``reset_robustness``) is meant apart from "can it
 walk": the trials start at the candidate frequency nearest the settled one at which every arm
-(resetting on and off, adaptation on and off, :data:`studies.biped.analysis.ARMS`) walks
+(resetting on and off, adaptation on and off, :data:`dmpopt_studies.biped.analysis.ARMS`) walks
 undisturbed, or, where no candidate has that, the one where most arms walk
 (``all_arms_walk_undisturbed`` then says False and the summary calls the comparison
 undecided); the same seeded randomised disturbances (push, masses, slope) for every arm, with
@@ -46,7 +46,7 @@ The frequency a walk settles at is the median of its last 20 heel strikes. The Q
 realistic plant and its plant sweep (docs/plant.md) run in the full study only. ``summary``
 and ``captions`` are formatted from the metrics.
 
-Run: ``python -m studies.biped OUT_DIR [--quick]``.
+Run: ``python -m dmpopt_studies.biped OUT_DIR [--quick]``.
 """
 
 from __future__ import annotations
@@ -57,9 +57,9 @@ from pathlib import Path
 import numpy as np
 
 from dmpopt.parallel import Runner, map_runs
-from robots import biped as biped_model
-from robots.biped import load_biped
-from robots.plants import biped_realistic
+from dmpopt_robots import biped as biped_model
+from dmpopt_robots.biped import load_biped
+from dmpopt_robots.plants import biped_realistic
 
 from ..common import Progress, write_metrics
 from ..plant_sweep import collect, plot_sweep, sweep_cases
@@ -304,13 +304,13 @@ def run(
     """Run the study; write ``metrics.json`` and the figures to ``out_dir``; return metrics.
 
     ``reality_gap``: in a full run, also the QP walk on the realistic plant and its plant
-    sweep (:mod:`studies.plant_sweep`); a quick run never has them.
+    sweep (:mod:`dmpopt_studies.plant_sweep`); a quick run never has them.
 
     The walks are independent runs, executed where ``runner`` says (:mod:`dmpopt.parallel`;
     default: in series). A walk at the edge of a fall can end differently in another process:
     proxsuite is not bitwise reproducible across processes.
     """
-    from studies.humanoid import VIDEO_FPS, check_backend, write_videos
+    from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 
     backend = check_backend(backend)
     out_dir = Path(out_dir)

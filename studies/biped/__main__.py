@@ -1,4 +1,4 @@
-"""``python -m studies.biped OUT_DIR [--quick]``."""
+"""``python -m dmpopt_studies.biped OUT_DIR [--quick]``."""
 
 from . import main
 

@@ -105,7 +105,7 @@ ARMS = {  # (reset_phase, adapt)
 }
 """The arms of the ablation, phase resetting on and off with the adaptation on and off. Each
 walks with the same controller, whose contacts switch on the simulator's heel strikes
-(:class:`~studies.biped.walker.QPControl`) in every arm. ``reset_and_adapt``: at each heel
+(:class:`~dmpopt_studies.biped.walker.QPControl`) in every arm. ``reset_and_adapt``: at each heel
 strike the oscillator's phase is reset, eq. (21) first line, and its frequency adapted, eq.
 (21) second line. ``adapt_only`` switches off the phase reset (the oscillator keeps its own
 phase, its frequency still adapts to the measured steps). ``reset_only`` switches off the

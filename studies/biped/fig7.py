@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robots.biped import BIPED_URDF, load_biped, scaled_legs_urdf
+from dmpopt_robots.biped import BIPED_URDF, load_biped, scaled_legs_urdf
 
 from .analysis import SURVIVAL, converged_frequency, cost_of_transport
 from .gait import learn_gait
@@ -73,7 +73,7 @@ SENSITIVE = 0.10  # relative change that counts as "moves with the controller"
 def walk_job(job: dict):
     """One walk of the study (an independent run): returns its :class:`WalkLog`.
 
-    ``job`` holds :func:`~studies.biped.walker.walk`'s keywords (``biped``, ``dmp`` and
+    ``job`` holds :func:`~dmpopt_studies.biped.walker.walk`'s keywords (``biped``, ``dmp`` and
     ``urdf`` are built here) and ``gravity_factor``, ``leg_factor`` (the model's gravity and
     leg length x factor, the plant alike) and ``qp_overrides`` (fields of ``QPGains``).
     """

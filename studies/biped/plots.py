@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from studies.common import pyplot
+from dmpopt_studies.common import pyplot
 
 
 def frequency_figure(path, by_start, sweep, resonance, flat_band) -> None:
@@ -173,7 +173,7 @@ def stick_figure(path, biped, log, speed) -> None:
 def controls_figure(path, baseline, gravity, legs, insensitivity) -> None:
     """The sceptic's controls: settled frequency against gravity and leg-length factors beside
     the resonance prediction (sqrt(g / l) from the baseline) and a controller-locked one (flat);
-    and against controller settings. Rows are :func:`studies.biped.fig7.settled` rows."""
+    and against controller settings. Rows are :func:`dmpopt_studies.biped.fig7.settled` rows."""
     plt = pyplot()
     fig, (ax, ax_set) = plt.subplots(1, 2, figsize=(11, 4))
     for label, rows, sign, marker in (

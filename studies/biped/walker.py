@@ -29,7 +29,7 @@ from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import IDEAL, GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
-from robots import biped as biped_model
+from dmpopt_robots import biped as biped_model
 
 from ..common import TIME_BUDGET
 from .gait import limit_cycle_start
@@ -318,7 +318,7 @@ def walk(
     ``nominal_plant`` the QP controller's model carries its armature and a
     :class:`dmpopt.control.JointImpedance` closes the joint loop. ``urdf``: the URDF ``biped``
     was loaded from (default ``robots/biped.urdf``; a leg-scaled copy for the leg-length
-    control); the simulated gravity is the model's (:func:`robots.biped.load_biped`), so the
+    control); the simulated gravity is the model's (:func:`dmpopt_robots.biped.load_biped`), so the
     QP's model and the plant agree. ``qp_gains``, ``pd_gains``: the controller's gains.
     """
     if controller not in CONTROLLERS:
@@ -491,7 +491,7 @@ def make_simulator(biped, backend: str, plant=None, urdf=None):
     from the biped, :mod:`dmpopt.sim.falls`) and simulate the model's gravity. ``urdf``: the
     file ``biped`` was loaded from (default ``robots/biped.urdf``).
     """
-    from studies.humanoid import check_backend
+    from dmpopt_studies.humanoid import check_backend
 
     if check_backend(backend) == "native":
         return Simulator(
@@ -505,7 +505,7 @@ def make_simulator(biped, backend: str, plant=None, urdf=None):
             plant=plant or IDEAL,
         )
     from dmpopt.sim import MujocoSimulator
-    from robots.biped import BIPED_URDF
+    from dmpopt_robots.biped import BIPED_URDF
 
     sim = MujocoSimulator(
         biped.model,

@@ -26,7 +26,7 @@ Set-up (all choices are ours):
   at ``min(0.7, floor)``); torque limits of the controller at ``TIGHT_TORQUE`` of the
   nominal run's peak use, so that the QP's torque rows bind; forward pushes on the pelvis
   of every impulse of ``PUSH_LADDER``, then two bisections below its first fall;
-* walking (MuJoCo backend only; :mod:`studies.talos_walk`, metrics under ``walk``): Talos
+* walking (MuJoCo backend only; :mod:`dmpopt_studies.talos_walk`, metrics under ``walk``): Talos
   (``reduced`` model) steps in place, then walks forward on a LIPM/DCM CoM plan with
   swing-foot references from discrete DMPs, through the same controller with contact
   switching (a normal-force ramp over each double support);
@@ -84,7 +84,7 @@ Quick mode simulates about 50 s in total (3 s of drumming, Fig. 4 runs of 4 s wi
 between 1 s and 3 s, the two swings, MuJoCo scenarios of 1.5 s, pushes of 10 and 60 N s) and
 renders no video.
 
-Run: ``python -m studies.humanoid OUT_DIR [--quick] [--workers N]`` or ``dmpopt study run
+Run: ``python -m dmpopt_studies.humanoid OUT_DIR [--quick] [--workers N]`` or ``dmpopt study run
 humanoid``.
 
 Modules: :mod:`.parameters` (the set-up constants), :mod:`.demos` (the demonstrations and

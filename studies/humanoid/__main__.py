@@ -1,4 +1,4 @@
-"""``python -m studies.humanoid OUT_DIR [--quick]``."""
+"""``python -m dmpopt_studies.humanoid OUT_DIR [--quick]``."""
 
 from .study import main
 

@@ -9,7 +9,7 @@ import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
 from dmpopt import Trajectory
-from robots import load_talos
+from dmpopt_robots import load_talos
 
 from .parameters import (
     ARM_JOINTS,

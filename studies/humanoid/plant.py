@@ -7,7 +7,7 @@ import numpy as np
 
 from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL
-from robots.plants import talos_realistic
+from dmpopt_robots.plants import talos_realistic
 
 from ..plant_sweep import collect, sweep_cases, with_scaled_masses
 from .controller import mujoco_plant

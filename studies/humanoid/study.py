@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.parallel import Runner
-from robots import load_talos
-from robots.plants import talos_realistic
+from dmpopt_robots import load_talos
+from dmpopt_robots.plants import talos_realistic
 
 from ..common import Progress, output_dir, write_metrics
 from ..plant_sweep import plot_sweep
@@ -249,7 +249,7 @@ def _parameters(durations: Durations) -> dict:
 
 
 def main(argv=None) -> None:
-    """Command line: ``python -m studies.humanoid OUT_DIR [--quick] [--seed N]``."""
+    """Command line: ``python -m dmpopt_studies.humanoid OUT_DIR [--quick] [--seed N]``."""
     import argparse
     import json
 

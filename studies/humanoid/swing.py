@@ -129,7 +129,7 @@ def run_swing(
     The arm plan feeds the drumming controller's arm posture task (the left arm held at the
     drumming posture). ``extras`` holds the hand's world and pelvis-frame positions each
     tick (``hand_world``, ``hand_pelvis``), and the start configuration (``q_start``).
-    ``loop`` as in :func:`studies.humanoid.loop.run_drumming`.
+    ``loop`` as in :func:`dmpopt_studies.humanoid.loop.run_drumming`.
     """
     q_start = drumming_posture(robot)
     arm = robot.configuration_indices(list(SWING_JOINTS))

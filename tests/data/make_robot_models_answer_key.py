@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from robots import load_talos
-from robots.biped import load_biped
+from dmpopt_robots import load_talos
+from dmpopt_robots.biped import load_biped
 
 
 def record(robot):

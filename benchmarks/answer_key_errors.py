@@ -1,4 +1,4 @@
-"""Measured differences between the library and the answer keys of tests/test_answer_keys.py.
+"""Measured differences between the library and the answer keys of tests/core/test_answer_keys.py.
 
 For each case and form, prints the largest error of positions, velocities and accelerations
 relative to the key's peak at three steps. Halving the step divides RK4's error by about 16:

@@ -42,7 +42,6 @@ import time
 
 import numpy as np
 import pinocchio as pin
-
 from dmpopt_robots import load_talos
 from dmpopt_studies import humanoid
 

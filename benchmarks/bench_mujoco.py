@@ -1,6 +1,7 @@
 """Standing Talos drumming: the native simulator against the MuJoCo backend, same everything else.
 
-Both runs use the humanoid study's pieces (:mod:`dmpopt_studies.humanoid`): the learned drumming DMPs,
+Both runs use the humanoid study's pieces (:mod:`dmpopt_studies.humanoid`): the learned drumming
+DMPs,
 ``build_controller`` (QP inverse dynamics at 1 kHz with the 12 DMP-driven arm joints as a
 posture task, CoM, pelvis orientation and two sole contacts) and the same start state (the
 drumming posture on the limit cycle). Only the plant differs:
@@ -21,7 +22,7 @@ Then the planar biped of the walking study (:func:`dmpopt_studies.biped.walk`: D
 frequency adaptation) walks ``--biped-seconds`` on each backend: distance, heel strikes, the
 adapted frequency, falls (``walk(..., backend=...)``).
 
-First, the model agreement (the answer key of ``tests/test_mujoco.py`` as numbers): over
+First, the model agreement (the answer key of ``tests/sim/test_mujoco.py`` as numbers): over
 ``--states`` random states, the largest differences between Pinocchio and MuJoCo on the same
 URDF in link positions [m] and rotation matrices, link velocities (local frame), the mass matrix
 and the bias forces (relative to their largest entry), after the coordinate change.
@@ -45,13 +46,13 @@ from contextlib import contextmanager
 
 import numpy as np
 import pinocchio as pin
-
-from dmpopt.sim import MujocoSimulator
 from dmpopt_robots import load_talos
 from dmpopt_robots.biped import BIPED_URDF, load_biped
 from dmpopt_robots.plants import realistic_plant
 from dmpopt_studies import biped as biped_study
 from dmpopt_studies import humanoid
+
+from dmpopt.sim import MujocoSimulator
 
 DT = humanoid.DT
 

@@ -204,10 +204,9 @@ def main():
     arguments = parser.parse_args()
     if arguments.worker:
         return mp_worker(*arguments.worker)
-    from threadpoolctl import threadpool_limits
-
     from dmpopt_studies import primitives
     from dmpopt_studies.lasa import demonstrations, shape_names
+    from threadpoolctl import threadpool_limits
 
     names = list(primitives.QUICK_SHAPES) if arguments.quick else shape_names()
     shapes = {name: demonstrations(name) for name in names}

@@ -35,6 +35,8 @@ import pinocchio as pin
 import proxsuite
 import qpsolvers
 import scipy.sparse
+from dmpopt_robots import load_talos
+from dmpopt_studies import humanoid
 
 from dmpopt.control import (
     ComTask,
@@ -44,8 +46,6 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.exceptions import SimulationDiverged
-from dmpopt_robots import load_talos
-from dmpopt_studies import humanoid
 
 WAVE_FREQUENCY, WAVE_AMPLITUDE = 3.0, 0.05  # [Hz], [rad]
 

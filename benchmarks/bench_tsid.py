@@ -49,10 +49,10 @@ import time
 
 import numpy as np
 import pinocchio as pin
-
-from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
 from dmpopt_robots import load_talos
 from dmpopt_studies import humanoid
+
+from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
 
 try:
     from tsid_baseline import TsidWalking, build_tsid

@@ -15,7 +15,6 @@ Run: ``python benchmarks/bench_walking_tick.py [--full] [--repeats 3]``.
 import argparse
 
 import numpy as np
-
 from dmpopt_studies import talos_walk
 
 

@@ -27,7 +27,6 @@ if int(pin.__version__.split(".")[0]) >= 4:
         "versions in benchmarks/tsid-constraints.txt in a separate venv"
     )
 import tsid  # noqa: E402
-
 from dmpopt_studies import humanoid
 
 if not hasattr(tsid, "RobotWrapper"):  # tsid 1.7 wheels nest the bindings one level down

@@ -692,7 +692,7 @@ class DiscreteDMP(_DmpCommon):
         slows the phase. The margin lets a movement still under way at the end of its
         demonstration come to rest: the README's quickstart demo ends at 3.7 units/s and its
         plan ends 0.0024 % of its extent from the goal (below 0.01 % for demos ending
-        moving, at ``alpha_v`` from 1 to 25, in tests/test_dmp.py)."""
+        moving, at ``alpha_v`` from 1 to 25, in tests/core/test_dmp.py)."""
         settle = basis.settling_time(self.form, tuple(self.gains), SETTLING_FRACTION)
         return self.convergence_time + self.tau * settle
 

@@ -48,6 +48,20 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+from dmpopt_robots.plants import talos_realistic
+from dmpopt_studies.common import TIME_BUDGET
+from dmpopt_studies.humanoid.demos import drumming_posture
+from dmpopt_studies.humanoid.parameters import (
+    BASE_WEIGHT,
+    COM_WEIGHT,
+    CONTROLLER_FRICTION,
+    DT,
+    FALL_HEIGHT,
+    HAND_STIFFNESS,
+    JOINT_LIMIT_HORIZON,
+    MUJOCO_FRICTION,
+    POSTURE_WEIGHT,
+)
 
 from dmpopt import fit_cartesian
 from dmpopt.bimanual import (
@@ -68,20 +82,6 @@ from dmpopt.exceptions import MissingDependency, SimulationDiverged
 from dmpopt.fitting import minimum_jerk
 from dmpopt.sim import with_armature
 from dmpopt.sim.mujoco_backend import FreeBox, MujocoSimulator
-from dmpopt_robots.plants import talos_realistic
-from dmpopt_studies.common import TIME_BUDGET
-from dmpopt_studies.humanoid.demos import drumming_posture
-from dmpopt_studies.humanoid.parameters import (
-    BASE_WEIGHT,
-    COM_WEIGHT,
-    CONTROLLER_FRICTION,
-    DT,
-    FALL_HEIGHT,
-    HAND_STIFFNESS,
-    JOINT_LIMIT_HORIZON,
-    MUJOCO_FRICTION,
-    POSTURE_WEIGHT,
-)
 
 HAND_CENTRE = np.array([0.42, 0.0, 1.0])  # [m] midpoint of the hands at the grasp (world)
 HAND_GAP = 0.36  # [m] distance of the two hand frames at the grasp

@@ -40,6 +40,16 @@ import time
 
 import numpy as np
 import pinocchio as pin
+from dmpopt_robots.plants import talos_realistic
+from dmpopt_studies.common import (
+    TIME_BUDGET,
+    Progress,
+    output_dir,
+    pyplot,
+    staged_output,
+    write_metrics,
+)
+from dmpopt_studies.humanoid import drumming_posture, mujoco_plant
 
 from dmpopt import fit_cartesian
 from dmpopt.control import (
@@ -51,16 +61,6 @@ from dmpopt.control import (
     SoleContact,
 )
 from dmpopt.sim import with_armature
-from dmpopt_robots.plants import talos_realistic
-from dmpopt_studies.common import (
-    TIME_BUDGET,
-    Progress,
-    output_dir,
-    pyplot,
-    staged_output,
-    write_metrics,
-)
-from dmpopt_studies.humanoid import drumming_posture, mujoco_plant
 
 EXPECTED_SECONDS = {"full": 35, "quick": 25}  # wall seconds on the loaded 2-core machine
 DT = 1e-3  # [s]

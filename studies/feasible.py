@@ -8,7 +8,8 @@ keep the shape and give up time: toppra's time-optimal retiming and uniform time
 under the same torque and velocity limits.
 
 Set-up (all choices are ours): standing Talos (full model), the forehand swing of the right arm
-of the humanoid study (:mod:`dmpopt_studies.humanoid.swing`, six joints) demonstrated ``SPEED`` times
+of the humanoid study (:mod:`dmpopt_studies.humanoid.swing`, six joints) demonstrated ``SPEED``
+times
 faster (0.625 s instead of 1.25 s); the other joints at the drumming posture. Limits: the URDF's
 torque limits of the six joints, their velocity limits and position ranges, and the CoP
 ``COP_MARGIN`` inside the support polygon of both soles with friction ``FRICTION``. Metrics of
@@ -16,7 +17,8 @@ each plan by exact inverse dynamics at 1 kHz with the body still (the fit's mode
 use ``|tau| / limit``, the CoP's smallest margin inside the polygon (negative: outside),
 duration, and the shape error: the largest distance of the plan's hand path from the
 demonstrated one (timing-free, the body at the start posture). Each plan is then executed
-standing in MuJoCo on the realistic Talos plant (:func:`dmpopt_robots.plants.talos_realistic`: armature,
+standing in MuJoCo on the realistic Talos plant (:func:`dmpopt_robots.plants.talos_realistic`:
+armature,
 friction, torque saturation, delay, noise) by the humanoid study's controller, for its
 duration plus ``HOLD`` seconds: fall, joint tracking RMS, and the QP's relaxed and hold answers.
 Beside the four, the same fit asking for ``HEADROOM`` of the torque limits
@@ -54,10 +56,11 @@ LABELS = {
 
 def setup():
     """Robot, posture, the fast demonstration, the joints and their limits."""
-    from dmpopt import Trajectory
     from dmpopt_robots import load_talos
     from dmpopt_studies.humanoid.demos import drumming_posture
     from dmpopt_studies.humanoid.swing import SWING_JOINTS, demonstrate_swing
+
+    from dmpopt import Trajectory
 
     robot = load_talos("full")
     posture = drumming_posture(robot)
@@ -153,9 +156,10 @@ def on_control_grid(trajectory, dt: float = 1e-3):
 
 def plan_metrics(robot, posture, demo, joints, trajectory, hand_demo, limits) -> dict:
     """Torque use, CoP margin, duration and hand-path shape error of one plan (module notes)."""
+    from dmpopt_studies.humanoid.swing import HandKinematics
+
     from dmpopt.fitting import Balance, TorqueLimits
     from dmpopt.fitting.dynamics import robot_dynamics
-    from dmpopt_studies.humanoid.swing import HandKinematics
 
     dynamics = robot_dynamics(
         robot, joints, posture, TorqueLimits(), Balance(cop_margin=0.0, friction=FRICTION)

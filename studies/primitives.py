@@ -57,12 +57,12 @@ import argparse
 import time
 
 import numpy as np
+from dmpopt_studies.bimanual import bimanual_metrics
+from dmpopt_studies.common import Progress, median_time, output_dir, pyplot, write_metrics
 
 from dmpopt import Trajectory, fit_discrete, fit_keep_out, fit_promp
 from dmpopt.fitting import minimum_jerk
 from dmpopt.obstacles import Box, PotentialField, Sphere, SteeringAngle, clearance, run_coupled
-from dmpopt_studies.bimanual import bimanual_metrics
-from dmpopt_studies.common import Progress, median_time, output_dir, pyplot, write_metrics
 
 EXPECTED_SECONDS = {"full": 300, "quick": 35}  # wall seconds on the loaded 2-core machine
 N_BASIS = 20

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from dmpopt_robots import load_talos
+from dmpopt_robots.plants import talos_realistic
 
 from dmpopt import balance
 from dmpopt.control import (
@@ -44,8 +46,6 @@ from dmpopt.sim import IDEAL, with_armature
 from dmpopt.trajectory import Trajectory
 from dmpopt.validation import flag
 from dmpopt.walking import heel_strike_phase
-from dmpopt_robots import load_talos
-from dmpopt_robots.plants import talos_realistic
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
 from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_masses

@@ -1,4 +1,5 @@
-"""The Talos walk pushed and on uneven ground (MuJoCo, realistic plant; :mod:`dmpopt_studies.talos_walk`).
+"""The Talos walk pushed and on uneven ground (MuJoCo, realistic plant;
+:mod:`dmpopt_studies.talos_walk`).
 
 - Push recovery: an impulse on the pelvis ``PUSH_DELAY`` after the lift-off of step
   ``PUSH_STEP`` (the first forward step, the left foot swinging; 30 % into its single
@@ -18,9 +19,9 @@
 from __future__ import annotations
 
 import numpy as np
+from dmpopt_robots.plants import talos_realistic
 
 from dmpopt.parallel import Runner, map_runs
-from dmpopt_robots.plants import talos_realistic
 
 from . import talos_walk as walk
 
@@ -176,7 +177,8 @@ def push_video(out_dir, direction: str = "lateral", impulse: float = 40.0) -> di
 
 
 def main(argv=None) -> None:
-    """``python -m dmpopt_studies.talos_walk_recovery OUT_DIR [--quick]``: pushes and uneven ground."""
+    """``python -m dmpopt_studies.talos_walk_recovery OUT_DIR [--quick]``: pushes and uneven
+    ground."""
     import argparse
     import json
 

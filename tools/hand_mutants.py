@@ -4,7 +4,7 @@ Each bug is a (file, old text, new text) replacement; the file is restored after
 run nothing else in this working copy meanwhile. The tests run with tools/mutmut_plugin.py
 (no hypothesis shrinking). From the repository root:
 
-    python tools/hand_mutants.py [pytest args, default tests/test_answer_keys.py]
+    python tools/hand_mutants.py [pytest args, default tests/core/test_answer_keys.py]
 """
 
 import os
@@ -95,4 +95,4 @@ def main(pytest_args):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:] or ["tests/test_answer_keys.py"])
+    main(sys.argv[1:] or ["tests/core/test_answer_keys.py"])

@@ -474,6 +474,7 @@ class MujocoSimulator(Backend):
         """Poses of the free bodies: per body position [m] and quaternion ``(w, x, y, z)``,
         shape (7 * n_free_bodies,)."""
         return self.mj_data.qpos[self._free_qpos].copy()
+
     def _add_boxes(self, spec, boxes, friction: float) -> None:
         for k, box in enumerate(boxes):
             if not isinstance(box, (tuple, list)) or len(box) not in (2, 3):

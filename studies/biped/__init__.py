@@ -24,7 +24,8 @@ Set-up (all choices are ours, see ``robots/README.md``):
   leg half a cycle after the right (:mod:`dmpopt_studies.biped.gait`);
 * eq. (21): :class:`dmpopt.walking.FrequencyAdaptation` at each heel strike.
 
-The test (:mod:`dmpopt_studies.biped.fig7`): eq. (21) from four starts; beside it the legs' resonance
+The test (:mod:`dmpopt_studies.biped.fig7`): eq. (21) from four starts; beside it the legs'
+resonance
 estimated without eq. (21): the swing leg linearised (hip held) passive, under the paper's PD
 gains and under the QP (:func:`dmpopt.walking.closed_loop_frequencies`), and the least
 mechanical cost of transport of a fixed-frequency sweep; and the sceptic's controls from
@@ -55,11 +56,11 @@ import json
 from pathlib import Path
 
 import numpy as np
-
-from dmpopt.parallel import Runner, map_runs
 from dmpopt_robots import biped as biped_model
 from dmpopt_robots.biped import load_biped
 from dmpopt_robots.plants import biped_realistic
+
+from dmpopt.parallel import Runner, map_runs
 
 from ..common import Progress, write_metrics
 from ..plant_sweep import collect, plot_sweep, sweep_cases

@@ -15,7 +15,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
 from dmpopt_robots.biped import BIPED_URDF, load_biped, scaled_legs_urdf
 
 from .analysis import SURVIVAL, converged_frequency, cost_of_transport

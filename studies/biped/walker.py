@@ -24,12 +24,12 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from dmpopt_robots import biped as biped_model
 
 from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import IDEAL, GroundContact, Simulator
 from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
-from dmpopt_robots import biped as biped_model
 
 from ..common import TIME_BUDGET
 from .gait import limit_cycle_start
@@ -504,8 +504,9 @@ def make_simulator(biped, backend: str, plant=None, urdf=None):
             fall_height=fall_height(biped),
             plant=plant or IDEAL,
         )
-    from dmpopt.sim import MujocoSimulator
     from dmpopt_robots.biped import BIPED_URDF
+
+    from dmpopt.sim import MujocoSimulator
 
     sim = MujocoSimulator(
         biped.model,

@@ -6,10 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from dmpopt_robots import load_talos
 from scipy.interpolate import CubicSpline
 
 from dmpopt import Trajectory
-from dmpopt_robots import load_talos
 
 from .parameters import (
     ARM_JOINTS,

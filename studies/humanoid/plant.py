@@ -4,10 +4,10 @@ and the sweep of each plant parameter to the point of failure."""
 from __future__ import annotations
 
 import numpy as np
+from dmpopt_robots.plants import talos_realistic
 
 from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL
-from dmpopt_robots.plants import talos_realistic
 
 from ..plant_sweep import collect, sweep_cases, with_scaled_masses
 from .controller import mujoco_plant

@@ -6,11 +6,11 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
+from dmpopt_robots import load_talos
+from dmpopt_robots.plants import talos_realistic
 
 from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.parallel import map_runs
-from dmpopt_robots import load_talos
-from dmpopt_robots.plants import talos_realistic
 
 from ..plant_sweep import with_scaled_masses
 from .controller import mujoco_plant, with_scaled_torque_limits

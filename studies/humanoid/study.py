@@ -5,10 +5,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from dmpopt.exceptions import InvalidInputError
-from dmpopt.parallel import Runner
 from dmpopt_robots import load_talos
 from dmpopt_robots.plants import talos_realistic
+
+from dmpopt.exceptions import InvalidInputError
+from dmpopt.parallel import Runner
 
 from ..common import Progress, output_dir, write_metrics
 from ..plant_sweep import plot_sweep

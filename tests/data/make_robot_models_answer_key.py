@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-
 from dmpopt_robots import load_talos
 from dmpopt_robots.biped import load_biped
 

@@ -5,11 +5,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
-from dmpopt.exceptions import InvalidInputError, MissingDependency
 from dmpopt_robots import load_talos
 from dmpopt_studies import humanoid
 from dmpopt_studies.humanoid.parameters import SWING_FINISH_RAISE
+
+from dmpopt.exceptions import InvalidInputError, MissingDependency
 
 TRACKING_TOLERANCE = 0.01  # [rad] largest joint tracking error allowed in a short run
 
@@ -334,7 +334,7 @@ def test_module_runs_as_a_script():
     import sys
     from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     result = subprocess.run(
         [sys.executable, "-m", "dmpopt_studies.humanoid", "--help"],
         cwd=root,

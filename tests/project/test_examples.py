@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("mujoco")
 pytest.importorskip("PIL")
 
-EXAMPLES = Path(__file__).parents[1] / "examples"
+EXAMPLES = Path(__file__).parents[2] / "examples"
 SCRIPTS = sorted(EXAMPLES.glob("*.py"))
 
 

@@ -1,5 +1,5 @@
 """The import graph of the library: no module of dmpopt imports another that imports it back,
-directly or through others, and none imports the studies (tests/test_cli.py checks the
+directly or through others, and none imports the studies (tests/project/test_cli.py checks the
 latter at run time)."""
 
 import ast

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from dmpopt_studies import rl
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dmpopt.learning import Exploration, make_method, optimise, paper_reaching_task
-from dmpopt_studies import rl
 
 
 @pytest.fixture(scope="module")

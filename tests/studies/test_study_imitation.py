@@ -178,8 +178,9 @@ def test_summary_and_captions_come_from_the_metrics(saved):
     ],
 )
 def test_bad_run_options_are_refused(tmp_path, options, match):
-    from dmpopt import InvalidInputError
     from dmpopt_studies import imitation
+
+    from dmpopt import InvalidInputError
 
     with pytest.raises(InvalidInputError, match=match):
         imitation.run(tmp_path, **options)

@@ -12,6 +12,8 @@ import sys
 import numpy as np
 import pinocchio as pin
 import pytest
+from dmpopt_robots import load_talos
+from dmpopt_robots.biped import BIPED_URDF, load_biped
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -31,8 +33,6 @@ from dmpopt.sim import (
     render_animation,
     render_frame,
 )
-from dmpopt_robots import load_talos
-from dmpopt_robots.biped import BIPED_URDF, load_biped
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; read when mujoco is imported
 mujoco = pytest.importorskip("mujoco")

@@ -13,12 +13,12 @@ from types import SimpleNamespace
 import numpy as np
 import pinocchio as pin
 import pytest
+from dmpopt_robots import load_talos
+from dmpopt_robots.plants import biped_realistic, talos_realistic
 
 from dmpopt.control import JointImpedance
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import IDEAL, MujocoSimulator, PlantParameters, SensorNoise, Simulator
-from dmpopt_robots import load_talos
-from dmpopt_robots.plants import biped_realistic, talos_realistic
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 mujoco = pytest.importorskip("mujoco")

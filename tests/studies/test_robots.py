@@ -5,10 +5,10 @@ import importlib.metadata
 import numpy as np
 import pinocchio as pin
 import pytest
+from dmpopt_robots import RobotModel, example_robot_data_dir, load_talos
 
 import dmpopt.robot
 from dmpopt.exceptions import InvalidInputError, MissingDependency
-from dmpopt_robots import RobotModel, example_robot_data_dir, load_talos
 
 
 @pytest.fixture(scope="module")

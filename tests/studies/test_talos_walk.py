@@ -13,8 +13,9 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 pytest.importorskip("mujoco")
 
-from dmpopt.exceptions import InvalidInputError  # noqa: E402
 from dmpopt_studies import talos_walk  # noqa: E402
+
+from dmpopt.exceptions import InvalidInputError  # noqa: E402
 
 
 @pytest.fixture(scope="module")

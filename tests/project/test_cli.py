@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from dmpopt_studies.common import write_text_atomic
+from dmpopt_studies.report import write_report
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -17,10 +19,8 @@ import dmpopt
 from dmpopt import Trajectory, cli, fit_discrete, symbolic
 from dmpopt.exceptions import FittingFailed
 from dmpopt.folders import staged_output
-from dmpopt_studies.common import write_text_atomic
-from dmpopt_studies.report import write_report
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def run_cli(capsys, *argv):
@@ -131,7 +131,8 @@ def test_the_library_never_imports_the_studies():
         "import pkgutil, importlib, sys, dmpopt\n"
         "for module in pkgutil.walk_packages(dmpopt.__path__, 'dmpopt.'):\n"
         "    importlib.import_module(module.name)\n"
-        "print(sorted(n for n in sys.modules if n.split('.')[0] in ('dmpopt_studies', 'dmpopt_robots')))\n"
+        "top = {n.split('.')[0] for n in sys.modules}\n"
+        "print(sorted(top & {'dmpopt_studies', 'dmpopt_robots'}))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO, check=True
@@ -197,8 +198,9 @@ def test_list_shows_quick_and_full_times(capsys):
 def test_workers_reach_the_studies_that_take_a_runner(capsys, monkeypatch, tmp_path):
     """--workers N: a study taking ``runner`` gets Runner(workers=N); others run as before.
     (The machine's cores are set to 4 here: more workers than cores are cut to them.)"""
-    from dmpopt import parallel
     from dmpopt_studies import constrained, imitation
+
+    from dmpopt import parallel
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 4)
 
@@ -222,8 +224,9 @@ def test_workers_default_to_the_cores_and_are_cut_to_them_with_one_line(
 ):
     """No --workers: one process per core; --workers 100000 (once one process per queued
     run): the cores, with a one-line warning."""
-    from dmpopt import parallel
     from dmpopt_studies import imitation
+
+    from dmpopt import parallel
 
     received = []
 

@@ -253,8 +253,9 @@ def test_a_free_box_falls_freely_then_rests_on_the_floor():
     back."""
     mujoco = pytest.importorskip("mujoco")
     del mujoco
-    from dmpopt.sim.mujoco_backend import FreeBox, MujocoSimulator
     from dmpopt_robots.biped import BIPED_URDF, load_biped
+
+    from dmpopt.sim.mujoco_backend import FreeBox, MujocoSimulator
 
     biped = load_biped()
     half, start = 0.05, np.array([2.0, 0.0, 0.35])

@@ -6,13 +6,13 @@ from dataclasses import astuple
 import numpy as np
 import pinocchio as pin
 import pytest
+from dmpopt_robots import biped as biped_model
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_simulator import GRAVITY, box_at, box_corners, free_box
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.sim import FallDetector, GroundContact, Simulator, base_tilt
-from dmpopt_robots import biped as biped_model
 
 GROUND = GroundContact(stiffness=2e4, damping=300.0, friction=0.8)
 

@@ -3,7 +3,6 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from dmpopt_robots import load_talos
 from dmpopt_studies import humanoid
 from dmpopt_studies.humanoid import swing
@@ -173,8 +172,9 @@ def test_scenarios_do_not_depend_on_the_runner(dmps):
     """Two short MuJoCo scenarios (a heavier model, a push) in series and in two worker
     processes: the same logs, in the order of the inputs (to round-off: the linear algebra
     of another process may sum in another order, 1e-13 rad measured)."""
-    from dmpopt.parallel import Runner, map_runs
     from dmpopt_studies.humanoid.robustness import Scenario, run_scenario
+
+    from dmpopt.parallel import Runner, map_runs
 
     base = Scenario(dmps, duration=0.05)
     scenarios = [Scenario(dmps, 0.05, mass_scale=1.1), Scenario(dmps, 0.05, push_ns=5.0)]

@@ -15,6 +15,7 @@ import pytest
 import qpsolvers
 import scipy.linalg
 import scipy.sparse
+from dmpopt_robots import load_talos
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,7 +31,6 @@ from dmpopt.control import (
 from dmpopt.control.inverse_dynamics import JOINT_LIMIT_TOLERANCE
 from dmpopt.exceptions import InvalidInputError, ShapeError, SimulationDiverged
 from dmpopt.sim import GroundContact, Simulator
-from dmpopt_robots import load_talos
 
 DT = 1e-3  # [s]
 GROUND_STIFFNESS = 2e4  # [N/m] per sole corner

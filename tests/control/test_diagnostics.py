@@ -3,6 +3,8 @@
 import numpy as np
 import pinocchio as pin
 import pytest
+from dmpopt_robots import load_talos
+from dmpopt_robots.talos import TALOS_SOLE_CORNERS
 
 from dmpopt.control import (
     ComTask,
@@ -13,8 +15,6 @@ from dmpopt.control import (
     active_constraints,
     explain,
 )
-from dmpopt_robots import load_talos
-from dmpopt_robots.talos import TALOS_SOLE_CORNERS
 
 
 @pytest.fixture(scope="module")

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from dmpopt_studies.recognition import _nearest_accuracy
 
 from dmpopt.exceptions import InvalidInputError, ShapeError
 from dmpopt.parallel import Runner, map_runs
-from dmpopt_studies.recognition import _nearest_accuracy
 
 
 def _jobs():

@@ -9,6 +9,7 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 import pytest
+from dmpopt_robots import load_talos
 
 from dmpopt.control import (
     ComputedTorqueController,
@@ -20,7 +21,6 @@ from dmpopt.control import (
     kernels,
 )
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
-from dmpopt_robots import load_talos
 
 
 @pytest.fixture(scope="module")

@@ -6,15 +6,15 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from dmpopt_robots import load_talos
+from dmpopt_robots.biped import load_biped
 
 from dmpopt import RobotModel
 from dmpopt.exceptions import InvalidInputError, ShapeError
 from dmpopt.robot import example_robot_data_dir
-from dmpopt_robots import load_talos
-from dmpopt_robots.biped import load_biped
 
 ANSWER_KEY = json.loads(
-    (Path(__file__).parent / "data" / "robot_models_answer_key.json").read_text()
+    (Path(__file__).parents[1] / "data" / "robot_models_answer_key.json").read_text()
 )
 
 

@@ -179,7 +179,7 @@ def test_recognition_quick(tmp_path):
 
 def test_report_links_every_figure(tmp_path, imitation_run):
     """report.html names the study, embeds each figure it links and shows its metrics (the
-    page's structure in a browser: tests/test_report.py)."""
+    page's structure in a browser: tests/studies/test_report.py)."""
     import re
     import shutil
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from dmpopt_robots import biped as biped_model
 
 from dmpopt.sim import GroundContact, Simulator
-from dmpopt_robots import biped as biped_model
 
 GRAVITY = 9.81
 
@@ -118,8 +118,9 @@ def test_adaptation_moves_towards_the_measured_step_rate(biped, gait):
 
 
 def test_unknown_backend_is_refused(biped, gait):
-    from dmpopt.exceptions import InvalidInputError
     from dmpopt_studies.biped import walk
+
+    from dmpopt.exceptions import InvalidInputError
 
     with pytest.raises(InvalidInputError, match="backend must be one of .*'native2'"):
         walk(biped, gait[1], duration=1.0, frequency=5.0, backend="native2")
@@ -152,8 +153,9 @@ def test_wilson_interval_matches_newcombe_1998():
 
 @pytest.mark.parametrize("x, n", [(3, 2), (-1, 5), (0, 0), (1, 2.5)])
 def test_wilson_interval_refuses_impossible_counts(x, n):
-    from dmpopt.exceptions import InvalidInputError
     from dmpopt_studies.biped.analysis import wilson_interval
+
+    from dmpopt.exceptions import InvalidInputError
 
     with pytest.raises(InvalidInputError, match="successes <= n"):
         wilson_interval(x, n)
@@ -370,9 +372,10 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
     reset at heel strikes in the arms with resetting, never in
     ``adapt_only`` and ``neither``. Counts Stepper.reset_phase calls, below every switch on
     the way to it."""
-    from dmpopt.stepper import Stepper
     from dmpopt_studies.biped import analysis
     from dmpopt_studies.biped.walker import Disturbance
+
+    from dmpopt.stepper import Stepper
 
     calls = []
     reset_phase = Stepper.reset_phase

@@ -10,7 +10,7 @@ import pytest
 
 from dmpopt import DiscreteDMP, RhythmicDMP, Stepper
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 # [units] and [units/s] for "at rest at the goal", relative to the movement's extent
 POSITION_TOLERANCE, SPEED_TOLERANCE = 2e-3, 1e-2
 

@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import qpsolvers
+from dmpopt_robots.biped import foot_positions
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -25,7 +26,6 @@ from dmpopt.control import (
 from dmpopt.control import controller as controller_module
 from dmpopt.control.inverse_dynamics import ContactSetQP
 from dmpopt.exceptions import InvalidInputError
-from dmpopt_robots.biped import foot_positions
 
 GRAVITY = 9.81
 RIGHT, LEFT = "right_sole_link", "left_sole_link"

@@ -169,7 +169,7 @@ def test_file_size_limit_during_overwrite_keeps_the_previous_file(tmp_path):
         "except OSError as error:\n"
         "    print(error.errno)\n"
     )
-    tests = str(Path(__file__).parent)
+    tests = str(Path(__file__).parents[1])
     result = subprocess.run(
         [sys.executable, "-c", script, str(path), tests], capture_output=True, text=True
     )

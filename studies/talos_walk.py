@@ -133,7 +133,9 @@ class Walker:
       swing), early or late: the contact is added at the measured sole position (flat) with
       a force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
       moved to the landed foothold (:meth:`WalkPlan.with_goal`). A foot still in the air at
-      the planned touchdown keeps going down at ``SEARCH_SPEED``;
+      the planned touchdown keeps going down at ``SEARCH_SPEED``. Once the landed sole is
+      at rest (``SETTLED_SPEED``, at the latest after ``TOUCHDOWN_RAMP``) the joint loop's
+      desired state restarts at the measured one (:meth:`_settle`);
     - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
       clipped to the support polygon of the feet in contact, gives the CoM its LIPM
       acceleration; during each swing the capture-point foothold is recomputed from the

@@ -77,6 +77,7 @@ SHORTEST_SWING = 0.3  # [s] and no sooner than this after lift-off
 MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, once airborne
 ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
 ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
+SETTLED_SPEED = 0.02  # [m/s] a landed sole slower than this has come to rest
 PUSH_DURATION = 0.1  # [s] a push's impulse is spread over this
 
 
@@ -132,7 +133,9 @@ class Walker:
       swing), early or late: the contact is added at the measured sole position (flat) with
       a force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
       moved to the landed foothold (:meth:`WalkPlan.with_goal`). A foot still in the air at
-      the planned touchdown keeps going down at ``SEARCH_SPEED``;
+      the planned touchdown keeps going down at ``SEARCH_SPEED``. Once the landed sole is
+      at rest (``SETTLED_SPEED``, at the latest after ``TOUCHDOWN_RAMP``) the joint loop's
+      desired state restarts at the measured one (:meth:`_settle`);
     - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
       clipped to the support polygon of the feet in contact, gives the CoM its LIPM
       acceleration; during each swing the capture-point foothold is recomputed from the
@@ -197,6 +200,7 @@ class Walker:
         self._transfer = DOUBLE_SUPPORT  # [s] a double support
         self._next = 0  # the step under way or next
         self._released = False  # the next step's foot is being unloaded
+        self._settling = None  # (foot, touchdown tick) of a landed foot not yet at rest
         self._swing = None  # (horizontal, vertical) DMP steppers of the step under way
         self._reference = plan  # the plan at the lift-off of the step under way
         self.records: list[StepRecord] = []
@@ -218,6 +222,8 @@ class Walker:
         measured ``state``."""
         t = tick * DT
         com, com_velocity = self._measure(state)
+        if self._settling is not None:
+            self._settle(tick)
         steps = self.plan.footsteps
         i = self._next
         if self._swing is not None:
@@ -235,6 +241,22 @@ class Walker:
         self._com_targets(t, com, com_velocity)
         if self._arm_stepper is not None:
             self._swing_arms()
+
+    def _settle(self, tick: int) -> None:
+        """Once the landed sole has come to rest (or at the end of its force ramp), the joint
+        loop's desired state restarts at the measured one. It integrates the QP's motion,
+        which followed the swing down past the point where the ground stopped the foot (an
+        early touchdown still descending, or a late one feeling for the ground): kept, the
+        landed leg's stiff joint loop goes on pushing it into the floor, carries the whole
+        weight on it and lifts the other, standing foot off in the double support."""
+        foot, touchdown = self._settling
+        velocity = pin.getFrameVelocity(
+            self.robot.model, self.data, self._frame_ids[foot], pin.LOCAL_WORLD_ALIGNED
+        )
+        elapsed = (tick - touchdown) * DT
+        if np.linalg.norm(velocity.linear) < SETTLED_SPEED or elapsed >= TOUCHDOWN_RAMP:
+            self.controller.joint_impedance.reset()
+            self._settling = None
 
     def _swing_arms(self) -> None:
         position, velocity, acceleration = self._arm_stepper.step()
@@ -355,6 +377,8 @@ class Walker:
         placement = pin.SE3(self.sole_rotation[frame], landed)
         self.controller.remove_task(self.swing_tasks[frame])
         self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
+        if self.controller.joint_impedance is not None:
+            self._settling = (foot, int(round(t / DT)))
         self._level[frame] = landed[2]
         self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
         record = self.records[-1]

@@ -1,6 +1,6 @@
 r"""Balance feedback on the divergent component of motion (DCM), and capture-point stepping.
 
-The linear inverted pendulum (:mod:`dmpopt.locomotion`) with CoM :math:`x`, zero-moment point
+The linear inverted pendulum (:mod:`dmpopt.walk_plan`) with CoM :math:`x`, zero-moment point
 (ZMP, centre of pressure) :math:`p` and :math:`\omega = \sqrt{g / z_c}` splits into
 
 .. math:: \dot \xi = \omega (\xi - p), \qquad \dot x = \omega (\xi - x),

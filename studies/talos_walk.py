@@ -1,6 +1,6 @@
 """Talos steps in place, then walks forward on flat ground in MuJoCo through the QP controller.
 
-Plan (:mod:`dmpopt.locomotion`): footsteps; a ZMP on the stance foot in single support and
+Plan (:mod:`dmpopt.walk_plan`): footsteps; a ZMP on the stance foot in single support and
 moving between the feet in double support; the DCM from it backwards and the LIPM CoM
 forwards; swing-foot references from two discrete DMPs fitted once to a demonstrated foot lift
 and re-targeted to each step's start and goal foothold.
@@ -40,12 +40,12 @@ from dmpopt.control import (
 )
 from dmpopt.exceptions import SimulationDiverged
 from dmpopt.fitting import fit_rhythmic
-from dmpopt.locomotion import fit_swing_dmps, footstep_plan, plan_walk
+from dmpopt.frequency_adaptation import heel_strike_phase
 from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL, with_armature
 from dmpopt.trajectory import Trajectory
 from dmpopt.validation import flag
-from dmpopt.walking import heel_strike_phase
+from dmpopt.walk_plan import fit_swing_dmps, footstep_plan, plan_walk
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
 from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_masses

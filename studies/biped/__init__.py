@@ -22,12 +22,12 @@ Set-up (all choices are ours, see ``robots/README.md``):
   friction 0.8), 1 ms step; the DMP steps every 4 ms (compiled);
 * demonstration: normative sagittal hip and knee angles (Winter 2009, Perry 2010), the left
   leg half a cycle after the right (:mod:`dmpopt_studies.biped.gait`);
-* eq. (21): :class:`dmpopt.walking.FrequencyAdaptation` at each heel strike.
+* eq. (21): :class:`dmpopt.frequency_adaptation.FrequencyAdaptation` at each heel strike.
 
 The test (:mod:`dmpopt_studies.biped.fig7`): eq. (21) from four starts; beside it the legs'
 resonance
 estimated without eq. (21): the swing leg linearised (hip held) passive, under the paper's PD
-gains and under the QP (:func:`dmpopt.walking.closed_loop_frequencies`), and the least
+gains and under the QP (:func:`dmpopt.frequency_adaptation.closed_loop_frequencies`), and the least
 mechanical cost of transport of a fixed-frequency sweep; and the sceptic's controls from
 12 rad/s: gravity and leg length scaled (a resonance-locked frequency moves as
 :math:`\sqrt{g / l}`), and controller settings that are not leg dynamics (posture gains,
@@ -135,7 +135,7 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
     (passive double pendulum), the PD baseline's gains, and the QP controller (its posture
     task held at that posture, torso upright, left contact only).
     """
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     plan = dmp.with_tau(1.0 / frequency).rollout(duration=3.75 * 2 * np.pi / frequency, dt=DT)
     height = biped_model.leg_length(biped)

@@ -28,8 +28,8 @@ from dmpopt_robots import biped as biped_model
 
 from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
+from dmpopt.frequency_adaptation import FrequencyAdaptation, HeelStrikeDetector
 from dmpopt.sim import IDEAL, GroundContact, Simulator
-from dmpopt.walking import FrequencyAdaptation, HeelStrikeDetector
 
 from ..common import TIME_BUDGET
 from .gait import limit_cycle_start

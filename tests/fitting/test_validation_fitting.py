@@ -7,7 +7,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from dmpopt import metrics, recognition, validation, walking
+from dmpopt import frequency_adaptation, metrics, recognition, validation
 from dmpopt.exceptions import InvalidInputError, ResourceLimitError, ShapeError
 from dmpopt.fitting.constrained import (
     Bounds,
@@ -433,28 +433,43 @@ BAD_INPUTS = {
     "first_part fraction bool": (lambda: recognition.first_part(DEMO, True), "fraction"),
     "first_part trajectory None": (lambda: recognition.first_part(None, 0.5), "trajectory"),
     # walking
-    "measured_frequency None": (lambda: walking.measured_frequency(None), "step_duration"),
-    "measured_frequency bool": (lambda: walking.measured_frequency(True), "step_duration"),
-    "adapt_frequency nan": (lambda: walking.adapt_frequency(NAN, 0.5, 0.3), "frequency"),
-    "adapt_frequency gain str": (lambda: walking.adapt_frequency(1.0, 0.5, "a"), "gain"),
-    "heel_strike_phase leg bool": (lambda: walking.heel_strike_phase(True), "leg"),
+    "measured_frequency None": (
+        lambda: frequency_adaptation.measured_frequency(None),
+        "step_duration",
+    ),
+    "measured_frequency bool": (
+        lambda: frequency_adaptation.measured_frequency(True),
+        "step_duration",
+    ),
+    "adapt_frequency nan": (
+        lambda: frequency_adaptation.adapt_frequency(NAN, 0.5, 0.3),
+        "frequency",
+    ),
+    "adapt_frequency gain str": (
+        lambda: frequency_adaptation.adapt_frequency(1.0, 0.5, "a"),
+        "gain",
+    ),
+    "heel_strike_phase leg bool": (lambda: frequency_adaptation.heel_strike_phase(True), "leg"),
     "heel_strike_phase oscillator_leg 5": (
-        lambda: walking.heel_strike_phase(0, 5),
+        lambda: frequency_adaptation.heel_strike_phase(0, 5),
         "oscillator_leg",
     ),
-    "HeelStrike time nan": (lambda: walking.HeelStrike(NAN, 0, np.zeros(3)), "time"),
-    "HeelStrike leg 3": (lambda: walking.HeelStrike(0.0, 3, np.zeros(3)), "leg"),
-    "detector min_swing_time None": (lambda: walking.HeelStrikeDetector(None), "min_swing"),
+    "HeelStrike time nan": (lambda: frequency_adaptation.HeelStrike(NAN, 0, np.zeros(3)), "time"),
+    "HeelStrike leg 3": (lambda: frequency_adaptation.HeelStrike(0.0, 3, np.zeros(3)), "leg"),
+    "detector min_swing_time None": (
+        lambda: frequency_adaptation.HeelStrikeDetector(None),
+        "min_swing",
+    ),
     "detector in_contact short": (
-        lambda: walking.HeelStrikeDetector().update(0.0, [True]),
+        lambda: frequency_adaptation.HeelStrikeDetector().update(0.0, [True]),
         "in_contact",
     ),
     "adaptation oscillator_leg 5": (
-        lambda: walking.FrequencyAdaptation(1.0, oscillator_leg=5),
+        lambda: frequency_adaptation.FrequencyAdaptation(1.0, oscillator_leg=5),
         "oscillator_leg",
     ),
     "adaptation strike None": (
-        lambda: walking.FrequencyAdaptation(1.0).on_heel_strike(None),
+        lambda: frequency_adaptation.FrequencyAdaptation(1.0).on_heel_strike(None),
         "strike",
     ),
     # metrics
@@ -615,7 +630,7 @@ def test_a_refused_tell_keeps_the_batch_pending(method):
 
 def test_detector_refuses_time_running_backwards():
     """Heel strikes need increasing time; a decreasing one would give a negative step."""
-    detector = walking.HeelStrikeDetector(min_swing_time=0.0)
+    detector = frequency_adaptation.HeelStrikeDetector(min_swing_time=0.0)
     detector.update(1.0, [False, False])
     with pytest.raises(InvalidInputError, match="time must not decrease"):
         detector.update(0.5, [True, False])
@@ -623,10 +638,10 @@ def test_detector_refuses_time_running_backwards():
 
 def test_adaptation_refuses_strikes_out_of_order():
     """Eq. (21) needs T_n > 0: a strike at or before the previous one is refused."""
-    adaptation = walking.FrequencyAdaptation(frequency=3.0)
-    adaptation.on_heel_strike(walking.HeelStrike(1.0, 0, np.zeros(3)))
+    adaptation = frequency_adaptation.FrequencyAdaptation(frequency=3.0)
+    adaptation.on_heel_strike(frequency_adaptation.HeelStrike(1.0, 0, np.zeros(3)))
     with pytest.raises(InvalidInputError, match="strike.time"):
-        adaptation.on_heel_strike(walking.HeelStrike(1.0, 1, np.zeros(3)))
+        adaptation.on_heel_strike(frequency_adaptation.HeelStrike(1.0, 1, np.zeros(3)))
 
 
 def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):

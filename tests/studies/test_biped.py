@@ -74,7 +74,7 @@ def test_short_walk_does_not_fall_and_strikes_alternate(biped, gait, backend):
 
 def test_phase_reset_sets_the_dmp_phase_per_eq_21(gait):
     """After a strike of the right leg the shared phase is 0, after the left leg pi."""
-    from dmpopt.walking import FrequencyAdaptation, HeelStrike
+    from dmpopt.frequency_adaptation import FrequencyAdaptation, HeelStrike
 
     _, dmp = gait
     stepper = dmp.stepper(1e-3)
@@ -480,7 +480,7 @@ def test_scaled_legs_and_gravity_refuse_bad_values(tmp_path):
 def test_passive_swing_leg_under_half_gravity_is_sqrt_2_slower():
     """A passive pendulum's omega = sqrt(m g d / I): half the gravity, omega / sqrt(2). The
     model's gravity is what the linearisation sees."""
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     def passive(robot):
         q = biped_model.configuration(robot, 0.0, 0.6, 0.0, [0.0, 0.0, 0.0, 0.0])

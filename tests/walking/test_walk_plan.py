@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from dmpopt.exceptions import InvalidInputError, ShapeError
-from dmpopt.locomotion import (
+from dmpopt.walk_plan import (
     GRAVITY,
     Footstep,
     fit_swing_dmps,

@@ -1,10 +1,11 @@
-"""Tests of dmpopt.walking: eq. (21) phase resetting, frequency adaptation, heel strikes."""
+"""Tests of dmpopt.frequency_adaptation: eq. (21) phase resetting, frequency adaptation and
+heel strikes."""
 
 import numpy as np
 import pytest
 
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.walking import (
+from dmpopt.frequency_adaptation import (
     FrequencyAdaptation,
     HeelStrike,
     HeelStrikeDetector,
@@ -103,7 +104,7 @@ def _pendulum(mass=2.0, lever=0.25, inertia_com=0.01):
 @pytest.mark.parametrize("stiffness", [0.0, 3.0, 40.0])
 def test_closed_loop_frequency_of_a_pendulum_is_sqrt_of_stiffness_plus_mgd_over_i(stiffness):
     """Hand-derived: omega = sqrt((k_p + m g d) / (I_c + m d^2)); damping does not change it."""
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     m, d, i_c = 2.0, 0.25, 0.01
     model = _pendulum(m, d, i_c)
@@ -118,7 +119,7 @@ def test_closed_loop_frequency_of_a_pendulum_is_sqrt_of_stiffness_plus_mgd_over_
 
 def test_closed_loop_frequency_flags_an_unstable_mode_as_nan():
     """Inverted (q = pi) and unactuated: K = -m g d < 0, no oscillation."""
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     omega = closed_loop_frequencies(_pendulum(), np.array([np.pi]), [0], lambda q, v: [0.0])
     assert np.isnan(omega).all()
@@ -146,7 +147,7 @@ def test_closed_loop_frequency_flags_an_unstable_mode_as_nan():
 )
 def test_closed_loop_frequencies_refuses_bad_input(joints, law, match):
     from dmpopt.exceptions import DmpoptError
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     with pytest.raises(DmpoptError, match=match):
         closed_loop_frequencies(_pendulum(), np.zeros(1), joints, law)
@@ -154,7 +155,7 @@ def test_closed_loop_frequencies_refuses_bad_input(joints, law, match):
 
 def test_closed_loop_frequencies_needs_a_configuration_of_the_model():
     from dmpopt.exceptions import ShapeError
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     match = r"^q has shape \(2,\), expected \(1,\) \(a configuration of model\)"
     with pytest.raises(ShapeError, match=match):
@@ -317,7 +318,7 @@ def test_closed_loop_frequencies_of_a_double_pendulum_solve_k_x_equals_lambda_m_
     generalised symmetric eigensolver; with the first joint held, the second alone."""
     from scipy.linalg import eigh
 
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     m1, l1, i1, m2, l2, i2, g = 3.0, 0.4, 0.02, 1.5, 0.3, 0.01, 9.81
     k = np.array([30.0, 5.0])
@@ -347,7 +348,7 @@ def test_closed_loop_frequencies_of_a_double_pendulum_solve_k_x_equals_lambda_m_
 
 def test_a_neutral_mode_has_frequency_zero_not_nan():
     """Centre of mass on the axis, no feedback: K = 0 exactly, omega = 0 (only K < 0 is NaN)."""
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     omega = closed_loop_frequencies(_pendulum(lever=0.0), np.zeros(1), [0], lambda q, v: [0.0])
     assert omega.tolist() == [0.0]
@@ -366,7 +367,7 @@ def test_a_neutral_mode_has_frequency_zero_not_nan():
 )
 def test_closed_loop_frequencies_names_each_bad_argument(args, match):
     from dmpopt.exceptions import DmpoptError
-    from dmpopt.walking import closed_loop_frequencies
+    from dmpopt.frequency_adaptation import closed_loop_frequencies
 
     model, q, joints, *step = args
     model = _pendulum() if model is None else model
@@ -398,7 +399,7 @@ def test_eq_21_settles_at_its_fixed_point_not_necessarily_the_legs(rate, slope):
     whose step rate pi / T_n is rate + slope * omega (slope 0: set by the legs alone; slope
     near 1: the controller imposes its own timing), omega* = rate / (1 - slope), reached
     geometrically as (1 - K (1 - slope))^n."""
-    from dmpopt.walking import adapt_frequency
+    from dmpopt.frequency_adaptation import adapt_frequency
 
     gain, omega = 0.3, 13.0
     expected = rate / (1 - slope)

@@ -66,12 +66,8 @@ class Tick:
                 f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
                 f"({self.layout.nv},) for {self.robot.name}"
             )
-        # the tick's own float64 copies: numba compiles a kernel once per argument type
-        # (read-only or writable, dtype), so a caller's read-only or integer state would
-        # otherwise compile a variant inside a control loop's tick
-        np.copyto(self._q_tick, q)
-        np.copyto(self._v_tick, v)
-        q, v = self._q_tick, self._v_tick
+        assembly = self.assembly
+        q, v = assembly.set_state(q, v)  # the tick's own float64 copies
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
@@ -83,17 +79,21 @@ class Tick:
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
         level, solved, mapped, checked = self._level, True, False, False
         # Posture tasks on a fixed base need no model terms below the torque limits.
-        assembled = not (self._joint_space and level == 0)
+        assembled = not (assembly.joint_space and level == 0)
         if not assembled:
-            solved = self._solve_joint_space(q, v)
+            self._direct()
+            solved = assembly.solve_joint_space(q, v)
             if not solved:  # not expected: W^-1 + J D^-1 J^T is positive definite
                 level = 2
         else:
-            self._assemble(q, v)
+            assembly.assemble(q, v)
         if assembled and level < 2:
             outcome = kernels.ILL_CONDITIONED
-            if self._basic is not None:
-                outcome = self._eliminated_tick(q, v) if level == 0 else self._assemble_eliminated()
+            if assembly.eliminable and level == 0:
+                self._direct()
+                outcome = assembly.eliminated_tick(q, v)
+            elif assembly.eliminable:
+                outcome = assembly.assemble_eliminated()
             if outcome == kernels.SOLVED:
                 checked = True  # cones, torques and acceleration bounds checked by the tick
             elif outcome == kernels.LIMITS_VIOLATED:
@@ -102,13 +102,13 @@ class Tick:
                 solved, level = False, 2
             elif outcome == kernels.CONES_VIOLATED:
                 solved = self._solve(self._eliminated_cones, self._exact_deadline)
-                level = 0 if solved and self._cones_released() else 1
+                level = 0 if solved and assembly.cones_released() else 1
             elif not self.contacts:  # fixed base: no equality rows
-                self._assemble_y()
+                assembly.assemble_y()
                 mapped = True
                 solved = self._solve_direct()
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
-                self._assemble_y()
+                assembly.assemble_y()
                 mapped = True
                 solved = self._solve(self._free, self._exact_deadline)
                 level = min(level, 1)
@@ -121,11 +121,11 @@ class Tick:
         if level == 2:
             self.stats.n_torque_limited += 1
             if not assembled:
-                self._assemble(q, v)
+                assembly.assemble(q, v)
             if not mapped:
-                self._assemble_y()
-            self._compiled.acceleration_bounds(self._bounds, q, v)
-            self._assemble_torque_rows()
+                assembly.assemble_y()
+            assembly.acceleration_bounds(q, v)
+            assembly.assemble_torque_rows()
             answer = "solved"
             solved = self._solve(self._limited, self._exact_deadline)
             if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
@@ -139,11 +139,11 @@ class Tick:
             return self._torques.copy()
         self._count(answer)
         self._has_valid_torque = True
-        self._solution, self._candidate = self._candidate, self._solution
+        assembly.keep_candidate()
         if answer == "direct":  # its torques were checked against the limits
-            np.copyto(self._torques, self._tau)
+            np.copyto(self._torques, assembly.tau)
         else:  # proxsuite meets the limit rows only to its tolerance
-            np.minimum(self._tau, self.torque_limit, out=self._torques)
+            np.minimum(assembly.tau, self.torque_limit, out=self._torques)
             np.maximum(self._torques, -self.torque_limit, out=self._torques)
         return self._torques.copy()
 
@@ -164,9 +164,7 @@ class Tick:
     def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
         """Whether the candidate's torques are within ``torque_limit`` and its accelerations
         ``margin`` inside their bounds (kernels.feasible)."""
-        return self._compiled.feasible(
-            self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
-        )
+        return self.assembly.feasible(torque_limit, margin, q, v)
 
     def _solve(self, stage: _Stage, deadline: float) -> bool:
         """Solve one stage by the QP's :class:`StageSolver`; its answer goes to :meth:`_take`."""
@@ -178,35 +176,34 @@ class Tick:
             return False
         if stage is self._relaxed:  # (y, slacks)
             solution = solution[: self.layout.n]
-        if stage is self._eliminated_cones:  # the QP's own array: the type expand is bound to
-            self._z_accepted[:] = solution
-            self._accept(self._z_accepted, eliminated=True)
+        if stage is self._eliminated_cones:
+            self.assembly.accept_eliminated(solution)
         else:
-            self._accept(solution, eliminated=False)
+            self.assembly.accept(solution, eliminated=False)
         return True
 
     def _solve_relaxed(self) -> bool:
         """The QP with every inequality row, with slacks on its contact and acceleration-bound
         rows (assembled by the caller): always feasible (see the class notes)."""
-        stage, n = self._relaxed, self.layout.n
+        stage, n, assembly = self._relaxed, self.layout.n, self.assembly
         hessian, gradient, equality, _, inequality = stage.problem[:5]
-        hessian[:n, :n] = self._hessian
-        gradient[:n] = self._gradient
+        hessian[:n, :n] = assembly.hessian
+        gradient[:n] = assembly.gradient
         if equality is not None:
-            equality[:, :n] = self._mapped[self.layout.n_cost :, :n]
-        inequality[:, :n] = self._in_matrix
+            equality[:, :n] = assembly.mapped[self.layout.n_cost :, :n]
+        inequality[:, :n] = assembly.in_matrix
         stage.initialized = False  # solved from scratch: its last problem is unrelated
         return self._solve(stage, self._deadline)
 
     def _solve_direct(self) -> bool:
         """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
-        solution = self._y_solution
-        solved = kernels.cholesky_solve(self._hessian, self._y_factor, self._gradient, solution)
+        self._direct()
+        return self.assembly.solve_direct()
+
+    def _direct(self) -> None:
+        """Report a solve without proxsuite."""
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
-        if solved:
-            self._accept(solution, eliminated=False)
-        return solved
 
     def _fall_back(self) -> None:
         """The hold answer: the last valid torque (h_a on the first tick), clipped."""

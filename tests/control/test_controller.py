@@ -222,8 +222,9 @@ def test_fixed_base_woodbury_solve_matches_the_cholesky_solve(upper_body, compon
 
     woodbury, hand_w = controller()
     cholesky, hand_c = controller()
-    assert woodbury._current._joint_space
-    cholesky._current._joint_space = False  # the general path: computeAllTerms, Cholesky, M qdd + h
+    assert woodbury._current.assembly.joint_space
+    # the general path: computeAllTerms, Cholesky, M qdd + h
+    cholesky._current.assembly.joint_space = False
     model, data = upper_body.model, upper_body.create_data()
     for _ in range(5):
         q, v = random_state(upper_body, rng, spread=0.05, speed=0.05)
@@ -868,7 +869,7 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
     QP as stated, when no inequality is active and when cone or torque rows are."""
     import dataclasses
 
-    import dmpopt.control.inverse_dynamics as inverse_dynamics
+    import dmpopt.control.assembly as assembly
 
     rng = np.random.default_rng(7)
     robot, friction, com_acceleration, speed = talos, 0.7, [0.0, 0.0, 0.0], 0.2
@@ -881,7 +882,7 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         limit[[2, 3, 8, 9]] = 20.0
         robot = dataclasses.replace(talos, torque_limit=limit)
     if case == "contact_rows_kept":  # every tick takes the ill-conditioned fallback
-        monkeypatch.setattr(inverse_dynamics, "_MIN_PIVOT_RATIO", 2.0)
+        monkeypatch.setattr(assembly, "_MIN_PIVOT_RATIO", 2.0)
     regularization = {"acceleration_regularization": 1e-6, "force_regularization": 1e-6}
     controller, com = standing_controller(
         robot, friction=friction, tolerance=1e-10, joint_limit_horizon=None,
@@ -1275,7 +1276,7 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
 
     def warm_solve():
         assert qp._solver._run(stage, False, math.inf, qp.stats, qp._take)
-        return controller.stats.last_iterations, qp._candidate.copy()
+        return controller.stats.last_iterations, qp.assembly.candidate.copy()
 
     iterations, answer = warm_solve()
     settings = stage.qp.settings

@@ -102,7 +102,7 @@ def explain(controller) -> str:
     stats = controller.stats
     status = stats.last_status
     if stats.last_answer == "relaxed":  # last_status is the relaxed QP's: ask the exact one
-        status = controller._current._limited.qp.results.info.status.name
+        status = controller._current.tick.limited.qp.results.info.status.name
     reason = f"{status}: {_STATUS[status]}" if status in _STATUS else status
     binding = active_constraints(controller)
     rows = "; ".join(binding) if binding else "nothing"

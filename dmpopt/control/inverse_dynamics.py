@@ -95,7 +95,7 @@ from .contacts import Contact
 from .layout import build_layout
 from .qp_stages import ControllerStats, StageSolver, _active_set, _arguments, _Stage
 from .tasks import PostureTask, Task
-from .tick import _RELEASE_MARGIN, Tick
+from .tick import Tick
 
 __all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 
@@ -192,19 +192,19 @@ DEFAULT_TIME_BUDGET = 5e-3
 """CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
 
 
-class ContactSetQP(Tick, Assembly):
+class ContactSetQP:
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
     stages (see the module docstring). The controller builds one per set it meets and keeps
     them; the parameters are the controller's (``settings_source``: the proxsuite QP whose
     settings every stage takes, the controller's ``qp``).
 
-    Its parts: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`: sizes, blocks, row
-    names), the stages (:class:`~dmpopt.control.qp_stages._Stage`, each a proxsuite QP with
-    its warm start and active set), their solver (:class:`~dmpopt.control.qp_stages.
-    StageSolver`), and the arrays the compiled kernels fill (named structures of
-    :mod:`dmpopt.control.kernels`); the tick's flow (:class:`~dmpopt.control.tick.Tick`) and
-    the assembly (:class:`~dmpopt.control.assembly.Assembly`) are its methods.
+    Its parts, each with its own state: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`:
+    sizes, blocks, row names), ``assembly`` (:class:`~dmpopt.control.assembly.Assembly`: the
+    arrays the tick fills and the compiled kernels bound to them) and ``tick``
+    (:class:`~dmpopt.control.tick.Tick`: the tick's flow over the stages, each a
+    :class:`~dmpopt.control.qp_stages._Stage` solved by a
+    :class:`~dmpopt.control.qp_stages.StageSolver`, and the tick's state).
     """
 
     def __init__(
@@ -240,14 +240,11 @@ class ContactSetQP(Tick, Assembly):
             raise InvalidInputError(
                 f"max_iterations must be an integer >= 1, got {max_iterations!r}"
             )
-        self.time_budget = float(time_budget)
-        self._deadline = self._exact_deadline = 0.0
         self.robot = robot
         self.model = robot.model
         self.data = robot.create_data()
         self.tasks = tuple(tasks)
         self.contacts = tuple(contacts)
-        self.raise_on_failure = raise_on_failure
 
         self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
         if not (self.torque_limit > 0).all():  # NaN too
@@ -255,8 +252,6 @@ class ContactSetQP(Tick, Assembly):
                 f"robot.torque_limit must be > 0 for every actuated joint, got "
                 f"{robot.torque_limit!r}; fix the robot model's effort limits"
             )
-        self._release_limit = _RELEASE_MARGIN * self.torque_limit
-        self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
         # Arguments of kernels.acceleration_bounds (no joints without limits).
         bounds = self._joint_limits(joint_limit_horizon, limited_joints)
         posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
@@ -268,7 +263,7 @@ class ContactSetQP(Tick, Assembly):
         self.assembly = assembly = Assembly(
             robot, self.data, layout, stacked_tasks, posture_tasks, self.contacts,
             bounds, self.torque_limit, acceleration_regularization, force_regularization,
-            self._bound_tolerance,
+            -tolerance,  # margin of kernels.feasible: bounds within tolerance
         )  # fmt: skip
         n_act, n_force, n, n_cone, n_bound = (
             layout.n_act,
@@ -287,7 +282,7 @@ class ContactSetQP(Tick, Assembly):
         equalities = (assembly.mapped[layout.n_cost :, :n], eq_vector) if n_force else None
         cones = (in_matrix[n_limit:], in_lower[n_limit:], in_upper[n_limit:]) if n_cone else None
         everything = (in_matrix, in_lower, in_upper)
-        self._free = _Stage(
+        free = _Stage(
             n,
             n_force,
             n_cone,
@@ -295,7 +290,7 @@ class ContactSetQP(Tick, Assembly):
             _arguments(hessian, gradient, equalities, cones),
             _arguments(hessian, gradient, equalities),
         )
-        self._limited = _Stage(
+        limited = _Stage(
             n,
             n_force,
             n_limit + n_cone,
@@ -321,16 +316,16 @@ class ContactSetQP(Tick, Assembly):
             (relaxed_rows, in_lower, in_upper),
         )  # fmt: skip
         n_in = n_limit + n_cone
-        self._relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, relaxed, relaxed)
+        relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, relaxed, relaxed)
         # Feasible by construction: an infeasibility report would be a false alarm.
-        self._relaxed.qp.settings.eps_primal_inf = 1e-14
+        relaxed.qp.settings.eps_primal_inf = 1e-14
 
         # ---- The QP over z = x_N (nonbasic), base and contact rows eliminated, with the cone
         # rows (without them it is solved by the assembly's compiled tick).
-        self._eliminated_cones = None
+        eliminated_cones = None
         if assembly.eliminable and n_cone:
             z_cones = (assembly.z_cone_matrix, assembly.cone_lower, assembly.cone_upper)
-            self._eliminated_cones = _Stage(
+            eliminated_cones = _Stage(
                 assembly.z_hessian.shape[0],
                 0,
                 n_cone,
@@ -338,37 +333,30 @@ class ContactSetQP(Tick, Assembly):
                 _arguments(assembly.z_hessian, assembly.z_gradient, None, z_cones),
                 _arguments(assembly.z_hessian, assembly.z_gradient),
             )
-        self._stages = tuple(
-            s
-            for s in (self._eliminated_cones, self._free, self._limited, self._relaxed)
-            if s is not None
-        )
-        self.qp = self._limited.qp
+        self.qp = limited.qp
         self.qp.settings.eps_abs = tolerance
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.max_iter = int(max_iterations)
         self.qp.settings.eps_duality_gap_abs = tolerance
         if settings_source is not None:  # another contact set's QP: one source for all sets
             self.qp = settings_source
-        self._solver = StageSolver(self.qp)
-        self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
+        self.tick = Tick(
+            robot, self.data, layout, assembly, (eliminated_cones, free, limited, relaxed),
+            StageSolver(self.qp), self.torque_limit, tolerance, float(time_budget),
+            raise_on_failure,
+        )  # fmt: skip
+        self._compile_kernels(-tolerance)
 
-        self.stats = ControllerStats()
-        self._torques = np.zeros(n_act)
-        self._has_valid_torque = False
-        self._compile_kernels()
-
-    def _compile_kernels(self) -> None:
+    def _compile_kernels(self, bound_tolerance: float) -> None:
         """Compile (or load from numba's disk cache) the kernels a tick can use, so that no
         tick of a control loop waits for a compilation: one tick on the reference
         configuration, and the stages used around proxsuite; then the controller is as new
         (contact references kept)."""
         references = [contact.reference_placement for contact in self.contacts]
         state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self.layout.nv)
-        self._level = 0  # the path of a tick without active inequality rows
         self.compute_torques(*state)  # copies the state: every kernel sees writable float64
         assembly = self.assembly
-        assembly.feasible(self.torque_limit, self._bound_tolerance, *state)
+        assembly.feasible(self.torque_limit, bound_tolerance, *state)
         kernels.acceleration_bounds(assembly.bounds, *state)
         if assembly.eliminable:
             assembly.assemble_eliminated()
@@ -426,6 +414,43 @@ class ContactSetQP(Tick, Assembly):
             np.full(v_index.size, -np.inf), np.full(v_index.size, np.inf),
         )  # fmt: skip
 
+    def compute_torques(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Joint torques for the state ``(q, v)``, shape (n_actuated,) [N m]: one tick
+        (:meth:`Tick.compute_torques <dmpopt.control.tick.Tick.compute_torques>`)."""
+        return self.tick.compute_torques(q, v)
+
+    @property
+    def torques(self) -> np.ndarray:
+        """Torques returned by the last tick, shape (n_actuated,) (copy)."""
+        return self.tick.torques
+
+    @property
+    def stats(self) -> ControllerStats:
+        """Where the ticks are counted (the controller shares its own among its sets)."""
+        return self.tick.stats
+
+    @stats.setter
+    def stats(self, value: ControllerStats) -> None:
+        self.tick.stats = value
+
+    @property
+    def time_budget(self) -> float:
+        """CPU seconds a tick may spend."""
+        return self.tick.time_budget
+
+    @time_budget.setter
+    def time_budget(self, value: float) -> None:
+        self.tick.time_budget = value
+
+    @property
+    def raise_on_failure(self) -> bool:
+        """Whether a tick raises :class:`NoSolutionFound` instead of the hold answer."""
+        return self.tick.raise_on_failure
+
+    @raise_on_failure.setter
+    def raise_on_failure(self, value: bool) -> None:
+        self.tick.raise_on_failure = value
+
     @property
     def joint_accelerations(self) -> np.ndarray:
         """Joint accelerations of the last solve, shape (nv,) (copy)."""
@@ -456,13 +481,7 @@ class ContactSetQP(Tick, Assembly):
         lower = -min(contact.min_normal_force, limit)
         if not self.assembly.set_normal_force_limit(self.layout.normal_rows[index], lower, limit):
             return
-        for stage in self._stages:
-            stage.stale = True
-
-    @property
-    def torques(self) -> np.ndarray:
-        """Torques returned by the last tick, shape (n_actuated,) (copy)."""
-        return self._torques.copy()
+        self.tick.mark_stale()
 
     def assembled_qp(self, q: np.ndarray, v: np.ndarray) -> AssembledQp:
         """The QP of a tick at ``(q, v)`` with every inequality row (copies; see
@@ -495,16 +514,10 @@ class ContactSetQP(Tick, Assembly):
         """Take over from the QP of another contact set on a switch: its last valid torque
         (the hold answer) carries over; this QP starts from its path without inequality
         rows."""
-        np.copyto(self._torques, previous._torques)
-        self._has_valid_torque = previous._has_valid_torque
-        self._level = 0
+        self.tick.continue_from(previous.tick)
 
     def reset(self) -> None:
         """Forget the warm start, the contact reference placements and the counters."""
-        for stage in self._stages:
-            stage.initialized = stage.known = False
-        self._level = 0
-        self._has_valid_torque = False
-        self.stats = ControllerStats()
+        self.tick.reset()
         for contact in self.contacts:
             contact.reference_placement = None

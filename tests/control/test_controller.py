@@ -759,11 +759,11 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
     # proxsuite again on that QP (as after a failed certificate): cold, it repeats the first
     # solve; warm from the certified optimum, it needs fewer iterations, counted as proxsuite
     # counts
-    qp, stage = controller._current, controller._current._limited
-    run = qp._solver._run  # one proxsuite solve and its refinement, as a tick makes it
-    assert run(stage, True, math.inf, qp.stats, qp._take)
+    qp, stage = controller._current, controller._current.tick.limited
+    run = qp.tick.solver._run  # one proxsuite solve and its refinement, as a tick makes it
+    assert run(stage, True, math.inf, qp.stats, qp.tick._take)
     assert controller.stats.last_iterations == cold
-    assert run(stage, False, math.inf, qp.stats, qp._take)
+    assert run(stage, False, math.inf, qp.stats, qp.tick._take)
     warm = controller.stats.last_iterations
     assert warm < cold and warm == stage.qp.results.info.iter  # one call: proxsuite's count
 
@@ -1211,11 +1211,11 @@ def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
     but none inside one (compute_torques pauses the collector), and it is on again after."""
     import gc
 
-    from dmpopt.control.inverse_dynamics import ContactSetQP
+    from dmpopt.control.tick import Tick
 
     controller, _ = standing_controller(talos)
     inside, collections = [False], []
-    tick = ContactSetQP._tick
+    tick = Tick._tick
 
     def watched(self, q, v):
         inside[0] = True
@@ -1228,7 +1228,7 @@ def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
         if phase == "start":
             collections.append(inside[0])
 
-    monkeypatch.setattr(ContactSetQP, "_tick", watched)
+    monkeypatch.setattr(Tick, "_tick", watched)
     threshold = gc.get_threshold()
     gc.callbacks.append(watch)
     gc.set_threshold(1)
@@ -1271,11 +1271,11 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
     posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
     controller.compute_torques(q, v)
-    qp, stage = controller._current, controller._current._limited
+    qp, stage = controller._current, controller._current.tick.limited
     assert stage.certified
 
     def warm_solve():
-        assert qp._solver._run(stage, False, math.inf, qp.stats, qp._take)
+        assert qp.tick.solver._run(stage, False, math.inf, qp.stats, qp.tick._take)
         return controller.stats.last_iterations, qp.assembly.candidate.copy()
 
     iterations, answer = warm_solve()

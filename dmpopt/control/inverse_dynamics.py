@@ -265,17 +265,11 @@ class ContactSetQP:
             bounds, self.torque_limit, acceleration_regularization, force_regularization,
             -tolerance,  # margin of kernels.feasible: bounds within tolerance
         )  # fmt: skip
-        n_act, n_force, n, n_cone, n_bound = (
-            layout.n_act,
-            layout.n_force,
-            layout.n,
-            layout.n_cone,
-            layout.n_bound,
-        )
+        n_act, n_force, n, n_cone = layout.n_act, layout.n_force, layout.n, layout.n_cone
+        n_bound, n_limit = layout.n_bound, layout.n_limit
 
         # ---- QPs over y = x[n_base:] (base rows eliminated): without torque rows (used when
         # the elimination is unavailable) and with them.
-        n_limit = layout.n_limit
         hessian, gradient = assembly.hessian, assembly.gradient
         in_matrix, in_lower, in_upper = assembly.in_matrix, assembly.in_lower, assembly.in_upper
         eq_vector = assembly.mapped[layout.n_cost :, n]
@@ -311,12 +305,12 @@ class ContactSetQP:
             relaxed_equalities[0][:, n : n + n_force] = -np.eye(n_force)
         relaxed_rows = np.zeros((n_limit + n_cone, n_relaxed))
         relaxed_rows[n_act + np.arange(n_bound), n + n_force + np.arange(n_bound)] = 1.0
-        relaxed = _arguments(
+        arguments = _arguments(
             hessian, np.zeros(n_relaxed), relaxed_equalities,
             (relaxed_rows, in_lower, in_upper),
         )  # fmt: skip
         n_in = n_limit + n_cone
-        relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, relaxed, relaxed)
+        relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, arguments, arguments)
         # Feasible by construction: an infeasibility report would be a false alarm.
         relaxed.qp.settings.eps_primal_inf = 1e-14
 

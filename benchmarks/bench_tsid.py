@@ -298,26 +298,28 @@ def replay(scenario, ticks, with_tsid: bool, watch: _GcWatch):
     return cpu, answers, switched
 
 
-STAGES = {
-    "compute_torques": "whole tick",
-    "_assemble": "model terms, task and contact rows, posture",
-    "_update_rows": "  of which task and contact rows",
-    "_eliminated_tick": "elimination and direct solve (level 0)",
-    "_assemble_eliminated": "elimination (levels 1, 2)",
-    "_assemble_y": "base elimination over y",
-    "_assemble_torque_rows": "torque rows",
-    "_solve": "QP solve (active set, proxsuite)",
+STAGES = {  # (part of the QP, method): label
+    ("Tick", "compute_torques"): "whole tick",
+    ("Assembly", "assemble"): "model terms, task and contact rows, posture",
+    ("Assembly", "_update_rows"): "  of which task and contact rows",
+    ("Assembly", "eliminated_tick"): "elimination and direct solve (level 0)",
+    ("Assembly", "assemble_eliminated"): "elimination (levels 1, 2)",
+    ("Assembly", "assemble_y"): "base elimination over y",
+    ("Assembly", "assemble_torque_rows"): "torque rows",
+    ("Tick", "_solve"): "QP solve (active set, proxsuite)",
 }
 
 
 def stage_timers(scenario, ticks) -> None:
     """CPU time per stage of dmpopt's one-foot ticks that need the QP (mean us per tick;
     each stage inclusive of the ones it calls), on one replay of the walk."""
-    from dmpopt.control.inverse_dynamics import ContactSetQP
+    from dmpopt.control.assembly import Assembly
+    from dmpopt.control.tick import Tick
 
+    parts = {"Tick": Tick, "Assembly": Assembly}
     totals = {name: np.zeros(len(ticks)) for name in STAGES}
     current = [0]
-    originals = {name: getattr(ContactSetQP, name) for name in STAGES}
+    originals = {name: getattr(parts[name[0]], name[1]) for name in STAGES}
 
     def timed(name, method):
         def wrapper(self, *args):
@@ -330,7 +332,7 @@ def stage_timers(scenario, ticks) -> None:
         return wrapper
 
     for name, method in originals.items():
-        setattr(ContactSetQP, name, timed(name, method))
+        setattr(parts[name[0]], name[1], timed(name, method))
     try:
         controller, set_targets, tick = scenario.dmpopt()
         answers = []
@@ -341,7 +343,7 @@ def stage_timers(scenario, ticks) -> None:
             answers.append(controller.stats.last_answer)
     finally:
         for name, method in originals.items():
-            setattr(ContactSetQP, name, method)
+            setattr(parts[name[0]], name[1], method)
     mask = (np.arange(len(ticks)) >= ONE_FOOT_TICK) & (np.array(answers) != "direct")
     print(f"stage timers of the one-foot QP ticks ({mask.sum()} ticks), mean CPU us per tick:")
     for name, label in STAGES.items():

@@ -1,25 +1,279 @@
 """Assembly of the inverse-dynamics QP from the model terms, tasks and contacts.
 
-Mixed into :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`: the task and contact rows,
-the posture gradient, the eliminations (base rows by :math:`M_{bb}`, or base and contact rows
-by the basic block) and the torque rows, and the expansion of a QP solution into the joint
-accelerations, wrenches and torques.
+A part of :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`: the preallocated arrays of
+one contact set's QP and what fills them each tick: the task and contact rows, the posture
+gradient, the eliminations (base rows by :math:`M_{bb}`, or base and contact rows by the basic
+block) and the torque rows, and the expansion of a QP solution into the joint accelerations,
+wrenches and torques.
 """
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 import pinocchio as pin
+import scipy.linalg
 from scipy.linalg import lapack
 
 from . import kernels
-from .qp_stages import _DIRECT, _NO_BOUND
+from .qp_stages import _NO_BOUND
+from .tasks import FrameTask
+
+# Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
+CONE_RELEASE_MARGIN = 1e-3
+# Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
+_MIN_PIVOT_RATIO = 1e-9
+
+
+def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
+    """Velocity indices of as many joints as contact rows that move the feet, or None.
+
+    Chosen by a column-pivoted QR of the contacts' actuated Jacobian columns in the reference
+    configuration (for Talos: the 12 leg joints); None if that block is rank deficient.
+    """
+    model, data = robot.model, robot.create_data()
+    pin.computeJointJacobians(model, data, robot.reference_configuration)
+    pin.updateFramePlacements(model, data)
+    jacobian = np.vstack([c.contact_jacobian(data) for c in contacts])[:, n_base:]
+    n_rows = jacobian.shape[0]
+    if n_rows > jacobian.shape[1]:
+        return None
+    r, pivots = scipy.linalg.qr(jacobian, mode="r", pivoting=True)
+    diagonal = np.abs(np.diagonal(r))
+    if diagonal.size < n_rows or diagonal[n_rows - 1] < 1e-6 * diagonal[0]:
+        return None
+    return np.sort(pivots[:n_rows]) + n_base
 
 
 class Assembly:
-    """Rows, eliminations and expansion of the QP (see the module docstring)."""
+    """The arrays of one contact set's QP and their assembly each tick (see the module
+    docstring).
 
-    def _solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
+    Parameters
+    ----------
+    robot : Robot
+        The controller's robot; ``data`` its Pinocchio data, refilled each tick.
+    layout : QpLayout
+        Sizes and blocks of the QP.
+    stacked_tasks, posture_tasks : tuple of Task
+        The least-squares tasks with rows, and the posture tasks (a diagonal cost).
+    contacts : tuple of Contact
+    bounds : kernels.JointBounds
+        Arguments of :func:`kernels.acceleration_bounds` (without q, v).
+    torque_limit : ndarray, shape (n_actuated,)
+        [N m]
+    acceleration_regularization, force_regularization : float
+        :math:`\\epsilon_a, \\epsilon_f`.
+    bound_tolerance : float
+        Margin of :func:`kernels.feasible` for the acceleration bounds.
+
+    Attributes
+    ----------
+    q, v : ndarray
+        The tick's own float64 copies of the state (:meth:`set_state`).
+    candidate, solution : ndarray, shape (n_x,)
+        The tick's candidate x and the last accepted one (:meth:`keep_candidate`).
+    tau : ndarray, shape (n_actuated,)
+        The candidate's torques [N m].
+    hessian, gradient : ndarray
+        Over y, with the base rows eliminated (:meth:`assemble_y`).
+    mapped : ndarray, shape (n_cost + n_force, n + 1)
+        Cost and contact rows [A | t] over y.
+    in_matrix, in_lower, in_upper : ndarray
+        Inequality rows over y: torques, acceleration bounds, cones.
+    cone_upper : ndarray, shape (n_cone,)
+        Upper bounds of the cone rows (over x).
+    bounds : kernels.JointBounds
+    joint_space : bool
+        Whether a tick without torque rows needs no mass matrix (fixed base, posture tasks on
+        every joint plus frame tasks: :meth:`solve_joint_space`).
+    eliminable : bool
+        Whether the base and contact rows are eliminated by a basic block (the arrays
+        ``z_*`` over the nonbasic unknowns z exist).
+    """
+
+    def __init__(
+        self, robot, data, layout, stacked_tasks, posture_tasks, contacts, bounds,
+        torque_limit, acceleration_regularization, force_regularization, bound_tolerance,
+    ):  # fmt: skip
+        self.model, self.data, self.layout = robot.model, data, layout
+        self.bounds, self.torque_limit = bounds, torque_limit
+        self._stacked_tasks, self._posture_tasks = stacked_tasks, posture_tasks
+        # Views of the mass matrix and bias forces, refilled in place by computeAllTerms.
+        self._mass, self._bias = data.M, data.nle
+        nv, n_base, n_act, n_force = layout.nv, layout.n_base, layout.n_act, layout.n_force
+        n, n_x, n_cone, n_bound = layout.n, layout.n_x, layout.n_cone, layout.n_bound
+        n_task, n_cost, scale = layout.n_task, layout.n_cost, layout.force_scale
+
+        # Linear rows [A | t] over x, each for A x = t (least squares or exact), in self._rows:
+        # [tasks | base regularisation | contacts | base dynamics]
+        # - task k: J_k qdd = b_k, least squares with weight w_k;
+        # - base regularisation: qdd_b = 0, least squares with weight eps_a (used with y);
+        # - contacts: J_c qdd = b_c;
+        # - base dynamics: M_b qdd - J_cb^T f = -h_b (used for the elimination).
+        self._rows = np.zeros((n_cost + n_force + n_base, n_x + 1))
+        self._rows[n_task:n_cost, :n_base] = np.eye(n_base)
+        self._row_scale = np.ones((n_cost, 1))  # square roots of the least-squares weights
+        for task, rows in zip(stacked_tasks, layout.task_rows):
+            self._row_scale[rows] = np.sqrt(task.weight)
+        self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
+        # Each tick the tasks and contacts compute their rows into their own arrays, which are
+        # copied here (the controller never rebinds a user's object), each group by one call.
+        self._row_groups = tuple(
+            (items, self._rows[block, :nv], self._rows[block, -1])
+            for items, block in (
+                (stacked_tasks, slice(0, n_task)),
+                (contacts, slice(n_cost, n_cost + n_force)),
+            )
+            if items
+        )
+        self._kernel_rows = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
+        self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
+
+        # Constant Hessian diagonal over x: eps_a on qdd plus the posture weights, eps_f on the
+        # wrenches. The posture tasks' linear terms -w qdd* go to posture_gradient.
+        diagonal = np.full(n_x, force_regularization * scale**2)
+        diagonal[:nv] = acceleration_regularization
+        for task in posture_tasks:
+            diagonal[np.asarray(task.velocity_indices, dtype=int)] += task.weight
+        self._stack_posture_tasks(n_x)
+        # Fixed base, posture tasks on every joint plus frame tasks: the Hessian is diagonal
+        # plus a low-rank term, solved through the Woodbury identity without the mass matrix,
+        # and the torques come from RNEA (see solve_joint_space).
+        covered = diagonal[:nv] >= acceleration_regularization + min(
+            (task.weight for task in posture_tasks), default=np.inf
+        )
+        self.joint_space = (
+            not contacts
+            and nv == robot.n_actuated
+            and all(isinstance(task, FrameTask) for task in stacked_tasks)
+            and (not stacked_tasks or bool(covered.all()))
+        )
+        self._zero_acceleration = np.zeros(nv)
+        # Woodbury solve: W^-1 + J D^-1 J^T and J D^-1 over the frame-task rows.
+        self._woodbury = kernels.Woodbury(
+            1.0 / diagonal[:nv], self._row_scale[:n_task, 0] ** 2, np.zeros((n_task, nv)),
+            np.zeros((n_task, n_task)), np.zeros((n_task, n_task)), np.zeros(n_task),
+        )  # fmt: skip
+
+        # Cone rows over x (scaled wrenches): constant.
+        cone_matrix = np.zeros((n_cone, n_x))
+        cone_upper = np.full(n_cone, _NO_BOUND)
+        for contact, forces, cones in zip(contacts, layout.force_slices, layout.cone_slices):
+            cone_matrix[cones, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
+            cone_upper[cones] = contact.wrench_upper
+        self.cone_upper = cone_upper
+        self.cone_lower = np.full(n_cone, -_NO_BOUND)
+
+        # ---- Over y = x[n_base:] (base rows eliminated).
+        self.mapped = np.zeros((n_cost + n_force, n + 1))
+        self._base_rhs = np.zeros((n_base, n + 1), order="F")  # [-M_ba, J_cb^T, h_b]
+        self._base_map = np.zeros((n_base, n + 1))  # qdd_b = base_map @ (y, -1)
+        self._hessian_diagonal = diagonal[n_base:].copy()
+        self.hessian = np.zeros((n, n))
+        self._hessian_diagonal_view = self.hessian.reshape(-1)[:: n + 1]
+        self.gradient = np.zeros(n)
+        # Inequality rows over y: torques, acceleration bounds (if any), cones.
+        n_limit = layout.n_limit
+        self.in_matrix = np.zeros((n_limit + n_cone, n))
+        self.in_matrix[n_act + np.arange(n_bound), bounds.v_index - n_base] = 1.0
+        self.in_matrix[n_limit:] = cone_matrix[:, n_base:]
+        self.in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), self.cone_lower])
+        self.in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
+        self._torque_rows = np.zeros((n_act, n + 1))
+        self._y_factor = np.zeros((n, n))  # for the Cholesky factor of the Hessian over y
+        self._y_solution = np.zeros(n)
+
+        # ---- Over z = x_N (nonbasic): the base and contact rows [G | t] solved for the basic
+        # accelerations, x_B = U_c - U_N z with [U_N | U_c] = G_B^-1 [G_N | t].
+        joints = _contact_joints(robot, contacts, n_base) if contacts else np.zeros(0, int)
+        self.eliminable = joints is not None and bool(n_base + joints.size)
+        if self.eliminable:
+            basic = np.concatenate([np.arange(n_base), joints])
+            nonbasic = np.setdiff1d(np.arange(n_x), basic)
+            n_z = nonbasic.size
+            self.z_hessian = np.zeros((n_z, n_z))
+            self.z_gradient = np.zeros(n_z)
+            self.z_cone_matrix = np.ascontiguousarray(cone_matrix[:, nonbasic])
+            self._z_cone_release = cone_upper - CONE_RELEASE_MARGIN * scale
+            self._z_cone_values = np.zeros(n_cone)
+            self.z_accepted = np.zeros(n_z)  # the last accepted solution over z
+            # Arguments of the compiled stages (persistent arrays, filled in place).
+            self._split = kernels.Split(
+                basic, np.append(nonbasic, n_x), np.zeros((basic.size, basic.size)),
+                np.zeros((basic.size, n_z + 1)), _MIN_PIVOT_RATIO,
+            )  # fmt: skip
+            self._reduced = kernels.ReducedCosts(
+                self._row_scale[:, 0].copy(), -np.sqrt(diagonal[basic]), self._posture_gradient,
+                diagonal[nonbasic].copy(), np.zeros((n_task + basic.size, n_z)),
+                np.zeros(n_task + basic.size), self.z_hessian, self.z_gradient,
+            )  # fmt: skip
+            self._checks = kernels.Checks(
+                np.zeros((n_z, n_z)), np.zeros(n_z), self.z_cone_matrix, cone_upper,
+                torque_limit, bounds, bound_tolerance,
+            )  # fmt: skip
+
+        self.tau = np.zeros(n_act)
+        self.q, self.v = np.zeros(self.model.nq), np.zeros(nv)
+        self.solution = np.zeros(n_x)
+        self.candidate = np.zeros(n_x)
+        self._bind_kernels(bound_tolerance)
+
+    def _bind_kernels(self, bound_tolerance: float) -> None:
+        """The compiled kernels of a tick, bound to the types of these arrays
+        (:func:`kernels.entry_point`: called without numba's type dispatch)."""
+        q, v, x, tau = self.q, self.v, self.candidate, self.tau
+        rows, dynamics, bounds = self._kernel_rows, self._dynamics, self.bounds
+        bound = {
+            "posture_gradient": (self.posture, q, v),
+            "acceleration_bounds": (bounds, q, v),
+            "feasible": (tau, self.torque_limit, x, bounds, q, v, bound_tolerance),
+            "torques": (rows, dynamics, x, tau),
+        }
+        if self.joint_space:
+            bound["joint_space_accelerations"] = (self.posture, rows, self._woodbury, q, v, x)
+        if self.eliminable:
+            split, reduced, checks = self._split, self._reduced, self._checks
+            bound["eliminated_tick"] = (rows, dynamics, split, reduced, checks, q, v, x, tau)
+            bound["eliminate"] = (rows, dynamics, split)
+            bound["reduce_costs"] = (rows, split, reduced)
+            bound["expand"] = (split, self.z_accepted, x)
+        entry_points = {
+            name: kernels.entry_point(getattr(kernels, name), *arguments)
+            for name, arguments in bound.items()
+        }
+        self._compiled = types.SimpleNamespace(**entry_points)
+
+    def set_state(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Copy the state into :attr:`q`, :attr:`v` and return them.
+
+        The tick's own float64 copies: numba compiles a kernel once per argument type
+        (read-only or writable, dtype), so a caller's read-only or integer state would
+        otherwise compile a variant inside a control loop's tick.
+        """
+        np.copyto(self.q, q)
+        np.copyto(self.v, v)
+        return self.q, self.v
+
+    def keep_candidate(self) -> None:
+        """The candidate becomes the accepted :attr:`solution` (the arrays swap roles)."""
+        self.solution, self.candidate = self.candidate, self.solution
+
+    def set_normal_force_limit(self, rows: tuple, lower: float, upper: float) -> bool:
+        """Bound the cone ``rows`` (a contact's normal-force rows) by ``(lower, upper)``;
+        False if they were already."""
+        if (self.cone_upper[list(rows)] == (lower, upper)).all():
+            return False
+        margin = CONE_RELEASE_MARGIN * self.layout.force_scale
+        for row, value in zip(rows, (lower, upper)):
+            self.cone_upper[row] = value
+            self.in_upper[self.layout.n_limit + row] = value
+            if self.eliminable:
+                self._z_cone_release[row] = value - margin
+        return True
+
+    def solve_joint_space(self, q: np.ndarray, v: np.ndarray) -> bool:
         r"""Fixed base, posture tasks on every joint plus frame tasks: the QP without torque
         rows, without the mass matrix.
 
@@ -33,22 +287,20 @@ class Assembly:
         with a factorisation of the small matrix only; posture tasks alone give
         :math:`\ddot q = -p/d`. Then :math:`\tau = \mathrm{RNEA}(q, \dot q, \ddot q)`.
         """
-        model, data, x = self.model, self.data, self._candidate
-        stats = self.stats
-        stats.last_status, stats.last_iterations = _DIRECT, 0
+        model, data, x = self.model, self.data, self.candidate
         if self._stacked_tasks:
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.computeJointJacobians(model, data)
             self._update_rows(q, v)
         self._stack_posture()
         if not self._compiled.joint_space_accelerations(
-            self._posture, self._layout, self._woodbury, q, v, x
+            self.posture, self._kernel_rows, self._woodbury, q, v, x
         ):
             return False
-        self._tau[:] = pin.rnea(model, data, q, v, x)
+        self.tau[:] = pin.rnea(model, data, q, v, x)
         return True
 
-    def _assemble(self, q: np.ndarray, v: np.ndarray) -> None:
+    def assemble(self, q: np.ndarray, v: np.ndarray) -> None:
         """Model terms, then the task and contact rows and the posture gradient over x."""
         model, data = self.model, self.data
         pin.computeAllTerms(model, data, q, v)
@@ -76,7 +328,7 @@ class Assembly:
 
         indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
-        self._posture = kernels.PostureStack(
+        self.posture = kernels.PostureStack(
             self._posture_state,
             np.concatenate(indices + [t.configuration_indices for t in tasks]),
             np.concatenate(indices + [t.velocity_indices for t in tasks]),
@@ -88,7 +340,7 @@ class Assembly:
         """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
         -w qdd* over x."""
         self._stack_posture()
-        self._compiled.posture_gradient(self._posture, q, v)
+        self._compiled.posture_gradient(self.posture, q, v)
 
     def _stack_posture(self) -> None:
         """Copy the posture tasks' references and gains into the stacked block (one call);
@@ -96,33 +348,31 @@ class Assembly:
         if self._posture_blocks:
             np.concatenate(self._posture_blocks, axis=1, out=self._posture_state)
 
-    def _eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
+    def eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
         """The tick without inequality rows over z, as one compiled call (an outcome of
         :func:`kernels.eliminated_tick`)."""
-        stats = self.stats
-        stats.last_status, stats.last_iterations = _DIRECT, 0
         return self._compiled.eliminated_tick(
-            self._layout, self._dynamics, self._split, self._reduced, self._checks, q, v,
-            self._candidate, self._tau,
+            self._kernel_rows, self._dynamics, self._split, self._reduced, self._checks, q, v,
+            self.candidate, self.tau,
         )  # fmt: skip
 
-    def _assemble_eliminated(self) -> int:
+    def assemble_eliminated(self) -> int:
         """Hessian and gradient over z for the QP with cone rows: CONES_VIOLATED (to be
         solved with them), or ILL_CONDITIONED if the basic block is."""
-        if not self._compiled.eliminate(self._layout, self._dynamics, self._split):
+        if not self._compiled.eliminate(self._kernel_rows, self._dynamics, self._split):
             return kernels.ILL_CONDITIONED
-        self._compiled.reduce_costs(self._layout, self._split, self._reduced)
+        self._compiled.reduce_costs(self._kernel_rows, self._split, self._reduced)
         return kernels.CONES_VIOLATED
 
-    def _cones_released(self) -> bool:
+    def cones_released(self) -> bool:
         """Whether all cone rows are slack by the release margin."""
-        values = np.dot(self._z_cone_matrix, self._z_accepted, out=self._z_cone_values)
+        values = np.dot(self.z_cone_matrix, self.z_accepted, out=self._z_cone_values)
         return bool((values < self._z_cone_release).all())
 
-    def _assemble_y(self) -> None:
+    def assemble_y(self) -> None:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
         rows, n_base, n, n_cost = self._rows, self.layout.n_base, self.layout.n, self.layout.n_cost
-        mapped, used = self._mapped, rows[: self.layout.dynamics_start]
+        mapped, used = self.mapped, rows[: self.layout.dynamics_start]
         if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
             n_act, mass, rhs = self.layout.n_act, self._mass, self._base_rhs
             np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
@@ -141,16 +391,16 @@ class Assembly:
             if used.shape[0] > n_cost:
                 mapped[n_cost:] = used[n_cost:]
         cost = mapped[:n_cost, :n]
-        np.dot(cost.T, cost, out=self._hessian)
+        np.dot(cost.T, cost, out=self.hessian)
         self._hessian_diagonal_view += self._hessian_diagonal
-        gradient = self._gradient
+        gradient = self.gradient
         np.dot(cost.T, mapped[:n_cost, n], out=gradient)
         if self._posture_tasks:  # g = p - A^T t
             np.subtract(self._posture_gradient[n_base:], gradient, out=gradient)
         else:
             np.negative(gradient, out=gradient)
 
-    def _assemble_torque_rows(self) -> None:
+    def assemble_torque_rows(self) -> None:
         """tau = M_a qdd + h_a - J_ca^T f as rows over y, and the torque-limit bounds."""
         n_base, n_act, n = self.layout.n_base, self.layout.n_act, self.layout.n
         mass, torque = self._mass, self._torque_rows
@@ -163,16 +413,16 @@ class Assembly:
         contact = self._rows[layout.n_cost : layout.dynamics_start, n_base : layout.nv]
         torque[:, n_act:n] -= self.layout.force_scale * contact.T
         np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
-        self._in_matrix[:n_act] = torque[:, :n]
-        np.add(-self.torque_limit, torque[:, n], out=self._in_lower[:n_act])
-        np.add(self.torque_limit, torque[:, n], out=self._in_upper[:n_act])
-        lower, upper = self._bounds.lower, self._bounds.upper  # |bound| >= 1e20: none
-        np.clip(lower, -_NO_BOUND, _NO_BOUND, self._in_lower[n_act:][: lower.size])
-        np.clip(upper, -_NO_BOUND, _NO_BOUND, self._in_upper[n_act:][: upper.size])
+        self.in_matrix[:n_act] = torque[:, :n]
+        np.add(-self.torque_limit, torque[:, n], out=self.in_lower[:n_act])
+        np.add(self.torque_limit, torque[:, n], out=self.in_upper[:n_act])
+        lower, upper = self.bounds.lower, self.bounds.upper  # |bound| >= 1e20: none
+        np.clip(lower, -_NO_BOUND, _NO_BOUND, self.in_lower[n_act:][: lower.size])
+        np.clip(upper, -_NO_BOUND, _NO_BOUND, self.in_upper[n_act:][: upper.size])
 
-    def _accept(self, solution: np.ndarray, eliminated: bool) -> None:
+    def accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""
-        x, n_base = self._candidate, self.layout.n_base
+        x, n_base = self.candidate, self.layout.n_base
         if eliminated:  # x_B = U_c - U_N z
             self._compiled.expand(self._split, solution, x)
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
@@ -181,4 +431,29 @@ class Assembly:
                 base_map, n = self._base_map, self.layout.n
                 np.dot(base_map[:, :n], solution, out=x[:n_base])
                 x[:n_base] -= base_map[:, n]
-        self._compiled.torques(self._layout, self._dynamics, x, self._tau)
+        self._compiled.torques(self._kernel_rows, self._dynamics, x, self.tau)
+
+    def accept_eliminated(self, solution: np.ndarray) -> None:
+        """:meth:`accept` of a solution over z, kept in :attr:`z_accepted` (the array type
+        the compiled expansion is bound to)."""
+        self.z_accepted[:] = solution
+        self.accept(self.z_accepted, eliminated=True)
+
+    def solve_direct(self) -> bool:
+        """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
+        solution = self._y_solution
+        solved = kernels.cholesky_solve(self.hessian, self._y_factor, self.gradient, solution)
+        if solved:
+            self.accept(solution, eliminated=False)
+        return solved
+
+    def feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
+        """Whether the candidate's torques are within ``torque_limit`` and its accelerations
+        ``margin`` inside their bounds (kernels.feasible)."""
+        return self._compiled.feasible(
+            self.tau, torque_limit, self.candidate, self.bounds, q, v, margin
+        )
+
+    def acceleration_bounds(self, q: np.ndarray, v: np.ndarray) -> None:
+        """The joint-limit acceleration bounds at ``(q, v)`` into :attr:`bounds`."""
+        self._compiled.acceleration_bounds(self.bounds, q, v)

@@ -59,7 +59,7 @@ def active_constraints(controller) -> list[str]:
         wrench = padded[: contact.n_force]
         rows = contact.row_names
         size = len(rows)
-        slack = qp._cone_upper[offset : offset + size] - contact.wrench_matrix @ wrench
+        slack = qp.assembly.cone_upper[offset : offset + size] - contact.wrench_matrix @ wrench
         offset += size
         for index in np.flatnonzero(slack <= CONE_MARGIN * weight):
             name = rows[index]
@@ -70,11 +70,11 @@ def active_constraints(controller) -> list[str]:
     for index in np.flatnonzero(np.abs(torques) >= (1.0 - TORQUE_MARGIN) * limit):
         side = "upper" if torques[index] > 0 else "lower"
         names.append(f"torque limit of {robot.actuated_joint_names[index]} ({side})")
-    bounds = qp._bounds
+    bounds = qp.assembly.bounds
     if bounds.v_index.size:
         lower, upper = np.empty(bounds.v_index.size), np.empty(bounds.v_index.size)
         bounds = bounds._replace(lower=lower, upper=upper)  # the QP's own arrays untouched
-        kernels.acceleration_bounds(bounds, qp._q_tick, qp._v_tick)
+        kernels.acceleration_bounds(bounds, qp.assembly.q, qp.assembly.v)
         accelerations = qp.joint_accelerations[bounds.v_index]
         joints = {
             robot.model.joints[j].idx_v: robot.model.names[j] for j in range(1, robot.model.njoints)
@@ -102,7 +102,7 @@ def explain(controller) -> str:
     stats = controller.stats
     status = stats.last_status
     if stats.last_answer == "relaxed":  # last_status is the relaxed QP's: ask the exact one
-        status = controller._current._limited.qp.results.info.status.name
+        status = controller._current.tick.limited.qp.results.info.status.name
     reason = f"{status}: {_STATUS[status]}" if status in _STATUS else status
     binding = active_constraints(controller)
     rows = "; ".join(binding) if binding else "nothing"

@@ -81,14 +81,11 @@ degraded answer within its time budget (see :class:`InverseDynamicsController`).
 from __future__ import annotations
 
 import math
-import types
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-import pinocchio as pin
 import proxsuite
-import scipy.linalg
 
 from dmpopt.exceptions import InvalidInputError, ShapeError
 
@@ -96,9 +93,9 @@ from . import kernels
 from .assembly import Assembly
 from .contacts import Contact
 from .layout import build_layout
-from .qp_stages import _NO_BOUND, ControllerStats, StageSolver, _active_set, _arguments, _Stage
-from .tasks import FrameTask, PostureTask, Task
-from .tick import _RELEASE_MARGIN, Tick
+from .qp_stages import ControllerStats, StageSolver, _active_set, _arguments, _Stage
+from .tasks import PostureTask, Task
+from .tick import Tick
 
 __all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 
@@ -107,10 +104,6 @@ __all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
 JOINT_LIMIT_TOLERANCE = 1e-3
 # Weight of the slacks of the relaxed QP (contact and acceleration-bound rows), per row.
 _RELAXATION_WEIGHT = 1e4
-# Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
-_CONE_RELEASE_MARGIN = 1e-3
-# Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
-_MIN_PIVOT_RATIO = 1e-9
 
 
 def _check_positive(name: str, value) -> None:
@@ -144,26 +137,6 @@ def _check_items(robot, tasks, contacts) -> None:
                     f"{robot.name!r} (nq={robot.model.nq}, nv={robot.nv}); build it with "
                     "the controller's robot"
                 )
-
-
-def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
-    """Velocity indices of as many joints as contact rows that move the feet, or None.
-
-    Chosen by a column-pivoted QR of the contacts' actuated Jacobian columns in the reference
-    configuration (for Talos: the 12 leg joints); None if that block is rank deficient.
-    """
-    model, data = robot.model, robot.create_data()
-    pin.computeJointJacobians(model, data, robot.reference_configuration)
-    pin.updateFramePlacements(model, data)
-    jacobian = np.vstack([c.contact_jacobian(data) for c in contacts])[:, n_base:]
-    n_rows = jacobian.shape[0]
-    if n_rows > jacobian.shape[1]:
-        return None
-    r, pivots = scipy.linalg.qr(jacobian, mode="r", pivoting=True)
-    diagonal = np.abs(np.diagonal(r))
-    if diagonal.size < n_rows or diagonal[n_rows - 1] < 1e-6 * diagonal[0]:
-        return None
-    return np.sort(pivots[:n_rows]) + n_base
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,19 +192,19 @@ DEFAULT_TIME_BUDGET = 5e-3
 """CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
 
 
-class ContactSetQP(Tick, Assembly):
+class ContactSetQP:
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
     stages (see the module docstring). The controller builds one per set it meets and keeps
     them; the parameters are the controller's (``settings_source``: the proxsuite QP whose
     settings every stage takes, the controller's ``qp``).
 
-    Its parts: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`: sizes, blocks, row
-    names), the stages (:class:`~dmpopt.control.qp_stages._Stage`, each a proxsuite QP with
-    its warm start and active set), their solver (:class:`~dmpopt.control.qp_stages.
-    StageSolver`), and the arrays the compiled kernels fill (named structures of
-    :mod:`dmpopt.control.kernels`); the tick's flow (:class:`~dmpopt.control.tick.Tick`) and
-    the assembly (:class:`~dmpopt.control.assembly.Assembly`) are its methods.
+    Its parts, each with its own state: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`:
+    sizes, blocks, row names), ``assembly`` (:class:`~dmpopt.control.assembly.Assembly`: the
+    arrays the tick fills and the compiled kernels bound to them) and ``tick``
+    (:class:`~dmpopt.control.tick.Tick`: the tick's flow over the stages, each a
+    :class:`~dmpopt.control.qp_stages._Stage` solved by a
+    :class:`~dmpopt.control.qp_stages.StageSolver`, and the tick's state).
     """
 
     def __init__(
@@ -267,16 +240,11 @@ class ContactSetQP(Tick, Assembly):
             raise InvalidInputError(
                 f"max_iterations must be an integer >= 1, got {max_iterations!r}"
             )
-        self.time_budget = float(time_budget)
-        self._deadline = self._exact_deadline = 0.0
         self.robot = robot
         self.model = robot.model
         self.data = robot.create_data()
-        # Views of the mass matrix and bias forces, refilled in place by computeAllTerms.
-        self._mass, self._bias = self.data.M, self.data.nle
         self.tasks = tuple(tasks)
         self.contacts = tuple(contacts)
-        self.raise_on_failure = raise_on_failure
 
         self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
         if not (self.torque_limit > 0).all():  # NaN too
@@ -284,124 +252,45 @@ class ContactSetQP(Tick, Assembly):
                 f"robot.torque_limit must be > 0 for every actuated joint, got "
                 f"{robot.torque_limit!r}; fix the robot model's effort limits"
             )
-        self._release_limit = _RELEASE_MARGIN * self.torque_limit
-        self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
         # Arguments of kernels.acceleration_bounds (no joints without limits).
-        self._bounds = self._joint_limits(joint_limit_horizon, limited_joints)
-        self._posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
-        self._stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
+        bounds = self._joint_limits(joint_limit_horizon, limited_joints)
+        posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
+        stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
         # The QP's wrench unknowns are wrenches divided by the robot's weight (force_scale):
         # dimensionless forces as large as the accelerations, so that proxsuite's absolute
         # tolerance pins the internal forces between the soles (which only eps_f determines).
-        self.layout = layout = build_layout(
-            robot, self._stacked_tasks, self.contacts, self._bounds.v_index
-        )
-        nv, n_base, n_act, n_force = layout.nv, layout.n_base, layout.n_act, layout.n_force
-        n, n_x, n_cone, n_bound = layout.n, layout.n_x, layout.n_cone, layout.n_bound
-        n_task, n_cost, scale = layout.n_task, layout.n_cost, layout.force_scale
-
-        # Linear rows [A | t] over x, each for A x = t (least squares or exact), in self._rows:
-        # [tasks | base regularisation | contacts | base dynamics]
-        # - task k: J_k qdd = b_k, least squares with weight w_k;
-        # - base regularisation: qdd_b = 0, least squares with weight eps_a (used with y);
-        # - contacts: J_c qdd = b_c;
-        # - base dynamics: M_b qdd - J_cb^T f = -h_b (used for the elimination).
-        self._rows = np.zeros((n_cost + n_force + n_base, n_x + 1))
-        self._rows[n_task:n_cost, :n_base] = np.eye(n_base)
-        self._row_scale = np.ones((n_cost, 1))  # square roots of the least-squares weights
-        for task, rows in zip(self._stacked_tasks, layout.task_rows):
-            self._row_scale[rows] = np.sqrt(task.weight)
-        self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
-        # Each tick the tasks and contacts compute their rows into their own arrays, which are
-        # copied here (the controller never rebinds a user's object), each group by one call.
-        self._row_groups = tuple(
-            (items, self._rows[block, :nv], self._rows[block, -1])
-            for items, block in (
-                (self._stacked_tasks, slice(0, n_task)),
-                (self.contacts, slice(n_cost, n_cost + n_force)),
-            )
-            if items
-        )
-        self._layout = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
-        self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
-
-        # Constant Hessian diagonal over x: eps_a on qdd plus the posture weights, eps_f on the
-        # wrenches. The posture tasks' linear terms -w qdd* go to posture_gradient.
-        diagonal = np.full(n_x, force_regularization * scale**2)
-        diagonal[:nv] = acceleration_regularization
-        for task in self._posture_tasks:
-            diagonal[np.asarray(task.velocity_indices, dtype=int)] += task.weight
-        self._stack_posture_tasks(n_x)
-        # Fixed base, posture tasks on every joint plus frame tasks: the Hessian is diagonal
-        # plus a low-rank term, solved through the Woodbury identity without the mass matrix,
-        # and the torques come from RNEA (see _solve_joint_space).
-        covered = diagonal[:nv] >= acceleration_regularization + min(
-            (task.weight for task in self._posture_tasks), default=np.inf
-        )
-        self._joint_space = (
-            not self.contacts
-            and nv == robot.n_actuated
-            and all(isinstance(task, FrameTask) for task in self._stacked_tasks)
-            and (not self._stacked_tasks or bool(covered.all()))
-        )
-        self._inverse_diagonal = 1.0 / diagonal[:nv]
-        self._zero_acceleration = np.zeros(nv)
-        # Woodbury solve: W^-1 + J D^-1 J^T and J D^-1 over the frame-task rows.
-        self._task_weights = self._row_scale[:n_task, 0] ** 2
-        self._woodbury = kernels.Woodbury(
-            self._inverse_diagonal, self._task_weights, np.zeros((n_task, nv)),
-            np.zeros((n_task, n_task)), np.zeros((n_task, n_task)), np.zeros(n_task),
+        self.layout = layout = build_layout(robot, stacked_tasks, self.contacts, bounds.v_index)
+        self.assembly = assembly = Assembly(
+            robot, self.data, layout, stacked_tasks, posture_tasks, self.contacts,
+            bounds, self.torque_limit, acceleration_regularization, force_regularization,
+            -tolerance,  # margin of kernels.feasible: bounds within tolerance
         )  # fmt: skip
-
-        # Cone rows over x (scaled wrenches): constant.
-        cone_matrix = np.zeros((n_cone, n_x))
-        cone_upper = np.full(n_cone, _NO_BOUND)
-        for contact, forces, cones in zip(self.contacts, layout.force_slices, layout.cone_slices):
-            cone_matrix[cones, nv + forces.start : nv + forces.stop] = scale * contact.wrench_matrix
-            cone_upper[cones] = contact.wrench_upper
-        self._cone_upper = cone_upper
-        cone_lower = np.full(n_cone, -_NO_BOUND)
+        n_act, n_force, n, n_cone = layout.n_act, layout.n_force, layout.n, layout.n_cone
+        n_bound, n_limit = layout.n_bound, layout.n_limit
 
         # ---- QPs over y = x[n_base:] (base rows eliminated): without torque rows (used when
-        # the elimination below is unavailable) and with them.
-        self._mapped = np.zeros((n_cost + n_force, n + 1))
-        self._base_rhs = np.zeros((n_base, n + 1), order="F")  # [-M_ba, J_cb^T, h_b]
-        self._base_map = np.zeros((n_base, n + 1))  # qdd_b = base_map @ (y, -1)
-        self._hessian_diagonal = diagonal[n_base:].copy()
-        self._hessian = np.zeros((n, n))
-        self._hessian_diagonal_view = self._hessian.reshape(-1)[:: n + 1]
-        self._gradient = np.zeros(n)
-        self._eq_vector = self._mapped[n_cost:, n]
-        # Inequality rows over y: torques, acceleration bounds (if any), cones.
-        n_limit = layout.n_limit
-        self._in_matrix = np.zeros((n_limit + n_cone, n))
-        self._in_matrix[n_act + np.arange(n_bound), self._bounds.v_index - n_base] = 1.0
-        self._in_matrix[n_limit:] = cone_matrix[:, n_base:]
-        self._in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), cone_lower])
-        self._in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
-        self._torque_rows = np.zeros((n_act, n + 1))
-        equalities = (self._mapped[n_cost:, :n], self._eq_vector) if n_force else None
-        cones = (
-            (self._in_matrix[n_limit:], self._in_lower[n_limit:], self._in_upper[n_limit:])
-            if n_cone
-            else None
-        )
-        everything = (self._in_matrix, self._in_lower, self._in_upper)
-        self._free = _Stage(
+        # the elimination is unavailable) and with them.
+        hessian, gradient = assembly.hessian, assembly.gradient
+        in_matrix, in_lower, in_upper = assembly.in_matrix, assembly.in_lower, assembly.in_upper
+        eq_vector = assembly.mapped[layout.n_cost :, n]
+        equalities = (assembly.mapped[layout.n_cost :, :n], eq_vector) if n_force else None
+        cones = (in_matrix[n_limit:], in_lower[n_limit:], in_upper[n_limit:]) if n_cone else None
+        everything = (in_matrix, in_lower, in_upper)
+        free = _Stage(
             n,
             n_force,
             n_cone,
             dense_backend,
-            _arguments(self._hessian, self._gradient, equalities, cones),
-            _arguments(self._hessian, self._gradient, equalities),
+            _arguments(hessian, gradient, equalities, cones),
+            _arguments(hessian, gradient, equalities),
         )
-        self._limited = _Stage(
+        limited = _Stage(
             n,
             n_force,
             n_limit + n_cone,
             dense_backend,
-            _arguments(self._hessian, self._gradient, equalities, everything),
-            _arguments(self._hessian, self._gradient, equalities, everything),
+            _arguments(hessian, gradient, equalities, everything),
+            _arguments(hessian, gradient, equalities, everything),
         )
 
         # The relaxed QP over (y, s_c, s_b): slacks on the contact rows, A y - s_c = b, and on
@@ -412,138 +301,61 @@ class ContactSetQP(Tick, Assembly):
         hessian.reshape(-1)[(n * (n_relaxed + 1)) :: n_relaxed + 1] = _RELAXATION_WEIGHT
         relaxed_equalities = None
         if n_force:
-            relaxed_equalities = (np.zeros((n_force, n_relaxed)), self._eq_vector)
+            relaxed_equalities = (np.zeros((n_force, n_relaxed)), eq_vector)
             relaxed_equalities[0][:, n : n + n_force] = -np.eye(n_force)
         relaxed_rows = np.zeros((n_limit + n_cone, n_relaxed))
         relaxed_rows[n_act + np.arange(n_bound), n + n_force + np.arange(n_bound)] = 1.0
-        relaxed = _arguments(
+        arguments = _arguments(
             hessian, np.zeros(n_relaxed), relaxed_equalities,
-            (relaxed_rows, self._in_lower, self._in_upper),
+            (relaxed_rows, in_lower, in_upper),
         )  # fmt: skip
         n_in = n_limit + n_cone
-        self._relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, relaxed, relaxed)
+        relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, arguments, arguments)
         # Feasible by construction: an infeasibility report would be a false alarm.
-        self._relaxed.qp.settings.eps_primal_inf = 1e-14
+        relaxed.qp.settings.eps_primal_inf = 1e-14
 
-        # ---- QPs over z = x_N (nonbasic): the base and contact rows [G | t] solved for the
-        # basic accelerations, x_B = U_c - U_N z with [U_N | U_c] = G_B^-1 [G_N | t]; without
-        # inequality rows (primary) and with the cone rows.
-        self._basic = self._eliminated_cones = None
-        joints = (
-            _contact_joints(robot, self.contacts, n_base) if self.contacts else np.zeros(0, int)
-        )
-        if joints is not None and n_base + joints.size:
-            basic = np.concatenate([np.arange(n_base), joints])
-            nonbasic = np.setdiff1d(np.arange(n_x), basic)
-            n_z = nonbasic.size
-            self._basic = basic
-            self._nonbasic_constant = np.append(nonbasic, n_x)  # and the constant column
-            self._basic_scale = -np.sqrt(diagonal[basic])  # rows -sqrt(d_B) U
-            self._lu = np.zeros((basic.size, basic.size))
-            self._elimination = np.zeros((basic.size, n_z + 1))
-            self._z_matrix = np.zeros((n_task + basic.size, n_z))
-            self._z_target = np.zeros(n_task + basic.size)
-            self._z_hessian = np.zeros((n_z, n_z))
-            self._z_hessian_diagonal = diagonal[nonbasic].copy()
-            self._z_gradient = np.zeros(n_z)
-            self._z_cone_matrix = np.ascontiguousarray(cone_matrix[:, nonbasic])
-            self._z_cone_release = cone_upper - _CONE_RELEASE_MARGIN * scale
-            self._z_cone_values = np.zeros(n_cone)
-            self._z_accepted = np.zeros(n_z)  # the last accepted solution over z
-            self._z_solution = np.zeros(n_z)
-            self._z_factor = np.zeros((n_z, n_z))
-            # Arguments of the compiled stages (persistent arrays, filled in place).
-            self._split = kernels.Split(
-                basic, self._nonbasic_constant, self._lu, self._elimination, _MIN_PIVOT_RATIO
+        # ---- The QP over z = x_N (nonbasic), base and contact rows eliminated, with the cone
+        # rows (without them it is solved by the assembly's compiled tick).
+        eliminated_cones = None
+        if assembly.eliminable and n_cone:
+            z_cones = (assembly.z_cone_matrix, assembly.cone_lower, assembly.cone_upper)
+            eliminated_cones = _Stage(
+                assembly.z_hessian.shape[0],
+                0,
+                n_cone,
+                dense_backend,
+                _arguments(assembly.z_hessian, assembly.z_gradient, None, z_cones),
+                _arguments(assembly.z_hessian, assembly.z_gradient),
             )
-            self._reduced = kernels.ReducedCosts(
-                self._row_scale[:, 0].copy(), self._basic_scale, self._posture_gradient,
-                self._z_hessian_diagonal, self._z_matrix, self._z_target, self._z_hessian,
-                self._z_gradient,
-            )  # fmt: skip
-            self._checks = kernels.Checks(
-                self._z_factor, self._z_solution, self._z_cone_matrix, cone_upper,
-                self.torque_limit, self._bounds, self._bound_tolerance,
-            )  # fmt: skip
-            z_cones = (self._z_cone_matrix, cone_lower, cone_upper)
-            z_arguments = _arguments(self._z_hessian, self._z_gradient)
-            if n_cone:
-                self._eliminated_cones = _Stage(
-                    n_z,
-                    0,
-                    n_cone,
-                    dense_backend,
-                    _arguments(self._z_hessian, self._z_gradient, None, z_cones),
-                    z_arguments,
-                )
-        self._primary = self._limited
-        self._y_factor = np.zeros((n, n))  # for the Cholesky factor of the Hessian over y
-        self._y_solution = np.zeros(n)
-        self._stages = tuple(
-            s
-            for s in (self._eliminated_cones, self._free, self._limited, self._relaxed)
-            if s is not None
-        )
-        self.qp = self._primary.qp
+        self.qp = limited.qp
         self.qp.settings.eps_abs = tolerance
         self.qp.settings.eps_rel = 0.0
         self.qp.settings.max_iter = int(max_iterations)
         self.qp.settings.eps_duality_gap_abs = tolerance
         if settings_source is not None:  # another contact set's QP: one source for all sets
             self.qp = settings_source
-        self._solver = StageSolver(self.qp)
-        self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
+        self.tick = Tick(
+            robot, self.data, layout, assembly, (eliminated_cones, free, limited, relaxed),
+            StageSolver(self.qp), self.torque_limit, tolerance, float(time_budget),
+            raise_on_failure,
+        )  # fmt: skip
+        self._compile_kernels(-tolerance)
 
-        self.stats = ControllerStats()
-        self._torques = np.zeros(n_act)
-        self._tau = np.zeros(n_act)
-        self._q_tick, self._v_tick = np.zeros(self.model.nq), np.zeros(self.layout.nv)
-        self._solution = np.zeros(n_x)
-        self._candidate = np.zeros(n_x)
-        self._has_valid_torque = False
-        self._bind_kernels()
-        self._compile_kernels()
-
-    def _bind_kernels(self) -> None:
-        """The compiled kernels of a tick, bound to the types of this QP's own arrays
-        (:func:`kernels.entry_point`: called without numba's type dispatch)."""
-        q, v, x, tau = self._q_tick, self._v_tick, self._candidate, self._tau
-        rows, dynamics, bounds = self._layout, self._dynamics, self._bounds
-        bound = {
-            "posture_gradient": (self._posture, q, v),
-            "acceleration_bounds": (bounds, q, v),
-            "feasible": (tau, self.torque_limit, x, bounds, q, v, self._bound_tolerance),
-            "torques": (rows, dynamics, x, tau),
-        }
-        if self._joint_space:
-            bound["joint_space_accelerations"] = (self._posture, rows, self._woodbury, q, v, x)
-        if self._basic is not None:
-            split, reduced, checks = self._split, self._reduced, self._checks
-            bound["eliminated_tick"] = (rows, dynamics, split, reduced, checks, q, v, x, tau)
-            bound["eliminate"] = (rows, dynamics, split)
-            bound["reduce_costs"] = (rows, split, reduced)
-            bound["expand"] = (split, self._z_accepted, x)
-        entry_points = {
-            name: kernels.entry_point(getattr(kernels, name), *arguments)
-            for name, arguments in bound.items()
-        }
-        self._compiled = types.SimpleNamespace(**entry_points)
-
-    def _compile_kernels(self) -> None:
+    def _compile_kernels(self, bound_tolerance: float) -> None:
         """Compile (or load from numba's disk cache) the kernels a tick can use, so that no
         tick of a control loop waits for a compilation: one tick on the reference
         configuration, and the stages used around proxsuite; then the controller is as new
         (contact references kept)."""
         references = [contact.reference_placement for contact in self.contacts]
         state = np.array(self.robot.reference_configuration, dtype=float), np.zeros(self.layout.nv)
-        self._level = 0  # the path of a tick without active inequality rows
         self.compute_torques(*state)  # copies the state: every kernel sees writable float64
-        self._feasible(self.torque_limit, self._bound_tolerance, *state)
-        kernels.acceleration_bounds(self._bounds, *state)
-        if self._basic is not None:
-            self._assemble_eliminated()
-            self._accept(self._z_accepted, eliminated=True)
-        self._solve_direct()
+        assembly = self.assembly
+        assembly.feasible(self.torque_limit, bound_tolerance, *state)
+        kernels.acceleration_bounds(assembly.bounds, *state)
+        if assembly.eliminable:
+            assembly.assemble_eliminated()
+            assembly.accept_eliminated(assembly.z_accepted)
+        assembly.solve_direct()
         problem = (np.eye(1), np.ones(1), None, None, np.ones((1, 1)), -np.ones(1), np.ones(1))
         _active_set(problem, np.zeros(1, bool), np.zeros(1, bool), 1e-9, 1)
         self.reset()
@@ -596,10 +408,47 @@ class ContactSetQP(Tick, Assembly):
             np.full(v_index.size, -np.inf), np.full(v_index.size, np.inf),
         )  # fmt: skip
 
+    def compute_torques(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Joint torques for the state ``(q, v)``, shape (n_actuated,) [N m]: one tick
+        (:meth:`Tick.compute_torques <dmpopt.control.tick.Tick.compute_torques>`)."""
+        return self.tick.compute_torques(q, v)
+
+    @property
+    def torques(self) -> np.ndarray:
+        """Torques returned by the last tick, shape (n_actuated,) (copy)."""
+        return self.tick.torques
+
+    @property
+    def stats(self) -> ControllerStats:
+        """Where the ticks are counted (the controller shares its own among its sets)."""
+        return self.tick.stats
+
+    @stats.setter
+    def stats(self, value: ControllerStats) -> None:
+        self.tick.stats = value
+
+    @property
+    def time_budget(self) -> float:
+        """CPU seconds a tick may spend."""
+        return self.tick.time_budget
+
+    @time_budget.setter
+    def time_budget(self, value: float) -> None:
+        self.tick.time_budget = value
+
+    @property
+    def raise_on_failure(self) -> bool:
+        """Whether a tick raises :class:`NoSolutionFound` instead of the hold answer."""
+        return self.tick.raise_on_failure
+
+    @raise_on_failure.setter
+    def raise_on_failure(self, value: bool) -> None:
+        self.tick.raise_on_failure = value
+
     @property
     def joint_accelerations(self) -> np.ndarray:
         """Joint accelerations of the last solve, shape (nv,) (copy)."""
-        return self._solution[: self.layout.nv].copy()
+        return self.assembly.solution[: self.layout.nv].copy()
 
     @property
     def contact_wrenches(self) -> np.ndarray:
@@ -610,7 +459,7 @@ class ContactSetQP(Tick, Assembly):
         largest contact's ``n_force``; a smaller contact's row is padded with zeros (a
         point force has no torque about its point).
         """
-        forces = self._solution[self.layout.nv :]
+        forces = self.assembly.solution[self.layout.nv :]
         if not self.contacts:
             return np.zeros((0, 6))
         width = max(c.n_force for c in self.contacts)
@@ -624,44 +473,30 @@ class ContactSetQP(Tick, Assembly):
         (its lower bound becomes min(f_min, limit)); only the bound vectors change."""
         contact = self.contacts[index]
         lower = -min(contact.min_normal_force, limit)
-        rows = self.layout.normal_rows[index]
-        if (self._cone_upper[list(rows)] == (lower, limit)).all():
+        if not self.assembly.set_normal_force_limit(self.layout.normal_rows[index], lower, limit):
             return
-        margin = _CONE_RELEASE_MARGIN * self.layout.force_scale
-        for row, value in zip(rows, (lower, limit)):
-            self._cone_upper[row] = value
-            self._in_upper[self.layout.n_limit + row] = value
-            if self._basic is not None:
-                self._z_cone_release[row] = value - margin
-        for stage in self._stages:
-            stage.stale = True
-
-    @property
-    def torques(self) -> np.ndarray:
-        """Torques returned by the last tick, shape (n_actuated,) (copy)."""
-        return self._torques.copy()
+        self.tick.mark_stale()
 
     def assembled_qp(self, q: np.ndarray, v: np.ndarray) -> AssembledQp:
         """The QP of a tick at ``(q, v)`` with every inequality row (copies; see
         :class:`AssembledQp`). Assembling it changes no answer of a later tick."""
-        np.copyto(self._q_tick, q)
-        np.copyto(self._v_tick, v)
-        q, v = self._q_tick, self._v_tick
-        self._assemble(q, v)
-        self._assemble_y()
-        kernels.acceleration_bounds(self._bounds, q, v)
-        self._assemble_torque_rows()
-        n, n_cost, mapped = self.layout.n, self.layout.n_cost, self._mapped
-        state, weights = self._posture.state, self._posture.weights
+        assembly = self.assembly
+        q, v = assembly.set_state(q, v)
+        assembly.assemble(q, v)
+        assembly.assemble_y()
+        kernels.acceleration_bounds(assembly.bounds, q, v)
+        assembly.assemble_torque_rows()
+        n, n_cost, mapped = self.layout.n, self.layout.n_cost, assembly.mapped
+        state, weights = assembly.posture.state, assembly.posture.weights
         constant = 0.5 * mapped[:n_cost, n] @ mapped[:n_cost, n] + 0.5 * weights @ state[5] ** 2
         return AssembledQp(
-            hessian=self._hessian.copy(),
-            gradient=self._gradient.copy(),
+            hessian=assembly.hessian.copy(),
+            gradient=assembly.gradient.copy(),
             equality_matrix=mapped[n_cost:, :n].copy(),
             equality_vector=mapped[n_cost:, n].copy(),
-            inequality_matrix=self._in_matrix.copy(),
-            lower=self._in_lower.copy(),
-            upper=self._in_upper.copy(),
+            inequality_matrix=assembly.in_matrix.copy(),
+            lower=assembly.in_lower.copy(),
+            upper=assembly.in_upper.copy(),
             constant=float(constant),
             force_scale=float(self.layout.force_scale),
             variable_names=self.layout.variable_names,
@@ -673,16 +508,10 @@ class ContactSetQP(Tick, Assembly):
         """Take over from the QP of another contact set on a switch: its last valid torque
         (the hold answer) carries over; this QP starts from its path without inequality
         rows."""
-        np.copyto(self._torques, previous._torques)
-        self._has_valid_torque = previous._has_valid_torque
-        self._level = 0
+        self.tick.continue_from(previous.tick)
 
     def reset(self) -> None:
         """Forget the warm start, the contact reference placements and the counters."""
-        for stage in self._stages:
-            stage.initialized = stage.known = False
-        self._level = 0
-        self._has_valid_torque = False
-        self.stats = ControllerStats()
+        self.tick.reset()
         for contact in self.contacts:
             contact.reference_placement = None

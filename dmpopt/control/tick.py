@@ -1,6 +1,6 @@
 """One tick of the inverse-dynamics QP: which QP is solved, and the degraded answers.
 
-Mixed into :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`: inequality rows are added
+A part of :class:`~dmpopt.control.inverse_dynamics.ContactSetQP`: inequality rows are added
 only when the least-squares optimum without them violates them (see the module docstring of
 :mod:`dmpopt.control.inverse_dynamics`); a failed QP gives the relaxed answer, and a failed
 relaxed QP or a spent time budget the hold answer.
@@ -17,7 +17,7 @@ import numpy as np
 from dmpopt.exceptions import InvalidInputError, NoSolutionFound, ShapeError
 
 from . import kernels
-from .qp_stages import _DIRECT, _Stage
+from .qp_stages import _DIRECT, ControllerStats, _Stage
 
 _RELEASE_MARGIN = 0.99  # leave the torque-limited QP once all |tau| < 0.99 tau_max
 _BOUND_RELEASE_MARGIN = 1e-2  # ... and all joint accelerations 0.01 rad/s^2 inside their bounds
@@ -26,7 +26,62 @@ _EXACT_SHARE = 0.5
 
 
 class Tick:
-    """The tick's control flow over the stages (see the module docstring)."""
+    """The tick's control flow over the stages of one contact set's QP (see the module
+    docstring), and its state: the inequality rows in use, the deadlines of the tick, the
+    last valid torques.
+
+    Parameters
+    ----------
+    robot : Robot
+        The controller's robot; ``data`` its Pinocchio data (read for the hold answer).
+    layout : QpLayout
+    assembly : Assembly
+        The arrays the tick fills and reads.
+    stages : tuple
+        ``(eliminated_cones, free, limited, relaxed)``: the QP over z with the cone rows (None
+        without an elimination or without cones), the QPs over y with the cone rows, with
+        every inequality row, and the relaxed QP.
+    solver : StageSolver
+    torque_limit : ndarray, shape (n_actuated,)
+        [N m]
+    tolerance : float
+        Tolerance of the acceleration bounds.
+    time_budget : float
+        CPU seconds per tick.
+    raise_on_failure : bool
+        Raise :class:`NoSolutionFound` instead of the hold answer.
+
+    Attributes
+    ----------
+    stats : ControllerStats
+        Where the ticks are counted (the controller's, shared by its contact sets).
+    time_budget, raise_on_failure
+        As given (the controller sets them on every contact set).
+    eliminated_cones, free, limited, relaxed : _Stage
+    stages : tuple of _Stage
+        The stages that exist.
+    solver : StageSolver
+    """
+
+    def __init__(
+        self, robot, data, layout, assembly, stages, solver, torque_limit, tolerance,
+        time_budget, raise_on_failure,
+    ):  # fmt: skip
+        self._nq, self._name, self._data = robot.model.nq, robot.name, data
+        self._has_contacts = layout.n_force > 0
+        self.layout, self.assembly, self.solver = layout, assembly, solver
+        self.eliminated_cones, self.free, self.limited, self.relaxed = stages
+        self.stages = tuple(s for s in stages if s is not None)
+        self.torque_limit = torque_limit
+        self._release_limit = _RELEASE_MARGIN * torque_limit
+        self._bound_tolerance = -tolerance  # margin of kernels.feasible: bounds within tolerance
+        self.time_budget = time_budget
+        self.raise_on_failure = raise_on_failure
+        self.stats = ControllerStats()
+        self._deadline = self._exact_deadline = 0.0
+        self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
+        self._torques = np.zeros(layout.n_act)
+        self._has_valid_torque = False
 
     def compute_torques(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Joint torques for the state ``(q, v)``: one model update, QP assembly and solve.
@@ -61,17 +116,13 @@ class Tick:
 
     def _tick(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """:meth:`compute_torques` with the collector paused."""
-        if q.shape != (self.model.nq,) or v.shape != (self.layout.nv,):
+        if q.shape != (self._nq,) or v.shape != (self.layout.nv,):
             raise ShapeError(
-                f"q and v have shapes {q.shape} and {v.shape}, expected ({self.model.nq},) and "
-                f"({self.layout.nv},) for {self.robot.name}"
+                f"q and v have shapes {q.shape} and {v.shape}, expected ({self._nq},) and "
+                f"({self.layout.nv},) for {self._name}"
             )
-        # the tick's own float64 copies: numba compiles a kernel once per argument type
-        # (read-only or writable, dtype), so a caller's read-only or integer state would
-        # otherwise compile a variant inside a control loop's tick
-        np.copyto(self._q_tick, q)
-        np.copyto(self._v_tick, v)
-        q, v = self._q_tick, self._v_tick
+        assembly = self.assembly
+        q, v = assembly.set_state(q, v)  # the tick's own float64 copies
         if not kernels.all_finite(q, v):
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
@@ -83,17 +134,21 @@ class Tick:
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
         level, solved, mapped, checked = self._level, True, False, False
         # Posture tasks on a fixed base need no model terms below the torque limits.
-        assembled = not (self._joint_space and level == 0)
+        assembled = not (assembly.joint_space and level == 0)
         if not assembled:
-            solved = self._solve_joint_space(q, v)
+            self._direct()
+            solved = assembly.solve_joint_space(q, v)
             if not solved:  # not expected: W^-1 + J D^-1 J^T is positive definite
                 level = 2
         else:
-            self._assemble(q, v)
+            assembly.assemble(q, v)
         if assembled and level < 2:
             outcome = kernels.ILL_CONDITIONED
-            if self._basic is not None:
-                outcome = self._eliminated_tick(q, v) if level == 0 else self._assemble_eliminated()
+            if assembly.eliminable and level == 0:
+                self._direct()
+                outcome = assembly.eliminated_tick(q, v)
+            elif assembly.eliminable:
+                outcome = assembly.assemble_eliminated()
             if outcome == kernels.SOLVED:
                 checked = True  # cones, torques and acceleration bounds checked by the tick
             elif outcome == kernels.LIMITS_VIOLATED:
@@ -101,16 +156,16 @@ class Tick:
             elif outcome == kernels.CHOLESKY_FAILED:
                 solved, level = False, 2
             elif outcome == kernels.CONES_VIOLATED:
-                solved = self._solve(self._eliminated_cones, self._exact_deadline)
-                level = 0 if solved and self._cones_released() else 1
-            elif not self.contacts:  # fixed base: no equality rows
-                self._assemble_y()
+                solved = self._solve(self.eliminated_cones, self._exact_deadline)
+                level = 0 if solved and assembly.cones_released() else 1
+            elif not self._has_contacts:  # fixed base: no equality rows
+                assembly.assemble_y()
                 mapped = True
                 solved = self._solve_direct()
             else:  # ill-conditioned elimination: contact rows as equalities, with the cones
-                self._assemble_y()
+                assembly.assemble_y()
                 mapped = True
-                solved = self._solve(self._free, self._exact_deadline)
+                solved = self._solve(self.free, self._exact_deadline)
                 level = min(level, 1)
         # A failed solve, or a NaN torque (from a NaN written into a task), goes to the QP
         # with every inequality row.
@@ -121,15 +176,15 @@ class Tick:
         if level == 2:
             self.stats.n_torque_limited += 1
             if not assembled:
-                self._assemble(q, v)
+                assembly.assemble(q, v)
             if not mapped:
-                self._assemble_y()
-            self._compiled.acceleration_bounds(self._bounds, q, v)
-            self._assemble_torque_rows()
+                assembly.assemble_y()
+            assembly.acceleration_bounds(q, v)
+            assembly.assemble_torque_rows()
             answer = "solved"
-            solved = self._solve(self._limited, self._exact_deadline)
+            solved = self._solve(self.limited, self._exact_deadline)
             if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
-                level = 1 if self.contacts else 0  # without contacts there are no cone rows
+                level = 1 if self._has_contacts else 0  # without contacts there are no cone rows
             elif not solved:
                 answer = "relaxed"
                 solved = self._time_left() and self._solve_relaxed()
@@ -139,11 +194,11 @@ class Tick:
             return self._torques.copy()
         self._count(answer)
         self._has_valid_torque = True
-        self._solution, self._candidate = self._candidate, self._solution
+        assembly.keep_candidate()
         if answer == "direct":  # its torques were checked against the limits
-            np.copyto(self._torques, self._tau)
+            np.copyto(self._torques, assembly.tau)
         else:  # proxsuite meets the limit rows only to its tolerance
-            np.minimum(self._tau, self.torque_limit, out=self._torques)
+            np.minimum(assembly.tau, self.torque_limit, out=self._torques)
             np.maximum(self._torques, -self.torque_limit, out=self._torques)
         return self._torques.copy()
 
@@ -164,49 +219,46 @@ class Tick:
     def _feasible(self, torque_limit: np.ndarray, margin: float, q, v) -> bool:
         """Whether the candidate's torques are within ``torque_limit`` and its accelerations
         ``margin`` inside their bounds (kernels.feasible)."""
-        return self._compiled.feasible(
-            self._tau, torque_limit, self._candidate, self._bounds, q, v, margin
-        )
+        return self.assembly.feasible(torque_limit, margin, q, v)
 
     def _solve(self, stage: _Stage, deadline: float) -> bool:
         """Solve one stage by the QP's :class:`StageSolver`; its answer goes to :meth:`_take`."""
-        return self._solver.solve(stage, deadline, self.stats, self._take)
+        return self.solver.solve(stage, deadline, self.stats, self._take)
 
     def _take(self, stage: _Stage, solution: np.ndarray) -> bool:
         """Accept a stage's solution as the tick's candidate, if finite."""
         if not math.isfinite(solution.sum()):
             return False
-        if stage is self._relaxed:  # (y, slacks)
+        if stage is self.relaxed:  # (y, slacks)
             solution = solution[: self.layout.n]
-        if stage is self._eliminated_cones:  # the QP's own array: the type expand is bound to
-            self._z_accepted[:] = solution
-            self._accept(self._z_accepted, eliminated=True)
+        if stage is self.eliminated_cones:
+            self.assembly.accept_eliminated(solution)
         else:
-            self._accept(solution, eliminated=False)
+            self.assembly.accept(solution, eliminated=False)
         return True
 
     def _solve_relaxed(self) -> bool:
         """The QP with every inequality row, with slacks on its contact and acceleration-bound
         rows (assembled by the caller): always feasible (see the class notes)."""
-        stage, n = self._relaxed, self.layout.n
+        stage, n, assembly = self.relaxed, self.layout.n, self.assembly
         hessian, gradient, equality, _, inequality = stage.problem[:5]
-        hessian[:n, :n] = self._hessian
-        gradient[:n] = self._gradient
+        hessian[:n, :n] = assembly.hessian
+        gradient[:n] = assembly.gradient
         if equality is not None:
-            equality[:, :n] = self._mapped[self.layout.n_cost :, :n]
-        inequality[:, :n] = self._in_matrix
+            equality[:, :n] = assembly.mapped[self.layout.n_cost :, :n]
+        inequality[:, :n] = assembly.in_matrix
         stage.initialized = False  # solved from scratch: its last problem is unrelated
         return self._solve(stage, self._deadline)
 
     def _solve_direct(self) -> bool:
         """The QP over y without inequality rows (fixed base): H y = -g by Cholesky."""
-        solution = self._y_solution
-        solved = kernels.cholesky_solve(self._hessian, self._y_factor, self._gradient, solution)
+        self._direct()
+        return self.assembly.solve_direct()
+
+    def _direct(self) -> None:
+        """Report a solve without proxsuite."""
         stats = self.stats
         stats.last_status, stats.last_iterations = _DIRECT, 0
-        if solved:
-            self._accept(solution, eliminated=False)
-        return solved
 
     def _fall_back(self) -> None:
         """The hold answer: the last valid torque (h_a on the first tick), clipped."""
@@ -221,8 +273,35 @@ class Tick:
                 stats=self.stats,
             )
         if not self._has_valid_torque:
-            self._torques[:] = self.data.nle[self.layout.n_base :]
+            self._torques[:] = self._data.nle[self.layout.n_base :]
         np.clip(self._torques, -self.torque_limit, self.torque_limit, out=self._torques)
-        for stage in self._stages:
+        for stage in self.stages:
             stage.initialized = False
         self._level = 0
+
+    @property
+    def torques(self) -> np.ndarray:
+        """Torques returned by the last tick, shape (n_actuated,) (copy)."""
+        return self._torques.copy()
+
+    def continue_from(self, previous: Tick) -> None:
+        """Take over from the tick of another contact set on a switch: its last valid torque
+        (the hold answer) carries over; this tick starts from its path without inequality
+        rows."""
+        np.copyto(self._torques, previous._torques)
+        self._has_valid_torque = previous._has_valid_torque
+        self._level = 0
+
+    def mark_stale(self) -> None:
+        """Inequality bounds changed: every stage passes them to proxsuite on its next
+        solve."""
+        for stage in self.stages:
+            stage.stale = True
+
+    def reset(self) -> None:
+        """Forget the warm starts, the last valid torque and the counters."""
+        for stage in self.stages:
+            stage.initialized = stage.known = False
+        self._level = 0
+        self._has_valid_torque = False
+        self.stats = ControllerStats()

@@ -222,8 +222,9 @@ def test_fixed_base_woodbury_solve_matches_the_cholesky_solve(upper_body, compon
 
     woodbury, hand_w = controller()
     cholesky, hand_c = controller()
-    assert woodbury._current._joint_space
-    cholesky._current._joint_space = False  # the general path: computeAllTerms, Cholesky, M qdd + h
+    assert woodbury._current.assembly.joint_space
+    # the general path: computeAllTerms, Cholesky, M qdd + h
+    cholesky._current.assembly.joint_space = False
     model, data = upper_body.model, upper_body.create_data()
     for _ in range(5):
         q, v = random_state(upper_body, rng, spread=0.05, speed=0.05)
@@ -758,11 +759,11 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
     # proxsuite again on that QP (as after a failed certificate): cold, it repeats the first
     # solve; warm from the certified optimum, it needs fewer iterations, counted as proxsuite
     # counts
-    qp, stage = controller._current, controller._current._limited
-    run = qp._solver._run  # one proxsuite solve and its refinement, as a tick makes it
-    assert run(stage, True, math.inf, qp.stats, qp._take)
+    qp, stage = controller._current, controller._current.tick.limited
+    run = qp.tick.solver._run  # one proxsuite solve and its refinement, as a tick makes it
+    assert run(stage, True, math.inf, qp.stats, qp.tick._take)
     assert controller.stats.last_iterations == cold
-    assert run(stage, False, math.inf, qp.stats, qp._take)
+    assert run(stage, False, math.inf, qp.stats, qp.tick._take)
     warm = controller.stats.last_iterations
     assert warm < cold and warm == stage.qp.results.info.iter  # one call: proxsuite's count
 
@@ -868,7 +869,7 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
     QP as stated, when no inequality is active and when cone or torque rows are."""
     import dataclasses
 
-    import dmpopt.control.inverse_dynamics as inverse_dynamics
+    import dmpopt.control.assembly as assembly
 
     rng = np.random.default_rng(7)
     robot, friction, com_acceleration, speed = talos, 0.7, [0.0, 0.0, 0.0], 0.2
@@ -881,7 +882,7 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         limit[[2, 3, 8, 9]] = 20.0
         robot = dataclasses.replace(talos, torque_limit=limit)
     if case == "contact_rows_kept":  # every tick takes the ill-conditioned fallback
-        monkeypatch.setattr(inverse_dynamics, "_MIN_PIVOT_RATIO", 2.0)
+        monkeypatch.setattr(assembly, "_MIN_PIVOT_RATIO", 2.0)
     regularization = {"acceleration_regularization": 1e-6, "force_regularization": 1e-6}
     controller, com = standing_controller(
         robot, friction=friction, tolerance=1e-10, joint_limit_horizon=None,
@@ -1210,11 +1211,11 @@ def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
     but none inside one (compute_torques pauses the collector), and it is on again after."""
     import gc
 
-    from dmpopt.control.inverse_dynamics import ContactSetQP
+    from dmpopt.control.tick import Tick
 
     controller, _ = standing_controller(talos)
     inside, collections = [False], []
-    tick = ContactSetQP._tick
+    tick = Tick._tick
 
     def watched(self, q, v):
         inside[0] = True
@@ -1227,7 +1228,7 @@ def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
         if phase == "start":
             collections.append(inside[0])
 
-    monkeypatch.setattr(ContactSetQP, "_tick", watched)
+    monkeypatch.setattr(Tick, "_tick", watched)
     threshold = gc.get_threshold()
     gc.callbacks.append(watch)
     gc.set_threshold(1)
@@ -1270,12 +1271,12 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
     posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
     controller.compute_torques(q, v)
-    qp, stage = controller._current, controller._current._limited
+    qp, stage = controller._current, controller._current.tick.limited
     assert stage.certified
 
     def warm_solve():
-        assert qp._solver._run(stage, False, math.inf, qp.stats, qp._take)
-        return controller.stats.last_iterations, qp._candidate.copy()
+        assert qp.tick.solver._run(stage, False, math.inf, qp.stats, qp.tick._take)
+        return controller.stats.last_iterations, qp.assembly.candidate.copy()
 
     iterations, answer = warm_solve()
     settings = stage.qp.settings

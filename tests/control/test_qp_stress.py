@@ -297,7 +297,7 @@ def test_infeasible_tick_gives_the_relaxed_answer(upper_body):
     tau = controller.compute_torques(q, v)
     assert controller.stats.last_answer == "relaxed" and controller.stats.n_relaxed == 1
     problem = full_qp(controller, q, v)
-    n, n_bound = problem["hessian"].shape[0], controller._current._bounds.v_index.size
+    n, n_bound = problem["hessian"].shape[0], controller._current.assembly.bounds.v_index.size
     n_act = upper_body.n_actuated
     # min cost(y) + 1e4/2 ||s||^2  s.t.  torque rows;  l <= qdd_j + s_j <= u
     hessian = scipy.linalg.block_diag(problem["hessian"], 1e4 * np.eye(n_bound))
@@ -331,7 +331,7 @@ def test_infeasible_standing_tick_gives_the_relaxed_answer(talos, elbow_speed):
     assert controller.stats.last_answer == "relaxed"
     problem = full_qp(controller, q, v)
     n, n_force = problem["hessian"].shape[0], problem["a"].shape[0]
-    n_bound, n_act = controller._current._bounds.v_index.size, talos.n_actuated
+    n_bound, n_act = controller._current.assembly.bounds.v_index.size, talos.n_actuated
     assert n_force == 12  # two soles, six rows each
     # min cost(y) + 1e4/2 (|s_c|^2 + |s_b|^2)  s.t.  A y - s_c = b;  torque and cone rows;
     # l <= qdd_j + s_j <= u

@@ -793,12 +793,12 @@ class MujocoSimulator(Backend):
             )
 
     # ------------------------------------------------------------------ dynamics
-    def step(self, tau, base_force=None) -> SimState:
-        """Advance one time step under actuated joint torques ``tau``.
+    def step(self, torques, base_force=None) -> SimState:
+        """Advance one time step under actuated joint torques ``torques``.
 
         Parameters
         ----------
-        tau : array_like, shape (n_actuated,)
+        torques : array_like, shape (n_actuated,)
             Torques/forces of the actuated joints, in the order of ``v[n_base_dofs:]``.
         base_force : array_like, shape (n_base_dofs,), optional
             Generalised force on the base coordinates (Pinocchio's, e.g. a boom).
@@ -823,7 +823,7 @@ class MujocoSimulator(Backend):
         mujoco, model, data = self._mj, self.mj_model, self.mj_data
         applied = data.qfrc_applied
         applied[self._actuated_dofs] = self.plant.actuate(
-            _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)
+            _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
         )
         if base_force is None:
             applied[self._base_dofs] = 0.0
@@ -936,15 +936,16 @@ def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
     try:
         array = np.asarray(tau, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"tau must be numbers, got {tau!r}") from None
+        raise InvalidInputError(f"torques must be numbers, got {tau!r}") from None
     if array.shape != (n_actuated,):
         raise ShapeError(
-            f"tau has shape {np.shape(tau)}, expected ({n_actuated},): one torque per actuated "
+            f"torques has shape {np.shape(tau)}, expected ({n_actuated},): one torque per actuated "
             f"joint (model.nv = {nv} minus {n_base} base dofs)"
         )
     if not np.isfinite(array).all():
         raise InvalidInputError(
-            f"tau must be finite; entries {np.flatnonzero(~np.isfinite(array)).tolist()} are not"
+            f"torques must be finite; entries {np.flatnonzero(~np.isfinite(array)).tolist()} "
+            "are not"
         )
     return array
 

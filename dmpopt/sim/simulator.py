@@ -506,8 +506,8 @@ class Simulator(Backend):
             )[:3]
         return positions, jacobians
 
-    def step(self, tau, base_force=None) -> SimState:
-        r"""Advance one time step under actuated joint torques ``tau``.
+    def step(self, torques, base_force=None) -> SimState:
+        r"""Advance one time step under actuated joint torques ``torques``.
 
         Ground and push forces enter as generalised forces :math:`J^\top f` of the point
         Jacobians, so a step is one ``computeJointJacobians`` and one ``aba`` call plus a
@@ -515,7 +515,7 @@ class Simulator(Backend):
 
         Parameters
         ----------
-        tau : array_like, shape (n_actuated,)
+        torques : array_like, shape (n_actuated,)
             Torques/forces of the actuated joints (``model.nv - n_base_dofs``).
         base_force : array_like, shape (n_base_dofs,), optional
             Generalised force on the base coordinates, e.g. a boom or harness.
@@ -539,7 +539,7 @@ class Simulator(Backend):
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         tau_full = self._tau
-        self._set_forces(tau_full, tau, base_force)
+        self._set_forces(tau_full, torques, base_force)
         tau_full[self.n_base_dofs :] = self._joint_torques(tau_full[self.n_base_dofs :])
         model, data = self.model, self.data
         pin.computeJointJacobians(model, data, self.q)
@@ -591,7 +591,7 @@ class Simulator(Backend):
         if valid and np.isfinite(tau_full).all():
             return
         real_array(
-            "tau",
+            "torques",
             tau,
             shape=(self.n_actuated,),
             expected=self._tau_expected,

@@ -529,11 +529,11 @@ def test_bad_state_torque_and_push_arguments(talos_sim):
     with pytest.raises(InvalidInputError, match=r"v\[\d+\] is nan"):
         sim.reset(q, np.full(nv, np.nan))
     sim.reset(q)
-    with pytest.raises(ShapeError, match=rf"tau has shape \(2,\), expected \({na},\)"):
+    with pytest.raises(ShapeError, match=rf"torques has shape \(2,\), expected \({na},\)"):
         sim.step(np.zeros(2))
     tau = np.zeros(na)
     tau[4] = np.nan
-    with pytest.raises(InvalidInputError, match=r"tau must be finite; entries \[4\]"):
+    with pytest.raises(InvalidInputError, match=r"torques must be finite; entries \[4\]"):
         sim.step(tau)
     with pytest.raises(ShapeError, match=r"base_force has shape \(2,\), expected \(6,\)"):
         sim.step(np.zeros(na), base_force=[1, 2])

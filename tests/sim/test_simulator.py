@@ -279,14 +279,14 @@ BAD_CALLS = [
     ("reset", (box_at(1, free_box()), np.zeros(7)), ShapeError, r"v has shape \(7,\)"),
     ("reset", (box_at(1, free_box()), [0, 0, np.inf, 0, 0, 0]), InvalidInputError, r"v\[2\]"),
     ("reset", (box_at(1, free_box()), None, NAN), InvalidInputError, "t must be a finite time"),
-    ("step", (np.zeros(2),), ShapeError, r"tau has shape \(2,\), expected \(0,\)"),
+    ("step", (np.zeros(2),), ShapeError, r"torques has shape \(2,\), expected \(0,\)"),
     ("step", (np.zeros(0), [0, 0, NAN, 0, 0, 0]), InvalidInputError, r"base_force\[2\] is nan"),
     ("step", (np.zeros(0), np.zeros(3)), ShapeError, r"base_force has shape \(3,\), expected \(6,"),
     (
         "step",
         ("abc",),
         InvalidInputError,
-        r"tau must be an array of real numbers \(.*\), got 'abc'",
+        r"torques must be an array of real numbers \(.*\), got 'abc'",
     ),
     ("push", ("box", [NAN, 0, 0], 0.1), InvalidInputError, r"force\[0\] is nan"),
     ("push", ("box", [1, 0], 0.1), ShapeError, r"force has shape \(2,\), expected \(3,\)"),
@@ -315,7 +315,8 @@ def test_non_finite_torque_names_the_joint_and_leaves_the_state(index, bad):
     sim.reset([0.1, 0.2])
     tau = [0.0, 0.0]
     tau[index] = bad
-    with pytest.raises(InvalidInputError, match=rf"tau\[{index}\] \(joint 'joint_{index}'\) is"):
+    message = rf"torques\[{index}\] \(joint 'joint_{index}'\) is"
+    with pytest.raises(InvalidInputError, match=message):
         sim.step(tau)
     assert sim.t == 0.0 and sim.q == pytest.approx([0.1, 0.2])
 

@@ -793,7 +793,8 @@ class RhythmicDMP(_DmpCommon):
     alpha_E : float
         :math:`\alpha_E` of eq. (13) (``energy`` only).
     k : float
-        :math:`k` of eq. (13) (``energy`` only).
+        :math:`k` of eq. (13) (``energy`` only): a dimensionless factor; the oscillator
+        turns at :math:`k / \tau` rad/s (docs/glossary.md, "Frequencies and rates").
     """
 
     weights: np.ndarray

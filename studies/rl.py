@@ -5,7 +5,7 @@ Claim of the paper: on a 1-DOF acceleration DMP that must move from 0 to 1 in 50
 bell-shaped velocity profiles after about 150-200 trials and is "about one order of
 magnitude" faster than episodic REINFORCE.
 
-What this study measures (reward and policy: :mod:`dmpopt.learning.tasks`):
+What this study measures (reward and policy: :mod:`dmpopt.learning.rewards`):
 
 * learning curves of every method against trials (every exploratory roll-out counts), as the
   remaining gap to the exact optimum (least squares on the affine plan) on a log scale,

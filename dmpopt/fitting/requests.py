@@ -73,7 +73,7 @@ class ViaPoint:
     """Pass through ``position`` at ``time`` (from the start of the plan) within ``tolerance``.
 
     A hard constraint. (A reinforcement-learning task rewards closeness to a point instead:
-    :class:`dmpopt.learning.tasks.ViaPointReward`.)
+    :class:`dmpopt.learning.rewards.ViaPointReward`.)
 
     Attributes
     ----------

@@ -2,8 +2,9 @@ r"""Reinforcement learning of DMP weights (Section 3.5 and Fig. 5 of [dmpopt-pap
 
 :mod:`~dmpopt.learning.policy_search`: one ask/tell interface for episodic Natural
 Actor-Critic (eqs. 17-19), episodic REINFORCE, PI-BB and CMA-ES.
-:mod:`~dmpopt.learning.tasks`: the paper's reaching task, a multi-DOF and a via-point task,
-each with its exact optimum (the plan is affine in the weights).
+:mod:`~dmpopt.learning.rewards`: reward tasks (not the QP tasks of :mod:`dmpopt.control`):
+the paper's reaching task, a multi-DOF and a via-point task, each with its exact optimum
+(the plan is affine in the weights).
 """
 
 from .policy_search import (
@@ -20,7 +21,7 @@ from .policy_search import (
     optimise,
     reinforce_gradient,
 )
-from .tasks import (
+from .rewards import (
     RewardTask,
     ViaPointReward,
     multi_dof_reaching_task,

@@ -1,4 +1,4 @@
-r"""Reinforcement-learning tasks on discrete DMPs, with their exact optimum.
+r"""Reward tasks for reinforcement learning on discrete DMPs, with their exact optimum.
 
 A task fixes a :class:`~dmpopt.DiscreteDMP` (start, goal, time constant, basis) and a
 quadratic reward on its plan. The learner chooses the forcing weights :math:`W` of shape

@@ -35,7 +35,6 @@ Run: ``python -m dmpopt_studies.cartesian OUT_DIR [--quick]`` (quick: runs of 3 
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
@@ -44,9 +43,9 @@ from dmpopt_robots.plants import talos_realistic
 from dmpopt_studies.common import (
     TIME_BUDGET,
     Progress,
+    command_line,
     output_dir,
     pyplot,
-    staged_output,
     write_metrics,
 )
 from dmpopt_studies.humanoid import drumming_posture, mujoco_plant
@@ -360,12 +359,7 @@ def plot(out, times, positions, orientations, replay, moved) -> None:
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out_dir")
-    parser.add_argument("--quick", action="store_true")
-    arguments = parser.parse_args(argv)
-    with staged_output(arguments.out_dir) as folder:
-        metrics = run(folder, quick=arguments.quick)
+    metrics = command_line(run, __doc__, argv)
     keys = ("position_rmse_mm", "orientation_rmse_deg", "quaternion_norm_error_max")
     keys += ("hand_tracking_mm", "hand_tracking_deg", "fell")
     print({key: metrics[key] for key in keys}, metrics["new_goal"])

@@ -128,3 +128,18 @@ def median_time(function, repeats: int = 20) -> float:
         function()
         times.append(time.perf_counter() - start)
     return float(np.median(times))
+
+
+def command_line(run, description: str, argv=None) -> dict:
+    """A study's own command, ``python -m dmpopt_studies.NAME OUT_DIR [--quick] [--seed N]``:
+    ``run(folder, quick=, seed=)`` into a staged ``OUT_DIR`` (replaced only when the run is
+    done, as ``dmpopt study run`` does); returns the metrics for the caller to print."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=description.splitlines()[0])
+    parser.add_argument("out_dir")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    arguments = parser.parse_args(argv)
+    with staged_output(arguments.out_dir) as folder:
+        return run(folder, quick=arguments.quick, seed=arguments.seed)

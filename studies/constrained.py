@@ -31,14 +31,13 @@ Run: ``python -m dmpopt_studies.constrained OUT_DIR [--quick]``.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from . import lasa
-from .common import Progress, pyplot, write_metrics
+from .common import Progress, command_line, pyplot, write_metrics
 
 EXPECTED_SECONDS = {"full": 200, "quick": 15}  # measured: 173 s and 222 s full, shared 2 cores
 VELOCITY_FRACTION = 0.8  # bounds: this fraction of the unconstrained plan's peak |v| per DOF
@@ -655,10 +654,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner=None) -> dict:
 
 
 def main(argv=None) -> None:
-    """Command line: ``OUT_DIR [--quick]``."""
-    argv = sys.argv[1:] if argv is None else argv
-    out = argv[0] if argv and not argv[0].startswith("--") else "out/constrained"
-    metrics = run(out, quick="--quick" in argv)
+    metrics = command_line(run, __doc__, argv)
     for row in metrics["summary"]:
         print(" | ".join(row[k] for k in ("claim", "paper", "dmpopt", "anchor", "verdict")))
     print("feasible", json.dumps(metrics["feasible"]))

@@ -29,13 +29,12 @@ Run: ``python -m dmpopt_studies.feasible OUT_DIR [--quick]``.
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .common import Progress, pyplot, write_metrics
+from .common import Progress, command_line, pyplot, write_metrics
 
 EXPECTED_SECONDS = {"full": 120, "quick": 20}  # wall seconds, loaded 2-core machine (37-110 s full)
 SPEED = 2.0  # the forehand demonstrated this many times faster than the humanoid study's
@@ -413,10 +412,7 @@ def run(out_dir, quick: bool = False, seed: int = 0) -> dict:
 
 
 def main(argv=None) -> None:
-    """Command line: ``OUT_DIR [--quick]``."""
-    argv = sys.argv[1:] if argv is None else argv
-    out = argv[0] if argv and not argv[0].startswith("--") else "out/feasible"
-    metrics = run(out, quick="--quick" in argv)
+    metrics = command_line(run, __doc__, argv)
     print("\n".join(_lines(metrics)))
     print(f"SQP iterations {metrics['sqp_iterations']}, fit {metrics['fit_seconds']:.2f} s")
 

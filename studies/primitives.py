@@ -53,12 +53,18 @@ bimanual plans without the robot).
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 from dmpopt_studies.bimanual import bimanual_metrics
-from dmpopt_studies.common import Progress, median_time, output_dir, pyplot, write_metrics
+from dmpopt_studies.common import (
+    Progress,
+    command_line,
+    median_time,
+    output_dir,
+    pyplot,
+    write_metrics,
+)
 
 from dmpopt import Trajectory, fit_discrete, fit_keep_out, fit_promp
 from dmpopt.fitting import minimum_jerk
@@ -378,14 +384,7 @@ def plot(out, demos, paths: dict, scene) -> None:
 
 
 def main(argv=None) -> None:
-    from dmpopt_studies.common import staged_output
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out_dir")
-    parser.add_argument("--quick", action="store_true")
-    arguments = parser.parse_args(argv)
-    with staged_output(arguments.out_dir) as folder:
-        metrics = run(folder, quick=arguments.quick)
+    metrics = command_line(run, __doc__, argv)
     print(metrics["promp"])
     for method, row in metrics["obstacles"].items():
         print(method, row)

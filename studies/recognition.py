@@ -65,7 +65,7 @@ from dmpopt.recognition import (
     normalised_weights,
 )
 
-from .common import output_dir, pyplot, write_metrics
+from .common import command_line, output_dir, pyplot, write_metrics
 
 # 2-core machine: 66 s measured beside one other job (28 s before the scikit-learn classifiers)
 EXPECTED_SECONDS = {"full": 65, "quick": 10}
@@ -608,14 +608,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
 
 def main(argv=None):
     """Command line: ``python -m dmpopt_studies.recognition OUT_DIR [--quick] [--seed N]``."""
-    import argparse
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out_dir")
-    parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--seed", type=int, default=0)
-    arguments = parser.parse_args(argv)
-    metrics = run(arguments.out_dir, quick=arguments.quick, seed=arguments.seed)
+    metrics = command_line(run, __doc__, argv)
     for key, value in metrics.items():
         if key.startswith("accuracy"):
             print(f"{key}: {value}")

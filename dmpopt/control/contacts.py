@@ -349,16 +349,7 @@ class PointContact(Contact):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Point Jacobian (world axes) and desired point acceleration minus drift."""
-        model, frame_id = self.model, self.frame_id
-        placement = self.placement(data)
-        error = self._error
-        np.subtract(self.reference_placement.translation, placement.translation, out=error[:3])
-        kernels.pd_task_rows(
-            self.target, self.jacobian, self.components, error,
-            pin.getFrameJacobian(model, data, frame_id, _LWA), v,
-            pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
-            _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
-        )  # fmt: skip
+        _hold_point(self, v, data, self.target, self.jacobian, self.components)
 
 
 class SurfaceContact(Contact):
@@ -442,15 +433,21 @@ class SurfaceContact(Contact):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Point Jacobian and desired acceleration minus drift, in surface axes."""
-        model, frame_id = self.model, self.frame_id
-        placement = self.placement(data)
-        error = self._error
-        np.subtract(self.reference_placement.translation, placement.translation, out=error[:3])
-        kernels.pd_task_rows(
-            self._world_target, self._world_jacobian, _LINEAR, error,
-            pin.getFrameJacobian(model, data, frame_id, _LWA), v,
-            pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
-            _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
-        )  # fmt: skip
+        _hold_point(self, v, data, self._world_target, self._world_jacobian, _LINEAR)
         np.dot(self.axes.T, self._world_jacobian, out=self.jacobian)
         np.dot(self.axes.T, self._world_target, out=self.target)
+
+
+def _hold_point(contact, v, data, target, jacobian, components) -> None:
+    """Rows ``components`` (world axes) that hold ``contact``'s frame origin at its reference:
+    ``jacobian`` the point Jacobian, ``target`` :math:`K_p (p_{ref} - p) - K_d \\dot p - \\dot J
+    \\dot q` (the classical acceleration's drift), both filled in place."""
+    model, frame_id, error = contact.model, contact.frame_id, contact._error
+    placement = contact.placement(data)  # first: it takes the reference if none is set yet
+    np.subtract(contact.reference_placement.translation, placement.translation, out=error[:3])
+    kernels.pd_task_rows(
+        target, jacobian, components, error,
+        pin.getFrameJacobian(model, data, frame_id, _LWA), v,
+        pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
+        _ZERO_MOTION, _ZERO_MOTION, contact._stiffness, contact._damping,
+    )  # fmt: skip

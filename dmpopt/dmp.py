@@ -42,7 +42,6 @@ import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 
 from . import basis, forms, symbolic, validation
@@ -164,32 +163,88 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-@lru_cache(maxsize=16)
-def _affine_step(signature: symbolic.Signature) -> ca.Function:
-    """One RK4 step of one DOF and its Jacobians with respect to the DOF's inputs.
+def _linear_response(out, first, step, drive_matrix, drive, output, feedthrough, direct):
+    r"""Outputs of the discrete linear system :math:`x_{k+1} = A x_k + B u_k`, :math:`y_k =
+    C x_k + D v_k`, for ``m`` columns at once, written into ``out`` (o, n_steps, m).
 
-    ``(state, dt, *parameters) -> (next_state, step, outputs)``: ``step`` (n_transformation,
-    n_inputs) is the derivative of the next transformation state and ``outputs`` (3,
-    n_inputs) that of position, velocity and acceleration at ``state``, with respect to the
-    inputs (transformation state, goal, forcing weights). Both are affine in these inputs,
-    so the Jacobians depend only on the canonical part of ``state``.
+    ``first`` :math:`x_0` (n, m); ``step`` :math:`A` (n, n); ``drive_matrix`` :math:`B`
+    (n, p) and ``drive`` :math:`u` (p, n_steps - 1, m); ``output`` :math:`C` (o, n);
+    ``feedthrough`` :math:`D` (o, q) and ``direct`` :math:`v` (q, n_steps, m). Plain loops,
+    the columns innermost, compiled by :func:`_compiled_response`.
     """
-    s = symbolic.make_symbols(signature)
-    inputs = ca.vertcat(s.state[2:], s.goal, ca.vec(s.forcing_weights))
-    parameters = s.parameters()
-    next_state = symbolic.step_function(signature)(state=s.state, dt=s.dt, **parameters)
-    next_state = next_state["next_state"]
-    outputs = symbolic.output_function(signature)(state=s.state, **parameters)
-    outputs = ca.vertcat(outputs["position"], outputs["velocity"], outputs["acceleration"])
-    return symbolic.function(
-        "dmp_affine_step",
-        {"state": s.state, "dt": s.dt, **parameters},
-        {
-            "next_state": next_state,
-            "step": ca.densify(ca.jacobian(next_state[2:], inputs)),
-            "outputs": ca.densify(ca.jacobian(outputs, inputs)),
-        },
-    )
+    n, m = first.shape
+    n_steps = out.shape[1]
+    state, following = first.copy(), np.empty_like(first)
+    for k in range(n_steps):
+        for o in range(output.shape[0]):
+            row = out[o, k]
+            row[:] = 0.0
+            for i in range(n):
+                factor = output[o, i]
+                for c in range(m):
+                    row[c] += factor * state[i, c]
+            for j in range(direct.shape[0]):
+                factor = feedthrough[o, j]
+                for c in range(m):
+                    row[c] += factor * direct[j, k, c]
+        if k + 1 < n_steps:
+            following[:] = 0.0
+            for i in range(n):
+                for j in range(n):
+                    factor = step[i, j]
+                    for c in range(m):
+                        following[i, c] += factor * state[j, c]
+                for j in range(drive.shape[0]):
+                    factor = drive_matrix[i, j]
+                    for c in range(m):
+                        following[i, c] += factor * drive[j, k, c]
+            state, following = following, state
+    return out
+
+
+@lru_cache(maxsize=1)
+def _compiled_response():
+    """:func:`_linear_response` compiled by numba (imported here, at the first response, not
+    with dmpopt), cached on disk in :func:`symbolic.cache_dir`, never next to the source."""
+    import os
+
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(symbolic.cache_dir() / "numba"))
+    import numba
+
+    numba.core.config.reload_config()
+    return numba.njit(cache=True, nogil=True)(_linear_response)
+
+
+def _canonical_trajectory(signature, n_steps, dt, canonical0, target, gains):
+    """Canonical states at the samples, shape (2, n_steps), and at the four RK4 stages of
+    each step, shape (4, 2, n_steps - 1) (:func:`symbolic.canonical_step_function`).
+
+    A linear canonical system steps by the affine map of
+    :func:`symbolic.canonical_step_matrices`, compiled; the energy form's by its CasADi step.
+    """
+    parameters = {"dt": dt, "canonical_target": target, "gains": gains}
+    affine = symbolic.canonical_step_matrices(signature)
+    if affine is not None:
+        maps = affine(**parameters)
+        matrix, offset = maps["matrix"].full(), maps["offset"].full()
+        out = np.empty((10, n_steps, 1))
+        ones = np.ones((1, n_steps, 1))
+        first = np.array(canonical0, dtype=float)[:, None]
+        output = np.vstack([np.eye(2), matrix[2:]])  # the sample and its four stages
+        feedthrough = np.vstack([np.zeros((2, 1)), offset[2:]])
+        _compiled_response()(out, first, matrix[:2], offset[:2], ones, output, feedthrough, ones)
+        return out[:2, :, 0], out[2:, :-1, 0].reshape(4, 2, n_steps - 1)
+    step = symbolic.NumericFunction(symbolic.canonical_step_function(signature))
+    step.set_inputs(canonical=canonical0, **parameters)
+    state, following = step.inputs["canonical"], step.outputs["next_canonical"]
+    stage_values = step.outputs["stages"]
+    samples, stages = np.empty((n_steps, 2)), np.empty((n_steps - 1, 8))
+    samples[0] = canonical0
+    for k in range(n_steps - 1):
+        step.evaluate()
+        stages[k] = stage_values
+        samples[k + 1] = state[:] = following
+    return samples.T, stages.reshape(n_steps - 1, 4, 2).transpose(1, 2, 0)
 
 
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
@@ -197,35 +252,48 @@ def _response(key: tuple) -> np.ndarray:
     """Response matrices of one DOF, in time normalised by ``tau``.
 
     Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
-    responses to each input (initial transformation states, goal, weights). Each RK4 step
-    is affine in the inputs, with Jacobians from :func:`_affine_step` along the canonical
-    trajectory, so the responses follow from the affine recurrence. The cost grows linearly
-    with the number of basis functions (integrating one DOF per input, as before, grew
-    quadratically: over a minute for 400 basis functions).
+    responses to each input (initial transformation states, goal, weights). The RK4 step is
+    affine in these inputs (:func:`symbolic.transformation_matrices`), the forcing term
+    entering at its four stages through the features there; so the features are evaluated
+    at all stages at once (:class:`symbolic.ArrayFunction`) and the responses follow from
+    the linear recurrence, compiled (:func:`_linear_response`). Calling the Jacobian of the
+    whole step once per step, as before, took 460 ms for 10676 steps and 53 inputs.
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     signature = symbolic.Signature(form, 1, n_basis, kernel)
-    n_transformation = symbolic.n_transformation_states(form)
-    n_inputs = n_transformation + 1 + signature.n_features
-    function = symbolic.NumericFunction(_affine_step(signature))
-    parameters = symbolic.parameters(
-        canonical_target=target, centres=np.array(centres), widths=np.array(widths), gains=gains
+    n = symbolic.n_transformation_states(form)
+    n_features = signature.n_features
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains))
+    matrices = {name: value.full() for name, value in matrices.items()}
+    samples, stages = _canonical_trajectory(signature, n_steps, dt, canonical0, target, gains)
+    shared = (np.array(centres), np.array(widths), target, np.array(gains))
+    # the features: at the samples with their rates (the outputs), at stages 2-4 of each step
+    direct = np.empty((2, n_steps, n_features))
+    symbolic.array_function(symbolic.feature_rate_function(signature))(
+        samples, *shared, n_points=n_steps, out=list(direct)
     )
-    function.set_inputs(
-        state=np.concatenate([canonical0, np.zeros(n_transformation)]), dt=dt, **parameters
+    drive = np.empty((4, n_steps - 1, n_features))
+    drive[0] = direct[0, :-1]
+    symbolic.array_function(symbolic.feature_function(signature))(
+        stages[1:].transpose(1, 0, 2).reshape(2, -1),
+        *shared[:2],
+        n_points=3 * (n_steps - 1),
+        out=[drive[1:].reshape(-1, n_features)],
     )
-    state, next_state = function.inputs["state"], function.outputs["next_state"]
-    step = function.outputs["step"].reshape((n_transformation, n_inputs), order="F")  # views
-    outputs = function.outputs["outputs"].reshape((3, n_inputs), order="F")
-    transformation = np.eye(n_transformation, n_inputs)  # d(transformation state)/d(inputs)
-    response = np.empty((3, n_steps, n_inputs))
-    for k in range(n_steps):
-        function.evaluate()
-        response[:, k] = outputs[:, :n_transformation] @ transformation
-        response[:, k, n_transformation:] += outputs[:, n_transformation:]
-        transformation = step[:, :n_transformation] @ transformation
-        transformation[:, n_transformation:] += step[:, n_transformation:]
-        state[:] = next_state
+    response = np.empty((3, n_steps, n + 1 + n_features))
+    compiled = _compiled_response()
+    # the initial transformation states and the goal: a unit drive on the goal's column
+    goal = np.zeros((1, n_steps, n + 1))
+    goal[0, :, n] = 1.0
+    compiled(
+        response[:, :, : n + 1], np.eye(n, n + 1), matrices["step"], matrices["step_goal"],
+        goal[:, 1:], matrices["output"], matrices["output_goal"], goal,
+    )  # fmt: skip
+    # the weights: the features drive each step at its four stages and the outputs directly
+    compiled(
+        response[:, :, n + 1 :], np.zeros((n, n_features)), matrices["step"],
+        matrices["step_forcing"], drive, matrices["output"], matrices["output_forcing"], direct,
+    )  # fmt: skip
     response.setflags(write=False)
     return response
 
@@ -711,19 +779,10 @@ class DiscreteDMP(_DmpCommon):
             n_samples=n_steps,
         )
         signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
-        unforced = self.replace(
-            weights=np.zeros((1, self.n_basis)),
-            start=[0.0],
-            goal=[0.0],
-            goal_scaling="translation",
-            reference_displacement=None,
-            scaled_start_velocity=0.0,
-        )
-        states = symbolic.simulate(
-            signature, n_steps, np.zeros(signature.n_states), dt, unforced.parameters()
-        )[0]
-        features = symbolic.feature_function(signature).map(n_steps)
-        return features(states[:, :2].T, self.centres, self.widths).full().T
+        gains, rest = np.array(self.gains), (0.0, 0.0)
+        samples = _canonical_trajectory(signature, n_steps, dt / self.tau, rest, 1.0, gains)[0]
+        function = symbolic.array_function(symbolic.feature_function(signature))
+        return function(samples, self.centres, self.widths, n_points=n_steps)[0]
 
     def rollout(self, duration: float | None = None, dt: float = 0.001, start_velocity=None):
         """The whole plan from ``start``.

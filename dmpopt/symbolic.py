@@ -237,6 +237,24 @@ def filter_step(form: Form, z, position, dt, tau, goal, gains):
 # ---------------------------------------------------------------------------------------
 
 
+def runge_kutta_4(rate, state, dt) -> tuple[list, ca.SX]:
+    """One classical Runge-Kutta 4 step of ``state`` by ``dt``, the discretisation of every
+    system: ``(stages, next_state)``.
+
+    ``rate(x, stage)`` is the time derivative at ``x`` in stage ``0 .. 3``; ``stages`` are the
+    four states at which it is evaluated (the forcing term enters each stage at the canonical
+    part of that stage's state, :func:`canonical_step_function`).
+    """
+    k1 = rate(state, 0)
+    second = state + 0.5 * dt * k1
+    k2 = rate(second, 1)
+    third = state + 0.5 * dt * k2
+    k3 = rate(third, 2)
+    fourth = state + dt * k3
+    k4 = rate(fourth, 3)
+    return [state, second, third, fourth], state + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
 STEP_BYTES_PER_FEATURE, STEP_BYTES_PER_FEATURE_AND_DOF = 48e3, 8e3
 """Memory [bytes] that building :func:`step_function` takes per basis feature, plus per
 feature and DOF: a little above the 40 kB and 6.2 kB measured (peak resident size while
@@ -256,15 +274,7 @@ def step_function(signature: Signature) -> ca.Function:
         "use fewer basis functions (the step grows with their number times the DOFs)",
     )
     s = make_symbols(signature)
-
-    def rate(x):
-        return system_rhs(signature, s, x)
-
-    k1 = rate(s.state)
-    k2 = rate(s.state + 0.5 * s.dt * k1)
-    k3 = rate(s.state + 0.5 * s.dt * k2)
-    k4 = rate(s.state + s.dt * k3)
-    next_state = s.state + s.dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    _, next_state = runge_kutta_4(lambda x, _: system_rhs(signature, s, x), s.state, s.dt)
     outputs = output_function(signature)(state=next_state, **s.parameters())  # a dict by name
     return function(
         "dmp_step",
@@ -356,6 +366,224 @@ def rollout_function(signature: Signature, n_steps: int) -> ca.Function:
     return function(
         "dmp_rollout", {"initial_state": x0, "dt": dt, **params}, dict(zip(names, columns))
     )
+
+
+# ---------------------------------------------------------------------------------------
+# The parts of a rollout of one DOF (the response matrices of dmpopt.dmp)
+# ---------------------------------------------------------------------------------------
+
+
+def _canonical_step(signature: Signature):
+    """The canonical input, the symbols, and the next canonical state stacked on the four
+    stages' (shape (10, 1)) of one RK4 step of the uncoupled canonical system, ``tau = 1``."""
+    form, s = signature.equations, make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    stages, following = runge_kutta_4(
+        lambda x, _: form.canonical_rhs(x, s.canonical_target, s.gains, 0.0), canonical, s.dt
+    )
+    return canonical, s, ca.vertcat(following, *stages)
+
+
+@lru_cache(maxsize=64)
+def canonical_step_function(signature: Signature) -> ca.Function:
+    """One RK4 step of the canonical system alone, in time normalised by ``tau``, uncoupled:
+    ``(canonical, dt, canonical_target, gains) -> (next_canonical, stages)``, ``stages`` of
+    shape (2, 4).
+
+    The canonical system does not depend on the transformation states, so these are the
+    canonical parts of the stages of :func:`step_function` (:func:`runge_kutta_4`): the
+    states at which the whole step evaluates the forcing term's features.
+    """
+    canonical, s, stacked = _canonical_step(signature)
+    inputs = {"canonical": canonical, "dt": s.dt}
+    inputs |= {"canonical_target": s.canonical_target, "gains": s.gains}
+    stages = ca.reshape(stacked[2:], 2, 4)
+    return function("dmp_canonical_step", inputs, {"next_canonical": stacked[:2], "stages": stages})
+
+
+@lru_cache(maxsize=64)
+def canonical_step_matrices(signature: Signature) -> ca.Function | None:
+    """The step of :func:`canonical_step_function` as an affine map, if it is one (the
+    discrete and phase forms, eqs. (6) and (11), are linear; the energy form, eq. (13), is
+    not: ``None``): ``(dt, canonical_target, gains) -> (matrix, offset)`` with the next
+    canonical state and the four stages, stacked (10 rows), ``matrix @ canonical + offset``."""
+    canonical, s, stacked = _canonical_step(signature)
+    matrix = ca.densify(ca.jacobian(stacked, canonical))
+    if ca.depends_on(matrix, canonical):
+        return None
+    offset = ca.densify(ca.substitute(stacked, canonical, ca.SX.zeros(2)))
+    inputs = {"dt": s.dt, "canonical_target": s.canonical_target, "gains": s.gains}
+    return function("dmp_canonical_matrices", inputs, {"matrix": matrix, "offset": offset})
+
+
+@lru_cache(maxsize=16)
+def transformation_matrices(form_name: str) -> ca.Function:
+    r"""The transformation system of one DOF as matrices, in time normalised by ``tau``:
+    ``(dt, gains) -> (step, step_goal, step_forcing, output, output_goal, output_forcing)``.
+
+    The system (eq. (5) or (10)) is linear in its state :math:`s`, the goal :math:`g` and the
+    forcing term, so its RK4 step (:func:`runge_kutta_4`, the forcing term :math:`f_j` given
+    at each stage :math:`j`) and its position, velocity and acceleration (as in
+    :func:`plan_outputs`, with the forcing term's time derivative :math:`\dot f` given) are
+
+    .. math:: s_{k+1} = S s_k + S_g g + S_f (f_1, f_2, f_3, f_4)^T, \quad
+              (y, \dot y, \ddot y)^T = O s + O_g g + O_f (f, \dot f)^T
+
+    with the Jacobians of the form's equations as the matrices (shapes (n, n), (n, 1),
+    (n, 4), (3, n), (3, 1), (3, 2), ``n`` transformation states).
+    """
+    form = FORMS[form_name]
+    transformation = ca.SX.sym("transformation", form.n_transformation)
+    goal, dt = ca.SX.sym("goal"), ca.SX.sym("dt")
+    gains = ca.SX.sym("gains", len(form.gain_names))
+    stage_forcing, forcing = ca.SX.sym("stage_forcing", 4), ca.SX.sym("forcing", 2)
+
+    def rate(x, stage):
+        return form.transformation_rhs(x, goal, stage_forcing[stage], gains, 0.0)
+
+    _, following = runge_kutta_4(rate, transformation, dt)
+    rate_now = form.transformation_rhs(transformation, goal, forcing[0], gains, 0.0)
+    velocity = rate_now[0]
+    both = ca.vertcat(transformation, forcing[0])
+    acceleration = ca.jtimes(velocity, both, ca.vertcat(rate_now, forcing[1]))
+    outputs = ca.vertcat(transformation[0], velocity, acceleration)
+    return function(
+        "dmp_transformation_matrices",
+        {"dt": dt, "gains": gains},
+        {
+            name: ca.densify(ca.jacobian(expression, wrt))
+            for name, expression, wrt in (
+                ("step", following, transformation),
+                ("step_goal", following, goal),
+                ("step_forcing", following, stage_forcing),
+                ("output", outputs, transformation),
+                ("output_goal", outputs, goal),
+                ("output_forcing", outputs, forcing),
+            )
+        },
+    )
+
+
+@lru_cache(maxsize=64)
+def feature_rate_function(signature: Signature) -> ca.Function:
+    """``(canonical, centres, widths, canonical_target, gains) -> (features, feature_rate)``:
+    the forcing term's features and their time derivative along the uncoupled canonical
+    system, in time normalised by ``tau`` (what the acceleration of :func:`plan_outputs`
+    takes from the canonical state)."""
+    form, s = signature.equations, make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    phi = form.features(signature.kernel, canonical, s.centres, s.widths)
+    rate = form.canonical_rhs(canonical, s.canonical_target, s.gains, 0.0)
+    inputs = {"canonical": canonical, "centres": s.centres, "widths": s.widths}
+    inputs |= {"canonical_target": s.canonical_target, "gains": s.gains}
+    outputs = {"features": phi, "feature_rate": ca.jtimes(phi, canonical, rate)}
+    return function("dmp_feature_rate", inputs, outputs)
+
+
+_UNARY = {
+    ca.OP_ASSIGN: lambda a: a,
+    ca.OP_NEG: np.negative,
+    ca.OP_EXP: np.exp,
+    ca.OP_LOG: np.log,
+    ca.OP_SQRT: np.sqrt,
+    ca.OP_SQ: np.square,
+    ca.OP_TWICE: lambda a: 2.0 * a,
+    ca.OP_INV: np.reciprocal,
+    ca.OP_SIN: np.sin,
+    ca.OP_COS: np.cos,
+    ca.OP_TAN: np.tan,
+    ca.OP_FABS: np.abs,
+    ca.OP_SIGN: np.sign,
+    ca.OP_FLOOR: np.floor,
+    ca.OP_CEIL: np.ceil,
+    ca.OP_NOT: lambda a: 1.0 * np.logical_not(a),
+}
+_BINARY = {
+    ca.OP_ADD: np.add,
+    ca.OP_SUB: np.subtract,
+    ca.OP_MUL: np.multiply,
+    ca.OP_DIV: np.divide,
+    ca.OP_POW: np.power,
+    ca.OP_CONSTPOW: np.power,
+    ca.OP_FMIN: np.fmin,
+    ca.OP_FMAX: np.fmax,
+    ca.OP_FMOD: np.fmod,
+    ca.OP_ATAN2: np.arctan2,
+    ca.OP_COPYSIGN: np.copysign,
+    ca.OP_LT: lambda a, b: 1.0 * np.less(a, b),
+    ca.OP_LE: lambda a, b: 1.0 * np.less_equal(a, b),
+    ca.OP_EQ: lambda a, b: 1.0 * np.equal(a, b),
+    ca.OP_NE: lambda a, b: 1.0 * np.not_equal(a, b),
+    ca.OP_AND: lambda a, b: 1.0 * np.logical_and(a, b),
+    ca.OP_OR: lambda a, b: 1.0 * np.logical_or(a, b),
+    ca.OP_IF_ELSE_ZERO: lambda a, b: np.where(a != 0, b, 0.0),
+}
+
+
+class ArrayFunction:
+    """An SX ``casadi.Function`` evaluated at many points at once, on numpy arrays.
+
+    Each scalar instruction of the function runs as one numpy operation over all points, so
+    the points cost what the arithmetic costs (CasADi's virtual machine evaluates a function
+    at 40k points one after the other, several times more slowly). The expressions are
+    CasADi's; only their operations are mapped to numpy's (1 ulp may differ in ``exp``,
+    ``sin``, ...).
+    """
+
+    chunk = 4096
+    """Points evaluated together: the work arrays (one per entry of CasADi's work vector)
+    then stay in the processor's cache and their memory bounded."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._instructions = []
+        for k in range(function.n_instructions()):
+            op = function.instruction_id(k)
+            if op not in (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, *_UNARY, *_BINARY):
+                raise NotImplementedError(
+                    f"{function.name()}: CasADi operation {op} has no numpy equivalent in "
+                    "ArrayFunction; add it to symbolic._UNARY or _BINARY"
+                )
+            constant = function.instruction_constant(k) if op == ca.OP_CONST else None
+            self._instructions.append(
+                (op, function.instruction_input(k), function.instruction_output(k), constant)
+            )
+
+    def __call__(self, *inputs, n_points: int, out=None) -> list[np.ndarray]:
+        """Outputs at ``n_points`` points, each of shape (n_points, nnz) (entries column-major).
+
+        ``inputs`` in the function's order: arrays of shape (nnz, n_points), or (nnz,) for an
+        input shared by all points. ``out``: arrays to write the outputs into (optional).
+        """
+        function = self.function
+        if out is None:
+            out = [np.empty((n_points, function.nnz_out(i))) for i in range(function.n_out())]
+        inputs = [np.atleast_1d(np.asarray(value, dtype=float)) for value in inputs]
+        for begin in range(0, n_points, self.chunk):
+            points = slice(begin, min(begin + self.chunk, n_points))
+            chunk = [value if value.ndim == 1 else value[:, points] for value in inputs]
+            self._evaluate(chunk, [array[points] for array in out])
+        return out
+
+    def _evaluate(self, inputs: list, out: list) -> None:
+        work = [0.0] * self.function.sz_w()
+        for op, arguments, results, constant in self._instructions:
+            if op == ca.OP_INPUT:
+                work[results[0]] = inputs[arguments[0]][arguments[1]]
+            elif op == ca.OP_OUTPUT:
+                out[results[0]][:, results[1]] = work[arguments[0]]
+            elif op == ca.OP_CONST:
+                work[results[0]] = constant
+            elif op in _UNARY:
+                work[results[0]] = _UNARY[op](work[arguments[0]])
+            else:
+                work[results[0]] = _BINARY[op](work[arguments[0]], work[arguments[1]])
+
+
+@lru_cache(maxsize=64)
+def array_function(function: ca.Function) -> ArrayFunction:
+    """The :class:`ArrayFunction` of a (cached) ``function``, decoded once."""
+    return ArrayFunction(function)
 
 
 class NumericFunction:

@@ -481,22 +481,21 @@ def feature_rate_function(signature: Signature) -> ca.Function:
 
 
 _UNARY = {
-    ca.OP_ASSIGN: lambda a: a,
+    ca.OP_ASSIGN: np.positive,  # a copy: no two entries of the work vector share memory
     ca.OP_NEG: np.negative,
     ca.OP_EXP: np.exp,
     ca.OP_LOG: np.log,
     ca.OP_SQRT: np.sqrt,
     ca.OP_SQ: np.square,
-    ca.OP_TWICE: lambda a: 2.0 * a,
     ca.OP_INV: np.reciprocal,
     ca.OP_SIN: np.sin,
     ca.OP_COS: np.cos,
     ca.OP_TAN: np.tan,
-    ca.OP_FABS: np.abs,
+    ca.OP_FABS: np.absolute,
     ca.OP_SIGN: np.sign,
     ca.OP_FLOOR: np.floor,
     ca.OP_CEIL: np.ceil,
-    ca.OP_NOT: lambda a: 1.0 * np.logical_not(a),
+    ca.OP_NOT: np.logical_not,
 }
 _BINARY = {
     ca.OP_ADD: np.add,
@@ -510,14 +509,15 @@ _BINARY = {
     ca.OP_FMOD: np.fmod,
     ca.OP_ATAN2: np.arctan2,
     ca.OP_COPYSIGN: np.copysign,
-    ca.OP_LT: lambda a, b: 1.0 * np.less(a, b),
-    ca.OP_LE: lambda a, b: 1.0 * np.less_equal(a, b),
-    ca.OP_EQ: lambda a, b: 1.0 * np.equal(a, b),
-    ca.OP_NE: lambda a, b: 1.0 * np.not_equal(a, b),
-    ca.OP_AND: lambda a, b: 1.0 * np.logical_and(a, b),
-    ca.OP_OR: lambda a, b: 1.0 * np.logical_or(a, b),
-    ca.OP_IF_ELSE_ZERO: lambda a, b: np.where(a != 0, b, 0.0),
+    ca.OP_LT: np.less,
+    ca.OP_LE: np.less_equal,
+    ca.OP_EQ: np.equal,
+    ca.OP_NE: np.not_equal,
+    ca.OP_AND: np.logical_and,
+    ca.OP_OR: np.logical_or,
 }
+"""CasADi's scalar operations and the numpy functions that apply them elementwise (comparisons
+give 1.0 or 0.0, as CasADi's; ``if_else_zero`` and ``twice`` are handled apart)."""
 
 
 class ArrayFunction:
@@ -530,16 +530,18 @@ class ArrayFunction:
     ``sin``, ...).
     """
 
-    chunk = 4096
-    """Points evaluated together: the work arrays (one per entry of CasADi's work vector)
-    then stay in the processor's cache and their memory bounded."""
+    work_size = 2**21
+    """Floats in the work arrays (one per entry of CasADi's work vector, 16 MiB): the points
+    are evaluated in chunks of at most ``work_size / sz_w`` (and 16384, fastest as measured
+    on the LASA demo's plan)."""
 
     def __init__(self, function: ca.Function):
         self.function = function
         self._instructions = []
         for k in range(function.n_instructions()):
             op = function.instruction_id(k)
-            if op not in (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, *_UNARY, *_BINARY):
+            known = (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_TWICE, ca.OP_IF_ELSE_ZERO)
+            if op not in (*known, *_UNARY, *_BINARY):
                 raise NotImplementedError(
                     f"{function.name()}: CasADi operation {op} has no numpy equivalent in "
                     "ArrayFunction; add it to symbolic._UNARY or _BINARY"
@@ -559,25 +561,45 @@ class ArrayFunction:
         if out is None:
             out = [np.empty((n_points, function.nnz_out(i))) for i in range(function.n_out())]
         inputs = [np.atleast_1d(np.asarray(value, dtype=float)) for value in inputs]
-        for begin in range(0, n_points, self.chunk):
-            points = slice(begin, min(begin + self.chunk, n_points))
+        size = max(64, min(16384, self.work_size // max(function.sz_w(), 1)))
+        for begin in range(0, n_points, size):
+            points = slice(begin, min(begin + size, n_points))
             chunk = [value if value.ndim == 1 else value[:, points] for value in inputs]
             self._evaluate(chunk, [array[points] for array in out])
         return out
 
     def _evaluate(self, inputs: list, out: list) -> None:
+        """One chunk: each entry of CasADi's work vector is a float (constants and shared
+        inputs), a row of an input, or its own buffer, written in place."""
+        n = out[0].shape[0]
+        buffers = np.empty((self.function.sz_w(), n))
         work = [0.0] * self.function.sz_w()
         for op, arguments, results, constant in self._instructions:
+            result = results[0]
             if op == ca.OP_INPUT:
-                work[results[0]] = inputs[arguments[0]][arguments[1]]
+                value = inputs[arguments[0]][arguments[1]]
+                work[result] = float(value) if np.ndim(value) == 0 else value
             elif op == ca.OP_OUTPUT:
-                out[results[0]][:, results[1]] = work[arguments[0]]
+                out[result][:, results[1]] = work[arguments[0]]
             elif op == ca.OP_CONST:
-                work[results[0]] = constant
+                work[result] = constant
             elif op in _UNARY:
-                work[results[0]] = _UNARY[op](work[arguments[0]])
+                a = work[arguments[0]]
+                if type(a) is float:
+                    work[result] = float(_UNARY[op](a))
+                else:
+                    work[result] = _UNARY[op](a, out=buffers[result])
             else:
-                work[results[0]] = _BINARY[op](work[arguments[0]], work[arguments[1]])
+                a = work[arguments[0]]
+                b = a if op == ca.OP_TWICE else work[arguments[1]]  # 2 a = a + a, exactly
+                if op == ca.OP_IF_ELSE_ZERO:  # b where a is true, else 0
+                    work[result] = np.where(np.not_equal(a, 0.0), b, 0.0)
+                    continue
+                function = _BINARY.get(op, np.add)
+                if type(a) is float and type(b) is float:
+                    work[result] = float(function(a, b))
+                else:
+                    work[result] = function(a, b, out=buffers[result])
 
 
 @lru_cache(maxsize=64)

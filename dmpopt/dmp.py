@@ -163,88 +163,65 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-def _linear_response(out, first, step, drive_matrix, drive, output, feedthrough, direct):
-    r"""Outputs of the discrete linear system :math:`x_{k+1} = A x_k + B u_k`, :math:`y_k =
-    C x_k + D v_k`, for ``m`` columns at once, written into ``out`` (o, n_steps, m).
+def _linear_states(step: np.ndarray, first: np.ndarray, forced: np.ndarray) -> np.ndarray:
+    r"""States of :math:`x_{k+1} = A x_k + u_k` for ``m`` columns at once: ``step``
+    :math:`A` (n, n), ``first`` :math:`x_0` (n, m), ``forced`` :math:`u_k` (n, n_steps - 1,
+    m); returns the states (n, n_steps + padding, m), the first ``n_steps`` the answer.
 
-    ``first`` :math:`x_0` (n, m); ``step`` :math:`A` (n, n); ``drive_matrix`` :math:`B`
-    (n, p) and ``drive`` :math:`u` (p, n_steps - 1, m); ``output`` :math:`C` (o, n);
-    ``feedthrough`` :math:`D` (o, q) and ``direct`` :math:`v` (q, n_steps, m). Plain loops,
-    the columns innermost, compiled by :func:`_compiled_response`.
+    The steps go in blocks of about :math:`\sqrt{n_\mathrm{steps}}`: the states within all
+    blocks from a zero start are iterated together, then the blocks' starts one after the
+    other, then :math:`A^i` times its start is added to the i-th state of each block. So
+    numpy runs about :math:`3 \sqrt{n_\mathrm{steps}}` operations on whole blocks rather than
+    one per step (the sum differs from the plain recurrence by rounding only).
     """
     n, m = first.shape
-    n_steps = out.shape[1]
-    state, following = first.copy(), np.empty_like(first)
-    for k in range(n_steps):
-        for o in range(output.shape[0]):
-            row = out[o, k]
-            row[:] = 0.0
-            for i in range(n):
-                factor = output[o, i]
-                for c in range(m):
-                    row[c] += factor * state[i, c]
-            for j in range(direct.shape[0]):
-                factor = feedthrough[o, j]
-                for c in range(m):
-                    row[c] += factor * direct[j, k, c]
-        if k + 1 < n_steps:
-            following[:] = 0.0
-            for i in range(n):
-                for j in range(n):
-                    factor = step[i, j]
-                    for c in range(m):
-                        following[i, c] += factor * state[j, c]
-                for j in range(drive.shape[0]):
-                    factor = drive_matrix[i, j]
-                    for c in range(m):
-                        following[i, c] += factor * drive[j, k, c]
-            state, following = following, state
-    return out
-
-
-@lru_cache(maxsize=1)
-def _compiled_response():
-    """:func:`_linear_response` compiled by numba (imported here, at the first response, not
-    with dmpopt), cached on disk in :func:`symbolic.cache_dir`, never next to the source."""
-    import os
-
-    os.environ.setdefault("NUMBA_CACHE_DIR", str(symbolic.cache_dir() / "numba"))
-    import numba
-
-    numba.core.config.reload_config()
-    return numba.njit(cache=True, nogil=True)(_linear_response)
+    n_steps = forced.shape[1] + 1
+    length = max(1, math.isqrt(n_steps))
+    n_blocks = -(-n_steps // length)
+    states = np.zeros((n, n_blocks * length, m))  # the inputs, replaced by the states
+    states[:, : n_steps - 1] = forced
+    states = states.reshape(n, n_blocks, length, m)
+    current = np.zeros((n, n_blocks, m))
+    for i in range(length):  # each block from a zero start
+        following = (step @ current.reshape(n, -1)).reshape(current.shape) + states[:, :, i]
+        states[:, :, i] = current
+        current = following
+    powers = np.empty((length, n, n))
+    powers[0] = np.eye(n)
+    for i in range(1, length):
+        powers[i] = step @ powers[i - 1]
+    block_step = step @ powers[-1]  # A^length
+    starts = np.empty((n, n_blocks, m))
+    starts[:, 0] = first
+    for block in range(n_blocks - 1):
+        starts[:, block + 1] = block_step @ starts[:, block] + current[:, block]
+    states += np.einsum("ijk,kbm->jbim", powers, starts)
+    return states.reshape(n, -1, m)
 
 
 def _canonical_trajectory(signature, n_steps, dt, canonical0, target, gains):
     """Canonical states at the samples, shape (2, n_steps), and at the four RK4 stages of
-    each step, shape (4, 2, n_steps - 1) (:func:`symbolic.canonical_step_function`).
-
-    A linear canonical system steps by the affine map of
-    :func:`symbolic.canonical_step_matrices`, compiled; the energy form's by its CasADi step.
-    """
-    parameters = {"dt": dt, "canonical_target": target, "gains": gains}
-    affine = symbolic.canonical_step_matrices(signature)
-    if affine is not None:
-        maps = affine(**parameters)
-        matrix, offset = maps["matrix"].full(), maps["offset"].full()
-        out = np.empty((10, n_steps, 1))
-        ones = np.ones((1, n_steps, 1))
-        first = np.array(canonical0, dtype=float)[:, None]
-        output = np.vstack([np.eye(2), matrix[2:]])  # the sample and its four stages
-        feedthrough = np.vstack([np.zeros((2, 1)), offset[2:]])
-        _compiled_response()(out, first, matrix[:2], offset[:2], ones, output, feedthrough, ones)
-        return out[:2, :, 0], out[2:, :-1, 0].reshape(4, 2, n_steps - 1)
-    step = symbolic.NumericFunction(symbolic.canonical_step_function(signature))
-    step.set_inputs(canonical=canonical0, **parameters)
-    state, following = step.inputs["canonical"], step.outputs["next_canonical"]
-    stage_values = step.outputs["stages"]
-    samples, stages = np.empty((n_steps, 2)), np.empty((n_steps - 1, 8))
+    each step, shape (4, 2, n_steps - 1): :func:`symbolic.canonical_step_function`, the
+    same arithmetic as the stepper's, :data:`symbolic.CANONICAL_BLOCK` steps per call."""
+    block = symbolic.CANONICAL_BLOCK
+    function = symbolic.NumericFunction(symbolic.canonical_steps_function(signature))
+    function.set_inputs(
+        canonical=canonical0,
+        dt=np.full(block, dt),
+        canonical_target=np.full(block, target),
+        gains=np.tile(np.asarray(gains, dtype=float), block),
+    )
+    n_blocks = -(-(n_steps - 1) // block)
+    samples, stages = np.empty((n_blocks * block + 1, 2)), np.empty((n_blocks * block, 4, 2))
     samples[0] = canonical0
-    for k in range(n_steps - 1):
-        step.evaluate()
-        stages[k] = stage_values
-        samples[k + 1] = state[:] = following
-    return samples.T, stages.reshape(n_steps - 1, 4, 2).transpose(1, 2, 0)
+    state, following = function.inputs["canonical"], function.outputs["next_canonical"]
+    following, stage_values = following.reshape(block, 2), function.outputs["stages"]
+    for first in range(0, n_blocks * block, block):
+        function.evaluate()
+        samples[first + 1 : first + block + 1] = following
+        stages[first : first + block] = stage_values.reshape(block, 4, 2)
+        state[:] = following[-1]
+    return samples[:n_steps].T, stages[: n_steps - 1].transpose(1, 2, 0)
 
 
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
@@ -256,7 +233,7 @@ def _response(key: tuple) -> np.ndarray:
     affine in these inputs (:func:`symbolic.transformation_matrices`), the forcing term
     entering at its four stages through the features there; so the features are evaluated
     at all stages at once (:class:`symbolic.ArrayFunction`) and the responses follow from
-    the linear recurrence, compiled (:func:`_linear_response`). Calling the Jacobian of the
+    the linear recurrence in blocks (:func:`_linear_states`). Calling the Jacobian of the
     whole step once per step, as before, took 460 ms for 10676 steps and 53 inputs.
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
@@ -280,20 +257,20 @@ def _response(key: tuple) -> np.ndarray:
         n_points=3 * (n_steps - 1),
         out=[drive[1:].reshape(-1, n_features)],
     )
-    response = np.empty((3, n_steps, n + 1 + n_features))
-    compiled = _compiled_response()
-    # the initial transformation states and the goal: a unit drive on the goal's column
-    goal = np.zeros((1, n_steps, n + 1))
-    goal[0, :, n] = 1.0
-    compiled(
-        response[:, :, : n + 1], np.eye(n, n + 1), matrices["step"], matrices["step_goal"],
-        goal[:, 1:], matrices["output"], matrices["output_goal"], goal,
-    )  # fmt: skip
-    # the weights: the features drive each step at its four stages and the outputs directly
-    compiled(
-        response[:, :, n + 1 :], np.zeros((n, n_features)), matrices["step"],
-        matrices["step_forcing"], drive, matrices["output"], matrices["output_forcing"], direct,
-    )  # fmt: skip
+    # what drives each step: the goal (S_g g) and the features at the four stages (S_f f)
+    forced = np.zeros((n, n_steps - 1, n + 1 + n_features))
+    forced[:, :, n] = matrices["step_goal"]
+    forced[:, :, n + 1 :] = (matrices["step_forcing"] @ drive.reshape(4, -1)).reshape(
+        n, -1, n_features
+    )
+    del drive
+    states = _linear_states(matrices["step"], np.eye(n, n + 1 + n_features), forced)
+    del forced
+    flat = states.reshape(n, -1)[:, : n_steps * states.shape[2]]  # the first n_steps
+    response = (matrices["output"] @ flat).reshape(3, n_steps, -1)
+    response[:, :, n] += matrices["output_goal"]
+    direct = (matrices["output_forcing"] @ direct.reshape(2, -1)).reshape(3, n_steps, n_features)
+    response[:, :, n + 1 :] += direct
     response.setflags(write=False)
     return response
 
@@ -494,7 +471,10 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
-        n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
+        # the response (3 floats per input and sample), the features driving it (at four
+        # stages, and with their rates at the samples: 6), the plan (6 per DOF); the work
+        # arrays of the features' evaluation take at most 16 MiB more (symbolic.ArrayFunction)
+        n_bytes = 8.0 * n_steps * (9 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
             n_bytes,
@@ -774,7 +754,7 @@ class DiscreteDMP(_DmpCommon):
         dt = self.check_step(dt)
         check_resources(
             f"phase_features({n_steps}, {dt:.4g})",
-            8.0 * n_steps * (2 * self.n_basis + 8),
+            8.0 * n_steps * (2 * self.n_basis + 12),  # features, work arrays, phase and stages
             "ask for fewer samples",
             n_samples=n_steps,
         )

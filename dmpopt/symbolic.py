@@ -373,17 +373,6 @@ def rollout_function(signature: Signature, n_steps: int) -> ca.Function:
 # ---------------------------------------------------------------------------------------
 
 
-def _canonical_step(signature: Signature):
-    """The canonical input, the symbols, and the next canonical state stacked on the four
-    stages' (shape (10, 1)) of one RK4 step of the uncoupled canonical system, ``tau = 1``."""
-    form, s = signature.equations, make_symbols(signature)
-    canonical = ca.SX.sym("canonical", 2)
-    stages, following = runge_kutta_4(
-        lambda x, _: form.canonical_rhs(x, s.canonical_target, s.gains, 0.0), canonical, s.dt
-    )
-    return canonical, s, ca.vertcat(following, *stages)
-
-
 @lru_cache(maxsize=64)
 def canonical_step_function(signature: Signature) -> ca.Function:
     """One RK4 step of the canonical system alone, in time normalised by ``tau``, uncoupled:
@@ -394,26 +383,29 @@ def canonical_step_function(signature: Signature) -> ca.Function:
     canonical parts of the stages of :func:`step_function` (:func:`runge_kutta_4`): the
     states at which the whole step evaluates the forcing term's features.
     """
-    canonical, s, stacked = _canonical_step(signature)
+    form, s = signature.equations, make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    stages, following = runge_kutta_4(
+        lambda x, _: form.canonical_rhs(x, s.canonical_target, s.gains, 0.0), canonical, s.dt
+    )
     inputs = {"canonical": canonical, "dt": s.dt}
     inputs |= {"canonical_target": s.canonical_target, "gains": s.gains}
-    stages = ca.reshape(stacked[2:], 2, 4)
-    return function("dmp_canonical_step", inputs, {"next_canonical": stacked[:2], "stages": stages})
+    outputs = {"next_canonical": following, "stages": ca.horzcat(*stages)}
+    return function("dmp_canonical_step", inputs, outputs)
+
+
+CANONICAL_BLOCK = 256
+"""Steps of :func:`canonical_steps_function` per call (a few microseconds of call overhead
+each; the last block of a trajectory may run past its end)."""
 
 
 @lru_cache(maxsize=64)
-def canonical_step_matrices(signature: Signature) -> ca.Function | None:
-    """The step of :func:`canonical_step_function` as an affine map, if it is one (the
-    discrete and phase forms, eqs. (6) and (11), are linear; the energy form, eq. (13), is
-    not: ``None``): ``(dt, canonical_target, gains) -> (matrix, offset)`` with the next
-    canonical state and the four stages, stacked (10 rows), ``matrix @ canonical + offset``."""
-    canonical, s, stacked = _canonical_step(signature)
-    matrix = ca.densify(ca.jacobian(stacked, canonical))
-    if ca.depends_on(matrix, canonical):
-        return None
-    offset = ca.densify(ca.substitute(stacked, canonical, ca.SX.zeros(2)))
-    inputs = {"dt": s.dt, "canonical_target": s.canonical_target, "gains": s.gains}
-    return function("dmp_canonical_matrices", inputs, {"matrix": matrix, "offset": offset})
+def canonical_steps_function(signature: Signature) -> ca.Function:
+    """:data:`CANONICAL_BLOCK` steps of :func:`canonical_step_function` in one call
+    (``mapaccum``): the inputs besides ``canonical`` are given per step, the outputs are
+    those of every step side by side."""
+    step = canonical_step_function(signature)
+    return step.mapaccum("dmp_canonical_steps", CANONICAL_BLOCK, [0], [0])
 
 
 @lru_cache(maxsize=16)

@@ -195,7 +195,8 @@ def _linear_states(step: np.ndarray, first: np.ndarray, forced: np.ndarray) -> n
     starts[:, 0] = first
     for block in range(n_blocks - 1):
         starts[:, block + 1] = block_step @ starts[:, block] + current[:, block]
-    states += np.einsum("ijk,kbm->jbim", powers, starts)
+    for i in range(length):  # plus A^i times each block's start
+        states[:, :, i] += (powers[i] @ starts.reshape(n, -1)).reshape(starts.shape)
     return states.reshape(n, -1, m)
 
 
@@ -471,10 +472,11 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
-        # the response (3 floats per input and sample), the features driving it (at four
-        # stages, and with their rates at the samples: 6), the plan (6 per DOF); the work
+        # at most 12 floats per input and sample at once while the response is computed (the
+        # features at four stages and with their rates at the samples, the drive and states
+        # of up to 3 transformation states, the response), the plan 6 per DOF; the work
         # arrays of the features' evaluation take at most 16 MiB more (symbolic.ArrayFunction)
-        n_bytes = 8.0 * n_steps * (9 * n_inputs + 6 * self.n_dofs)
+        n_bytes = 8.0 * n_steps * (12 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
             n_bytes,

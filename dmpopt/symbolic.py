@@ -632,30 +632,51 @@ class NumericFunction:
         self._evaluate()
 
 
+SIMULATION_BLOCK = 256
+"""Steps per call of :func:`steps_function` (the last block of a simulation may run past its
+end): one call costs a few microseconds besides the steps' own arithmetic."""
+
+
+@lru_cache(maxsize=64)
+def steps_function(signature: Signature) -> ca.Function:
+    """:data:`SIMULATION_BLOCK` steps of :func:`step_function` in one call (``mapaccum``): the
+    inputs besides ``state`` are given per step, the outputs are those of every step side by
+    side."""
+    return step_function(signature).mapaccum("dmp_steps", SIMULATION_BLOCK, [0], [0])
+
+
 def simulate(signature: Signature, n_steps: int, initial_state, dt: float, parameters: dict):
     """Integrate ``n_steps - 1`` RK4 steps from ``initial_state`` (``parameters`` by name).
 
     Returns ``(states, positions, velocities, accelerations)`` with shapes
-    ``(n_steps, n_states)`` and ``(n_steps, n_dofs)``; samples at ``k * dt``.
+    ``(n_steps, n_states)`` and ``(n_steps, n_dofs)``; samples at ``k * dt``. The steps run
+    :data:`SIMULATION_BLOCK` per call, with the arithmetic of the stepper's step.
     """
-    d = signature.n_dofs
-    step = NumericFunction(step_function(signature))
-    first = output_function(signature)(state=initial_state, **parameters)
-    states = np.empty((n_steps, signature.n_states))
-    plan = np.empty((3, n_steps, d))
+    d, block = signature.n_dofs, SIMULATION_BLOCK
+    step = step_function(signature)
+    steps = NumericFunction(steps_function(signature))
+    for name, value in {"dt": dt, **parameters}.items():  # the same inputs at every step
+        value = np.broadcast_to(np.ravel(value, order="F"), step.nnz_in(name))
+        steps.set_inputs(**{name: np.tile(value, block)})
+    n_blocks = -(-(n_steps - 1) // block)
+    states = np.empty((n_blocks * block + 1, signature.n_states))
+    plan = np.empty((3, n_blocks * block + 1, d))
     states[0] = initial_state
+    first = output_function(signature)(state=initial_state, **parameters)
     names = ("position", "velocity", "acceleration")
     for i, name in enumerate(names):
         plan[i, 0] = first[name].full().ravel()
-    step.set_inputs(state=initial_state, dt=dt, **parameters)
-    state_in, next_state = step.inputs["state"], step.outputs["next_state"]
-    position, velocity, acceleration = (step.outputs[name] for name in names)
-    for k in range(1, n_steps):
-        step.evaluate()
-        state_in[:] = next_state
-        states[k] = next_state
-        plan[0, k], plan[1, k], plan[2, k] = position, velocity, acceleration
-    return states, plan[0], plan[1], plan[2]
+    state = steps.inputs["state"]
+    state[:] = initial_state
+    following = steps.outputs["next_state"].reshape(block, -1)
+    outputs = [steps.outputs[name].reshape(block, d) for name in names]
+    for begin in range(1, n_blocks * block + 1, block):
+        steps.evaluate()
+        states[begin : begin + block] = following
+        for i, output in enumerate(outputs):
+            plan[i, begin : begin + block] = output
+        state[:] = following[-1]
+    return states[:n_steps], plan[0, :n_steps], plan[1, :n_steps], plan[2, :n_steps]
 
 
 def cache_dir() -> Path:

@@ -163,66 +163,15 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-def _linear_states(step: np.ndarray, first: np.ndarray, forced: np.ndarray) -> np.ndarray:
-    r"""States of :math:`x_{k+1} = A x_k + u_k` for ``m`` columns at once: ``step``
-    :math:`A` (n, n), ``first`` :math:`x_0` (n, m), ``forced`` :math:`u_k` (n, n_steps - 1,
-    m); returns the states (n, n_steps + padding, m), the first ``n_steps`` the answer.
-
-    The steps go in blocks of about :math:`\sqrt{n_\mathrm{steps}}`: the states within all
-    blocks from a zero start are iterated together, then the blocks' starts one after the
-    other, then :math:`A^i` times its start is added to the i-th state of each block. So
-    numpy runs about :math:`3 \sqrt{n_\mathrm{steps}}` operations on whole blocks rather than
-    one per step (the sum differs from the plain recurrence by rounding only).
-    """
-    n, m = first.shape
-    n_steps = forced.shape[1] + 1
-    length = max(1, math.isqrt(n_steps))
-    n_blocks = -(-n_steps // length)
-    states = np.zeros((n, n_blocks * length, m))  # the inputs, replaced by the states
-    states[:, : n_steps - 1] = forced
-    states = states.reshape(n, n_blocks, length, m)
-    current = np.zeros((n, n_blocks, m))
-    for i in range(length):  # each block from a zero start
-        following = (step @ current.reshape(n, -1)).reshape(current.shape) + states[:, :, i]
-        states[:, :, i] = current
-        current = following
-    powers = np.empty((length, n, n))
-    powers[0] = np.eye(n)
-    for i in range(1, length):
-        powers[i] = step @ powers[i - 1]
-    block_step = step @ powers[-1]  # A^length
-    starts = np.empty((n, n_blocks, m))
-    starts[:, 0] = first
-    for block in range(n_blocks - 1):
-        starts[:, block + 1] = block_step @ starts[:, block] + current[:, block]
-    for i in range(length):  # plus A^i times each block's start
-        states[:, :, i] += (powers[i] @ starts.reshape(n, -1)).reshape(starts.shape)
-    return states.reshape(n, -1, m)
+CHUNK = 4096
+"""Steps of the response computed at once where a whole-plan temporary is not needed."""
 
 
-def _canonical_trajectory(signature, n_steps, dt, canonical0, target, gains):
-    """Canonical states at the samples, shape (2, n_steps), and at the four RK4 stages of
-    each step, shape (4, 2, n_steps - 1): :func:`symbolic.canonical_step_function`, the
-    same arithmetic as the stepper's, :data:`symbolic.CANONICAL_BLOCK` steps per call."""
-    block = symbolic.CANONICAL_BLOCK
-    function = symbolic.NumericFunction(symbolic.canonical_steps_function(signature))
-    function.set_inputs(
-        canonical=canonical0,
-        dt=np.full(block, dt),
-        canonical_target=np.full(block, target),
-        gains=np.tile(np.asarray(gains, dtype=float), block),
-    )
-    n_blocks = -(-(n_steps - 1) // block)
-    samples, stages = np.empty((n_blocks * block + 1, 2)), np.empty((n_blocks * block, 4, 2))
-    samples[0] = canonical0
-    state, following = function.inputs["canonical"], function.outputs["next_canonical"]
-    following, stage_values = following.reshape(block, 2), function.outputs["stages"]
-    for first in range(0, n_blocks * block, block):
-        function.evaluate()
-        samples[first + 1 : first + block + 1] = following
-        stages[first : first + block] = stage_values.reshape(block, 4, 2)
-        state[:] = following[-1]
-    return samples[:n_steps].T, stages[: n_steps - 1].transpose(1, 2, 0)
+def _add_in_chunks(target: np.ndarray, factor: float, values: np.ndarray) -> None:
+    """``target += factor * values`` with temporaries of at most :data:`CHUNK` rows."""
+    for begin in range(0, values.shape[0], CHUNK):
+        rows = slice(begin, begin + CHUNK)
+        target[rows] += factor * values[rows]
 
 
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
@@ -234,7 +183,7 @@ def _response(key: tuple) -> np.ndarray:
     affine in these inputs (:func:`symbolic.transformation_matrices`), the forcing term
     entering at its four stages through the features there; so the features are evaluated
     at all stages at once (:class:`symbolic.ArrayFunction`) and the responses follow from
-    the linear recurrence in blocks (:func:`_linear_states`). Calling the Jacobian of the
+    the linear recurrence in blocks (:func:`symbolic.linear_states`). Calling the Jacobian of the
     whole step once per step, as before, took 460 ms for 10676 steps and 53 inputs.
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
@@ -243,35 +192,39 @@ def _response(key: tuple) -> np.ndarray:
     n_features = signature.n_features
     matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains))
     matrices = {name: value.full() for name, value in matrices.items()}
-    samples, stages = _canonical_trajectory(signature, n_steps, dt, canonical0, target, gains)
+    samples, stages = symbolic.canonical_trajectory(
+        signature, n_steps, dt, canonical0, target, gains
+    )
     shared = (np.array(centres), np.array(widths), target, np.array(gains))
-    # the features: at the samples with their rates (the outputs), at stages 2-4 of each step
+    # the features and their rates at the samples: the outputs' direct part, stage 1's drive
     direct = np.empty((2, n_steps, n_features))
     symbolic.array_function(symbolic.feature_rate_function(signature))(
         samples, *shared, n_points=n_steps, out=list(direct)
     )
-    drive = np.empty((4, n_steps - 1, n_features))
-    drive[0] = direct[0, :-1]
-    symbolic.array_function(symbolic.feature_function(signature))(
-        stages[1:].transpose(1, 0, 2).reshape(2, -1),
-        *shared[:2],
-        n_points=3 * (n_steps - 1),
-        out=[drive[1:].reshape(-1, n_features)],
-    )
-    # what drives each step: the goal (S_g g) and the features at the four stages (S_f f)
-    forced = np.zeros((n, n_steps - 1, n + 1 + n_features))
-    forced[:, :, n] = matrices["step_goal"]
-    forced[:, :, n + 1 :] = (matrices["step_forcing"] @ drive.reshape(4, -1)).reshape(
-        n, -1, n_features
-    )
-    del drive
-    states = _linear_states(matrices["step"], np.eye(n, n + 1 + n_features), forced)
-    del forced
-    flat = states.reshape(n, -1)[:, : n_steps * states.shape[2]]  # the first n_steps
-    response = (matrices["output"] @ flat).reshape(3, n_steps, -1)
-    response[:, :, n] += matrices["output_goal"]
-    direct = (matrices["output_forcing"] @ direct.reshape(2, -1)).reshape(3, n_steps, n_features)
-    response[:, :, n + 1 :] += direct
+    # the states' buffer holds first what drives each step: S_g g and S_f (f_1, .., f_4)
+    length, padded = symbolic.linear_blocks(n_steps)
+    states = np.zeros((3, padded, n + 1 + n_features))  # 3 rows: later the 3 outputs
+    states[:n, : n_steps - 1, n] = matrices["step_goal"]
+    features = symbolic.array_function(symbolic.feature_function(signature))
+    stage_features = direct[0, :-1]
+    for stage in range(4):
+        if stage > 0:  # one stage at a time: at most one array of features besides direct
+            (stage_features,) = features(stages[stage], *shared[:2], n_points=n_steps - 1)
+        for i in range(n):
+            _add_in_chunks(states[i, : n_steps - 1, n + 1 :], matrices["step_forcing"][i, stage],
+                           stage_features)  # fmt: skip
+        del stage_features
+    symbolic.linear_states(matrices["step"], np.eye(n, n + 1 + n_features), states[:n], length)
+    # the outputs O x + O_g g + O_f (f, fdot), in place, a chunk of steps at a time
+    output, forcing = matrices["output"], matrices["output_forcing"]
+    for begin in range(0, n_steps, CHUNK):
+        rows = slice(begin, min(begin + CHUNK, n_steps))
+        chunk = np.tensordot(output, states[:n, rows], axes=1)
+        chunk[:, :, n] += matrices["output_goal"]
+        chunk[:, :, n + 1 :] += np.tensordot(forcing, direct[:, rows], axes=1)
+        states[:, rows] = chunk
+    del direct
+    response = np.ascontiguousarray(states[:, :n_steps])
     response.setflags(write=False)
     return response
 
@@ -472,11 +425,12 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
-        # at most 12 floats per input and sample at once while the response is computed (the
-        # features at four stages and with their rates at the samples, the drive and states
-        # of up to 3 transformation states, the response), the plan 6 per DOF; the work
-        # arrays of the features' evaluation take at most 16 MiB more (symbolic.ArrayFunction)
-        n_bytes = 8.0 * n_steps * (12 * n_inputs + 6 * self.n_dofs)
+        # at most 6 floats per input and sample at once while the response is computed: the
+        # features at the samples with their rates (2), one stage's features (1) and the
+        # buffer of states then outputs (3); then the response (3) and the plan (6 per DOF).
+        # Work arrays of at most 16 MiB (symbolic.ArrayFunction) and chunks of CHUNK steps
+        # come on top.
+        n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
             n_bytes,
@@ -756,13 +710,15 @@ class DiscreteDMP(_DmpCommon):
         dt = self.check_step(dt)
         check_resources(
             f"phase_features({n_steps}, {dt:.4g})",
-            8.0 * n_steps * (2 * self.n_basis + 12),  # features, work arrays, phase and stages
+            8.0 * n_steps * (2 * self.n_basis + 8),
             "ask for fewer samples",
             n_samples=n_steps,
         )
         signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
         gains, rest = np.array(self.gains), (0.0, 0.0)
-        samples = _canonical_trajectory(signature, n_steps, dt / self.tau, rest, 1.0, gains)[0]
+        samples = symbolic.canonical_trajectory(
+            signature, n_steps, dt / self.tau, rest, 1.0, gains, with_stages=False
+        )[0]
         function = symbolic.array_function(symbolic.feature_function(signature))
         return function(samples, self.centres, self.widths, n_points=n_steps)[0]
 

@@ -606,8 +606,8 @@ def test_rhythmic_dmp_stores_read_only_floats_and_names_each_bad_argument():
 
 
 def test_memory_estimates_of_plans_and_features_in_bytes(monkeypatch):
-    """A plan of n steps holds 8 n (12 (y, z, goal and the N features) + 6 D) bytes, the phase
-    features 8 n (2 N + 12): with the budget lowered below them, the refusals print these
+    """A plan of n steps holds 8 n (6 (y, z, goal and the N features) + 6 D) bytes, the phase
+    features 8 n (2 N + 8): with the budget lowered below them, the refusals print these
     sizes (3 digits) and the remedy; a plan over 1/16 of the budget is computed without the
     response cache and equals the cached one."""
     from dmpopt import validation
@@ -617,7 +617,7 @@ def test_memory_estimates_of_plans_and_features_in_bytes(monkeypatch):
         centres=[1, 0.5, 0.1], widths=[1, 2, 3], goal_scaling="translation",
     )  # fmt: skip
     cached = dmp.rollout(1.0, 1e-3)
-    n, plan_bytes, feature_bytes = 1001, 8 * 1001 * (12 * (2 + 1 + 3) + 6 * 2), 8 * 1001 * (6 + 12)
+    n, plan_bytes, feature_bytes = 1001, 8 * 1001 * (6 * (2 + 1 + 3) + 6 * 2), 8 * 1001 * (6 + 8)
     assert plan_bytes > 16 * feature_bytes / 5
     monkeypatch.setattr(validation, "MEMORY_BUDGET", 1.5 * plan_bytes)  # < 24 n (3 + N) 16
     uncached = dmp.rollout(1.0, 1e-3)

@@ -158,11 +158,9 @@ def test_canonical_step_and_its_stages_are_plain_rk4(form):
 def test_canonical_trajectory_in_blocks_equals_step_by_step():
     """The trajectory taken 256 steps per call (over three calls, the last past the end)
     equals the canonical step called once per step, bit for bit."""
-    from dmpopt.dmp import _canonical_trajectory
-
     signature = symbolic.Signature("energy", 1, 3, "von_mises")
     gains, n_steps, dt, start = np.array([25.0, 6.25, 10.0, 2.0]), 600, 0.003, (0.4, -0.2)
-    samples, stages = _canonical_trajectory(signature, n_steps, dt, start, 1.3, gains)
+    samples, stages = symbolic.canonical_trajectory(signature, n_steps, dt, start, 1.3, gains)
     step = symbolic.canonical_step_function(signature)
     state = np.array(start)
     for k in range(n_steps - 1):

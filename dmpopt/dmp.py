@@ -4,8 +4,8 @@ A DMP is a frozen value. ``with_goal``, ``with_tau``, ... return new objects.
 Rollouts use the affine structure of the plan: for a fixed time constant, step and
 canonical trajectory, positions, velocities and accelerations are linear in the initial
 transformation state, the goal and the weights. The response matrices are evaluated once
-from the symbolic rollout (:mod:`dmpopt.symbolic`) and cached, so a rollout of any number of
-DOFs is one matrix product.
+from the symbolic system (:mod:`dmpopt.symbolic`: the RK4 step's matrices and the features at
+its stages) and cached, so a rollout of any number of DOFs is one matrix product.
 
 Goal generalisation of discrete DMPs (``goal_scaling``). The forcing weights and the
 scaled start velocity :math:`\tau \dot y(0)` are mapped by the same matrix :math:`M`, so each

@@ -3,7 +3,9 @@ r"""The DMP systems assembled from their forms, and every function built from th
 Each form's equations are written once, in :mod:`dmpopt.forms`; this module assembles the
 whole system (canonical and transformation states of all DOFs) from them and builds the
 compiled functions. Every numeric result of dmpopt (rollouts, online steps, fitting matrices,
-gradients) is evaluated from these expressions; nothing re-implements them in numpy.
+gradients) is evaluated from these expressions; nothing re-implements them in numpy. (To
+evaluate one expression at tens of thousands of points, :class:`ArrayFunction` runs CasADi's
+own instruction list on numpy arrays.)
 
 The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
 phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried

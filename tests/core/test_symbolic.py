@@ -169,3 +169,24 @@ def test_canonical_trajectory_in_blocks_equals_step_by_step():
         np.testing.assert_array_equal(stages[:, :, k], got["stages"].full().T)
         state = got["next_canonical"].full()[:, 0]
     np.testing.assert_array_equal(samples[:, -1], state)
+
+
+@pytest.mark.parametrize("n_steps", [1, 2, 3, 17, 101])
+def test_linear_states_in_blocks_equal_the_plain_recurrence(n_steps):
+    """x_{k+1} = A x_k + u_k for several columns, in blocks of about sqrt(n_steps) (17 steps:
+    4 blocks of 4 with 3 of padding), equals the recurrence stepped plainly: both sum the same
+    products in another order, within n_steps x 4 eps of the largest state (A is stable)."""
+    rng = np.random.default_rng(5)
+    step = np.array([[0.9, 0.2], [-0.3, 0.8]])
+    first, inputs = rng.normal(size=(2, 3)), rng.normal(size=(n_steps - 1, 2, 3))
+    expected = [first]
+    for u in inputs:
+        expected.append(step @ expected[-1] + u)
+    expected = np.array(expected).transpose(1, 0, 2)
+    length, padded = symbolic.linear_blocks(n_steps)
+    assert padded >= n_steps and padded % length == 0
+    states = np.zeros((2, padded, 3))
+    states[:, : n_steps - 1] = inputs.transpose(1, 0, 2)
+    got = symbolic.linear_states(step, first, states, length)[:, :n_steps]
+    bound = 4 * n_steps * EPS * np.abs(expected).max()
+    np.testing.assert_allclose(got, expected, rtol=0, atol=bound)

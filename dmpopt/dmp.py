@@ -185,8 +185,9 @@ def _response(key: tuple) -> np.ndarray:
     at each stage of all steps at once (:class:`symbolic.ArrayFunction`) and the responses
     follow from the linear recurrence in blocks (:func:`symbolic.linear_states`). Calling the
     Jacobian of the whole step once per step, as before, took 460 ms for 10676 steps and 53
-    inputs (the LASA demo's plan); this takes about 60 ms (benchmarks/bench_core.py), most of
-    it the features: 4 x 10676 points x 50 bases, each an exp and about 13 other operations.
+    inputs (the LASA demo's plan); this takes 60-165 ms of thread time, by the machine's load
+    (benchmarks/bench_core.py), most of it the features: 4 x 10676 points x 50 bases, each an
+    exp and about 13 other operations.
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     signature = symbolic.Signature(form, 1, n_basis, kernel)

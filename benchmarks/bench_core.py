@@ -11,9 +11,9 @@ import time
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from dmpopt import DiscreteDMP, fit_discrete
+from dmpopt import DiscreteDMP, RhythmicDMP, fit_discrete
 from dmpopt import dmp as dmp_module
-from dmpopt.basis import discrete_basis
+from dmpopt.basis import discrete_basis, rhythmic_basis
 
 
 def median_us(function, repeats):
@@ -81,12 +81,46 @@ def main():
         f"first rollout of a new DMP (the LASA demo's, {n_steps} steps, its default duration): "
         f"{first / 1e3:.1f} ms median  [<= 10 ms]"
     )
+    first_rollouts()
     fit_discrete(demo, 50)
     fit = median_us(lambda: fit_discrete(demo, 50), 200)
     print(
         f"fit of one LASA demo, 2 DOFs, 1000 samples, 50 bases: {fit / 1e3:.3f} ms median  "
         "[<= 2 ms]"
     )
+
+
+def first_rollouts():
+    """First and repeated rollouts of a new DMP of each form: 2 DOFs, 50 bases, tau = 5 s
+    (discrete) or 0.5 s (rhythmic), its default duration at dt = 1 ms (the settling time of
+    the discrete forms, three periods of the rhythmic ones)."""
+    rng = np.random.default_rng(1)
+    centres, widths = discrete_basis(50, (25.0, 6.25, 25.0, 6.25))
+    rhythmic = rhythmic_basis(50, "von_mises")
+    for form in ("velocity", "acceleration", "phase", "energy"):
+        weights = 100 * rng.normal(
+            size=(2, 50) if form in ("velocity", "acceleration") else (2, 50, 2)
+        )
+
+        def new_dmp():
+            if form in ("velocity", "acceleration"):
+                return DiscreteDMP(weights, np.zeros(2), np.ones(2), 5.0, centres, widths,
+                                   form=form, goal_scaling="translation")  # fmt: skip
+            return RhythmicDMP(weights, np.zeros(2), 0.5, *rhythmic, form=form)
+
+        def first_rollout():
+            dmp_module._response.cache_clear()  # as for a DMP whose response matrices are new
+            return new_dmp().rollout()
+
+        n_steps = first_rollout().n_steps
+        first = median_us(first_rollout, 5)
+        dmp = new_dmp()
+        dmp.rollout()
+        again = median_us(dmp.rollout, 50)
+        print(
+            f"{form} form, 2 DOFs, 50 bases, {n_steps} steps: first rollout {first / 1e3:.1f} ms, "
+            f"repeated {again / 1e3:.3f} ms (medians)"
+        )
 
 
 if __name__ == "__main__":

@@ -104,11 +104,14 @@ def convergence_time(form: str, gains: tuple, fraction: float = CONVERGENCE_FRAC
     time of a system with time constant ``tau`` is ``tau`` times this value.
     """
     dt, n_steps = _time_step(form, gains), 20001
-    signature = symbolic.Signature(form, 1, 1, "gaussian")
-    n_transformation = symbolic.n_transformation_states(form)
-    initial = np.zeros(2 + n_transformation)
-    parameters = symbolic.parameters(goal=1.0, canonical_target=1.0, gains=np.array(gains))
-    positions = symbolic.simulate(signature, n_steps, initial, dt, parameters)[1][:, 0]
+    # without forcing term the transformation system steps alone: s' = S s + S_g g
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains))
+    step, goal = matrices["step"].full(), matrices["step_goal"].full()
+    length, padded = symbolic.linear_blocks(n_steps)
+    states = np.zeros((step.shape[0], padded, 1))
+    states[:, : n_steps - 1, 0] = goal
+    positions = symbolic.linear_states(step, np.zeros((step.shape[0], 1)), states, length)
+    positions = positions[0, :n_steps, 0]
     error = np.abs(1.0 - positions)
     outside = np.nonzero(error > 1.0 - fraction)[0]
     if outside.size == 0 or outside[-1] == n_steps - 1:
@@ -197,9 +200,10 @@ def discrete_phase(gains: tuple, times: tuple) -> np.ndarray:
     dt = _time_step("velocity", gains)
     n_steps = int(np.ceil(max(times) / dt)) + 2
     signature = symbolic.Signature("velocity", 1, 1, "gaussian")
-    parameters = symbolic.parameters(canonical_target=1.0, gains=np.array(gains))
-    states = symbolic.simulate(signature, n_steps, np.zeros(4), dt, parameters)[0]
-    return np.interp(times, np.arange(n_steps) * dt, states[:, 0])
+    gains = np.array(gains)
+    rest = (0.0, 0.0)
+    states = symbolic.canonical_trajectory(signature, n_steps, dt, rest, 1.0, gains, False)[0]
+    return np.interp(times, np.arange(n_steps) * dt, states[0])
 
 
 def discrete_basis(n_basis: int, gains: tuple) -> tuple[np.ndarray, np.ndarray]:

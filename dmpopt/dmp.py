@@ -4,8 +4,8 @@ A DMP is a frozen value. ``with_goal``, ``with_tau``, ... return new objects.
 Rollouts use the affine structure of the plan: for a fixed time constant, step and
 canonical trajectory, positions, velocities and accelerations are linear in the initial
 transformation state, the goal and the weights. The response matrices are evaluated once
-from the symbolic rollout (:mod:`dmpopt.symbolic`) and cached, so a rollout of any number of
-DOFs is one matrix product.
+from the symbolic system (:mod:`dmpopt.symbolic`: the RK4 step's matrices and the features at
+its stages) and cached, so a rollout of any number of DOFs is one matrix product.
 
 Goal generalisation of discrete DMPs (``goal_scaling``). The forcing weights and the
 scaled start velocity :math:`\tau \dot y(0)` are mapped by the same matrix :math:`M`, so each
@@ -42,7 +42,6 @@ import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 
 from . import basis, forms, symbolic, validation
@@ -164,32 +163,15 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-@lru_cache(maxsize=16)
-def _affine_step(signature: symbolic.Signature) -> ca.Function:
-    """One RK4 step of one DOF and its Jacobians with respect to the DOF's inputs.
+CHUNK = 4096
+"""Steps of the response computed at once where a whole-plan temporary is not needed."""
 
-    ``(state, dt, *parameters) -> (next_state, step, outputs)``: ``step`` (n_transformation,
-    n_inputs) is the derivative of the next transformation state and ``outputs`` (3,
-    n_inputs) that of position, velocity and acceleration at ``state``, with respect to the
-    inputs (transformation state, goal, forcing weights). Both are affine in these inputs,
-    so the Jacobians depend only on the canonical part of ``state``.
-    """
-    s = symbolic.make_symbols(signature)
-    inputs = ca.vertcat(s.state[2:], s.goal, ca.vec(s.forcing_weights))
-    parameters = s.parameters()
-    next_state = symbolic.step_function(signature)(state=s.state, dt=s.dt, **parameters)
-    next_state = next_state["next_state"]
-    outputs = symbolic.output_function(signature)(state=s.state, **parameters)
-    outputs = ca.vertcat(outputs["position"], outputs["velocity"], outputs["acceleration"])
-    return symbolic.function(
-        "dmp_affine_step",
-        {"state": s.state, "dt": s.dt, **parameters},
-        {
-            "next_state": next_state,
-            "step": ca.densify(ca.jacobian(next_state[2:], inputs)),
-            "outputs": ca.densify(ca.jacobian(outputs, inputs)),
-        },
-    )
+
+def _add_in_chunks(target: np.ndarray, factor: float, values: np.ndarray) -> None:
+    """``target += factor * values`` with temporaries of at most :data:`CHUNK` rows."""
+    for begin in range(0, values.shape[0], CHUNK):
+        rows = slice(begin, begin + CHUNK)
+        target[rows] += factor * values[rows]
 
 
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
@@ -197,35 +179,55 @@ def _response(key: tuple) -> np.ndarray:
     """Response matrices of one DOF, in time normalised by ``tau``.
 
     Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
-    responses to each input (initial transformation states, goal, weights). Each RK4 step
-    is affine in the inputs, with Jacobians from :func:`_affine_step` along the canonical
-    trajectory, so the responses follow from the affine recurrence. The cost grows linearly
-    with the number of basis functions (integrating one DOF per input, as before, grew
-    quadratically: over a minute for 400 basis functions).
+    responses to each input (initial transformation states, goal, weights). The RK4 step is
+    affine in these inputs (:func:`symbolic.transformation_matrices`), the forcing term
+    entering at its four stages through the features there; so the features are evaluated
+    at each stage of all steps at once (:class:`symbolic.ArrayFunction`) and the responses
+    follow from the linear recurrence in blocks (:func:`symbolic.linear_states`). Calling the
+    Jacobian of the whole step once per step, as before, took 460 ms for 10676 steps and 53
+    inputs (the LASA demo's plan); this takes 60-165 ms of thread time, by the machine's load
+    (benchmarks/bench_core.py), most of it the features: 4 x 10676 points x 50 bases, each an
+    exp and about 13 other operations.
     """
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     signature = symbolic.Signature(form, 1, n_basis, kernel)
-    n_transformation = symbolic.n_transformation_states(form)
-    n_inputs = n_transformation + 1 + signature.n_features
-    function = symbolic.NumericFunction(_affine_step(signature))
-    parameters = symbolic.parameters(
-        canonical_target=target, centres=np.array(centres), widths=np.array(widths), gains=gains
+    n = symbolic.n_transformation_states(form)
+    n_features = signature.n_features
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains))
+    matrices = {name: value.full() for name, value in matrices.items()}
+    samples, stages = symbolic.canonical_trajectory(
+        signature, n_steps, dt, canonical0, target, gains
     )
-    function.set_inputs(
-        state=np.concatenate([canonical0, np.zeros(n_transformation)]), dt=dt, **parameters
+    shared = (np.array(centres), np.array(widths), target, np.array(gains))
+    # the features and their rates at the samples: the outputs' direct part, stage 1's drive
+    direct = np.empty((2, n_steps, n_features))
+    symbolic.array_function(symbolic.feature_rate_function(signature))(
+        samples, *shared, n_points=n_steps, out=list(direct)
     )
-    state, next_state = function.inputs["state"], function.outputs["next_state"]
-    step = function.outputs["step"].reshape((n_transformation, n_inputs), order="F")  # views
-    outputs = function.outputs["outputs"].reshape((3, n_inputs), order="F")
-    transformation = np.eye(n_transformation, n_inputs)  # d(transformation state)/d(inputs)
-    response = np.empty((3, n_steps, n_inputs))
-    for k in range(n_steps):
-        function.evaluate()
-        response[:, k] = outputs[:, :n_transformation] @ transformation
-        response[:, k, n_transformation:] += outputs[:, n_transformation:]
-        transformation = step[:, :n_transformation] @ transformation
-        transformation[:, n_transformation:] += step[:, n_transformation:]
-        state[:] = next_state
+    # the states' buffer holds first what drives each step: S_g g and S_f (f_1, .., f_4)
+    length, padded = symbolic.linear_blocks(n_steps)
+    states = np.zeros((3, padded, n + 1 + n_features))  # 3 rows: later the 3 outputs
+    states[:n, : n_steps - 1, n] = matrices["step_goal"]
+    features = symbolic.array_function(symbolic.feature_function(signature))
+    stage_features = direct[0, :-1]
+    for stage in range(4):
+        if stage > 0:  # one stage at a time: at most one array of features besides direct
+            (stage_features,) = features(stages[stage], *shared[:2], n_points=n_steps - 1)
+        for i in range(n):
+            _add_in_chunks(states[i, : n_steps - 1, n + 1 :], matrices["step_forcing"][i, stage],
+                           stage_features)  # fmt: skip
+        del stage_features
+    symbolic.linear_states(matrices["step"], np.eye(n, n + 1 + n_features), states[:n], length)
+    # the outputs O x + O_g g + O_f (f, fdot), in place, a chunk of steps at a time
+    output, forcing = matrices["output"], matrices["output_forcing"]
+    for begin in range(0, n_steps, CHUNK):
+        rows = slice(begin, min(begin + CHUNK, n_steps))
+        chunk = np.tensordot(output, states[:n, rows], axes=1)
+        chunk[:, :, n] += matrices["output_goal"]
+        chunk[:, :, n + 1 :] += np.tensordot(forcing, direct[:, rows], axes=1)
+        states[:, rows] = chunk
+    del direct
+    response = np.ascontiguousarray(states[:, :n_steps])
     response.setflags(write=False)
     return response
 
@@ -426,6 +428,11 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
+        # at most 6 floats per input and sample at once while the response is computed: the
+        # features at the samples with their rates (2), one stage's features (1) and the
+        # buffer of states then outputs (3); then the response (3) and the plan (6 per DOF).
+        # Work arrays of at most 16 MiB (symbolic.ArrayFunction) and chunks of CHUNK steps
+        # come on top.
         n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
@@ -711,19 +718,12 @@ class DiscreteDMP(_DmpCommon):
             n_samples=n_steps,
         )
         signature = symbolic.Signature(self.form, 1, self.n_basis, self.kernel)
-        unforced = self.replace(
-            weights=np.zeros((1, self.n_basis)),
-            start=[0.0],
-            goal=[0.0],
-            goal_scaling="translation",
-            reference_displacement=None,
-            scaled_start_velocity=0.0,
-        )
-        states = symbolic.simulate(
-            signature, n_steps, np.zeros(signature.n_states), dt, unforced.parameters()
+        gains, rest = np.array(self.gains), (0.0, 0.0)
+        samples = symbolic.canonical_trajectory(
+            signature, n_steps, dt / self.tau, rest, 1.0, gains, with_stages=False
         )[0]
-        features = symbolic.feature_function(signature).map(n_steps)
-        return features(states[:, :2].T, self.centres, self.widths).full().T
+        function = symbolic.array_function(symbolic.feature_function(signature))
+        return function(samples, self.centres, self.widths, n_points=n_steps)[0]
 
     def rollout(self, duration: float | None = None, dt: float = 0.001, start_velocity=None):
         """The whole plan from ``start``.

@@ -3,7 +3,9 @@ r"""The DMP systems assembled from their forms, and every function built from th
 Each form's equations are written once, in :mod:`dmpopt.forms`; this module assembles the
 whole system (canonical and transformation states of all DOFs) from them and builds the
 compiled functions. Every numeric result of dmpopt (rollouts, online steps, fitting matrices,
-gradients) is evaluated from these expressions; nothing re-implements them in numpy.
+gradients) is evaluated from these expressions; nothing re-implements them in numpy. (To
+evaluate one expression at tens of thousands of points, :class:`ArrayFunction` runs CasADi's
+own instruction list on numpy arrays.)
 
 The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
 phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried
@@ -23,6 +25,7 @@ sample (accelerations by automatic differentiation along the flow).
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import platform
 import shlex
@@ -237,6 +240,24 @@ def filter_step(form: Form, z, position, dt, tau, goal, gains):
 # ---------------------------------------------------------------------------------------
 
 
+def runge_kutta_4(rate, state, dt) -> tuple[list, ca.SX]:
+    """One classical Runge-Kutta 4 step of ``state`` by ``dt``, the discretisation of every
+    system: ``(stages, next_state)``.
+
+    ``rate(x, stage)`` is the time derivative at ``x`` in stage ``0 .. 3``; ``stages`` are the
+    four states at which it is evaluated (the forcing term enters each stage at the canonical
+    part of that stage's state, :func:`canonical_step_function`).
+    """
+    k1 = rate(state, 0)
+    second = state + 0.5 * dt * k1
+    k2 = rate(second, 1)
+    third = state + 0.5 * dt * k2
+    k3 = rate(third, 2)
+    fourth = state + dt * k3
+    k4 = rate(fourth, 3)
+    return [state, second, third, fourth], state + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
 STEP_BYTES_PER_FEATURE, STEP_BYTES_PER_FEATURE_AND_DOF = 48e3, 8e3
 """Memory [bytes] that building :func:`step_function` takes per basis feature, plus per
 feature and DOF: a little above the 40 kB and 6.2 kB measured (peak resident size while
@@ -256,15 +277,7 @@ def step_function(signature: Signature) -> ca.Function:
         "use fewer basis functions (the step grows with their number times the DOFs)",
     )
     s = make_symbols(signature)
-
-    def rate(x):
-        return system_rhs(signature, s, x)
-
-    k1 = rate(s.state)
-    k2 = rate(s.state + 0.5 * s.dt * k1)
-    k3 = rate(s.state + 0.5 * s.dt * k2)
-    k4 = rate(s.state + s.dt * k3)
-    next_state = s.state + s.dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    _, next_state = runge_kutta_4(lambda x, _: system_rhs(signature, s, x), s.state, s.dt)
     outputs = output_function(signature)(state=next_state, **s.parameters())  # a dict by name
     return function(
         "dmp_step",
@@ -358,6 +371,238 @@ def rollout_function(signature: Signature, n_steps: int) -> ca.Function:
     )
 
 
+# ---------------------------------------------------------------------------------------
+# The parts of a rollout of one DOF (the response matrices of dmpopt.dmp)
+# ---------------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=64)
+def canonical_step_function(signature: Signature) -> ca.Function:
+    """One RK4 step of the canonical system alone, in time normalised by ``tau``, uncoupled:
+    ``(canonical, dt, canonical_target, gains) -> (next_canonical, stages)``, ``stages`` of
+    shape (2, 4).
+
+    The canonical system does not depend on the transformation states, so these are the
+    canonical parts of the stages of :func:`step_function` (:func:`runge_kutta_4`): the
+    states at which the whole step evaluates the forcing term's features.
+    """
+    form, s = signature.equations, make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    stages, following = runge_kutta_4(
+        lambda x, _: form.canonical_rhs(x, s.canonical_target, s.gains, 0.0), canonical, s.dt
+    )
+    inputs = {"canonical": canonical, "dt": s.dt}
+    inputs |= {"canonical_target": s.canonical_target, "gains": s.gains}
+    outputs = {"next_canonical": following, "stages": ca.horzcat(*stages)}
+    return function("dmp_canonical_step", inputs, outputs)
+
+
+CANONICAL_BLOCK = 256
+"""Steps of :func:`canonical_steps_function` per call (a few microseconds of call overhead
+each; the last block of a trajectory may run past its end)."""
+
+
+@lru_cache(maxsize=64)
+def canonical_steps_function(signature: Signature) -> ca.Function:
+    """:data:`CANONICAL_BLOCK` steps of :func:`canonical_step_function` in one call
+    (``mapaccum``): the inputs besides ``canonical`` are given per step, the outputs are
+    those of every step side by side."""
+    step = canonical_step_function(signature)
+    return step.mapaccum("dmp_canonical_steps", CANONICAL_BLOCK, [0], [0])
+
+
+@lru_cache(maxsize=16)
+def transformation_matrices(form_name: str) -> ca.Function:
+    r"""The transformation system of one DOF as matrices, in time normalised by ``tau``:
+    ``(dt, gains) -> (step, step_goal, step_forcing, output, output_goal, output_forcing)``.
+
+    The system (eq. (5) or (10)) is linear in its state :math:`s`, the goal :math:`g` and the
+    forcing term, so its RK4 step (:func:`runge_kutta_4`, the forcing term :math:`f_j` given
+    at each stage :math:`j`) and its position, velocity and acceleration (as in
+    :func:`plan_outputs`, with the forcing term's time derivative :math:`\dot f` given) are
+
+    .. math:: s_{k+1} = S s_k + S_g g + S_f (f_1, f_2, f_3, f_4)^T, \quad
+              (y, \dot y, \ddot y)^T = O s + O_g g + O_f (f, \dot f)^T
+
+    with the Jacobians of the form's equations as the matrices (shapes (n, n), (n, 1),
+    (n, 4), (3, n), (3, 1), (3, 2), ``n`` transformation states).
+    """
+    form = FORMS[form_name]
+    transformation = ca.SX.sym("transformation", form.n_transformation)
+    goal, dt = ca.SX.sym("goal"), ca.SX.sym("dt")
+    gains = ca.SX.sym("gains", len(form.gain_names))
+    stage_forcing, forcing = ca.SX.sym("stage_forcing", 4), ca.SX.sym("forcing", 2)
+
+    def rate(x, stage):
+        return form.transformation_rhs(x, goal, stage_forcing[stage], gains, 0.0)
+
+    _, following = runge_kutta_4(rate, transformation, dt)
+    rate_now = form.transformation_rhs(transformation, goal, forcing[0], gains, 0.0)
+    velocity = rate_now[0]
+    both = ca.vertcat(transformation, forcing[0])
+    acceleration = ca.jtimes(velocity, both, ca.vertcat(rate_now, forcing[1]))
+    outputs = ca.vertcat(transformation[0], velocity, acceleration)
+    return function(
+        "dmp_transformation_matrices",
+        {"dt": dt, "gains": gains},
+        {
+            name: ca.densify(ca.jacobian(expression, wrt))
+            for name, expression, wrt in (
+                ("step", following, transformation),
+                ("step_goal", following, goal),
+                ("step_forcing", following, stage_forcing),
+                ("output", outputs, transformation),
+                ("output_goal", outputs, goal),
+                ("output_forcing", outputs, forcing),
+            )
+        },
+    )
+
+
+@lru_cache(maxsize=64)
+def feature_rate_function(signature: Signature) -> ca.Function:
+    """``(canonical, centres, widths, canonical_target, gains) -> (features, feature_rate)``:
+    the forcing term's features and their time derivative along the uncoupled canonical
+    system, in time normalised by ``tau`` (what the acceleration of :func:`plan_outputs`
+    takes from the canonical state)."""
+    form, s = signature.equations, make_symbols(signature)
+    canonical = ca.SX.sym("canonical", 2)
+    phi = form.features(signature.kernel, canonical, s.centres, s.widths)
+    rate = form.canonical_rhs(canonical, s.canonical_target, s.gains, 0.0)
+    inputs = {"canonical": canonical, "centres": s.centres, "widths": s.widths}
+    inputs |= {"canonical_target": s.canonical_target, "gains": s.gains}
+    outputs = {"features": phi, "feature_rate": ca.jtimes(phi, canonical, rate)}
+    return function("dmp_feature_rate", inputs, outputs)
+
+
+_UNARY = {
+    ca.OP_ASSIGN: np.positive,  # a copy: no two entries of the work vector share memory
+    ca.OP_NEG: np.negative,
+    ca.OP_EXP: np.exp,
+    ca.OP_LOG: np.log,
+    ca.OP_SQRT: np.sqrt,
+    ca.OP_SQ: np.square,
+    ca.OP_INV: np.reciprocal,
+    ca.OP_SIN: np.sin,
+    ca.OP_COS: np.cos,
+    ca.OP_TAN: np.tan,
+    ca.OP_FABS: np.absolute,
+    ca.OP_SIGN: np.sign,
+    ca.OP_FLOOR: np.floor,
+    ca.OP_CEIL: np.ceil,
+    ca.OP_NOT: np.logical_not,
+}
+_BINARY = {
+    ca.OP_ADD: np.add,
+    ca.OP_SUB: np.subtract,
+    ca.OP_MUL: np.multiply,
+    ca.OP_DIV: np.divide,
+    ca.OP_POW: np.power,
+    ca.OP_CONSTPOW: np.power,
+    ca.OP_FMIN: np.fmin,
+    ca.OP_FMAX: np.fmax,
+    ca.OP_FMOD: np.fmod,
+    ca.OP_ATAN2: np.arctan2,
+    ca.OP_COPYSIGN: np.copysign,
+    ca.OP_LT: np.less,
+    ca.OP_LE: np.less_equal,
+    ca.OP_EQ: np.equal,
+    ca.OP_NE: np.not_equal,
+    ca.OP_AND: np.logical_and,
+    ca.OP_OR: np.logical_or,
+}
+"""CasADi's scalar operations and the numpy functions that apply them elementwise (comparisons
+give 1.0 or 0.0, as CasADi's; ``if_else_zero`` and ``twice`` are handled apart)."""
+
+
+class ArrayFunction:
+    """An SX ``casadi.Function`` evaluated at many points at once, on numpy arrays.
+
+    Each scalar instruction of the function runs as one numpy operation over all points, so
+    the points cost what the arithmetic costs (CasADi's virtual machine evaluates a function
+    at 40k points one after the other, several times more slowly). The expressions are
+    CasADi's; only their operations are mapped to numpy's (1 ulp may differ in ``exp``,
+    ``sin``, ...).
+    """
+
+    work_size = 2**21
+    """Floats in the work arrays (one per entry of CasADi's work vector, 16 MiB): the points
+    are evaluated in chunks of at most ``work_size / sz_w`` (and 16384, fastest as measured
+    on the LASA demo's plan)."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._instructions = []
+        for k in range(function.n_instructions()):
+            op = function.instruction_id(k)
+            known = (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_TWICE, ca.OP_IF_ELSE_ZERO)
+            if op not in (*known, *_UNARY, *_BINARY):
+                raise NotImplementedError(
+                    f"{function.name()}: CasADi operation {op} has no numpy equivalent in "
+                    "ArrayFunction; add it to symbolic._UNARY or _BINARY"
+                )
+            constant = function.instruction_constant(k) if op == ca.OP_CONST else None
+            self._instructions.append(
+                (op, function.instruction_input(k), function.instruction_output(k), constant)
+            )
+
+    def __call__(self, *inputs, n_points: int, out=None) -> list[np.ndarray]:
+        """Outputs at ``n_points`` points, each of shape (n_points, nnz) (entries column-major).
+
+        ``inputs`` in the function's order: arrays of shape (nnz, n_points), or (nnz,) for an
+        input shared by all points. ``out``: arrays to write the outputs into (optional).
+        """
+        function = self.function
+        if out is None:
+            out = [np.empty((n_points, function.nnz_out(i))) for i in range(function.n_out())]
+        inputs = [np.atleast_1d(np.asarray(value, dtype=float)) for value in inputs]
+        size = max(64, min(16384, self.work_size // max(function.sz_w(), 1)))
+        for begin in range(0, n_points, size):
+            points = slice(begin, min(begin + size, n_points))
+            chunk = [value if value.ndim == 1 else value[:, points] for value in inputs]
+            self._evaluate(chunk, [array[points] for array in out])
+        return out
+
+    def _evaluate(self, inputs: list, out: list) -> None:
+        """One chunk: each entry of CasADi's work vector is a float (constants and shared
+        inputs), a row of an input, or its own buffer, written in place."""
+        n = out[0].shape[0]
+        buffers = np.empty((self.function.sz_w(), n))
+        work = [0.0] * self.function.sz_w()
+        for op, arguments, results, constant in self._instructions:
+            result = results[0]
+            if op == ca.OP_INPUT:
+                value = inputs[arguments[0]][arguments[1]]
+                work[result] = float(value) if np.ndim(value) == 0 else value
+            elif op == ca.OP_OUTPUT:
+                out[result][:, results[1]] = work[arguments[0]]
+            elif op == ca.OP_CONST:
+                work[result] = constant
+            elif op in _UNARY:
+                a = work[arguments[0]]
+                if type(a) is float:
+                    work[result] = float(_UNARY[op](a))
+                else:
+                    work[result] = _UNARY[op](a, out=buffers[result])
+            else:
+                a = work[arguments[0]]
+                b = a if op == ca.OP_TWICE else work[arguments[1]]  # 2 a = a + a, exactly
+                if op == ca.OP_IF_ELSE_ZERO:  # b where a is true, else 0
+                    work[result] = np.where(np.not_equal(a, 0.0), b, 0.0)
+                    continue
+                function = _BINARY.get(op, np.add)
+                if type(a) is float and type(b) is float:
+                    work[result] = float(function(a, b))
+                else:
+                    work[result] = function(a, b, out=buffers[result])
+
+
+@lru_cache(maxsize=64)
+def array_function(function: ca.Function) -> ArrayFunction:
+    """The :class:`ArrayFunction` of a (cached) ``function``, decoded once."""
+    return ArrayFunction(function)
+
+
 class NumericFunction:
     """Low-overhead repeated evaluation of a ``casadi.Function`` on numpy buffers.
 
@@ -390,30 +635,124 @@ class NumericFunction:
         self._evaluate()
 
 
+def linear_blocks(n_steps: int) -> tuple[int, int]:
+    """Block length of :func:`linear_states` for ``n_steps`` states, about their square root,
+    and the steps ``states`` must hold: that length times the number of blocks."""
+    length = max(1, math.isqrt(n_steps))
+    return length, length * -(-n_steps // length)
+
+
+def linear_states(step, first, states: np.ndarray, length: int) -> np.ndarray:
+    r"""States of :math:`x_{k+1} = A x_k + u_k` for ``m`` columns at once, in place.
+
+    ``step`` :math:`A` (n, n); ``first`` :math:`x_0` (n, m); ``states`` (n, K, m) holds
+    :math:`u_k` in ``states[:, k]`` for :math:`k < n_\mathrm{steps} - 1` and zeros after,
+    with ``length`` and ``K`` from :func:`linear_blocks`; it is overwritten by :math:`x_k`
+    (the first ``n_steps`` are the answer) and returned.
+
+    The steps go in blocks of ``length``: the states within all blocks from a zero start are
+    iterated together, then the blocks' starts one after the other, then :math:`A^i` times
+    its start is added to the i-th state of each block. So numpy runs about :math:`3
+    \sqrt{n_\mathrm{steps}}` operations on whole blocks rather than one per step (the sums
+    differ from the plain recurrence's by rounding only).
+    """
+    n, m = first.shape
+    n_blocks = states.shape[1] // length
+    blocks = states.reshape(n, n_blocks, length, m)  # a view: u_k replaced by x_k
+    current = np.zeros((n, n_blocks, m))
+    for i in range(length):  # each block from a zero start
+        following = (step @ current.reshape(n, -1)).reshape(current.shape) + blocks[:, :, i]
+        blocks[:, :, i] = current
+        current = following
+    powers = np.empty((length, n, n))
+    powers[0] = np.eye(n)
+    for i in range(1, length):
+        powers[i] = step @ powers[i - 1]
+    block_step = step @ powers[-1]  # A^length
+    starts = np.empty((n, n_blocks, m))
+    starts[:, 0] = first
+    for block in range(n_blocks - 1):
+        starts[:, block + 1] = block_step @ starts[:, block] + current[:, block]
+    for i in range(length):  # plus A^i times each block's start
+        blocks[:, :, i] += (powers[i] @ starts.reshape(n, -1)).reshape(starts.shape)
+    return states
+
+
+def canonical_trajectory(signature, n_steps, dt, canonical0, target, gains, with_stages=True):
+    """Canonical states at the samples, shape (2, n_steps), and (``with_stages``) at the four
+    RK4 stages of each step, shape (4, 2, n_steps - 1), else ``None``, by
+    :func:`canonical_step_function` (the stepper's arithmetic), :data:`CANONICAL_BLOCK`
+    steps per call. Each row is contiguous."""
+    block = CANONICAL_BLOCK
+    function = NumericFunction(canonical_steps_function(signature))
+    function.set_inputs(
+        canonical=canonical0,
+        dt=np.full(block, dt),
+        canonical_target=np.full(block, target),
+        gains=np.tile(np.asarray(gains, dtype=float), block),
+    )
+    n_blocks = -(-(n_steps - 1) // block)
+    samples = np.empty((2, n_blocks * block + 1))
+    stages = np.empty((4, 2, n_blocks * block)) if with_stages else None
+    samples[:, 0] = canonical0
+    state, following = function.inputs["canonical"], function.outputs["next_canonical"]
+    following, stage_values = following.reshape(block, 2), function.outputs["stages"]
+    for first in range(0, n_blocks * block, block):
+        function.evaluate()
+        samples[:, first + 1 : first + block + 1] = following.T
+        if with_stages:
+            stages[:, :, first : first + block] = stage_values.reshape(block, 4, 2).transpose(
+                1, 2, 0
+            )
+        state[:] = following[-1]
+    return samples[:, :n_steps], None if stages is None else stages[:, :, : n_steps - 1]
+
+
+SIMULATION_BLOCK = 256
+"""Steps per call of :func:`steps_function` (the last block of a simulation may run past its
+end): one call costs a few microseconds besides the steps' own arithmetic."""
+
+
+@lru_cache(maxsize=64)
+def steps_function(signature: Signature) -> ca.Function:
+    """:data:`SIMULATION_BLOCK` steps of :func:`step_function` in one call (``mapaccum``): the
+    inputs besides ``state`` are given per step, the outputs are those of every step side by
+    side."""
+    return step_function(signature).mapaccum("dmp_steps", SIMULATION_BLOCK, [0], [0])
+
+
 def simulate(signature: Signature, n_steps: int, initial_state, dt: float, parameters: dict):
     """Integrate ``n_steps - 1`` RK4 steps from ``initial_state`` (``parameters`` by name).
 
     Returns ``(states, positions, velocities, accelerations)`` with shapes
-    ``(n_steps, n_states)`` and ``(n_steps, n_dofs)``; samples at ``k * dt``.
+    ``(n_steps, n_states)`` and ``(n_steps, n_dofs)``; samples at ``k * dt``. The steps run
+    :data:`SIMULATION_BLOCK` per call, with the arithmetic of the stepper's step.
     """
-    d = signature.n_dofs
-    step = NumericFunction(step_function(signature))
-    first = output_function(signature)(state=initial_state, **parameters)
-    states = np.empty((n_steps, signature.n_states))
-    plan = np.empty((3, n_steps, d))
+    d, block = signature.n_dofs, SIMULATION_BLOCK
+    step = step_function(signature)
+    steps = NumericFunction(steps_function(signature))
+    for name, value in {"dt": dt, **parameters}.items():  # the same inputs at every step
+        value = np.broadcast_to(np.ravel(value, order="F"), step.nnz_in(name))
+        steps.set_inputs(**{name: np.tile(value, block)})
+    n_blocks = -(-(n_steps - 1) // block)
+    states = np.empty((n_blocks * block + 1, signature.n_states))
+    plan = np.empty((3, n_blocks * block + 1, d))
     states[0] = initial_state
+    first = output_function(signature)(state=initial_state, **parameters)
     names = ("position", "velocity", "acceleration")
     for i, name in enumerate(names):
         plan[i, 0] = first[name].full().ravel()
-    step.set_inputs(state=initial_state, dt=dt, **parameters)
-    state_in, next_state = step.inputs["state"], step.outputs["next_state"]
-    position, velocity, acceleration = (step.outputs[name] for name in names)
-    for k in range(1, n_steps):
-        step.evaluate()
-        state_in[:] = next_state
-        states[k] = next_state
-        plan[0, k], plan[1, k], plan[2, k] = position, velocity, acceleration
-    return states, plan[0], plan[1], plan[2]
+    state = steps.inputs["state"]
+    state[:] = initial_state
+    following = steps.outputs["next_state"].reshape(block, -1)
+    outputs = [steps.outputs[name].reshape(block, d) for name in names]
+    for begin in range(1, n_blocks * block + 1, block):
+        steps.evaluate()
+        states[begin : begin + block] = following
+        for i, output in enumerate(outputs):
+            plan[i, begin : begin + block] = output
+        state[:] = following[-1]
+    return states[:n_steps], plan[0, :n_steps], plan[1, :n_steps], plan[2, :n_steps]
 
 
 def cache_dir() -> Path:

@@ -27,14 +27,17 @@ First, the model agreement (the answer key of ``tests/sim/test_mujoco.py`` as nu
 URDF in link positions [m] and rotation matrices, link velocities (local frame), the mass matrix
 and the bias forces (relative to their largest entry), after the coordinate change.
 
-Last, the step overhead (``--overhead`` prints only this): the CPU time of
-``MujocoSimulator.step`` against MuJoCo's own ``mj_step`` on the same state and the same applied
-forces, step by step in the same loop (before each step the MuJoCo data is copied into a
-shadow that runs ``mj_step`` with the forces the step applies, or, when the shadow goes
-first, those of the step before; the two alternate in going first, so that neither always
-finds the caches warm; thread time of each), for Talos drumming and the biped walking, each
-on the ideal and the realistic plant (:mod:`dmpopt_robots.plants`). The ratio of the medians is the
-overhead (the issue's bound: 1.5).
+Last, the step overhead (``--overhead`` prints only this): the CPU time (thread time) of
+``MujocoSimulator.step`` against that of the ``mj_step`` it calls, in the same call: the
+simulator's ``mujoco`` module is wrapped so that its ``mj_step`` (``mj_step1`` + ``mj_step2``
+on steps with a push) is timed inside the step; the timer's own cost (a timed call of nothing,
+measured in the same run) is taken off both. Same state, same forces, same caches. (Earlier
+versions ran ``mj_step`` on a copy of the data beside the step: copying before the step
+evicted the step's Python objects from the cache (the walking biped's step measured 85-95 us
+after a copy, 50 us without), and a copy kept in step and run right after the step found
+MuJoCo's code warm (its ``mj_step`` measured 13.5 us against 19 us inside the step).) For
+Talos drumming and the biped walking, each on the ideal and the realistic plant
+(:mod:`dmpopt_robots.plants`). The ratio of the medians is the overhead (the issue's bound: 1.5).
 
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
 [--states 20] [--video FILE.webp] [--overhead] [--overhead-seconds 2]``.
@@ -67,32 +70,65 @@ def make_plant(backend: str, robot, q_start: np.ndarray, parameters=None):
     return humanoid.mujoco_plant(friction=1.0, parameters=parameters)(robot, q_start)
 
 
+class _TimedMujoco:
+    """The ``mujoco`` module with ``mj_step`` (and ``mj_step1`` + ``mj_step2``) timed in
+    thread time: ``inner`` accumulates the time of the current step's calls."""
+
+    def __init__(self, module):
+        self._module, self.inner = module, 0.0
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+    def _timed(self, function, *args):
+        begin = time.thread_time()
+        function(*args)
+        self.inner += time.thread_time() - begin
+
+    def mj_step(self, model, data):
+        self._timed(self._module.mj_step, model, data)
+
+    def mj_step1(self, model, data):
+        self._timed(self._module.mj_step1, model, data)
+
+    def mj_step2(self, model, data):
+        self._timed(self._module.mj_step2, model, data)
+
+
+def _timer_costs(n: int = 2000) -> tuple[float, float]:
+    """``(outer, inner)`` [s], medians: the thread time a timed call of nothing adds to a timer
+    around it, and the time it reads itself."""
+    timed, outer = _TimedMujoco(None), []
+    inner = []
+    for _ in range(n):
+        timed.inner = 0.0
+        begin = time.thread_time()
+        timed._timed(_nothing)
+        outer.append(time.thread_time() - begin)
+        inner.append(timed.inner)
+    return float(np.median(outer)), float(np.median(inner))
+
+
+def _nothing():
+    pass
+
+
 @contextmanager
 def step_timer():
-    """Time every ``MujocoSimulator.step`` and an ``mj_step`` of the same step (see the module
-    notes); yields the two lists of thread times [s], filled as the steps run."""
-    import mujoco
-
+    """Time every ``MujocoSimulator.step`` and the ``mj_step`` it calls (see the module
+    notes); yields the two lists of thread times [s], filled as the steps run (raw: the
+    timer's own cost is taken off in :func:`overhead`)."""
     original = MujocoSimulator.step
-    steps, mj_steps, shadows = [], [], {}
+    steps, mj_steps = [], []
 
     def timed(simulator, tau, base_force=None):
-        model, data = simulator.mj_model, simulator.mj_data
-        shadow = shadows.setdefault(id(simulator), mujoco.MjData(model))
-        mujoco.mj_copyData(shadow, model, data)
-        shadow_first = len(steps) % 2 == 0  # each goes first every other step (warm caches)
-        if shadow_first:  # with the last step's applied forces, which the copy holds
-            begin = time.thread_time()
-            mujoco.mj_step(model, shadow)
-            mj_steps.append(time.thread_time() - begin)
+        if not isinstance(simulator._mj, _TimedMujoco):
+            simulator._mj = _TimedMujoco(simulator._mj)
+        simulator._mj.inner = 0.0
         begin = time.thread_time()
         state = original(simulator, tau, base_force)
         steps.append(time.thread_time() - begin)
-        if not shadow_first:
-            shadow.qfrc_applied[:] = data.qfrc_applied
-            begin = time.thread_time()
-            mujoco.mj_step(model, shadow)
-            mj_steps.append(time.thread_time() - begin)
+        mj_steps.append(simulator._mj.inner)
         return state
 
     MujocoSimulator.step = timed
@@ -118,8 +154,11 @@ def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> 
                 biped, gait, biped_seconds, biped_study.DEMO_FREQUENCY, plant=parameters
             )
         rows[f"biped {plant}"] = steps, mj_steps
+    outer, inner = _timer_costs()
     table = {}
     for name, (steps, mj_steps) in rows.items():
+        steps = np.asarray(steps) - outer  # the timer inside the step
+        mj_steps = np.asarray(mj_steps) - inner  # the timer's own reading
         step, mj_step = 1e6 * np.median(steps), 1e6 * np.median(mj_steps)
         table[name] = {
             "steps": len(steps),

@@ -66,25 +66,26 @@ def to_pinocchio(qpos, qvel, qpos_index, dof_index, quaternion_start, q, v):
         rotation = _rotation(qpos[k], qpos[k + 1], qpos[k + 2], qpos[k + 3])
         x, y, z = v[0], v[1], v[2]
         for i in range(3):
-            v[i] = rotation[0, i] * x + rotation[1, i] * y + rotation[2, i] * z
+            v[i] = rotation[i] * x + rotation[3 + i] * y + rotation[6 + i] * z
 
 
 @_compile
 def _rotation(w, x, y, z):
-    """Rotation matrix of the quaternion (w, x, y, z), normalised first."""
+    """Rotation matrix of the quaternion (w, x, y, z), normalised first; a tuple, row by
+    row."""
     norm = math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w / norm, x / norm, y / norm, z / norm
-    rotation = np.empty((3, 3))
-    rotation[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    rotation[0, 1] = 2.0 * (x * y - w * z)
-    rotation[0, 2] = 2.0 * (x * z + w * y)
-    rotation[1, 0] = 2.0 * (x * y + w * z)
-    rotation[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    rotation[1, 2] = 2.0 * (y * z - w * x)
-    rotation[2, 0] = 2.0 * (x * z - w * y)
-    rotation[2, 1] = 2.0 * (y * z + w * x)
-    rotation[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return rotation
+    return (
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y - w * z),
+        2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        1.0 - 2.0 * (x * x + y * y),
+    )
 
 
 @_compile
@@ -157,13 +158,17 @@ def free_base_measure(q, v, joint_rotation, joint_translation, offset_rotation, 
     """
     rotation = _rotation(q[6], q[3], q[4], q[5])
     # row 2 of J_R R: the world z row of the base's rotation
-    row = np.empty(3)
-    for j in range(3):
-        row[j] = (
-            joint_rotation[2, 0] * rotation[0, j]
-            + joint_rotation[2, 1] * rotation[1, j]
-            + joint_rotation[2, 2] * rotation[2, j]
-        )
+    row = (
+        joint_rotation[2, 0] * rotation[0]
+        + joint_rotation[2, 1] * rotation[3]
+        + joint_rotation[2, 2] * rotation[6],
+        joint_rotation[2, 0] * rotation[1]
+        + joint_rotation[2, 1] * rotation[4]
+        + joint_rotation[2, 2] * rotation[7],
+        joint_rotation[2, 0] * rotation[2]
+        + joint_rotation[2, 1] * rotation[5]
+        + joint_rotation[2, 2] * rotation[8],
+    )
     height = joint_translation[2]
     for i in range(3):
         height += joint_rotation[2, i] * q[i]
@@ -291,52 +296,65 @@ def composite_base_measure(q, v, axes, parts, placement, offset):
     placement, offset : array, shape (12,)
         ``J`` and ``O``, laid out as ``parts``.
     """
-    rotation, translation = np.eye(3), np.zeros(3)
-    spin = np.zeros(3)
+    rotation = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)  # row by row
+    x = y = z = 0.0  # translation
+    spin_x = spin_y = spin_z = 0.0
     for k in range(axes.size):
         part = parts[k]
-        for i in range(3):
-            for j in range(3):
-                translation[i] += rotation[i, j] * part[9 + j]
-        rotation = _times(rotation, part)
+        x, y, z = (
+            x + rotation[0] * part[9] + rotation[1] * part[10] + rotation[2] * part[11],
+            y + rotation[3] * part[9] + rotation[4] * part[10] + rotation[5] * part[11],
+            z + rotation[6] * part[9] + rotation[7] * part[10] + rotation[8] * part[11],
+        )
+        rotation = _times(rotation, (part[0], part[1], part[2], part[3], part[4], part[5],
+                                     part[6], part[7], part[8]))  # fmt: skip
         axis = axes[k] % 3
         if axes[k] < 3:
-            for i in range(3):
-                translation[i] += rotation[i, axis] * q[k]
+            x += rotation[axis] * q[k]
+            y += rotation[3 + axis] * q[k]
+            z += rotation[6 + axis] * q[k]
             continue
-        for i in range(3):
-            spin[i] += rotation[i, axis] * v[k]
-        turn = np.zeros(9)  # the rotation about the axis, row-major
+        spin_x += rotation[axis] * v[k]
+        spin_y += rotation[3 + axis] * v[k]
+        spin_z += rotation[6 + axis] * v[k]
         c, s = math.cos(q[k]), math.sin(q[k])
-        j, m = (axis + 1) % 3, (axis + 2) % 3
-        turn[4 * axis] = 1.0
-        turn[4 * j], turn[3 * j + m], turn[3 * m + j], turn[4 * m] = c, -s, s, c
+        if axis == 0:
+            turn = (1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c)
+        elif axis == 1:
+            turn = (c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c)
+        else:
+            turn = (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
         rotation = _times(rotation, turn)
+    translation = (x, y, z)
     height = placement[11]
     for i in range(3):
         total = translation[i]
         for j in range(3):
-            total += rotation[i, j] * offset[9 + j]
+            total += rotation[3 * i + j] * offset[9 + j]
         height += placement[6 + i] * total
     cosine = 0.0
     for i in range(3):
         row = 0.0
         for j in range(3):
-            row += placement[6 + j] * rotation[j, i]
+            row += placement[6 + j] * rotation[3 * j + i]
         cosine += row * offset[3 * i + 2]
-    return height, cosine, math.sqrt(spin[0] ** 2 + spin[1] ** 2 + spin[2] ** 2)
+    return height, cosine, math.sqrt(spin_x**2 + spin_y**2 + spin_z**2)
 
 
 @_compile
-def _times(rotation, flat):
-    """``rotation @ flat[:9].reshape(3, 3)`` (a row-major rotation in ``flat``)."""
-    product = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            product[i, j] = (
-                rotation[i, 0] * flat[j] + rotation[i, 1] * flat[3 + j] + rotation[i, 2] * flat[6 + j]
-            )
-    return product
+def _times(a, b):
+    """The product of two rotations given as tuples, row by row."""
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
 
 
 # settle's packed arrays (built by MujocoSimulator): the header of ``tables``

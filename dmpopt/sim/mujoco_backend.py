@@ -946,7 +946,7 @@ class MujocoSimulator(Backend):
         q_measured, v_measured = q, v
         if plant.noisy:
             q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
-        return SimState(
+        return SimState._of_step(
             data.time, q, v, self._forces.copy(), self._in_contact.copy(),
             self._positions.copy(), self._last_touchdowns, self.fall, q_measured, v_measured,
         )  # fmt: skip

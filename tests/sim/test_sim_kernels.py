@@ -105,9 +105,10 @@ def test_contact_forces_go_to_the_nearest_point_in_the_world_frame():
     frames = np.array([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(5)])
     efc_force = rng.normal(size=15)
     efc_address = np.array([0, 3, 6, 9, 12], dtype=np.int32)
-    forces, in_contact = read_contacts(
+    forces, in_contact = np.full((5, 3), np.nan), np.ones(5, dtype=bool)  # overwritten
+    read_contacts(
         geom, efc_address, frames.reshape(5, 9), position, efc_force, foot_code, foot_points,
-        points,
+        points, forces, in_contact,
     )  # fmt: skip
     world = [frames[c].T @ efc_force[3 * c : 3 * c + 3] for c in range(5)]
     expected = np.zeros((5, 3))

@@ -310,7 +310,7 @@ class MujocoSimulator(Backend):
                 "robot.model with urdf=robot.source"
             )
         self.dt = _positive("dt", dt)
-        self.max_speed = _positive("max_speed", max_speed)
+        self._max_speed = _positive("max_speed", max_speed)
         friction = _positive("friction", friction, allow_zero=True)
         contact_radius = _positive("contact_radius", contact_radius)
         if not isinstance(body_collisions, (bool, np.bool_)):
@@ -695,24 +695,22 @@ class MujocoSimulator(Backend):
         stay in place (views into ``mj_data``, valid while it lives)."""
         model, data = self.model, self.mj_data
         nq, nv, n_points = model.nq, model.nv, self._n_points
-        detector, watched = self.fall_detector, self._watched
-        # a FallDetector subclass may check differently: then every step checks in Python
-        self._screened = detector is None or type(detector) is FallDetector
-        base, axes, parts = kernels.BASE_UNCHECKED, [], []
-        if detector is not None and self._screened:
-            base = kernels.BASE_FREE if self._base == "free" else kernels.BASE_COMPOSITE
-        if base == kernels.BASE_COMPOSITE:
-            composite = model.joints[1].extract()
-            for (kind, axis), placement in zip(self._base, composite.jointPlacements):
-                axes.append(int(np.argmax(axis)) + (3 if kind == "R" else 0))
-                parts.append(_flat(placement))
+        watched, axes, parts = self._watched, [], []
+        placements = [np.zeros(12)] * 2
+        if watched is not None:
+            placements = [_flat(watched._placement), _flat(watched._offset)]
+            if self._base != "free":
+                composite = model.joints[1].extract()
+                for (kind, axis), placement in zip(self._base, composite.jointPlacements):
+                    axes.append(int(np.argmax(axis)) + (3 if kind == "R" else 0))
+                    parts.append(_flat(placement))
         header = np.zeros(kernels.TABLES_HEADER, dtype=np.int64)
         header[kernels.N_Q], header[kernels.N_V], header[kernels.N_POINTS] = nq, nv, n_points
         header[kernels.N_GEOMS] = self._foot_code.size
         header[kernels.N_FEET], header[kernels.WIDTH] = self._foot_points.shape
         header[kernels.N_PARTS] = len(axes)
         header[kernels.QUATERNION_START] = self._quaternion_start
-        header[kernels.BASE], header[kernels.NOISY] = base, self.plant.noisy
+        header[kernels.NOISY] = self.plant.noisy
         self._tables = np.concatenate(
             [
                 header,
@@ -724,17 +722,9 @@ class MujocoSimulator(Backend):
                 np.array(axes, dtype=np.int64),
             ]
         ).astype(np.int64)
-        thresholds = [0.0] * 4
-        placements = [np.zeros(12)] * 2
-        if base != kernels.BASE_UNCHECKED:
-            thresholds = [
-                detector.min_height,
-                detector.max_tilt,
-                detector.max_flight_time,
-                detector.max_spin,
-            ]
-            placements = [_flat(watched._placement), _flat(watched._offset)]
-        self._constants = np.concatenate([[self.max_speed, *thresholds], *placements, *parts])
+        self._constants = np.concatenate([np.zeros(5), *placements, *parts])
+        self.max_speed = self._max_speed  # into the constants
+        self._pack_fall_checks()
         self._work = np.zeros(2 * (nq + nv) + 6 * n_points)
         self._q, self._v = self._work[:nq], self._work[nq : nq + nv]
         at = nq + nv
@@ -747,6 +737,40 @@ class MujocoSimulator(Backend):
         self._in_contact, self._started = self._flags[:n_points], self._flags[n_points:]
         self._qpos, self._qvel, self._qfrc_applied = data.qpos, data.qvel, data.qfrc_applied
         self._site_xpos, self._warnings = data.site_xpos, data.warning.number[_UNSTABLE]
+
+    def _pack_fall_checks(self) -> None:
+        """The fall thresholds and base kind in the packed arrays, for the detector in
+        ``fall_detector`` (``step`` re-packs when it is replaced)."""
+        detector = self.fall_detector
+        if detector is not None and self._watched is None:
+            raise InvalidInputError(
+                "fall_detector set on a simulator built without fall checks; build it with "
+                "falls=FallDetector(...) instead"
+            )
+        # a FallDetector subclass may check differently: then every step checks in Python
+        self._screened = detector is None or type(detector) is FallDetector
+        base = kernels.BASE_UNCHECKED
+        if detector is not None and self._screened:
+            base = kernels.BASE_FREE if self._base == "free" else kernels.BASE_COMPOSITE
+            self._constants[1:5] = (
+                detector.min_height,
+                detector.max_tilt,
+                detector.max_flight_time,
+                detector.max_spin,
+            )
+        self._tables[kernels.BASE] = base
+        self._packed_detector = detector
+
+    @property
+    def max_speed(self) -> float:
+        """Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s]."""
+        return self._max_speed
+
+    @max_speed.setter
+    def max_speed(self, value) -> None:
+        self._max_speed = _positive("max_speed", value)
+        if hasattr(self, "_constants"):
+            self._constants[0] = self._max_speed
 
     def _locate(self, frame_name: str, offset) -> tuple[int, np.ndarray]:
         """MuJoCo body of a frame and the point's position in that body's frame."""
@@ -909,6 +933,8 @@ class MujocoSimulator(Backend):
             tau = _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
         force = _NO_FORCE if base_force is None else self._base_force(base_force)
         plant, data = self.plant, self.mj_data
+        if self.fall_detector is not self._packed_detector:
+            self._pack_fall_checks()
         if not apply_torques(
             tau, force, plant.torque_limit, plant.line, plant.ring, self._qfrc_applied,
             self._dof_index, self.n_base_dofs,

@@ -1,12 +1,19 @@
 r"""Compiled per-step kernels of the simulators (numba).
 
-After MuJoCo's own step, :class:`dmpopt.sim.MujocoSimulator` turns MuJoCo's state into
-Pinocchio's, reads the contact forces of the feet and measures the base for the fall checks.
+Around MuJoCo's own step, :class:`dmpopt.sim.MujocoSimulator` writes the plant's torques
+(saturation, delay: :func:`apply_torques`), then turns MuJoCo's state into Pinocchio's, reads
+the contact forces of the feet, makes the tick's sensor noise and screens the base for a fall.
 In NumPy that is a few dozen calls of about a microsecond each, several times MuJoCo's step
-itself; these kernels do each part in one compiled call. The maths is that of
-:mod:`dmpopt.sim.mujoco_backend` (coordinates, contacts) and :mod:`dmpopt.sim.falls` (the
-watched base frame), where it is described. Each kernel is compiled on first use and cached
-on disk (``cache=True``); the simulator calls them once when it is built.
+itself; here it is two compiled calls, :func:`apply_torques` before ``mj_step`` and
+:func:`settle` after it, which write into buffers the simulator allocates once (returning
+new arrays from a compiled call costs about a microsecond each). The maths is that of
+:mod:`dmpopt.sim.mujoco_backend` (coordinates, contacts), :mod:`dmpopt.sim.plant` (the
+plant) and :mod:`dmpopt.sim.falls` (the watched base frame), where it is described; the fall
+screen flags a step whose measures reach a threshold or come within ``FALL_MARGIN`` of one,
+and the simulator then decides with :meth:`dmpopt.sim.falls.FallDetector.check` on the
+reference measures, so the compiled measures never decide a fall on their own. Each kernel
+is compiled on first use and cached on disk (``cache=True``); the simulator calls them once
+when it is built.
 """
 
 from __future__ import annotations
@@ -16,7 +23,19 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["free_base_measure", "pinocchio_state", "read_contacts", "turn_quaternion"]
+__all__ = [
+    "add_noise",
+    "apply_torques",
+    "composite_base_measure",
+    "free_base_measure",
+    "pinocchio_state",
+    "read_contacts",
+    "scale_noise",
+    "settle",
+    "state_status",
+    "to_pinocchio",
+    "turn_quaternion",
+]
 
 _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
 
@@ -90,8 +109,9 @@ def _rotation(w, x, y, z):
 
 @_compile
 def read_contacts(
-    geom, efc_address, frame, position, efc_force, foot_code, foot_points, points, forces, in_contact
-):
+    geom, efc_address, frame, position, efc_force, foot_code, foot_points, points, forces,
+    in_contact,
+):  # fmt: skip
     """Write the contact force (world frame) and contact flag of each contact point.
 
     Parameters

@@ -78,13 +78,13 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
+from dmpopt.sim import kernels
 from dmpopt.sim.falls import (
     Fall,
     FallDetector,
     fall_checks,
     refuse_floating_without_contacts,
 )
-from dmpopt.sim import kernels
 from dmpopt.sim.kernels import (
     STATE_OK,
     STATE_UNSTABLE,

@@ -114,7 +114,9 @@ class SimState:
         return self.fall is not None
 
     @classmethod
-    def _of_step(cls, t, q, v, forces, in_contact, positions, touchdowns, fall, q_measured, v_measured):
+    def _of_step(
+        cls, t, q, v, forces, in_contact, positions, touchdowns, fall, q_measured, v_measured
+    ):
         """The state a simulator's ``step`` returns, every field given: the same object as
         ``SimState(...)`` without the frozen dataclass's per-field ``object.__setattr__``
         (a third of the cost, on the path of every step)."""

@@ -53,7 +53,14 @@ geometry (so ``body_collisions`` must stay on to hold one), start at their given
 Falls: the options ``falls``, ``fall_frame`` and ``fall_height`` of :class:`dmpopt.sim.Simulator`
 give the same thresholds (:func:`dmpopt.sim.falls.fall_checks`, standing height above the lowest
 contact point in the neutral configuration) and the same checks after each step; the first
-fall sets ``state.fall`` and ``step`` refuses to go on until ``reset``.
+fall sets ``state.fall`` and ``step`` refuses to go on until ``reset``. The compiled read-out
+after each step (:func:`dmpopt.sim.kernels.settle`) screens the four measures; a step where
+one reaches its threshold or comes within 1e-9 (relative) of it is decided by
+:meth:`~dmpopt.sim.falls.FallDetector.check` on the watched frame's measures, as before (a
+``FallDetector`` subclass is asked every step).
+
+Speed: a step costs ``mj_step`` plus two compiled calls and the copies of the returned state
+(``benchmarks/bench_mujoco.py --overhead`` measures the ratio).
 
 The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
 defaults to ``egl`` (headless rendering) when unset at that moment.
@@ -375,7 +382,8 @@ class MujocoSimulator(Backend):
         self._n_points = len(contact_points)
         self._index_contact_geoms(contact_points)
         self._pack_step_arrays()
-        self.reset(pin.neutral(model), np.zeros(model.nv))  # compiles the state kernels
+        self._compile_step()
+        self.reset(pin.neutral(model), np.zeros(model.nv))
         if self.fall_detector is not None:  # and the fall check's, before any timed step
             self._watched.height_tilt_spin(self._q, self._v)
 
@@ -737,6 +745,30 @@ class MujocoSimulator(Backend):
         self._in_contact, self._started = self._flags[:n_points], self._flags[n_points:]
         self._qpos, self._qvel, self._qfrc_applied = data.qpos, data.qvel, data.qfrc_applied
         self._site_xpos, self._warnings = data.site_xpos, data.warning.number[_UNSTABLE]
+
+    def _compile_step(self) -> None:
+        """Compile (or load from numba's cache) the step's kernels before any timed step: for
+        MuJoCo's contact arrays as they come with contacts (strided views) and without (empty,
+        contiguous). Writes the step buffers: ``reset`` follows."""
+        n = self.n_actuated
+        apply_torques(
+            np.zeros(n), _NO_FORCE, self.plant.torque_limit, np.zeros((1, n)),
+            np.zeros(2, dtype=np.int64), np.zeros(self.model.nv), self._dof_index,
+            self.n_base_dofs,
+        )  # fmt: skip
+        strided = (  # two contacts skipped (no constraint rows), in strided arrays
+            np.zeros((2, 4), dtype=np.int32)[:, :2],
+            np.full(4, -1, dtype=np.int32)[::2],
+            np.zeros((2, 18))[:, :9],
+            np.zeros((2, 6))[:, :3],
+        )
+        empty = tuple(np.ascontiguousarray(a[:0]) for a in strided)
+        for geom, efc_address, frame, position in (strided, empty):
+            settle(
+                self._qpos, self._qvel, self._warnings, geom, efc_address, frame, position,
+                np.zeros(0), self._site_xpos, self._tables, self._constants, self._work,
+                self._flags, self.plant.noise, 0.0, math.nan,
+            )  # fmt: skip
 
     def _pack_fall_checks(self) -> None:
         """The fall thresholds and base kind in the packed arrays, for the detector in

@@ -39,11 +39,16 @@ MuJoCo's code warm (its ``mj_step`` measured 13.5 us against 19 us inside the st
 Talos drumming and the biped walking, each on the ideal and the realistic plant
 (:mod:`dmpopt_robots.plants`). The ratio of the medians is the overhead (the issue's bound: 1.5).
 
+``--trace FILE`` records every state of a few runs (:func:`trace`) and ``--compare A B``
+compares two such files bitwise: run ``--trace`` on the code before a change and after it.
+
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
-[--states 20] [--video FILE.webp] [--overhead] [--overhead-seconds 2]``.
+[--states 20] [--video FILE.webp] [--overhead] [--overhead-seconds 2] [--trace FILE]
+[--compare A B]``.
 """
 
 import argparse
+import dataclasses
 import time
 from contextlib import contextmanager
 
@@ -318,6 +323,115 @@ def print_table(title: str, results: dict) -> None:
             )
 
 
+def trace(robot, dmps, biped, path) -> None:
+    """Record every state ``MujocoSimulator.step`` returns in a few runs into ``path`` (a
+    pickle): Talos drumming 1 s and the biped walking 2 s with a push, each on the ideal and
+    the realistic plant; Talos limp under random torques and base forces (ideal) and limp
+    (realistic), pushed, until it falls; the biped limp (realistic) until it falls; Talos
+    diverging. Two traces of the same code are equal bitwise (``--compare``): one of the code
+    before a change and one after show that it kept every value."""
+    import pickle
+
+    original, runs, steps = MujocoSimulator.step, {}, []
+
+    def recording(simulator, tau, base_force=None):
+        try:
+            state = original(simulator, tau, base_force)
+        except Exception as error:
+            steps.append(("raised", type(error).__name__, str(error)))
+            raise
+        again = simulator.state
+        steps.append(
+            (dataclasses.astuple(state), again.q, again.q_measured,
+             np.array(simulator.mj_data.qfrc_applied))
+        )  # fmt: skip
+        return state
+
+    def limp(parameters, base_force):
+        simulator, q0 = make_plant("mujoco", robot, humanoid.drumming_posture(robot), parameters)
+        simulator.reset(q0)
+        rng = np.random.default_rng(1)
+        for k in range(3000):
+            force = rng.normal(size=6) * 20 if base_force else None
+            if simulator.step(rng.normal(size=simulator.n_actuated) * 0.2, force).fallen:
+                break
+            if k == 100:
+                simulator.push("base_link", [60.0, 0, 0], 0.2)
+
+    def biped_limp():
+        simulator = biped_study.walker.make_simulator(biped, "mujoco", realistic_plant(biped), None)
+        q = pin.neutral(biped.model)
+        q[1] = 0.62
+        simulator.reset(q)
+        rng = np.random.default_rng(2)
+        for _ in range(3000):
+            if simulator.step(rng.normal(size=simulator.n_actuated), rng.normal(size=3)).fallen:
+                break
+
+    def diverge():
+        simulator, q0 = make_plant("mujoco", robot, humanoid.drumming_posture(robot))
+        simulator.step(np.full(simulator.n_actuated, 1e4))
+
+    _, gait = biped_study.learn_gait()
+    scenarios = {}
+    for plant in ("ideal", "realistic"):
+        talos_plant = realistic_plant(robot) if plant == "realistic" else None
+        biped_plant = realistic_plant(biped) if plant == "realistic" else None
+        scenarios[f"talos {plant}"] = lambda p=talos_plant: run("mujoco", robot, dmps, 1.0,
+                                                                 parameters=p)  # fmt: skip
+        scenarios[f"biped {plant} push"] = lambda p=biped_plant: biped_study.walk(
+            biped, gait, 2.0, biped_study.DEMO_FREQUENCY, push_impulse=8.0, push_time=0.5,
+            plant=p,
+        )  # fmt: skip
+    scenarios["talos limp ideal"] = lambda: limp(None, True)
+    scenarios["talos limp realistic"] = lambda: limp(realistic_plant(robot), False)
+    scenarios["biped limp"] = biped_limp
+    scenarios["talos diverges"] = diverge
+    MujocoSimulator.step = recording
+    try:
+        for name, scenario in scenarios.items():
+            steps.clear()
+            try:
+                scenario()
+            except Exception:  # noqa: BLE001 - recorded in the trace
+                pass
+            runs[name] = list(steps)
+            print(f"{name}: {len(steps)} steps")
+    finally:
+        MujocoSimulator.step = original
+    with open(path, "wb") as file:
+        pickle.dump(runs, file)
+
+
+def compare(first, second) -> int:
+    """Print, per run of two traces, how many steps differ in any bit; 0 if none."""
+    import pickle
+
+    def same(a, b) -> bool:
+        if isinstance(a, np.ndarray):
+            return isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape and (
+                a.tobytes() == b.tobytes()
+            )  # fmt: skip
+        if isinstance(a, (tuple, list)):
+            return type(a) is type(b) and len(a) == len(b) and all(map(same, a, b))
+        if dataclasses.is_dataclass(a):
+            return same(dataclasses.astuple(a), dataclasses.astuple(b))
+        return a == b
+
+    traces = []
+    for path in (first, second):
+        with open(path, "rb") as file:
+            traces.append(pickle.load(file))
+    differing = 0
+    for name in sorted(set(traces[0]) | set(traces[1])):
+        a, b = traces[0].get(name, []), traces[1].get(name, [])
+        n = sum(not same(x, y) for x, y in zip(a, b)) + abs(len(a) - len(b))
+        print(f"{name}: {len(a)} / {len(b)} steps, {n} differ")
+        differing += n
+    print("identical" if not differing else f"{differing} steps differ")
+    return differing
+
+
 def main():
     """Command line: run both backends and print the side-by-side table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -330,9 +444,16 @@ def main():
     parser.add_argument(
         "--overhead-seconds", type=float, default=2.0, help="simulated time per overhead run [s]"
     )
+    parser.add_argument("--trace", help="record the states of a few runs into this file")
+    parser.add_argument("--compare", nargs=2, help="compare two --trace files bitwise")
     args = parser.parse_args()
+    if args.compare:
+        raise SystemExit(1 if compare(*args.compare) else 0)
     robot = load_talos(args.variant)
     biped = load_biped()
+    if args.trace:
+        trace(robot, humanoid.learn_drumming(humanoid.demonstrate_drumming()), biped, args.trace)
+        return
     if args.overhead:
         dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
         seconds = args.overhead_seconds

@@ -27,20 +27,28 @@ First, the model agreement (the answer key of ``tests/sim/test_mujoco.py`` as nu
 URDF in link positions [m] and rotation matrices, link velocities (local frame), the mass matrix
 and the bias forces (relative to their largest entry), after the coordinate change.
 
-Last, the step overhead (``--overhead`` prints only this): the CPU time of
-``MujocoSimulator.step`` against MuJoCo's own ``mj_step`` on the same state and the same applied
-forces, step by step in the same loop (before each step the MuJoCo data is copied into a
-shadow that runs ``mj_step`` with the forces the step applies, or, when the shadow goes
-first, those of the step before; the two alternate in going first, so that neither always
-finds the caches warm; thread time of each), for Talos drumming and the biped walking, each
-on the ideal and the realistic plant (:mod:`dmpopt_robots.plants`). The ratio of the medians is the
-overhead (the issue's bound: 1.5).
+Last, the step overhead (``--overhead`` prints only this): the CPU time (thread time) of
+``MujocoSimulator.step`` against that of the ``mj_step`` it calls, in the same call: the
+simulator's ``mujoco`` module is wrapped so that its ``mj_step`` (``mj_step1`` + ``mj_step2``
+on steps with a push) is timed inside the step; the timer's own cost (a timed call of nothing,
+measured in the same run) is taken off both. Same state, same forces, same caches. (Earlier
+versions ran ``mj_step`` on a copy of the data beside the step: copying before the step
+evicted the step's Python objects from the cache (the walking biped's step measured 85-95 us
+after a copy, 50 us without), and a copy kept in step and run right after the step found
+MuJoCo's code warm (its ``mj_step`` measured 13.5 us against 19 us inside the step).) For
+Talos drumming and the biped walking, each on the ideal and the realistic plant
+(:mod:`dmpopt_robots.plants`). The ratio of the medians is the overhead (the issue's bound: 1.5).
+
+``--trace FILE`` records every state of a few runs (:func:`trace`) and ``--compare A B``
+compares two such files bitwise: run ``--trace`` on the code before a change and after it.
 
 Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped-seconds 10]
-[--states 20] [--video FILE.webp] [--overhead] [--overhead-seconds 2]``.
+[--states 20] [--video FILE.webp] [--overhead] [--overhead-seconds 2] [--trace FILE]
+[--compare A B]``.
 """
 
 import argparse
+import dataclasses
 import time
 from contextlib import contextmanager
 
@@ -67,32 +75,68 @@ def make_plant(backend: str, robot, q_start: np.ndarray, parameters=None):
     return humanoid.mujoco_plant(friction=1.0, parameters=parameters)(robot, q_start)
 
 
+class _TimedMujoco:
+    """The ``mujoco`` module with ``mj_step`` (and ``mj_step1`` + ``mj_step2``) timed in
+    thread time: ``inner`` accumulates the time of the current step's calls."""
+
+    def __init__(self, module):
+        self._module, self.inner = module, 0.0
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+    def _timed(self, function, *args):
+        begin = time.thread_time()
+        function(*args)
+        self.inner += time.thread_time() - begin
+
+    def mj_step(self, model, data):
+        self._timed(self._module.mj_step, model, data)
+
+    def mj_step1(self, model, data):
+        self._timed(self._module.mj_step1, model, data)
+
+    def mj_step2(self, model, data):
+        self._timed(self._module.mj_step2, model, data)
+
+
+def _timer_costs(n: int = 2000) -> tuple[float, float]:
+    """``(outer, inner)`` [s], medians: the thread time the wrapped ``mj_step`` of a module
+    whose ``mj_step`` does nothing adds to a timer around it, and the time it reads itself."""
+    timed, outer, inner = _TimedMujoco(_NoMujoco), [], []
+    for _ in range(n):
+        timed.inner = 0.0
+        begin = time.thread_time()
+        timed.mj_step(None, None)
+        outer.append(time.thread_time() - begin)
+        inner.append(timed.inner)
+    return float(np.median(outer)), float(np.median(inner))
+
+
+class _NoMujoco:
+    """A ``mujoco`` whose ``mj_step`` does nothing (the timer's own cost)."""
+
+    @staticmethod
+    def mj_step(model, data):
+        pass
+
+
 @contextmanager
 def step_timer():
-    """Time every ``MujocoSimulator.step`` and an ``mj_step`` of the same step (see the module
-    notes); yields the two lists of thread times [s], filled as the steps run."""
-    import mujoco
-
+    """Time every ``MujocoSimulator.step`` and the ``mj_step`` it calls (see the module
+    notes); yields the two lists of thread times [s], filled as the steps run (raw: the
+    timer's own cost is taken off in :func:`overhead`)."""
     original = MujocoSimulator.step
-    steps, mj_steps, shadows = [], [], {}
+    steps, mj_steps = [], []
 
     def timed(simulator, tau, base_force=None):
-        model, data = simulator.mj_model, simulator.mj_data
-        shadow = shadows.setdefault(id(simulator), mujoco.MjData(model))
-        mujoco.mj_copyData(shadow, model, data)
-        shadow_first = len(steps) % 2 == 0  # each goes first every other step (warm caches)
-        if shadow_first:  # with the last step's applied forces, which the copy holds
-            begin = time.thread_time()
-            mujoco.mj_step(model, shadow)
-            mj_steps.append(time.thread_time() - begin)
+        if not isinstance(simulator._mj, _TimedMujoco):
+            simulator._mj = _TimedMujoco(simulator._mj)
+        simulator._mj.inner = 0.0
         begin = time.thread_time()
         state = original(simulator, tau, base_force)
         steps.append(time.thread_time() - begin)
-        if not shadow_first:
-            shadow.qfrc_applied[:] = data.qfrc_applied
-            begin = time.thread_time()
-            mujoco.mj_step(model, shadow)
-            mj_steps.append(time.thread_time() - begin)
+        mj_steps.append(simulator._mj.inner)
         return state
 
     MujocoSimulator.step = timed
@@ -118,8 +162,11 @@ def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> 
                 biped, gait, biped_seconds, biped_study.DEMO_FREQUENCY, plant=parameters
             )
         rows[f"biped {plant}"] = steps, mj_steps
+    outer, inner = _timer_costs()
     table = {}
     for name, (steps, mj_steps) in rows.items():
+        steps = np.asarray(steps) - outer  # the timer inside the step
+        mj_steps = np.asarray(mj_steps) - inner  # the timer's own reading
         step, mj_step = 1e6 * np.median(steps), 1e6 * np.median(mj_steps)
         table[name] = {
             "steps": len(steps),
@@ -276,6 +323,115 @@ def print_table(title: str, results: dict) -> None:
             )
 
 
+def trace(robot, dmps, biped, path) -> None:
+    """Record every state ``MujocoSimulator.step`` returns in a few runs into ``path`` (a
+    pickle): Talos drumming 1 s and the biped walking 2 s with a push, each on the ideal and
+    the realistic plant; Talos limp under random torques and base forces (ideal) and limp
+    (realistic), pushed, until it falls; the biped limp (realistic) until it falls; Talos
+    diverging. Two traces of the same code are equal bitwise (``--compare``): one of the code
+    before a change and one after show that it kept every value."""
+    import pickle
+
+    original, runs, steps = MujocoSimulator.step, {}, []
+
+    def recording(simulator, tau, base_force=None):
+        try:
+            state = original(simulator, tau, base_force)
+        except Exception as error:
+            steps.append(("raised", type(error).__name__, str(error)))
+            raise
+        again = simulator.state
+        steps.append(
+            (dataclasses.astuple(state), again.q, again.q_measured,
+             np.array(simulator.mj_data.qfrc_applied))
+        )  # fmt: skip
+        return state
+
+    def limp(parameters, base_force):
+        simulator, q0 = make_plant("mujoco", robot, humanoid.drumming_posture(robot), parameters)
+        simulator.reset(q0)
+        rng = np.random.default_rng(1)
+        for k in range(3000):
+            force = rng.normal(size=6) * 20 if base_force else None
+            if simulator.step(rng.normal(size=simulator.n_actuated) * 0.2, force).fallen:
+                break
+            if k == 100:
+                simulator.push("base_link", [60.0, 0, 0], 0.2)
+
+    def biped_limp():
+        simulator = biped_study.walker.make_simulator(biped, "mujoco", realistic_plant(biped), None)
+        q = pin.neutral(biped.model)
+        q[1] = 0.62
+        simulator.reset(q)
+        rng = np.random.default_rng(2)
+        for _ in range(3000):
+            if simulator.step(rng.normal(size=simulator.n_actuated), rng.normal(size=3)).fallen:
+                break
+
+    def diverge():
+        simulator, q0 = make_plant("mujoco", robot, humanoid.drumming_posture(robot))
+        simulator.step(np.full(simulator.n_actuated, 1e4))
+
+    _, gait = biped_study.learn_gait()
+    scenarios = {}
+    for plant in ("ideal", "realistic"):
+        talos_plant = realistic_plant(robot) if plant == "realistic" else None
+        biped_plant = realistic_plant(biped) if plant == "realistic" else None
+        scenarios[f"talos {plant}"] = lambda p=talos_plant: run("mujoco", robot, dmps, 1.0,
+                                                                 parameters=p)  # fmt: skip
+        scenarios[f"biped {plant} push"] = lambda p=biped_plant: biped_study.walk(
+            biped, gait, 2.0, biped_study.DEMO_FREQUENCY, push_impulse=8.0, push_time=0.5,
+            plant=p,
+        )  # fmt: skip
+    scenarios["talos limp ideal"] = lambda: limp(None, True)
+    scenarios["talos limp realistic"] = lambda: limp(realistic_plant(robot), False)
+    scenarios["biped limp"] = biped_limp
+    scenarios["talos diverges"] = diverge
+    MujocoSimulator.step = recording
+    try:
+        for name, scenario in scenarios.items():
+            steps.clear()
+            try:
+                scenario()
+            except Exception:  # noqa: BLE001 - recorded in the trace
+                pass
+            runs[name] = list(steps)
+            print(f"{name}: {len(steps)} steps")
+    finally:
+        MujocoSimulator.step = original
+    with open(path, "wb") as file:
+        pickle.dump(runs, file)
+
+
+def compare(first, second) -> int:
+    """Print, per run of two traces, how many steps differ in any bit; 0 if none."""
+    import pickle
+
+    def same(a, b) -> bool:
+        if isinstance(a, np.ndarray):
+            return isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape and (
+                a.tobytes() == b.tobytes()
+            )  # fmt: skip
+        if isinstance(a, (tuple, list)):
+            return type(a) is type(b) and len(a) == len(b) and all(map(same, a, b))
+        if dataclasses.is_dataclass(a):
+            return same(dataclasses.astuple(a), dataclasses.astuple(b))
+        return a == b
+
+    traces = []
+    for path in (first, second):
+        with open(path, "rb") as file:
+            traces.append(pickle.load(file))
+    differing = 0
+    for name in sorted(set(traces[0]) | set(traces[1])):
+        a, b = traces[0].get(name, []), traces[1].get(name, [])
+        n = sum(not same(x, y) for x, y in zip(a, b)) + abs(len(a) - len(b))
+        print(f"{name}: {len(a)} / {len(b)} steps, {n} differ")
+        differing += n
+    print("identical" if not differing else f"{differing} steps differ")
+    return differing
+
+
 def main():
     """Command line: run both backends and print the side-by-side table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -288,9 +444,16 @@ def main():
     parser.add_argument(
         "--overhead-seconds", type=float, default=2.0, help="simulated time per overhead run [s]"
     )
+    parser.add_argument("--trace", help="record the states of a few runs into this file")
+    parser.add_argument("--compare", nargs=2, help="compare two --trace files bitwise")
     args = parser.parse_args()
+    if args.compare:
+        raise SystemExit(1 if compare(*args.compare) else 0)
     robot = load_talos(args.variant)
     biped = load_biped()
+    if args.trace:
+        trace(robot, humanoid.learn_drumming(humanoid.demonstrate_drumming()), biped, args.trace)
+        return
     if args.overhead:
         dmps = humanoid.learn_drumming(humanoid.demonstrate_drumming())
         seconds = args.overhead_seconds

@@ -53,7 +53,14 @@ geometry (so ``body_collisions`` must stay on to hold one), start at their given
 Falls: the options ``falls``, ``fall_frame`` and ``fall_height`` of :class:`dmpopt.sim.Simulator`
 give the same thresholds (:func:`dmpopt.sim.falls.fall_checks`, standing height above the lowest
 contact point in the neutral configuration) and the same checks after each step; the first
-fall sets ``state.fall`` and ``step`` refuses to go on until ``reset``.
+fall sets ``state.fall`` and ``step`` refuses to go on until ``reset``. The compiled read-out
+after each step (:func:`dmpopt.sim.kernels.settle`) screens the four measures; a step where
+one reaches its threshold or comes within 1e-9 (relative) of it is decided by
+:meth:`~dmpopt.sim.falls.FallDetector.check` on the watched frame's measures, as before (a
+``FallDetector`` subclass is asked every step).
+
+Speed: a step costs ``mj_step`` plus two compiled calls and the copies of the returned state
+(``benchmarks/bench_mujoco.py --overhead`` measures the ratio).
 
 The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
 defaults to ``egl`` (headless rendering) when unset at that moment.
@@ -78,13 +85,22 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
+from dmpopt.sim import kernels
 from dmpopt.sim.falls import (
     Fall,
     FallDetector,
     fall_checks,
     refuse_floating_without_contacts,
 )
-from dmpopt.sim.kernels import STATE_OK, STATE_UNSTABLE, pinocchio_state, read_contacts
+from dmpopt.sim.kernels import (
+    STATE_OK,
+    STATE_UNSTABLE,
+    apply_torques,
+    pinocchio_state,
+    read_contacts,
+    settle,
+    to_pinocchio,
+)
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
@@ -99,6 +115,8 @@ _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
 _FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
 _UNSTABLE = slice(3, 6)  # MuJoCo's warnings BADQPOS, BADQVEL, BADQACC: it reset the data
 _NONE = np.zeros(0, dtype=np.int32)
+_NO_FORCE = np.zeros(0)
+_FLOAT = np.dtype(float)
 
 
 @dataclass(frozen=True)
@@ -299,7 +317,7 @@ class MujocoSimulator(Backend):
                 "robot.model with urdf=robot.source"
             )
         self.dt = _positive("dt", dt)
-        self.max_speed = _positive("max_speed", max_speed)
+        self._max_speed = _positive("max_speed", max_speed)
         friction = _positive("friction", friction, allow_zero=True)
         contact_radius = _positive("contact_radius", contact_radius)
         if not isinstance(body_collisions, (bool, np.bool_)):
@@ -363,9 +381,11 @@ class MujocoSimulator(Backend):
         self._check_mass(urdf)
         self._n_points = len(contact_points)
         self._index_contact_geoms(contact_points)
-        self.reset(pin.neutral(model), np.zeros(model.nv))  # compiles the state kernels
+        self._pack_step_arrays()
+        self._compile_step()
+        self.reset(pin.neutral(model), np.zeros(model.nv))
         if self.fall_detector is not None:  # and the fall check's, before any timed step
-            self._watched.height_tilt_spin(*self._qv)
+            self._watched.height_tilt_spin(self._q, self._v)
 
     # ------------------------------------------------------------------ model building
     def _spec(self, urdf: Path, package_dirs):
@@ -670,15 +690,119 @@ class MujocoSimulator(Backend):
                 joint = mj_model.joint(f"{model.names[1]}_{k}")
                 qpos[k], dofs[k] = joint.qposadr[0], joint.dofadr[0]
         self._qpos_index, self._dof_index = qpos, dofs
-        n_base = self.n_base_dofs
-        self._actuated_dofs = _slice_if_contiguous(dofs[n_base:])
-        self._base_dofs = _slice_if_contiguous(dofs[:n_base])
         self._quaternion = None  # MuJoCo's (w, x, y, z) of a free base in qpos
         self._quaternion_start = -1
         if self._base == "free":
             self._quaternion_start = int(qpos[6])
             self._quaternion = slice(int(qpos[6]), int(qpos[6]) + 4)
         self._rotation = np.empty(9)  # buffers of the base rotation
+
+    def _pack_step_arrays(self) -> None:
+        """The arrays :func:`dmpopt.sim.kernels.settle` reads and writes after each step
+        (layouts there), the views of them the simulator reads, and MuJoCo's arrays that
+        stay in place (views into ``mj_data``, valid while it lives)."""
+        model, data = self.model, self.mj_data
+        nq, nv, n_points = model.nq, model.nv, self._n_points
+        watched, axes, parts = self._watched, [], []
+        placements = [np.zeros(12)] * 2
+        if watched is not None:
+            placements = [_flat(watched._placement), _flat(watched._offset)]
+            if self._base != "free":
+                composite = model.joints[1].extract()
+                for (kind, axis), placement in zip(self._base, composite.jointPlacements):
+                    axes.append(int(np.argmax(axis)) + (3 if kind == "R" else 0))
+                    parts.append(_flat(placement))
+        header = np.zeros(kernels.TABLES_HEADER, dtype=np.int64)
+        header[kernels.N_Q], header[kernels.N_V], header[kernels.N_POINTS] = nq, nv, n_points
+        header[kernels.N_GEOMS] = self._foot_code.size
+        header[kernels.N_FEET], header[kernels.WIDTH] = self._foot_points.shape
+        header[kernels.N_PARTS] = len(axes)
+        header[kernels.QUATERNION_START] = self._quaternion_start
+        header[kernels.NOISY] = self.plant.noisy
+        self._tables = np.concatenate(
+            [
+                header,
+                self._qpos_index,
+                self._dof_index,
+                self._point_sites,
+                self._foot_code,
+                self._foot_points.ravel(),
+                np.array(axes, dtype=np.int64),
+            ]
+        ).astype(np.int64)
+        self._constants = np.concatenate([np.zeros(5), *placements, *parts])
+        self.max_speed = self._max_speed  # into the constants
+        self._pack_fall_checks()
+        self._work = np.zeros(2 * (nq + nv) + 6 * n_points)
+        self._q, self._v = self._work[:nq], self._work[nq : nq + nv]
+        at = nq + nv
+        self._forces = self._work[at : at + 3 * n_points].reshape(n_points, 3)
+        self._positions = self._work[at + 3 * n_points : at + 6 * n_points].reshape(n_points, 3)
+        at += 6 * n_points
+        self._q_measured = self._work[at : at + nq]
+        self._v_measured = self._work[at + nq :]
+        self._flags = np.zeros(2 * n_points, dtype=bool)
+        self._in_contact, self._started = self._flags[:n_points], self._flags[n_points:]
+        self._qpos, self._qvel, self._qfrc_applied = data.qpos, data.qvel, data.qfrc_applied
+        self._site_xpos, self._warnings = data.site_xpos, data.warning.number[_UNSTABLE]
+
+    def _compile_step(self) -> None:
+        """Compile (or load from numba's cache) the step's kernels before any timed step: for
+        MuJoCo's contact arrays as they come with contacts (strided views) and without (empty,
+        contiguous). Writes the step buffers: ``reset`` follows."""
+        n = self.n_actuated
+        apply_torques(
+            np.zeros(n), _NO_FORCE, self.plant.torque_limit, np.zeros((1, n)),
+            np.zeros(2, dtype=np.int64), np.zeros(self.model.nv), self._dof_index,
+            self.n_base_dofs,
+        )  # fmt: skip
+        strided = (  # two contacts skipped (no constraint rows), in strided arrays
+            np.zeros((2, 4), dtype=np.int32)[:, :2],
+            np.full(4, -1, dtype=np.int32)[::2],
+            np.zeros((2, 18))[:, :9],
+            np.zeros((2, 6))[:, :3],
+        )
+        empty = tuple(np.ascontiguousarray(a[:0]) for a in strided)
+        for geom, efc_address, frame, position in (strided, empty):
+            settle(
+                self._qpos, self._qvel, self._warnings, geom, efc_address, frame, position,
+                np.zeros(0), self._site_xpos, self._tables, self._constants, self._work,
+                self._flags, self.plant.noise, 0.0, math.nan,
+            )  # fmt: skip
+
+    def _pack_fall_checks(self) -> None:
+        """The fall thresholds and base kind in the packed arrays, for the detector in
+        ``fall_detector`` (``step`` re-packs when it is replaced)."""
+        detector = self.fall_detector
+        if detector is not None and self._watched is None:
+            raise InvalidInputError(
+                "fall_detector set on a simulator built without fall checks; build it with "
+                "falls=FallDetector(...) instead"
+            )
+        # a FallDetector subclass may check differently: then every step checks in Python
+        self._screened = detector is None or type(detector) is FallDetector
+        base = kernels.BASE_UNCHECKED
+        if detector is not None and self._screened:
+            base = kernels.BASE_FREE if self._base == "free" else kernels.BASE_COMPOSITE
+            self._constants[1:5] = (
+                detector.min_height,
+                detector.max_tilt,
+                detector.max_flight_time,
+                detector.max_spin,
+            )
+        self._tables[kernels.BASE] = base
+        self._packed_detector = detector
+
+    @property
+    def max_speed(self) -> float:
+        """Any ``|v_i|`` above this raises :class:`SimulationDiverged` [m/s or rad/s]."""
+        return self._max_speed
+
+    @max_speed.setter
+    def max_speed(self, value) -> None:
+        self._max_speed = _positive("max_speed", value)
+        if hasattr(self, "_constants"):
+            self._constants[0] = self._max_speed
 
     def _locate(self, frame_name: str, offset) -> tuple[int, np.ndarray]:
         """MuJoCo body of a frame and the point's position in that body's frame."""
@@ -732,13 +856,21 @@ class MujocoSimulator(Backend):
             qpos, qvel, self._qpos_index, self._dof_index, self._quaternion_start, np.inf, _NONE
         )[:2]
 
-    def _apply_base_force(self, force: np.ndarray, out: np.ndarray) -> None:
-        """Write Pinocchio's generalised force on the base (n_base_dofs,) into MuJoCo's ``out``
-        (power-preserving: a free base's linear part rotated to the world frame)."""
+    def _base_force(self, force) -> np.ndarray:
+        """MuJoCo's generalised force on the base dofs of Pinocchio's ``force``
+        (n_base_dofs,), power-preserving: a free base's linear part rotated to the world frame
+        (a contiguous float array; non-finite entries are left to the caller)."""
+        if not (
+            type(force) is np.ndarray
+            and force.dtype == _FLOAT
+            and force.shape == (self.n_base_dofs,)
+            and force.flags.c_contiguous
+        ):
+            force = np.ascontiguousarray(_vector("base_force", force, self.n_base_dofs))
         if self._quaternion is not None:
             force = force.copy()
             force[:3] = self._base_rotation(self.mj_data.qpos) @ force[:3]
-        out[self._base_dofs] = force
+        return force
 
     # ------------------------------------------------------------------ state
     def reset(self, q, v=None, t: float = 0.0) -> SimState:
@@ -750,7 +882,11 @@ class MujocoSimulator(Backend):
         mujoco.mj_resetData(self.mj_model, data)
         data.qpos[:], data.qvel[:], data.time = qpos, qvel, t
         mujoco.mj_forward(self.mj_model, data)
-        self._qv = self.from_mujoco(data.qpos, data.qvel)
+        quaternion_start = self._quaternion_start
+        to_pinocchio(
+            data.qpos, data.qvel, self._qpos_index, self._dof_index, quaternion_start, self._q,
+            self._v,
+        )  # fmt: skip
         self._pushes: list[_Push] = []
         self.touchdown_events: list[TouchdownEvent] = []
         self._last_touchdowns: tuple = ()
@@ -758,7 +894,7 @@ class MujocoSimulator(Backend):
         self.plant.reset()
         self.plant.draw()
         self._read_contacts()
-        self._last_contact_time = t if self._in_contact.any() else None
+        self._last_contact_time = t if self._in_contact.any() else math.nan  # NaN: none yet
         return self.state
 
     @property
@@ -778,8 +914,7 @@ class MujocoSimulator(Backend):
 
     def _q_v(self) -> tuple[np.ndarray, np.ndarray]:
         """Pinocchio's (q, v) of the state after the last step or reset (copies)."""
-        q, v = self._qv
-        return q.copy(), v.copy()
+        return self._q.copy(), self._v.copy()
 
     # ------------------------------------------------------------------ pushes
     def _apply_pushes(self) -> None:
@@ -820,55 +955,64 @@ class MujocoSimulator(Backend):
                 f"step() after the robot fell at t = {self.fall.time:.3f} s ({self.fall.reason});"
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
-        mujoco, model, data = self._mj, self.mj_model, self.mj_data
-        applied = data.qfrc_applied
-        applied[self._actuated_dofs] = self.plant.actuate(
-            _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
-        )
-        if base_force is None:
-            applied[self._base_dofs] = 0.0
-        else:
-            self._apply_base_force(_vector("base_force", base_force, self.n_base_dofs), applied)
+        tau = torques
+        if not (
+            type(tau) is np.ndarray
+            and tau.dtype == _FLOAT
+            and tau.shape == (self.n_actuated,)
+            and tau.flags.c_contiguous
+        ):  # else checked for finite entries in apply_torques
+            tau = _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
+        force = _NO_FORCE if base_force is None else self._base_force(base_force)
+        plant, data = self.plant, self.mj_data
+        if self.fall_detector is not self._packed_detector:
+            self._pack_fall_checks()
+        if not apply_torques(
+            tau, force, plant.torque_limit, plant.line, plant.ring, self._qfrc_applied,
+            self._dof_index, self.n_base_dofs,
+        ):  # fmt: skip
+            _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)  # raises
+            _vector("base_force", base_force, self.n_base_dofs)  # raises
+            raise InvalidInputError(f"base_force {base_force} turned to the world overflows")
         if self._pushes:
-            mujoco.mj_step1(model, data)  # kinematics and collisions at the current state
+            self._mj.mj_step1(self.mj_model, data)  # kinematics and collisions at the start
             self._apply_pushes()
-            mujoco.mj_step2(model, data)
+            self._mj.mj_step2(self.mj_model, data)
         else:
-            mujoco.mj_step(model, data)
-        q, v, status = pinocchio_state(
-            data.qpos,
-            data.qvel,
-            self._qpos_index,
-            self._dof_index,
-            self._quaternion_start,
-            self.max_speed,
-            data.warning.number[_UNSTABLE],
-        )
+            self._mj.mj_step(self.mj_model, data)
+        contact = data.contact  # contacts found and solved at the start of the step
+        status, any_contact, n_started, check_fall = settle(
+            self._qpos, self._qvel, self._warnings, contact.geom, contact.efc_address,
+            contact.frame, contact.pos, data.efc_force, self._site_xpos, self._tables,
+            self._constants, self._work, self._flags, plant.noise, data.time,
+            self._last_contact_time,
+        )  # fmt: skip
         if status == STATE_UNSTABLE:  # MuJoCo reset the data: never go on silently
             self._raise_unstable()
         if status != STATE_OK:
             self._raise_too_fast()
-        self._qv = q, v
-        was_in_contact = self._in_contact
-        self._read_contacts()  # contacts found and solved at the start of the step
-        in_contact = self._in_contact
-        if self._any_contact:
+        self._last_touchdowns = ()
+        if any_contact:
             self._last_contact_time = data.time  # end of a step with contact
-            if (in_contact > was_in_contact).any():
-                self._record_touchdowns(np.flatnonzero(in_contact > was_in_contact))
-            else:
-                self._last_touchdowns = ()
-        else:
-            self._last_touchdowns = ()
-        self.plant.draw()
-        if self.fall_detector is not None:
+            if n_started:
+                self._record_touchdowns()
+        if plant.noisy:
+            plant.draw_next()
+        if check_fall or not self._screened:
             self._check_fall()
-        return self.state
+        q, v = self._q.copy(), self._v.copy()
+        q_measured, v_measured = q, v
+        if plant.noisy:
+            q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
+        return SimState._of_step(
+            data.time, q, v, self._forces.copy(), self._in_contact.copy(),
+            self._positions.copy(), self._last_touchdowns, self.fall, q_measured, v_measured,
+        )  # fmt: skip
 
-    def _record_touchdowns(self, started: np.ndarray) -> None:
+    def _record_touchdowns(self) -> None:
         self._last_touchdowns = tuple(
             TouchdownEvent(self.t, int(i), self.contact_frames[i], self._positions[i].copy())
-            for i in started
+            for i in np.flatnonzero(self._started)
         )
         self.touchdown_events.extend(self._last_touchdowns)
 
@@ -876,11 +1020,12 @@ class MujocoSimulator(Backend):
         """Forces, positions and contact flags of the contact points (start of the last step):
         each MuJoCo contact of a foot geom goes to the nearest of that geom's contact points (a
         sphere's own point, a sole's corners), its force rotated from the contact frame to the
-        world (:func:`dmpopt.sim.kernels.read_contacts`)."""
+        world (:func:`dmpopt.sim.kernels.read_contacts`; ``step`` reads them in
+        :func:`dmpopt.sim.kernels.settle`)."""
         data = self.mj_data
-        self._positions = data.site_xpos[self._point_sites]
+        self._positions[:] = data.site_xpos[self._point_sites]
         contacts = data.contact
-        self._forces, self._in_contact = read_contacts(
+        read_contacts(
             contacts.geom,
             contacts.efc_address,
             contacts.frame,
@@ -889,8 +1034,9 @@ class MujocoSimulator(Backend):
             self._foot_code,
             self._foot_points,
             self._positions,
+            self._forces,
+            self._in_contact,
         )
-        self._any_contact = self._in_contact.any()
 
     def _raise_unstable(self) -> None:
         numbers = self.mj_data.warning.number[_UNSTABLE]
@@ -910,19 +1056,17 @@ class MujocoSimulator(Backend):
     # ------------------------------------------------------------------ falls
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
-        height, tilt, spin = self._watched.height_tilt_spin(*self._qv)
+        height, tilt, spin = self._watched.height_tilt_spin(self._q, self._v)
         last = self._last_contact_time
         t = self.mj_data.time
         self.fall = self.fall_detector.check(
-            t, height, tilt, 0.0 if last is None else t - last, spin
+            t, height, tilt, 0.0 if math.isnan(last) else t - last, spin
         )
 
 
-def _slice_if_contiguous(indices: np.ndarray):
-    """``indices`` as a slice when they are consecutive (cheaper to index with), else as is."""
-    if indices.size and (np.diff(indices) == 1).all():
-        return slice(int(indices[0]), int(indices[-1]) + 1)
-    return indices
+def _flat(placement: pin.SE3) -> np.ndarray:
+    """A placement as 12 numbers: its rotation row by row, then its translation."""
+    return np.r_[placement.rotation.ravel(), placement.translation]
 
 
 def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
@@ -930,11 +1074,12 @@ def _actuated(tau, n_actuated: int, n_base: int, nv: int) -> np.ndarray:
         type(tau) is np.ndarray
         and tau.dtype == np.float64
         and tau.shape == (n_actuated,)
+        and tau.flags.c_contiguous
         and math.isfinite(tau.sum())  # a NaN or inf entry makes the sum NaN or inf
     ):
         return tau  # the common case, checked in a few operations
     try:
-        array = np.asarray(tau, dtype=float).reshape(-1)
+        array = np.ascontiguousarray(np.asarray(tau, dtype=float).reshape(-1))
     except (TypeError, ValueError):
         raise InvalidInputError(f"torques must be numbers, got {tau!r}") from None
     if array.shape != (n_actuated,):

@@ -35,13 +35,14 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt.exceptions import InvalidInputError
-from dmpopt.sim.kernels import turn_quaternion
+from dmpopt.sim.kernels import add_noise, apply_torques, scale_noise
 from dmpopt.validation import real
 
 __all__ = ["IDEAL", "PlantParameters", "SensorNoise", "base_joint_kind", "with_armature"]
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _PER_JOINT = ("armature", "damping", "friction")
+_NO_FORCE = np.zeros(0)
 
 
 @dataclass(frozen=True)
@@ -298,14 +299,22 @@ class PlantRuntime:
         for name in _PER_JOINT:
             setattr(self, name, parameters.values(name, self.joint_names))
         self.torque_limit = parameters.values("torque_limit", self.joint_names)
-        self._lower_limit = -self.torque_limit
-        self._saturate = bool(np.isfinite(self.torque_limit).any())
         n_base = model.nv - len(self.joint_names)
         noise = parameters.noise
-        self._q_std, self._v_std = np.zeros(model.nq), np.zeros(model.nv)
-        self._rotation_std = 0.0
-        if base == "free":
-            self._q_std[:3], self._rotation_std = noise.base_position, noise.base_orientation
+        nq, nv = model.nq, model.nv
+        self._free = base == "free"
+        # one array (kernels.scale_noise): normals | q_std | v_std | rotation_std | noises
+        n_draws = nq + nv + (3 if self._free else 0)
+        self.noise = np.zeros(n_draws + 2 * (nq + nv) + 4)
+        self._draws = self.noise[:n_draws]
+        self._q_std = self.noise[n_draws : n_draws + nq]
+        self._v_std = self.noise[n_draws + nq : n_draws + nq + nv]
+        self._q_noise = self.noise[n_draws + nq + nv + 1 : n_draws + 2 * nq + nv + 1]
+        self._v_noise = self.noise[n_draws + 2 * nq + nv + 1 : n_draws + 2 * (nq + nv) + 1]
+        self._rotation_noise = self.noise[-3:]
+        rotation_std = 0.0
+        if self._free:
+            self._q_std[:3], rotation_std = noise.base_position, noise.base_orientation
             self._v_std[:3], self._v_std[3:6] = (
                 noise.base_linear_velocity,
                 noise.base_angular_velocity,
@@ -317,6 +326,7 @@ class PlantRuntime:
                 self._v_std[k] = (
                     noise.base_linear_velocity if positional else noise.base_angular_velocity
                 )
+        self.noise[n_draws + nq + nv] = rotation_std
         base_noise = (
             noise.base_position,
             noise.base_orientation,
@@ -331,65 +341,53 @@ class PlantRuntime:
         n_base_q = model.nq - len(self.joint_names)
         self._q_std[n_base_q:] = noise.joint_position
         self._v_std[n_base:] = noise.joint_velocity
-        self._free = base == "free"
-        self._noisy = noise.any
+        self.noisy = noise.any
         self.reset()
 
     def reset(self) -> None:
         """Empty the delay line and restart the noise from the seed."""
-        n, nq, nv = len(self.joint_names), self.model.nq, self.model.nv
-        self._line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
-        self._slot = 0  # the oldest command's row
-        self._filled = False
+        n = len(self.joint_names)
+        self.line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
+        self.ring = np.zeros(2, dtype=np.int64)  # the oldest command's row, line filled
         self._applied = np.zeros(n)
+        self._order = np.arange(n)
         self._rng = np.random.default_rng(self.parameters.seed)
-        self._draws = np.zeros(nq + nv + (3 if self._free else 0))  # one tick's normals
-        self._q_noise = np.zeros(nq)
-        self._v_noise = np.zeros(nv)
-        self._rotation_noise = np.zeros(3)
+        self._q_noise[:], self._v_noise[:], self._rotation_noise[:] = 0.0, 0.0, 0.0
+        if self.noisy:
+            self._rng.standard_normal(out=self._draws)  # the first tick's normals
 
     def actuate(self, tau: np.ndarray) -> np.ndarray:
-        """The torque the motors apply this step for the command ``tau``: saturated, then
-        delayed by ``delay`` ticks (the first command is repeated until the line fills).
+        """The torque the motors apply this step for the finite command ``tau``: saturated,
+        then delayed by ``delay`` ticks (the first command is repeated until the line fills;
+        :func:`dmpopt.sim.kernels.apply_torques`).
 
         Returns a buffer of this runtime, valid until the next call."""
-        applied = self._applied
-        if self._saturate:
-            np.maximum(tau, self._lower_limit, out=applied)
-            np.minimum(applied, self.torque_limit, out=applied)
-        else:
-            applied[:] = tau
-        if not self.parameters.delay:
-            return applied
-        line = self._line
-        if not self._filled:
-            line[:] = applied
-            self._filled = True
-        slot = self._slot
-        oldest = line[slot].copy()
-        line[slot] = applied
-        self._slot = (slot + 1) % line.shape[0]
-        applied[:] = oldest
-        return applied
+        apply_torques(
+            tau, _NO_FORCE, self.torque_limit, self.line, self.ring, self._applied,
+            self._order, 0,
+        )  # fmt: skip
+        return self._applied
 
     def draw(self) -> None:
-        """Draw this tick's measurement noise (once per step, so repeated reads agree): the
-        normals of q, of v, then of the base rotation, in one call."""
-        if not self._noisy:
+        """Turn this tick's normals into its measurement noise (once per step, so repeated
+        reads agree; :func:`dmpopt.sim.kernels.scale_noise`), then draw the next tick's
+        normals (:meth:`draw_next`)."""
+        if not self.noisy:
             return
-        draws, nq, nv = self._draws, self.model.nq, self.model.nv
-        self._rng.standard_normal(out=draws)
-        np.multiply(self._q_std, draws[:nq], out=self._q_noise)
-        np.multiply(self._v_std, draws[nq : nq + nv], out=self._v_noise)
-        if self._free:
-            np.multiply(self._rotation_std, draws[nq + nv :], out=self._rotation_noise)
+        scale_noise(self.noise, self.model.nq, self.model.nv, self._free)
+        self.draw_next()
+
+    def draw_next(self) -> None:
+        """Draw the next tick's normals: those of q, of v, then of the base rotation, in one
+        call. They are drawn a tick ahead, so a step that raises before making its noise
+        leaves the sequence as it was."""
+        self._rng.standard_normal(out=self._draws)
 
     def measure(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The measured ``(q, v)``: the truth plus this tick's noise (a free base's orientation
         turned by the noise's rotation vector, in the base frame: ``R exp(noise)``)."""
-        if not self._noisy:
+        if not self.noisy:
             return q, v
-        q_measured = q + self._q_noise
-        if self._free:
-            turn_quaternion(q, self._rotation_noise, q_measured)
-        return q_measured, v + self._v_noise
+        q_measured, v_measured = np.empty(q.size), np.empty(v.size)
+        add_noise(q, v, self.noise, self._free, q_measured, v_measured)
+        return q_measured, v_measured

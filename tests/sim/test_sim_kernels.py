@@ -12,9 +12,13 @@ from hypothesis import strategies as st
 
 from dmpopt.sim.falls import BaseFrame
 from dmpopt.sim.kernels import (
+    FALL_MARGIN,
     STATE_OK,
     STATE_TOO_FAST,
     STATE_UNSTABLE,
+    _reaches,
+    apply_torques,
+    composite_base_measure,
     free_base_measure,
     pinocchio_state,
     read_contacts,
@@ -105,9 +109,10 @@ def test_contact_forces_go_to_the_nearest_point_in_the_world_frame():
     frames = np.array([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(5)])
     efc_force = rng.normal(size=15)
     efc_address = np.array([0, 3, 6, 9, 12], dtype=np.int32)
-    forces, in_contact = read_contacts(
+    forces, in_contact = np.full((5, 3), np.nan), np.ones(5, dtype=bool)  # overwritten
+    read_contacts(
         geom, efc_address, frames.reshape(5, 9), position, efc_force, foot_code, foot_points,
-        points,
+        points, forces, in_contact,
     )  # fmt: skip
     world = [frames[c].T @ efc_force[3 * c : 3 * c + 3] for c in range(5)]
     expected = np.zeros((5, 3))
@@ -116,3 +121,86 @@ def test_contact_forces_go_to_the_nearest_point_in_the_world_frame():
     expected[4] = world[3]
     np.testing.assert_allclose(forces, expected, atol=TOLERANCE)
     np.testing.assert_array_equal(in_contact, [False, True, True, False, True])
+
+
+PARTS = [pin.JointModelPX, pin.JointModelPY, pin.JointModelPZ,
+         pin.JointModelRX, pin.JointModelRY, pin.JointModelRZ]  # fmt: skip
+
+
+def _placement(rng) -> pin.SE3:
+    quaternion = rng.normal(size=4)
+    return pin.SE3(pin.Quaternion(*(quaternion / np.linalg.norm(quaternion))), rng.normal(size=3))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.integers(0, 5), min_size=1, max_size=4), st.integers(0, 2**32 - 1))
+def test_composite_base_measure_is_pinocchios_placement(axes, seed):
+    """Height, tilt cosine and spin of a frame on a composite of one-axis joints with random
+    placements, as BaseFrame.measure (Pinocchio's composite joint) gives them."""
+    rng = np.random.default_rng(seed)
+    composite, parts = pin.JointModelComposite(), []
+    for axis in axes:
+        placement = _placement(rng)
+        composite.addJoint(PARTS[axis](), placement)
+        parts.append(np.r_[placement.rotation.ravel(), placement.translation])
+    model = pin.Model()
+    root = _placement(rng)
+    joint = model.addJoint(0, composite, root, "root_joint")
+    model.appendBodyToJoint(joint, pin.Inertia.FromSphere(1.0, 0.1), pin.SE3.Identity())
+    offset = _placement(rng)
+    model.addFrame(pin.Frame("watched", joint, 0, offset, pin.FrameType.OP_FRAME))
+    q, v = rng.normal(size=len(axes)), rng.normal(size=len(axes))
+    placement, spin = BaseFrame(model, "watched").measure(q, v)
+    height, cosine, spin_norm = composite_base_measure(
+        q, v, np.array(axes), np.array(parts),
+        np.r_[root.rotation.ravel(), root.translation],
+        np.r_[offset.rotation.ravel(), offset.translation],
+    )  # fmt: skip
+    assert abs(height - placement.translation[2]) < TOLERANCE * (1 + abs(height))
+    assert abs(cosine - placement.rotation[2, 2]) < TOLERANCE
+    assert abs(spin_norm - spin) < TOLERANCE * (1 + spin)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.integers(0, 3),
+    st.lists(st.floats(-50.0, 50.0), min_size=3, max_size=3),
+    st.booleans(),
+    st.integers(0, 2**32 - 1),
+)
+def test_applied_torques_are_the_clipped_commands_delay_ticks_late(delay, limits, force, seed):
+    """Each tick's torque is the command of ``delay`` ticks before (the first command while
+    the line fills), clipped to [-limit, limit] (inf: none), written at the dofs; the base
+    force (or zeros) at the base dofs; a non-finite entry writes nothing."""
+    rng = np.random.default_rng(seed)
+    limit = np.where(np.array(limits) > 0, np.abs(limits), np.inf)
+    line, ring = np.zeros((delay, 3)), np.zeros(2, dtype=np.int64)
+    dofs = np.array([4, 0, 1, 3, 2])  # base dofs 4, 0; joints 1, 3, 2
+    commands = rng.normal(scale=40.0, size=(8, 3))
+    for k, tau in enumerate(commands):
+        base = rng.normal(size=2) if force else np.zeros(0)
+        out = np.full(5, np.nan)
+        assert apply_torques(tau, base, limit, line, ring, out, dofs, 2)
+        late = commands[max(k - delay, 0)]
+        np.testing.assert_array_equal(out[[1, 3, 2]], np.minimum(np.maximum(late, -limit), limit))
+        np.testing.assert_array_equal(out[[4, 0]], base if force else 0.0)
+    before = line.copy(), ring.copy()
+    out = np.zeros(5)
+    assert not apply_torques(np.array([0.0, np.nan, 0.0]), np.zeros(0), limit, line, ring, out,
+                             dofs, 2)  # fmt: skip
+    assert not apply_torques(np.zeros(3), np.array([np.inf, 0.0]), limit, line, ring, out, dofs, 2)
+    np.testing.assert_array_equal(out, 0.0)
+    np.testing.assert_array_equal(line, before[0])
+    np.testing.assert_array_equal(ring, before[1])
+
+
+def test_fall_screen_flags_a_bound_it_reaches_or_nearly_reaches():
+    """value > bound, or within FALL_MARGIN (relative) below it: checked exactly by the
+    simulator; clearly below: not; an infinite bound: exactly."""
+    for bound in (0.7, -3.0, 5.718):
+        near = bound - 0.5 * FALL_MARGIN * (1 + abs(bound))
+        assert _reaches(np.nextafter(bound, np.inf), bound)
+        assert _reaches(bound, bound)
+        assert _reaches(near, bound)
+        assert not _reaches(bound - 2 * FALL_MARGIN * (1 + abs(bound)), bound)
+    assert not _reaches(1e300, np.inf) and _reaches(-1e300, -np.inf)

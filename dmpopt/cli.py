@@ -4,12 +4,21 @@ Each study writes into a temporary folder that replaces ``OUT/<study>`` only whe
 is done, so an interrupted or failed run leaves the previous output as it was. Bad arguments,
 failures and Ctrl-C end with one line on stderr and a non-zero exit code (2: bad arguments,
 1: a study failed, 130: interrupted).
+
+``run all`` on several local workers (the default on a machine with several cores) runs the
+studies side by side, each in a process of its own with its own workers, the longest first,
+so that the cores stay busy while one study runs a serial stretch; each study's output goes
+to ``OUT/logs/<study>.log``. Every study gives the same results in its own process as in a
+serial run (``--workers 1``): its runs depend on their inputs and seeds only.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import inspect
+import multiprocessing
+import os
 import sys
 import tempfile
 import time
@@ -18,7 +27,7 @@ from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
 
-from .folders import FolderInUse, locked_folder, staged_output
+from .folders import FolderInUse, held_by_parent, locked_folder, staged_output
 
 ENTRY_POINTS = "dmpopt.studies"
 """The entry-point group that declares the studies (``available``: name -> module) and the
@@ -144,13 +153,26 @@ def _study_options(module, runner) -> dict:
     return {"runner": runner} if accepts else {}
 
 
+def _cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process and of its ended, waited-for children."""
+    import resource
+
+    return sum(
+        usage.ru_utime + usage.ru_stime
+        for usage in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    )
+
+
 def _run_one(name: str, module, target: Path, quick: bool, seed: int, runner=None) -> int:
-    """Run one study into a staged folder that replaces ``target``; return the exit code."""
+    """Run one study into a staged folder that replaces ``target``; return the exit code.
+
+    The closing line gives the wall time and the CPU time of this process and its local
+    workers (their pool is closed first so that their time is counted)."""
     from threadpoolctl import threadpool_limits
 
     from .exceptions import DmpoptError
 
-    start, existed = time.perf_counter(), target.exists()
+    start, existed, cpu = time.perf_counter(), target.exists(), _cpu_seconds()
     print(f"== {name}: {_summary(module)}")
     try:
         # the studies multiply small matrices: one BLAS thread is faster, and on a loaded
@@ -163,7 +185,11 @@ def _run_one(name: str, module, target: Path, quick: bool, seed: int, runner=Non
     except (DmpoptError, OSError) as error:
         print(f"dmpopt: {name} failed: {error}; {_left(target, existed)}", file=sys.stderr)
         return 1
-    print(f"== {name} done in {time.perf_counter() - start:.1f} s -> {target}")
+    finally:
+        if runner is not None and runner.ray is None:
+            runner.close()
+    wall, cpu = time.perf_counter() - start, _cpu_seconds() - cpu
+    print(f"== {name} done in {wall:.1f} s (CPU {cpu:.1f} s) -> {target}")
     return 0
 
 
@@ -176,11 +202,14 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, run
     )
     refresh_report = len(names) > 1 or (out / "report.html").exists()
     code, done = 0, 0
-    for name in names:
-        code = _run_one(name, studies[name], out / name, quick, seed, runner)
-        if code:
-            break
-        done += 1
+    if len(names) > 1 and runner is not None and runner.backend == "processes":
+        code, done = _run_side_by_side(studies, names, out, quick, seed, runner.workers)
+    else:
+        for name in names:
+            code = _run_one(name, studies[name], out / name, quick, seed, runner)
+            if code:
+                break
+            done += 1
     if done and refresh_report:
         try:
             path = write_report(out)  # from the folders on disk, so it matches them
@@ -190,6 +219,81 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, run
         if not code:
             print(f"report: {path}")
     return code
+
+
+def _study_process(name, module_name, out, quick, seed, workers, log, report) -> None:
+    """One study of :func:`_run_side_by_side`, in a process of its own: its output into
+    ``log``; sends ``(exit code, CPU seconds)`` through ``report``."""
+    from .parallel import Runner
+
+    with open(log, "w") as file:
+        os.dup2(file.fileno(), 1)  # the study's prints and its libraries' output alike
+        os.dup2(file.fileno(), 2)
+    code = 1
+    try:
+        module = importlib.import_module(module_name)
+        with held_by_parent(out), Runner(workers=workers, progress=False) as runner:
+            code = _run_one(name, module, out / name, quick, seed, runner)
+    finally:
+        sys.stdout.flush()
+        report.send((code, _cpu_seconds()))
+
+
+def _tail(log: Path, lines: int = 5) -> str:
+    try:
+        return "".join(log.read_text(errors="replace").splitlines(True)[-lines:])
+    except OSError:
+        return ""
+
+
+def _run_side_by_side(studies, names, out, quick, seed, workers) -> tuple[int, int]:
+    """Run ``names`` at most ``workers`` at a time, each in a process of its own with
+    ``workers`` local workers, the longest (by its ``EXPECTED_SECONDS``) first.
+
+    After a failure or Ctrl-C no new study starts; those running end as they would alone
+    (their own Ctrl-C handling, or to completion). Returns (exit code, studies done)."""
+    from multiprocessing.connection import wait
+
+    context = multiprocessing.get_context("spawn")
+    logs = out / "logs"
+    logs.mkdir(exist_ok=True)
+    waiting = sorted(names, key=lambda name: -_seconds(studies[name], quick))
+    running, code, done, start = {}, 0, 0, time.perf_counter()
+    print(f"{len(names)} studies, {workers} at a time, each with {workers} workers; logs in {logs}")
+    try:
+        while waiting or running:
+            while waiting and len(running) < workers and not code:
+                name = waiting.pop(0)
+                receive, send = context.Pipe(duplex=False)
+                log = logs / f"{name}.log"
+                process = context.Process(
+                    target=_study_process,
+                    args=(name, studies[name].__name__, out, quick, seed, workers, log, send),
+                    name=f"dmpopt study {name}",
+                )
+                process.start()
+                send.close()
+                running[process.sentinel] = (name, process, receive, log)
+                print(f"== {name}: {_summary(studies[name])}", flush=True)
+            if not running:
+                break
+            for sentinel in wait(list(running)):
+                name, process, receive, log = running.pop(sentinel)
+                process.join()
+                study_code, cpu = receive.recv() if receive.poll() else (1, float("nan"))
+                if study_code == 0 and process.exitcode == 0:
+                    done += 1
+                    elapsed = time.perf_counter() - start
+                    print(f"== {name} done, CPU {cpu:.1f} s, at {elapsed:.1f} s -> {out / name}")
+                else:
+                    code = code or study_code or 1
+                    print(f"dmpopt: {name} failed (log: {log}):\n{_tail(log)}", file=sys.stderr)
+    except KeyboardInterrupt:
+        for name, process, _, _ in running.values():
+            process.join()  # Ctrl-C reached it too: it leaves its folder as it was
+        print("interrupted", file=sys.stderr)
+        return 130, done
+    return code, done
 
 
 def _runner(workers: int | None, ray: str | None):

@@ -355,10 +355,11 @@ def test_interrupted_all_keeps_report_consistent(capsys, monkeypatch, tmp_path):
     studies = cli.available_studies()
     for module in studies.values():
         monkeypatch.setattr(module, "run", fake_run([]))
-    assert run_cli(capsys, "study", "run", "all", "--out", str(tmp_path), "--seed", "1")[0] == 0
+    serial = ("study", "run", "all", "--out", str(tmp_path), "--workers", "1")  # patched here
+    assert run_cli(capsys, *serial, "--seed", "1")[0] == 0
     names = list(studies)
     monkeypatch.setattr(studies[names[1]], "run", fake_run([], KeyboardInterrupt()))
-    code, _, err = run_cli(capsys, "study", "run", "all", "--out", str(tmp_path), "--seed", "7")
+    code, _, err = run_cli(capsys, *serial, "--seed", "7")
     assert code == 130 and err == f"interrupted: {tmp_path / names[1]} left unchanged\n"
     seeds = {n: json.loads((tmp_path / n / "metrics.json").read_text())["seed"] for n in names}
     assert seeds == {n: 7 if n == names[0] else 1 for n in names}
@@ -366,6 +367,60 @@ def test_interrupted_all_keeps_report_consistent(capsys, monkeypatch, tmp_path):
     seed = "<tr><td>seed</td><td>{}</td></tr>"
     assert page.count(seed.format(7)) == 1 and page.count(seed.format(1)) == len(names) - 1
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "report.html"])
+
+
+FAKE_STUDY = """\"\"\"Fake study.\"\"\"
+import json, os
+from pathlib import Path
+
+EXPECTED_SECONDS = {{"quick": {seconds}, "full": {seconds}}}
+
+
+def run(out_dir, quick=False, seed=0, runner=None):
+    print("{name} runs", flush=True)
+    if {fails}:
+        raise ValueError("{name} breaks")
+    record = {{"seed": seed, "pid": os.getpid(), "workers": runner.workers}}
+    (Path(out_dir) / "metrics.json").write_text(json.dumps(record))
+"""
+
+
+def fake_studies(monkeypatch, folder, seconds, failing=()):
+    """Importable study modules ``fake_<i>`` (so that other processes find them), as the
+    installed studies; ``seconds``: their EXPECTED_SECONDS."""
+    import importlib
+
+    folder.mkdir()
+    for i, value in enumerate(seconds):
+        name = f"fake_{i}"
+        fails = name in failing
+        (folder / f"{name}.py").write_text(FAKE_STUDY.format(name=name, seconds=value, fails=fails))
+    monkeypatch.syspath_prepend(str(folder))
+    studies = {f"fake_{i}": importlib.import_module(f"fake_{i}") for i in range(len(seconds))}
+    monkeypatch.setattr(cli, "available_studies", lambda: studies)
+    return studies
+
+
+def test_all_on_several_workers_runs_studies_side_by_side(capsys, monkeypatch, tmp_path):
+    """--workers 2 and 'all': each study in a process of its own (not this one) with two
+    workers, the longest expected first, its output in OUT/logs; a failing study (the last
+    to start) is named with its log's end, exit code 1, and the others are complete."""
+    from dmpopt import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    fake_studies(monkeypatch, tmp_path / "modules", [1, 30, 5], failing=("fake_0",))
+    out = tmp_path / "out"
+    code, stdout, err = run_cli(capsys, "study", "run", "all", "--out", str(out), "--seed", "3")
+    lines = stdout.splitlines()
+    started = [line.split()[1].rstrip(":") for line in lines if line.endswith("Fake study.")]
+    assert started == ["fake_1", "fake_2", "fake_0"]
+    assert code == 1 and err.startswith("dmpopt: fake_0 failed (log: ")
+    assert "ValueError: fake_0 breaks" in err
+    for name in ("fake_1", "fake_2"):
+        record = json.loads((out / name / "metrics.json").read_text())
+        assert (record["seed"], record["workers"]) == (3, 2) and record["pid"] != os.getpid()
+        assert f"{name} runs" in (out / "logs" / f"{name}.log").read_text()
+    assert not (out / "fake_0").exists()
 
 
 def test_killed_run_leftovers_are_cleaned(tmp_path):

@@ -580,10 +580,8 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner=None) -> dict:
         names = sorted(rng.choice(names, size=4, replace=False).tolist())
     n_samples, n_basis = (250, 20) if quick else (1000, 30)
     tasks = [(name, n_samples, n_basis) for name in names]
-    cases, chunk = [], 5 * runner.workers
-    for begin in range(0, len(tasks), chunk):
-        progress(f"shapes {begin + 1}-{min(begin + chunk, len(tasks))} of {len(tasks)}")
-        cases += map_runs(shape_case, tasks[begin : begin + chunk], runner)
+    progress(f"{len(tasks)} shapes")
+    cases = map_runs(shape_case, tasks, runner, label="shapes")  # one pool: no idle core
     progress("paired statistics and figures")
     comparisons = {}
     for variant, (baseline, methods) in COMPARISONS.items():

@@ -121,7 +121,9 @@ def demo_result(case) -> dict:
         label: {n: fit_discrete(demo, n, **options) for n in N_BASIS}
         for label, options in METHODS.items()
     }
-    plans = {label: {n: _plan(dmp, demo) for n, dmp in by_n.items()} for label, by_n in fits.items()}
+    plans = {
+        label: {n: _plan(dmp, demo) for n, dmp in by_n.items()} for label, by_n in fits.items()
+    }
     rmse = {
         label: {n: _rmse(plan, demo.positions) for n, plan in by_n.items()}
         for label, by_n in plans.items()

@@ -329,8 +329,10 @@ def main(argv=None) -> int:
     study = commands.add_parser("study", help="list or run the studies")
     actions = study.add_subparsers(dest="action", required=True)
     actions.add_parser("list", help="each study, how long it takes, what it reproduces")
-    run = actions.add_parser("run", help="run one study, or all")
-    run.add_argument("name", help="a study name from 'dmpopt study list', or 'all'")
+    run = actions.add_parser("run", help="run studies, or all")
+    run.add_argument(
+        "name", nargs="+", help="study names from 'dmpopt study list', or 'all' for every one"
+    )
     run.add_argument("--out", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="a reduced run (about a minute each)")
     run.add_argument("--seed", default=0, type=_seed, help="random seed, >= 0 (default: 0)")
@@ -357,9 +359,10 @@ def main(argv=None) -> int:
             studies = available_studies()
             if args.action == "list":
                 return _list(studies)
-            if args.name not in studies and args.name != "all":
-                run.error(f"unknown study {args.name!r}; choose from {', '.join(studies)} or 'all'")
-            names = list(studies) if args.name == "all" else [args.name]
+            for name in args.name:
+                if name not in studies and name != "all":
+                    run.error(f"unknown study {name!r}; choose from {', '.join(studies)} or 'all'")
+            names = list(studies) if "all" in args.name else list(dict.fromkeys(args.name))
             out = _writable_folder(args.out)
             _check_targets(out, names)
             with _locked(out), _runner(args.workers, args.ray) as runner:

@@ -396,6 +396,9 @@ def fake_studies(monkeypatch, folder, seconds, failing=()):
         fails = name in failing
         (folder / f"{name}.py").write_text(FAKE_STUDY.format(name=name, seconds=value, fails=fails))
     monkeypatch.syspath_prepend(str(folder))
+    for i in range(len(seconds)):  # another test's fake_<i> may be imported
+        monkeypatch.delitem(sys.modules, f"fake_{i}", raising=False)
+    importlib.invalidate_caches()
     studies = {f"fake_{i}": importlib.import_module(f"fake_{i}") for i in range(len(seconds))}
     monkeypatch.setattr(cli, "available_studies", lambda: studies)
     return studies
@@ -421,6 +424,15 @@ def test_all_on_several_workers_runs_studies_side_by_side(capsys, monkeypatch, t
         assert (record["seed"], record["workers"]) == (3, 2) and record["pid"] != os.getpid()
         assert f"{name} runs" in (out / "logs" / f"{name}.log").read_text()
     assert not (out / "fake_0").exists()
+
+
+def test_several_names_run_those_studies(capsys, monkeypatch, tmp_path):
+    """'run NAME NAME': those studies (each once), none of the others."""
+    fake_studies(monkeypatch, tmp_path / "modules", [1, 2, 3])
+    argv = ("study", "run", "fake_2", "fake_0", "fake_2", "--out", str(tmp_path / "out"))
+    assert run_cli(capsys, *argv, "--workers", "1")[0] == 0
+    written = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert written == ["fake_0", "fake_2", "report.html"]
 
 
 def test_killed_run_leftovers_are_cleaned(tmp_path):

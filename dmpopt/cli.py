@@ -30,6 +30,9 @@ from pathlib import Path
 from .folders import FolderInUse, held_by_parent, locked_folder, staged_output
 
 ENTRY_POINTS = "dmpopt.studies"
+# A study module's ``EXPECTED_SECONDS = {"quick": ..., "full": ...}``: the CPU seconds of a run
+# (the study's process and its workers together) on this project's 2-core machine, quiet. A
+# run on N cores takes about 1/N of that when its runs keep them busy.
 """The entry-point group that declares the studies (``available``: name -> module) and the
 results page (``write_report``); the repository's ``pyproject.toml`` fills it, so dmpopt never
 imports a studies package by name."""
@@ -78,7 +81,7 @@ def _expected(module, quick: bool) -> str:
 
 
 def _list(studies: dict) -> int:
-    print(f"{'study':12s} {'--quick':>8s} {'full':>8s}  what it reproduces")
+    print(f"{'study':12s} {'--quick':>8s} {'full':>8s}  what it reproduces (times: CPU, all cores)")
     for name, module in studies.items():
         quick, full = _expected(module, True), _expected(module, False)
         print(f"{name:12s} {quick:>8s} {full:>8s}  {_summary(module)}")
@@ -196,9 +199,11 @@ def _run_one(name: str, module, target: Path, quick: bool, seed: int, runner=Non
 def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, runner=None) -> int:
     write_report = entry_point("write_report")
     total = sum(_seconds(studies[n], quick) for n in names)
+    cores = 1 if runner is None else runner.workers
+    wall = "" if runner is not None and runner.ray else f", {total / 60 / cores:.1f} min here"
     print(
-        f"running {', '.join(names)} ({'quick' if quick else 'full'}): "
-        f"expected about {total / 60:.1f} min on 2 cores; results in {out}"
+        f"running {', '.join(names)} ({'quick' if quick else 'full'}): about "
+        f"{total / 60:.1f} CPU-minutes{wall}; results in {out}"
     )
     refresh_report = len(names) > 1 or (out / "report.html").exists()
     code, done = 0, 0

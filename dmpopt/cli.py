@@ -81,7 +81,8 @@ def _expected(module, quick: bool) -> str:
 
 
 def _list(studies: dict) -> int:
-    print(f"{'study':12s} {'--quick':>8s} {'full':>8s}  what it reproduces (times: CPU, all cores)")
+    times = "(times: CPU of all its processes)"
+    print(f"{'study':12s} {'--quick':>8s} {'full':>8s}  what it reproduces {times}")
     for name, module in studies.items():
         quick, full = _expected(module, True), _expected(module, False)
         print(f"{name:12s} {quick:>8s} {full:>8s}  {_summary(module)}")

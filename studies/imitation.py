@@ -29,7 +29,8 @@ from dmpopt.validation import flag, integer
 from . import lasa
 from .common import Progress, median_time, output_dir, pyplot, write_metrics
 
-# CPU seconds measured on the 2-core machine (wall: 385 s and 42 s on the shared machine)
+# CPU seconds (process and workers; dmpopt.cli) measured on the shared 2-core machine: full
+# 95 s for 114 of the 210 demos in series, quick 14 s
 EXPECTED_SECONDS = {"full": 190, "quick": 15}
 N_BASIS = (10, 30, 100)
 DEFAULT_N_BASIS = 30  # fit_discrete's default

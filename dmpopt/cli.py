@@ -286,7 +286,10 @@ def _run_side_by_side(studies, names, out, quick, seed, workers) -> tuple[int, i
             for sentinel in wait(list(running)):
                 name, process, receive, log = running.pop(sentinel)
                 process.join()
-                study_code, cpu = receive.recv() if receive.poll() else (1, float("nan"))
+                try:
+                    study_code, cpu = receive.recv()
+                except EOFError:  # it died before reporting (killed, or a crash)
+                    study_code, cpu = 1, float("nan")
                 if study_code == 0 and process.exitcode == 0:
                     done += 1
                     elapsed = time.perf_counter() - start

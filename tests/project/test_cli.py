@@ -380,12 +380,14 @@ def run(out_dir, quick=False, seed=0, runner=None):
     print("{name} runs", flush=True)
     if {fails}:
         raise ValueError("{name} breaks")
+    if {crashes}:
+        os._exit(7)  # dies without a word, as a segfault would
     record = {{"seed": seed, "pid": os.getpid(), "workers": runner.workers}}
     (Path(out_dir) / "metrics.json").write_text(json.dumps(record))
 """
 
 
-def fake_studies(monkeypatch, folder, seconds, failing=()):
+def fake_studies(monkeypatch, folder, seconds, failing=(), crashing=()):
     """Importable study modules ``fake_<i>`` (so that other processes find them), as the
     installed studies; ``seconds``: their EXPECTED_SECONDS."""
     import importlib
@@ -393,8 +395,10 @@ def fake_studies(monkeypatch, folder, seconds, failing=()):
     folder.mkdir()
     for i, value in enumerate(seconds):
         name = f"fake_{i}"
-        fails = name in failing
-        (folder / f"{name}.py").write_text(FAKE_STUDY.format(name=name, seconds=value, fails=fails))
+        text = FAKE_STUDY.format(
+            name=name, seconds=value, fails=name in failing, crashes=name in crashing
+        )
+        (folder / f"{name}.py").write_text(text)
     monkeypatch.syspath_prepend(str(folder))
     for i in range(len(seconds)):  # another test's fake_<i> may be imported
         monkeypatch.delitem(sys.modules, f"fake_{i}", raising=False)
@@ -424,6 +428,18 @@ def test_all_on_several_workers_runs_studies_side_by_side(capsys, monkeypatch, t
         assert (record["seed"], record["workers"]) == (3, 2) and record["pid"] != os.getpid()
         assert f"{name} runs" in (out / "logs" / f"{name}.log").read_text()
     assert not (out / "fake_0").exists()
+
+
+def test_a_study_process_that_dies_is_a_failure(capsys, monkeypatch, tmp_path):
+    """A study process that ends without reporting (killed, crashed): exit code 1, its log
+    named; the other study is complete."""
+    from dmpopt import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    fake_studies(monkeypatch, tmp_path / "modules", [1, 2], crashing=("fake_1",))
+    code, _, err = run_cli(capsys, "study", "run", "all", "--out", str(tmp_path / "out"))
+    assert code == 1 and err.startswith("dmpopt: fake_1 failed (log: ")
+    assert (tmp_path / "out" / "fake_0" / "metrics.json").is_file()
 
 
 def test_several_names_run_those_studies(capsys, monkeypatch, tmp_path):

@@ -6,10 +6,14 @@ failures and Ctrl-C end with one line on stderr and a non-zero exit code (2: bad
 1: a study failed, 130: interrupted).
 
 ``run all`` on several local workers (the default on a machine with several cores) runs the
-studies side by side, each in a process of its own with its own workers, the longest first,
-so that the cores stay busy while one study runs a serial stretch; each study's output goes
-to ``OUT/logs/<study>.log``. Every study gives the same results in its own process as in a
-serial run (``--workers 1``): its runs depend on their inputs and seeds only.
+studies side by side, one process per core, each study in series inside its process, the
+longest first (by ``EXPECTED_SECONDS``): the cores stay busy through every study's serial
+stretches, and no study pays for worker processes of its own (each would import the
+libraries and rebuild its caches: a third more CPU time for the quick runs). Studies run one
+after the other, each on all the workers, when one of them alone would outlast the others
+together (``run rl feasible``). Each study's output goes to ``OUT/logs/<study>.log``. Every
+study gives the same results in its own process as in a serial run (``--workers 1``): its
+runs depend on their inputs and seeds only.
 """
 
 from __future__ import annotations
@@ -208,7 +212,12 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, run
     )
     refresh_report = len(names) > 1 or (out / "report.html").exists()
     code, done = 0, 0
-    if len(names) > 1 and runner is not None and runner.backend == "processes":
+    longest = max(_seconds(studies[n], quick) for n in names)
+    if (
+        runner is not None
+        and runner.backend == "processes"
+        and _side_by_side(len(names), longest, total, runner.workers)
+    ):
         code, done = _run_side_by_side(studies, names, out, quick, seed, runner.workers)
     else:
         for name in names:
@@ -227,9 +236,16 @@ def _run(studies: dict, names: list[str], out: Path, quick: bool, seed: int, run
     return code
 
 
-def _study_process(name, module_name, out, quick, seed, workers, log, report) -> None:
-    """One study of :func:`_run_side_by_side`, in a process of its own: its output into
-    ``log``; sends ``(exit code, CPU seconds)`` through ``report``."""
+def _side_by_side(n_studies: int, longest: float, total: float, cores: int) -> bool:
+    """Whether studies expected to take ``total`` CPU seconds, the longest ``longest``, fill
+    ``cores`` better side by side (each in series) than one after the other (each on all
+    the cores): when the longest fits in one core's share."""
+    return n_studies > 1 and cores > 1 and longest * cores <= total
+
+
+def _study_process(name, module_name, out, quick, seed, log, report) -> None:
+    """One study of :func:`_run_side_by_side`, in a process of its own and in series inside
+    it: its output into ``log``; sends ``(exit code, CPU seconds)`` through ``report``."""
     from .parallel import Runner
 
     with open(log, "w") as file:
@@ -238,7 +254,7 @@ def _study_process(name, module_name, out, quick, seed, workers, log, report) ->
     code = 1
     try:
         module = importlib.import_module(module_name)
-        with held_by_parent(out), Runner(workers=workers, progress=False) as runner:
+        with held_by_parent(out), Runner(workers=1, progress=False) as runner:
             code = _run_one(name, module, out / name, quick, seed, runner)
     finally:
         sys.stdout.flush()
@@ -253,8 +269,8 @@ def _tail(log: Path, lines: int = 5) -> str:
 
 
 def _run_side_by_side(studies, names, out, quick, seed, workers) -> tuple[int, int]:
-    """Run ``names`` at most ``workers`` at a time, each in a process of its own with
-    ``workers`` local workers, the longest (by its ``EXPECTED_SECONDS``) first.
+    """Run ``names`` at most ``workers`` at a time, each in a process of its own (in series
+    inside it), the longest (by its ``EXPECTED_SECONDS``) first.
 
     After a failure or Ctrl-C no new study starts; those running end as they would alone
     (their own Ctrl-C handling, or to completion). Returns (exit code, studies done)."""
@@ -265,7 +281,7 @@ def _run_side_by_side(studies, names, out, quick, seed, workers) -> tuple[int, i
     logs.mkdir(exist_ok=True)
     waiting = sorted(names, key=lambda name: -_seconds(studies[name], quick))
     running, code, done, start = {}, 0, 0, time.perf_counter()
-    print(f"{len(names)} studies, {workers} at a time, each with {workers} workers; logs in {logs}")
+    print(f"{len(names)} studies side by side, {workers} at a time; logs in {logs}")
     try:
         while waiting or running:
             while waiting and len(running) < workers and not code:
@@ -274,7 +290,7 @@ def _run_side_by_side(studies, names, out, quick, seed, workers) -> tuple[int, i
                 log = logs / f"{name}.log"
                 process = context.Process(
                     target=_study_process,
-                    args=(name, studies[name].__name__, out, quick, seed, workers, log, send),
+                    args=(name, studies[name].__name__, out, quick, seed, log, send),
                     name=f"dmpopt study {name}",
                 )
                 process.start()

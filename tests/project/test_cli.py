@@ -409,13 +409,13 @@ def fake_studies(monkeypatch, folder, seconds, failing=(), crashing=()):
 
 
 def test_all_on_several_workers_runs_studies_side_by_side(capsys, monkeypatch, tmp_path):
-    """--workers 2 and 'all': each study in a process of its own (not this one) with two
-    workers, the longest expected first, its output in OUT/logs; a failing study (the last
+    """Two cores and 'all': each study in a process of its own (not this one), in series
+    inside it, the longest expected first, its output in OUT/logs; a failing study (the last
     to start) is named with its log's end, exit code 1, and the others are complete."""
     from dmpopt import parallel
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 2)
-    fake_studies(monkeypatch, tmp_path / "modules", [1, 30, 5], failing=("fake_0",))
+    fake_studies(monkeypatch, tmp_path / "modules", [10, 12, 11], failing=("fake_0",))
     out = tmp_path / "out"
     code, stdout, err = run_cli(capsys, "study", "run", "all", "--out", str(out), "--seed", "3")
     lines = stdout.splitlines()
@@ -425,7 +425,7 @@ def test_all_on_several_workers_runs_studies_side_by_side(capsys, monkeypatch, t
     assert "ValueError: fake_0 breaks" in err
     for name in ("fake_1", "fake_2"):
         record = json.loads((out / name / "metrics.json").read_text())
-        assert (record["seed"], record["workers"]) == (3, 2) and record["pid"] != os.getpid()
+        assert (record["seed"], record["workers"]) == (3, 1) and record["pid"] != os.getpid()
         assert f"{name} runs" in (out / "logs" / f"{name}.log").read_text()
     assert not (out / "fake_0").exists()
 
@@ -436,10 +436,20 @@ def test_a_study_process_that_dies_is_a_failure(capsys, monkeypatch, tmp_path):
     from dmpopt import parallel
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 2)
-    fake_studies(monkeypatch, tmp_path / "modules", [1, 2], crashing=("fake_1",))
+    fake_studies(monkeypatch, tmp_path / "modules", [2, 2], crashing=("fake_1",))
     code, _, err = run_cli(capsys, "study", "run", "all", "--out", str(tmp_path / "out"))
     assert code == 1 and err.startswith("dmpopt: fake_1 failed (log: ")
     assert (tmp_path / "out" / "fake_0" / "metrics.json").is_file()
+
+
+def test_side_by_side_only_when_the_longest_study_fits_one_cores_share():
+    """Side by side (each study in series) when the longest expected study takes at most
+    the total / cores; else one after the other on all the cores (a dominant study would
+    otherwise hold one core while the other idles)."""
+    assert cli._side_by_side(9, longest=900, total=2600, cores=2)
+    assert not cli._side_by_side(2, longest=500, total=530, cores=2)  # rl and feasible
+    assert not cli._side_by_side(9, longest=900, total=2600, cores=1)
+    assert not cli._side_by_side(1, longest=10, total=10, cores=2)
 
 
 def test_several_names_run_those_studies(capsys, monkeypatch, tmp_path):

@@ -365,9 +365,9 @@ def main(argv=None) -> int:
         "--workers",
         default=None,
         type=_workers,
-        help="independent runs (seeds, trials, folds) in N local processes (default: this "
-        "machine's cores; at most those and the runs; 1: in series, the same results); "
-        "with --ray, the CPUs a local Ray may use",
+        help="N local processes (default: this machine's cores; at most those; 1: in series, "
+        "the same results): several studies side by side, N at a time, or one study's "
+        "independent runs (seeds, trials, folds); with --ray, the CPUs a local Ray may use",
     )
     run.add_argument(
         "--ray",

@@ -14,7 +14,14 @@ time (latency, what a single slow trial pays) and a batch of runs (what a sweep 
 different output folders (e.g. ``dmpopt study run all --workers 1 --out DIR``, the default,
 ``--ray``): every value must be bitwise the same, except those that measure time or say where
 the runs went (:data:`NOT_RESULTS`). It prints each study's count of compared values and each
-difference, and exits 1 if there is any.
+difference, and exits 1 if there is any. The quick studies without a robot, in a few CPU
+minutes::
+
+    S="imitation constrained rl recognition cartesian primitives feasible"
+    dmpopt study run $S --quick --workers 1 --out serial   # one process, in series
+    dmpopt study run $S --quick --out default              # side by side, one per core
+    dmpopt study run $S --quick --ray --out ray
+    python benchmarks/bench_parallel.py --compare serial default ray
 
 ``--proxsuite`` shows why runs that solve QPs with proxsuite can differ in the last bits
 between serial, process and Ray runs: the same dense QP (same input arrays), solved by QP

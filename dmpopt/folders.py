@@ -64,6 +64,22 @@ def locked_folder(folder):
             os.close(descriptor)  # releases the lock
 
 
+@contextmanager
+def held_by_parent(folder):
+    """In a process started by the one that holds ``folder`` (the ``dmpopt`` command running
+    studies in processes of their own): count ``folder`` as held here, so that
+    :func:`staged_output` inside does not try to lock it again. The parent's lock covers the
+    child: the parent waits for it before releasing."""
+    path = Path(folder).resolve()
+    if path in _HELD:
+        raise RuntimeError(f"{folder} is already held by this process")
+    _HELD[path] = (None, 1)
+    try:
+        yield Path(folder)
+    finally:
+        del _HELD[path]
+
+
 def _partial(target: Path) -> Path:
     return target.with_name(f".{target.name}.partial")
 

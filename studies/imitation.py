@@ -29,7 +29,8 @@ from dmpopt.validation import flag, integer
 from . import lasa
 from .common import Progress, median_time, output_dir, pyplot, write_metrics
 
-# CPU seconds measured on the 2-core machine (wall: 385 s and 42 s on the shared machine)
+# CPU seconds (process and workers; dmpopt.cli) measured on the shared 2-core machine: full
+# 95 s for 114 of the 210 demos in series, quick 14 s
 EXPECTED_SECONDS = {"full": 190, "quick": 15}
 N_BASIS = (10, 30, 100)
 DEFAULT_N_BASIS = 30  # fit_discrete's default
@@ -76,12 +77,12 @@ def _plan(dmp, demo):
     return dmp.rollout(demo.duration, dt).positions
 
 
-def _goal_shift(demo, dmp) -> dict:
+def _goal_shift(demo, dmp, reproduction) -> dict:
     """Our scaling: the plan to the shifted goal against the rotated-and-scaled demo, and
-    against the rotated-and-scaled reproduction (the invariance alone, without fit error)."""
+    against the rotated-and-scaled reproduction (``dmp``'s plan on the demo's grid; the
+    invariance alone, without fit error)."""
     goal = shifted_goal(demo)
     moved = _plan(dmp.with_goal(goal), demo)
-    reproduction = _plan(dmp, demo)
     start = demo.positions[0]
     transform = dmp.goal_map(goal=goal) @ np.linalg.inv(dmp.goal_map())
     mapped = start + (reproduction - start) @ transform.T
@@ -117,13 +118,19 @@ def demo_result(case) -> dict:
     """Every measurement of one demonstration ``(shape, index)`` (one run of map_runs)."""
     name, k = case
     demo = lasa.demonstrations(name)[k]
-    rmse = {
-        label: {
-            n: _rmse(_plan(fit_discrete(demo, n, **options), demo), demo.positions) for n in N_BASIS
-        }
+    fits = {
+        label: {n: fit_discrete(demo, n, **options) for n in N_BASIS}
         for label, options in METHODS.items()
     }
-    default = fit_discrete(demo)
+    plans = {
+        label: {n: _plan(dmp, demo) for n, dmp in by_n.items()} for label, by_n in fits.items()
+    }
+    rmse = {
+        label: {n: _rmse(plan, demo.positions) for n, plan in by_n.items()}
+        for label, by_n in plans.items()
+    }
+    default = fits[DEFAULT][DEFAULT_N_BASIS]  # fit_discrete(demo) with its defaults
+    plan = plans[DEFAULT][DEFAULT_N_BASIS]
     dt = demo.duration / (demo.n_steps - 1)
     at_rest = default.rollout(demo.duration, dt, start_velocity=np.zeros(demo.n_dofs))
     adaptive = {}
@@ -139,12 +146,12 @@ def demo_result(case) -> dict:
     return {
         "case": case,
         "rmse": rmse,
-        "default": _plan(default, demo),
+        "default": plan,
         "default_at_rest": _rmse(at_rest.positions, demo.positions),
         "adaptive": adaptive,
-        "ours": _goal_shift(demo, default),
+        "ours": _goal_shift(demo, default, plan),
         "paper": _paper_goal_shift(demo),
-        "nonfinite": int(not np.isfinite(_plan(default, demo)).all()),
+        "nonfinite": int(not np.isfinite(plan).all()),
     }
 
 
@@ -174,10 +181,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
         f"{len(cases)} demos: {len(METHODS)} fits x {len(N_BASIS)} basis counts, "
         f"automatic basis choice, new goals"
     )
-    results, chunk = [], max(12, -(-len(cases) // 5))  # a pool per chunk: few chunks
-    for start in range(0, len(cases), chunk):
-        results += map_runs(demo_result, cases[start : start + chunk], runner)
-        progress(f"{len(results)} of {len(cases)} demos")
+    results = map_runs(demo_result, cases, runner, label="demos")  # one pool: no idle core
     progress("timing and figures")
     metrics = _metrics(results)
     metrics["fit_ms_median"], metrics["rollout_ms_median"] = _timings(

@@ -355,10 +355,11 @@ def test_interrupted_all_keeps_report_consistent(capsys, monkeypatch, tmp_path):
     studies = cli.available_studies()
     for module in studies.values():
         monkeypatch.setattr(module, "run", fake_run([]))
-    assert run_cli(capsys, "study", "run", "all", "--out", str(tmp_path), "--seed", "1")[0] == 0
+    serial = ("study", "run", "all", "--out", str(tmp_path), "--workers", "1")  # patched here
+    assert run_cli(capsys, *serial, "--seed", "1")[0] == 0
     names = list(studies)
     monkeypatch.setattr(studies[names[1]], "run", fake_run([], KeyboardInterrupt()))
-    code, _, err = run_cli(capsys, "study", "run", "all", "--out", str(tmp_path), "--seed", "7")
+    code, _, err = run_cli(capsys, *serial, "--seed", "7")
     assert code == 130 and err == f"interrupted: {tmp_path / names[1]} left unchanged\n"
     seeds = {n: json.loads((tmp_path / n / "metrics.json").read_text())["seed"] for n in names}
     assert seeds == {n: 7 if n == names[0] else 1 for n in names}
@@ -366,6 +367,98 @@ def test_interrupted_all_keeps_report_consistent(capsys, monkeypatch, tmp_path):
     seed = "<tr><td>seed</td><td>{}</td></tr>"
     assert page.count(seed.format(7)) == 1 and page.count(seed.format(1)) == len(names) - 1
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "report.html"])
+
+
+FAKE_STUDY = """\"\"\"Fake study.\"\"\"
+import json, os
+from pathlib import Path
+
+EXPECTED_SECONDS = {{"quick": {seconds}, "full": {seconds}}}
+
+
+def run(out_dir, quick=False, seed=0, runner=None):
+    print("{name} runs", flush=True)
+    if {fails}:
+        raise ValueError("{name} breaks")
+    if {crashes}:
+        os._exit(7)  # dies without a word, as a segfault would
+    record = {{"seed": seed, "pid": os.getpid(), "workers": runner.workers}}
+    (Path(out_dir) / "metrics.json").write_text(json.dumps(record))
+"""
+
+
+def fake_studies(monkeypatch, folder, seconds, failing=(), crashing=()):
+    """Importable study modules ``fake_<i>`` (so that other processes find them), as the
+    installed studies; ``seconds``: their EXPECTED_SECONDS."""
+    import importlib
+
+    folder.mkdir()
+    for i, value in enumerate(seconds):
+        name = f"fake_{i}"
+        text = FAKE_STUDY.format(
+            name=name, seconds=value, fails=name in failing, crashes=name in crashing
+        )
+        (folder / f"{name}.py").write_text(text)
+    monkeypatch.syspath_prepend(str(folder))
+    for i in range(len(seconds)):  # another test's fake_<i> may be imported
+        monkeypatch.delitem(sys.modules, f"fake_{i}", raising=False)
+    importlib.invalidate_caches()
+    studies = {f"fake_{i}": importlib.import_module(f"fake_{i}") for i in range(len(seconds))}
+    monkeypatch.setattr(cli, "available_studies", lambda: studies)
+    return studies
+
+
+def test_all_on_several_workers_runs_studies_side_by_side(capsys, monkeypatch, tmp_path):
+    """Two cores and 'all': each study in a process of its own (not this one), in series
+    inside it, the longest expected first, its output in OUT/logs; a failing study (the last
+    to start) is named with its log's end, exit code 1, and the others are complete."""
+    from dmpopt import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    fake_studies(monkeypatch, tmp_path / "modules", [10, 12, 11], failing=("fake_0",))
+    out = tmp_path / "out"
+    code, stdout, err = run_cli(capsys, "study", "run", "all", "--out", str(out), "--seed", "3")
+    lines = stdout.splitlines()
+    started = [line.split()[1].rstrip(":") for line in lines if line.endswith("Fake study.")]
+    assert started == ["fake_1", "fake_2", "fake_0"]
+    assert code == 1 and err.startswith("dmpopt: fake_0 failed (log: ")
+    assert "ValueError: fake_0 breaks" in err
+    for name in ("fake_1", "fake_2"):
+        record = json.loads((out / name / "metrics.json").read_text())
+        assert (record["seed"], record["workers"]) == (3, 1) and record["pid"] != os.getpid()
+        assert f"{name} runs" in (out / "logs" / f"{name}.log").read_text()
+    assert not (out / "fake_0").exists()
+
+
+def test_a_study_process_that_dies_is_a_failure(capsys, monkeypatch, tmp_path):
+    """A study process that ends without reporting (killed, crashed): exit code 1, its log
+    named; the other study is complete."""
+    from dmpopt import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    fake_studies(monkeypatch, tmp_path / "modules", [2, 2], crashing=("fake_1",))
+    code, _, err = run_cli(capsys, "study", "run", "all", "--out", str(tmp_path / "out"))
+    assert code == 1 and err.startswith("dmpopt: fake_1 failed (log: ")
+    assert (tmp_path / "out" / "fake_0" / "metrics.json").is_file()
+
+
+def test_side_by_side_only_when_the_longest_study_fits_one_cores_share():
+    """Side by side (each study in series) when the longest expected study takes at most
+    the total / cores; else one after the other on all the cores (a dominant study would
+    otherwise hold one core while the other idles)."""
+    assert cli._side_by_side(9, longest=900, total=2600, cores=2)
+    assert not cli._side_by_side(2, longest=500, total=530, cores=2)  # rl and feasible
+    assert not cli._side_by_side(9, longest=900, total=2600, cores=1)
+    assert not cli._side_by_side(1, longest=10, total=10, cores=2)
+
+
+def test_several_names_run_those_studies(capsys, monkeypatch, tmp_path):
+    """'run NAME NAME': those studies (each once), none of the others."""
+    fake_studies(monkeypatch, tmp_path / "modules", [1, 2, 3])
+    argv = ("study", "run", "fake_2", "fake_0", "fake_2", "--out", str(tmp_path / "out"))
+    assert run_cli(capsys, *argv, "--workers", "1")[0] == 0
+    written = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert written == ["fake_0", "fake_2", "report.html"]
 
 
 def test_killed_run_leftovers_are_cleaned(tmp_path):

@@ -166,12 +166,14 @@ class QpArrays(NamedTuple):
 
 class KktWorkspace(NamedTuple):
     """Scratch arrays of :func:`active_set`: a flat KKT matrix, its right-hand side, the
-    inequality rows' values and the active rows' indices."""
+    inequality rows' values, the active rows' indices and the multipliers of the last
+    proximal iteration (:func:`_dependent_kkt_solve`)."""
 
     kkt: np.ndarray
     rhs: np.ndarray
     values: np.ndarray
     rows: np.ndarray
+    previous: np.ndarray
 
 
 # Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
@@ -609,22 +611,104 @@ def eliminated_tick(layout, dynamics, split, costs, checks, q, v, x, tau) -> int
 
 
 @_compile
+def _kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, regularization, previous) -> bool:
+    r"""Assemble the KKT matrix of the equality rows and the active rows ``rows[:n_active]``
+    of ``problem`` (a :class:`QpArrays`) in ``kkt`` and solve it into ``rhs``: x, then the
+    multipliers :math:`\nu`. With ``regularization`` :math:`\delta > 0`, the proximal system
+
+    .. math:: \begin{bmatrix} H & E^\top \\ E & -\delta I \end{bmatrix}
+              \begin{bmatrix} x \\ \nu \end{bmatrix} = \begin{bmatrix} -g \\ e - \delta
+              \nu_{prev} \end{bmatrix}
+
+    with :math:`\nu_{prev}` = ``previous``, which is regular for dependent rows too. False if
+    the matrix is singular or the result not finite."""
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n, n_eq = hessian.shape[0], eq_matrix.shape[0]
+    size = n + n_eq + n_active
+    matrix = kkt[: size * size].reshape(size, size)
+    matrix[:] = 0.0
+    matrix[:n, :n] = hessian
+    for i in range(n_eq):
+        for j in range(n):
+            matrix[n + i, j] = eq_matrix[i, j]
+            matrix[j, n + i] = eq_matrix[i, j]
+        rhs[n + i] = eq_vector[i]
+    for k in range(n_active):
+        row = rows[k]
+        for j in range(n):
+            matrix[n + n_eq + k, j] = in_matrix[row, j]
+            matrix[j, n + n_eq + k] = in_matrix[row, j]
+        rhs[n + n_eq + k] = upper[row] if at_upper[row] else lower[row]
+    for j in range(n):
+        rhs[j] = -gradient[j]
+    if regularization > 0.0:
+        for i in range(n, size):
+            matrix[i, i] = -regularization
+            rhs[i] -= regularization * previous[i]
+    return solve_in_place(matrix, rhs[:size])
+
+
+@_compile
+def _dependent_kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, previous) -> bool:
+    r"""The KKT solve of :func:`_kkt_solve` for active rows that may be dependent (its
+    matrix singular): proximal iterations :math:`\nu_{prev} \leftarrow \nu` of the
+    regularised system from :math:`\nu_{prev} = 0`, :math:`\delta = 10^{-12}` of the largest
+    Hessian diagonal entry (at least 1). For independent rows each iteration shrinks the
+    residual :math:`E x - e` by :math:`\delta / (\delta + \sigma^2)` (:math:`\sigma^2` an
+    eigenvalue of :math:`E H^{-1} E^\top`); dependent rows that are consistent keep the
+    multipliers they start with. True if after ``_PROXIMAL_STEPS`` the rows hold to 1e-12
+    of their scale: then x is the exact optimum over the active rows and :math:`\nu` one of
+    its multiplier vectors. Deterministic: the same rows give the same bits."""
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n, n_eq = hessian.shape[0], eq_matrix.shape[0]
+    size = n + n_eq + n_active
+    largest = 1.0
+    for j in range(n):
+        largest = max(largest, abs(hessian[j, j]))
+    regularization = 1e-12 * largest
+    previous[:size] = 0.0
+    for _ in range(_PROXIMAL_STEPS):
+        if not _kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, regularization, previous):
+            return False
+        previous[n:size] = rhs[n:size]
+    for i in range(n_eq + n_active):  # the rows hold?
+        value, scale = 0.0, 1.0
+        for j in range(n):
+            a = eq_matrix[i, j] if i < n_eq else in_matrix[rows[i - n_eq], j]
+            value += a * rhs[j]
+            scale = max(scale, abs(a * rhs[j]))
+        if i < n_eq:
+            target = eq_vector[i]
+        else:
+            row = rows[i - n_eq]
+            target = upper[row] if at_upper[row] else lower[row]
+        if not abs(value - target) <= 1e-12 * max(scale, abs(target)):
+            return False
+    return True
+
+
+_PROXIMAL_STEPS = 4
+
+
+@_compile
 def active_set(problem, at_upper, at_lower, tolerance, rounds, workspace, x, y, z) -> int:
     r"""Primal-dual active-set iterations (see :func:`dmpopt.control.qp_stages._active_set`)
     as one compiled call: each round assembles the KKT matrix of the active rows in place in
-    ``workspace`` and solves it by :func:`solve_in_place`.
+    ``workspace`` and solves it by :func:`solve_in_place`; if that matrix is singular
+    (dependent active rows, e.g. equality rows that are all zero), by the proximal iterations
+    of :func:`_dependent_kkt_solve`.
 
     ``problem`` holds the fields of a :class:`QpArrays` and ``workspace`` those of a
     :class:`KktWorkspace` (as plain tuples, or those NamedTuples): a flat array
-    of at least :math:`(n + n_{eq} + n)^2` entries, and arrays of :math:`n + n_{eq} + n`,
-    :math:`n_{in}` and :math:`n_{in}` entries. More active rows than unknowns are dependent.
-    On a certified optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if
-    inactive) receive it and its multipliers. Returns the number of KKT solves, negative if no set
+    of at least :math:`(n + n_{eq} + n)^2` entries, arrays of :math:`n + n_{eq} + n`,
+    :math:`n_{in}` and :math:`n_{in}` entries, and one of :math:`n + n_{eq} + n`. On a certified
+    optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if inactive)
+    receive it and its multipliers. Returns the number of KKT solves, negative if no set
     verified.
     """
     # unpacked by position: plain tuples are passed (numba types them faster than NamedTuples)
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
-    kkt, rhs, values, rows = workspace
+    kkt, rhs, values, rows, previous = workspace
     n, n_eq, n_in = hessian.shape[0], eq_matrix.shape[0], in_matrix.shape[0]
     for solves in range(1, rounds + 1):
         n_active = 0
@@ -632,28 +716,11 @@ def active_set(problem, at_upper, at_lower, tolerance, rounds, workspace, x, y, 
             if at_upper[i] or at_lower[i]:
                 rows[n_active] = i
                 n_active += 1
-        m = n_eq + n_active
-        size = n + m
-        if n_active > n:  # dependent active rows
+        if n_active > n:  # dependent active rows, more than the workspace holds
             return -solves
-        matrix = kkt[: size * size].reshape(size, size)
-        matrix[:] = 0.0
-        matrix[:n, :n] = hessian
-        for i in range(n_eq):
-            for j in range(n):
-                matrix[n + i, j] = eq_matrix[i, j]
-                matrix[j, n + i] = eq_matrix[i, j]
-            rhs[n + i] = eq_vector[i]
-        for k in range(n_active):
-            row = rows[k]
-            for j in range(n):
-                matrix[n + n_eq + k, j] = in_matrix[row, j]
-                matrix[j, n + n_eq + k] = in_matrix[row, j]
-            rhs[n + n_eq + k] = upper[row] if at_upper[row] else lower[row]
-        for j in range(n):
-            rhs[j] = -gradient[j]
-        if not solve_in_place(matrix, rhs[:size]):  # dependent active rows
-            return -solves
+        if not _kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, 0.0, previous):
+            if not _dependent_kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, previous):
+                return -solves
         largest = 0.0
         for k in range(n_active):
             largest = max(largest, abs(rhs[n + n_eq + k]))

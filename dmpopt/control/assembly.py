@@ -225,11 +225,18 @@ class Assembly:
         (:func:`kernels.entry_point`: called without numba's type dispatch)."""
         q, v, x, tau = self.q, self.v, self.candidate, self.tau
         rows, dynamics, bounds = self._kernel_rows, self._dynamics, self.bounds
+        layout = self.layout
+        contact = self._rows[layout.n_cost : layout.dynamics_start, layout.n_base : layout.nv]
+        self._torque_arguments = (
+            dynamics, self._base_map[: layout.n_base], contact, self.torque_limit, bounds,
+            self._torque_rows, self.in_matrix, self.in_lower, self.in_upper,
+        )  # fmt: skip
         bound = {
             "posture_gradient": (self.posture, q, v),
             "acceleration_bounds": (bounds, q, v),
             "feasible": (tau, self.torque_limit, x, bounds, q, v, bound_tolerance),
             "torques": (rows, dynamics, x, tau),
+            "torque_rows": self._torque_arguments,
         }
         if self.joint_space:
             bound["joint_space_accelerations"] = (self.posture, rows, self._woodbury, q, v, x)
@@ -401,24 +408,9 @@ class Assembly:
             np.negative(gradient, out=gradient)
 
     def assemble_torque_rows(self) -> None:
-        """tau = M_a qdd + h_a - J_ca^T f as rows over y, and the torque-limit bounds."""
-        n_base, n_act, n = self.layout.n_base, self.layout.n_act, self.layout.n
-        mass, torque = self._mass, self._torque_rows
-        if n_base:  # [M_ab X_y | M_ab X_c], qdd_b = X_y y - X_c
-            np.dot(mass[n_base:, :n_base], self._base_map, out=torque)
-        else:
-            torque[:] = 0.0
-        torque[:, :n_act] += mass[n_base:, n_base:]
-        layout = self.layout
-        contact = self._rows[layout.n_cost : layout.dynamics_start, n_base : layout.nv]
-        torque[:, n_act:n] -= self.layout.force_scale * contact.T
-        np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
-        self.in_matrix[:n_act] = torque[:, :n]
-        np.add(-self.torque_limit, torque[:, n], out=self.in_lower[:n_act])
-        np.add(self.torque_limit, torque[:, n], out=self.in_upper[:n_act])
-        lower, upper = self.bounds.lower, self.bounds.upper  # |bound| >= 1e20: none
-        np.clip(lower, -_NO_BOUND, _NO_BOUND, self.in_lower[n_act:][: lower.size])
-        np.clip(upper, -_NO_BOUND, _NO_BOUND, self.in_upper[n_act:][: upper.size])
+        """tau = M_a qdd + h_a - J_ca^T f as rows over y, the torque-limit bounds and the
+        acceleration bounds (one compiled call, :func:`kernels.torque_rows`)."""
+        self._compiled.torque_rows(*self._torque_arguments)
 
     def accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""

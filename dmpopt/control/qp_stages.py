@@ -209,7 +209,7 @@ def _workspace(n: int, n_eq: int, n_in: int) -> tuple:
     size = n + n_eq + min(n, n_in)
     return (
         np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64),
-        np.zeros(size),
+        np.zeros(3 * size),
     )  # fmt: skip
 
 

@@ -14,7 +14,6 @@ import types
 import numpy as np
 import pinocchio as pin
 import scipy.linalg
-from scipy.linalg import lapack
 
 from . import kernels
 from .qp_stages import _NO_BOUND
@@ -231,6 +230,10 @@ class Assembly:
             dynamics, self._base_map[: layout.n_base], contact, self.torque_limit, bounds,
             self._torque_rows, self.in_matrix, self.in_lower, self.in_upper,
         )  # fmt: skip
+        self._base_arguments = (
+            dynamics, self._rows[layout.n_cost : layout.dynamics_start], self._base_rhs,
+            np.zeros((layout.n_base, layout.n_base)), self._base_map,
+        )  # fmt: skip
         bound = {
             "posture_gradient": (self.posture, q, v),
             "acceleration_bounds": (bounds, q, v),
@@ -238,6 +241,10 @@ class Assembly:
             "torques": (rows, dynamics, x, tau),
             "torque_rows": self._torque_arguments,
         }
+        used = self._rows[: layout.dynamics_start]
+        bound["map_rows"] = (used, layout.n_cost, self._row_scale, self._base_map, self.mapped)
+        if layout.n_base:
+            bound["base_map"] = self._base_arguments
         if self.joint_space:
             bound["joint_space_accelerations"] = (self.posture, rows, self._woodbury, q, v, x)
         if self.eliminable:
@@ -380,23 +387,12 @@ class Assembly:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
         rows, n_base, n, n_cost = self._rows, self.layout.n_base, self.layout.n, self.layout.n_cost
         mapped, used = self.mapped, rows[: self.layout.dynamics_start]
-        if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
-            n_act, mass, rhs = self.layout.n_act, self._mass, self._base_rhs
-            np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
-            np.multiply(used[n_cost:, :n_base].T, self.layout.force_scale, out=rhs[:, n_act:n])
-            rhs[:, n] = self._bias[:n_base]
-            _, solution, info = lapack.dposv(mass[:n_base, :n_base], rhs)
-            if info != 0:  # M_bb not positive definite: only for a corrupted model
-                solution = np.linalg.lstsq(mass[:n_base, :n_base], rhs, rcond=None)[0]
-            self._base_map[:] = solution
-            # [A_b | A_y | t] -> [A_y + A_b X_y | t + A_b X_c]
-            np.dot(used[:, :n_base], self._base_map, out=mapped)
-            mapped += used[:, n_base:]
-            mapped[:n_cost] *= self._row_scale
-        else:
-            np.multiply(used[:n_cost], self._row_scale, out=mapped[:n_cost])
-            if used.shape[0] > n_cost:
-                mapped[n_cost:] = used[n_cost:]
+        if n_base and not self._compiled.base_map(*self._base_arguments):
+            # M_bb not positive definite: only for a corrupted model
+            mass = self._mass[:n_base, :n_base]
+            self._base_map[:] = np.linalg.lstsq(mass, self._base_rhs, rcond=None)[0]
+        # [A_b | A_y | t] -> [A_y + A_b X_y | t + A_b X_c], qdd_b = X_y y - X_c
+        self._compiled.map_rows(used, n_cost, self._row_scale, self._base_map, mapped)
         cost = mapped[:n_cost, :n]
         np.dot(cost.T, cost, out=self.hessian)
         self._hessian_diagonal_view += self._hessian_diagonal

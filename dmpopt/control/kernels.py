@@ -34,6 +34,7 @@ __all__ = [
     "Woodbury",
     "acceleration_bounds",
     "active_set",
+    "base_map",
     "all_finite",
     "cholesky_solve",
     "eliminate",
@@ -42,6 +43,7 @@ __all__ = [
     "expand",
     "feasible",
     "joint_space_accelerations",
+    "map_rows",
     "posture_gradient",
     "posture_law",
     "pd_task_rows",
@@ -580,6 +582,51 @@ def torques(layout, dynamics, x, tau):
         for k in range(x.size - nv):
             value -= rows[n_cost + k, joint] * x[nv + k]
         tau[i] = value
+
+
+@_compile
+def base_map(dynamics, contact_rows, base_rhs, factor, solution) -> bool:
+    r"""The base rows solved for the base accelerations, :math:`\ddot q_b = X_y y - X_c`:
+    ``solution`` :math:`[X_y | X_c] = M_{bb}^{-1} [-M_{ba} \,|\, s J_{cb}^\top \,|\, h_b]`
+    (n_base x (n + 1)), with the right-hand side written into ``base_rhs`` and the Cholesky
+    factor of :math:`M_{bb}` into ``factor``; ``contact_rows`` holds the contact rows over x.
+    False (``base_rhs`` filled, ``solution`` not) if :math:`M_{bb}` is not positive
+    definite."""
+    mass, bias, force_scale = dynamics.mass, dynamics.bias, dynamics.force_scale
+    n_base, width = solution.shape[0], solution.shape[1]
+    n_contact = contact_rows.shape[0]
+    n_act = width - 1 - n_contact
+    for i in range(n_base):
+        for j in range(n_act):  # -M_ba, read by columns of the symmetric, Fortran-ordered M
+            base_rhs[i, j] = -mass[n_base + j, i]
+        for k in range(n_contact):
+            base_rhs[i, n_act + k] = force_scale * contact_rows[k, i]
+        base_rhs[i, width - 1] = bias[i]
+    if not _cholesky(mass[:n_base, :n_base], factor):
+        return False
+    for j in range(width):
+        column = base_rhs[:, j]
+        for i in range(n_base):
+            solution[i, j] = column[i]
+        _forward(factor, solution[:, j])
+        _backward(factor, solution[:, j])
+    return True
+
+
+@_compile
+def map_rows(used, n_cost, row_scale, solution, mapped):
+    r"""The rows :math:`[A_b | A_y | t]` of ``used`` (task and base-regularisation rows,
+    then contact rows) over y, :math:`[A_y + A_b X_y \,|\, t + A_b X_c]` with ``solution``
+    :math:`[X_y | X_c]` of :func:`base_map` (no rows on a fixed base), the first ``n_cost``
+    scaled by ``row_scale``, into ``mapped``."""
+    n_base, width = solution.shape[0], solution.shape[1]
+    for r in range(used.shape[0]):
+        scale = row_scale[r, 0] if r < n_cost else 1.0
+        for j in range(width):
+            value = used[r, n_base + j]
+            for b in range(n_base):
+                value += used[r, b] * solution[b, j]
+            mapped[r, j] = scale * value
 
 
 @_compile

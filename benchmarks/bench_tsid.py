@@ -35,13 +35,21 @@ pin 3.4.0 (``benchmarks/tsid-constraints.txt``) runs::
     PYTHONPATH=.:benchmarks /path/to/venv-tsid/bin/python benchmarks/bench_tsid.py
 
 Run from the repository root: ``PYTHONPATH=.:benchmarks python benchmarks/bench_tsid.py
-[--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking]``; with ``--stages``, only
-the CPU time per stage of dmpopt's one-foot QP ticks (one replay of the walk).
+[--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking] [--no-freeze]``. After the
+walk it prints the CPU time per stage of dmpopt's one-foot QP ticks (one more replay); with
+``--stages``, only those.
+
+Garbage collection: dmpopt's tick pauses the collector (``gc in dmpopt ticks`` counts the
+collections started inside them: 0 by construction); the closed loop that records each
+scenario (controller and simulator) runs inside :func:`dmpopt.control.control_loop`, which
+freezes the objects made before it, and ``gc in the closed loop`` counts every collection in
+that loop, its generation-2 ones and the longest (``--no-freeze``: without it).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import gc
 import os
@@ -52,7 +60,14 @@ import pinocchio as pin
 from dmpopt_robots import load_talos
 from dmpopt_studies import humanoid
 
-from dmpopt.control import ComTask, FrameTask, InverseDynamicsController, PostureTask, SoleContact
+from dmpopt.control import (
+    ComTask,
+    FrameTask,
+    InverseDynamicsController,
+    PostureTask,
+    SoleContact,
+    control_loop,
+)
 
 try:
     from tsid_baseline import TsidWalking, build_tsid
@@ -66,21 +81,23 @@ REMOVE_TICK, SWING_TICK, ONE_FOOT_TICK, RAMP = 1100, 1400, 1450, 0.25
 
 
 class _GcWatch:
-    """Garbage collections that start while ``inside`` is set: count, generation 2, longest."""
+    """Garbage collections that start while ``inside`` is set: count, generation 2, longest
+    (CPU time of the thread)."""
 
     def __init__(self):
         self.inside, self.count, self.gen2, self.longest, self._start = False, 0, 0, 0.0, None
 
     def __call__(self, phase, info):
         if phase == "start":
-            self._start = time.perf_counter() if self.inside else None
+            self._start = time.thread_time() if self.inside else None
         elif self._start is not None:
             self.count += 1
             self.gen2 += info["generation"] == 2
-            self.longest = max(self.longest, time.perf_counter() - self._start)
+            self.longest = max(self.longest, time.thread_time() - self._start)
 
 
-# ---- scenarios: record(seconds) -> ticks; dmpopt() / tsid() -> (set_targets, tick)
+# ---- scenarios: record(seconds, loop) -> ticks (loop: a context manager around the closed
+# loop); dmpopt() / tsid() -> (set_targets, tick)
 
 
 class Standing:
@@ -119,17 +136,18 @@ class Standing:
 
         return controller, set_targets, lambda q, v, t: controller.compute_torques(q, v)
 
-    def record(self, seconds):
+    def record(self, seconds, loop):
         controller, set_targets, tick = self.dmpopt()
         simulator, q0 = humanoid.make_simulator(self.robot, self.q_start)
         state = simulator.reset(q0, self.v_start)
         ticks = []
-        for k in range(int(round(seconds / humanoid.DT))):
-            target = (self.arm_reference(k), self._com_target(k))
-            set_targets(k, target)
-            ticks.append((state.q.copy(), state.v.copy(), k * humanoid.DT, target))
-            state = simulator.step(tick(state.q, state.v, None))
-            assert not state.fallen, f"fell at tick {k}"
+        with loop():
+            for k in range(int(round(seconds / humanoid.DT))):
+                target = (self.arm_reference(k), self._com_target(k))
+                set_targets(k, target)
+                ticks.append((state.q.copy(), state.v.copy(), k * humanoid.DT, target))
+                state = simulator.step(tick(state.q, state.v, None))
+                assert not state.fallen, f"fell at tick {k}"
         return ticks
 
     v_start = None
@@ -248,7 +266,7 @@ class Walking:
 
         return controller, set_targets, controller.compute_torques
 
-    def record(self, seconds):
+    def record(self, seconds, loop):
         from dmpopt.sim import GroundContact, Simulator
 
         robot = self.robot
@@ -257,12 +275,13 @@ class Walking:
         state = simulator.reset(self.q0)
         _, set_targets, tick = self.dmpopt()
         ticks = []
-        for k in range(max(int(round(seconds / humanoid.DT)), 2600)):
-            target = self.targets(k)
-            set_targets(k, target)
-            ticks.append((state.q.copy(), state.v.copy(), k * humanoid.DT, target))
-            state = simulator.step(tick(state.q, state.v, k * humanoid.DT))
-            assert not state.fallen, f"fell at tick {k}"
+        with loop():
+            for k in range(max(int(round(seconds / humanoid.DT)), 2600)):
+                target = self.targets(k)
+                set_targets(k, target)
+                ticks.append((state.q.copy(), state.v.copy(), k * humanoid.DT, target))
+                state = simulator.step(tick(state.q, state.v, k * humanoid.DT))
+                assert not state.fallen, f"fell at tick {k}"
         return ticks
 
 
@@ -272,6 +291,22 @@ SCENARIOS = {
     "com-step": com_step,
     "walking": lambda seconds: Walking(),
 }
+
+
+def _watched(loop, watch: _GcWatch):
+    """``loop`` (a context manager around a closed loop) with ``watch`` inside it: the
+    collections of the loop itself, not control_loop's full collection on entry."""
+
+    @contextlib.contextmanager
+    def watched():
+        with loop():
+            watch.inside = True
+            try:
+                yield
+            finally:
+                watch.inside = False
+
+    return watched
 
 
 def replay(scenario, ticks, with_tsid: bool, watch: _GcWatch):
@@ -371,10 +406,15 @@ def main():
     parser.add_argument(
         "--stages", action="store_true", help="only the stage timers of the one-foot ticks"
     )
+    parser.add_argument(
+        "--no-freeze", action="store_true",
+        help="record the closed loops without dmpopt.control.control_loop (gc.freeze)",
+    )  # fmt: skip
     args = parser.parse_args()
+    loop = contextlib.nullcontext if args.no_freeze else control_loop
     if args.stages:
         scenario = Walking()
-        stage_timers(scenario, scenario.record(args.seconds))
+        stage_timers(scenario, scenario.record(args.seconds, loop))
         return
     with_tsid = build_tsid is not None
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f}; pin {pin.__version__}")
@@ -386,7 +426,12 @@ def main():
     print(head + "  [CPU us per tick]")
     for name in args.scenarios:
         scenario = SCENARIOS[name](args.seconds)
-        ticks = scenario.record(args.seconds)
+        in_loop = _GcWatch()  # every collection of the closed loop (controller and simulator)
+        gc.callbacks.append(in_loop)
+        try:
+            ticks = scenario.record(args.seconds, _watched(loop, in_loop))
+        finally:
+            gc.callbacks.remove(in_loop)
         watch = _GcWatch()
         gc.callbacks.append(watch)
         try:
@@ -414,6 +459,13 @@ def main():
             f"{'':16s} gc in dmpopt ticks: {watch.count} (generation 2: {watch.gen2}, longest "
             f"{1e3 * watch.longest:.2f} ms); answers {_counts(answers)}"
         )
+        print(
+            f"{'':16s} gc in the closed loop ({'without' if args.no_freeze else 'in'} "
+            f"control_loop): {in_loop.count} (generation 2: {in_loop.gen2}, longest "
+            f"{1e3 * in_loop.longest:.2f} ms)"
+        )
+        if name == "walking":
+            stage_timers(scenario, ticks)
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f}")
 
 

@@ -14,7 +14,6 @@ import types
 import numpy as np
 import pinocchio as pin
 import scipy.linalg
-from scipy.linalg import lapack
 
 from . import kernels
 from .qp_stages import _NO_BOUND
@@ -225,12 +224,27 @@ class Assembly:
         (:func:`kernels.entry_point`: called without numba's type dispatch)."""
         q, v, x, tau = self.q, self.v, self.candidate, self.tau
         rows, dynamics, bounds = self._kernel_rows, self._dynamics, self.bounds
+        layout = self.layout
+        contact = self._rows[layout.n_cost : layout.dynamics_start, layout.n_base : layout.nv]
+        self._torque_arguments = (
+            dynamics, self._base_map[: layout.n_base], contact, self.torque_limit, bounds,
+            self._torque_rows, self.in_matrix, self.in_lower, self.in_upper,
+        )  # fmt: skip
+        self._base_arguments = (
+            dynamics, self._rows[layout.n_cost : layout.dynamics_start], self._base_rhs,
+            np.zeros((layout.n_base, layout.n_base)), self._base_map,
+        )  # fmt: skip
         bound = {
             "posture_gradient": (self.posture, q, v),
             "acceleration_bounds": (bounds, q, v),
             "feasible": (tau, self.torque_limit, x, bounds, q, v, bound_tolerance),
             "torques": (rows, dynamics, x, tau),
+            "torque_rows": self._torque_arguments,
         }
+        used = self._rows[: layout.dynamics_start]
+        bound["map_rows"] = (used, layout.n_cost, self._row_scale, self._base_map, self.mapped)
+        if layout.n_base:
+            bound["base_map"] = self._base_arguments
         if self.joint_space:
             bound["joint_space_accelerations"] = (self.posture, rows, self._woodbury, q, v, x)
         if self.eliminable:
@@ -373,23 +387,12 @@ class Assembly:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
         rows, n_base, n, n_cost = self._rows, self.layout.n_base, self.layout.n, self.layout.n_cost
         mapped, used = self.mapped, rows[: self.layout.dynamics_start]
-        if n_base:  # qdd_b = M_bb^-1 (J_cb^T f - M_ba qdd_a - h_b) = X_y y - X_c
-            n_act, mass, rhs = self.layout.n_act, self._mass, self._base_rhs
-            np.negative(mass[:n_base, n_base:], out=rhs[:, :n_act])
-            np.multiply(used[n_cost:, :n_base].T, self.layout.force_scale, out=rhs[:, n_act:n])
-            rhs[:, n] = self._bias[:n_base]
-            _, solution, info = lapack.dposv(mass[:n_base, :n_base], rhs)
-            if info != 0:  # M_bb not positive definite: only for a corrupted model
-                solution = np.linalg.lstsq(mass[:n_base, :n_base], rhs, rcond=None)[0]
-            self._base_map[:] = solution
-            # [A_b | A_y | t] -> [A_y + A_b X_y | t + A_b X_c]
-            np.dot(used[:, :n_base], self._base_map, out=mapped)
-            mapped += used[:, n_base:]
-            mapped[:n_cost] *= self._row_scale
-        else:
-            np.multiply(used[:n_cost], self._row_scale, out=mapped[:n_cost])
-            if used.shape[0] > n_cost:
-                mapped[n_cost:] = used[n_cost:]
+        if n_base and not self._compiled.base_map(*self._base_arguments):
+            # M_bb not positive definite: only for a corrupted model
+            mass = self._mass[:n_base, :n_base]
+            self._base_map[:] = np.linalg.lstsq(mass, self._base_rhs, rcond=None)[0]
+        # [A_b | A_y | t] -> [A_y + A_b X_y | t + A_b X_c], qdd_b = X_y y - X_c
+        self._compiled.map_rows(used, n_cost, self._row_scale, self._base_map, mapped)
         cost = mapped[:n_cost, :n]
         np.dot(cost.T, cost, out=self.hessian)
         self._hessian_diagonal_view += self._hessian_diagonal
@@ -401,24 +404,9 @@ class Assembly:
             np.negative(gradient, out=gradient)
 
     def assemble_torque_rows(self) -> None:
-        """tau = M_a qdd + h_a - J_ca^T f as rows over y, and the torque-limit bounds."""
-        n_base, n_act, n = self.layout.n_base, self.layout.n_act, self.layout.n
-        mass, torque = self._mass, self._torque_rows
-        if n_base:  # [M_ab X_y | M_ab X_c], qdd_b = X_y y - X_c
-            np.dot(mass[n_base:, :n_base], self._base_map, out=torque)
-        else:
-            torque[:] = 0.0
-        torque[:, :n_act] += mass[n_base:, n_base:]
-        layout = self.layout
-        contact = self._rows[layout.n_cost : layout.dynamics_start, n_base : layout.nv]
-        torque[:, n_act:n] -= self.layout.force_scale * contact.T
-        np.subtract(torque[:, n], self._bias[n_base:], out=torque[:, n])  # -(h_a - M_ab X_c)
-        self.in_matrix[:n_act] = torque[:, :n]
-        np.add(-self.torque_limit, torque[:, n], out=self.in_lower[:n_act])
-        np.add(self.torque_limit, torque[:, n], out=self.in_upper[:n_act])
-        lower, upper = self.bounds.lower, self.bounds.upper  # |bound| >= 1e20: none
-        np.clip(lower, -_NO_BOUND, _NO_BOUND, self.in_lower[n_act:][: lower.size])
-        np.clip(upper, -_NO_BOUND, _NO_BOUND, self.in_upper[n_act:][: upper.size])
+        """tau = M_a qdd + h_a - J_ca^T f as rows over y, the torque-limit bounds and the
+        acceleration bounds (one compiled call, :func:`kernels.torque_rows`)."""
+        self._compiled.torque_rows(*self._torque_arguments)
 
     def accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""

@@ -173,10 +173,12 @@ class InverseDynamicsController:
     - ``direct``: no inequality row active; the least-squares optimum (exact).
     - ``solved``: the QP with its inequality rows: by at most 5 active-set iterations from
       the last tick's active set, else by proxsuite (warm-started, retried cold once on
-      failure, within the first half of the time budget) refined to the exact optimum of
-      its active set when that set verifies (:func:`_active_set`).
+      failure, within the first half of the time budget) whose multipliers seed
+      active-set iterations: the answer is the exact optimum of an active set that verifies
+      (:func:`_active_set`), the same bits in every process.
     - ``relaxed``: if that QP fails (infeasible, e.g. torque limits too weak to hold the
-      robot, or out of iterations or of its half of the budget), the QP with every
+      robot, out of iterations or of its half of the budget, or no active set verified),
+      the QP with every
       inequality row in which the contact rows and the acceleration bounds get slacks
       weighted by 1e4 in the cost; the torque and cone rows stay hard. It is always
       feasible (the contact wrenches can sit inside their cones, and the joint

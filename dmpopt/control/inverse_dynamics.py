@@ -73,9 +73,10 @@ proximal parameter, also checks the duality gap, and its answer is refined to th
 optimum of its active set (:func:`_active_set`). Before proxsuite, each QP is tried by
 active-set iterations from its previous tick's active set: in a closed loop that set is
 usually still optimal, and the tick costs one KKT solve. Either way the answer carries the
-KKT certificate of :func:`_active_set` (when no active set verifies after proxsuite,
-proxsuite's answer to its tolerance is kept). A tick that cannot be solved gives a defined
-degraded answer within its time budget (see :class:`InverseDynamicsController`).
+KKT certificate of :func:`_active_set`: a QP whose active set does not verify counts as
+failed, and proxsuite's own answer (whose last bits differ between processes) is never
+returned. A tick that cannot be solved gives a defined degraded answer within its time budget
+(see :class:`InverseDynamicsController`).
 """
 
 from __future__ import annotations

@@ -34,6 +34,7 @@ __all__ = [
     "Woodbury",
     "acceleration_bounds",
     "active_set",
+    "base_map",
     "all_finite",
     "cholesky_solve",
     "eliminate",
@@ -42,11 +43,13 @@ __all__ = [
     "expand",
     "feasible",
     "joint_space_accelerations",
+    "map_rows",
     "posture_gradient",
     "posture_law",
     "pd_task_rows",
     "reduce_costs",
     "solve_in_place",
+    "torque_rows",
     "torques",
 ]
 
@@ -166,12 +169,15 @@ class QpArrays(NamedTuple):
 
 class KktWorkspace(NamedTuple):
     """Scratch arrays of :func:`active_set`: a flat KKT matrix, its right-hand side, the
-    inequality rows' values and the active rows' indices."""
+    inequality rows' values, the active rows' indices, and in ``previous`` the multipliers
+    of the last proximal iteration (:func:`_dependent_kkt_solve`), :math:`L^{-1} g` and the
+    residuals of :func:`_refine` (n + m, n and n + m entries, m = n_eq + min(n, n_in))."""
 
     kkt: np.ndarray
     rhs: np.ndarray
     values: np.ndarray
     rows: np.ndarray
+    previous: np.ndarray
 
 
 # Compiled on first call, cached on disk; NumPy semantics for x / 0 (inf or NaN, checked by
@@ -579,6 +585,84 @@ def torques(layout, dynamics, x, tau):
 
 
 @_compile
+def base_map(dynamics, contact_rows, base_rhs, factor, solution) -> bool:
+    r"""The base rows solved for the base accelerations, :math:`\ddot q_b = X_y y - X_c`:
+    ``solution`` :math:`[X_y | X_c] = M_{bb}^{-1} [-M_{ba} \,|\, s J_{cb}^\top \,|\, h_b]`
+    (n_base x (n + 1)), with the right-hand side written into ``base_rhs`` and the Cholesky
+    factor of :math:`M_{bb}` into ``factor``; ``contact_rows`` holds the contact rows over x.
+    False (``base_rhs`` filled, ``solution`` not) if :math:`M_{bb}` is not positive
+    definite."""
+    mass, bias, force_scale = dynamics.mass, dynamics.bias, dynamics.force_scale
+    n_base, width = solution.shape[0], solution.shape[1]
+    n_contact = contact_rows.shape[0]
+    n_act = width - 1 - n_contact
+    for i in range(n_base):
+        for j in range(n_act):  # -M_ba, read by columns of the symmetric, Fortran-ordered M
+            base_rhs[i, j] = -mass[n_base + j, i]
+        for k in range(n_contact):
+            base_rhs[i, n_act + k] = force_scale * contact_rows[k, i]
+        base_rhs[i, width - 1] = bias[i]
+    if not _cholesky(mass[:n_base, :n_base], factor):
+        return False
+    for j in range(width):
+        column = base_rhs[:, j]
+        for i in range(n_base):
+            solution[i, j] = column[i]
+        _forward(factor, solution[:, j])
+        _backward(factor, solution[:, j])
+    return True
+
+
+@_compile
+def map_rows(used, n_cost, row_scale, solution, mapped):
+    r"""The rows :math:`[A_b | A_y | t]` of ``used`` (task and base-regularisation rows,
+    then contact rows) over y, :math:`[A_y + A_b X_y \,|\, t + A_b X_c]` with ``solution``
+    :math:`[X_y | X_c]` of :func:`base_map` (no rows on a fixed base), the first ``n_cost``
+    scaled by ``row_scale``, into ``mapped``."""
+    n_base, width = solution.shape[0], solution.shape[1]
+    for r in range(used.shape[0]):
+        scale = row_scale[r, 0] if r < n_cost else 1.0
+        for j in range(width):
+            value = used[r, n_base + j]
+            for b in range(n_base):
+                value += used[r, b] * solution[b, j]
+            mapped[r, j] = scale * value
+
+
+@_compile
+def torque_rows(dynamics, base_map, contact, torque_limit, bounds, torque, in_matrix, lower, upper):
+    r"""The torques as rows over y, :math:`\tau = [M_{ab} X_y + [M_{aa} \,|\,
+    -s J_{ca}^\top] \,|\, M_{ab} X_c - h_a]` with :math:`\ddot q_b = X_y y - X_c`
+    (``base_map`` :math:`[X_y | X_c]`, n_base x (n + 1); none on a fixed base), into
+    ``torque``; their limits as rows ``[0, n_act)`` of the inequality rows ``in_matrix``,
+    ``lower``, ``upper``, followed by the acceleration bounds of ``bounds`` (a
+    :class:`JointBounds`, clipped to :math:`\pm 10^{20}`, proxsuite's "no bound").
+    ``contact`` holds :math:`J_{ca}` (the contact rows over the actuated joints)."""
+    mass, bias, force_scale = dynamics.mass, dynamics.bias, dynamics.force_scale
+    n_base = base_map.shape[0]
+    n_act, n = torque.shape[0], torque.shape[1] - 1
+    for i in range(n_act):
+        a = n_base + i
+        for j in range(n + 1):
+            value = 0.0
+            for b in range(n_base):  # M_ab: row a of the symmetric, Fortran-ordered matrix
+                value += mass[b, a] * base_map[b, j]
+            torque[i, j] = value
+        for j in range(n_act):
+            torque[i, j] += mass[n_base + j, a]
+        for k in range(n - n_act):
+            torque[i, n_act + k] -= force_scale * contact[k, i]
+        torque[i, n] -= bias[a]
+        for j in range(n):
+            in_matrix[i, j] = torque[i, j]
+        lower[i] = torque[i, n] - torque_limit[i]
+        upper[i] = torque[i, n] + torque_limit[i]
+    for j in range(bounds.lower.size):
+        lower[n_act + j] = min(max(bounds.lower[j], -1e20), 1e20)
+        upper[n_act + j] = min(max(bounds.upper[j], -1e20), 1e20)
+
+
+@_compile
 def eliminated_tick(layout, dynamics, split, costs, checks, q, v, x, tau) -> int:
     """One tick without inequality rows on the eliminated QP: :func:`eliminate` and
     :func:`reduce_costs`, the Cholesky solve for z, the cone check, :func:`expand` and
@@ -609,51 +693,291 @@ def eliminated_tick(layout, dynamics, split, costs, checks, q, v, x, tau) -> int
 
 
 @_compile
+def _kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, regularization, previous) -> bool:
+    r"""Assemble the KKT matrix of the equality rows and the active rows ``rows[:n_active]``
+    of ``problem`` (a :class:`QpArrays`) in ``kkt`` and solve it into ``rhs``: x, then the
+    multipliers :math:`\nu`. With ``regularization`` :math:`\delta > 0`, the proximal system
+
+    .. math:: \begin{bmatrix} H & E^\top \\ E & -\delta I \end{bmatrix}
+              \begin{bmatrix} x \\ \nu \end{bmatrix} = \begin{bmatrix} -g \\ e - \delta
+              \nu_{prev} \end{bmatrix}
+
+    with :math:`\nu_{prev}` = ``previous``, which is regular for dependent rows too. False if
+    the matrix is singular or the result not finite."""
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n, n_eq = hessian.shape[0], eq_matrix.shape[0]
+    size = n + n_eq + n_active
+    matrix = kkt[: size * size].reshape(size, size)
+    matrix[:] = 0.0
+    matrix[:n, :n] = hessian
+    for i in range(n_eq):
+        for j in range(n):
+            matrix[n + i, j] = eq_matrix[i, j]
+            matrix[j, n + i] = eq_matrix[i, j]
+        rhs[n + i] = eq_vector[i]
+    for k in range(n_active):
+        row = rows[k]
+        for j in range(n):
+            matrix[n + n_eq + k, j] = in_matrix[row, j]
+            matrix[j, n + n_eq + k] = in_matrix[row, j]
+        rhs[n + n_eq + k] = upper[row] if at_upper[row] else lower[row]
+    for j in range(n):
+        rhs[j] = -gradient[j]
+    if regularization > 0.0:
+        for i in range(n, size):
+            matrix[i, i] = -regularization
+            rhs[i] -= regularization * previous[i]
+    return solve_in_place(matrix, rhs[:size])
+
+
+@_compile
+def _dependent_kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, previous) -> bool:
+    r"""The KKT solve of :func:`_kkt_solve` for active rows that may be dependent (its
+    matrix singular): proximal iterations :math:`\nu_{prev} \leftarrow \nu` of the
+    regularised system from :math:`\nu_{prev} = 0`, :math:`\delta = 10^{-12}` of the largest
+    Hessian diagonal entry (at least 1). For independent rows each iteration shrinks the
+    residual :math:`E x - e` by :math:`\delta / (\delta + \sigma^2)` (:math:`\sigma^2` an
+    eigenvalue of :math:`E H^{-1} E^\top`); dependent rows that are consistent keep the
+    multipliers they start with. True if after ``_PROXIMAL_STEPS`` the rows hold to 1e-12
+    of their scale: then x is the exact optimum over the active rows and :math:`\nu` one of
+    its multiplier vectors. Deterministic: the same rows give the same bits."""
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n, n_eq = hessian.shape[0], eq_matrix.shape[0]
+    size = n + n_eq + n_active
+    largest = 1.0
+    for j in range(n):
+        largest = max(largest, abs(hessian[j, j]))
+    regularization = 1e-12 * largest
+    previous[:size] = 0.0
+    for _ in range(_PROXIMAL_STEPS):
+        if not _kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, regularization, previous):
+            return False
+        previous[n:size] = rhs[n:size]
+    for i in range(n_eq + n_active):  # the rows hold?
+        value, scale = 0.0, 1.0
+        for j in range(n):
+            a = eq_matrix[i, j] if i < n_eq else in_matrix[rows[i - n_eq], j]
+            value += a * rhs[j]
+            scale = max(scale, abs(a * rhs[j]))
+        if i < n_eq:
+            target = eq_vector[i]
+        else:
+            row = rows[i - n_eq]
+            target = upper[row] if at_upper[row] else lower[row]
+        if not abs(value - target) <= 1e-12 * max(scale, abs(target)):
+            return False
+    return True
+
+
+_PROXIMAL_STEPS = 4
+
+
+@_compile
+def _cholesky(matrix, factor) -> bool:
+    """Lower Cholesky factor of the symmetric positive definite ``matrix`` into the lower
+    triangle of ``factor``; False if it is not positive definite (or holds a NaN)."""
+    n = matrix.shape[0]
+    for i in range(n):
+        for k in range(i + 1):
+            value = matrix[i, k]
+            for m in range(k):
+                value -= factor[i, m] * factor[k, m]
+            if k < i:
+                factor[i, k] = value / factor[k, k]
+            elif value > 0.0:
+                factor[i, i] = math.sqrt(value)
+            else:
+                return False
+    return True
+
+
+@_compile
+def _forward(factor, vector):
+    """``vector`` := L^-1 ``vector`` for the lower triangle L of ``factor``."""
+    for i in range(vector.size):
+        value = vector[i]
+        for m in range(i):
+            value -= factor[i, m] * vector[m]
+        vector[i] = value / factor[i, i]
+
+
+@_compile
+def _schur_solve(
+    problem, at_upper, rows, n_active, factor, shifted, work, schur, rhs, residual
+) -> bool:
+    r"""The KKT solve of :func:`_kkt_solve` through the Cholesky factor :math:`H = L L^\top`
+    (``factor``, made once for all rounds) and the Schur complement of the active rows E:
+    with :math:`W = L^{-1} E^\top` and :math:`h = L^{-1} g` (``shifted``),
+
+    .. math:: W^\top W \nu = -(e + W^\top h), \qquad x = -L^{-\top}(h + W \nu),
+
+    about a third of the work of the LU of the whole KKT matrix, then
+    ``_REFINEMENT_STEPS`` steps of :func:`_refine`. ``work`` (rows of :math:`W^\top`),
+    ``schur`` and ``residual`` (n + m entries) are scratch. False if :math:`W^\top W` is not
+    positive definite (dependent active rows) or the result not finite."""
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n, n_eq = hessian.shape[0], eq_matrix.shape[0]
+    m = n_eq + n_active
+    for k in range(m):
+        row = work[k]
+        if k < n_eq:
+            for j in range(n):
+                row[j] = eq_matrix[k, j]
+            target = eq_vector[k]
+        else:
+            active = rows[k - n_eq]
+            for j in range(n):
+                row[j] = in_matrix[active, j]
+            target = upper[active] if at_upper[active] else lower[active]
+        _forward(factor, row)
+        value = target
+        for j in range(n):
+            value += row[j] * shifted[j]
+        rhs[n + k] = -value
+        for i in range(k + 1):
+            other = work[i]
+            value = 0.0
+            for j in range(n):
+                value += row[j] * other[j]
+            schur[k, i] = value
+    if not _cholesky(schur[:m, :m], schur[:m, :m]):
+        return False
+    nu = rhs[n : n + m]
+    _forward(schur[:m, :m], nu)
+    _backward(schur[:m, :m], nu)
+    for j in range(n):
+        value = shifted[j]
+        for k in range(m):
+            value += work[k, j] * nu[k]
+        rhs[j] = -value
+    _backward(factor, rhs[:n])  # L^T x = -(h + W nu)
+    for _ in range(_REFINEMENT_STEPS):
+        _refine(problem, at_upper, rows, n_active, factor, work, schur, rhs, residual)
+    total = 0.0
+    for k in range(n + m):
+        total += rhs[k]
+    return math.isfinite(total)
+
+
+_REFINEMENT_STEPS = 2
+
+
+@_compile
+def _backward(factor, vector):
+    """``vector`` := L^-T ``vector`` for the lower triangle L of ``factor``."""
+    n = vector.size
+    for i in range(n - 1, -1, -1):
+        value = vector[i]
+        for k in range(i + 1, n):
+            value -= factor[k, i] * vector[k]
+        vector[i] = value / factor[i, i]
+
+
+@_compile
+def _refine(problem, at_upper, rows, n_active, factor, work, schur, rhs, residual):
+    r"""One step of iterative refinement of the KKT solution (x, :math:`\nu`) in ``rhs``
+    by :func:`_schur_solve`'s factors: the residuals :math:`r_1 = -g - H x - E^\top \nu`,
+    :math:`r_2 = e - E x` (in ``residual``) and the correction
+    :math:`S\,d\nu = W^\top L^{-1} r_1 - r_2`, :math:`dx = L^{-\top}(L^{-1} r_1 - W d\nu)`.
+    The Schur complement solve loses accuracy with the condition of H (1e-10 relative for
+    Talos's QPs, against 1e-14 for the LU of the KKT matrix); a step recovers it."""
+    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+    n, n_eq = hessian.shape[0], eq_matrix.shape[0]
+    m = n_eq + n_active
+    r1, r2 = residual[:n], residual[n : n + m]
+    for i in range(n):
+        value = -gradient[i]
+        for j in range(n):
+            value -= hessian[i, j] * rhs[j]
+        r1[i] = value
+    for k in range(m):
+        nu = rhs[n + k]
+        if k < n_eq:
+            value = eq_vector[k]
+            for j in range(n):
+                value -= eq_matrix[k, j] * rhs[j]
+                r1[j] -= nu * eq_matrix[k, j]
+        else:
+            active = rows[k - n_eq]
+            value = upper[active] if at_upper[active] else lower[active]
+            for j in range(n):
+                value -= in_matrix[active, j] * rhs[j]
+                r1[j] -= nu * in_matrix[active, j]
+        r2[k] = value
+    _forward(factor, r1)
+    for k in range(m):
+        value = -r2[k]
+        for j in range(n):
+            value += work[k, j] * r1[j]
+        r2[k] = value
+    _forward(schur[:m, :m], r2)
+    _backward(schur[:m, :m], r2)
+    for j in range(n):
+        value = r1[j]
+        for k in range(m):
+            value -= work[k, j] * r2[k]
+        r1[j] = value
+    _backward(factor, r1)
+    for j in range(n):
+        rhs[j] += r1[j]
+    for k in range(m):
+        rhs[n + k] += r2[k]
+
+
+@_compile
 def active_set(problem, at_upper, at_lower, tolerance, rounds, workspace, x, y, z) -> int:
     r"""Primal-dual active-set iterations (see :func:`dmpopt.control.qp_stages._active_set`)
-    as one compiled call: each round assembles the KKT matrix of the active rows in place in
-    ``workspace`` and solves it by :func:`solve_in_place`.
+    as one compiled call: each round solves the KKT system of the active rows through the
+    Cholesky factor of H, made once for all rounds, and the Schur complement of the active
+    rows (:func:`_schur_solve`); if that fails (dependent active rows, e.g. equality rows
+    that are all zero), the KKT matrix is assembled in place in ``workspace`` and solved by
+    :func:`solve_in_place`, or if singular by the proximal iterations of
+    :func:`_dependent_kkt_solve`.
 
     ``problem`` holds the fields of a :class:`QpArrays` and ``workspace`` those of a
     :class:`KktWorkspace` (as plain tuples, or those NamedTuples): a flat array
-    of at least :math:`(n + n_{eq} + n)^2` entries, and arrays of :math:`n + n_{eq} + n`,
-    :math:`n_{in}` and :math:`n_{in}` entries. More active rows than unknowns are dependent.
-    On a certified optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if
-    inactive) receive it and its multipliers. Returns the number of KKT solves, negative if no set
+    of at least :math:`(n + n_{eq} + n)^2` entries, arrays of :math:`n + n_{eq} + n`,
+    :math:`n_{in}` and :math:`n_{in}` entries, and one of :math:`3 (n + n_{eq} + n)`. On a certified
+    optimum ``x``, ``y`` (equality rows) and ``z`` (every inequality row, 0 if inactive)
+    receive it and its multipliers. Returns the number of KKT solves, negative if no set
     verified.
     """
     # unpacked by position: plain tuples are passed (numba types them faster than NamedTuples)
     hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
-    kkt, rhs, values, rows = workspace
+    kkt, rhs, values, rows, previous = workspace
     n, n_eq, n_in = hessian.shape[0], eq_matrix.shape[0], in_matrix.shape[0]
+    # kkt holds L (n x n), then the rows of W^T (m_max x n), then W^T W (m_max x m_max), for
+    # the Schur solve; the LU fallback overwrites it all (factored = False).
+    m_max = n_eq + min(n, n_in)
+    factor = kkt[: n * n].reshape(n, n)
+    work = kkt[n * n : n * n + m_max * n].reshape(m_max, n)
+    schur = kkt[n * n + m_max * n : n * n + m_max * n + m_max * m_max].reshape(m_max, m_max)
+    size = n + m_max  # previous: proximal multipliers, then h = L^-1 g, then residuals
+    shifted = previous[size : size + n]
+    residual = previous[size + n :]
+    factored, definite = False, True
     for solves in range(1, rounds + 1):
         n_active = 0
         for i in range(n_in):
             if at_upper[i] or at_lower[i]:
                 rows[n_active] = i
                 n_active += 1
-        m = n_eq + n_active
-        size = n + m
-        if n_active > n:  # dependent active rows
+        if n_active > n:  # dependent active rows, more than the workspace holds
             return -solves
-        matrix = kkt[: size * size].reshape(size, size)
-        matrix[:] = 0.0
-        matrix[:n, :n] = hessian
-        for i in range(n_eq):
-            for j in range(n):
-                matrix[n + i, j] = eq_matrix[i, j]
-                matrix[j, n + i] = eq_matrix[i, j]
-            rhs[n + i] = eq_vector[i]
-        for k in range(n_active):
-            row = rows[k]
-            for j in range(n):
-                matrix[n + n_eq + k, j] = in_matrix[row, j]
-                matrix[j, n + n_eq + k] = in_matrix[row, j]
-            rhs[n + n_eq + k] = upper[row] if at_upper[row] else lower[row]
-        for j in range(n):
-            rhs[j] = -gradient[j]
-        if not solve_in_place(matrix, rhs[:size]):  # dependent active rows
-            return -solves
+        if definite and not factored:
+            factored = definite = _cholesky(hessian, factor)
+            if factored:
+                for j in range(n):
+                    shifted[j] = gradient[j]
+                _forward(factor, shifted)
+        solved = factored and _schur_solve(
+            problem, at_upper, rows, n_active, factor, shifted, work, schur, rhs, residual
+        )
+        if not solved:  # dependent rows (or H not positive definite): LU of the KKT matrix
+            factored = False
+            if not _kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, 0.0, previous):
+                if not _dependent_kkt_solve(problem, at_upper, rows, n_active, kkt, rhs, previous):
+                    return -solves
         largest = 0.0
         for k in range(n_active):
             largest = max(largest, abs(rhs[n + n_eq + k]))

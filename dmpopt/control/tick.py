@@ -197,7 +197,7 @@ class Tick:
         assembly.keep_candidate()
         if answer == "direct":  # its torques were checked against the limits
             np.copyto(self._torques, assembly.tau)
-        else:  # proxsuite meets the limit rows only to its tolerance
+        else:  # the certificate meets the limit rows only to its tolerance
             np.minimum(assembly.tau, self.torque_limit, out=self._torques)
             np.maximum(self._torques, -self.torque_limit, out=self._torques)
         return self._torques.copy()

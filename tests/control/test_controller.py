@@ -1286,3 +1286,70 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     again, same = warm_solve()
     assert again == iterations and again > 0
     np.testing.assert_array_equal(same, answer)
+
+
+class _NoisyProxsuite:
+    """A stage's proxsuite QP whose answers (x and z) get a random error of ``size`` times
+    their largest entry (at least 1) after every solve: far more than the ~1e-12 by which
+    proxsuite's answers to the same QP differ between processes."""
+
+    def __init__(self, qp, rng, size):
+        self._qp, self._rng, self._size = qp, rng, size
+
+    def __getattr__(self, name):
+        return getattr(self._qp, name)
+
+    def solve(self, *arguments):
+        self._qp.solve(*arguments)
+        results = self._qp.results
+        for values in (results.x, results.z):  # views of proxsuite's own arrays
+            scale = max(1.0, float(np.abs(values).max(initial=0.0)))
+            values += self._size * scale * self._rng.uniform(-1.0, 1.0, values.size)
+
+
+@pytest.mark.parametrize("case", ["torque rows", "cone rows"])
+def test_torques_do_not_depend_on_proxsuites_last_bits(upper_body, talos, case, monkeypatch):
+    """Every tick through proxsuite (no warm active-set rounds): two controllers, the second
+    built after other heap allocations and with proxsuite's answers perturbed by 1e-11 of
+    their scale, give bitwise the same torques on the same states, because the answer is the
+    KKT solution of an active set chosen with a margin from proxsuite's multipliers. (A
+    threshold at proxsuite's own noise, 1e-12 of the largest multiplier, lets the error move
+    rows into the set.)"""
+    from dmpopt.control import qp_stages
+
+    monkeypatch.setattr(qp_stages, "_WARM_ROUNDS", 0)  # proxsuite on every QP tick
+    rng = np.random.default_rng(7)
+    if case == "torque rows":
+        robot, n_ticks = upper_body, 12
+        states = [random_state(robot, rng) for _ in range(n_ticks)]
+        targets = [400.0 * rng.normal(size=robot.nv) for _ in range(n_ticks)]
+
+        def build():
+            posture = PostureTask(robot, weight=1.0, stiffness=0.0, damping=0.0)
+            controller = InverseDynamicsController(robot, [posture], time_budget=1.0)
+            return controller, lambda k: posture.set_reference(*states[k], targets[k])
+    else:
+        robot, n_ticks = talos, 8
+        states = [random_state(robot, rng, spread=0.02, speed=0.3) for _ in range(n_ticks)]
+        com0 = pin.centerOfMass(robot.model, robot.create_data(), robot.reference_configuration)
+        targets = [com0 + [0.0, 0.05 * (-1) ** k, -0.03] for k in range(n_ticks)]
+
+        def build():
+            controller, com = standing_controller(robot, friction=0.1)
+            return controller, lambda k: com.set_target(targets[k])
+
+    runs = []
+    kept = [np.empty(int(n)) for n in rng.integers(1, 5000, size=20)]  # another heap state
+    for noise in (0.0, 1e-11):
+        controller, set_target = build()
+        for stage in controller._current.tick.stages:
+            stage.qp = _NoisyProxsuite(stage.qp, rng, noise)
+        torques = []
+        for k in range(n_ticks):
+            set_target(k)
+            torques.append(controller.compute_torques(*states[k]))
+        stats = controller.stats
+        assert stats.n_solved >= n_ticks // 2 and stats.n_fallbacks == 0, stats
+        runs.append(np.array(torques))
+    del kept
+    np.testing.assert_array_equal(runs[1], runs[0])

@@ -137,3 +137,71 @@ def test_joint_space_accelerations_minimise_the_cost(n_task):
     hessian = np.diag(diagonal) + jacobian.T @ (weights[:, None] * jacobian)
     expected = np.linalg.solve(hessian, jacobian.T @ (weights * target) - gradient)
     np.testing.assert_allclose(x, expected, atol=1e-12)
+
+
+def _ill_conditioned_spd(rng, n: int, condition: float) -> np.ndarray:
+    basis, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    return (basis * np.logspace(0, np.log10(condition), n)) @ basis.T
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(2, 40), n_eq=st.integers(0, 6), n_in=st.integers(0, 20),
+       seed=st.integers(0, 2**16))  # fmt: skip
+def test_active_set_kkt_solve_has_a_backward_stable_residual(n, n_eq, n_in, seed):
+    """A QP built around a chosen optimum: x*, multipliers nu > 0 on upper-bound rows at
+    their bound (all active) and any on equality rows, g = -H x* - E^T nu, H of condition
+    1e7 (as Talos's QPs). From that active set the certificate takes one KKT solve (the
+    Cholesky-Schur path with iterative refinement) and its KKT residuals are those of a
+    backward-stable solve, |H x + E^T nu + g| and |E x - e| <= 1e-12 of the terms' size; x is
+    x* to eps * cond(KKT). (The refinement itself is needed for Talos's QPs at tolerance
+    1e-10: without it test_solution_satisfies_equations_of_motion cycles between active sets
+    and holds.)"""
+    from dmpopt.control.qp_stages import _active_set
+
+    rng = np.random.default_rng(seed)
+    n_eq, n_in = min(n_eq, n), min(n_in, n - min(n_eq, n))
+    hessian = _ill_conditioned_spd(rng, n, 1e7)
+    eq_matrix, in_matrix = rng.normal(size=(n_eq, n)), rng.normal(size=(n_in, n))
+    optimum = rng.normal(size=n)
+    y, z = rng.normal(size=n_eq), rng.uniform(0.5, 2.0, size=n_in)
+    gradient = -hessian @ optimum - eq_matrix.T @ y - in_matrix.T @ z
+    upper = in_matrix @ optimum
+    problem = (hessian, gradient, eq_matrix, eq_matrix @ optimum, in_matrix,
+               np.full(n_in, -1e20), upper)  # fmt: skip
+    at_upper, at_lower = np.ones(n_in, bool), np.zeros(n_in, bool)
+    duals = (np.zeros(n_eq), np.zeros(n_in))
+    x, solves = _active_set(problem, at_upper, at_lower, 1e-9, 3, duals)
+    assert solves == 1 and x is not None
+    rows = np.vstack([eq_matrix, in_matrix])
+    nu = np.concatenate(duals)
+    size = np.abs(hessian) @ np.abs(x) + np.abs(rows.T) @ np.abs(nu) + np.abs(gradient)
+    assert np.all(np.abs(hessian @ x + rows.T @ nu + gradient) <= 1e-12 * size.max())
+    targets = np.r_[problem[3], upper]
+    scale = (np.abs(rows) @ np.abs(x)).max(initial=0.0)
+    assert np.all(np.abs(rows @ x - targets) <= 1e-12 * scale)
+    kkt = np.block([[hessian, rows.T], [rows, np.zeros((len(rows), len(rows)))]])
+    bound = 1e-15 * np.linalg.cond(kkt) * max(1.0, np.abs(optimum).max())
+    np.testing.assert_allclose(x, optimum, rtol=0, atol=max(bound, 1e-13))
+
+
+def test_active_set_solves_dependent_active_rows():
+    """Equality rows that are all zero (a fixed base's contact rows) and an active row that
+    repeats another make the KKT matrix singular: the certificate still holds, with x the
+    optimum of the independent rows (NumPy on the reduced KKT system)."""
+    from dmpopt.control.qp_stages import _active_set
+
+    rng = np.random.default_rng(3)
+    n = 8
+    hessian, gradient = _spd(rng, n), rng.normal(size=n)
+    eq_matrix = np.zeros((3, n))
+    row = rng.normal(size=n)
+    in_matrix = np.vstack([row, row])  # the same row twice, both at their upper bound
+    x_free = np.linalg.solve(hessian, -gradient)
+    upper = np.full(2, row @ x_free - 1.0)  # binding: the free optimum violates it
+    problem = (hessian, gradient, eq_matrix, np.zeros(3), in_matrix, np.full(2, -1e20), upper)
+    at_upper, at_lower = np.ones(2, bool), np.zeros(2, bool)
+    x, solves = _active_set(problem, at_upper, at_lower, 1e-9, 3)
+    assert x is not None
+    kkt = np.block([[hessian, row[:, None]], [row[None, :], np.zeros((1, 1))]])
+    expected = np.linalg.solve(kkt, np.r_[-gradient, upper[0]])[:n]
+    np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())

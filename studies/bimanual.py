@@ -77,6 +77,7 @@ from dmpopt.control import (
     JointImpedance,
     PostureTask,
     SoleContact,
+    control_loop,
 )
 from dmpopt.exceptions import MissingDependency, SimulationDiverged
 from dmpopt.fitting import minimum_jerk
@@ -299,42 +300,43 @@ def carry(robot, setup, coupled: bool, duration: float, record_every: int = 0, s
     box = np.zeros((n, 3))
     frames, box_frames = [], []
     fell = False
-    for k in range(n):
-        if k > hold:
-            pair.step()
-        if k == change:
-            pair.set_goal("right", position=right_dmp.goal + NEW_GOAL_SHIFT)
-        if k == left_change:
-            pair.set_goal("left", position=left_dmp.goal + NEW_GOAL_SHIFT)
-        for hand, task in zip(("left", "right"), tasks):
-            position, velocity, orientation, angular = pair.state(hand)
-            stepper = getattr(pair, hand)
-            w, x, y, z = orientation
-            placement = pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), position)
-            task.set_target(
-                placement,
-                np.r_[velocity, angular],
-                np.r_[stepper.acceleration, stepper.angular_acceleration],
-            )
-        plans = [pair.state(hand)[::2] for hand in ("left", "right")]
-        plan_error[k] = relative_pose_error(coupling, *plans)
-        measured = hand_poses(robot, data, state.q)
-        if k == hold:
-            (left, left_q), (right, right_q) = measured
-            held = RelativePoseCoupling.from_poses(left, left_q, right, right_q)
-        measured_error[k] = relative_pose_error(held, *measured)
-        box[k] = simulator.free_body_qpos[:3]
-        if record_every and k % record_every == 0:
-            frames.append(state.q.copy())
-            box_frames.append(simulator.free_body_qpos)
-        tau = controller.compute_torques(state.q_measured, state.v_measured)
-        try:
-            state = simulator.step(tau)
-        except SimulationDiverged:
-            fell = True
-        if fell or state.fallen:
-            fell, n = True, k + 1
-            break
+    with control_loop():
+        for k in range(n):
+            if k > hold:
+                pair.step()
+            if k == change:
+                pair.set_goal("right", position=right_dmp.goal + NEW_GOAL_SHIFT)
+            if k == left_change:
+                pair.set_goal("left", position=left_dmp.goal + NEW_GOAL_SHIFT)
+            for hand, task in zip(("left", "right"), tasks):
+                position, velocity, orientation, angular = pair.state(hand)
+                stepper = getattr(pair, hand)
+                w, x, y, z = orientation
+                placement = pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), position)
+                task.set_target(
+                    placement,
+                    np.r_[velocity, angular],
+                    np.r_[stepper.acceleration, stepper.angular_acceleration],
+                )
+            plans = [pair.state(hand)[::2] for hand in ("left", "right")]
+            plan_error[k] = relative_pose_error(coupling, *plans)
+            measured = hand_poses(robot, data, state.q)
+            if k == hold:
+                (left, left_q), (right, right_q) = measured
+                held = RelativePoseCoupling.from_poses(left, left_q, right, right_q)
+            measured_error[k] = relative_pose_error(held, *measured)
+            box[k] = simulator.free_body_qpos[:3]
+            if record_every and k % record_every == 0:
+                frames.append(state.q.copy())
+                box_frames.append(simulator.free_body_qpos)
+            tau = controller.compute_torques(state.q_measured, state.v_measured)
+            try:
+                state = simulator.step(tau)
+            except SimulationDiverged:
+                fell = True
+            if fell or state.fallen:
+                fell, n = True, k + 1
+                break
     after = slice(hold, n)
     before_hold = np.arange(n) < hold  # measured against the settled grasp from the hold on
     lifted = box_start[2] + LIFT + NEW_GOAL_SHIFT[2]

@@ -58,6 +58,7 @@ from dmpopt.control import (
     JointImpedance,
     PostureTask,
     SoleContact,
+    control_loop,
 )
 from dmpopt.sim import with_armature
 
@@ -142,28 +143,29 @@ def run_hand(robot, dmp, hand: str, duration: float, goal=None) -> dict:
     n = int(round(duration / DT))
     log = {name: np.zeros((n, size)) for name, size in (("plan", 7), ("hand", 7))}
     ticks, fell = np.zeros(n), False
-    for k in range(n):
-        if k:
-            stepper.step()
-        if goal is not None and k == round(GOAL_CHANGE_TIME / DT):
-            stepper.set_goal(*goal)
-        target = pin.SE3(rotation(stepper.orientation), stepper.position)
-        task.set_target(
-            target,
-            velocity=np.r_[stepper.velocity, stepper.angular_velocity],
-            acceleration=np.r_[stepper.acceleration, stepper.angular_acceleration],
-        )
-        begin = time.perf_counter()
-        torques = controller.compute_torques(state.q_measured, state.v_measured)
-        ticks[k] = time.perf_counter() - begin
-        pin.framesForwardKinematics(robot.model, data, state.q)
-        placement = data.oMf[frame]
-        log["plan"][k] = np.r_[stepper.position, stepper.orientation]
-        log["hand"][k] = np.r_[placement.translation, quaternion(placement.rotation)]
-        state = simulator.step(torques)
-        if state.fallen:
-            fell, n = True, k + 1
-            break
+    with control_loop():
+        for k in range(n):
+            if k:
+                stepper.step()
+            if goal is not None and k == round(GOAL_CHANGE_TIME / DT):
+                stepper.set_goal(*goal)
+            target = pin.SE3(rotation(stepper.orientation), stepper.position)
+            task.set_target(
+                target,
+                velocity=np.r_[stepper.velocity, stepper.angular_velocity],
+                acceleration=np.r_[stepper.acceleration, stepper.angular_acceleration],
+            )
+            begin = time.perf_counter()
+            torques = controller.compute_torques(state.q_measured, state.v_measured)
+            ticks[k] = time.perf_counter() - begin
+            pin.framesForwardKinematics(robot.model, data, state.q)
+            placement = data.oMf[frame]
+            log["plan"][k] = np.r_[stepper.position, stepper.orientation]
+            log["hand"][k] = np.r_[placement.translation, quaternion(placement.rotation)]
+            state = simulator.step(torques)
+            if state.fallen:
+                fell, n = True, k + 1
+                break
     plan, measured = log["plan"][:n], log["hand"][:n]
     return {
         "times": np.arange(n) * DT,

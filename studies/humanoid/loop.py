@@ -9,6 +9,7 @@ import numpy as np
 import pinocchio as pin
 
 from dmpopt import fit_rhythmic
+from dmpopt.control import control_loop
 from dmpopt.exceptions import SimulationDiverged
 
 from .controller import build_controller, make_simulator
@@ -97,37 +98,38 @@ def _closed_loop(
     limit = np.asarray(robot.torque_limit)
     fell, diverged = False, None
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    for k in range(n):
-        if k == push_tick:
-            simulator.push_impulse("base_link", push[1], duration=PUSH_DURATION)
-        if record_every and k % record_every == 0:
-            frames.append(state.q.copy())
-        desired[k] = reference() if k else first
-        begin, cpu_begin = time.perf_counter_ns(), time.thread_time_ns()
-        tau = controller.compute_torques(state.q_measured, state.v_measured)
-        tick_cpu[k] = time.thread_time_ns() - cpu_begin
-        tick_wall[k] = time.perf_counter_ns() - begin
-        np.divide(np.abs(tau), limit, out=ratio)
-        np.maximum(torque_use, ratio, out=torque_use)
-        torque_peak[k] = ratio.max()
-        np.divide(np.abs(getattr(controller, "torques", tau)), limit, out=ratio)
-        np.maximum(qp_torque_use, ratio, out=qp_torque_use)
-        actual[k] = measure(state.q, data)
-        if robot.floating_base:
-            base[k, :3] = state.q[:3]
-            base[k, 3:] = pin.rpy.matrixToRpy(pin.Quaternion(state.q[3:7]).toRotationMatrix())
-            com[k] = pin.centerOfMass(robot.model, data, state.q)
-        try:
-            state = simulator.step(tau)
-            fell = state.fallen
-        except SimulationDiverged as error:
-            diverged = str(error)
-        stop = fell or diverged is not None
-        if progress is not None and (k % 100 == 99 or k == n - 1 or stop):
-            progress.update(k % 100 + 1)
-        if stop:
-            n = k + 1
-            break
+    with control_loop():
+        for k in range(n):
+            if k == push_tick:
+                simulator.push_impulse("base_link", push[1], duration=PUSH_DURATION)
+            if record_every and k % record_every == 0:
+                frames.append(state.q.copy())
+            desired[k] = reference() if k else first
+            begin, cpu_begin = time.perf_counter_ns(), time.thread_time_ns()
+            tau = controller.compute_torques(state.q_measured, state.v_measured)
+            tick_cpu[k] = time.thread_time_ns() - cpu_begin
+            tick_wall[k] = time.perf_counter_ns() - begin
+            np.divide(np.abs(tau), limit, out=ratio)
+            np.maximum(torque_use, ratio, out=torque_use)
+            torque_peak[k] = ratio.max()
+            np.divide(np.abs(getattr(controller, "torques", tau)), limit, out=ratio)
+            np.maximum(qp_torque_use, ratio, out=qp_torque_use)
+            actual[k] = measure(state.q, data)
+            if robot.floating_base:
+                base[k, :3] = state.q[:3]
+                base[k, 3:] = pin.rpy.matrixToRpy(pin.Quaternion(state.q[3:7]).toRotationMatrix())
+                com[k] = pin.centerOfMass(robot.model, data, state.q)
+            try:
+                state = simulator.step(tau)
+                fell = state.fallen
+            except SimulationDiverged as error:
+                diverged = str(error)
+            stop = fell or diverged is not None
+            if progress is not None and (k % 100 == 99 or k == n - 1 or stop):
+                progress.update(k % 100 + 1)
+            if stop:
+                n = k + 1
+                break
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     return RunLog(
         times=np.arange(n) * DT,

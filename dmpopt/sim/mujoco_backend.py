@@ -1109,6 +1109,7 @@ def render_animation(
     azimuth: float = 135.0,
     elevation: float = -15.0,
     free_body_qpos=None,
+    shadows: bool = True,
 ) -> Path:
     """Render configurations offscreen and write an animated WebP or GIF.
 
@@ -1141,6 +1142,10 @@ def render_animation(
     free_body_qpos : array_like, shape (n_frames, 7 * n_free_bodies), optional
         Poses of the simulator's free bodies per frame (its :attr:`MujocoSimulator.free_body_qpos`
         at each frame); default their start poses.
+    shadows : bool
+        Cast shadows (they show where a foot meets the ground). Without them a frame renders
+        about 3.5x faster on a software OpenGL (Talos at 480 x 360 with EGL on the CPU: 175 ->
+        48 ms of CPU per frame).
 
     Returns
     -------
@@ -1165,12 +1170,16 @@ def render_animation(
         )
     path = _output_path(path, (".webp", ".gif"))
     fps = _positive("fps", fps)
+    if not isinstance(shadows, (bool, np.bool_)):
+        raise InvalidInputError(f"shadows must be True or False, got {shadows!r}")
     camera = _camera(simulator, target, distance, azimuth, elevation)
     max_bytes = _positive("max_bytes", max_bytes)
     image_class = _pillow()
     frames = [
         image_class.fromarray(f)
-        for f in _render_frames(simulator, configurations, width, height, camera, free_body_qpos)
+        for f in _render_frames(
+            simulator, configurations, width, height, camera, free_body_qpos, shadows
+        )
     ]
     duration = 1000.0 / fps  # [ms] per frame
     while True:
@@ -1292,7 +1301,7 @@ def _camera(simulator, target, distance, azimuth, elevation) -> dict:
 
 
 def _render_frames(
-    simulator, configurations, width, height, camera, free_body_qpos=None
+    simulator, configurations, width, height, camera, free_body_qpos=None, shadows=True
 ) -> list[np.ndarray]:
     """RGB images, shape (height, width, 3) each, of Pinocchio configurations."""
     mujoco = simulator._mj
@@ -1329,5 +1338,6 @@ def _render_frames(
             else:
                 view.lookat[:] = target
             renderer.update_scene(data, view)
+            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
             images.append(renderer.render().copy())
     return images

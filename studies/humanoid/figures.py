@@ -53,7 +53,14 @@ def write_videos(out, clips: dict, skip_reason: str | None = None) -> tuple[list
     for name, (simulator, frames, distance) in clips.items():
         try:
             path = render_animation(
-                simulator, frames, out / f"{name}.webp", VIDEO_FPS, width, height, distance
+                simulator,
+                frames,
+                out / f"{name}.webp",
+                VIDEO_FPS,
+                width,
+                height,
+                distance,
+                shadows=False,  # standing robots; 3.5x faster to render
             )
         except MissingDependency as error:
             return written, str(error)

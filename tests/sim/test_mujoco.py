@@ -385,6 +385,26 @@ def test_render_animation_writes_frames(talos, talos_sim, tmp_path):
         render_animation(talos_sim, [q], tmp_path / "b.webp", width=64, height=48, max_bytes=10)
 
 
+def test_render_without_shadows_is_lighter(talos, talos_sim, tmp_path):
+    """Shadows take light away: without them the picture holds more light in total and the
+    floor the robot shades (at least 50 of 3072 pixels) is brighter by more than 30 grey
+    levels; a renderer that ignored ``shadows`` would give the same picture twice."""
+    from dmpopt.sim.mujoco_backend import _camera, _render_frames
+
+    q = np.array(talos.reference_configuration)
+    camera = _camera(talos_sim, None, 3.0, 135.0, -15.0)
+    try:
+        (shaded,) = _render_frames(talos_sim, [q], 64, 48, camera, shadows=True)
+    except MissingDependency as error:
+        pytest.skip(f"no offscreen rendering here: {error}")
+    (plain,) = _render_frames(talos_sim, [q], 64, 48, camera, shadows=False)
+    difference = plain.astype(int).sum(axis=2) - shaded.astype(int).sum(axis=2)
+    assert difference.sum() > 0
+    assert (difference > 30).sum() >= 50
+    with pytest.raises(InvalidInputError, match="shadows must be True or False"):
+        render_animation(talos_sim, [q], tmp_path / "c.gif", shadows="no")
+
+
 _STILLS = """
 import sys
 import numpy as np

@@ -54,7 +54,7 @@ DT = 1e-3  # [s] control and simulation period
 STEP_LENGTH = 0.2  # [m] the moving foot lands this far ahead of the stance foot
 SINGLE_SUPPORT = 0.6  # [s]
 DOUBLE_SUPPORT = 0.2  # [s] weight transfer: the ZMP moves over, the contact ramps down
-FOOT_LIFT = 0.05  # [m] peak swing height
+FOOT_LIFT = 0.08  # [m] swing height (the foot is over its foothold at half of it)
 VIDEO_FPS = 10.0
 INITIAL_HOLD, FINAL_HOLD = 1.0, 1.0  # [s]
 STEPS = {"quick": (1, 3), "full": (2, 10)}  # (in place, forward); a closing step follows
@@ -78,6 +78,7 @@ MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, o
 ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
 ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
 SETTLED_SPEED = 0.02  # [m/s] a landed sole slower than this has come to rest
+SETTLED_ANGULAR_SPEED = 0.1  # [rad/s] and turning slower than this lies on the ground
 PUSH_DURATION = 0.1  # [s] a push's impulse is spread over this
 
 
@@ -162,7 +163,9 @@ class Walker:
         pin.framesForwardKinematics(robot.model, self.data, q0)
         self.sole_rotation = {
             f: self.data.oMf[robot.model.getFrameId(f)].rotation.copy() for f in robot.foot_frames
-        }
+        }  # as planned, on level ground
+        self._tilt = np.eye(3)  # the ground's tilt under the last sole that came to rest
+        self._conforming = None  # (foot, frame) landed, its ground's tilt not yet measured
         self._ground = {f: self.data.oMf[robot.model.getFrameId(f)].translation[2]
                         for f in robot.foot_frames}  # fmt: skip
         self._level = dict(self._ground)  # [m] where each foot last landed
@@ -190,6 +193,7 @@ class Walker:
             for f in robot.foot_frames
         }
         contacts = [SoleContact(robot, f) for f in robot.foot_frames]
+        self._contacts = {c.frame: c for c in contacts}
         self.controller = InverseDynamicsController(
             robot,
             [posture, self.com_task, base],
@@ -224,6 +228,8 @@ class Walker:
         com, com_velocity = self._measure(state)
         if self._settling is not None:
             self._settle(tick)
+        if self._conforming is not None:
+            self._conform(state)
         steps = self.plan.footsteps
         i = self._next
         if self._swing is not None:
@@ -258,6 +264,32 @@ class Walker:
             self.controller.joint_impedance.reset()
             self._settling = None
 
+    def _conform(self, state) -> None:
+        """Once a landed sole is at rest with three corners or more down, it lies on the
+        ground: its contact holds it as it lies (not level as planned, which on a slope
+        would keep it on an edge), and its tilt (:func:`dmpopt.balance.ground_tilt`)
+        orients the next swinging sole, so that it lands flat on ground that goes on the
+        same way."""
+        foot, frame = self._conforming
+        velocity = pin.getFrameVelocity(
+            self.robot.model, self.data, self._frame_ids[foot], pin.LOCAL_WORLD_ALIGNED
+        )
+        down = np.count_nonzero(state.in_contact.reshape(2, -1)[foot])
+        if (
+            down >= 3
+            and np.linalg.norm(velocity.linear) < SETTLED_SPEED
+            and np.linalg.norm(velocity.angular) < SETTLED_ANGULAR_SPEED
+        ):
+            placement = self.data.oMf[self._frame_ids[foot]]
+            self._tilt = balance.ground_tilt(placement.rotation[:, 2])
+            self._contacts[frame].reference_placement = placement.copy()
+            self._conforming = None
+            return
+        # until then the sole may roll onto the ground: its held attitude is the measured one
+        reference = self._contacts[frame].reference_placement
+        if reference is not None:
+            reference.rotation = self.data.oMf[self._frame_ids[foot]].rotation
+
     def _swing_arms(self) -> None:
         position, velocity, acceleration = self._arm_stepper.step()
         reference = self._posture_reference.copy()
@@ -278,8 +310,12 @@ class Walker:
         self._airborne = False  # the sole has been seen out of contact in this swing
         self._swing_tau = dmps.horizontal.tau
         self._target = step.goal.copy()
+        frame = self._frame(step)
+        self._swing_rotation = self._tilt @ self.sole_rotation[frame]
+        if self._conforming is not None and self._conforming[1] == frame:
+            self._conforming = None  # lifted before it came to rest
         self.records.append(StepRecord(step.side, t, target=self._target))
-        self.controller.add_task(self.swing_tasks[self._frame(step)])
+        self.controller.add_task(self.swing_tasks[frame])
         self._set_swing_target(i, first=True)
 
     def _swinging(self, i, t, state, com, com_velocity) -> None:
@@ -366,21 +402,24 @@ class Walker:
         task = self.swing_tasks[self._frame(self.plan.footsteps[i])]
         twist, twist_rate = np.zeros(6), np.zeros(6)
         twist[:3], twist_rate[:3] = velocity, acceleration
-        task.set_target(pin.SE3(self.sole_rotation[task.frame], position), twist, twist_rate)
+        task.set_target(pin.SE3(self._swing_rotation, position), twist, twist_rate)
 
     def _touchdown(self, i: int, t: float, frame: str, foot: int) -> None:
         """The swinging foot reported in contact: its contact comes in (with a force ramp)
         at the measured placement; the plan shifts to the touchdown time and foothold."""
-        # held where it landed, flat as planned (the measured attitude at the first touch is
-        # the impact's: held, it would keep the sole on an edge)
+        # held where it landed, oriented as it was sent (the measured attitude at the first
+        # touch is the impact's: held, it would keep the sole on an edge); once at rest on
+        # the ground, as it lies (_conform)
         landed = self.data.oMf[self._frame_ids[foot]].translation.copy()
-        placement = pin.SE3(self.sole_rotation[frame], landed)
+        placement = pin.SE3(self._swing_rotation, landed)
         self.controller.remove_task(self.swing_tasks[frame])
         self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
         if self.controller.joint_impedance is not None:
             self._settling = (foot, int(round(t / DT)))
+        self._conforming = (foot, frame)
         self._level[frame] = landed[2]
-        self.plan = self.plan.with_touchdown(i, t).with_goal(i, landed)
+        early = t < self.plan.touchdown[i] - DT / 2  # higher ground: the rhythm is kept
+        self.plan = self.plan.with_touchdown(i, t, shift_later=not early).with_goal(i, landed)
         record = self.records[-1]
         record.touchdown, record.landed, record.from_contact = t, landed, True
         if self._arm_stepper is not None:  # eq. (21): the arms' oscillator at heel strike
@@ -390,13 +429,14 @@ class Walker:
     def _com_targets(self, t: float, com, com_velocity) -> None:
         """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the
         plan's CoM (open loop); the height follows the plan above the stance ground."""
-        height = self._com_height + self._ground_offset()
+        offset, rate = self._ground_offset(t)
+        height = self._com_height + offset
         self.reference_com = self.plan.com(t)[0][:2]
         zmp_reference, dcm_reference = self.plan.zmp_and_dcm(t)
         self.reference_dcm = dcm_reference
         if not self.feedback:
             position, velocity, acceleration = self.plan.com(t)
-            position[2] = height
+            position[2], velocity[2] = height, rate
             self.com_task.set_target(position, velocity, acceleration)
             return
         xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
@@ -407,7 +447,7 @@ class Walker:
         self.zmp_command = zmp
         acceleration = np.append(balance.lipm_acceleration(com[:2], zmp, self.omega), 0.0)
         position = np.array([com[0], com[1], height])
-        velocity = np.array([com_velocity[0], com_velocity[1], 0.0])
+        velocity = np.array([com_velocity[0], com_velocity[1], rate])
         self.com_task.set_target(position, velocity, acceleration)
 
     def _support_polygon(self):
@@ -427,16 +467,29 @@ class Walker:
             self._polygon = balance.convex_hull(np.vstack(corners)) if corners else None
         return self._polygon
 
-    def _ground_offset(self) -> float:
-        """Height of the ground under the feet in contact relative to the start [m], from
-        where each landed (an unplanned step down or up lowers or raises the CoM with it; a
+    def _ground_offset(self, t: float) -> tuple[float, float]:
+        """Height [m] of the ground under the plan's ZMP relative to the start, and its rate
+        [m/s]: each foot's ground is where it last landed (an unplanned step down or up, or a
+        slope, lowers or raises the CoM with it), and in a double support the height moves
+        linearly from the foot being unloaded to the one being loaded, as the ZMP does (a
         live measurement would feed a rising, unloading foot back into the CoM height)."""
-        heights = [
-            self._level[f] - self._ground[f]
-            for f in self.robot.foot_frames
-            if f in self.controller.active_contacts
-        ]
-        return float(np.mean(heights)) if heights else 0.0
+        level = {side: self._level[f] - self._ground[f]
+                 for side, f in zip(("left", "right"), self.robot.foot_frames)}  # fmt: skip
+        times, steps = self.plan.knot_times, self.plan.footsteps
+        k = int(np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2))
+
+        def knot(j: int) -> float:  # the ground under the ZMP knot j
+            step = (j - 2) // 2
+            if step < 0 or step >= len(steps):  # standing: the ZMP between the feet
+                return 0.5 * (level["left"] + level["right"])
+            return level["right" if steps[step].side == "left" else "left"]
+
+        low, high = knot(k), knot(k + 1)
+        span = times[k + 1] - times[k]
+        if span <= 0.0 or low == high:
+            return low, 0.0
+        fraction = min(max((t - times[k]) / span, 0.0), 1.0)
+        return low + fraction * (high - low), (high - low) / span
 
 
 def make_simulator(robot, plant=IDEAL, boxes=()):

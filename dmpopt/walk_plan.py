@@ -56,6 +56,7 @@ __all__ = [
     "lipm_state",
     "lipm_time_constant",
     "plan_walk",
+    "quintic",
     "steady_dcm_offset",
     "swing_reference",
 ]
@@ -538,6 +539,35 @@ def _minimum_jerk(u):
     """:math:`10 u^3 - 15 u^4 + 6 u^5` of ``u`` clipped to [0, 1]."""
     u = np.clip(u, 0.0, 1.0)
     return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+
+
+def quintic(position, velocity, acceleration, goal, duration: float, t: float):
+    r"""The quintic polynomial from ``position``, ``velocity`` and ``acceleration`` at time 0 to
+    ``goal`` at rest (zero velocity and acceleration) at ``duration`` [s], at time ``t``
+    (held at ``goal`` after ``duration``): position, velocity and acceleration.
+
+    With :math:`h = g - p_0`, :math:`p(t) = p_0 + v_0 t + a_0 t^2 / 2 + c_3 t^3 + c_4 t^4 +
+    c_5 t^5`, :math:`c_3 = (20 h - 12 v_0 T - 3 a_0 T^2) / (2 T^3)`,
+    :math:`c_4 = (-30 h + 16 v_0 T + 3 a_0 T^2) / (2 T^4)`,
+    :math:`c_5 = (12 h - 6 v_0 T - a_0 T^2) / (2 T^5)`; from rest it is the minimum-jerk
+    :math:`p_0 + h (10 u^3 - 15 u^4 + 6 u^5)`, :math:`u = t / T`. A step adjustment moves the
+    swinging foot by it, so that the foot is over its new foothold by ``duration`` whatever
+    it was doing.
+    """
+    p0, v0, a0 = (real_array(n, x) for n, x in
+                  (("position", position), ("velocity", velocity), ("acceleration", acceleration)))  # fmt: skip
+    goal = real_array("goal", goal)
+    duration = real("duration", duration, minimum=0.0, open_minimum=True)
+    t = min(real("t", t, minimum=0.0), duration)
+    h, T = goal - p0, duration
+    c3 = (20 * h - 12 * v0 * T - 3 * a0 * T**2) / (2 * T**3)
+    c4 = (-30 * h + 16 * v0 * T + 3 * a0 * T**2) / (2 * T**4)
+    c5 = (12 * h - 6 * v0 * T - a0 * T**2) / (2 * T**5)
+    return (
+        p0 + v0 * t + a0 * t**2 / 2 + c3 * t**3 + c4 * t**4 + c5 * t**5,
+        v0 + a0 * t + 3 * c3 * t**2 + 4 * c4 * t**3 + 5 * c5 * t**4,
+        a0 + 6 * c3 * t + 12 * c4 * t**2 + 20 * c5 * t**3,
+    )
 
 
 def swing_reference(dmps: SwingDMPs, start, goal, dt: float = 1e-3) -> Trajectory:

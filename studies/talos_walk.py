@@ -45,7 +45,7 @@ from dmpopt.parallel import map_runs
 from dmpopt.sim import IDEAL, with_armature
 from dmpopt.trajectory import Trajectory
 from dmpopt.validation import flag
-from dmpopt.walk_plan import fit_swing_dmps, footstep_plan, plan_walk
+from dmpopt.walk_plan import fit_swing_dmps, footstep_plan, plan_walk, quintic
 
 from .common import TIME_BUDGET, output_dir, pyplot, write_metrics
 from .plant_sweep import collect, plot_sweep, sweep_cases, with_scaled_masses
@@ -55,6 +55,7 @@ STEP_LENGTH = 0.2  # [m] the moving foot lands this far ahead of the stance foot
 SINGLE_SUPPORT = 0.6  # [s]
 DOUBLE_SUPPORT = 0.2  # [s] weight transfer: the ZMP moves over, the contact ramps down
 FOOT_LIFT = 0.08  # [m] swing height (the foot is over its foothold at half of it)
+SWING_DESCENT = 0.4  # the fractions of the swing spent rising and coming down (fit_swing_dmps)
 VIDEO_FPS = 10.0
 INITIAL_HOLD, FINAL_HOLD = 1.0, 1.0  # [s]
 STEPS = {"quick": (1, 3), "full": (2, 10)}  # (in place, forward); a closing step follows
@@ -65,7 +66,8 @@ COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
 DCM_GAIN = 5.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
 SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
 ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
-ADJUST_STOP = 0.1  # [s] and not in the last 0.1 s before the planned touchdown
+ADJUST_STOP = 0.2  # [s] and not in the last 0.2 s before the planned touchdown (the foot is then
+# over its foothold, fit_swing_dmps: a later goal it could not reach before it lands)
 ADJUST_DEADBAND = 0.03  # [m] a predicted DCM error at touchdown below this keeps the foothold
 TIMING_THRESHOLD = 0.1  # [m] and one above this may shorten the step (step timing adaptation)
 REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
@@ -74,6 +76,7 @@ TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over 
 SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to find the ground
 SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
 SHORTEST_SWING = 0.3  # [s] and no sooner than this after lift-off
+SHORTEST_CORRECTION = 0.15  # [s] a step adjustment moves the swinging foot over at least this
 MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, once airborne
 ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
 ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
@@ -316,7 +319,8 @@ class Walker:
             self._conforming = None  # lifted before it came to rest
         self.records.append(StepRecord(step.side, t, target=self._target))
         self.controller.add_task(self.swing_tasks[frame])
-        self._set_swing_target(i, first=True)
+        self._correction = None  # (start [s], duration [s], start state, offset) of _correction_at
+        self._set_swing_target(i, t, first=True)
 
     def _swinging(self, i, t, state, com, com_velocity) -> None:
         """One tick of step ``i``'s swing: touchdown from contact, step adjustment, the swing
@@ -338,7 +342,7 @@ class Walker:
             and (int(round(t / DT)) - self._lift_tick) % ADJUST_EVERY == 0
         ):
             self._adjust_step(i, t, com, com_velocity)
-        self._set_swing_target(i, late=max(t - self._touchdown_target, 0.0))
+        self._set_swing_target(i, t, late=max(t - self._touchdown_target, 0.0))
 
     def _adjust_step(self, i, t, com, com_velocity) -> None:
         """Step adjustment from the measured DCM (:mod:`dmpopt.balance`): the DCM predicted
@@ -378,23 +382,40 @@ class Walker:
             return
         self._target = np.append(foothold, step.goal[2])
         self.records[-1].target = self._target
-        self._swing[0].set_goal(self._target[:2])
         if faster:
             self._swing_tau *= shortened / remaining
             for stepper in self._swing:
                 stepper.set_tau(self._swing_tau)
             self._touchdown_target = t + shortened
+        # the foot is moved onto the new foothold by a quintic added to the swing DMP (whose
+        # own goal change would be followed too slowly: a 0.1 m change 0.3 s before the
+        # touchdown leaves it 28 mm short), over by the swing's horizontal arrival
+        lift_off = self.plan.lift_off[i]
+        arrival = self._touchdown_target - 0.5 * SWING_DESCENT * (self._touchdown_target - lift_off)
+        self._correction = (
+            t, max(arrival - t, SHORTEST_CORRECTION), self._correction_at(t),
+            self._target[:2] - step.goal[:2],
+        )  # fmt: skip
         self.plan = reference.with_goal(i, self._target)
         if self._touchdown_target != reference.touchdown[i]:
             self.plan = self.plan.with_touchdown(i, self._touchdown_target)
 
-    def _set_swing_target(self, i: int, first: bool = False, late: float = 0.0) -> None:
-        horizontal, vertical = self._swing
+    def _correction_at(self, t: float):
+        """Position, velocity and acceleration [m, m/s, m/s^2] added to the swing DMP's
+        horizontal output at ``t`` by step adjustment (zero before any)."""
+        if self._correction is None:
+            return np.zeros(2), np.zeros(2), np.zeros(2)
+        start, duration, state, offset = self._correction
+        return quintic(*state, offset, duration, t - start)
+
+    def _set_swing_target(self, i: int, t: float, first: bool = False, late: float = 0.0):
         if first:
             outputs = [(s.position, s.velocity, s.acceleration) for s in self._swing]
         else:
             outputs = [s.step() for s in self._swing]
         position, velocity, acceleration = (np.concatenate(parts) for parts in zip(*outputs))
+        for total, added in zip((position, velocity, acceleration), self._correction_at(t)):
+            total[:2] += added
         if late > 0.0:  # feel for the ground: down at SEARCH_SPEED, at most SEARCH_DEPTH
             position[2] -= min(SEARCH_SPEED * late, SEARCH_DEPTH)
             velocity[2] = -SEARCH_SPEED if SEARCH_SPEED * late < SEARCH_DEPTH else 0.0
@@ -416,6 +437,7 @@ class Walker:
         self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
         if self.controller.joint_impedance is not None:
             self._settling = (foot, int(round(t / DT)))
+            self.controller.joint_impedance.reset()
         self._conforming = (foot, frame)
         self._level[frame] = landed[2]
         early = t < self.plan.touchdown[i] - DT / 2  # higher ground: the rhythm is kept
@@ -620,7 +642,7 @@ def build_plan(robot, q0, quick: bool, step_length: float = STEP_LENGTH):
     steps = footstep_plan(left, right, n_in_place, n_forward, step_length)
     height = com[2] - left[2]  # above the ground the robot stands on
     plan = plan_walk(steps, com, height, SINGLE_SUPPORT, DOUBLE_SUPPORT, INITIAL_HOLD, FINAL_HOLD)
-    return plan, fit_swing_dmps(SINGLE_SUPPORT, 2 * step_length, FOOT_LIFT)
+    return plan, fit_swing_dmps(SINGLE_SUPPORT, 2 * step_length, FOOT_LIFT, SWING_DESCENT)
 
 
 def fit_arm_swing(period: float = 2 * (SINGLE_SUPPORT + DOUBLE_SUPPORT)):

@@ -554,8 +554,8 @@ def quintic(position, velocity, acceleration, goal, duration: float, t: float):
     swinging foot by it, so that the foot is over its new foothold by ``duration`` whatever
     it was doing.
     """
-    p0, v0, a0 = (real_array(n, x) for n, x in
-                  (("position", position), ("velocity", velocity), ("acceleration", acceleration)))  # fmt: skip
+    p0, v0 = real_array("position", position), real_array("velocity", velocity)
+    a0 = real_array("acceleration", acceleration)
     goal = real_array("goal", goal)
     duration = real("duration", duration, minimum=0.0, open_minimum=True)
     t = min(real("t", t, minimum=0.0), duration)

@@ -3,14 +3,16 @@
 Plan (:mod:`dmpopt.walk_plan`): footsteps; a ZMP on the stance foot in single support and
 moving between the feet in double support; the DCM from it backwards and the LIPM CoM
 forwards; swing-foot references from two discrete DMPs fitted once to a demonstrated foot lift
-and re-targeted to each step's start and goal foothold.
+(up, over and down) and re-targeted to each step's start and goal foothold.
 
 Control: one :class:`dmpopt.control.InverseDynamicsController` (Talos ``reduced``, 32
 actuated joints) with a posture task, the CoM task fed the plan's CoM position, velocity and
 acceleration, the pelvis orientation, and, in single support, a swing-foot frame task. In each
 double support the swing foot's contact is removed with a ramp (its normal force bound goes to
-zero over the double support, while the ZMP plan moves onto the stance foot); at the planned
-touchdown it is added back, held at the planned foothold.
+zero over the double support, while the ZMP plan moves onto the stance foot); it is added
+back when MuJoCo reports the sole on the ground, where it landed, and the balance feedback
+(DCM feedback, step adjustment) keeps the walk up when pushed or on unplanned ground
+(:class:`Walker`).
 
 Simulation: MuJoCo (:class:`dmpopt.sim.MujocoSimulator`), a 5 mm sphere at each sole corner on
 a floor of friction 1, 1 kHz control and simulation; falls as in the humanoid study (pelvis
@@ -134,19 +136,28 @@ class Walker:
 
     - release (start of a double support) and lift-off at the plan's times;
     - touchdown when the simulator reports the swinging sole in contact (after half the
-      swing), early or late: the contact is added at the measured sole position (flat) with
-      a force ramp, and the plan is shifted in time (:meth:`WalkPlan.with_touchdown`) and
-      moved to the landed foothold (:meth:`WalkPlan.with_goal`). A foot still in the air at
-      the planned touchdown keeps going down at ``SEARCH_SPEED``. Once the landed sole is
-      at rest (``SETTLED_SPEED``, at the latest after ``TOUCHDOWN_RAMP``) the joint loop's
-      desired state restarts at the measured one (:meth:`_settle`);
+      swing), early or late: the contact is added at the measured sole position with a force
+      ramp, and the plan is re-timed (:meth:`WalkPlan.with_touchdown`: a late foot shifts
+      the rest of the walk, an early one, met by higher ground, keeps the next lift-off) and
+      moved to the landed foothold, its height carried into the later footholds
+      (:meth:`WalkPlan.with_goal`). A foot still in the air at the planned touchdown keeps
+      going down at ``SEARCH_SPEED``. The joint loop's desired state restarts at the
+      measured one at touchdown and once the landed sole is at rest (``SETTLED_SPEED``, at
+      the latest after ``TOUCHDOWN_RAMP``, :meth:`_settle`). The sole may roll onto the
+      ground while it settles; at rest on three corners or more its contact holds it as it
+      lies, and its tilt orients the next swinging sole (:meth:`_conform`). The CoM height
+      follows the ground under the plan's ZMP (:meth:`_ground_offset`). The swing is over
+      its foothold while still half ``FOOT_LIFT`` high (:func:`fit_swing_dmps`), so that
+      higher ground is met on the foothold, not on an edge;
     - with ``feedback``: the DCM feedback of :mod:`dmpopt.balance` on the commanded ZMP,
       clipped to the support polygon of the feet in contact, gives the CoM its LIPM
       acceleration; during each swing the capture-point foothold is recomputed from the
       measured DCM every ``ADJUST_EVERY`` ticks (once it moves the foothold by
-      ``ADJUST_DEADBAND`` or more), within the reachable box, and the swing
-      DMPs' goal changed online (:meth:`dmpopt.stepper.Stepper.set_goal`). Without it the
-      CoM task tracks the plan's CoM (the open-loop walk).
+      ``ADJUST_DEADBAND`` or more), within the reachable box; the swinging foot is moved
+      onto it by a quintic added to the swing DMP's output (:func:`dmpopt.walk_plan.quintic`,
+      over by the swing's horizontal arrival), and a shorter step speeds the DMPs up
+      (:meth:`dmpopt.stepper.Stepper.set_tau`). Without it the CoM task tracks the plan's
+      CoM (the open-loop walk).
 
     With ``nominal_plant`` the controller's model carries its armature and a
     :class:`JointImpedance` closes the joint loop (as in the humanoid study).
@@ -895,7 +906,7 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     metrics["push_recovery"] = push_recovery(quick, runner)
     metrics["arm_swing"] = None if quick else arm_swing_effect(runner)
     if quick:
-        metrics["step_down"] = metrics["step_up"] = None
+        metrics["step_down"] = metrics["step_up"] = metrics["slope"] = None
     else:
         metrics.update(uneven_ground(runner))
     plot_sweep(metrics["plant_sweep"], "steps_taken", "steps taken", out / "walk_plant_sweep.png")

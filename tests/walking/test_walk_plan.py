@@ -493,9 +493,7 @@ def test_with_goal_translates_the_rest_of_the_walk(step, dx, dy):
 
 @settings(max_examples=15, deadline=None)
 @given(step=st.integers(0, 5), early=st.floats(0.01, 0.9))
-def test_an_early_touchdown_keeps_the_next_lift_off_and_stretches_the_double_support(
-    step, early
-):
+def test_an_early_touchdown_keeps_the_next_lift_off_and_stretches_the_double_support(step, early):
     """shift_later=False: the knots from the next lift-off on are the original's, so (the DCM
     being solved backwards from the end) the ZMP and DCM from there on are the original's;
     in the stretched double support the ZMP moves linearly from the stance foot to the next

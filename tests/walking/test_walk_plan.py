@@ -21,6 +21,7 @@ from dmpopt.walk_plan import (
     lipm_state,
     lipm_time_constant,
     plan_walk,
+    quintic,
     steady_dcm_offset,
     swing_reference,
 )
@@ -221,6 +222,31 @@ def test_a_foot_meeting_ground_half_its_lift_higher_is_over_its_foothold(descent
     old_z, old_x = 0.05 * 64 * (s * (1 - s)) ** 3, goal * _minimum_jerk(s)  # 5 cm high
     old_first = np.argmax((s > 0.5) & (old_z <= box))
     assert old_x[old_first] == pytest.approx(0.37, abs=0.01)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    state=st.lists(st.floats(-2.0, 2.0), min_size=4, max_size=4),
+    duration=st.floats(0.05, 1.0),
+)
+def test_quintic_meets_its_boundary_conditions_and_its_derivatives(state, duration):
+    """Starts at (p0, v0, a0), ends at the goal at rest at ``duration``, stays there after;
+    its velocity and acceleration are its position's central differences (step 1e-5 s,
+    truncation error ~ 1e-10 x the fifth derivative); from rest it is the minimum-jerk
+    p0 + h (10 u^3 - 15 u^4 + 6 u^5) (written here)."""
+    p0, v0, a0, goal = (np.array([x]) for x in state)
+    at = lambda t: quintic(p0, v0, a0, goal, duration, t)  # noqa: E731
+    for value, expected in zip(at(0.0), (p0, v0, a0)):
+        np.testing.assert_allclose(value, expected, atol=1e-12)
+    for t in (duration, 2 * duration):
+        for value, expected in zip(at(t), (goal, 0.0, 0.0)):
+            np.testing.assert_allclose(value, expected, atol=1e-8 / duration**2)
+    t, h = 0.37 * duration, 1e-5
+    np.testing.assert_allclose(at(t)[1], (at(t + h)[0] - at(t - h)[0]) / (2 * h), atol=1e-4)
+    np.testing.assert_allclose(at(t)[2], (at(t + h)[1] - at(t - h)[1]) / (2 * h), atol=1e-3)
+    u = 0.37
+    rest = quintic(p0, 0.0 * v0, 0.0 * a0, goal, duration, t)[0]
+    np.testing.assert_allclose(rest, p0 + (goal - p0) * _minimum_jerk(u), atol=1e-12)
 
 
 # ---------------------------------------------------------------------------- bad inputs

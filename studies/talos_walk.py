@@ -658,11 +658,14 @@ def build_plan(robot, q0, quick: bool, step_length: float = STEP_LENGTH):
 
 def fit_arm_swing(period: float = 2 * (SINGLE_SUPPORT + DOUBLE_SUPPORT)):
     """The arm swing as a rhythmic DMP (2 DOFs: the offsets of ``ARM_SWING_JOINTS`` from the
-    posture) fitted to a demonstrated anti-phase sine of ``period`` [s]: at the left heel
-    strike (phase 0) the left elbow is at its mean and moving back, the right forward."""
+    posture) fitted to a demonstrated anti-phase cosine of ``period`` [s], counter to the legs:
+    at the left heel strike (phase 0, the left foot ahead) the left elbow is at +amplitude
+    (its hand furthest back: a positive elbow angle moves the hand backwards) and the right
+    at -amplitude. (A quarter period earlier, the left elbow at its mean at the left heel
+    strike, the yaw moment on the soles rose by 11 % instead of falling by 10 %.)"""
     times = np.linspace(0.0, 2 * period, 401)
-    wave = ARM_SWING_AMPLITUDE * np.sin(2 * np.pi * times / period)
-    demo = Trajectory.from_positions(times, np.column_stack([-wave, wave]))
+    wave = ARM_SWING_AMPLITUDE * np.cos(2 * np.pi * times / period)
+    demo = Trajectory.from_positions(times, np.column_stack([wave, -wave]))
     return fit_rhythmic(demo, 10, period=period)
 
 

@@ -37,6 +37,10 @@ ZMP the stance sole can give towards cancelling it (:func:`recovery_zmp`): the a
 the step for what is left. When even the farthest reachable foothold is not enough, the
 step comes sooner (:func:`capture_time`, step timing adaptation [Khadiv2020]_).
 
+Uneven ground. A sole that has come to rest with its corners down lies on the ground, so
+its normal :math:`n` is the ground's; the rotation that tilts a level sole onto it (the
+smallest one, no turn about the vertical, :func:`ground_tilt`) orients the next footholds.
+
 Symbols: :math:`\xi` ``dcm``, :math:`p` ``zmp``, :math:`\omega` ``omega`` [1/s],
 :math:`k` ``gain`` [1/s], :math:`b` ``offset``.
 """
@@ -55,6 +59,7 @@ __all__ = [
     "convex_hull",
     "dcm",
     "dcm_feedback_zmp",
+    "ground_tilt",
     "lipm_acceleration",
     "predict_dcm",
     "recovery_zmp",
@@ -288,3 +293,28 @@ def capture_foothold(
         "foothold_reference", foothold_reference
     )
     return np.clip(end - offset, lower, upper)
+
+
+def ground_tilt(normal) -> np.ndarray:
+    r"""The rotation (3 x 3) that tilts a level sole onto ground of unit ``normal`` (shape
+    (3,), world frame, pointing up): the smallest rotation taking :math:`e_z` to :math:`n`,
+    about the horizontal axis :math:`a = e_z \times n / \lVert e_z \times n \rVert` by
+    :math:`\theta = \arccos n_z` (Rodrigues: :math:`I + \sin\theta\, [a]_\times +
+    (1 - \cos\theta) [a]_\times^2`); it turns nothing about the vertical."""
+    n = real_array("normal", normal)
+    if n.shape != (3,):
+        raise ShapeError(f"normal has shape {n.shape}, expected (3,): a world direction")
+    length = np.linalg.norm(n)
+    if not length > 0.0 or n[2] <= 0.0:
+        raise InvalidInputError(
+            f"normal must be a non-zero direction pointing up (z > 0), got {n.tolist()}; pass "
+            "the ground's upward normal, e.g. a sole frame's z axis"
+        )
+    n = n / length
+    axis = np.array([-n[1], n[0], 0.0])  # e_z x n
+    sine, cosine = np.linalg.norm(axis), n[2]
+    if sine < 1e-15:
+        return np.eye(3)
+    a = axis / sine
+    cross = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + sine * cross + (1.0 - cosine) * cross @ cross

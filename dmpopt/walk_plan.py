@@ -26,8 +26,9 @@ single-support time :math:`T` the end-of-step DCM lies :math:`L / (e^{\omega T} 
 ahead of the next footstep (:func:`steady_dcm_offset`). The CoM follows
 :math:`\dot x = \omega (\xi - x)` from its start, in closed form per segment.
 
-Swing foot. A demonstrated foot lift (minimum-jerk progress forward, a smooth bump up and
-down) is learnt once as two discrete DMPs: the horizontal motion (goal scaling
+Swing foot. A demonstrated foot lift (up, over and down: the foot is above its foothold
+while still half its lift high, so that ground up to that much higher than planned is met
+with the foot in place) is learnt once as two discrete DMPs: the horizontal motion (goal scaling
 ``"rotation"``: the demonstrated path is rotated and scaled onto each step) and the height
 (``"translation"``: the lift profile is kept). Each step re-targets them to its start and
 goal foothold, the DMP's goal-change property (Section 3.2).
@@ -55,6 +56,7 @@ __all__ = [
     "lipm_state",
     "lipm_time_constant",
     "plan_walk",
+    "quintic",
     "steady_dcm_offset",
     "swing_reference",
 ]
@@ -278,16 +280,32 @@ class WalkPlan:
     def _start_com(self) -> np.ndarray:
         return np.append(self.com_knots[0], self.com_height)
 
-    def with_touchdown(self, step: int, time: float) -> WalkPlan:
-        """The plan with step ``step``'s touchdown at ``time`` [s] (a foot that landed early
-        or late): its single support ends then and everything after shifts by the same
-        amount. The DCM and CoM are solved again."""
+    def with_touchdown(self, step: int, time: float, shift_later: bool = True) -> WalkPlan:
+        """The plan with step ``step``'s touchdown at ``time`` [s]: its single support ends then.
+
+        ``shift_later`` True: everything after shifts by the same amount (a late foot, or a
+        step made quicker on purpose). False: the next lift-off (after the last step, the end
+        of the closing double support) stays where it was and the double support absorbs the
+        difference (a foot that met higher ground than planned, early: the walk keeps its
+        rhythm and the weight moves over more slowly; shifted, the DCM plan would jump ahead
+        of the robot). The DCM and CoM are solved again.
+        """
         i = self._check_step(step)
         lift_off = float(self.lift_off[i])
         time = real("time", time, minimum=lift_off, open_minimum=True,
                     fix=f"after step {i}'s lift-off at {lift_off:.4g} s")  # fmt: skip
         times = self.knot_times.copy()
-        times[3 + 2 * i :] += time - self.touchdown[i]
+        if shift_later:
+            times[3 + 2 * i :] += time - self.touchdown[i]
+        else:
+            end = times[4 + 2 * i]
+            if time > end:
+                raise InvalidInputError(
+                    f"time must be <= {end:.4g} s (the end of step {i}'s double support) with "
+                    f"shift_later=False, got {time:.4g}; use shift_later=True for a later "
+                    "touchdown"
+                )
+            times[3 + 2 * i] = time
         return _solve(self.footsteps, times, self._start_com(), self.com_height,
                       self.time_constant)  # fmt: skip
 
@@ -469,14 +487,23 @@ class SwingDMPs:
 
 
 def fit_swing_dmps(
-    duration: float, step_length: float = 0.2, height: float = 0.05, dt: float = 0.01
+    duration: float,
+    step_length: float = 0.2,
+    height: float = 0.05,
+    descent: float = 0.4,
+    dt: float = 0.01,
 ) -> SwingDMPs:
-    r"""Fit the swing-foot DMPs to a demonstrated foot lift.
+    r"""Fit the swing-foot DMPs to a demonstrated foot lift: up, over and down.
 
-    The demonstration moves forward by ``step_length`` along a minimum-jerk profile
-    :math:`L (10 s^3 - 15 s^4 + 6 s^5)` and lifts the foot by
-    :math:`h \cdot 64 s^3 (1 - s)^3` (peak ``height`` at mid-swing), :math:`s = t / T`; both
-    start and end at rest with zero acceleration.
+    With :math:`s = t / T`, :math:`d` = ``descent`` and the minimum-jerk profile
+    :math:`m(u) = 10 u^3 - 15 u^4 + 6 u^5` (0 at :math:`u \le 0`, 1 at :math:`u \ge 1`), the
+    demonstration moves forward by :math:`L\, m(s / (1 - d/2))` and lifts the foot by
+    :math:`h\, m(s / d)` while :math:`s \le 1/2`, then by :math:`h\, m((1 - s) / d)`: it rises
+    over the first :math:`d` of the swing, stays at :math:`h` and comes down over the last
+    :math:`d`, and it is above its foothold (forward motion over) at :math:`s = 1 - d/2`,
+    still :math:`h / 2` high. A foot that meets ground up to :math:`h / 2` higher than
+    planned thus lands on its foothold, not short of it on an edge. Both start and end at rest
+    with zero acceleration.
 
     Parameters
     ----------
@@ -484,23 +511,62 @@ def fit_swing_dmps(
         :math:`T` [s], the swing (single-support) time.
     step_length, height : float
         :math:`L` and :math:`h` [m] of the demonstration (> 0).
+    descent : float
+        :math:`d`, the fraction of the swing spent rising and the one spent coming down, in
+        (0, 0.5].
     dt : float
         Sample period of the demonstration [s].
     """
     duration = real("duration", duration, minimum=0.0, open_minimum=True)
     step_length = real("step_length", step_length, minimum=0.0, open_minimum=True)
     height = real("height", height, minimum=0.0, open_minimum=True)
+    descent = real("descent", descent, minimum=0.0, maximum=0.5, open_minimum=True)
     dt = real("dt", dt, minimum=0.0, maximum=duration / 20, open_minimum=True)
     times = np.linspace(0.0, duration, int(round(duration / dt)) + 1)
     s = times / duration
-    forward = step_length * (10 * s**3 - 15 * s**4 + 6 * s**5)
-    lift = height * 64 * s**3 * (1 - s) ** 3
+    forward = step_length * _minimum_jerk(s / (1.0 - descent / 2))
+    lift = height * _minimum_jerk(np.minimum(s, 1.0 - s) / descent)
     horizontal = Trajectory.from_positions(times, np.column_stack([forward, 0.0 * s]))
     vertical = Trajectory.from_positions(times, lift[:, None])
     return SwingDMPs(
         horizontal=fit_discrete(horizontal, 20, goal_scaling="rotation"),
         vertical=fit_discrete(vertical, 20, goal_scaling="translation"),
         duration=duration,
+    )
+
+
+def _minimum_jerk(u):
+    """:math:`10 u^3 - 15 u^4 + 6 u^5` of ``u`` clipped to [0, 1]."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+
+
+def quintic(position, velocity, acceleration, goal, duration: float, t: float):
+    r"""The quintic polynomial from ``position``, ``velocity`` and ``acceleration`` at time 0 to
+    ``goal`` at rest (zero velocity and acceleration) at ``duration`` [s], at time ``t``
+    (held at ``goal`` after ``duration``): position, velocity and acceleration.
+
+    With :math:`h = g - p_0`, :math:`p(t) = p_0 + v_0 t + a_0 t^2 / 2 + c_3 t^3 + c_4 t^4 +
+    c_5 t^5`, :math:`c_3 = (20 h - 12 v_0 T - 3 a_0 T^2) / (2 T^3)`,
+    :math:`c_4 = (-30 h + 16 v_0 T + 3 a_0 T^2) / (2 T^4)`,
+    :math:`c_5 = (12 h - 6 v_0 T - a_0 T^2) / (2 T^5)`; from rest it is the minimum-jerk
+    :math:`p_0 + h (10 u^3 - 15 u^4 + 6 u^5)`, :math:`u = t / T`. A step adjustment moves the
+    swinging foot by it, so that the foot is over its new foothold by ``duration`` whatever
+    it was doing.
+    """
+    p0, v0 = real_array("position", position), real_array("velocity", velocity)
+    a0 = real_array("acceleration", acceleration)
+    goal = real_array("goal", goal)
+    duration = real("duration", duration, minimum=0.0, open_minimum=True)
+    t = min(real("t", t, minimum=0.0), duration)
+    h, T = goal - p0, duration
+    c3 = (20 * h - 12 * v0 * T - 3 * a0 * T**2) / (2 * T**3)
+    c4 = (-30 * h + 16 * v0 * T + 3 * a0 * T**2) / (2 * T**4)
+    c5 = (12 * h - 6 * v0 * T - a0 * T**2) / (2 * T**5)
+    return (
+        p0 + v0 * t + a0 * t**2 / 2 + c3 * t**3 + c4 * t**4 + c5 * t**5,
+        v0 + a0 * t + 3 * c3 * t**2 + 4 * c4 * t**3 + 5 * c5 * t**4,
+        a0 + 6 * c3 * t + 12 * c4 * t**2 + 20 * c5 * t**3,
     )
 
 

@@ -29,7 +29,9 @@ Set-up (all choices are ours):
 * walking (MuJoCo backend only; :mod:`dmpopt_studies.talos_walk`, metrics under ``walk``): Talos
   (``reduced`` model) steps in place, then walks forward on a LIPM/DCM CoM plan with
   swing-foot references from discrete DMPs, through the same controller with contact
-  switching (a normal-force ramp over each double support);
+  switching (a normal-force ramp over each double support), DCM feedback and step
+  adjustment; pushed (``push_recovery``) and on ground it was not told about (``step_down``,
+  ``step_up``, ``slope``: fell, touchdowns from contact, foothold error);
 * videos (MuJoCo's offscreen renderer, animated WebP of ``VIDEO_SECONDS``): drumming,
   figure-8, the largest survived push and the forehand (with five keyframes,
   ``swing_keyframes.png``); skipped in quick mode and without an OpenGL context, with the

@@ -8,6 +8,7 @@ velocity by J / m, and so its DCM by J / (m omega).
 
 import os
 
+import numpy as np
 import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -63,3 +64,53 @@ def test_quick_walk_recovers_from_a_lateral_push_by_stepping(quick_walk):
     push = metrics["push_recovery"]
     assert push["quick"] and push["trials"]["lateral"] == [(20.0, True), (40.0, True)]
     assert push["lateral_ns"] == 40.0
+
+
+def test_com_height_follows_the_ground_under_the_zmp():
+    """The right foot landed 4 cm higher than it started (a box): in the double support in
+    which the weight moves onto it, the CoM height offset goes linearly from the left foot's
+    ground (0) to the right's (0.04 m), at 0.04 m / the double support's length; it is 0.04 m
+    in the single support on the right foot and 0 in the one before, on the left (written
+    here from the plan's knot times)."""
+    robot, q0 = talos_walk._robot_and_start()
+    plan, swing_dmps = talos_walk.build_plan(robot, q0, quick=True)
+    walker = talos_walk.Walker(robot, q0, plan, swing_dmps)
+    right = robot.foot_frames[1]
+    walker._level[right] = walker._ground[right] + 0.04
+    i = next(k for k, step in enumerate(plan.footsteps) if k > 0 and step.side == "left")
+    start, end = plan.touchdown[i - 1], plan.lift_off[i]  # the double support before step i
+    for fraction in (0.0, 0.25, 0.5, 0.99):
+        offset, rate = walker._ground_offset(start + fraction * (end - start))
+        assert offset == pytest.approx(0.04 * fraction, abs=1e-12)
+        assert rate == pytest.approx(0.04 / (end - start), abs=1e-12)
+    assert walker._ground_offset(end) == (pytest.approx(0.04, abs=1e-12), 0.0)
+    middle = 0.5 * (plan.lift_off[i] + plan.touchdown[i])  # single support, on the right foot
+    assert walker._ground_offset(middle) == (pytest.approx(0.04, abs=1e-12), 0.0)
+    before = 0.5 * (plan.lift_off[i - 1] + plan.touchdown[i - 1])  # on the left foot
+    assert walker._ground_offset(before) == (0.0, 0.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["step_up", "slope", "step_down"])
+def test_unplanned_uneven_ground_is_walked_with_every_foothold_on_target(kind):
+    """The quick walk (0.25 m steps) over ground it was not told about: a 4 cm box from
+    x = 0.36 m on, a 2-degree slope rising from there, or a 4 cm platform it steps off. It
+    does not fall, every touchdown comes from a contact report, and every foot lands within
+    2 cm of its (adjusted) target, at the ground's height: the box's 0.04 m, the platform's
+    0.04 m below the start, or on the slope tan(2 deg) (x - 0.36) for the last footholds,
+    whose x lies in [0.7, 0.9] m (written here, not taken from the walker)."""
+    from dmpopt_studies import talos_walk_recovery as recovery
+
+    result = recovery.terrain_trial(kind)
+    assert not result["fell"]
+    assert result["steps_landed"] == result["steps_planned"] == 5
+    assert result["touchdowns_from_contact"] == 5
+    assert result["foothold_error_max_mm"] < 20.0
+    last = np.array(result["foothold_heights_mm"][-2:])
+    if kind == "step_up":
+        np.testing.assert_allclose(last, 40.0, atol=5.0)
+    elif kind == "step_down":
+        np.testing.assert_allclose(last, -40.0, atol=5.0)
+    else:
+        slope = np.tan(np.radians(2.0))
+        assert np.all((1e3 * slope * (0.7 - 0.36) - 3 < last) & (last < 1e3 * slope * 0.54 + 3))

@@ -18,6 +18,7 @@ from dmpopt.balance import (
     convex_hull,
     dcm,
     dcm_feedback_zmp,
+    ground_tilt,
     lipm_acceleration,
     predict_dcm,
     recovery_zmp,
@@ -199,6 +200,30 @@ def test_recovery_zmp_returns_the_dcm_to_the_plan_or_stays_on_the_sole(error, t)
         assert zmp == pytest.approx(np.clip(needed, [-0.1, -0.06], [0.1, 0.06]), abs=1e-12)
 
 
+def test_ground_tilt_of_a_two_degree_slope_is_the_pitch_written_out():
+    """Ground rising along x at angle a has the upward normal (-sin a, 0, cos a); a level sole
+    tilted onto it is turned about y by -a: [[cos a, 0, -sin a], [0, 1, 0], [sin a, 0, cos a]]
+    (its toe, +x, goes up by sin a)."""
+    a = np.radians(2.0)
+    tilt = ground_tilt([-np.sin(a), 0.0, np.cos(a)])
+    expected = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
+    np.testing.assert_allclose(tilt, expected, atol=1e-15)
+    np.testing.assert_array_equal(ground_tilt([0.0, 0.0, 2.0]), np.eye(3))  # level: no tilt
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5))
+def test_ground_tilt_takes_up_to_the_normal_without_turning_about_the_vertical(nx, ny):
+    """A rotation (R^T R = I, det 1) that maps e_z to the unit normal, about a horizontal axis
+    (its axis, the vector of R - R^T, has no vertical part)."""
+    normal = np.array([nx, ny, 1.0]) / np.linalg.norm([nx, ny, 1.0])
+    tilt = ground_tilt(normal)
+    np.testing.assert_allclose(tilt.T @ tilt, np.eye(3), atol=1e-12)
+    assert np.linalg.det(tilt) == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_allclose(tilt @ [0.0, 0.0, 1.0], normal, atol=1e-12)
+    assert tilt[1, 0] - tilt[0, 1] == pytest.approx(0.0, abs=1e-12)
+
+
 @pytest.mark.parametrize(
     "call, error, match",
     [
@@ -212,6 +237,8 @@ def test_recovery_zmp_returns_the_dcm_to_the_plan_or_stays_on_the_sole(error, t)
         (lambda: convex_hull([[0, 0, 0]]), ShapeError, "^points"),
         (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0, 0], [1, 0], [0, 1]),
          InvalidInputError, "^lower"),
+        (lambda: ground_tilt([0, 0, -1]), InvalidInputError, "^normal must .* pointing up"),
+        (lambda: ground_tilt([0, 1]), ShapeError, "^normal has shape"),
     ],
 )  # fmt: skip
 def test_bad_input_names_the_argument(call, error, match):

@@ -21,6 +21,7 @@ from dmpopt.walk_plan import (
     lipm_state,
     lipm_time_constant,
     plan_walk,
+    quintic,
     steady_dcm_offset,
     swing_reference,
 )
@@ -177,24 +178,75 @@ def test_swing_reference_starts_and_ends_at_the_footholds_at_rest(
     assert reference.positions[:, 2].max() > max(start[2], goal[2]) + 0.03  # the foot lifts
 
 
+def _minimum_jerk(u):
+    u = np.clip(u, 0.0, 1.0)
+    return 10 * u**3 - 15 * u**4 + 6 * u**5
+
+
 def test_swing_reference_is_the_demonstration_re_targeted(swing_dmps):
-    """At the demonstrated step (0.2 m) the path is the demonstration, minimum-jerk forward and
-    64 h s^3 (1 - s)^3 up (written here); a step in place goes straight up and down."""
+    """At the demonstrated step (0.2 m) the path is the demonstration (written here with the
+    default descent d = 0.4): minimum-jerk forward, over by s = 1 - d/2 = 0.8; up over the
+    first 0.4 of the swing, level at 0.05 m, down over the last 0.4. A step in place goes
+    straight up and down."""
     start = np.array([0.1, 0.085, 0.0])
     reference = swing_reference(swing_dmps, start, start + [0.2, 0, 0])
     s = reference.times / SINGLE
-    forward = 0.2 * (10 * s**3 - 15 * s**4 + 6 * s**5)
-    np.testing.assert_allclose(reference.positions[:, 0] - start[0], forward, atol=3e-4)
-    np.testing.assert_allclose(
-        reference.positions[:, 2], 0.05 * 64 * s**3 * (1 - s) ** 3, atol=3e-4
-    )
+    forward = 0.2 * _minimum_jerk(s / 0.8)
+    lift = 0.05 * np.where(s <= 0.5, _minimum_jerk(s / 0.4), _minimum_jerk((1 - s) / 0.4))
+    np.testing.assert_allclose(reference.positions[:, 0] - start[0], forward, atol=5e-4)
+    np.testing.assert_allclose(reference.positions[:, 2], lift, atol=5e-4)
     in_place = swing_reference(swing_dmps, start, start)
     np.testing.assert_allclose(
         in_place.positions[:, :2], np.tile(start[:2], (s.size, 1)), atol=1e-12
     )
-    assert in_place.positions[:, 2].max() == pytest.approx(0.05, abs=3e-4)
+    assert in_place.positions[:, 2].max() == pytest.approx(0.05, abs=5e-4)
     half = swing_reference(swing_dmps, start, start + [0.1, 0, 0])  # goal change: half the length
-    np.testing.assert_allclose(half.positions[:, 0] - start[0], forward / 2, atol=3e-4)
+    np.testing.assert_allclose(half.positions[:, 0] - start[0], forward / 2, atol=5e-4)
+
+
+@pytest.mark.parametrize("descent", [0.2, 0.4, 0.5])
+def test_a_foot_meeting_ground_half_its_lift_higher_is_over_its_foothold(descent):
+    """A box 4 cm high (half the 8 cm lift) from 0.36 m on, the step from x = 0 to 0.5 m (a
+    sole 0.1 m long ahead of its frame): while the toe is over the box and the foot more than
+    2 mm short of its foothold, the sole stays above the box's top, so it lands within 2 mm
+    of the foothold (the old lift, a 5 cm bump 64 (s(1 - s))^3 h with progress m(s), met the
+    box's top at 0.37 m: 128 mm short in MuJoCo)."""
+    box, edge, toe, goal = 0.04, 0.36, 0.1, 0.5
+    dmps = fit_swing_dmps(0.6, step_length=goal, height=2 * box, descent=descent)
+    reference = swing_reference(dmps, np.zeros(3), np.array([goal, 0.0, 0.0]))
+    x, z = reference.positions[:, 0], reference.positions[:, 2]
+    short = (x + toe >= edge) & (x < goal - 2e-3)  # the toe over the box, the foot short
+    assert short.any() and z[short].min() > box  # it would not touch the box there
+    assert z[-1] == pytest.approx(0.0, abs=1e-3)
+    s = np.linspace(0.0, 1.0, 601)
+    old_z, old_x = 0.05 * 64 * (s * (1 - s)) ** 3, goal * _minimum_jerk(s)  # 5 cm high
+    old_first = np.argmax((s > 0.5) & (old_z <= box))
+    assert old_x[old_first] == pytest.approx(0.37, abs=0.01)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    state=st.lists(st.floats(-2.0, 2.0), min_size=4, max_size=4),
+    duration=st.floats(0.05, 1.0),
+)
+def test_quintic_meets_its_boundary_conditions_and_its_derivatives(state, duration):
+    """Starts at (p0, v0, a0), ends at the goal at rest at ``duration``, stays there after;
+    its velocity and acceleration are its position's central differences (step 1e-5 s,
+    truncation error ~ 1e-10 x the fifth derivative); from rest it is the minimum-jerk
+    p0 + h (10 u^3 - 15 u^4 + 6 u^5) (written here)."""
+    p0, v0, a0, goal = (np.array([x]) for x in state)
+    at = lambda t: quintic(p0, v0, a0, goal, duration, t)  # noqa: E731
+    for value, expected in zip(at(0.0), (p0, v0, a0)):
+        np.testing.assert_allclose(value, expected, atol=1e-12)
+    for t in (duration, 2 * duration):
+        for value, expected in zip(at(t), (goal, 0.0, 0.0)):
+            np.testing.assert_allclose(value, expected, atol=1e-8 / duration**2)
+    t, h = 0.37 * duration, 1e-5
+    np.testing.assert_allclose(at(t)[1], (at(t + h)[0] - at(t - h)[0]) / (2 * h), atol=1e-4)
+    np.testing.assert_allclose(at(t)[2], (at(t + h)[1] - at(t - h)[1]) / (2 * h), atol=1e-3)
+    u = 0.37
+    rest = quintic(p0, 0.0 * v0, 0.0 * a0, goal, duration, t)[0]
+    np.testing.assert_allclose(rest, p0 + (goal - p0) * _minimum_jerk(u), atol=1e-12)
 
 
 # ---------------------------------------------------------------------------- bad inputs
@@ -217,6 +269,8 @@ def test_swing_reference_is_the_demonstration_re_targeted(swing_dmps):
         (lambda: plan_walk([], [0, 0, np.inf], 0.87, 0.8, 0.1), InvalidInputError, "^com"),
         (lambda: fit_swing_dmps(0.0), InvalidInputError, "^duration"),
         (lambda: fit_swing_dmps(0.8, height=-0.05), InvalidInputError, "^height"),
+        (lambda: fit_swing_dmps(0.8, descent=0.6), InvalidInputError, "^descent"),
+        (lambda: fit_swing_dmps(0.8, descent=0.0), InvalidInputError, "^descent"),
         (lambda: swing_reference("dmps", LEFT, LEFT), InvalidInputError, "^dmps"),
     ],
 )
@@ -463,11 +517,36 @@ def test_with_goal_translates_the_rest_of_the_walk(step, dx, dy):
     assert moved.knot_times == pytest.approx(plan.knot_times, abs=0.0)
 
 
+@settings(max_examples=15, deadline=None)
+@given(step=st.integers(0, 5), early=st.floats(0.01, 0.9))
+def test_an_early_touchdown_keeps_the_next_lift_off_and_stretches_the_double_support(step, early):
+    """shift_later=False: the knots from the next lift-off on are the original's, so (the DCM
+    being solved backwards from the end) the ZMP and DCM from there on are the original's;
+    in the stretched double support the ZMP moves linearly from the stance foot to the next
+    (written here)."""
+    plan = walk()
+    time = plan.touchdown[step] - early * SINGLE  # ``early`` of the single support early
+    kept = plan.with_touchdown(step, time, shift_later=False)
+    assert kept.touchdown[step] == pytest.approx(time)
+    np.testing.assert_array_equal(kept.lift_off, plan.lift_off)
+    np.testing.assert_array_equal(np.delete(kept.touchdown, step), np.delete(plan.touchdown, step))
+    end = kept.knot_times[4 + 2 * step]
+    t = np.linspace(end, kept.duration, 40)
+    assert kept.zmp(t) == pytest.approx(plan.zmp(t), abs=1e-12)
+    assert kept.dcm(t) == pytest.approx(plan.dcm(t), abs=1e-12)
+    a, b = plan.footsteps[step].stance[:2], kept.zmp(end)
+    for fraction in (0.25, 0.5, 0.75):
+        middle = time + fraction * (end - time)
+        assert kept.zmp(middle) == pytest.approx(a + fraction * (b - a), abs=1e-12)
+
+
 def test_replanning_names_a_bad_step_or_time():
     plan = walk()
     with pytest.raises(InvalidInputError, match="^step must be < 6"):
         plan.with_goal(6, [0.0, 0.0, 0.0])
     with pytest.raises(InvalidInputError, match="^time must be"):
         plan.with_touchdown(0, plan.lift_off[0])
+    with pytest.raises(InvalidInputError, match=r"^time must be <= .*shift_later=True"):
+        plan.with_touchdown(0, plan.lift_off[1] + 0.1, shift_later=False)
     with pytest.raises(ShapeError, match="^goal has shape"):
         plan.with_goal(0, [0.0, 0.0])

@@ -74,6 +74,7 @@ from .analysis import (
     gait_metrics,
     random_disturbances,
     reset_ablation,
+    reset_verdict,
     steps_to_within,
     survival_by_arm,
     sweep_minimum,
@@ -117,12 +118,12 @@ START_FREQUENCIES = (5.0, 8.0, 12.0, 13.5)
 MAIN_START = 5.0  # [rad/s] the long walk (gait, figures) starts at the demonstrated frequency
 SWEEP = tuple(np.round(np.geomspace(4.0, 16.0, 8), 3))  # [rad/s] fixed frequencies
 SWEEP_QUICK = (5.0, 13.0)
-# [rad/s] candidate starts of the robustness trials: the one nearest the settled frequency at
-# which every arm walks undisturbed is used
-TRIAL_STARTS = (6.0, 9.0, 12.0)
-TRIAL_STARTS_QUICK = (8.0,)
+TRIAL_START = 12.0  # [rad/s] the robustness trials start near the settled frequency
+UNDISTURBED_SEEDS = (0, 1, 2)  # the undisturbed walks of each arm (start-speed seeds)
+UNDISTURBED_SEEDS_QUICK = (0,)
+N_TRIALS = 10  # randomised trials per arm
 RANGES = TrialRanges()
-RANGES_QUICK = TrialRanges(push_time=(0.3, 0.6), slope_time=(0.1, 0.3))
+RANGES_QUICK = TrialRanges(warmup=0.5, push_time=(0.6, 0.9), slope_time=(0.5, 0.6))
 SURVIVAL_QUICK = Survival(after=1.0, window=0.8)
 VIDEO_SECONDS_WALK = 4.0  # [s] the clip shows the last seconds of the QP walk
 
@@ -281,15 +282,16 @@ def _plan(quick: bool, backend: str, seed: int) -> dict:
             "frequency": MAIN_START,
         }
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
-    trial = ranges.push_time[1] + rule.after
-    for start in TRIAL_STARTS_QUICK if quick else TRIAL_STARTS:
-        for arm, (reset_phase, adapt) in ARMS.items():
-            jobs[("undisturbed", start, arm)] = {
+    for arm, (reset_phase, adapt) in ARMS.items():
+        for walk_seed in UNDISTURBED_SEEDS_QUICK if quick else UNDISTURBED_SEEDS:
+            jobs[("undisturbed", arm, walk_seed)] = {
                 **base,
-                "duration": trial,
-                "frequency": start,
+                "seed": walk_seed,
+                "duration": ranges.push_time[1] + rule.after,  # the longest trial
+                "frequency": TRIAL_START,
                 "reset_phase": reset_phase,
                 "adapt": adapt,
+                "warmup": ranges.warmup,
             }
     return jobs
 
@@ -357,34 +359,45 @@ def run(
     pd_rows = [_pd_row(key[1], log) for key, log in logs.items() if key[0] == "pd"]
 
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
-    candidates = {}
+    undisturbed = {arm: {} for arm in ARMS}
     for key, log in logs.items():
         if key[0] == "undisturbed":
-            candidates.setdefault(key[1], {})[key[2]] = fig7.walks_undisturbed(log, rule)
-    trial_start, walking = fig7.choose_trial_start(candidates, baseline)
-    n_trials = 1 if quick else 10
+            undisturbed[key[1]][key[2]] = fig7.walks_undisturbed(log, rule)
+    walking = {arm: all(seeds.values()) for arm, seeds in undisturbed.items()}
+    n_trials = 1 if quick else N_TRIALS
     disturbances = random_disturbances(biped, n_trials, seed, ranges)
     qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
     survival = survival_by_arm(
         biped,
         dmp,
-        trial_start,
+        TRIAL_START,
         disturbances,
         rule=rule,
         progress=progress,
         runner=runner,
         **qp,
         backend=backend,
+        warmup=ranges.warmup,
     )
+    ablation = reset_ablation(survival)
     reset_robustness = {
-        "start_frequency_rad_s": trial_start,
-        "candidates_walk_undisturbed": {f"{f:g}": arms for f, arms in candidates.items()},
+        "verdict": reset_verdict(ablation, walking),
+        "start_frequency_rad_s": TRIAL_START,
+        "warmup_s": ranges.warmup,
+        "design": (
+            f"every arm starts at {TRIAL_START:g} rad/s and walks its first {ranges.warmup:g} s "
+            "with phase resetting and adaptation on (the same start-up); from then on its own "
+            "switches apply; pushes and slopes come after the warm-up"
+        ),
+        "walks_undisturbed_by_seed": {
+            arm: {str(s): ok for s, ok in seeds.items()} for arm, seeds in undisturbed.items()
+        },
         "all_arms_walk_undisturbed": all(walking.values()),
         "arms": {
             name: {k: v for k, v in arm.items() if k != "outcomes"}
             for name, arm in survival.items()
         },
-        "phase_reset_ablation": reset_ablation(survival),
+        "phase_reset_ablation": ablation,
         "rule": rule.__dict__,
         "ranges": ranges.__dict__,
         "outcomes": {name: arm["outcomes"] for name, arm in survival.items()},
@@ -497,6 +510,7 @@ def run(
         "pd_gains": GAINS.__dict__,
         "sweep_rad_s": SWEEP_QUICK if quick else SWEEP,
         "n_trials_per_arm": n_trials,
+        "trial_start_rad_s": TRIAL_START,
         "walks": len(plan),
     }
     metrics["summary"] = summary(metrics)

@@ -209,15 +209,3 @@ def sweep_row(frequency: float, log, mass: float) -> dict:
 def walks_undisturbed(log, rule=SURVIVAL) -> bool:
     """Whether an undisturbed trial-length walk meets the survival ``rule``."""
     return rule.survived(log)
-
-
-def choose_trial_start(candidates: dict, settled_frequency: float) -> tuple[float, dict]:
-    """The start frequency of the robustness trials: among the candidates at which every arm
-    walks undisturbed, the nearest to ``settled_frequency``; if none, the one where the most
-    arms walk (nearest first). ``candidates``: frequency -> {arm: walks undisturbed}."""
-
-    def key(frequency):
-        return (-sum(candidates[frequency].values()), abs(frequency - settled_frequency))
-
-    best = min(candidates, key=key)
-    return best, candidates[best]

@@ -34,14 +34,18 @@ mechanical cost of transport of a fixed-frequency sweep; and the sceptic's contr
 torso lean, foot-placement gain and target speed; a resonance-locked frequency barely moves).
 ``fig7.verdict`` is computed from them (:func:`dmpopt_studies.biped.fig7.verdict`).
 
-Phase resetting's effect on robustness (``reset_robustness``) is meant apart from "can it
-walk": the trials start at the candidate frequency nearest the settled one at which every arm
-(resetting on and off, adaptation on and off, :data:`dmpopt_studies.biped.analysis.ARMS`) walks
-undisturbed, or, where no candidate has that, the one where most arms walk
-(``all_arms_walk_undisturbed`` then says False and the summary calls the comparison
-undecided); the same seeded randomised disturbances (push, masses, slope) for every arm, with
-Wilson intervals and a paired McNemar test. ``gait`` puts the long walk's step length,
-cadence, Froude number, impact force and double support beside human values.
+Phase resetting's effect on robustness (``reset_robustness``) apart from "can it walk": an
+arm without resetting does not walk undisturbed from any start (it falls at the first or
+second heel strike), so every arm (resetting on and off, adaptation on and off,
+:data:`dmpopt_studies.biped.analysis.ARMS`) starts at 12 rad/s and walks a 3 s warm-up with
+resetting and adaptation on, the same start-up for all; the arm's own switches apply from the
+first heel strike after it. Each arm walks undisturbed over the longest trial for three
+start-speed seeds (``walks_undisturbed_by_seed``, the evidence); then the same seeded
+randomised disturbances (push at a random phase after the warm-up, masses, slope) for every
+arm, with Wilson intervals, a paired McNemar test and a verdict read from the intervals
+(:func:`dmpopt_studies.biped.analysis.reset_verdict`: resetting raises or lowers survival only
+where the intervals do not overlap). ``gait`` puts the long walk's step length, cadence,
+Froude number, impact force and double support beside human values.
 
 The frequency a walk settles at is the median of its last 20 heel strikes. The QP walk on the
 realistic plant and its plant sweep (docs/plant.md) run in the full study only. ``summary``
@@ -53,6 +57,7 @@ Run: ``python -m dmpopt_studies.biped OUT_DIR [--quick]``.
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -79,7 +84,7 @@ from .analysis import (
     survival_by_arm,
     sweep_minimum,
 )
-from .gait import DEMO_FREQUENCY, learn_gait, limit_cycle_start
+from .gait import DEMO_FREQUENCY, demonstration_from_walk, learn_gait, limit_cycle_start
 from .summary import captions, summary
 from .walker import (
     ADAPTATION_GAIN,
@@ -210,7 +215,37 @@ def _plant_case(case) -> dict:
         nominal_plant=biped_realistic(biped),
         disturbance=disturbance,
     )
-    return {"steps": len(log.strikes), "fell": log.fell, "simulated_s": log.duration}
+    return {
+        "steps": len(log.strikes),
+        "fell": log.fell,
+        "simulated_s": log.duration,
+        "cpu_s": log.cpu_time,
+    }
+
+
+def _pd_from_demonstration(biped, qp_walk, quick: bool, backend: str, seed: int):
+    """The PD walks on DMPs learned from ``qp_walk``'s mean gait cycle: their jobs for
+    :func:`fig7.walk_job` by start frequency, the start state and the cycle's period [s]
+    (:func:`~dmpopt_studies.biped.gait.demonstration_from_walk`)."""
+    after = 0.3 if quick else fig7.PD_DEMO_AFTER
+    gait_index = biped.velocity_indices("gait")
+    demonstration, period, start = demonstration_from_walk(qp_walk, gait_index, after)
+    job = {
+        "controller": "pd",
+        "boom_pitch_stiffness": 0.0,
+        "boom_pitch_damping": 0.0,
+        "backend": backend,
+        "seed": seed,
+        "log_every": LOG_EVERY,
+        "pd_gains": fig7.pd_gains_from_inertia(biped, fig7.PD_CLOSED_LOOP, fig7.PD_DAMPING_RATIO),
+        "amplitude": fig7.PD_AMPLITUDE,
+        "start_pitch": start["pitch"],
+        "start_speed": start["speed"],
+        "duration": 1.5 if quick else fig7.PD_DEMO_DURATION,
+        "demonstration": (demonstration.times, demonstration.positions, period),
+    }
+    starts = fig7.PD_DEMO_STARTS[4:5] if quick else fig7.PD_DEMO_STARTS
+    return {frequency: {**job, "frequency": frequency} for frequency in starts}, start, period
 
 
 def _pd_row(attempt, log) -> dict:
@@ -316,6 +351,7 @@ def run(
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 
     backend = check_backend(backend)
+    cpu_start = time.process_time()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = Progress("biped")
@@ -357,6 +393,17 @@ def run(
     }
     verdict = fig7.verdict(starts, gravity, legs, settings, baseline, physical)
     pd_rows = [_pd_row(key[1], log) for key, log in logs.items() if key[0] == "pd"]
+    pd_jobs, pd_start, period = _pd_from_demonstration(
+        biped, by_start[fig7.CONTROL_START], quick, backend, seed
+    )
+    progress(f"{len(pd_jobs)} PD walks on the DMPs learned from the QP walker's gait")
+    pd_logs = map_runs(fig7.walk_job, list(pd_jobs.values()), runner, label="PD walks")
+    pd_from_demonstration = fig7.pd_demonstration_summary(
+        {start: fig7.settled(log) for start, log in zip(pd_jobs, pd_logs)},
+        next(iter(pd_jobs.values()))["pd_gains"],
+        pd_start,
+        period,
+    )
 
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
     undisturbed = {arm: {} for arm in ARMS}
@@ -436,6 +483,7 @@ def run(
             "verdict": verdict["sentence"],
             "verdict_numbers": verdict,
             "pd_without_pitch_torque": pd_rows,
+            "pd_from_demonstration": pd_from_demonstration,
         },
         "reset_robustness": reset_robustness,
         "gait": gait,
@@ -455,6 +503,11 @@ def run(
         "dmp_step_s": CONTROL_EVERY * DT,
         "backend": backend,
     }
+    cpu = {
+        kind: sum(log.cpu_time for key, log in logs.items() if key[0] == kind)
+        for kind in dict.fromkeys(key[0] for key in logs)
+    }
+    cpu["trials"] = sum(arm["cpu_s"] for arm in survival.values())
     if reality_gap and not quick:  # the realistic plant's walk and sweep (docs/plant.md)
         realistic = biped_realistic(biped)
         progress("the realistic plant: its walk and the plant sweep")
@@ -480,6 +533,8 @@ def run(
             "parameters": realistic.describe(biped.actuated_joint_names),
         }
         metrics["plant_sweep"] = plant_sweep
+        cpu["realistic_plant_walk"] = real_walk.cpu_time
+        cpu["plant_sweep"] = sum(row["cpu_s"] for rows in plant_sweep.values() for row in rows)
         plot_sweep(plant_sweep, "steps", "steps in 8 s", out_dir / "plant_sweep.png")
     clips = {}
     if backend == "mujoco" and not quick:
@@ -512,6 +567,16 @@ def run(
         "n_trials_per_arm": n_trials,
         "trial_start_rad_s": TRIAL_START,
         "walks": len(plan),
+    }
+    cpu["walks_total"] = sum(cpu.values())
+    cpu["study_process"] = time.process_time() - cpu_start
+    metrics["cpu_seconds"] = {
+        **{k: round(v, 1) for k, v in cpu.items()},
+        "note": (
+            "process CPU time inside each walk by kind, summed over the workers, and the "
+            "study's own process (learning, swing leg, figures, video; the walks too when "
+            "they run in series); worker start-up and imports not included"
+        ),
     }
     metrics["summary"] = summary(metrics)
     metrics["captions"] = captions(metrics)

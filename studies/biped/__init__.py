@@ -9,15 +9,20 @@ simulated robot legs".
 Set-up (all choices are ours, see ``robots/README.md``):
 
 * robot: ``robots/biped.urdf`` (leg 0.6 m, 7 kg, point feet), planar base (x, z, pitch): the
-  boom keeps it in the sagittal plane and applies **no pitch torque** (the paper does not
-  mention a boom or any torso support);
+  boom keeps it in the sagittal plane and applies **no pitch torque** (the paper says "planar
+  biped" and mentions no boom or torso support; the same group describes its five-link
+  biped as fixed to a boom that keeps it in the sagittal plane, nothing about pitch);
 * controller: the paper's joint PD cannot walk this robot without a pitch torque on the torso,
   so the walks use the QP inverse-dynamics controller of :mod:`dmpopt.control` (posture task
   on the DMP references, torso-pitch task leaning 0.2 rad, point contacts switched by the
   simulator's heel strikes, Raibert foot placement on the swing hip), see
   :mod:`dmpopt_studies.biped.walker`. The PD's failure is measured, not assumed: the paper's PD at
   several gains, start speeds and DMP amplitudes ("modest tuning of the speed and amplitude")
-  without pitch torque (``fig7.pd_without_pitch_torque``);
+  without pitch torque (``fig7.pd_without_pitch_torque``); and the paper's PD on DMPs learned
+  from the QP walker's own gait (its mean cycle, started in its state at a heel strike, gains
+  from the legs' inertia for a 60 rad/s closed loop) from seven starts
+  (``fig7.pd_from_demonstration``): the claim test would move to the PD if at least four
+  starts walked without a fall;
 * simulator: MuJoCo (:class:`dmpopt.sim.MujocoSimulator`, 5 mm spheres at the point feet,
   friction 0.8), 1 ms step; the DMP steps every 4 ms (compiled);
 * demonstration: normative sagittal hip and knee angles (Winter 2009, Perry 2010), the left
@@ -37,7 +42,7 @@ torso lean, foot-placement gain and target speed; a resonance-locked frequency b
 Phase resetting's effect on robustness (``reset_robustness``) apart from "can it walk": an
 arm without resetting does not walk undisturbed from any start (it falls at the first or
 second heel strike), so every arm (resetting on and off, adaptation on and off,
-:data:`dmpopt_studies.biped.analysis.ARMS`) starts at 12 rad/s and walks a 3 s warm-up with
+:data:`dmpopt_studies.biped.analysis.ARMS`) starts at 12 rad/s and walks a 2 s warm-up with
 resetting and adaptation on, the same start-up for all; the arm's own switches apply from the
 first heel strike after it. Each arm walks undisturbed over the longest trial for three
 start-speed seeds (``walks_undisturbed_by_seed``, the evidence); then the same seeded
@@ -81,8 +86,10 @@ from .analysis import (
     reset_ablation,
     reset_verdict,
     steps_to_within,
-    survival_by_arm,
+    survival_from_runs,
+    survived,
     sweep_minimum,
+    trial_jobs,
 )
 from .gait import DEMO_FREQUENCY, demonstration_from_walk, learn_gait, limit_cycle_start
 from .summary import captions, summary
@@ -130,6 +137,7 @@ N_TRIALS = 10  # randomised trials per arm
 RANGES = TrialRanges()
 RANGES_QUICK = TrialRanges(warmup=0.5, push_time=(0.6, 0.9), slope_time=(0.5, 0.6))
 SURVIVAL_QUICK = Survival(after=1.0, window=0.8)
+REALISTIC_SECONDS = 40.0  # [s] the QP walk on the realistic plant
 VIDEO_SECONDS_WALK = 4.0  # [s] the clip shows the last seconds of the QP walk
 
 
@@ -248,6 +256,53 @@ def _pd_from_demonstration(biped, qp_walk, quick: bool, backend: str, seed: int)
     return {frequency: {**job, "frequency": frequency} for frequency in starts}, start, period
 
 
+def _realistic_walk(job) -> dict:
+    """The QP walk on the realistic plant (an independent run): steps, fall, final frequency."""
+    duration, realistic, backend, seed = job
+    biped = load_biped()
+    _, dmp = learn_gait()
+    log = walk(
+        biped,
+        dmp,
+        duration,
+        MAIN_START,
+        controller="qp",
+        boom_pitch_stiffness=0.0,
+        boom_pitch_damping=0.0,
+        backend=backend,
+        seed=seed,
+        plant=realistic,
+        nominal_plant=realistic,
+        log_every=10**9,
+    )
+    return {
+        "steps_walked": len(log.strikes),
+        "fell": log.fell,
+        "duration_s": log.duration,
+        "frequency_final": log.frequencies[-1],
+        "cpu_s": log.cpu_time,
+    }
+
+
+_RUNS = {"walk": fig7.walk_job, "trial": survived, "realistic": _realistic_walk}
+
+
+def _run(item):
+    """One independent run of the study's batch: ``(kind, input)``."""
+    kind, job = item
+    return _plant_case(job) if kind == "plant" else _RUNS[kind](job)
+
+
+def _expected_seconds(item) -> float:
+    """Simulated seconds a run of the batch may take (its length), to start the longest first."""
+    kind, job = item
+    if kind == "walk":
+        return job["duration"]
+    if kind == "trial":
+        return job[1]["duration"]
+    return job[0]
+
+
 def _pd_row(attempt, log) -> dict:
     stiffness, damping, speed, amplitude = attempt
     return {
@@ -360,8 +415,40 @@ def run(
     biped = load_biped()
     _, dmp = learn_gait()
     plan = _plan(quick, backend, seed)
-    progress(f"{len(plan)} walks: Fig. 7's starts, controls, sweep, PD, undisturbed arms")
-    logs = dict(zip(plan, map_runs(fig7.walk_job, list(plan.values()), runner, label="walks")))
+    rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
+    n_trials = 1 if quick else N_TRIALS
+    disturbances = random_disturbances(biped, n_trials, seed, ranges)
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    trials = trial_jobs(
+        biped,
+        dmp,
+        TRIAL_START,
+        disturbances,
+        rule=rule,
+        **qp,
+        backend=backend,
+        warmup=ranges.warmup,
+    )
+    runs = [("walk", job) for job in plan.values()] + [("trial", job) for job in trials]
+    gap = reality_gap and not quick  # the realistic plant's walk and sweep (docs/plant.md)
+    if gap:
+        realistic = biped_realistic(biped)
+        cases = sweep_cases(realistic, quick)
+        runs.append(("realistic", (REALISTIC_SECONDS, realistic, backend, seed)))
+        runs += [("plant", (8.0, plant, mass, backend)) for _, _, plant, mass in cases]
+    progress(
+        f"{len(runs)} walks: Fig. 7's starts, controls, sweep, PD, undisturbed arms, "
+        f"{len(trials)} randomised trials ({len(ARMS)} arms x {n_trials})"
+        + (", the realistic plant's walk and sweep" if gap else "")
+    )
+    # the longest first, so that no worker is left with a long walk at the end
+    order = sorted(range(len(runs)), key=lambda i: -_expected_seconds(runs[i]))
+    done = map_runs(_run, [runs[i] for i in order], runner, label="walks")
+    results = [None] * len(runs)
+    for i, result in zip(order, done):
+        results[i] = result
+    logs = dict(zip(plan, results[: len(plan)]))
+    survival = survival_from_runs(results[len(plan) : len(plan) + len(trials)], n_trials)
 
     def rows(kind):
         return {key[1]: fig7.settled(log) for key, log in logs.items() if key[0] == kind}
@@ -405,27 +492,11 @@ def run(
         period,
     )
 
-    rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
     undisturbed = {arm: {} for arm in ARMS}
     for key, log in logs.items():
         if key[0] == "undisturbed":
             undisturbed[key[1]][key[2]] = fig7.walks_undisturbed(log, rule)
     walking = {arm: all(seeds.values()) for arm, seeds in undisturbed.items()}
-    n_trials = 1 if quick else N_TRIALS
-    disturbances = random_disturbances(biped, n_trials, seed, ranges)
-    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
-    survival = survival_by_arm(
-        biped,
-        dmp,
-        TRIAL_START,
-        disturbances,
-        rule=rule,
-        progress=progress,
-        runner=runner,
-        **qp,
-        backend=backend,
-        warmup=ranges.warmup,
-    )
     ablation = reset_ablation(survival)
     reset_robustness = {
         "verdict": reset_verdict(ablation, walking),
@@ -459,7 +530,9 @@ def run(
                 "torque on the torso: every attempt in pd_without_pitch_torque fell"
                 if all(row["fell"] for row in pd_rows)
                 else "some PD attempts walked (pd_without_pitch_torque); the QP is kept"
-            ),
+            )
+            + "; "
+            + pd_from_demonstration["sentence"],
             "gains": {"qp": QP_GAINS.__dict__, "pd_loaded_estimate": GAINS.__dict__},
             "closed_loop_leg_frequencies_rad_s": swing,
             "frequency_final_by_start": {f"{s:g}": r["frequency_final"] for s, r in starts.items()},
@@ -508,32 +581,15 @@ def run(
         for kind in dict.fromkeys(key[0] for key in logs)
     }
     cpu["trials"] = sum(arm["cpu_s"] for arm in survival.values())
-    if reality_gap and not quick:  # the realistic plant's walk and sweep (docs/plant.md)
-        realistic = biped_realistic(biped)
-        progress("the realistic plant: its walk and the plant sweep")
-        real_walk = walk(
-            biped,
-            dmp,
-            40.0,
-            MAIN_START,
-            **qp,
-            backend=backend,
-            seed=seed,
-            plant=realistic,
-            nominal_plant=realistic,
-        )
-        cases = sweep_cases(realistic, quick)
-        inputs = [(8.0, plant, mass, backend) for _, _, plant, mass in cases]
-        plant_sweep = collect(cases, map_runs(_plant_case, inputs, runner, label="plant sweep"))
+    if gap:
+        real_walk = results[len(plan) + len(trials)]
+        plant_sweep = collect(cases, results[len(plan) + len(trials) + 1 :])
         metrics["plant_realistic"] = {
-            "steps_walked": len(real_walk.strikes),
-            "fell": real_walk.fell,
-            "duration_s": real_walk.duration,
-            "frequency_final": real_walk.frequencies[-1],
+            **{k: v for k, v in real_walk.items() if k != "cpu_s"},
             "parameters": realistic.describe(biped.actuated_joint_names),
         }
         metrics["plant_sweep"] = plant_sweep
-        cpu["realistic_plant_walk"] = real_walk.cpu_time
+        cpu["realistic_plant_walk"] = real_walk["cpu_s"]
         cpu["plant_sweep"] = sum(row["cpu_s"] for rows in plant_sweep.values() for row in rows)
         plot_sweep(plant_sweep, "steps", "steps in 8 s", out_dir / "plant_sweep.png")
     clips = {}

@@ -9,9 +9,10 @@ import numpy as np
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.parallel import map_runs
 
-from .walker import FALL_HEIGHT, SETTLED_STRIKES, Disturbance, WalkLog, n_moving_bodies, walk
+from .walker import FALL_HEIGHT, Disturbance, WalkLog, n_moving_bodies, walk
 
 WILSON_Z = 1.959963984540054  # two-sided 95 % normal quantile
+SETTLED_STRIKES = 20  # heel strikes that define the converged frequency (their median)
 
 
 def converged_frequency(frequencies, window: int = SETTLED_STRIKES) -> float:
@@ -157,13 +158,62 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
     ]
 
 
-def _survived(job: tuple) -> tuple[bool, int, int, float, float]:
+def survived(job: tuple) -> tuple[bool, int, int, float, float]:
     """One randomised trial, an independent run of :func:`survival_by_arm`: whether the
     walker survived, its QP hold answers, its ticks over 5 ms, its slowest tick [us] and its
     process CPU time [s]."""
     rule, walk_options = job
     log = walk(**walk_options)
     return rule.survived(log), log.holds, log.ticks_over_budget, log.tick_us_max, log.cpu_time
+
+
+def trial_jobs(
+    biped, dmp, frequency, disturbances, controller="qp", rule=SURVIVAL, **walk_on
+) -> list[tuple]:
+    """The randomised trials of :func:`survival_by_arm`, arm by arm (order of :data:`ARMS`),
+    each the input of one independent run of :func:`survived`."""
+    return [
+        (
+            rule,
+            dict(
+                biped=biped,
+                dmp=dmp,
+                duration=disturbance.push_time + rule.after,
+                frequency=frequency,
+                adapt=adapt,
+                reset_phase=reset_phase,
+                controller=controller,
+                disturbance=disturbance,
+                seed=k,
+                **walk_on,
+            ),
+        )
+        for reset_phase, adapt in ARMS.values()
+        for k, disturbance in enumerate(disturbances)
+    ]
+
+
+def survival_from_runs(runs: list, n_trials: int) -> dict:
+    """Survival rate of each arm with its Wilson CI from the results of :func:`survived` on
+    :func:`trial_jobs` (``n_trials`` per arm, in that order)."""
+    results = {}
+    for i, name in enumerate(ARMS):
+        arm = runs[i * n_trials : (i + 1) * n_trials]
+        outcomes = [run[0] for run in arm]
+        n, count = len(outcomes), int(sum(outcomes))
+        low, high = wilson_interval(count, n)
+        results[name] = {
+            "rate": count / n,
+            "ci95_wilson": [low, high],
+            "survived": count,
+            "n": n,
+            "outcomes": outcomes,
+            "qp_holds": int(sum(run[1] for run in arm)),
+            "ticks_over_budget": int(sum(run[2] for run in arm)),
+            "tick_us_max": float(max(run[3] for run in arm)),
+            "cpu_s": float(sum(run[4] for run in arm)),
+        }
+    return results
 
 
 def survival_by_arm(
@@ -183,46 +233,11 @@ def survival_by_arm(
     (:mod:`dmpopt.parallel`; default: in series). A trial at the edge of a fall can end
     differently in another process: proxsuite is not bitwise reproducible across processes.
     """
-    jobs = [
-        (
-            rule,
-            dict(
-                biped=biped,
-                dmp=dmp,
-                duration=disturbance.push_time + rule.after,
-                frequency=frequency,
-                adapt=adapt,
-                reset_phase=reset_phase,
-                controller=controller,
-                disturbance=disturbance,
-                seed=k,
-                **walk_on,
-            ),
-        )
-        for reset_phase, adapt in ARMS.values()
-        for k, disturbance in enumerate(disturbances)
-    ]
+    jobs = trial_jobs(biped, dmp, frequency, disturbances, controller, rule, **walk_on)
     if progress:
         progress(f"{len(jobs)} randomised trials ({len(ARMS)} arms x {len(disturbances)})")
-    survived_all = map_runs(_survived, jobs, runner, label="biped trials")
-    results = {}
-    for i, name in enumerate(ARMS):
-        runs = survived_all[i * len(disturbances) : (i + 1) * len(disturbances)]
-        outcomes = [run[0] for run in runs]
-        n, survived = len(outcomes), int(sum(outcomes))
-        low, high = wilson_interval(survived, n)
-        results[name] = {
-            "rate": survived / n,
-            "ci95_wilson": [low, high],
-            "survived": survived,
-            "n": n,
-            "outcomes": outcomes,
-            "qp_holds": int(sum(run[1] for run in runs)),
-            "ticks_over_budget": int(sum(run[2] for run in runs)),
-            "tick_us_max": float(max(run[3] for run in runs)),
-            "cpu_s": float(sum(run[4] for run in runs)),
-        }
-    return results
+    runs = map_runs(survived, jobs, runner, label="biped trials")
+    return survival_from_runs(runs, len(disturbances))
 
 
 def reset_ablation(survival: dict) -> dict:

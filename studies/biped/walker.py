@@ -46,7 +46,6 @@ LOG_EVERY = 10  # steps between logged samples
 START_SPEEDS = {"qp": 0.8, "pd": 0.35}  # [m/s] forward speed at the first heel strike
 CONTROLLERS = ("qp", "pd")
 PROGRESS_EVERY = 10.0  # [s] simulated, between the progress messages of a long walk
-SETTLED_STRIKES = 20  # heel strikes that define a walk's settled frequency (their median)
 
 
 @dataclass(frozen=True)
@@ -304,7 +303,6 @@ def walk(
     qp_gains: QPGains = QP_GAINS,
     pd_gains: Gains = GAINS,
     warmup: float = 0.0,
-    stop_when_settled: float | None = None,
     start_pitch: float = 0.0,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
@@ -329,16 +327,11 @@ def walk(
     ``reset_phase`` and ``adapt`` say (a start-up shared by the arms of an ablation); those
     switches apply from the first heel strike at or after it.
     ``start_pitch`` [rad]: the torso's pitch at the start (positive leaning forward).
-    ``stop_when_settled``: None (walk the whole ``duration``) or a relative band: the walk
-    ends at the heel strike at which the last ``SETTLED_STRIKES`` frequencies of eq. (21) all
-    lie within this band of their median (:func:`settled`), or at ``duration``.
     """
     if controller not in CONTROLLERS:
         raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
     warmup = real("warmup", warmup, minimum=0.0)
     start_pitch = real("start_pitch", start_pitch, minimum=-1.0, maximum=1.0)
-    if stop_when_settled is not None:
-        stop_when_settled = real("stop_when_settled", stop_when_settled, minimum=0.0)
     if disturbance is None:
         disturbance = Disturbance(push_impulse, push_time)
     rng = np.random.default_rng(seed)
@@ -419,10 +412,6 @@ def walk(
                     log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
                     log.impact_forces.append(0.0)
                     impact[:] = strike.leg, strike.time, True
-                    if stop_when_settled is not None and settled(
-                        adaptation.frequencies, stop_when_settled
-                    ):
-                        break
             if progress and k and k % progress_steps == 0:
                 progress(f"{state.t:.0f} of {duration:g} s simulated")
             if k % log_every == 0:
@@ -444,15 +433,6 @@ def walk(
     log.distance = float(sim.q[0] - q[0])
     log.frequencies = adaptation.frequencies
     return log
-
-
-def settled(frequencies, band: float, window: int = SETTLED_STRIKES) -> bool:
-    """Whether the last ``window`` frequencies all lie within ``band`` (relative) of their
-    median; False with fewer than ``window``."""
-    if len(frequencies) < window:
-        return False
-    last = np.asarray(frequencies[-window:], dtype=float)
-    return bool(np.all(np.abs(last / np.median(last) - 1.0) <= band))
 
 
 IMPACT_WINDOW = 0.05  # [s] after a heel strike in which its peak vertical force is taken

@@ -669,3 +669,68 @@ def test_verdict_needs_the_frequency_near_a_physical_resonance_estimate():
     near = verdict(starts, gravity, legs, settings, base, {"leg": 9.5, "cost": 20.0})
     assert near["outcome"] == "locked to the legs' resonance"
     assert near["nearest_physical_estimate"] == "leg"
+
+
+def test_pd_gains_give_each_leg_joint_the_stated_closed_loop_frequency(biped):
+    """K_p = I w^2 and K_d = 2 zeta I w, with the joints' inertias from the URDF by the
+    parallel-axis theorem (robots/biped.urdf: thigh 1 kg, shank 0.5 kg, 0.30 m each, centres
+    0.13 m below the proximal joint, radii of gyration 0.323 and 0.302 of the length)."""
+    from dmpopt_studies.biped.fig7 import pd_gains_from_inertia
+
+    thigh = 1.0 * ((0.323 * 0.3) ** 2 + 0.13**2)
+    shank_about_knee = 0.5 * ((0.302 * 0.3) ** 2 + 0.13**2)
+    shank_about_hip = 0.5 * ((0.302 * 0.3) ** 2 + (0.3 + 0.13) ** 2)
+    hip, knee = thigh + shank_about_hip, shank_about_knee
+    gains = pd_gains_from_inertia(biped, 60.0, 0.7)
+    assert np.sqrt(gains.hip_stiffness / hip) == pytest.approx(60.0, rel=1e-3)  # URDF 3 digits
+    assert np.sqrt(gains.knee_stiffness / knee) == pytest.approx(60.0, rel=1e-3)
+    assert gains.hip_damping / (2 * np.sqrt(gains.hip_stiffness * hip)) == pytest.approx(
+        0.7, rel=1e-3
+    )
+
+
+def test_demonstration_from_a_walk_is_its_mean_cycle():
+    """A hand-made walk whose joints move as sines of period 0.5 s, right heel strikes every
+    0.5 s: the demonstration's period is 0.5 s and its angles are the sines at the phase
+    (linear interpolation of 1 ms samples: error <= dt^2 w^2 a / 8, far below 1e-4 rad);
+    pitch and speed are the log's at the last right heel strike."""
+    from dmpopt_studies.biped.gait import demonstration_from_walk
+    from dmpopt_studies.biped.walker import WalkLog
+
+    from dmpopt.exceptions import InvalidInputError
+
+    period, omega = 0.5, 2 * np.pi / 0.5
+    amplitude, offset = np.array([0.4, 0.5, 0.3, 0.2]), np.array([0.0, 1.0, np.pi, 2.0])
+    times = np.arange(0.0, 3.0, 1e-3)
+    q = np.zeros((times.size, 7))
+    q[:, 0], q[:, 2] = 0.7 * times, 0.2
+    gait_index = np.array([3, 4, 5, 6])
+    q[:, gait_index] = amplitude * np.sin(omega * times[:, None] + offset)
+    strikes = [(k * period / 2, k % 2, 0.0) for k in range(1, 12)]
+    log = WalkLog(times=list(times), q=list(q), strikes=strikes)
+    demonstration, found, start = demonstration_from_walk(log, gait_index, after=0.9)
+    assert found == pytest.approx(period)
+    phase = omega * np.asarray(demonstration.times)
+    expected = amplitude * np.sin(phase[:, None] + offset)
+    assert np.asarray(demonstration.positions) == pytest.approx(expected, abs=1e-4)
+    assert start["pitch"] == pytest.approx(0.2) and start["speed"] == pytest.approx(0.7)
+    assert start["cycles"] == 3  # right strikes at 1.0, 1.5, 2.0, 2.5 s
+    with pytest.raises(InvalidInputError, match="^log has 1 right heel strikes at or after"):
+        demonstration_from_walk(log, gait_index, after=2.4)
+
+
+def test_pd_demonstration_runs_the_claim_test_only_from_enough_starts():
+    from dmpopt_studies.biped.fig7 import CLAIM_STARTS, pd_demonstration_summary
+    from dmpopt_studies.biped.walker import Gains
+
+    def row(fell):
+        return {"fell": fell, "frequency_settled": 10.0}
+
+    start = {"pitch": 0.2, "speed": 0.9, "cycles": 5}
+    few = {float(s): row(s > CLAIM_STARTS - 2) for s in range(CLAIM_STARTS + 2)}
+    summary = pd_demonstration_summary(few, Gains(), start, 0.5)
+    assert summary["walked_from"] == [float(s) for s in range(CLAIM_STARTS - 1)]
+    assert summary["claim_test_runs_on_it"] is False
+    assert summary["demonstration"]["frequency_rad_s"] == pytest.approx(4 * np.pi)
+    enough = {float(s): row(False) for s in range(CLAIM_STARTS)}
+    assert pd_demonstration_summary(enough, Gains(), start, 0.5)["claim_test_runs_on_it"]

@@ -581,6 +581,7 @@ def run(
         for kind in dict.fromkeys(key[0] for key in logs)
     }
     cpu["trials"] = sum(arm["cpu_s"] for arm in survival.values())
+    cpu["pd_from_demonstration"] = sum(log.cpu_time for log in pd_logs)
     if gap:
         real_walk = results[len(plan) + len(trials)]
         plant_sweep = collect(cases, results[len(plan) + len(trials) + 1 :])

@@ -109,8 +109,9 @@ strike the oscillator's phase is reset, eq. (21) first line, and its frequency a
 phase, its frequency still adapts to the measured steps). ``reset_only`` switches off the
 adaptation (the frequency stays where it is). ``neither`` switches off both; nothing else
 differs. In the study's trials every arm first walks the same warm-up with both on
-(:class:`TrialRanges`), since an arm without resetting cannot start walking on its own. The phase-resetting ablation compares the arms in pairs with the adaptation in the
-same state (:data:`RESET_PAIRS`)."""
+(:class:`TrialRanges`), since an arm without resetting cannot start walking on its own. The
+phase-resetting ablation compares the arms in pairs with the adaptation in the same state
+(:data:`RESET_PAIRS`)."""
 RESET_PAIRS = {  # adaptation state -> (arm with resetting, arm without)
     "adaptation_on": ("reset_and_adapt", "adapt_only"),
     "adaptation_off": ("reset_only", "neither"),

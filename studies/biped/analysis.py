@@ -299,8 +299,8 @@ def reset_verdict(ablation: dict, walks_undisturbed: dict) -> str:
             "would measure whether it walks at all"
         )
     parts = [
-        f"with the adaptation {state.split('_')[1]}, resetting {row['effect']} "
-        f"({row['rate_with_reset']:.0%} against {row['rate_without_reset']:.0%}, n = {row['n']})"
+        f"adaptation {state.split('_')[1]}: {row['rate_with_reset']:.0%} survive with resetting, "
+        f"{row['rate_without_reset']:.0%} without (n = {row['n']}), {row['effect']}"
         for state, row in ablation.items()
     ]
     effects = {row["effect"] for row in ablation.values()}

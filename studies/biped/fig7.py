@@ -67,9 +67,9 @@ PD_ATTEMPTS_QUICK = PD_ATTEMPTS[:1]
 #: The paper's PD on DMPs learned from the QP walker's own gait (the mean cycle of the walk
 #: from CONTROL_START after PD_DEMO_AFTER seconds), started in the QP walk's state at a right
 #: heel strike (torso pitch and speed): gains from the legs' inertia for a closed-loop
-#: frequency of PD_CLOSED_LOOP [rad/s] at damping ratio PD_DAMPING_RATIO (lower ones fall:
-#: 10 and 20 rad/s cannot hold the stance knee, 40 falls at 1 s), DMP amplitude PD_AMPLITUDE
-#: (1.2 falls).
+#: frequency of PD_CLOSED_LOOP [rad/s] at damping ratio PD_DAMPING_RATIO (in scratch runs
+#: lower ones fell: 10 and 20 rad/s cannot hold the stance knee, 40 falls at 1 s), DMP
+#: amplitude PD_AMPLITUDE (0.8 and 1 walked, 1.2 fell).
 PD_CLOSED_LOOP = 60.0
 PD_DAMPING_RATIO = 0.7
 PD_AMPLITUDE = 0.9

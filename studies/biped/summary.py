@@ -25,8 +25,8 @@ def _walk_row(metrics: dict) -> dict:
         ),
         "anchor": (
             f"the paper's joint PD without pitch torque: {fell} of {len(pd)} gain, speed and "
-            f"amplitude settings fell (longest {longest:.1f} s); on DMPs learned from the QP "
-            f"walker's gait: {fig7['pd_from_demonstration']['sentence']}"
+            f"amplitude settings fell (longest {longest:.1f} s); "
+            f"{fig7['pd_from_demonstration']['sentence']}"
         ),
         "verdict": (
             "fails: the walker fell"

@@ -9,15 +9,20 @@ simulated robot legs".
 Set-up (all choices are ours, see ``robots/README.md``):
 
 * robot: ``robots/biped.urdf`` (leg 0.6 m, 7 kg, point feet), planar base (x, z, pitch): the
-  boom keeps it in the sagittal plane and applies **no pitch torque** (the paper does not
-  mention a boom or any torso support);
+  boom keeps it in the sagittal plane and applies **no pitch torque** (the paper says "planar
+  biped" and mentions no boom or torso support; the same group describes its five-link
+  biped as fixed to a boom that keeps it in the sagittal plane, nothing about pitch);
 * controller: the paper's joint PD cannot walk this robot without a pitch torque on the torso,
   so the walks use the QP inverse-dynamics controller of :mod:`dmpopt.control` (posture task
   on the DMP references, torso-pitch task leaning 0.2 rad, point contacts switched by the
   simulator's heel strikes, Raibert foot placement on the swing hip), see
   :mod:`dmpopt_studies.biped.walker`. The PD's failure is measured, not assumed: the paper's PD at
   several gains, start speeds and DMP amplitudes ("modest tuning of the speed and amplitude")
-  without pitch torque (``fig7.pd_without_pitch_torque``);
+  without pitch torque (``fig7.pd_without_pitch_torque``); and the paper's PD on DMPs learned
+  from the QP walker's own gait (its mean cycle, started in its state at a heel strike, gains
+  from the legs' inertia for a 60 rad/s closed loop) from seven starts
+  (``fig7.pd_from_demonstration``): the claim test would move to the PD if at least four
+  starts walked without a fall;
 * simulator: MuJoCo (:class:`dmpopt.sim.MujocoSimulator`, 5 mm spheres at the point feet,
   friction 0.8), 1 ms step; the DMP steps every 4 ms (compiled);
 * demonstration: normative sagittal hip and knee angles (Winter 2009, Perry 2010), the left
@@ -34,14 +39,18 @@ mechanical cost of transport of a fixed-frequency sweep; and the sceptic's contr
 torso lean, foot-placement gain and target speed; a resonance-locked frequency barely moves).
 ``fig7.verdict`` is computed from them (:func:`dmpopt_studies.biped.fig7.verdict`).
 
-Phase resetting's effect on robustness (``reset_robustness``) is meant apart from "can it
-walk": the trials start at the candidate frequency nearest the settled one at which every arm
-(resetting on and off, adaptation on and off, :data:`dmpopt_studies.biped.analysis.ARMS`) walks
-undisturbed, or, where no candidate has that, the one where most arms walk
-(``all_arms_walk_undisturbed`` then says False and the summary calls the comparison
-undecided); the same seeded randomised disturbances (push, masses, slope) for every arm, with
-Wilson intervals and a paired McNemar test. ``gait`` puts the long walk's step length,
-cadence, Froude number, impact force and double support beside human values.
+Phase resetting's effect on robustness (``reset_robustness``) apart from "can it walk": an
+arm without resetting does not walk undisturbed from any start (it falls at the first or
+second heel strike), so every arm (resetting on and off, adaptation on and off,
+:data:`dmpopt_studies.biped.analysis.ARMS`) starts at 12 rad/s and walks a 2 s warm-up with
+resetting and adaptation on, the same start-up for all; the arm's own switches apply from the
+first heel strike after it. Each arm walks undisturbed over the longest trial for three
+start-speed seeds (``walks_undisturbed_by_seed``, the evidence); then the same seeded
+randomised disturbances (push at a random phase after the warm-up, masses, slope) for every
+arm, with Wilson intervals, a paired McNemar test and a verdict read from the intervals
+(:func:`dmpopt_studies.biped.analysis.reset_verdict`: resetting raises or lowers survival only
+where the intervals do not overlap). ``gait`` puts the long walk's step length, cadence,
+Froude number, impact force and double support beside human values.
 
 The frequency a walk settles at is the median of its last 20 heel strikes. The QP walk on the
 realistic plant and its plant sweep (docs/plant.md) run in the full study only. ``summary``
@@ -53,6 +62,7 @@ Run: ``python -m dmpopt_studies.biped OUT_DIR [--quick]``.
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -74,11 +84,14 @@ from .analysis import (
     gait_metrics,
     random_disturbances,
     reset_ablation,
+    reset_verdict,
     steps_to_within,
-    survival_by_arm,
+    survival_from_runs,
+    survived,
     sweep_minimum,
+    trial_jobs,
 )
-from .gait import DEMO_FREQUENCY, learn_gait, limit_cycle_start
+from .gait import DEMO_FREQUENCY, demonstration_from_walk, learn_gait, limit_cycle_start
 from .summary import captions, summary
 from .walker import (
     ADAPTATION_GAIN,
@@ -109,21 +122,23 @@ __all__ = [
 ]
 
 # wall seconds on the 2-core machine, 2 workers (`dmpopt study run biped [--quick] --workers 2`,
-# measured: quick 29 s at a load average of 3-5, 152-166 s at 15-20; full 832 s at 8)
-EXPECTED_SECONDS = {"full": 900, "quick": 90}
+# measured at a load average of 13-17: quick 284 s, full 1500 s; full-run CPU 562 s, user +
+# system with the workers, so about 5 min of two idle cores plus the study's own 17 s)
+EXPECTED_SECONDS = {"full": 600, "quick": 90}
 # [rad/s] starts below and above where the QP walker settles (from 4 rad/s it makes one step
 # and falls; from 14 and 15 rad/s it falls within 1 s); the controls start at 12
 START_FREQUENCIES = (5.0, 8.0, 12.0, 13.5)
 MAIN_START = 5.0  # [rad/s] the long walk (gait, figures) starts at the demonstrated frequency
 SWEEP = tuple(np.round(np.geomspace(4.0, 16.0, 8), 3))  # [rad/s] fixed frequencies
 SWEEP_QUICK = (5.0, 13.0)
-# [rad/s] candidate starts of the robustness trials: the one nearest the settled frequency at
-# which every arm walks undisturbed is used
-TRIAL_STARTS = (6.0, 9.0, 12.0)
-TRIAL_STARTS_QUICK = (8.0,)
+TRIAL_START = 12.0  # [rad/s] the robustness trials start near the settled frequency
+UNDISTURBED_SEEDS = (0, 1, 2)  # the undisturbed walks of each arm (start-speed seeds)
+UNDISTURBED_SEEDS_QUICK = (0,)
+N_TRIALS = 10  # randomised trials per arm
 RANGES = TrialRanges()
-RANGES_QUICK = TrialRanges(push_time=(0.3, 0.6), slope_time=(0.1, 0.3))
+RANGES_QUICK = TrialRanges(warmup=0.5, push_time=(0.6, 0.9), slope_time=(0.5, 0.6))
 SURVIVAL_QUICK = Survival(after=1.0, window=0.8)
+REALISTIC_SECONDS = 40.0  # [s] the QP walk on the realistic plant
 VIDEO_SECONDS_WALK = 4.0  # [s] the clip shows the last seconds of the QP walk
 
 
@@ -209,7 +224,84 @@ def _plant_case(case) -> dict:
         nominal_plant=biped_realistic(biped),
         disturbance=disturbance,
     )
-    return {"steps": len(log.strikes), "fell": log.fell, "simulated_s": log.duration}
+    return {
+        "steps": len(log.strikes),
+        "fell": log.fell,
+        "simulated_s": log.duration,
+        "cpu_s": log.cpu_time,
+    }
+
+
+def _pd_from_demonstration(biped, qp_walk, quick: bool, backend: str, seed: int):
+    """The PD walks on DMPs learned from ``qp_walk``'s mean gait cycle: their jobs for
+    :func:`fig7.walk_job` by start frequency, the start state and the cycle's period [s]
+    (:func:`~dmpopt_studies.biped.gait.demonstration_from_walk`)."""
+    after = 0.3 if quick else fig7.PD_DEMO_AFTER
+    gait_index = biped.velocity_indices("gait")
+    demonstration, period, start = demonstration_from_walk(qp_walk, gait_index, after)
+    job = {
+        "controller": "pd",
+        "boom_pitch_stiffness": 0.0,
+        "boom_pitch_damping": 0.0,
+        "backend": backend,
+        "seed": seed,
+        "log_every": LOG_EVERY,
+        "pd_gains": fig7.pd_gains_from_inertia(biped, fig7.PD_CLOSED_LOOP, fig7.PD_DAMPING_RATIO),
+        "amplitude": fig7.PD_AMPLITUDE,
+        "start_pitch": start["pitch"],
+        "start_speed": start["speed"],
+        "duration": 1.5 if quick else fig7.PD_DEMO_DURATION,
+        "demonstration": (demonstration.times, demonstration.positions, period),
+    }
+    starts = fig7.PD_DEMO_STARTS[4:5] if quick else fig7.PD_DEMO_STARTS
+    return {frequency: {**job, "frequency": frequency} for frequency in starts}, start, period
+
+
+def _realistic_walk(job) -> dict:
+    """The QP walk on the realistic plant (an independent run): steps, fall, final frequency."""
+    duration, realistic, backend, seed = job
+    biped = load_biped()
+    _, dmp = learn_gait()
+    log = walk(
+        biped,
+        dmp,
+        duration,
+        MAIN_START,
+        controller="qp",
+        boom_pitch_stiffness=0.0,
+        boom_pitch_damping=0.0,
+        backend=backend,
+        seed=seed,
+        plant=realistic,
+        nominal_plant=realistic,
+        log_every=10**9,
+    )
+    return {
+        "steps_walked": len(log.strikes),
+        "fell": log.fell,
+        "duration_s": log.duration,
+        "frequency_final": log.frequencies[-1],
+        "cpu_s": log.cpu_time,
+    }
+
+
+_RUNS = {"walk": fig7.walk_job, "trial": survived, "realistic": _realistic_walk}
+
+
+def _run(item):
+    """One independent run of the study's batch: ``(kind, input)``."""
+    kind, job = item
+    return _plant_case(job) if kind == "plant" else _RUNS[kind](job)
+
+
+def _expected_seconds(item) -> float:
+    """Simulated seconds a run of the batch may take (its length), to start the longest first."""
+    kind, job = item
+    if kind == "walk":
+        return job["duration"]
+    if kind == "trial":
+        return job[1]["duration"]
+    return job[0]
 
 
 def _pd_row(attempt, log) -> dict:
@@ -281,15 +373,16 @@ def _plan(quick: bool, backend: str, seed: int) -> dict:
             "frequency": MAIN_START,
         }
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
-    trial = ranges.push_time[1] + rule.after
-    for start in TRIAL_STARTS_QUICK if quick else TRIAL_STARTS:
-        for arm, (reset_phase, adapt) in ARMS.items():
-            jobs[("undisturbed", start, arm)] = {
+    for arm, (reset_phase, adapt) in ARMS.items():
+        for walk_seed in UNDISTURBED_SEEDS_QUICK if quick else UNDISTURBED_SEEDS:
+            jobs[("undisturbed", arm, walk_seed)] = {
                 **base,
-                "duration": trial,
-                "frequency": start,
+                "seed": walk_seed,
+                "duration": ranges.push_time[1] + rule.after,  # the longest trial
+                "frequency": TRIAL_START,
                 "reset_phase": reset_phase,
                 "adapt": adapt,
+                "warmup": ranges.warmup,
             }
     return jobs
 
@@ -314,6 +407,7 @@ def run(
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 
     backend = check_backend(backend)
+    cpu_start = time.process_time()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = Progress("biped")
@@ -322,8 +416,40 @@ def run(
     biped = load_biped()
     _, dmp = learn_gait()
     plan = _plan(quick, backend, seed)
-    progress(f"{len(plan)} walks: Fig. 7's starts, controls, sweep, PD, undisturbed arms")
-    logs = dict(zip(plan, map_runs(fig7.walk_job, list(plan.values()), runner, label="walks")))
+    rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
+    n_trials = 1 if quick else N_TRIALS
+    disturbances = random_disturbances(biped, n_trials, seed, ranges)
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    trials = trial_jobs(
+        biped,
+        dmp,
+        TRIAL_START,
+        disturbances,
+        rule=rule,
+        **qp,
+        backend=backend,
+        warmup=ranges.warmup,
+    )
+    runs = [("walk", job) for job in plan.values()] + [("trial", job) for job in trials]
+    gap = reality_gap and not quick  # the realistic plant's walk and sweep (docs/plant.md)
+    if gap:
+        realistic = biped_realistic(biped)
+        cases = sweep_cases(realistic, quick)
+        runs.append(("realistic", (REALISTIC_SECONDS, realistic, backend, seed)))
+        runs += [("plant", (8.0, plant, mass, backend)) for _, _, plant, mass in cases]
+    progress(
+        f"{len(runs)} walks: Fig. 7's starts, controls, sweep, PD, undisturbed arms, "
+        f"{len(trials)} randomised trials ({len(ARMS)} arms x {n_trials})"
+        + (", the realistic plant's walk and sweep" if gap else "")
+    )
+    # the longest first, so that no worker is left with a long walk at the end
+    order = sorted(range(len(runs)), key=lambda i: -_expected_seconds(runs[i]))
+    done = map_runs(_run, [runs[i] for i in order], runner, label="walks")
+    results = [None] * len(runs)
+    for i, result in zip(order, done):
+        results[i] = result
+    logs = dict(zip(plan, results[: len(plan)]))
+    survival = survival_from_runs(results[len(plan) : len(plan) + len(trials)], n_trials)
 
     def rows(kind):
         return {key[1]: fig7.settled(log) for key, log in logs.items() if key[0] == kind}
@@ -355,36 +481,42 @@ def run(
     }
     verdict = fig7.verdict(starts, gravity, legs, settings, baseline, physical)
     pd_rows = [_pd_row(key[1], log) for key, log in logs.items() if key[0] == "pd"]
+    pd_jobs, pd_start, period = _pd_from_demonstration(
+        biped, by_start[fig7.CONTROL_START], quick, backend, seed
+    )
+    progress(f"{len(pd_jobs)} PD walks on the DMPs learned from the QP walker's gait")
+    pd_logs = map_runs(fig7.walk_job, list(pd_jobs.values()), runner, label="PD walks")
+    pd_from_demonstration = fig7.pd_demonstration_summary(
+        {start: fig7.settled(log) for start, log in zip(pd_jobs, pd_logs)},
+        next(iter(pd_jobs.values()))["pd_gains"],
+        pd_start,
+        period,
+    )
 
-    rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
-    candidates = {}
+    undisturbed = {arm: {} for arm in ARMS}
     for key, log in logs.items():
         if key[0] == "undisturbed":
-            candidates.setdefault(key[1], {})[key[2]] = fig7.walks_undisturbed(log, rule)
-    trial_start, walking = fig7.choose_trial_start(candidates, baseline)
-    n_trials = 1 if quick else 10
-    disturbances = random_disturbances(biped, n_trials, seed, ranges)
-    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
-    survival = survival_by_arm(
-        biped,
-        dmp,
-        trial_start,
-        disturbances,
-        rule=rule,
-        progress=progress,
-        runner=runner,
-        **qp,
-        backend=backend,
-    )
+            undisturbed[key[1]][key[2]] = fig7.walks_undisturbed(log, rule)
+    walking = {arm: all(seeds.values()) for arm, seeds in undisturbed.items()}
+    ablation = reset_ablation(survival)
     reset_robustness = {
-        "start_frequency_rad_s": trial_start,
-        "candidates_walk_undisturbed": {f"{f:g}": arms for f, arms in candidates.items()},
+        "verdict": reset_verdict(ablation, walking),
+        "start_frequency_rad_s": TRIAL_START,
+        "warmup_s": ranges.warmup,
+        "design": (
+            f"every arm starts at {TRIAL_START:g} rad/s and walks its first {ranges.warmup:g} s "
+            "with phase resetting and adaptation on (the same start-up); from then on its own "
+            "switches apply; pushes and slopes come after the warm-up"
+        ),
+        "walks_undisturbed_by_seed": {
+            arm: {str(s): ok for s, ok in seeds.items()} for arm, seeds in undisturbed.items()
+        },
         "all_arms_walk_undisturbed": all(walking.values()),
         "arms": {
             name: {k: v for k, v in arm.items() if k != "outcomes"}
             for name, arm in survival.items()
         },
-        "phase_reset_ablation": reset_ablation(survival),
+        "phase_reset_ablation": ablation,
         "rule": rule.__dict__,
         "ranges": ranges.__dict__,
         "outcomes": {name: arm["outcomes"] for name, arm in survival.items()},
@@ -399,7 +531,9 @@ def run(
                 "torque on the torso: every attempt in pd_without_pitch_torque fell"
                 if all(row["fell"] for row in pd_rows)
                 else "some PD attempts walked (pd_without_pitch_torque); the QP is kept"
-            ),
+            )
+            + "; "
+            + pd_from_demonstration["sentence"],
             "gains": {"qp": QP_GAINS.__dict__, "pd_loaded_estimate": GAINS.__dict__},
             "closed_loop_leg_frequencies_rad_s": swing,
             "frequency_final_by_start": {f"{s:g}": r["frequency_final"] for s, r in starts.items()},
@@ -423,6 +557,7 @@ def run(
             "verdict": verdict["sentence"],
             "verdict_numbers": verdict,
             "pd_without_pitch_torque": pd_rows,
+            "pd_from_demonstration": pd_from_demonstration,
         },
         "reset_robustness": reset_robustness,
         "gait": gait,
@@ -442,31 +577,22 @@ def run(
         "dmp_step_s": CONTROL_EVERY * DT,
         "backend": backend,
     }
-    if reality_gap and not quick:  # the realistic plant's walk and sweep (docs/plant.md)
-        realistic = biped_realistic(biped)
-        progress("the realistic plant: its walk and the plant sweep")
-        real_walk = walk(
-            biped,
-            dmp,
-            40.0,
-            MAIN_START,
-            **qp,
-            backend=backend,
-            seed=seed,
-            plant=realistic,
-            nominal_plant=realistic,
-        )
-        cases = sweep_cases(realistic, quick)
-        inputs = [(8.0, plant, mass, backend) for _, _, plant, mass in cases]
-        plant_sweep = collect(cases, map_runs(_plant_case, inputs, runner, label="plant sweep"))
+    cpu = {
+        kind: sum(log.cpu_time for key, log in logs.items() if key[0] == kind)
+        for kind in dict.fromkeys(key[0] for key in logs)
+    }
+    cpu["trials"] = sum(arm["cpu_s"] for arm in survival.values())
+    cpu["pd_from_demonstration"] = sum(log.cpu_time for log in pd_logs)
+    if gap:
+        real_walk = results[len(plan) + len(trials)]
+        plant_sweep = collect(cases, results[len(plan) + len(trials) + 1 :])
         metrics["plant_realistic"] = {
-            "steps_walked": len(real_walk.strikes),
-            "fell": real_walk.fell,
-            "duration_s": real_walk.duration,
-            "frequency_final": real_walk.frequencies[-1],
+            **{k: v for k, v in real_walk.items() if k != "cpu_s"},
             "parameters": realistic.describe(biped.actuated_joint_names),
         }
         metrics["plant_sweep"] = plant_sweep
+        cpu["realistic_plant_walk"] = real_walk["cpu_s"]
+        cpu["plant_sweep"] = sum(row["cpu_s"] for rows in plant_sweep.values() for row in rows)
         plot_sweep(plant_sweep, "steps", "steps in 8 s", out_dir / "plant_sweep.png")
     clips = {}
     if backend == "mujoco" and not quick:
@@ -497,7 +623,18 @@ def run(
         "pd_gains": GAINS.__dict__,
         "sweep_rad_s": SWEEP_QUICK if quick else SWEEP,
         "n_trials_per_arm": n_trials,
+        "trial_start_rad_s": TRIAL_START,
         "walks": len(plan),
+    }
+    cpu["walks_total"] = sum(cpu.values())
+    cpu["study_process"] = time.process_time() - cpu_start
+    metrics["cpu_seconds"] = {
+        **{k: round(v, 1) for k, v in cpu.items()},
+        "note": (
+            "process CPU time inside each walk by kind, summed over the workers, and the "
+            "study's own process (learning, swing leg, figures, video; the walks too when "
+            "they run in series); worker start-up and imports not included"
+        ),
     }
     metrics["summary"] = summary(metrics)
     metrics["captions"] = captions(metrics)

@@ -12,8 +12,6 @@ from dmpopt.parallel import map_runs
 from .walker import FALL_HEIGHT, Disturbance, WalkLog, n_moving_bodies, walk
 
 WILSON_Z = 1.959963984540054  # two-sided 95 % normal quantile
-
-
 SETTLED_STRIKES = 20  # heel strikes that define the converged frequency (their median)
 
 
@@ -109,9 +107,11 @@ walks with the same controller, whose contacts switch on the simulator's heel st
 strike the oscillator's phase is reset, eq. (21) first line, and its frequency adapted, eq.
 (21) second line. ``adapt_only`` switches off the phase reset (the oscillator keeps its own
 phase, its frequency still adapts to the measured steps). ``reset_only`` switches off the
-adaptation (the frequency stays at the start's). ``neither`` switches off both; nothing else
-differs. The phase-resetting ablation compares the arms in pairs with the adaptation in the
-same state (:data:`RESET_PAIRS`)."""
+adaptation (the frequency stays where it is). ``neither`` switches off both; nothing else
+differs. In the study's trials every arm first walks the same warm-up with both on
+(:class:`TrialRanges`), since an arm without resetting cannot start walking on its own. The
+phase-resetting ablation compares the arms in pairs with the adaptation in the same state
+(:data:`RESET_PAIRS`)."""
 RESET_PAIRS = {  # adaptation state -> (arm with resetting, arm without)
     "adaptation_on": ("reset_and_adapt", "adapt_only"),
     "adaptation_off": ("reset_only", "neither"),
@@ -120,13 +120,28 @@ RESET_PAIRS = {  # adaptation state -> (arm with resetting, arm without)
 
 @dataclass(frozen=True)
 class TrialRanges:
-    """Ranges of the randomised disturbances (uniform draws)."""
+    """Ranges of the randomised disturbances (uniform draws) and the trials' warm-up.
 
+    Every arm walks its first ``warmup`` seconds with phase resetting and adaptation on (the
+    walker's start-up, the same in every arm, ``walk(warmup=...)``); the arm's own switches
+    apply from then on, and the slope and the push come after the warm-up.
+    """
+
+    warmup: float = 2.0  # [s] about 8 heel strikes from 12 rad/s
     push_impulse: tuple = (0.0, 4.0)  # [N s] forward, on the torso
-    push_time: tuple = (1.5, 2.5)  # [s] (several steps: a random phase of the gait)
+    push_time: tuple = (2.5, 3.5)  # [s] (about four steps: a random phase of the gait)
     mass_scale: tuple = (0.9, 1.1)  # factor on each body's mass and inertia
     slope_deg: tuple = (-3.0, 3.0)  # [deg] ground slope from slope_time, positive uphill
-    slope_time: tuple = (0.5, 1.5)  # [s]
+    slope_time: tuple = (2.0, 3.0)  # [s]
+
+    def __post_init__(self):
+        for name in ("push_time", "slope_time"):
+            low, high = getattr(self, name)
+            if not self.warmup <= low <= high:
+                raise InvalidInputError(
+                    f"{name} must be a range (low, high) starting at or after warmup = "
+                    f"{self.warmup:g} s, got {(low, high)}; move it after the warm-up"
+                )
 
 
 def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[Disturbance]:
@@ -145,12 +160,62 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
     ]
 
 
-def _survived(job: tuple) -> tuple[bool, int, int, float]:
+def survived(job: tuple) -> tuple[bool, int, int, float, float]:
     """One randomised trial, an independent run of :func:`survival_by_arm`: whether the
-    walker survived, its QP hold answers, its ticks over 5 ms and its slowest tick [us]."""
+    walker survived, its QP hold answers, its ticks over 5 ms, its slowest tick [us] and its
+    process CPU time [s]."""
     rule, walk_options = job
     log = walk(**walk_options)
-    return rule.survived(log), log.holds, log.ticks_over_budget, log.tick_us_max
+    return rule.survived(log), log.holds, log.ticks_over_budget, log.tick_us_max, log.cpu_time
+
+
+def trial_jobs(
+    biped, dmp, frequency, disturbances, controller="qp", rule=SURVIVAL, **walk_on
+) -> list[tuple]:
+    """The randomised trials of :func:`survival_by_arm`, arm by arm (order of :data:`ARMS`),
+    each the input of one independent run of :func:`survived`."""
+    return [
+        (
+            rule,
+            dict(
+                biped=biped,
+                dmp=dmp,
+                duration=disturbance.push_time + rule.after,
+                frequency=frequency,
+                adapt=adapt,
+                reset_phase=reset_phase,
+                controller=controller,
+                disturbance=disturbance,
+                seed=k,
+                **walk_on,
+            ),
+        )
+        for reset_phase, adapt in ARMS.values()
+        for k, disturbance in enumerate(disturbances)
+    ]
+
+
+def survival_from_runs(runs: list, n_trials: int) -> dict:
+    """Survival rate of each arm with its Wilson CI from the results of :func:`survived` on
+    :func:`trial_jobs` (``n_trials`` per arm, in that order)."""
+    results = {}
+    for i, name in enumerate(ARMS):
+        arm = runs[i * n_trials : (i + 1) * n_trials]
+        outcomes = [run[0] for run in arm]
+        n, count = len(outcomes), int(sum(outcomes))
+        low, high = wilson_interval(count, n)
+        results[name] = {
+            "rate": count / n,
+            "ci95_wilson": [low, high],
+            "survived": count,
+            "n": n,
+            "outcomes": outcomes,
+            "qp_holds": int(sum(run[1] for run in arm)),
+            "ticks_over_budget": int(sum(run[2] for run in arm)),
+            "tick_us_max": float(max(run[3] for run in arm)),
+            "cpu_s": float(sum(run[4] for run in arm)),
+        }
+    return results
 
 
 def survival_by_arm(
@@ -170,45 +235,11 @@ def survival_by_arm(
     (:mod:`dmpopt.parallel`; default: in series). A trial at the edge of a fall can end
     differently in another process: proxsuite is not bitwise reproducible across processes.
     """
-    jobs = [
-        (
-            rule,
-            dict(
-                biped=biped,
-                dmp=dmp,
-                duration=disturbance.push_time + rule.after,
-                frequency=frequency,
-                adapt=adapt,
-                reset_phase=reset_phase,
-                controller=controller,
-                disturbance=disturbance,
-                seed=k,
-                **walk_on,
-            ),
-        )
-        for reset_phase, adapt in ARMS.values()
-        for k, disturbance in enumerate(disturbances)
-    ]
+    jobs = trial_jobs(biped, dmp, frequency, disturbances, controller, rule, **walk_on)
     if progress:
         progress(f"{len(jobs)} randomised trials ({len(ARMS)} arms x {len(disturbances)})")
-    survived_all = map_runs(_survived, jobs, runner, label="biped trials")
-    results = {}
-    for i, name in enumerate(ARMS):
-        runs = survived_all[i * len(disturbances) : (i + 1) * len(disturbances)]
-        outcomes = [run[0] for run in runs]
-        n, survived = len(outcomes), int(sum(outcomes))
-        low, high = wilson_interval(survived, n)
-        results[name] = {
-            "rate": survived / n,
-            "ci95_wilson": [low, high],
-            "survived": survived,
-            "n": n,
-            "outcomes": outcomes,
-            "qp_holds": int(sum(run[1] for run in runs)),
-            "ticks_over_budget": int(sum(run[2] for run in runs)),
-            "tick_us_max": float(max(run[3] for run in runs)),
-        }
-    return results
+    runs = map_runs(survived, jobs, runner, label="biped trials")
+    return survival_from_runs(runs, len(disturbances))
 
 
 def reset_ablation(survival: dict) -> dict:
@@ -236,8 +267,45 @@ def reset_ablation(survival: dict) -> dict:
             "survived_only_without_reset": only_without,
             "n": len(pairs),
             "mcnemar_p": binomtest(only_with, discordant).pvalue if discordant else 1.0,
+            "effect": interval_effect(
+                survival[with_reset]["ci95_wilson"], survival[without]["ci95_wilson"]
+            ),
         }
     return results
+
+
+def interval_effect(with_reset, without_reset) -> str:
+    """What two survival intervals say about resetting: ``"raises survival"`` when the
+    interval with resetting lies wholly above the one without, ``"lowers survival"`` when
+    wholly below, else ``"not resolved"`` (they overlap)."""
+    if with_reset[0] > without_reset[1]:
+        return "raises survival"
+    if with_reset[1] < without_reset[0]:
+        return "lowers survival"
+    return "not resolved"
+
+
+def reset_verdict(ablation: dict, walks_undisturbed: dict) -> str:
+    """One sentence on phase resetting's effect on robustness, from the Wilson intervals.
+
+    ``ablation``: :func:`reset_ablation`'s result; ``walks_undisturbed``: arm -> whether it
+    walked undisturbed in every undisturbed walk. With an arm that does not walk undisturbed
+    the comparison is undecided (it would measure whether the walker walks at all).
+    """
+    failing = [arm for arm, walked in walks_undisturbed.items() if not walked]
+    if failing:
+        return (
+            "undecided: " + ", ".join(failing) + " does not walk undisturbed, so survival "
+            "would measure whether it walks at all"
+        )
+    parts = [
+        f"adaptation {state.split('_')[1]}: {row['rate_with_reset']:.0%} survive with resetting, "
+        f"{row['rate_without_reset']:.0%} without (n = {row['n']}), {row['effect']}"
+        for state, row in ablation.items()
+    ]
+    effects = {row["effect"] for row in ablation.values()}
+    outcome = effects.pop() if len(effects) == 1 else "mixed"
+    return f"{outcome}: " + "; ".join(parts) + " (95 % Wilson intervals, overlap = not resolved)"
 
 
 def sweep_minimum(rows: list[dict], flat: float = 0.05) -> dict:

@@ -30,6 +30,7 @@ from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.frequency_adaptation import FrequencyAdaptation, HeelStrikeDetector
 from dmpopt.sim import IDEAL, GroundContact, Simulator
+from dmpopt.validation import real
 
 from ..common import TIME_BUDGET
 from .gait import limit_cycle_start
@@ -301,6 +302,8 @@ def walk(
     urdf=None,
     qp_gains: QPGains = QP_GAINS,
     pd_gains: Gains = GAINS,
+    warmup: float = 0.0,
+    start_pitch: float = 0.0,
 ) -> WalkLog:
     """Simulate the walker for ``duration`` [s] from the demonstrated gait at ``frequency``.
 
@@ -320,9 +323,15 @@ def walk(
     was loaded from (default ``robots/biped.urdf``; a leg-scaled copy for the leg-length
     control); the simulated gravity is the model's (:func:`dmpopt_robots.biped.load_biped`), so the
     QP's model and the plant agree. ``qp_gains``, ``pd_gains``: the controller's gains.
+    ``warmup`` [s]: heel strikes before it reset the phase and adapt the frequency whatever
+    ``reset_phase`` and ``adapt`` say (a start-up shared by the arms of an ablation); those
+    switches apply from the first heel strike at or after it.
+    ``start_pitch`` [rad]: the torso's pitch at the start (positive leaning forward).
     """
     if controller not in CONTROLLERS:
         raise InvalidInputError(f"controller must be one of {CONTROLLERS}, got {controller!r}")
+    warmup = real("warmup", warmup, minimum=0.0)
+    start_pitch = real("start_pitch", start_pitch, minimum=-1.0, maximum=1.0)
     if disturbance is None:
         disturbance = Disturbance(push_impulse, push_time)
     rng = np.random.default_rng(seed)
@@ -335,7 +344,8 @@ def walk(
         CONTROL_EVERY * DT, start=start_position, start_velocity=start_velocity, compile=COMPILE
     )
     stepper.set_tau(1.0 / frequency)
-    q = biped_model.configuration(biped, 0.0, biped_model.leg_length(biped), 0.0, stepper.position)
+    height = biped_model.leg_length(biped)
+    q = biped_model.configuration(biped, 0.0, height, start_pitch, stepper.position)
     q[1] -= biped_model.foot_positions(biped, q)[:, 1].min()
     sim = make_simulator(biped, backend, plant, urdf)
     _perturb_masses(sim, disturbance)
@@ -350,7 +360,10 @@ def walk(
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
     index = np.sort(biped.velocity_indices("gait"))
     detector = HeelStrikeDetector(min_swing_time=0.1)
-    adaptation = FrequencyAdaptation(frequency, ADAPTATION_GAIN, reset_phase, adapt)
+    # before ``warmup`` every walk resets and adapts (its start-up); the arm's switches after
+    adaptation = FrequencyAdaptation(
+        frequency, ADAPTATION_GAIN, reset_phase or warmup > 0, adapt or warmup > 0
+    )
     log = WalkLog(frequencies=[frequency])
     base_force = np.zeros(3)
     desired, desired_velocity, desired_acceleration = np.empty(4), np.empty(4), np.empty(4)
@@ -389,6 +402,8 @@ def walk(
             if state.touchdowns or not state.in_contact.all():
                 strike = detector.update(state.t, state.in_contact, state.contact_positions)
                 if strike is not None:
+                    if strike.time >= warmup:
+                        adaptation.reset_phase, adaptation.adapt = reset_phase, adapt
                     phase, new_frequency = adaptation.on_heel_strike(strike)
                     law.on_heel_strike(strike.leg, strike.time, new_frequency)
                     if phase is not None:

@@ -216,7 +216,8 @@ def test_reset_ablation_pairs_arms_with_the_adaptation_in_the_same_state():
     from dmpopt_studies.biped.analysis import reset_ablation
 
     def arm(outcomes):
-        return {"outcomes": outcomes, "rate": sum(outcomes) / len(outcomes)}
+        rate, interval = sum(outcomes) / len(outcomes), _wilson(sum(outcomes), len(outcomes))
+        return {"outcomes": outcomes, "rate": rate, "ci95_wilson": interval}
 
     survival = {
         "reset_and_adapt": arm([True] * 6 + [False, True]),
@@ -353,17 +354,19 @@ def test_quick_study_swing_leg_under_qp_is_near_sqrt_of_posture_stiffness(quick)
     )
 
 
-def test_quick_study_reports_survival_per_arm_from_a_checked_start(quick):
-    """Each arm's survival with its Wilson interval; the trials' start is one of the
-    candidates, each of which records whether every arm walked undisturbed."""
+def test_quick_study_reports_survival_per_arm_with_the_undisturbed_evidence(quick):
+    """Each arm's survival with its Wilson interval, each arm's undisturbed walks, and the
+    verdict undecided exactly when an arm did not walk undisturbed."""
     robustness = quick["reset_robustness"]
     assert set(robustness["arms"]) == {"reset_and_adapt", "adapt_only", "reset_only", "neither"}
     for arm in robustness["arms"].values():
         assert arm["n"] == 1 and arm["rate"] == arm["survived"]
         assert arm["ci95_wilson"][0] <= arm["rate"] <= arm["ci95_wilson"][1]
-    candidates = robustness["candidates_walk_undisturbed"]
-    walking = candidates[f"{robustness['start_frequency_rad_s']:g}"]
-    assert robustness["all_arms_walk_undisturbed"] == all(walking.values())
+    walked = robustness["walks_undisturbed_by_seed"]
+    assert set(walked) == set(robustness["arms"])
+    every = all(all(seeds.values()) for seeds in walked.values())
+    assert robustness["all_arms_walk_undisturbed"] == every
+    assert robustness["verdict"].startswith("undecided") or every
     assert quick["videos"] == [] and quick["videos_skipped"] == "quick run"
 
 
@@ -545,13 +548,87 @@ def test_verdict_follows_the_scaling_exponents_and_the_largest_setting_change(
     assert result["sentence"].endswith(outcome)
 
 
-def test_trial_start_is_the_nearest_where_every_arm_walks():
-    from dmpopt_studies.biped.fig7 import choose_trial_start
+def _wilson(x, n, z=1.959963984540054):
+    """The Wilson score interval written out (Wilson 1927; Newcombe 1998, method 3)."""
+    p = x / n
+    centre, half = p + z * z / (2 * n), z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return ((centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n))
 
-    every, three = {"a": True, "b": True}, {"a": True, "b": False}
-    candidates = {6.0: every, 10.0: three, 12.0: every}
-    assert choose_trial_start(candidates, 11.0) == (12.0, every)
-    assert choose_trial_start({6.0: three, 12.0: {"a": False, "b": False}}, 11.0)[0] == 6.0
+
+@pytest.mark.parametrize(
+    "with_reset, without, effect",
+    [
+        # 10/10 -> [0.72, 1]; 2/10 -> [0.06, 0.51]: apart, resetting above
+        (10, 2, "raises survival"),
+        (2, 10, "lowers survival"),
+        # 8/10 -> [0.49, 0.94]; 4/10 -> [0.17, 0.69]: they overlap
+        (8, 4, "not resolved"),
+        (5, 5, "not resolved"),
+    ],
+)
+def test_reset_verdict_reads_the_wilson_intervals(with_reset, without, effect):
+    """Resetting's effect is called only where the two 95 % intervals do not overlap; an arm
+    that does not walk undisturbed makes the whole comparison undecided."""
+    from dmpopt_studies.biped.analysis import reset_ablation, reset_verdict
+
+    def arm(survived, n=10):
+        outcomes = [True] * survived + [False] * (n - survived)
+        return {"outcomes": outcomes, "rate": survived / n, "ci95_wilson": _wilson(survived, n)}
+
+    survival = {
+        "reset_and_adapt": arm(with_reset),
+        "adapt_only": arm(without),
+        "reset_only": arm(with_reset),
+        "neither": arm(without),
+    }
+    ablation = reset_ablation(survival)
+    assert ablation["adaptation_on"]["effect"] == ablation["adaptation_off"]["effect"] == effect
+    walking = dict.fromkeys(survival, True)
+    assert reset_verdict(ablation, walking).startswith(effect + ":")
+    walking["neither"] = False
+    assert reset_verdict(ablation, walking).startswith("undecided: neither")
+
+
+def test_trial_ranges_put_the_disturbances_after_the_warm_up():
+    from dmpopt_studies.biped.analysis import TrialRanges
+
+    from dmpopt.exceptions import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="^push_time must be a range .* warmup = 3 s"):
+        TrialRanges(warmup=3.0, push_time=(2.0, 4.0))
+    with pytest.raises(InvalidInputError, match="^slope_time must be a range"):
+        TrialRanges(warmup=1.0, push_time=(1.0, 2.0), slope_time=(0.5, 1.5))
+
+
+def test_warm_up_resets_and_adapts_every_arm_until_it_ends(biped, gait, monkeypatch):
+    """A real QP walk of the arm with neither resetting nor adaptation, warm-up 0.8 s: the
+    phase is reset once per heel strike before 0.8 s and never after, and the frequency
+    changes at strikes before it (eq. (21) with a step duration) and stays put after it."""
+    from dmpopt_studies.biped import walker
+
+    from dmpopt.stepper import Stepper
+
+    calls = []
+    reset_phase = Stepper.reset_phase
+
+    def counted(self, phase):
+        calls.append(phase)
+        reset_phase(self, phase)
+
+    monkeypatch.setattr(Stepper, "reset_phase", counted)
+    _, dmp = gait
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    log = walker.walk(
+        biped, dmp, 1.6, 12.0, adapt=False, reset_phase=False, warmup=0.8, log_every=10**9, **qp
+    )
+    times = np.array([t for t, _, _ in log.strikes])
+    before = int(np.sum(times < 0.8))
+    assert 2 <= before < times.size  # strikes on both sides of the warm-up's end
+    assert len(calls) == before
+    # [start, after strike 2, after strike 3, ...]: the first strike has no step duration
+    frequencies = np.array(log.frequencies)
+    assert np.all(np.diff(frequencies[:before]) != 0.0)
+    assert np.all(frequencies[before:] == frequencies[before - 1])
 
 
 def test_gait_metrics_of_a_regular_walk():
@@ -592,3 +669,68 @@ def test_verdict_needs_the_frequency_near_a_physical_resonance_estimate():
     near = verdict(starts, gravity, legs, settings, base, {"leg": 9.5, "cost": 20.0})
     assert near["outcome"] == "locked to the legs' resonance"
     assert near["nearest_physical_estimate"] == "leg"
+
+
+def test_pd_gains_give_each_leg_joint_the_stated_closed_loop_frequency(biped):
+    """K_p = I w^2 and K_d = 2 zeta I w, with the joints' inertias from the URDF by the
+    parallel-axis theorem (robots/biped.urdf: thigh 1 kg, shank 0.5 kg, 0.30 m each, centres
+    0.13 m below the proximal joint, radii of gyration 0.323 and 0.302 of the length)."""
+    from dmpopt_studies.biped.fig7 import pd_gains_from_inertia
+
+    thigh = 1.0 * ((0.323 * 0.3) ** 2 + 0.13**2)
+    shank_about_knee = 0.5 * ((0.302 * 0.3) ** 2 + 0.13**2)
+    shank_about_hip = 0.5 * ((0.302 * 0.3) ** 2 + (0.3 + 0.13) ** 2)
+    hip, knee = thigh + shank_about_hip, shank_about_knee
+    gains = pd_gains_from_inertia(biped, 60.0, 0.7)
+    assert np.sqrt(gains.hip_stiffness / hip) == pytest.approx(60.0, rel=1e-3)  # URDF 3 digits
+    assert np.sqrt(gains.knee_stiffness / knee) == pytest.approx(60.0, rel=1e-3)
+    assert gains.hip_damping / (2 * np.sqrt(gains.hip_stiffness * hip)) == pytest.approx(
+        0.7, rel=1e-3
+    )
+
+
+def test_demonstration_from_a_walk_is_its_mean_cycle():
+    """A hand-made walk whose joints move as sines of period 0.5 s, right heel strikes every
+    0.5 s: the demonstration's period is 0.5 s and its angles are the sines at the phase
+    (linear interpolation of 1 ms samples: error <= dt^2 w^2 a / 8, far below 1e-4 rad);
+    pitch and speed are the log's at the last right heel strike."""
+    from dmpopt_studies.biped.gait import demonstration_from_walk
+    from dmpopt_studies.biped.walker import WalkLog
+
+    from dmpopt.exceptions import InvalidInputError
+
+    period, omega = 0.5, 2 * np.pi / 0.5
+    amplitude, offset = np.array([0.4, 0.5, 0.3, 0.2]), np.array([0.0, 1.0, np.pi, 2.0])
+    times = np.arange(0.0, 3.0, 1e-3)
+    q = np.zeros((times.size, 7))
+    q[:, 0], q[:, 2] = 0.7 * times, 0.2
+    gait_index = np.array([3, 4, 5, 6])
+    q[:, gait_index] = amplitude * np.sin(omega * times[:, None] + offset)
+    strikes = [(k * period / 2, k % 2, 0.0) for k in range(1, 12)]
+    log = WalkLog(times=list(times), q=list(q), strikes=strikes)
+    demonstration, found, start = demonstration_from_walk(log, gait_index, after=0.9)
+    assert found == pytest.approx(period)
+    phase = omega * np.asarray(demonstration.times)
+    expected = amplitude * np.sin(phase[:, None] + offset)
+    assert np.asarray(demonstration.positions) == pytest.approx(expected, abs=1e-4)
+    assert start["pitch"] == pytest.approx(0.2) and start["speed"] == pytest.approx(0.7)
+    assert start["cycles"] == 3  # right strikes at 1.0, 1.5, 2.0, 2.5 s
+    with pytest.raises(InvalidInputError, match="^log has 1 right heel strikes at or after"):
+        demonstration_from_walk(log, gait_index, after=2.4)
+
+
+def test_pd_demonstration_runs_the_claim_test_only_from_enough_starts():
+    from dmpopt_studies.biped.fig7 import CLAIM_STARTS, pd_demonstration_summary
+    from dmpopt_studies.biped.walker import Gains
+
+    def row(fell):
+        return {"fell": fell, "frequency_settled": 10.0}
+
+    start = {"pitch": 0.2, "speed": 0.9, "cycles": 5}
+    few = {float(s): row(s > CLAIM_STARTS - 2) for s in range(CLAIM_STARTS + 2)}
+    summary = pd_demonstration_summary(few, Gains(), start, 0.5)
+    assert summary["walked_from"] == [float(s) for s in range(CLAIM_STARTS - 1)]
+    assert summary["claim_test_runs_on_it"] is False
+    assert summary["demonstration"]["frequency_rad_s"] == pytest.approx(4 * np.pi)
+    enough = {float(s): row(False) for s in range(CLAIM_STARTS)}
+    assert pd_demonstration_summary(enough, Gains(), start, 0.5)["claim_test_runs_on_it"]

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from dmpopt_robots import biped as biped_model
 
+from dmpopt.control import control_loop
 from dmpopt.control.inverse_dynamics import DEFAULT_TIME_BUDGET
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.frequency_adaptation import FrequencyAdaptation, HeelStrikeDetector
@@ -376,51 +377,52 @@ def walk(
     progress_steps = int(round(PROGRESS_EVERY / DT))
     start, cpu_start = time.perf_counter(), time.process_time()
     try:
-        for k in range(n_steps):
-            if k == push_step:
-                sim.push_impulse(biped.torso_frame, [disturbance.push_impulse, 0, 0], 0.1)
-            if k == slope_step:
-                _tilt_gravity(sim, disturbance.slope_deg)
-            if k % CONTROL_EVERY == 0:
-                position, velocity, acceleration = stepper.step()
-                desired[order], desired_velocity[order] = position, velocity
-                desired_acceleration[order] = acceleration
-            begin = time.thread_time_ns()
-            sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
-            torque = law.torques(sensed, desired, desired_velocity, desired_acceleration)
-            tick_us = (time.thread_time_ns() - begin) / 1e3
-            slow += tick_us > 1e6 * DEFAULT_TIME_BUDGET
-            slowest = max(slowest, tick_us)
-            base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
-            joint_velocities = state.v[index]
-            state = sim.step(torque, base_force)
-            power = torque @ joint_velocities
-            work = np.abs(torque * joint_velocities).sum()
-            absolute_work += work
-            positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
-            _record_gait(log, state, impact)
-            if state.touchdowns or not state.in_contact.all():
-                strike = detector.update(state.t, state.in_contact, state.contact_positions)
-                if strike is not None:
-                    if strike.time >= warmup:
-                        adaptation.reset_phase, adaptation.adapt = reset_phase, adapt
-                    phase, new_frequency = adaptation.on_heel_strike(strike)
-                    law.on_heel_strike(strike.leg, strike.time, new_frequency)
-                    if phase is not None:
-                        stepper.reset_phase(phase)
-                    stepper.set_tau(1.0 / new_frequency)
-                    log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
-                    log.impact_forces.append(0.0)
-                    impact[:] = strike.leg, strike.time, True
-            if progress and k and k % progress_steps == 0:
-                progress(f"{state.t:.0f} of {duration:g} s simulated")
-            if k % log_every == 0:
-                log.times.append(state.t)
-                log.q.append(state.q)
-                log.desired.append(desired[order])
-            if state.fallen:
-                log.fell, log.diverged = True, state.fall.reason
-                break
+        with control_loop():
+            for k in range(n_steps):
+                if k == push_step:
+                    sim.push_impulse(biped.torso_frame, [disturbance.push_impulse, 0, 0], 0.1)
+                if k == slope_step:
+                    _tilt_gravity(sim, disturbance.slope_deg)
+                if k % CONTROL_EVERY == 0:
+                    position, velocity, acceleration = stepper.step()
+                    desired[order], desired_velocity[order] = position, velocity
+                    desired_acceleration[order] = acceleration
+                begin = time.thread_time_ns()
+                sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
+                torque = law.torques(sensed, desired, desired_velocity, desired_acceleration)
+                tick_us = (time.thread_time_ns() - begin) / 1e3
+                slow += tick_us > 1e6 * DEFAULT_TIME_BUDGET
+                slowest = max(slowest, tick_us)
+                base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
+                joint_velocities = state.v[index]
+                state = sim.step(torque, base_force)
+                power = torque @ joint_velocities
+                work = np.abs(torque * joint_velocities).sum()
+                absolute_work += work
+                positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
+                _record_gait(log, state, impact)
+                if state.touchdowns or not state.in_contact.all():
+                    strike = detector.update(state.t, state.in_contact, state.contact_positions)
+                    if strike is not None:
+                        if strike.time >= warmup:
+                            adaptation.reset_phase, adaptation.adapt = reset_phase, adapt
+                        phase, new_frequency = adaptation.on_heel_strike(strike)
+                        law.on_heel_strike(strike.leg, strike.time, new_frequency)
+                        if phase is not None:
+                            stepper.reset_phase(phase)
+                        stepper.set_tau(1.0 / new_frequency)
+                        log.strikes.append((strike.time, strike.leg, float(strike.position[0])))
+                        log.impact_forces.append(0.0)
+                        impact[:] = strike.leg, strike.time, True
+                if progress and k and k % progress_steps == 0:
+                    progress(f"{state.t:.0f} of {duration:g} s simulated")
+                if k % log_every == 0:
+                    log.times.append(state.t)
+                    log.q.append(state.q)
+                    log.desired.append(desired[order])
+                if state.fallen:
+                    log.fell, log.diverged = True, state.fall.reason
+                    break
     except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
         log.fell, log.diverged = True, f"{type(error).__name__}: {error}"
     log.wall_time = time.perf_counter() - start

@@ -328,6 +328,7 @@ class FrameTask(Task):
         self._error = np.zeros(6)
         self.target = np.zeros(self.rows.size)
         self.jacobian = np.zeros((self.rows.size, robot.nv))
+        self._rows_kernel = kernels.Binding(kernels.frame_task_rows)
 
     def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
         """Set the desired placement (or position), velocity and acceleration.
@@ -373,20 +374,29 @@ class FrameTask(Task):
             slot[: 3 if array.shape == (3,) else 6] = _vector(array, array.size, name)
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
-        """Compute the rows of the frame Jacobian and the desired acceleration."""
+        """Compute the rows of the frame Jacobian and the desired acceleration (one compiled
+        call, :func:`kernels.frame_task_rows`)."""
         model, frame_id = self.model, self.frame_id
         placement = pin.updateFramePlacement(model, data, frame_id)
-        error = self._error
-        if self._tracks_position:
-            np.subtract(self.target_placement.translation, placement.translation, out=error[:3])
-        if self._tracks_orientation:
-            error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
-        kernels.pd_task_rows(
-            self.target, self.jacobian, self.rows, error,
-            pin.getFrameJacobian(model, data, frame_id, _LWA), v,
-            pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
-            self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
-        )  # fmt: skip
+        target = self.target_placement
+        jacobian = pin.getFrameJacobian(model, data, frame_id, _LWA)
+        drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
+        stiffness, damping = self.stiffness, self.damping
+        velocity, acceleration = self.target_velocity, self.target_acceleration
+        if not self._rows_kernel(
+            (v, stiffness, damping, velocity, acceleration), self.target, self.jacobian,
+            self.rows, self._error, target.rotation, target.translation, placement.rotation,
+            placement.translation, jacobian, v, drift, velocity, acceleration, stiffness,
+            damping, self._tracks_position, self._tracks_orientation,
+        ):  # fmt: skip
+            # rotation error near pi: Pinocchio's log3
+            error = self._error
+            np.subtract(target.translation, placement.translation, out=error[:3])
+            error[3:] = pin.log3(target.rotation @ placement.rotation.T)
+            kernels.pd_task_rows(
+                self.target, self.jacobian, self.rows, error, jacobian, v, drift, velocity,
+                acceleration, stiffness, damping,
+            )  # fmt: skip
 
 
 class ComTask(Task):
@@ -420,6 +430,7 @@ class ComTask(Task):
         self._error = np.zeros(3)
         self.target = np.zeros(3)
         self.jacobian = np.zeros((3, robot.nv))
+        self._rows_kernel = kernels.Binding(kernels.pd_task_rows)
 
     def set_target(self, position, velocity=None, acceleration=None) -> None:
         """Set the desired CoM position [m], velocity [m/s] and acceleration [m/s^2], shape (3,)."""
@@ -437,7 +448,9 @@ class ComTask(Task):
         """
         pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
         np.subtract(self.target_position, data.com[0], out=self._error)
-        kernels.pd_task_rows(
-            self.target, self.jacobian, _XYZ, self._error, data.Jcom, v, data.acom[0],
-            self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
+        stiffness, damping = self.stiffness, self.damping
+        velocity, acceleration = self.target_velocity, self.target_acceleration
+        self._rows_kernel(
+            (v, stiffness, damping, velocity, acceleration), self.target, self.jacobian, _XYZ,
+            self._error, data.Jcom, v, data.acom[0], velocity, acceleration, stiffness, damping,
         )  # fmt: skip

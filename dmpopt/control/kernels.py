@@ -349,15 +349,42 @@ def _log3(r, out) -> bool:
 
 
 @_compile
+def _frame_jacobian(joint_jacobians, columns, rotation, translation, local, out):
+    r"""A frame's Jacobian into the ``columns`` (those of the joints supporting it) of ``out``
+    from the joint Jacobians :math:`J = (J_v; J_\omega)` in world axes at the world origin
+    (``data.J``, filled by ``computeAllTerms``): at the frame origin p, world axes
+    (``LOCAL_WORLD_ALIGNED``) :math:`(J_v + J_\omega \times p;\, J_\omega)`, frame axes
+    (``local``) those rotated by :math:`R^\top`. The other columns of ``out`` stay as they are
+    (zero)."""
+    px, py, pz = translation[0], translation[1], translation[2]
+    for k in range(columns.size):
+        c = columns[k]
+        wx, wy, wz = joint_jacobians[3, c], joint_jacobians[4, c], joint_jacobians[5, c]
+        vx = joint_jacobians[0, c] + wy * pz - wz * py
+        vy = joint_jacobians[1, c] + wz * px - wx * pz
+        vz = joint_jacobians[2, c] + wx * py - wy * px
+        if local:
+            for i in range(3):
+                out[i, c] = rotation[0, i] * vx + rotation[1, i] * vy + rotation[2, i] * vz
+                out[i + 3, c] = rotation[0, i] * wx + rotation[1, i] * wy + rotation[2, i] * wz
+        else:
+            out[0, c], out[1, c], out[2, c] = vx, vy, vz
+            out[3, c], out[4, c], out[5, c] = wx, wy, wz
+
+
+@_compile
 def frame_task_rows(
     target, jacobian, components, error, target_rotation, target_translation, rotation,
-    translation, full_jacobian, v, drift, reference_velocity, reference_acceleration, stiffness,
-    damping, position, orientation,
+    translation, joint_jacobians, columns, full_jacobian, v, drift, reference_velocity,
+    reference_acceleration, stiffness, damping, position, orientation,
 ) -> bool:  # fmt: skip
     r"""A :class:`~dmpopt.control.tasks.FrameTask`'s error :math:`e = (p_{ref} - p,\;
     \log_3(R_{ref} R^\top))` (the parts tracked: ``position``, ``orientation``) and its rows
-    (:func:`pd_task_rows`). False, with nothing written, if the rotation error is within
-    1e-3 rad of pi (see :func:`_log3`): the caller then computes it with Pinocchio."""
+    (:func:`pd_task_rows`), with the frame Jacobian (world axes) first written into
+    ``full_jacobian`` (:func:`_frame_jacobian`). False, with only that Jacobian written, if the
+    rotation error is within 1e-3 rad of pi (see :func:`_log3`): the caller then computes
+    the error with Pinocchio."""
+    _frame_jacobian(joint_jacobians, columns, rotation, translation, False, full_jacobian)
     if orientation:
         relative = np.empty((3, 3))
         for i in range(3):
@@ -382,7 +409,7 @@ def frame_task_rows(
 @_compile
 def sole_rows(
     target, jacobian, components, error, reference_rotation, reference_translation, rotation,
-    translation, full_jacobian, v, drift, zero, stiffness, damping,
+    translation, joint_jacobians, columns, full_jacobian, v, drift, zero, stiffness, damping,
 ) -> bool:  # fmt: skip
     r"""A :class:`~dmpopt.control.contacts.SoleContact`'s error :math:`e = \log_6(M^{-1}
     M_{ref})` (linear part first) and its rows (:func:`pd_task_rows`, zero reference motion).
@@ -391,8 +418,11 @@ def sole_rows(
     :math:`\omega = \log_3 R_r` and :math:`\theta = |\omega|`, the linear part is
     :math:`V^{-1} p_r`, :math:`V^{-1} = I - \tfrac12 [\omega]_\times + \alpha
     [\omega]_\times^2`, :math:`\alpha = (1 - \theta \sin\theta / (2 (1 - \cos\theta)))
-    / \theta^2` (its series :math:`1/12 + \theta^2/720` below 1e-3 rad). False, with nothing
-    written, if :math:`\theta` is within 1e-3 rad of pi (see :func:`_log3`)."""
+    / \theta^2` (its series :math:`1/12 + \theta^2/720` below 1e-3 rad). The frame Jacobian
+    (frame axes) is first written into ``full_jacobian`` (:func:`_frame_jacobian`). False,
+    with only that Jacobian written, if :math:`\theta` is within 1e-3 rad of pi (see
+    :func:`_log3`)."""
+    _frame_jacobian(joint_jacobians, columns, rotation, translation, True, full_jacobian)
     relative = np.empty((3, 3))
     offset = np.empty(3)
     for i in range(3):

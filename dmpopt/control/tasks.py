@@ -76,6 +76,15 @@ def _gain(value: float, name: str) -> float:
     return number
 
 
+def _support_columns(model: pin.Model, frame_id: int) -> np.ndarray:
+    """Velocity indices of the joints that move a frame (the only nonzero columns of its
+    Jacobian)."""
+    joints = model.supports[model.frames[frame_id].parentJoint]
+    columns = [range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
+               for j in joints if j > 0]  # fmt: skip
+    return np.array([c for block in columns for c in block], dtype=np.int64)
+
+
 def _check_weight(weight: float) -> float:
     number = _array(weight, "weight")
     if number.shape != () or not (np.isfinite(number) and number > 0):
@@ -328,6 +337,8 @@ class FrameTask(Task):
         self._error = np.zeros(6)
         self.target = np.zeros(self.rows.size)
         self.jacobian = np.zeros((self.rows.size, robot.nv))
+        self._columns = _support_columns(robot.model, self.frame_id)
+        self._frame_jacobian = np.zeros((6, robot.nv))  # its other columns stay zero
         self._rows_kernel = kernels.Binding(kernels.frame_task_rows)
 
     def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
@@ -375,19 +386,19 @@ class FrameTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration (one compiled
-        call, :func:`kernels.frame_task_rows`)."""
+        call, :func:`kernels.frame_task_rows`: the frame Jacobian from the joint Jacobians
+        ``data.J``)."""
         model, frame_id = self.model, self.frame_id
         placement = pin.updateFramePlacement(model, data, frame_id)
-        target = self.target_placement
-        jacobian = pin.getFrameJacobian(model, data, frame_id, _LWA)
+        target, jacobian = self.target_placement, self._frame_jacobian
         drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
         stiffness, damping = self.stiffness, self.damping
         velocity, acceleration = self.target_velocity, self.target_acceleration
         if not self._rows_kernel(
             (v, stiffness, damping, velocity, acceleration), self.target, self.jacobian,
             self.rows, self._error, target.rotation, target.translation, placement.rotation,
-            placement.translation, jacobian, v, drift, velocity, acceleration, stiffness,
-            damping, self._tracks_position, self._tracks_orientation,
+            placement.translation, data.J, self._columns, jacobian, v, drift, velocity,
+            acceleration, stiffness, damping, self._tracks_position, self._tracks_orientation,
         ):  # fmt: skip
             # rotation error near pi: Pinocchio's log3
             error = self._error

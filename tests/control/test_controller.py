@@ -1386,10 +1386,12 @@ def test_frame_and_sole_rows_from_known_errors(upper_body, talos, angle):
         ).vector
         expected = acceleration + 20.0 * error + np.arange(6.0) * (velocity - jacobian @ v) - drift
         np.testing.assert_allclose(task.target, expected, rtol=1e-9, atol=1e-8)
-        np.testing.assert_array_equal(task.jacobian, jacobian)
+        np.testing.assert_allclose(task.jacobian, jacobian, rtol=0, atol=1e-13)
     sole = SoleContact(talos, "left_sole_link")
     nu = np.r_[0.01, -0.02, 0.003, w / angle * min(angle, 0.1)]
     placement = pin.updateFramePlacement(talos.model, data, sole.frame_id)
     sole.reference_placement = placement * pin.exp6(pin.Motion(nu))
     sole.update(q, v, data)
     np.testing.assert_allclose(sole._error, nu, rtol=0, atol=1e-12)
+    local = pin.getFrameJacobian(talos.model, data, sole.frame_id, pin.LOCAL)
+    np.testing.assert_allclose(sole.jacobian, local, rtol=0, atol=1e-13)

@@ -47,6 +47,7 @@ __all__ = [
     "posture_gradient",
     "posture_law",
     "pd_task_rows",
+    "com_task_rows",
     "frame_task_rows",
     "sole_rows",
     "Binding",
@@ -317,6 +318,21 @@ def pd_task_rows(
             + damping[c] * (reference_velocity[c] - velocity)
             - drift[c]
         )
+
+
+@_compile
+def com_task_rows(
+    target, jacobian, components, error, target_position, com, full_jacobian, v, drift,
+    reference_velocity, reference_acceleration, stiffness, damping,
+):  # fmt: skip
+    r"""A :class:`~dmpopt.control.tasks.ComTask`'s error :math:`e = c_{ref} - c` and its rows
+    (:func:`pd_task_rows`)."""
+    for i in range(3):
+        error[i] = target_position[i] - com[i]
+    pd_task_rows(
+        target, jacobian, components, error, full_jacobian, v, drift, reference_velocity,
+        reference_acceleration, stiffness, damping,
+    )  # fmt: skip
 
 
 # Rotation angles closer to pi than this [rad] are left to Pinocchio's log3 (the axis is then

@@ -435,17 +435,19 @@ class ComTask(Task):
         self.weight = _check_weight(weight)
         self.stiffness, self.damping = _gains(stiffness, damping, 3)
         data = robot.model.createData()
-        self.target_position = pin.centerOfMass(robot.model, data, robot.reference_configuration)
+        self.target_position = np.array(
+            pin.centerOfMass(robot.model, data, robot.reference_configuration), dtype=float
+        )
         self.target_velocity = np.zeros(3)
         self.target_acceleration = np.zeros(3)
         self._error = np.zeros(3)
         self.target = np.zeros(3)
         self.jacobian = np.zeros((3, robot.nv))
-        self._rows_kernel = kernels.Binding(kernels.pd_task_rows)
+        self._rows_kernel = kernels.Binding(kernels.com_task_rows)
 
     def set_target(self, position, velocity=None, acceleration=None) -> None:
         """Set the desired CoM position [m], velocity [m/s] and acceleration [m/s^2], shape (3,)."""
-        self.target_position = _vector(position, 3, "position")
+        self.target_position[:] = _vector(position, 3, "position")  # the bound array
         self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 3, "velocity")
         self.target_acceleration[:] = (
             0.0 if acceleration is None else _vector(acceleration, 3, "acceleration")
@@ -458,10 +460,10 @@ class ComTask(Task):
         kinematics already in ``data``.
         """
         pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
-        np.subtract(self.target_position, data.com[0], out=self._error)
-        stiffness, damping = self.stiffness, self.damping
+        stiffness, damping, position = self.stiffness, self.damping, self.target_position
         velocity, acceleration = self.target_velocity, self.target_acceleration
         self._rows_kernel(
-            (v, stiffness, damping, velocity, acceleration), self.target, self.jacobian, _XYZ,
-            self._error, data.Jcom, v, data.acom[0], velocity, acceleration, stiffness, damping,
+            (v, stiffness, damping, velocity, acceleration, position), self.target,
+            self.jacobian, _XYZ, self._error, position, data.com[0], data.Jcom, v, data.acom[0],
+            velocity, acceleration, stiffness, damping,
         )  # fmt: skip

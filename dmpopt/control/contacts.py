@@ -28,7 +28,7 @@ import pinocchio as pin
 from dmpopt.exceptions import InvalidInputError
 
 from . import kernels
-from .tasks import _array, _gain
+from .tasks import _array, _gain, _support_columns
 
 __all__ = ["Contact", "PointContact", "SoleContact", "SurfaceContact"]
 
@@ -241,6 +241,10 @@ class SoleContact(Contact):
         corners = self.cop_fraction * np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)
+        self._error = np.zeros(6)  # log6(M^-1 M_ref) of the last update
+        self._columns = _support_columns(robot.model, self.frame_id)
+        self._frame_jacobian = np.zeros((6, robot.nv))  # its other columns stay zero
+        self._rows_kernel = kernels.Binding(kernels.sole_rows)
 
     def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
@@ -275,15 +279,21 @@ class SoleContact(Contact):
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
-        placement = self.placement(data)
-        # error log6(M^-1 M_ref) = -log6(M_ref^-1 M)
-        error = pin.log6(placement.actInv(self.reference_placement)).vector
-        kernels.pd_task_rows(
-            self.target, self.jacobian, _SPATIAL, error,
-            pin.getFrameJacobian(model, data, frame_id, pin.LOCAL), v,
-            pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector,
-            _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
-        )  # fmt: skip
+        placement, reference = self.placement(data), self.reference_placement
+        jacobian = self._frame_jacobian  # from data.J, by the kernel
+        drift = pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
+        # error log6(M^-1 M_ref) = -log6(M_ref^-1 M), one compiled call with the rows
+        if not self._rows_kernel(
+            (v,), self.target, self.jacobian, _SPATIAL, self._error, reference.rotation,
+            reference.translation, placement.rotation, placement.translation, data.J,
+            self._columns, jacobian, v, drift, _ZERO_MOTION, self._stiffness, self._damping,
+        ):  # fmt: skip
+            # rotation error near pi: Pinocchio's log6
+            error = pin.log6(placement.actInv(reference)).vector
+            kernels.pd_task_rows(
+                self.target, self.jacobian, _SPATIAL, error, jacobian, v, drift, _ZERO_MOTION,
+                _ZERO_MOTION, self._stiffness, self._damping,
+            )  # fmt: skip
 
 
 class PointContact(Contact):

@@ -47,6 +47,10 @@ __all__ = [
     "posture_gradient",
     "posture_law",
     "pd_task_rows",
+    "com_task_rows",
+    "frame_task_rows",
+    "sole_rows",
+    "Binding",
     "reduce_costs",
     "solve_in_place",
     "torque_rows",
@@ -314,6 +318,191 @@ def pd_task_rows(
             + damping[c] * (reference_velocity[c] - velocity)
             - drift[c]
         )
+
+
+@_compile
+def com_task_rows(
+    target, jacobian, components, error, target_position, com, full_jacobian, v, drift,
+    reference_velocity, reference_acceleration, stiffness, damping,
+):  # fmt: skip
+    r"""A :class:`~dmpopt.control.tasks.ComTask`'s error :math:`e = c_{ref} - c` and its rows
+    (:func:`pd_task_rows`)."""
+    for i in range(3):
+        error[i] = target_position[i] - com[i]
+    pd_task_rows(
+        target, jacobian, components, error, full_jacobian, v, drift, reference_velocity,
+        reference_acceleration, stiffness, damping,
+    )  # fmt: skip
+
+
+# Rotation angles closer to pi than this [rad] are left to Pinocchio's log3 (the axis is then
+# read from the symmetric part of R, not from R - R^T as below).
+_NEAR_PI = 1e-3
+
+
+@_compile
+def _log3(r, out) -> bool:
+    r"""The rotation vector :math:`\log_3(R)` of the rotation matrix ``r`` into ``out[0:3]``.
+
+    With :math:`a = (R_{21} - R_{12}, R_{02} - R_{20}, R_{10} - R_{01}) = 2 \sin\theta\, u`
+    (u the unit axis), :math:`\theta = \operatorname{atan2}(|a|/2, (\mathrm{tr} R - 1)/2)` and
+    :math:`\log_3 R = \theta\, a / |a|` (below 1e-4 rad :math:`\tfrac12 (1 + \theta^2/6)\, a`,
+    its Taylor series). False, with nothing written, if :math:`\theta > \pi - 10^{-3}`: |a|
+    then carries too few digits of the axis."""
+    ax, ay, az = r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]
+    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    theta = math.atan2(0.5 * norm, 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0))
+    if theta > math.pi - _NEAR_PI:
+        return False
+    if theta < 1e-4:
+        factor = 0.5 * (1.0 + theta * theta / 6.0)
+    else:
+        factor = theta / norm
+    out[0] = factor * ax
+    out[1] = factor * ay
+    out[2] = factor * az
+    return True
+
+
+@_compile
+def _frame_jacobian(joint_jacobians, columns, rotation, translation, local, out):
+    r"""A frame's Jacobian into the ``columns`` (those of the joints supporting it) of ``out``
+    from the joint Jacobians :math:`J = (J_v; J_\omega)` in world axes at the world origin
+    (``data.J``, filled by ``computeAllTerms``): at the frame origin p, world axes
+    (``LOCAL_WORLD_ALIGNED``) :math:`(J_v + J_\omega \times p;\, J_\omega)`, frame axes
+    (``local``) those rotated by :math:`R^\top`. The other columns of ``out`` stay as they are
+    (zero)."""
+    px, py, pz = translation[0], translation[1], translation[2]
+    for k in range(columns.size):
+        c = columns[k]
+        wx, wy, wz = joint_jacobians[3, c], joint_jacobians[4, c], joint_jacobians[5, c]
+        vx = joint_jacobians[0, c] + wy * pz - wz * py
+        vy = joint_jacobians[1, c] + wz * px - wx * pz
+        vz = joint_jacobians[2, c] + wx * py - wy * px
+        if local:
+            for i in range(3):
+                out[i, c] = rotation[0, i] * vx + rotation[1, i] * vy + rotation[2, i] * vz
+                out[i + 3, c] = rotation[0, i] * wx + rotation[1, i] * wy + rotation[2, i] * wz
+        else:
+            out[0, c], out[1, c], out[2, c] = vx, vy, vz
+            out[3, c], out[4, c], out[5, c] = wx, wy, wz
+
+
+@_compile
+def frame_task_rows(
+    target, jacobian, components, error, target_rotation, target_translation, rotation,
+    translation, joint_jacobians, columns, full_jacobian, v, drift, reference_velocity,
+    reference_acceleration, stiffness, damping, position, orientation,
+) -> bool:  # fmt: skip
+    r"""A :class:`~dmpopt.control.tasks.FrameTask`'s error :math:`e = (p_{ref} - p,\;
+    \log_3(R_{ref} R^\top))` (the parts tracked: ``position``, ``orientation``) and its rows
+    (:func:`pd_task_rows`), with the frame Jacobian (world axes) first written into
+    ``full_jacobian`` (:func:`_frame_jacobian`). False, with only that Jacobian written, if the
+    rotation error is within 1e-3 rad of pi (see :func:`_log3`): the caller then computes
+    the error with Pinocchio."""
+    _frame_jacobian(joint_jacobians, columns, rotation, translation, False, full_jacobian)
+    if orientation:
+        relative = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                relative[i, j] = (
+                    target_rotation[i, 0] * rotation[j, 0]
+                    + target_rotation[i, 1] * rotation[j, 1]
+                    + target_rotation[i, 2] * rotation[j, 2]
+                )
+        if not _log3(relative, error[3:]):
+            return False
+    if position:
+        for i in range(3):
+            error[i] = target_translation[i] - translation[i]
+    pd_task_rows(
+        target, jacobian, components, error, full_jacobian, v, drift, reference_velocity,
+        reference_acceleration, stiffness, damping,
+    )  # fmt: skip
+    return True
+
+
+@_compile
+def sole_rows(
+    target, jacobian, components, error, reference_rotation, reference_translation, rotation,
+    translation, joint_jacobians, columns, full_jacobian, v, drift, zero, stiffness, damping,
+) -> bool:  # fmt: skip
+    r"""A :class:`~dmpopt.control.contacts.SoleContact`'s error :math:`e = \log_6(M^{-1}
+    M_{ref})` (linear part first) and its rows (:func:`pd_task_rows`, zero reference motion).
+
+    With :math:`M^{-1} M_{ref} = (R_r, p_r) = (R^\top R_{ref}, R^\top (p_{ref} - p))`,
+    :math:`\omega = \log_3 R_r` and :math:`\theta = |\omega|`, the linear part is
+    :math:`V^{-1} p_r`, :math:`V^{-1} = I - \tfrac12 [\omega]_\times + \alpha
+    [\omega]_\times^2`, :math:`\alpha = (1 - \theta \sin\theta / (2 (1 - \cos\theta)))
+    / \theta^2` (its series :math:`1/12 + \theta^2/720` below 1e-3 rad). The frame Jacobian
+    (frame axes) is first written into ``full_jacobian`` (:func:`_frame_jacobian`). False,
+    with only that Jacobian written, if :math:`\theta` is within 1e-3 rad of pi (see
+    :func:`_log3`)."""
+    _frame_jacobian(joint_jacobians, columns, rotation, translation, True, full_jacobian)
+    relative = np.empty((3, 3))
+    offset = np.empty(3)
+    for i in range(3):
+        offset[i] = 0.0
+        for j in range(3):
+            relative[i, j] = (
+                rotation[0, i] * reference_rotation[0, j]
+                + rotation[1, i] * reference_rotation[1, j]
+                + rotation[2, i] * reference_rotation[2, j]
+            )
+    for i in range(3):
+        for k in range(3):
+            offset[i] += rotation[k, i] * (reference_translation[k] - translation[k])
+    if not _log3(relative, error[3:]):
+        return False
+    wx, wy, wz = error[3], error[4], error[5]
+    theta2 = wx * wx + wy * wy + wz * wz
+    theta = math.sqrt(theta2)
+    if theta < 1e-3:
+        alpha = 1.0 / 12.0 + theta2 / 720.0
+    else:
+        half = 0.5 * theta
+        # 1 - cos(theta) = 2 sin^2(theta / 2), without cancellation
+        alpha = (1.0 - theta * math.sin(theta) / (4.0 * math.sin(half) ** 2)) / theta2
+    px, py, pz = offset[0], offset[1], offset[2]
+    # w x p and w x (w x p)
+    cx, cy, cz = wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px
+    ccx, ccy, ccz = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+    error[0] = px - 0.5 * cx + alpha * ccx
+    error[1] = py - 0.5 * cy + alpha * ccy
+    error[2] = pz - 0.5 * cz + alpha * ccz
+    pd_task_rows(
+        target, jacobian, components, error, full_jacobian, v, drift, zero, zero, stiffness,
+        damping,
+    )  # fmt: skip
+    return True
+
+
+class Binding:
+    """``kernel``'s compiled code (:func:`entry_point`) for the argument types of a caller's
+    calls, kept per tuple of the objects that may change between its calls (``keys``: e.g. the
+    state ``v`` and gains a user may rebind); every other argument must keep its type.
+
+    A task's rows are computed into its own arrays from Pinocchio's results, whose types are
+    fixed; only the caller's state and a user's new gains can differ. A few bindings are kept
+    (one per controller contact set using the task); beyond eight, all are forgotten.
+    """
+
+    __slots__ = ("kernel", "_codes")
+
+    def __init__(self, kernel):
+        self.kernel = kernel
+        self._codes = {}
+
+    def __call__(self, keys: tuple, *arguments):
+        """Call the kernel with ``arguments``; ``keys`` are among them, by identity."""
+        # The entries hold their keys, so an identity found is that of the same live object.
+        key = tuple(map(id, keys))
+        entry = self._codes.get(key)
+        if entry is None:
+            if len(self._codes) >= 8:
+                self._codes.clear()
+            entry = self._codes[key] = (keys, entry_point(self.kernel, *arguments))
+        return entry[1](*arguments)
 
 
 @_compile

@@ -76,6 +76,15 @@ def _gain(value: float, name: str) -> float:
     return number
 
 
+def _support_columns(model: pin.Model, frame_id: int) -> np.ndarray:
+    """Velocity indices of the joints that move a frame (the only nonzero columns of its
+    Jacobian)."""
+    joints = model.supports[model.frames[frame_id].parentJoint]
+    columns = [range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
+               for j in joints if j > 0]  # fmt: skip
+    return np.array([c for block in columns for c in block], dtype=np.int64)
+
+
 def _check_weight(weight: float) -> float:
     number = _array(weight, "weight")
     if number.shape != () or not (np.isfinite(number) and number > 0):
@@ -328,6 +337,9 @@ class FrameTask(Task):
         self._error = np.zeros(6)
         self.target = np.zeros(self.rows.size)
         self.jacobian = np.zeros((self.rows.size, robot.nv))
+        self._columns = _support_columns(robot.model, self.frame_id)
+        self._frame_jacobian = np.zeros((6, robot.nv))  # its other columns stay zero
+        self._rows_kernel = kernels.Binding(kernels.frame_task_rows)
 
     def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
         """Set the desired placement (or position), velocity and acceleration.
@@ -373,20 +385,29 @@ class FrameTask(Task):
             slot[: 3 if array.shape == (3,) else 6] = _vector(array, array.size, name)
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
-        """Compute the rows of the frame Jacobian and the desired acceleration."""
+        """Compute the rows of the frame Jacobian and the desired acceleration (one compiled
+        call, :func:`kernels.frame_task_rows`: the frame Jacobian from the joint Jacobians
+        ``data.J``)."""
         model, frame_id = self.model, self.frame_id
         placement = pin.updateFramePlacement(model, data, frame_id)
-        error = self._error
-        if self._tracks_position:
-            np.subtract(self.target_placement.translation, placement.translation, out=error[:3])
-        if self._tracks_orientation:
-            error[3:] = pin.log3(self.target_placement.rotation @ placement.rotation.T)
-        kernels.pd_task_rows(
-            self.target, self.jacobian, self.rows, error,
-            pin.getFrameJacobian(model, data, frame_id, _LWA), v,
-            pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
-            self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
-        )  # fmt: skip
+        target, jacobian = self.target_placement, self._frame_jacobian
+        drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
+        stiffness, damping = self.stiffness, self.damping
+        velocity, acceleration = self.target_velocity, self.target_acceleration
+        if not self._rows_kernel(
+            (v, stiffness, damping, velocity, acceleration), self.target, self.jacobian,
+            self.rows, self._error, target.rotation, target.translation, placement.rotation,
+            placement.translation, data.J, self._columns, jacobian, v, drift, velocity,
+            acceleration, stiffness, damping, self._tracks_position, self._tracks_orientation,
+        ):  # fmt: skip
+            # rotation error near pi: Pinocchio's log3
+            error = self._error
+            np.subtract(target.translation, placement.translation, out=error[:3])
+            error[3:] = pin.log3(target.rotation @ placement.rotation.T)
+            kernels.pd_task_rows(
+                self.target, self.jacobian, self.rows, error, jacobian, v, drift, velocity,
+                acceleration, stiffness, damping,
+            )  # fmt: skip
 
 
 class ComTask(Task):
@@ -414,16 +435,19 @@ class ComTask(Task):
         self.weight = _check_weight(weight)
         self.stiffness, self.damping = _gains(stiffness, damping, 3)
         data = robot.model.createData()
-        self.target_position = pin.centerOfMass(robot.model, data, robot.reference_configuration)
+        self.target_position = np.array(
+            pin.centerOfMass(robot.model, data, robot.reference_configuration), dtype=float
+        )
         self.target_velocity = np.zeros(3)
         self.target_acceleration = np.zeros(3)
         self._error = np.zeros(3)
         self.target = np.zeros(3)
         self.jacobian = np.zeros((3, robot.nv))
+        self._rows_kernel = kernels.Binding(kernels.com_task_rows)
 
     def set_target(self, position, velocity=None, acceleration=None) -> None:
         """Set the desired CoM position [m], velocity [m/s] and acceleration [m/s^2], shape (3,)."""
-        self.target_position = _vector(position, 3, "position")
+        self.target_position[:] = _vector(position, 3, "position")  # the bound array
         self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 3, "velocity")
         self.target_acceleration[:] = (
             0.0 if acceleration is None else _vector(acceleration, 3, "acceleration")
@@ -436,8 +460,10 @@ class ComTask(Task):
         kinematics already in ``data``.
         """
         pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
-        np.subtract(self.target_position, data.com[0], out=self._error)
-        kernels.pd_task_rows(
-            self.target, self.jacobian, _XYZ, self._error, data.Jcom, v, data.acom[0],
-            self.target_velocity, self.target_acceleration, self.stiffness, self.damping,
+        stiffness, damping, position = self.stiffness, self.damping, self.target_position
+        velocity, acceleration = self.target_velocity, self.target_acceleration
+        self._rows_kernel(
+            (v, stiffness, damping, velocity, acceleration, position), self.target,
+            self.jacobian, _XYZ, self._error, position, data.com[0], data.Jcom, v, data.acom[0],
+            velocity, acceleration, stiffness, damping,
         )  # fmt: skip

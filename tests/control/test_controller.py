@@ -1353,3 +1353,45 @@ def test_torques_do_not_depend_on_proxsuites_last_bits(upper_body, talos, case, 
         runs.append(np.array(torques))
     del kept
     np.testing.assert_array_equal(runs[1], runs[0])
+
+
+@pytest.mark.parametrize("angle", [0.3, np.pi - 1e-4])
+def test_frame_and_sole_rows_from_known_errors(upper_body, talos, angle):
+    """A FrameTask's rows b = a_ref + K_p e + K_d (v_ref - J v) - drift (J, drift from
+    Pinocchio) with the error e = (p_ref - p, w) of a target R_ref = exp([w]) R (a half turn
+    included, where the task falls back to Pinocchio's log3), with gains assigned after a first
+    update; a SoleContact's error log6(M^-1 M_ref) = nu for M_ref = M exp6(nu)."""
+    rng = np.random.default_rng(3)
+    for robot in (upper_body, talos):
+        q, v = random_state(robot, rng)
+        model, data = robot.model, robot.model.createData()
+        pin.computeAllTerms(model, data, q, v)
+        task = FrameTask(robot, HAND if robot is upper_body else "left_sole_link")
+        current = pin.updateFramePlacement(model, data, task.frame_id).copy()
+        w = angle * np.array([0.6, 0.0, 0.8])
+        velocity, acceleration = rng.normal(size=6), rng.normal(size=6)
+        task.set_target(
+            pin.SE3(pin.exp3(w) @ current.rotation, current.translation + [0.1, 0.0, -0.2]),
+            velocity, acceleration,
+        )  # fmt: skip
+        task.update(q, v, data)
+        task.stiffness, task.damping = np.full(6, 20.0), np.arange(6.0)  # new arrays
+        task.update(q, v, data)
+        error = np.r_[0.1, 0.0, -0.2, w]
+        # near a half turn the axis comes from R's diagonal: error ~ eps / (pi - theta) ~ 1e-12
+        np.testing.assert_allclose(task.error(), error, rtol=0, atol=1e-9)
+        jacobian = pin.getFrameJacobian(model, data, task.frame_id, pin.LOCAL_WORLD_ALIGNED)
+        drift = pin.getFrameClassicalAcceleration(
+            model, data, task.frame_id, pin.LOCAL_WORLD_ALIGNED
+        ).vector
+        expected = acceleration + 20.0 * error + np.arange(6.0) * (velocity - jacobian @ v) - drift
+        np.testing.assert_allclose(task.target, expected, rtol=1e-9, atol=1e-8)
+        np.testing.assert_allclose(task.jacobian, jacobian, rtol=0, atol=1e-13)
+    sole = SoleContact(talos, "left_sole_link")
+    nu = np.r_[0.01, -0.02, 0.003, w / angle * min(angle, 0.1)]
+    placement = pin.updateFramePlacement(talos.model, data, sole.frame_id)
+    sole.reference_placement = placement * pin.exp6(pin.Motion(nu))
+    sole.update(q, v, data)
+    np.testing.assert_allclose(sole._error, nu, rtol=0, atol=1e-12)
+    local = pin.getFrameJacobian(talos.model, data, sole.frame_id, pin.LOCAL)
+    np.testing.assert_allclose(sole.jacobian, local, rtol=0, atol=1e-13)

@@ -205,3 +205,112 @@ def test_active_set_solves_dependent_active_rows():
     kkt = np.block([[hessian, row[:, None]], [row[None, :], np.zeros((1, 1))]])
     expected = np.linalg.solve(kkt, np.r_[-gradient, upper[0]])[:n]
     np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+
+
+def _hat(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _exp(w: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """exp of the twist (u, w): Rodrigues' rotation and V u (Murray, Li & Sastry, eq. 2.36)."""
+    theta, hat = np.linalg.norm(w), _hat(w)
+    if theta < 1e-2:  # Taylor series: the closed forms cancel (error ~eps / theta^2)
+        t2 = theta**2
+        a, b, c = 1 - t2 / 6 + t2**2 / 120, 0.5 - t2 / 24 + t2**2 / 720, 1 / 6 - t2 / 120
+    else:
+        a, b = np.sin(theta) / theta, (1 - np.cos(theta)) / theta**2
+        c = (theta - np.sin(theta)) / theta**3
+    return np.eye(3) + a * hat + b * hat @ hat, (np.eye(3) + b * hat + c * hat @ hat) @ u
+
+
+# The axis is read from R - R^T, entries with rounding errors ~eps: relative error
+# ~2 eps / sin(theta) <= 2.2e-13 for theta <= pi - 2e-3, times theta <= pi (1e-12), plus the
+# rounding of the answer key's own exp (1e-15).
+_LOG_TOLERANCE = 1e-11
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    angle=st.one_of(st.floats(0.0, 1e-3), st.floats(0.0, np.pi - 2e-3)),
+    seed=st.integers(0, 2**16),
+)
+def test_frame_task_rows_rotation_error_is_the_log(angle, seed):
+    """R_ref R^T = exp([w]) gives the error w (the log of the answer key's exp), the position
+    error p_ref - p, the frame Jacobian at p in world axes (J_v + J_w x p; J_w) on the
+    supporting joints' columns, and the PD rows b = a_ref + Kp e + Kd (v_ref - J v) - drift."""
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    w = angle * axis / np.linalg.norm(axis)
+    reference, _ = _exp(rng.normal(size=3), np.zeros(3))
+    rotation = _exp(w, np.zeros(3))[0].T @ reference  # R_ref R^T = exp(w)
+    p_ref, p = rng.normal(size=3), rng.normal(size=3)
+    joints, columns = rng.normal(size=(6, 5)), np.array([0, 2, 3])
+    full = np.zeros((6, 5))
+    full[:, columns] = joints[:, columns]
+    full[:3, columns] += np.cross(joints[3:, columns].T, p).T
+    v, drift = rng.normal(size=5), rng.normal(size=6)
+    v_ref, a_ref, kp, kd = (rng.uniform(0, 2, size=6) for _ in range(4))
+    rows = np.array([1, 3, 4, 5])
+    target, jacobian, error, written = np.zeros(4), np.zeros((4, 5)), np.zeros(6), np.zeros((6, 5))
+    assert kernels.frame_task_rows(
+        target, jacobian, rows, error, reference, p_ref, rotation, p, joints, columns, written,
+        v, drift, v_ref, a_ref, kp, kd, True, True,
+    )  # fmt: skip
+    np.testing.assert_allclose(written, full, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(error[3:], w, rtol=0, atol=_LOG_TOLERANCE)
+    np.testing.assert_allclose(error[:3], p_ref - p, rtol=0, atol=1e-15)
+    expected = a_ref + kp * error + kd * (v_ref - full @ v) - drift
+    np.testing.assert_allclose(target, expected[rows], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(jacobian, full[rows], rtol=0, atol=1e-14)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    angle=st.one_of(st.floats(0.0, 2e-3), st.floats(0.0, np.pi - 2e-3)),
+    seed=st.integers(0, 2**16),
+)
+def test_sole_rows_error_is_the_log6(angle, seed):
+    """M^-1 M_ref = exp6(nu) gives the error nu = (u, w), linear part first; the frame
+    Jacobian in frame axes R^T (J_v + J_w x p; J_w)."""
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    w, u = angle * axis / np.linalg.norm(axis), rng.uniform(-1, 1, size=3)
+    rotation_e, translation_e = _exp(w, u)
+    reference, _ = _exp(rng.normal(size=3), np.zeros(3))
+    p_ref = rng.normal(size=3)
+    rotation = reference @ rotation_e.T  # M = M_ref exp6(nu)^-1
+    p = p_ref - rotation @ translation_e
+    error, zero, joints, written = (
+        np.zeros(6),
+        np.zeros(6),
+        rng.normal(size=(6, 2)),
+        np.zeros((6, 2)),
+    )
+    assert kernels.sole_rows(
+        np.zeros(6), np.zeros((6, 2)), np.arange(6), error, reference, p_ref, rotation, p,
+        joints, np.array([1]), written, np.zeros(2), zero, zero, np.ones(6), zero,
+    )  # fmt: skip
+    linear = joints[:3, 1] + np.cross(joints[3:, 1], p)
+    np.testing.assert_allclose(written[:, 0], 0.0, rtol=0, atol=0)
+    np.testing.assert_allclose(
+        written[:, 1], np.r_[rotation.T @ linear, rotation.T @ joints[3:, 1]], rtol=0, atol=1e-13
+    )
+    np.testing.assert_allclose(error, np.r_[u, w], rtol=0, atol=_LOG_TOLERANCE)
+
+
+def test_rotation_errors_near_pi_are_left_to_the_caller():
+    """Within 1e-3 rad of a half turn the kernels write no error and return False."""
+    rotation = _exp(np.array([0.0, 0.0, np.pi - 1e-4]), np.zeros(3))[0]
+    error = np.full(6, 7.0)
+    none = np.zeros(0, dtype=np.int64)
+    assert not kernels.frame_task_rows(
+        np.zeros(6), np.zeros((6, 1)), np.arange(6), error, rotation, np.zeros(3), np.eye(3),
+        np.zeros(3), np.zeros((6, 1)), none, np.zeros((6, 1)), np.zeros(1), np.zeros(6),
+        np.zeros(6), np.zeros(6), np.ones(6), np.ones(6), True, True,
+    )  # fmt: skip
+    assert not kernels.sole_rows(
+        np.zeros(6), np.zeros((6, 1)), np.arange(6), error, rotation, np.zeros(3), np.eye(3),
+        np.zeros(3), np.zeros((6, 1)), none, np.zeros((6, 1)), np.zeros(1), np.zeros(6),
+        np.zeros(6), np.ones(6), np.ones(6),
+    )  # fmt: skip
+    np.testing.assert_array_equal(error, 7.0)

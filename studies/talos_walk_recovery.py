@@ -4,11 +4,14 @@
 - Push recovery: an impulse on the pelvis ``PUSH_DELAY`` after the lift-off of step
   ``PUSH_STEP`` (the first forward step, the left foot swinging; 30 % into its single
   support), forward (+x), backward (-x) or lateral (+y, towards the swinging foot), spread
-  over ``PUSH_DURATION``. A run survives if the robot has not fallen ``RECOVERY_TIME`` after
-  the push. The largest survived impulse is found by bisection on ``[0, PUSH_RANGE]`` and
-  reported as a bound ("at least X N s": the largest impulse tried and survived), with the
-  balance feedback (DCM feedback, step adjustment and timing) and without (the CoM tracks
-  the plan). Quick mode: two lateral trials with the feedback.
+  over ``PUSH_DURATION``. A run survives if the robot walks the plan to its end without a
+  fall and stands still ``SETTLE_TIME`` after it (the CoM's horizontal speed averaged over the
+  last ``STILL_WINDOW`` below ``STILL_SPEED``): a robot still stumbling when a fixed window
+  after the push ran out had counted as surviving. The largest survived impulse is found by
+  bisection on ``[0, PUSH_RANGE]`` and reported as a bound ("at least X N s": the largest
+  impulse tried and survived; survival is not monotone in the impulse, so a bound holds for
+  the impulses tried), with the balance feedback (DCM feedback, step adjustment and timing)
+  and without (the CoM tracks the plan). Quick mode: two lateral trials with the feedback.
 - Uneven ground: an unplanned step down (the robot starts on a ``STEP_HEIGHT`` platform whose
   edge lies between two footholds), step up (a box of that height ahead) and a ``SLOPE``
   (2 degrees, rising from the same place), with forward
@@ -26,7 +29,8 @@ from dmpopt.parallel import Runner, map_runs
 from . import talos_walk as walk
 
 PUSH_STEP, PUSH_DELAY = 1, 0.18  # the step and the time after its lift-off [s] of a push
-RECOVERY_TIME = 2.0  # [s] after the push
+SETTLE_TIME = 1.0  # [s] after the (re-timed) plan's end, standing
+STILL_WINDOW, STILL_SPEED = 0.2, 0.05  # [s], [m/s] standing still at the end
 PUSH_DIRECTIONS = {"forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0),
                    "lateral": (0.0, 1.0, 0.0)}  # fmt: skip
 PUSH_RANGE = {"forward": 160.0, "backward": 160.0, "lateral": 80.0}  # [N s] bisection interval
@@ -45,10 +49,23 @@ def push_trial(case) -> bool:
     plan, swing_dmps = walk.build_plan(robot, q0, quick=True)
     plant = talos_realistic(robot)
     walker = walk.Walker(robot, q0, plan, swing_dmps, plant, feedback=feedback)
-    duration = plan.lift_off[PUSH_STEP] + PUSH_DELAY + RECOVERY_TIME
     push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
-    log, _, _ = walk.simulate(robot, q0, walker, duration, 0, plant, push=push)
-    return not (log.fell or log.diverged)
+    log, _, _ = walk.simulate(robot, q0, walker, walk_duration(plan), 0, plant, push=push)
+    return not (log.fell or log.diverged) and stands_still(log.times, log.com)
+
+
+def walk_duration(plan) -> float:
+    """The plan's duration and ``SETTLE_TIME`` [s], with room for step timing: a pushed walk's
+    re-timed steps may end up to one step later than planned."""
+    return plan.duration + walk.SINGLE_SUPPORT + walk.DOUBLE_SUPPORT + SETTLE_TIME
+
+
+def stands_still(times, com) -> bool:
+    """Whether the CoM's horizontal speed, averaged over the last ``STILL_WINDOW`` of the
+    log (``times`` [s], ``com`` (n, 3) [m]), is below ``STILL_SPEED``."""
+    last = np.searchsorted(times, times[-1] - STILL_WINDOW)
+    moved = np.linalg.norm(com[-1, :2] - com[last, :2])
+    return bool(moved < STILL_SPEED * (times[-1] - times[last]))
 
 
 def push_bisection(case) -> dict:

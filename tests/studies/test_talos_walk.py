@@ -114,3 +114,19 @@ def test_unplanned_uneven_ground_is_walked_with_every_foothold_on_target(kind):
     else:
         slope = np.tan(np.radians(2.0))
         assert np.all((1e3 * slope * (0.7 - 0.36) - 3 < last) & (last < 1e3 * slope * 0.54 + 3))
+
+
+def test_a_push_trial_counts_only_a_robot_standing_still_at_the_end():
+    """The survival rule of the push trials: a CoM drifting at 0.1 m/s over the last 0.2 s
+    (0.02 m, more than 0.05 m/s x 0.2 s) is not standing; one that moved 5 mm in that
+    window (0.025 m/s) is. Written out here: positions x(t) = x0 + v t."""
+    from dmpopt_studies import talos_walk_recovery as recovery
+
+    times = np.arange(0.0, 1.0, 0.001)
+    for speed, standing in ((0.1, False), (0.025, True), (0.0, True)):
+        com = np.zeros((times.size, 3))
+        com[:, 0] = 0.3 + speed * times
+        assert recovery.stands_still(times, com) is standing
+    com[:, 1] = np.where(times > 0.9, 0.5, 0.0)  # a jump of 0.5 m sideways in the window
+    assert recovery.stands_still(times, com) is False
+    assert recovery.STILL_WINDOW == 0.2 and recovery.STILL_SPEED == 0.05

@@ -208,13 +208,14 @@ class Walker:
         }
         contacts = [SoleContact(robot, f) for f in robot.foot_frames]
         self._contacts = {c.frame: c for c in contacts}
+        tasks = [posture, self.com_task, base]
         self.controller = InverseDynamicsController(
-            robot,
-            [posture, self.com_task, base],
-            contacts,
-            time_budget=TIME_BUDGET,
-            joint_impedance=impedance,
+            robot, tasks, contacts, time_budget=TIME_BUDGET, joint_impedance=impedance
         )
+        for swinging, standing in (robot.foot_frames, robot.foot_frames[::-1]):
+            # the single supports' QPs, built now rather than in the tick that switches
+            self.controller.prepare([standing])
+            self.controller.prepare([standing], [*tasks, self.swing_tasks[swinging]])
         self._transfer = DOUBLE_SUPPORT  # [s] a double support
         self._next = 0  # the step under way or next
         self._released = False  # the next step's foot is being unloaded

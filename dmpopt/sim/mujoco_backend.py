@@ -1170,8 +1170,7 @@ def render_animation(
         )
     path = _output_path(path, (".webp", ".gif"))
     fps = _positive("fps", fps)
-    if not isinstance(shadows, (bool, np.bool_)):
-        raise InvalidInputError(f"shadows must be True or False, got {shadows!r}")
+    _check_shadows(shadows)
     camera = _camera(simulator, target, distance, azimuth, elevation)
     max_bytes = _positive("max_bytes", max_bytes)
     image_class = _pillow()
@@ -1207,6 +1206,7 @@ def render_frame(
     distance: float = 3.0,
     azimuth: float = 135.0,
     elevation: float = -15.0,
+    shadows: bool = True,
 ) -> Path:
     """Render one configuration offscreen and write it as a PNG still.
 
@@ -1222,6 +1222,8 @@ def render_frame(
         Image size [pixels].
     target, distance, azimuth, elevation
         The camera, as in :func:`render_animation`.
+    shadows : bool
+        Cast shadows, as in :func:`render_animation`.
 
     Returns
     -------
@@ -1230,11 +1232,17 @@ def render_frame(
     """
     configurations = _check_render(simulator, [q], width, height, name="q")
     path = _output_path(path, (".png",))
+    _check_shadows(shadows)
     camera = _camera(simulator, target, distance, azimuth, elevation)
     image_class = _pillow()
-    (image,) = _render_frames(simulator, configurations, width, height, camera)
+    (image,) = _render_frames(simulator, configurations, width, height, camera, None, shadows)
     image_class.fromarray(image).save(path)
     return path
+
+
+def _check_shadows(shadows) -> None:
+    if not isinstance(shadows, (bool, np.bool_)):
+        raise InvalidInputError(f"shadows must be True or False, got {shadows!r}")
 
 
 def _check_render(simulator, configurations, width, height, name="configurations"):

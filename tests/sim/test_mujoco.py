@@ -385,26 +385,6 @@ def test_render_animation_writes_frames(talos, talos_sim, tmp_path):
         render_animation(talos_sim, [q], tmp_path / "b.webp", width=64, height=48, max_bytes=10)
 
 
-def test_render_without_shadows_is_lighter(talos, talos_sim, tmp_path):
-    """Shadows take light away: without them the picture holds more light in total and the
-    floor the robot shades (at least 50 of 3072 pixels) is brighter by more than 30 grey
-    levels; a renderer that ignored ``shadows`` would give the same picture twice."""
-    from dmpopt.sim.mujoco_backend import _camera, _render_frames
-
-    q = np.array(talos.reference_configuration)
-    camera = _camera(talos_sim, None, 3.0, 135.0, -15.0)
-    try:
-        (shaded,) = _render_frames(talos_sim, [q], 64, 48, camera, shadows=True)
-    except MissingDependency as error:
-        pytest.skip(f"no offscreen rendering here: {error}")
-    (plain,) = _render_frames(talos_sim, [q], 64, 48, camera, shadows=False)
-    difference = plain.astype(int).sum(axis=2) - shaded.astype(int).sum(axis=2)
-    assert difference.sum() > 0
-    assert (difference > 30).sum() >= 50
-    with pytest.raises(InvalidInputError, match="shadows must be True or False"):
-        render_animation(talos_sim, [q], tmp_path / "c.gif", shadows="no")
-
-
 _STILLS = """
 import sys
 import numpy as np
@@ -427,14 +407,18 @@ except MissingDependency as error:
     sys.exit(0)
 render_frame(sim, q, f"{out}/p.png", target=hand, **camera)
 render_frame(sim, q, f"{out}/t.png", target=hand, azimuth=45.0, **camera)
+wide = dict(width=64, height=48, distance=3.0, azimuth=135.0)
+render_frame(sim, q, f"{out}/shaded.png", **wide)
+render_frame(sim, q, f"{out}/plain.png", shadows=False, **wide)
 """
 
 
 def test_render_frame_camera_follows_a_frame(talos, talos_sim, tmp_path):
     """A PNG still looking at a hand equals the still looking at the hand's world position
     (Pinocchio's forward kinematics, computed in the script); another azimuth is another
-    picture. The stills are rendered in a process of their own: after the rest of the suite
-    had made its renderers, a new OpenGL context in the same process once aborted it."""
+    picture; a still without shadows is lighter. The stills are rendered in a process of their
+    own: after the rest of the suite had made its renderers, a new OpenGL context in the same
+    process once aborted it."""
     import subprocess
 
     from PIL import Image
@@ -454,6 +438,17 @@ def test_render_frame_camera_follows_a_frame(talos, talos_sim, tmp_path):
         render_frame(talos_sim, q, tmp_path / "x.png", target="hand")
     with pytest.raises(InvalidInputError, match=r"must end in \.png"):
         render_frame(talos_sim, q, tmp_path / "x.gif")
+    with pytest.raises(InvalidInputError, match="shadows must be True or False"):
+        render_frame(talos_sim, q, tmp_path / "x.png", shadows="no")
+    # Shadows take light away: without them the picture holds more light in total and the
+    # floor the robot shades (at least 50 of 3072 pixels) is brighter by more than 30 grey
+    # levels; a renderer that ignored ``shadows`` would give the same picture twice.
+    shaded, plain = (
+        np.asarray(Image.open(tmp_path / name)).astype(int).sum(axis=2)
+        for name in ("shaded.png", "plain.png")
+    )
+    assert (plain - shaded).sum() > 0
+    assert (plain - shaded > 30).sum() >= 50
 
 
 def test_render_without_gl_context_says_why(talos_sim, monkeypatch, tmp_path):

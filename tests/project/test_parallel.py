@@ -215,6 +215,7 @@ def test_ctrl_c_cancels_the_queued_runs_and_stops_the_running_ones(tmp_path):
     """KeyboardInterrupt once a first run has finished: no run finishes afterwards (once,
     every queued run ran first, 90 s)."""
     import _thread
+    import signal
     import threading
     import time
 
@@ -228,9 +229,15 @@ def test_ctrl_c_cancels_the_queued_runs_and_stops_the_running_ones(tmp_path):
             time.sleep(0.01)
         _thread.interrupt_main()
 
+    # A shell starts a background job with SIGINT ignored, and Python then leaves it ignored:
+    # Ctrl-C is simulated with Python's own handler in place, whatever started the suite.
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)
     threading.Thread(target=interrupt_after_a_first_run, daemon=True).start()
-    with pytest.raises(KeyboardInterrupt):
-        map_runs(_sleep_then_mark, [str(mark) for mark in marks], runner)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            map_runs(_sleep_then_mark, [str(mark) for mark in marks], runner)
+    finally:
+        signal.signal(signal.SIGINT, handler)
     finished = sorted(tmp_path.iterdir())
     assert runner._pool is None
     time.sleep(1.0)  # over three runs' length: a run still going or queued would finish now

@@ -513,17 +513,8 @@ def cholesky_solve(matrix, factor, rhs, solution) -> bool:
     not positive definite or the result not finite.
     """
     n = matrix.shape[0]
-    for i in range(n):
-        for k in range(i + 1):
-            value = matrix[i, k]
-            for m in range(k):
-                value -= factor[i, m] * factor[k, m]
-            if k < i:
-                factor[i, k] = value / factor[k, k]
-            elif value > 0.0:
-                factor[i, i] = math.sqrt(value)
-            else:  # also catches NaN
-                return False
+    if not _cholesky(matrix, factor):
+        return False
     for i in range(n):  # L y = -g
         value = -rhs[i]
         for m in range(i):

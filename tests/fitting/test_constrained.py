@@ -45,6 +45,16 @@ def plain_plan(form="velocity"):
     )
 
 
+def velocity_limited_problem(fraction, n_samples=None):
+    """The velocity form's fit with each DOF's speed limited to `fraction` of the plain plan's
+    peak speed."""
+    peak = np.abs(plain_plan().velocities).max(0)
+    extra = {} if n_samples is None else {"n_samples": n_samples}
+    return build_fitting_problem(
+        DEMO, reference=REFERENCES["velocity"], bounds=Bounds(velocity=fraction * peak), **extra
+    )
+
+
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
 def test_unconstrained_request_reproduces_imitation(form):
     """Without limits the position objective gives the imitation fit's weights."""
@@ -170,12 +180,7 @@ def test_unreachable_euclidean_via_point_is_reported_as_such():
 
 def test_problem_is_inspectable_and_warm_starts():
     """The built problem exposes its groups and stacked QP; a second solve reuses it."""
-    plan = plain_plan()
-    problem = build_fitting_problem(
-        DEMO,
-        reference=REFERENCES["velocity"],
-        bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
-    )
+    problem = velocity_limited_problem(0.8)
     assert [g.name for g in problem.groups] == ["velocity", "end_position"]
     hessian, gradient, matrix, lower, upper = problem.full_qp()
     assert hessian.shape == (40, 40) and matrix.shape == (2 * (DEMO.n_steps + 1), 40)
@@ -188,13 +193,7 @@ def test_problem_is_inspectable_and_warm_starts():
 
 def test_infeasible_request_names_the_constraint_group():
     """Too tight a velocity limit raises InfeasibleProblem naming the groups and amounts."""
-    plan = plain_plan()
-    problem = build_fitting_problem(
-        DEMO,
-        reference=REFERENCES["velocity"],
-        n_samples=101,
-        bounds=Bounds(velocity=0.2 * np.abs(plan.velocities).max(0)),
-    )
+    problem = velocity_limited_problem(0.2, n_samples=101)
     with pytest.raises(InfeasibleProblem) as caught:
         solve_fitting_problem(problem)
     message = str(caught.value)
@@ -486,12 +485,7 @@ def test_constrained_fit_matches_the_plain_qp_solved_by_a_second_solver():
 def test_problem_is_frozen_and_solving_leaves_it_unchanged():
     """A FittingProblem is a value: no attribute can be set, and two solves of it, the second
     warm-started, return the same weights and working sets (no state kept between them)."""
-    plan = plain_plan()
-    problem = build_fitting_problem(
-        DEMO,
-        reference=REFERENCES["velocity"],
-        bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
-    )
+    problem = velocity_limited_problem(0.8)
     with pytest.raises(dataclasses.FrozenInstanceError):
         problem.solver = "qpoases"
     assert not hasattr(problem, "cache")
@@ -912,13 +906,7 @@ def test_nlp_without_balls_reaches_clarabels_optimum_of_the_same_qp():
     gradient, and the rows are the QP's."""
     from dmpopt.fitting import nlp
 
-    plan = plain_plan()
-    problem = build_fitting_problem(
-        DEMO,
-        reference=REFERENCES["velocity"],
-        n_samples=101,
-        bounds=Bounds(velocity=0.8 * np.abs(plan.velocities).max(0)),
-    )
+    problem = velocity_limited_problem(0.8, n_samples=101)
     key = clarabel(*problem.full_qp())
     begin = time.perf_counter()
     x, success, status, solve_time, iterations = nlp.solve_nlp(problem)
@@ -985,13 +973,7 @@ def test_problem_size_accepts_the_via_point_bound_itself():
 
 def test_infeasibility_message_lists_every_dof_of_a_group_in_full():
     """A velocity limit far too tight for both DOFs: one group, both DOFs, the whole message."""
-    plan = plain_plan()
-    problem = build_fitting_problem(
-        DEMO,
-        reference=REFERENCES["velocity"],
-        n_samples=101,
-        bounds=Bounds(velocity=0.05 * np.abs(plan.velocities).max(0)),
-    )
+    problem = velocity_limited_problem(0.05, n_samples=101)
     with pytest.raises(InfeasibleProblem) as caught:
         solve_fitting_problem(problem)
     assert list(caught.value.relaxations) == ["end_position"]

@@ -65,6 +65,7 @@ FALL_HEIGHT = 0.7  # [m] the pelvis has fallen when lower
 FLOOR_FRICTION = 1.0
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT, SWING_WEIGHT = 1e-2, 10.0, 1.0, 10.0
 COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
+SWING_SPEEDUP = 2.0  # a hurried swing's stiffness grows with its speed-up, up to this one's
 DCM_GAIN = 5.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
 SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
 ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
@@ -79,6 +80,7 @@ SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to fin
 SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
 SHORTEST_SWING = 0.3  # [s] and no sooner than this after lift-off
 SHORTEST_CORRECTION = 0.15  # [s] a step adjustment moves the swinging foot over at least this
+SHORTEST_TRANSFER = 0.05  # [s] a double support after a step that could not catch the DCM
 MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, once airborne
 ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
 ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
@@ -330,7 +332,10 @@ class Walker:
         if self._conforming is not None and self._conforming[1] == frame:
             self._conforming = None  # lifted before it came to rest
         self.records.append(StepRecord(step.side, t, target=self._target))
-        self.controller.add_task(self.swing_tasks[frame])
+        task = self.swing_tasks[frame]
+        task.stiffness[:] = SWING_STIFFNESS
+        task.damping[:] = 2.0 * np.sqrt(SWING_STIFFNESS)
+        self.controller.add_task(task)
         self._correction = None  # (start [s], duration [s], start state, offset) of _correction_at
         self._set_swing_target(i, t, first=True)
 
@@ -345,6 +350,8 @@ class Walker:
         self._airborne |= not in_contact and t - lift_off >= MIN_SWING / 2
         if self._airborne and in_contact and t - lift_off >= MIN_SWING:
             self._touchdown(i, t, frame, foot)
+            if self.feedback:
+                self._retime_transfer(i, t, com, com_velocity)
             return
         if t >= self.plan.touchdown[i] - DT / 2:  # late: the single support goes on
             self.plan = self.plan.with_touchdown(i, t + DT)
@@ -365,9 +372,7 @@ class Walker:
         reference = self._reference
         step = reference.footsteps[i]
         xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
-        lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
-        lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
-        upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
+        lower, upper = self._reach(step)
         zmp_reference, dcm_reference = reference.zmp_and_dcm(t)
         end = reference.dcm(reference.touchdown[i])
         remaining = self._touchdown_target - t
@@ -398,6 +403,7 @@ class Walker:
             self._swing_tau *= shortened / remaining
             for stepper in self._swing:
                 stepper.set_tau(self._swing_tau)
+            self._scale_swing_gains(step)
             self._touchdown_target = t + shortened
         # the foot is moved onto the new foothold by a quintic added to the swing DMP (whose
         # own goal change would be followed too slowly: a 0.1 m change 0.3 s before the
@@ -411,6 +417,16 @@ class Walker:
         self.plan = reference.with_goal(i, self._target)
         if self._touchdown_target != reference.touchdown[i]:
             self.plan = self.plan.with_touchdown(i, self._touchdown_target)
+
+    def _scale_swing_gains(self, step) -> None:
+        """A swing sped up by a factor s (its DMPs' time constant divided by s) is tracked
+        with the stiffness times s^2 (at most ``SWING_SPEEDUP`` squared) and critical
+        damping: the swing task's error dynamics keep their pace relative to the motion, as
+        the DMP's own do under time scaling."""
+        speed = min(self.swing_dmps.horizontal.tau / self._swing_tau, SWING_SPEEDUP)
+        task = self.swing_tasks[self._frame(step)]
+        task.stiffness[:] = SWING_STIFFNESS * speed**2
+        task.damping[:] = 2.0 * np.sqrt(task.stiffness)
 
     def _correction_at(self, t: float):
         """Position, velocity and acceleration [m, m/s, m/s^2] added to the swing DMP's
@@ -459,6 +475,50 @@ class Walker:
         if self._arm_stepper is not None:  # eq. (21): the arms' oscillator at heel strike
             self._arm_stepper.reset_phase(heel_strike_phase(foot))
         self._swing, self._released, self._next = None, False, i + 1
+        self._transfer = DOUBLE_SUPPORT
+
+    def _retime_transfer(self, i: int, t: float, com, com_velocity) -> None:
+        """After step ``i``'s touchdown with the measured DCM outside the support polygon of
+        both feet (no ankle torque can stop it: it is not 0-step capturable [Koolen2012]_),
+        the double support before the next step shortened if that step could not catch the
+        DCM otherwise (:func:`dmpopt.balance.transfer_time`): after a hurried step the DCM
+        keeps running away while the weight moves over."""
+        j = i + 1
+        steps = self.plan.footsteps
+        if j >= len(steps):
+            return
+        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
+        if self._inside_both_soles(xi):
+            return
+        step = steps[j]
+        lower, upper = self._reach(step)
+        planned = float(self.plan.lift_off[j] - t)
+        swing = float(self.plan.touchdown[j] - self.plan.lift_off[j])
+        transfer = balance.transfer_time(
+            xi - self.plan.dcm(t), step.goal[:2], self.omega, lower, upper, swing,
+            min(SHORTEST_TRANSFER, planned), planned,
+        )  # fmt: skip
+        if transfer < planned - DT:
+            self.plan = self.plan.with_lift_off(j, t + transfer)
+            self._transfer = transfer
+
+    def _inside_both_soles(self, point) -> bool:
+        """Whether ``point`` [m] lies in the convex hull of both soles (shrunk by
+        ``SUPPORT_MARGIN``)."""
+        local = np.column_stack([self._polygon_corners, np.zeros(len(self._polygon_corners))])
+        corners = [
+            (self.data.oMf[f].rotation @ local.T).T[:, :2] + self.data.oMf[f].translation[:2]
+            for f in self._frame_ids
+        ]
+        hull = balance.convex_hull(np.vstack(corners))
+        return bool(np.allclose(balance.clip_to_polygon(point, hull), point, atol=0.0))
+
+    def _reach(self, step) -> tuple[np.ndarray, np.ndarray]:
+        """The box [m] the swinging foot of ``step`` can reach from its stance foot."""
+        lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
+        lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
+        upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
+        return lower, upper
 
     def _com_targets(self, t: float, com, com_velocity) -> None:
         """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the

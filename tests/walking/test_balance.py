@@ -22,6 +22,7 @@ from dmpopt.balance import (
     lipm_acceleration,
     predict_dcm,
     recovery_zmp,
+    transfer_time,
 )
 from dmpopt.exceptions import InvalidInputError, ShapeError
 
@@ -178,6 +179,41 @@ def test_capture_time_lands_the_foot_on_the_reach_boundary_or_keeps_the_plan(lat
         assert (beyond <= 1e-12).all()
     if 0.15 < tau < 0.5:  # the binding axis touches its bound
         assert np.max(beyond) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_transfer_time_is_what_the_swing_leaves_of_the_time_to_reach_the_box_edge():
+    """Written out: the next foothold f_r + e exp(omega T) reaches the box's forward edge at
+    T* = ln((upper - f_r) / e) / omega; the double support is T* minus the 0.6 s swing,
+    clipped to [0.05, 0.2]."""
+    foothold = np.array([0.2, -0.2])  # the stance foot at the origin, a right step
+    lower, upper = np.array([-0.25, -0.3]), np.array([0.4, -0.15])
+    for error_x in (0.02, 0.001, 0.05):
+        t_star = np.log((0.4 - 0.2) / error_x) / OMEGA  # 0.686, 1.578, 0.413 s
+        expected = min(max(t_star - 0.6, 0.05), 0.2)  # 0.086, 0.2, 0.05 s
+        got = transfer_time([error_x, 0.0], foothold, OMEGA, lower, upper, 0.6, 0.05, 0.2)
+        assert got == pytest.approx(expected, abs=1e-12)
+    # an error inwards (towards the stance foot, y > 0) meets the box's inner side instead
+    t_star = np.log((-0.15 + 0.2) / 0.004) / OMEGA  # 0.752 s
+    got = transfer_time([0.0, 0.004], foothold, OMEGA, lower, upper, 0.6, 0.05, 0.2)
+    assert got == pytest.approx(t_star - 0.6, abs=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05))
+def test_transfer_time_keeps_the_next_foothold_in_reach(error_x, error_y):
+    """f(T) = f_r + e exp(omega T) written here, T = the double support + the 0.6 s swing:
+    in the box unless the double support is at its shortest, on its edge when strictly
+    between the shortest and the planned one."""
+    foothold, error = np.array([0.2, -0.2]), np.array([error_x, error_y])
+    lower, upper = np.array([-0.25, -0.3]), np.array([0.4, -0.15])
+    transfer = transfer_time(error, foothold, OMEGA, lower, upper, 0.6, 0.05, 0.2)
+    assert 0.05 <= transfer <= 0.2
+    f = foothold + error * np.exp(OMEGA * (transfer + 0.6))
+    outside = np.maximum(lower - f, f - upper)  # > 0: out of the box
+    if transfer > 0.05:
+        assert (outside <= 1e-12).all()
+    if 0.05 < transfer < 0.2:
+        assert np.max(outside) == pytest.approx(0.0, abs=1e-9)
 
 
 @settings(max_examples=30, deadline=None)

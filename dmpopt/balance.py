@@ -64,6 +64,7 @@ __all__ = [
     "ground_tilt",
     "lipm_acceleration",
     "predict_dcm",
+    "polygons_overlap",
     "recovery_zmp",
     "transfer_time",
 ]
@@ -177,6 +178,35 @@ def convex_hull(points) -> np.ndarray:
 
 def _cross(o, a, b) -> float:
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def polygons_overlap(first, second, clearance: float = 0.0) -> bool:
+    """Whether two convex polygons (vertices in order, either direction, shape (n, 2) and
+    (m, 2) [m]) come closer than ``clearance`` [m] along every edge normal of either (the
+    separating axis test: convex polygons are apart exactly when some edge normal separates
+    their projections). A foothold is checked with it against the standing sole, so that a
+    crossing step cannot put one sole on the other."""
+    polygons = []
+    for name, value in (("first", first), ("second", second)):
+        vertices = real_array(name, value, ndim=2)
+        if vertices.shape[1] != 2 or vertices.shape[0] < 3:
+            raise ShapeError(
+                f"{name} has shape {vertices.shape}, expected (n, 2) with n >= 3: a polygon's "
+                "vertices in order [m]"
+            )
+        polygons.append(vertices)
+    clearance = real("clearance", clearance, minimum=0.0)
+    for vertices in polygons:
+        edges = np.roll(vertices, -1, axis=0) - vertices
+        for edge in edges:
+            length = np.hypot(*edge)
+            if length == 0.0:
+                continue
+            normal = np.array([-edge[1], edge[0]]) / length
+            a, b = polygons[0] @ normal, polygons[1] @ normal
+            if a.min() - b.max() >= clearance or b.min() - a.max() >= clearance:
+                return False
+    return True
 
 
 def clip_to_polygon(point, polygon) -> np.ndarray:

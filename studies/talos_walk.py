@@ -65,7 +65,6 @@ FALL_HEIGHT = 0.7  # [m] the pelvis has fallen when lower
 FLOOR_FRICTION = 1.0
 POSTURE_WEIGHT, COM_WEIGHT, BASE_WEIGHT, SWING_WEIGHT = 1e-2, 10.0, 1.0, 10.0
 COM_STIFFNESS, SWING_STIFFNESS = 50.0, 300.0  # [1/s^2] (damping critical)
-SWING_SPEEDUP = 2.0  # a hurried swing's stiffness grows with its speed-up, up to this one's
 DCM_GAIN = 5.0  # [1/s] the DCM error decays as exp(-DCM_GAIN t) (dmpopt.balance)
 SUPPORT_MARGIN = 0.015  # [m] the commanded ZMP stays this far inside the soles
 ADJUST_EVERY = 20  # [ticks] the capture-point foothold is recomputed at 50 Hz in a swing
@@ -75,6 +74,8 @@ ADJUST_DEADBAND = 0.03  # [m] a predicted DCM error at touchdown below this keep
 TIMING_THRESHOLD = 0.1  # [m] and one above this may shorten the step (step timing adaptation)
 REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
 REACH_LATERAL = (0.15, 0.3)  # [m] its lateral distance from the stance foot (no crossing)
+CROSSING = -0.05  # [m] a crossing step's lateral distance, allowed where the soles keep apart
+FOOT_CLEARANCE = 0.02  # [m] by this much (balance.polygons_overlap)
 TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
 SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to find the ground
 SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
@@ -332,10 +333,7 @@ class Walker:
         if self._conforming is not None and self._conforming[1] == frame:
             self._conforming = None  # lifted before it came to rest
         self.records.append(StepRecord(step.side, t, target=self._target))
-        task = self.swing_tasks[frame]
-        task.stiffness[:] = SWING_STIFFNESS
-        task.damping[:] = 2.0 * np.sqrt(SWING_STIFFNESS)
-        self.controller.add_task(task)
+        self.controller.add_task(self.swing_tasks[frame])
         self._correction = None  # (start [s], duration [s], start state, offset) of _correction_at
         self._set_swing_target(i, t, first=True)
 
@@ -391,6 +389,7 @@ class Walker:
         foothold = balance.capture_foothold(
             xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
         )
+        foothold = self._uncross(step, foothold)
         faster = shortened < remaining - DT
         small = np.linalg.norm(foothold - step.goal[:2]) < ADJUST_DEADBAND
         if small and np.allclose(self._target[:2], step.goal[:2]):
@@ -403,7 +402,6 @@ class Walker:
             self._swing_tau *= shortened / remaining
             for stepper in self._swing:
                 stepper.set_tau(self._swing_tau)
-            self._scale_swing_gains(step)
             self._touchdown_target = t + shortened
         # the foot is moved onto the new foothold by a quintic added to the swing DMP (whose
         # own goal change would be followed too slowly: a 0.1 m change 0.3 s before the
@@ -417,16 +415,6 @@ class Walker:
         self.plan = reference.with_goal(i, self._target)
         if self._touchdown_target != reference.touchdown[i]:
             self.plan = self.plan.with_touchdown(i, self._touchdown_target)
-
-    def _scale_swing_gains(self, step) -> None:
-        """A swing sped up by a factor s (its DMPs' time constant divided by s) is tracked
-        with the stiffness times s^2 (at most ``SWING_SPEEDUP`` squared) and critical
-        damping: the swing task's error dynamics keep their pace relative to the motion, as
-        the DMP's own do under time scaling."""
-        speed = min(self.swing_dmps.horizontal.tau / self._swing_tau, SWING_SPEEDUP)
-        task = self.swing_tasks[self._frame(step)]
-        task.stiffness[:] = SWING_STIFFNESS * speed**2
-        task.damping[:] = 2.0 * np.sqrt(task.stiffness)
 
     def _correction_at(self, t: float):
         """Position, velocity and acceleration [m, m/s, m/s^2] added to the swing DMP's
@@ -502,6 +490,26 @@ class Walker:
             self.plan = self.plan.with_lift_off(j, t + transfer)
             self._transfer = transfer
 
+    def _uncross(self, step, foothold) -> np.ndarray:
+        """``foothold`` [m], or, if its sole would come within ``FOOT_CLEARANCE`` of the
+        standing sole (:func:`dmpopt.balance.polygons_overlap`), the nearest foothold of the
+        box without crossing: a crossing step is taken only where the feet pass each
+        other, ahead or behind."""
+        stance = self.robot.foot_frames[1 - self.robot.foot_frames.index(self._frame(step))]
+        placement = self.data.oMf[self.robot.model.getFrameId(stance)]
+        swing = self._tilt @ self.sole_rotation[self._frame(step)]
+        outline = self._sole_outline(swing, foothold)
+        standing = self._sole_outline(placement.rotation, placement.translation[:2])
+        if not balance.polygons_overlap(outline, standing, FOOT_CLEARANCE):
+            return foothold
+        return np.clip(foothold, *self._reach(step, crossing=False))
+
+    def _sole_outline(self, rotation, position) -> np.ndarray:
+        """The sole's corners [m] (counter-clockwise) seen from above, the sole frame at
+        ``position`` (x, y) with ``rotation``."""
+        corners = (rotation @ np.asarray(self.robot.sole_corners).T).T[:, :2]
+        return balance.convex_hull(corners + position)
+
     def _inside_both_soles(self, point) -> bool:
         """Whether ``point`` [m] lies in the convex hull of both soles (shrunk by
         ``SUPPORT_MARGIN``)."""
@@ -513,9 +521,12 @@ class Walker:
         hull = balance.convex_hull(np.vstack(corners))
         return bool(np.allclose(balance.clip_to_polygon(point, hull), point, atol=0.0))
 
-    def _reach(self, step) -> tuple[np.ndarray, np.ndarray]:
-        """The box [m] the swinging foot of ``step`` can reach from its stance foot."""
-        lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
+    def _reach(self, step, crossing: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """The box [m] the swinging foot of ``step`` can reach from its stance foot: with
+        ``crossing``, past the stance foot's line by up to ``-CROSSING`` (a crossing step,
+        :meth:`_uncross` keeps the soles apart)."""
+        inner = CROSSING if crossing else REACH_LATERAL[0]
+        lateral = np.array([inner, REACH_LATERAL[1]]) * (1.0 if step.side == "left" else -1.0)
         lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
         upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
         return lower, upper

@@ -20,6 +20,7 @@ from dmpopt.balance import (
     dcm_feedback_zmp,
     ground_tilt,
     lipm_acceleration,
+    polygons_overlap,
     predict_dcm,
     recovery_zmp,
     transfer_time,
@@ -214,6 +215,46 @@ def test_transfer_time_keeps_the_next_foothold_in_reach(error_x, error_y):
         assert (outside <= 1e-12).all()
     if 0.05 < transfer < 0.2:
         assert np.max(outside) == pytest.approx(0.0, abs=1e-9)
+
+
+def _rectangle(x, y, length=0.21, width=0.138):
+    """A Talos sole's outline (0.21 m x 0.138 m) centred at (x, y), counter-clockwise."""
+    dx, dy = length / 2, width / 2
+    return np.array([[x - dx, y - dy], [x + dx, y - dy], [x + dx, y + dy], [x - dx, y + dy]])
+
+
+def test_soles_overlap_checked_on_hand_made_rectangles():
+    """Side by side 0.17 m apart the soles are 0.17 - 0.138 = 0.032 m apart; a crossing step
+    5 cm past the other sole's line is clear when 0.3 m ahead (gap 0.3 - 0.21 = 0.09 m) and
+    not when 0.22 m ahead with a 2 cm clearance (gap 0.01 m)."""
+    stance = _rectangle(0.0, 0.0)
+    assert not polygons_overlap(stance, _rectangle(0.0, 0.17))
+    assert not polygons_overlap(stance, _rectangle(0.0, 0.17), clearance=0.03)
+    assert polygons_overlap(stance, _rectangle(0.0, 0.17), clearance=0.04)
+    assert polygons_overlap(stance, _rectangle(0.05, 0.1))
+    assert not polygons_overlap(stance, _rectangle(0.3, -0.05), clearance=0.02)
+    assert polygons_overlap(stance, _rectangle(0.22, -0.05), clearance=0.02)
+    assert not polygons_overlap(stance, _rectangle(0.22, -0.05))
+    # a diamond (a square turned 45 degrees, vertices 1 from its centre at (2.1, 0)) beside
+    # the square [-1, 1]^2: its left vertex is 0.1 from the square's right side
+    diamond = np.array([[1.1, 0.0], [2.1, -1.0], [3.1, 0.0], [2.1, 1.0]])
+    square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    assert not polygons_overlap(square, diamond, clearance=0.05)
+    assert polygons_overlap(diamond, square, clearance=0.15)
+    assert polygons_overlap(square[::-1], diamond - [0.2, 0.0])  # clockwise works too
+    with pytest.raises(ShapeError, match="^second has shape"):
+        polygons_overlap(square, square[:2])
+
+
+@settings(max_examples=40, deadline=None)
+@given(coordinate, coordinate, st.floats(0.0, 0.05))
+def test_axis_aligned_soles_overlap_when_both_axes_are_closer_than_the_sizes(dx, dy, gap):
+    """Two axis-aligned rectangles come within ``gap`` exactly when their centres are closer
+    than (length + gap) along x and (width + gap) along y (written here)."""
+    expected = abs(dx) < 0.21 + gap and abs(dy) < 0.138 + gap
+    assume_clear = min(abs(abs(dx) - 0.21 - gap), abs(abs(dy) - 0.138 - gap)) > 1e-9
+    if assume_clear:  # away from the boundary, where rounding decides
+        assert polygons_overlap(_rectangle(0, 0), _rectangle(dx, dy), gap) == expected
 
 
 @settings(max_examples=30, deadline=None)

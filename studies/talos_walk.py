@@ -159,8 +159,12 @@ class Walker:
       ``ADJUST_DEADBAND`` or more), within the reachable box; the swinging foot is moved
       onto it by a quintic added to the swing DMP's output (:func:`dmpopt.walk_plan.quintic`,
       over by the swing's horizontal arrival), and a shorter step speeds the DMPs up
-      (:meth:`dmpopt.stepper.Stepper.set_tau`). Without it the CoM task tracks the plan's
-      CoM (the open-loop walk).
+      (:meth:`dmpopt.stepper.Stepper.set_tau`). The box lets the foot cross past the stance
+      foot's line by up to ``-CROSSING`` where the soles keep ``FOOT_CLEARANCE`` apart
+      (:meth:`_uncross`). A touchdown with the DCM outside both soles shortens the double
+      support before the next step, down to ``SHORTEST_TRANSFER``, as far as that step needs
+      to catch the DCM in reach (:meth:`_retime_transfer`). Without the feedback the CoM task
+      tracks the plan's CoM (the open-loop walk).
 
     With ``nominal_plant`` the controller's model carries its armature and a
     :class:`JointImpedance` closes the joint loop (as in the humanoid study).

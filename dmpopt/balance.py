@@ -285,10 +285,12 @@ def capture_time(dcm, zmp, omega: float, offset, lower, upper, shortest: float, 
         if d[axis] == 0.0:
             continue
         bound = upper[axis] if d[axis] > 0 else lower[axis]
-        ratio = (bound + b[axis] - p[axis]) / d[axis]
-        if ratio < 1.0:  # out of reach already at tau = 0
+        room = (bound + b[axis] - p[axis]) * np.sign(d[axis])  # d e^{w tau} may grow this far
+        if room < abs(d[axis]):  # out of reach already at tau = 0
             return shortest
-        best = min(best, float(np.log(ratio)) / w)
+        if room >= abs(d[axis]) * np.exp(w * longest):  # not out of reach before longest
+            continue
+        best = min(best, float(np.log(room / abs(d[axis]))) / w)
     return max(best, shortest)
 
 

@@ -35,7 +35,9 @@ clipped to the box the leg can reach (:func:`capture_foothold`). It moves the fo
 predicted DCM error at touchdown, :math:`f - f_r = \xi(T) - \xi_r(T)`, predicted with the
 ZMP the stance sole can give towards cancelling it (:func:`recovery_zmp`): the ankle first,
 the step for what is left. When even the farthest reachable foothold is not enough, the
-step comes sooner (:func:`capture_time`, step timing adaptation [Khadiv2020]_).
+step comes sooner (:func:`capture_time`, step timing adaptation [Khadiv2020]_), and after a
+step that could not catch the DCM the double support before the next one is shortened
+(:func:`transfer_time`): the DCM keeps diverging while the weight moves over.
 
 Uneven ground. A sole that has come to rest with its corners down lies on the ground, so
 its normal :math:`n` is the ground's; the rotation that tilts a level sole onto it (the
@@ -62,7 +64,9 @@ __all__ = [
     "ground_tilt",
     "lipm_acceleration",
     "predict_dcm",
+    "polygons_overlap",
     "recovery_zmp",
+    "transfer_time",
 ]
 
 
@@ -176,6 +180,35 @@ def _cross(o, a, b) -> float:
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
+def polygons_overlap(first, second, clearance: float = 0.0) -> bool:
+    """Whether two convex polygons (vertices in order, either direction, shape (n, 2) and
+    (m, 2) [m]) come closer than ``clearance`` [m] along every edge normal of either (the
+    separating axis test: convex polygons are apart exactly when some edge normal separates
+    their projections). A foothold is checked with it against the standing sole, so that a
+    crossing step cannot put one sole on the other."""
+    polygons = []
+    for name, value in (("first", first), ("second", second)):
+        vertices = real_array(name, value, ndim=2)
+        if vertices.shape[1] != 2 or vertices.shape[0] < 3:
+            raise ShapeError(
+                f"{name} has shape {vertices.shape}, expected (n, 2) with n >= 3: a polygon's "
+                "vertices in order [m]"
+            )
+        polygons.append(vertices)
+    clearance = real("clearance", clearance, minimum=0.0)
+    for vertices in polygons:
+        edges = np.roll(vertices, -1, axis=0) - vertices
+        for edge in edges:
+            length = np.hypot(*edge)
+            if length == 0.0:
+                continue
+            normal = np.array([-edge[1], edge[0]]) / length
+            a, b = polygons[0] @ normal, polygons[1] @ normal
+            if a.min() - b.max() >= clearance or b.min() - a.max() >= clearance:
+                return False
+    return True
+
+
 def clip_to_polygon(point, polygon) -> np.ndarray:
     """The point of the convex ``polygon`` nearest to ``point`` (``point`` itself if inside).
 
@@ -252,11 +285,64 @@ def capture_time(dcm, zmp, omega: float, offset, lower, upper, shortest: float, 
         if d[axis] == 0.0:
             continue
         bound = upper[axis] if d[axis] > 0 else lower[axis]
-        ratio = (bound + b[axis] - p[axis]) / d[axis]
-        if ratio < 1.0:  # out of reach already at tau = 0
+        room = (bound + b[axis] - p[axis]) * np.sign(d[axis])  # d e^{w tau} may grow this far
+        if room < abs(d[axis]):  # out of reach already at tau = 0
             return shortest
-        best = min(best, float(np.log(ratio)) / w)
+        if room >= abs(d[axis]) * np.exp(w * longest):  # not out of reach before longest
+            continue
+        best = min(best, float(np.log(room / abs(d[axis]))) / w)
     return max(best, shortest)
+
+
+def transfer_time(
+    error, foothold, omega: float, lower, upper, swing: float, shortest: float, longest: float
+) -> float:
+    r"""The double support [s] before the next step, shortened when that step could not
+    catch the DCM in time otherwise (step timing adaptation [Khadiv2020]_ applied to the
+    whole step, double support and swing).
+
+    With the ZMP following the plan the DCM error :math:`e = \xi - \xi_r` grows as
+    :math:`e\, e^{\omega T}` whatever the plan's ZMP does (:math:`\dot e = \omega e`), so
+    the capture-point foothold of the next step, eq. :eq:`capture-step`, lies at
+    :math:`f(T) = f_r + e\, e^{\omega T}` if it lands :math:`T` after now. :math:`T^*` is the
+    longest :math:`T` in ``[shortest + swing, longest + swing]`` with :math:`f(T)` still in
+    the reachable box on the side the error grows to (:func:`capture_time` with
+    :math:`\xi_0 = f_r + e`, :math:`p = f_r`, :math:`b = 0`), and the double support takes
+    what the planned swing :math:`T_{ss}` leaves of it,
+
+    .. math:: T_{ds}' = \min(\max(T^* - T_{ss},\, T_{ds,\min}),\, T_{ds}),
+        :label: transfer-time
+
+    the planned :math:`T_{ds}` when the foothold stays in reach, :math:`T_{ds,\min}` when it
+    leaves the box even then (the swing may still be shortened, :func:`capture_time`).
+
+    Parameters
+    ----------
+    error : array_like, shape (2,)
+        :math:`e`, the measured DCM minus the plan's, now [m].
+    foothold : array_like, shape (2,)
+        :math:`f_r`, the next step's planned foothold [m].
+    omega : float
+        :math:`\omega` [1/s].
+    lower, upper : array_like, shape (2,)
+        The box the next step's foot can reach [m].
+    swing : float
+        :math:`T_{ss}`, the next step's planned swing [s], > 0.
+    shortest, longest : float
+        :math:`T_{ds,\min}` and the planned :math:`T_{ds}` [s], 0 <= ``shortest`` <=
+        ``longest``.
+    """
+    f = _plane("foothold", foothold)
+    swing = real("swing", swing, minimum=0.0, open_minimum=True)
+    shortest = real("shortest", shortest, minimum=0.0)
+    longest = real("longest", longest, minimum=shortest, fix="longest >= shortest")
+    total = capture_time(
+        f + _plane("error", error), f, omega, np.zeros(2), lower, upper,
+        shortest + swing, longest + swing,
+    )  # fmt: skip
+    if total <= shortest + swing:  # (not total - swing: its rounding would leave the bounds)
+        return shortest
+    return longest if total >= longest + swing else total - swing
 
 
 def capture_foothold(

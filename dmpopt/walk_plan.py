@@ -309,6 +309,19 @@ class WalkPlan:
         return _solve(self.footsteps, times, self._start_com(), self.com_height,
                       self.time_constant)  # fmt: skip
 
+    def with_lift_off(self, step: int, time: float) -> WalkPlan:
+        """The plan with step ``step``'s lift-off at ``time`` [s] (the double support before
+        it shortened or lengthened) and everything after it shifted by the same amount. The
+        DCM and CoM are solved again."""
+        i = self._check_step(step)
+        start = float(self.knot_times[1 + 2 * i])
+        fix = f"at or after the start of step {i}'s double support, {start:.4g} s"
+        time = real("time", time, minimum=start, fix=fix)
+        times = self.knot_times.copy()
+        times[2 + 2 * i :] += time - self.lift_off[i]
+        return _solve(self.footsteps, times, self._start_com(), self.com_height,
+                      self.time_constant)  # fmt: skip
+
     def with_goal(self, step: int, goal) -> WalkPlan:
         """The plan with step ``step``'s foothold at ``goal`` (shape (3,), [m]) and every
         later foothold moved by the same displacement (the rest of the walk translated, as

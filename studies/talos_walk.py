@@ -74,11 +74,14 @@ ADJUST_DEADBAND = 0.03  # [m] a predicted DCM error at touchdown below this keep
 TIMING_THRESHOLD = 0.1  # [m] and one above this may shorten the step (step timing adaptation)
 REACH_FORWARD, REACH_BACKWARD = 0.4, -0.25  # [m] swing-foot reach along x from the stance foot
 REACH_LATERAL = (0.15, 0.3)  # [m] its lateral distance from the stance foot (no crossing)
+CROSSING = -0.05  # [m] a crossing step's lateral distance, allowed where the soles keep apart
+FOOT_CLEARANCE = 0.02  # [m] by this much (balance.polygons_overlap)
 TOUCHDOWN_RAMP = 0.03  # [s] the landed foot's normal-force bound ramps up over this
 SEARCH_SPEED, SEARCH_DEPTH = 0.4, 0.1  # [m/s], [m] a late foot goes down to find the ground
 SHORTEST_REMAINING = 0.15  # [s] step timing adaptation lands the foot no sooner than this
 SHORTEST_SWING = 0.3  # [s] and no sooner than this after lift-off
 SHORTEST_CORRECTION = 0.15  # [s] a step adjustment moves the swinging foot over at least this
+SHORTEST_TRANSFER = 0.05  # [s] a double support after a step that could not catch the DCM
 MIN_SWING = 0.2  # [s] a contact counts as touchdown this long after lift-off, once airborne
 ARM_SWING_JOINTS = ("arm_left_4_joint", "arm_right_4_joint")  # elbows: axes about world y
 ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms in anti-phase
@@ -156,8 +159,12 @@ class Walker:
       ``ADJUST_DEADBAND`` or more), within the reachable box; the swinging foot is moved
       onto it by a quintic added to the swing DMP's output (:func:`dmpopt.walk_plan.quintic`,
       over by the swing's horizontal arrival), and a shorter step speeds the DMPs up
-      (:meth:`dmpopt.stepper.Stepper.set_tau`). Without it the CoM task tracks the plan's
-      CoM (the open-loop walk).
+      (:meth:`dmpopt.stepper.Stepper.set_tau`). The box lets the foot cross past the stance
+      foot's line by up to ``-CROSSING`` where the soles keep ``FOOT_CLEARANCE`` apart
+      (:meth:`_uncross`). A touchdown with the DCM outside both soles shortens the double
+      support before the next step, down to ``SHORTEST_TRANSFER``, as far as that step needs
+      to catch the DCM in reach (:meth:`_retime_transfer`). Without the feedback the CoM task
+      tracks the plan's CoM (the open-loop walk).
 
     With ``nominal_plant`` the controller's model carries its armature and a
     :class:`JointImpedance` closes the joint loop (as in the humanoid study).
@@ -345,6 +352,8 @@ class Walker:
         self._airborne |= not in_contact and t - lift_off >= MIN_SWING / 2
         if self._airborne and in_contact and t - lift_off >= MIN_SWING:
             self._touchdown(i, t, frame, foot)
+            if self.feedback:
+                self._retime_transfer(i, t, com, com_velocity)
             return
         if t >= self.plan.touchdown[i] - DT / 2:  # late: the single support goes on
             self.plan = self.plan.with_touchdown(i, t + DT)
@@ -365,9 +374,7 @@ class Walker:
         reference = self._reference
         step = reference.footsteps[i]
         xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
-        lateral = np.array(REACH_LATERAL) * (1.0 if step.side == "left" else -1.0)
-        lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
-        upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
+        lower, upper = self._reach(step)
         zmp_reference, dcm_reference = reference.zmp_and_dcm(t)
         end = reference.dcm(reference.touchdown[i])
         remaining = self._touchdown_target - t
@@ -386,6 +393,7 @@ class Walker:
         foothold = balance.capture_foothold(
             xi, zmp, self.omega, shortened, end, step.goal[:2], lower, upper
         )
+        foothold = self._uncross(step, foothold)
         faster = shortened < remaining - DT
         small = np.linalg.norm(foothold - step.goal[:2]) < ADJUST_DEADBAND
         if small and np.allclose(self._target[:2], step.goal[:2]):
@@ -459,6 +467,73 @@ class Walker:
         if self._arm_stepper is not None:  # eq. (21): the arms' oscillator at heel strike
             self._arm_stepper.reset_phase(heel_strike_phase(foot))
         self._swing, self._released, self._next = None, False, i + 1
+        self._transfer = DOUBLE_SUPPORT
+
+    def _retime_transfer(self, i: int, t: float, com, com_velocity) -> None:
+        """After step ``i``'s touchdown with the measured DCM outside the support polygon of
+        both feet (no ankle torque can stop it: it is not 0-step capturable [Koolen2012]_),
+        the double support before the next step shortened if that step could not catch the
+        DCM otherwise (:func:`dmpopt.balance.transfer_time`): after a hurried step the DCM
+        keeps running away while the weight moves over."""
+        j = i + 1
+        steps = self.plan.footsteps
+        if j >= len(steps):
+            return
+        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
+        if self._inside_both_soles(xi):
+            return
+        step = steps[j]
+        lower, upper = self._reach(step)
+        planned = float(self.plan.lift_off[j] - t)
+        swing = float(self.plan.touchdown[j] - self.plan.lift_off[j])
+        transfer = balance.transfer_time(
+            xi - self.plan.dcm(t), step.goal[:2], self.omega, lower, upper, swing,
+            min(SHORTEST_TRANSFER, planned), planned,
+        )  # fmt: skip
+        if transfer < planned - DT:
+            self.plan = self.plan.with_lift_off(j, t + transfer)
+            self._transfer = transfer
+
+    def _uncross(self, step, foothold) -> np.ndarray:
+        """``foothold`` [m], or, if its sole would come within ``FOOT_CLEARANCE`` of the
+        standing sole (:func:`dmpopt.balance.polygons_overlap`), the nearest foothold of the
+        box without crossing: a crossing step is taken only where the feet pass each
+        other, ahead or behind."""
+        stance = self.robot.foot_frames[1 - self.robot.foot_frames.index(self._frame(step))]
+        placement = self.data.oMf[self.robot.model.getFrameId(stance)]
+        swing = self._tilt @ self.sole_rotation[self._frame(step)]
+        outline = self._sole_outline(swing, foothold)
+        standing = self._sole_outline(placement.rotation, placement.translation[:2])
+        if not balance.polygons_overlap(outline, standing, FOOT_CLEARANCE):
+            return foothold
+        return np.clip(foothold, *self._reach(step, crossing=False))
+
+    def _sole_outline(self, rotation, position) -> np.ndarray:
+        """The sole's corners [m] (counter-clockwise) seen from above, the sole frame at
+        ``position`` (x, y) with ``rotation``."""
+        corners = (rotation @ np.asarray(self.robot.sole_corners).T).T[:, :2]
+        return balance.convex_hull(corners + position)
+
+    def _inside_both_soles(self, point) -> bool:
+        """Whether ``point`` [m] lies in the convex hull of both soles (shrunk by
+        ``SUPPORT_MARGIN``)."""
+        local = np.column_stack([self._polygon_corners, np.zeros(len(self._polygon_corners))])
+        corners = [
+            (self.data.oMf[f].rotation @ local.T).T[:, :2] + self.data.oMf[f].translation[:2]
+            for f in self._frame_ids
+        ]
+        hull = balance.convex_hull(np.vstack(corners))
+        return bool(np.allclose(balance.clip_to_polygon(point, hull), point, atol=0.0))
+
+    def _reach(self, step, crossing: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """The box [m] the swinging foot of ``step`` can reach from its stance foot: with
+        ``crossing``, past the stance foot's line by up to ``-CROSSING`` (a crossing step,
+        :meth:`_uncross` keeps the soles apart)."""
+        inner = CROSSING if crossing else REACH_LATERAL[0]
+        lateral = np.array([inner, REACH_LATERAL[1]]) * (1.0 if step.side == "left" else -1.0)
+        lower = step.stance[:2] + np.array([REACH_BACKWARD, lateral.min()])
+        upper = step.stance[:2] + np.array([REACH_FORWARD, lateral.max()])
+        return lower, upper
 
     def _com_targets(self, t: float, com, com_velocity) -> None:
         """The CoM task: the LIPM acceleration of the commanded ZMP (feedback), or the

@@ -10,8 +10,9 @@
   after the push ran out had counted as surviving. The largest survived impulse is found by
   bisection on ``[0, PUSH_RANGE]`` and reported as a bound ("at least X N s": the largest
   impulse tried and survived; survival is not monotone in the impulse, so a bound holds for
-  the impulses tried), with the balance feedback (DCM feedback, step adjustment and timing)
-  and without (the CoM tracks the plan). Quick mode: two lateral trials with the feedback.
+  the impulses tried), with the balance feedback (DCM feedback, step adjustment and timing,
+  shortened double supports, crossing steps: :class:`talos_walk.Walker`) and without (the
+  CoM tracks the plan). Quick mode: two lateral trials with the feedback.
 - Uneven ground: an unplanned step down (the robot starts on a ``STEP_HEIGHT`` platform whose
   edge lies between two footholds), step up (a box of that height ahead) and a ``SLOPE``
   (2 degrees, rising from the same place), with forward

@@ -90,6 +90,24 @@ def test_com_height_follows_the_ground_under_the_zmp():
     assert walker._ground_offset(before) == (0.0, 0.0)
 
 
+def test_a_crossing_step_is_kept_only_where_the_soles_stay_apart():
+    """The left foot steps past the right (standing) foot's line by 4 cm: 0.3 m ahead its
+    sole (0.21 m long) is 0.09 m clear of the other, more than the 2 cm clearance, and the
+    foothold is kept; 0.2 m ahead the soles would overlap, and the foothold goes back to the
+    nearest point of the box without crossing, 0.15 m to the left of the standing foot
+    (written here from the sole's size)."""
+    robot, q0 = talos_walk._robot_and_start()
+    plan, swing_dmps = talos_walk.build_plan(robot, q0, quick=True)
+    walker = talos_walk.Walker(robot, q0, plan, swing_dmps)
+    step = next(s for s in plan.footsteps if s.side == "left")
+    right = walker.data.oMf[robot.model.getFrameId(robot.foot_frames[1])].translation[:2]
+    clear = right + [0.3, -0.04]
+    np.testing.assert_array_equal(walker._uncross(step, clear), clear)
+    close = right + [0.2, -0.04]
+    expected = [close[0], step.stance[1] + talos_walk.REACH_LATERAL[0]]
+    assert walker._uncross(step, close) == pytest.approx(expected, abs=1e-12)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["step_up", "slope", "step_down"])
 def test_unplanned_uneven_ground_is_walked_with_every_foothold_on_target(kind):

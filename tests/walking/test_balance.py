@@ -20,8 +20,10 @@ from dmpopt.balance import (
     dcm_feedback_zmp,
     ground_tilt,
     lipm_acceleration,
+    polygons_overlap,
     predict_dcm,
     recovery_zmp,
+    transfer_time,
 )
 from dmpopt.exceptions import InvalidInputError, ShapeError
 
@@ -178,6 +180,81 @@ def test_capture_time_lands_the_foot_on_the_reach_boundary_or_keeps_the_plan(lat
         assert (beyond <= 1e-12).all()
     if 0.15 < tau < 0.5:  # the binding axis touches its bound
         assert np.max(beyond) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_transfer_time_is_what_the_swing_leaves_of_the_time_to_reach_the_box_edge():
+    """Written out: the next foothold f_r + e exp(omega T) reaches the box's forward edge at
+    T* = ln((upper - f_r) / e) / omega; the double support is T* minus the 0.6 s swing,
+    clipped to [0.05, 0.2]."""
+    foothold = np.array([0.2, -0.2])  # the stance foot at the origin, a right step
+    lower, upper = np.array([-0.25, -0.3]), np.array([0.4, -0.15])
+    for error_x in (0.02, 0.001, 0.05):
+        t_star = np.log((0.4 - 0.2) / error_x) / OMEGA  # 0.686, 1.578, 0.413 s
+        expected = min(max(t_star - 0.6, 0.05), 0.2)  # 0.086, 0.2, 0.05 s
+        got = transfer_time([error_x, 0.0], foothold, OMEGA, lower, upper, 0.6, 0.05, 0.2)
+        assert got == pytest.approx(expected, abs=1e-12)
+    # an error inwards (towards the stance foot, y > 0) meets the box's inner side instead
+    t_star = np.log((-0.15 + 0.2) / 0.004) / OMEGA  # 0.752 s
+    got = transfer_time([0.0, 0.004], foothold, OMEGA, lower, upper, 0.6, 0.05, 0.2)
+    assert got == pytest.approx(t_star - 0.6, abs=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05))
+def test_transfer_time_keeps_the_next_foothold_in_reach(error_x, error_y):
+    """f(T) = f_r + e exp(omega T) written here, T = the double support + the 0.6 s swing:
+    in the box unless the double support is at its shortest, on its edge when strictly
+    between the shortest and the planned one."""
+    foothold, error = np.array([0.2, -0.2]), np.array([error_x, error_y])
+    lower, upper = np.array([-0.25, -0.3]), np.array([0.4, -0.15])
+    transfer = transfer_time(error, foothold, OMEGA, lower, upper, 0.6, 0.05, 0.2)
+    assert 0.05 <= transfer <= 0.2
+    f = foothold + error * np.exp(OMEGA * (transfer + 0.6))
+    outside = np.maximum(lower - f, f - upper)  # > 0: out of the box
+    if transfer > 0.05:
+        assert (outside <= 1e-12).all()
+    if 0.05 < transfer < 0.2:
+        assert np.max(outside) == pytest.approx(0.0, abs=1e-9)
+
+
+def _rectangle(x, y, length=0.21, width=0.138):
+    """A Talos sole's outline (0.21 m x 0.138 m) centred at (x, y), counter-clockwise."""
+    dx, dy = length / 2, width / 2
+    return np.array([[x - dx, y - dy], [x + dx, y - dy], [x + dx, y + dy], [x - dx, y + dy]])
+
+
+def test_soles_overlap_checked_on_hand_made_rectangles():
+    """Side by side 0.17 m apart the soles are 0.17 - 0.138 = 0.032 m apart; a crossing step
+    5 cm past the other sole's line is clear when 0.3 m ahead (gap 0.3 - 0.21 = 0.09 m) and
+    not when 0.22 m ahead with a 2 cm clearance (gap 0.01 m)."""
+    stance = _rectangle(0.0, 0.0)
+    assert not polygons_overlap(stance, _rectangle(0.0, 0.17))
+    assert not polygons_overlap(stance, _rectangle(0.0, 0.17), clearance=0.03)
+    assert polygons_overlap(stance, _rectangle(0.0, 0.17), clearance=0.04)
+    assert polygons_overlap(stance, _rectangle(0.05, 0.1))
+    assert not polygons_overlap(stance, _rectangle(0.3, -0.05), clearance=0.02)
+    assert polygons_overlap(stance, _rectangle(0.22, -0.05), clearance=0.02)
+    assert not polygons_overlap(stance, _rectangle(0.22, -0.05))
+    # a diamond (a square turned 45 degrees, vertices 1 from its centre at (2.1, 0)) beside
+    # the square [-1, 1]^2: its left vertex is 0.1 from the square's right side
+    diamond = np.array([[1.1, 0.0], [2.1, -1.0], [3.1, 0.0], [2.1, 1.0]])
+    square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    assert not polygons_overlap(square, diamond, clearance=0.05)
+    assert polygons_overlap(diamond, square, clearance=0.15)
+    assert polygons_overlap(square[::-1], diamond - [0.2, 0.0])  # clockwise works too
+    with pytest.raises(ShapeError, match="^second has shape"):
+        polygons_overlap(square, square[:2])
+
+
+@settings(max_examples=40, deadline=None)
+@given(coordinate, coordinate, st.floats(0.0, 0.05))
+def test_axis_aligned_soles_overlap_when_both_axes_are_closer_than_the_sizes(dx, dy, gap):
+    """Two axis-aligned rectangles come within ``gap`` exactly when their centres are closer
+    than (length + gap) along x and (width + gap) along y (written here)."""
+    expected = abs(dx) < 0.21 + gap and abs(dy) < 0.138 + gap
+    assume_clear = min(abs(abs(dx) - 0.21 - gap), abs(abs(dy) - 0.138 - gap)) > 1e-9
+    if assume_clear:  # away from the boundary, where rounding decides
+        assert polygons_overlap(_rectangle(0, 0), _rectangle(dx, dy), gap) == expected
 
 
 @settings(max_examples=30, deadline=None)

@@ -540,6 +540,33 @@ def test_an_early_touchdown_keeps_the_next_lift_off_and_stretches_the_double_sup
         assert kept.zmp(middle) == pytest.approx(a + fraction * (b - a), abs=1e-12)
 
 
+@settings(max_examples=15, deadline=None)
+@given(step=st.integers(1, 5), change=st.floats(-0.2, 0.3))
+def test_with_lift_off_shortens_the_double_support_and_delays_the_rest(step, change):
+    """The double support before step ``step`` ends ``change`` later (earlier if negative):
+    its start (the previous touchdown) is kept, the knots from the lift-off on are the
+    original's shifted by ``change`` (time invariance: the ZMP and DCM from there on are the
+    original's, delayed), and in the double support the ZMP moves linearly between the two
+    feet (written here)."""
+    plan = walk()
+    time = plan.lift_off[step] + change
+    moved = plan.with_lift_off(step, time)
+    assert moved.lift_off[step] == pytest.approx(time)
+    np.testing.assert_array_equal(moved.knot_times[: 2 + 2 * step], plan.knot_times[: 2 + 2 * step])
+    assert moved.knot_times[2 + 2 * step :] == pytest.approx(
+        plan.knot_times[2 + 2 * step :] + change
+    )
+    t = np.linspace(time, moved.duration, 40)
+    assert moved.zmp(t) == pytest.approx(plan.zmp(t - change), abs=1e-12)
+    assert moved.dcm(t) == pytest.approx(plan.dcm(t - change), abs=1e-12)
+    start = plan.touchdown[step - 1]
+    a, b = plan.footsteps[step - 1].stance[:2], plan.footsteps[step].stance[:2]
+    for fraction in (0.25, 0.5, 0.75):
+        assert moved.zmp(start + fraction * (time - start)) == pytest.approx(
+            a + fraction * (b - a), abs=1e-12
+        )
+
+
 def test_replanning_names_a_bad_step_or_time():
     plan = walk()
     with pytest.raises(InvalidInputError, match="^step must be < 6"):
@@ -550,3 +577,7 @@ def test_replanning_names_a_bad_step_or_time():
         plan.with_touchdown(0, plan.lift_off[1] + 0.1, shift_later=False)
     with pytest.raises(ShapeError, match="^goal has shape"):
         plan.with_goal(0, [0.0, 0.0])
+    with pytest.raises(
+        InvalidInputError, match=r"^time must be .* >= 2.6, .*start of step 1.s double support"
+    ):
+        plan.with_lift_off(1, plan.touchdown[0] - 0.01)

@@ -52,6 +52,7 @@ import dataclasses
 import time
 from contextlib import contextmanager
 
+import numba
 import numpy as np
 import pinocchio as pin
 from dmpopt_robots import load_talos
@@ -61,6 +62,7 @@ from dmpopt_studies import biped as biped_study
 from dmpopt_studies import humanoid
 
 from dmpopt.sim import MujocoSimulator
+from dmpopt.sim.kernels_mujoco import timer_reading
 
 DT = humanoid.DT
 
@@ -113,6 +115,29 @@ def _timer_costs(n: int = 2000) -> tuple[float, float]:
     return float(np.median(outer)), float(np.median(inner))
 
 
+@numba.njit
+def _untimed(clock):
+    """A compiled call of nothing with :func:`timer_reading`'s argument."""
+    clock[1] = 0.0
+
+
+def _native_timer_costs(n: int = 2000) -> tuple[float, float]:
+    """``(outer, inner)`` [s], medians: the thread time the timer of the compiled step's
+    ``mj_step`` (:func:`dmpopt.sim.kernels_mujoco.advance`) adds to a timer around the step,
+    and the time it reads around nothing itself."""
+    clock, outer, inner = np.zeros(2), [], []
+    timer_reading(clock), _untimed(clock)  # compiled before timing
+    for _ in range(n):
+        begin = time.thread_time()
+        timer_reading(clock)
+        middle = time.thread_time()
+        _untimed(clock)
+        outer.append((middle - begin) - (time.thread_time() - middle))
+        timer_reading(clock)
+        inner.append(clock[1])
+    return float(np.median(outer)), float(np.median(inner))
+
+
 class _NoMujoco:
     """A ``mujoco`` whose ``mj_step`` does nothing (the timer's own cost)."""
 
@@ -127,21 +152,24 @@ def step_timer():
     notes); yields the two lists of thread times [s], filled as the steps run (raw: the
     timer's own cost is taken off in :func:`overhead`)."""
     original = MujocoSimulator.step
-    steps, mj_steps = [], []
+    steps, mj_steps, paths = [], [], []
 
     def timed(simulator, tau, base_force=None):
         if not isinstance(simulator._mj, _TimedMujoco):
             simulator._mj = _TimedMujoco(simulator._mj)
-        simulator._mj.inner = 0.0
+        native = simulator._advance_arrays is not None and not simulator._pushes
+        simulator._mj.inner = simulator._clock[1] = 0.0
+        simulator._clock[0] = 1.0  # advance times its mj_step
         begin = time.thread_time()
         state = original(simulator, tau, base_force)
         steps.append(time.thread_time() - begin)
-        mj_steps.append(simulator._mj.inner)
+        mj_steps.append(simulator._clock[1] if native else simulator._mj.inner)
+        paths.append(native)
         return state
 
     MujocoSimulator.step = timed
     try:
-        yield steps, mj_steps
+        yield steps, mj_steps, paths
     finally:
         MujocoSimulator.step = original
 
@@ -152,19 +180,22 @@ def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> 
     _, gait = biped_study.learn_gait()
     rows = {}
     for plant in ("ideal", "realistic"):
-        with step_timer() as (steps, mj_steps):
+        with step_timer() as timings:
             parameters = realistic_plant(robot) if plant == "realistic" else None
             run("mujoco", robot, dmps, talos_seconds, parameters=parameters)
-        rows[f"talos {plant}"] = steps, mj_steps
-        with step_timer() as (steps, mj_steps):
+        rows[f"talos {plant}"] = timings
+        with step_timer() as timings:
             parameters = realistic_plant(biped) if plant == "realistic" else None
             biped_study.walk(
                 biped, gait, biped_seconds, biped_study.DEMO_FREQUENCY, plant=parameters
             )
-        rows[f"biped {plant}"] = steps, mj_steps
-    outer, inner = _timer_costs()
+        rows[f"biped {plant}"] = timings
+    costs = {False: _timer_costs(), True: _native_timer_costs()}
     table = {}
-    for name, (steps, mj_steps) in rows.items():
+    for name, (steps, mj_steps, paths) in rows.items():
+        paths = np.asarray(paths)
+        outer = np.where(paths, costs[True][0], costs[False][0])
+        inner = np.where(paths, costs[True][1], costs[False][1])
         steps = np.asarray(steps) - outer  # the timer inside the step
         mj_steps = np.asarray(mj_steps) - inner  # the timer's own reading
         step, mj_step = 1e6 * np.median(steps), 1e6 * np.median(mj_steps)
@@ -174,18 +205,22 @@ def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> 
             "mj_step_us": mj_step,
             "ratio": step / mj_step,
             "mean_ratio": float(np.sum(steps) / np.sum(mj_steps)),
+            "native": float(np.mean(paths)),
         }
     return table
 
 
 def print_overhead(table: dict) -> None:
     print("MujocoSimulator.step against mj_step, median thread time per step")
-    header = ("steps", 7), ("step [us]", 11), ("mj_step [us]", 14), ("ratio", 7), ("(means)", 9)
+    header = (
+        ("steps", 7), ("step [us]", 11), ("mj_step [us]", 14), ("ratio", 7), ("(means)", 9),
+        ("compiled mj_step", 18),
+    )  # fmt: skip
     print(f"{'':18s}" + "".join(f"{label:>{width}s}" for label, width in header))
     for name, row in table.items():
         print(
             f"{name:18s}{row['steps']:7d}{row['step_us']:11.1f}{row['mj_step_us']:14.1f}"
-            f"{row['ratio']:7.2f}{row['mean_ratio']:9.2f}"
+            f"{row['ratio']:7.2f}{row['mean_ratio']:9.2f}{row['native']:17.0%}"
         )
 
 

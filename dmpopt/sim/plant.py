@@ -345,10 +345,13 @@ class PlantRuntime:
         self.reset()
 
     def reset(self) -> None:
-        """Empty the delay line and restart the noise from the seed."""
+        """Empty the delay line and restart the noise from the seed (the arrays stay in place:
+        compiled steps hold their addresses)."""
         n = len(self.joint_names)
-        self.line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
-        self.ring = np.zeros(2, dtype=np.int64)  # the oldest command's row, line filled
+        if not hasattr(self, "line"):
+            self.line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
+            self.ring = np.zeros(2, dtype=np.int64)  # the oldest command's row, line filled
+        self.line[:], self.ring[:] = 0.0, 0
         self._applied = np.zeros(n)
         self._order = np.arange(n)
         self._rng = np.random.default_rng(self.parameters.seed)

@@ -43,7 +43,16 @@ from numba import types
 from numba.extending import intrinsic
 
 from dmpopt.exceptions import MissingDependency
-from dmpopt.sim.kernels import TABLES_HEADER, apply_torques, settle
+from dmpopt.sim.kernels import (
+    N_Q,
+    N_V,
+    NOISY,
+    QUATERNION_START,
+    STATE_OK,
+    TABLES_HEADER,
+    apply_torques,
+    settle,
+)
 
 __all__ = ["advance", "array_table", "load_library", "native_layout", "timer_reading"]
 
@@ -68,13 +77,16 @@ FIRST_UNSTABLE = 3  # ... is warning 3 (the simulator checks MuJoCo's numbering)
 # advance's arrays, in this order (array_table)
 ARRAYS = (
     "torque_limit", "line", "ring", "layout", "clock", "qpos", "qvel", "qfrc_applied",
-    "site_xpos", "tables", "constants", "work", "flags", "noise",
+    "site_xpos", "tables", "constants", "work", "flags", "noise", "normals", "next_row",
 )  # fmt: skip
 (
     TORQUE_LIMIT, LINE, RING, LAYOUT, CLOCK, QPOS, QVEL, QFRC_APPLIED, SITE_XPOS, TABLES,
-    CONSTANTS, WORK, FLAGS, NOISE,
+    CONSTANTS, WORK, FLAGS, NOISE, NORMALS, NEXT_ROW,
 ) = range(len(ARRAYS))  # fmt: skip
-_TYPES = {"ring": np.int64, "layout": np.int64, "tables": np.int64, "flags": np.bool_}  # else f8
+_TYPES = {
+    "ring": np.int64, "layout": np.int64, "tables": np.int64, "flags": np.bool_,
+    "next_row": np.int64,
+}  # fmt: skip
 
 
 _PROBE = """<mujoco><worldbody><geom type="plane" size="1 1 1"/>
@@ -310,7 +322,8 @@ def advance(tau, base_force, arrays, last_contact_time):
         non-zero, ``clock[1]`` is set to the thread time of ``mj_step`` [s], for benchmarks),
         MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and ``site_xpos`` (rows of 3), and
         :func:`~dmpopt.sim.kernels.settle`'s ``tables``, ``constants``, ``work``, ``flags``
-        and ``noise``.
+        and ``noise``, and the plant's block of ``normals`` and ``next_row``
+        (:class:`dmpopt.sim.PlantRuntime`).
     last_contact_time : float
         As :func:`~dmpopt.sim.kernels.settle`.
 
@@ -322,6 +335,9 @@ def advance(tau, base_force, arrays, last_contact_time):
         MuJoCo's time after the step [s].
     memory_full : bool
         Whether the stack and arena use passed ``MEMORY_BOUND`` of the arena.
+    drawn : bool
+        After a step in ``STATE_OK``, whether the plant's next normals are in place (or none
+        are needed: :func:`_next_normals`); if False, the caller draws them.
     """
     layout = _array(arrays, LAYOUT, np.int64)
     tables = _array(arrays, TABLES, np.int64)
@@ -335,7 +351,7 @@ def advance(tau, base_force, arrays, last_contact_time):
     if not apply_torques(
         tau, base_force, torque_limit, line, ring, qfrc_applied, dof_index, nv - tau.size
     ):
-        return STATE_BAD_INPUT, False, 0, False, 0.0, False
+        return STATE_BAD_INPUT, False, 0, False, 0.0, False, False
     if clock[0]:
         begin = _thread_time()
         _mj_step(layout[MODEL], layout[DATA])
@@ -361,15 +377,35 @@ def advance(tau, base_force, arrays, last_contact_time):
     position = contacts[:, layout[POS] : layout[POS] + 3]
     first = (header[layout[EFC_FORCE]] - layout[ARENA]) // 8
     efc_force = arena[first : first + nefc]
+    noise = _array(arrays, NOISE, np.float64)
     status, any_contact, n_started, check_fall = settle(
         _array(arrays, QPOS, np.float64), _array(arrays, QVEL, np.float64), warnings, geom,
         efc_address, frame, position, efc_force,
         _array(arrays, SITE_XPOS, np.float64).reshape(-1, 3), tables,
         _array(arrays, CONSTANTS, np.float64), _array(arrays, WORK, np.float64),
-        _array(arrays, FLAGS, np.bool_), _array(arrays, NOISE, np.float64), time,
-        last_contact_time,
+        _array(arrays, FLAGS, np.bool_), noise, time, last_contact_time,
     )  # fmt: skip
-    return status, any_contact, n_started, check_fall, time, memory_full
+    drawn = status == STATE_OK and _next_normals(
+        tables, noise, _array(arrays, NORMALS, np.float64), _array(arrays, NEXT_ROW, np.int64)
+    )
+    return status, any_contact, n_started, check_fall, time, memory_full, drawn
+
+
+@_compile
+def _next_normals(tables, noise, normals, next_row):
+    """The plant's :meth:`~dmpopt.sim.PlantRuntime.draw_next` while its block of normals
+    lasts: the next row into the normals at the start of ``noise``. True if done or not
+    needed (no noise), False if the block is used up (the caller draws)."""
+    if not tables[NOISY]:
+        return True
+    n_draws = tables[N_Q] + tables[N_V] + (3 if tables[QUATERNION_START] >= 0 else 0)
+    row = next_row[0]
+    if row == normals.size // n_draws:
+        return False
+    for i in range(n_draws):
+        noise[i] = normals[row * n_draws + i]
+    next_row[0] = row + 1
+    return True
 
 
 @_compile

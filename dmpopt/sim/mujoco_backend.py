@@ -122,6 +122,7 @@ _UNSTABLE = slice(
 _NONE = np.zeros(0, dtype=np.int32)
 _NO_FORCE = np.zeros(0)
 _FLOAT = np.dtype(float)
+_new = object.__new__
 
 
 @dataclass(frozen=True)
@@ -796,7 +797,8 @@ class MujocoSimulator(Backend):
             "layout": layout, "clock": self._clock, "qpos": self._qpos, "qvel": self._qvel,
             "qfrc_applied": self._qfrc_applied, "site_xpos": self._site_xpos,
             "tables": self._tables, "constants": self._constants, "work": self._work,
-            "flags": self._flags, "noise": plant.noise,
+            "flags": self._flags, "noise": plant.noise, "normals": plant.normals,
+            "next_row": plant.next_row,
         }  # fmt: skip
         self._advance_arrays = kernels_mujoco.array_table(self._native_arrays)
         advance.compile(
@@ -1006,13 +1008,14 @@ class MujocoSimulator(Backend):
         if self.fall_detector is not self._packed_detector:
             self._pack_fall_checks()
         if self._advance_arrays is not None and not self._pushes:
-            status, any_contact, n_started, check_fall, time, memory_full = advance(
+            status, any_contact, n_started, check_fall, time, memory_full, drawn = advance(
                 tau, force, self._advance_arrays, self._last_contact_time
             )
             if memory_full:  # a MuJoCo error from here on would end the process
                 self._leave_native("MuJoCo's stack and arena use passed half its arena")
         else:
             status, any_contact, n_started, check_fall, time = self._step_bindings(tau, force)
+            drawn = False
         if status != STATE_OK:
             self._raise_for(status, tau, base_force)
         self._last_touchdowns = ()
@@ -1021,7 +1024,7 @@ class MujocoSimulator(Backend):
             if n_started:
                 self._record_touchdowns()
         plant = self.plant
-        if plant.noisy:
+        if not drawn and plant.noisy:
             plant.draw_next()
         if check_fall or not self._screened:
             self._check_fall()
@@ -1029,10 +1032,16 @@ class MujocoSimulator(Backend):
         q_measured, v_measured = q, v
         if plant.noisy:
             q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
-        return SimState._of_step(
-            time, q, v, self._forces.copy(), self._in_contact.copy(),
-            self._positions.copy(), self._last_touchdowns, self.fall, q_measured, v_measured,
+        # SimState(...) without the frozen dataclass's per-field object.__setattr__ (a third
+        # of the cost) and the call of a constructor: the same object
+        state = _new(SimState)
+        state.__dict__.update(
+            t=time, q=q, v=v, contact_forces=self._forces.copy(),
+            in_contact=self._in_contact.copy(), contact_positions=self._positions.copy(),
+            touchdowns=self._last_touchdowns, fall=self.fall, q_measured=q_measured,
+            v_measured=v_measured,
         )  # fmt: skip
+        return state
 
     def _step_bindings(self, tau, force) -> tuple:
         """:func:`dmpopt.sim.kernels_mujoco.advance` through the Python bindings: the step's

@@ -78,11 +78,14 @@ FIRST_UNSTABLE = 3  # ... is warning 3 (the simulator checks MuJoCo's numbering)
 ARRAYS = (
     "torque_limit", "line", "ring", "layout", "clock", "qpos", "qvel", "qfrc_applied",
     "site_xpos", "tables", "constants", "work", "flags", "noise", "normals", "next_row",
+    "contact_time",
 )  # fmt: skip
 (
     TORQUE_LIMIT, LINE, RING, LAYOUT, CLOCK, QPOS, QVEL, QFRC_APPLIED, SITE_XPOS, TABLES,
-    CONSTANTS, WORK, FLAGS, NOISE, NORMALS, NEXT_ROW,
+    CONSTANTS, WORK, FLAGS, NOISE, NORMALS, NEXT_ROW, CONTACT_TIME,
 ) = range(len(ARRAYS))  # fmt: skip
+# advance's events: what the caller does after a step (bits)
+TOUCHDOWN, CHECK_FALL, MEMORY_FULL, DRAW = 1, 2, 4, 8
 _TYPES = {
     "ring": np.int64, "layout": np.int64, "tables": np.int64, "flags": np.bool_,
     "next_row": np.int64,
@@ -303,7 +306,7 @@ def _array(arrays, k, dtype):
 
 
 @_compile
-def advance(tau, base_force, arrays, last_contact_time):
+def advance(tau, base_force, arrays):
     """One step of the MuJoCo simulator: torques, MuJoCo's ``mj_step``, the read-out.
 
     Writes the torques as :func:`dmpopt.sim.kernels.apply_torques` (returns
@@ -320,24 +323,23 @@ def advance(tau, base_force, arrays, last_contact_time):
         The :func:`array_table` of the arrays named in ``ARRAYS``: the plant's torque limits,
         delay line (rows of ``tau.size``) and ring, the layout, the clock (with ``clock[0]``
         non-zero, ``clock[1]`` is set to the thread time of ``mj_step`` [s], for benchmarks),
-        MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and ``site_xpos`` (rows of 3), and
+        MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and ``site_xpos`` (rows of 3),
         :func:`~dmpopt.sim.kernels.settle`'s ``tables``, ``constants``, ``work``, ``flags``
-        and ``noise``, and the plant's block of ``normals`` and ``next_row``
-        (:class:`dmpopt.sim.PlantRuntime`).
-    last_contact_time : float
-        As :func:`~dmpopt.sim.kernels.settle`.
+        and ``noise``, the plant's block of ``normals`` and ``next_row``
+        (:class:`dmpopt.sim.PlantRuntime`), and ``contact_time``: the end of the last step
+        with a contact [s] (NaN: none yet), updated here.
 
     Returns
     -------
-    status, any_contact, n_started, check_fall
-        As :func:`dmpopt.sim.kernels.settle` (status ``STATE_BAD_INPUT`` above).
+    status : int
+        As :func:`dmpopt.sim.kernels.settle` (or ``STATE_BAD_INPUT`` above).
     time : float
         MuJoCo's time after the step [s].
-    memory_full : bool
-        Whether the stack and arena use passed ``MEMORY_BOUND`` of the arena.
-    drawn : bool
-        After a step in ``STATE_OK``, whether the plant's next normals are in place (or none
-        are needed: :func:`_next_normals`); if False, the caller draws them.
+    events : int
+        Bits, after a step in ``STATE_OK``: ``TOUCHDOWN`` (some point started touching),
+        ``CHECK_FALL`` (settle's ``check_fall``), ``MEMORY_FULL`` (the stack and arena use
+        passed ``MEMORY_BOUND`` of the arena), ``DRAW`` (the plant's block of normals is used
+        up: the caller draws the next tick's, :func:`_next_normals`).
     """
     layout = _array(arrays, LAYOUT, np.int64)
     tables = _array(arrays, TABLES, np.int64)
@@ -346,12 +348,12 @@ def advance(tau, base_force, arrays, last_contact_time):
     line = _array(arrays, LINE, np.float64).reshape(-1, tau.size)
     ring = _array(arrays, RING, np.int64)
     clock = _array(arrays, CLOCK, np.float64)
-    nq, nv = tables[0], tables[1]
+    nq, nv = tables[N_Q], tables[N_V]
     dof_index = tables[TABLES_HEADER + nq : TABLES_HEADER + nq + nv]
     if not apply_torques(
         tau, base_force, torque_limit, line, ring, qfrc_applied, dof_index, nv - tau.size
     ):
-        return STATE_BAD_INPUT, False, 0, False, 0.0, False, False
+        return STATE_BAD_INPUT, 0.0, 0
     if clock[0]:
         begin = _thread_time()
         _mj_step(layout[MODEL], layout[DATA])
@@ -362,8 +364,6 @@ def advance(tau, base_force, arrays, last_contact_time):
     arena = numba.carray(_pointer(layout[ARENA], np.float64), layout[ARENA_WORDS])
     ints, reals = header.view(np.int32), header.view(np.float64)
     time = reals[layout[TIME]]
-    used = header[layout[MAXUSE_STACK]] + header[layout[MAXUSE_ARENA]]
-    memory_full = used > MEMORY_BOUND * 8 * layout[ARENA_WORDS]
     stride = layout[WARNING_SIZE]
     warnings = ints[layout[WARNINGS] : layout[WARNINGS] + stride * UNSTABLE_WARNINGS : stride]
     ncon, nefc = ints[layout[NCON]], ints[layout[NEFC]]
@@ -378,17 +378,26 @@ def advance(tau, base_force, arrays, last_contact_time):
     first = (header[layout[EFC_FORCE]] - layout[ARENA]) // 8
     efc_force = arena[first : first + nefc]
     noise = _array(arrays, NOISE, np.float64)
+    contact_time = _array(arrays, CONTACT_TIME, np.float64)
     status, any_contact, n_started, check_fall = settle(
         _array(arrays, QPOS, np.float64), _array(arrays, QVEL, np.float64), warnings, geom,
         efc_address, frame, position, efc_force,
         _array(arrays, SITE_XPOS, np.float64).reshape(-1, 3), tables,
         _array(arrays, CONSTANTS, np.float64), _array(arrays, WORK, np.float64),
-        _array(arrays, FLAGS, np.bool_), noise, time, last_contact_time,
+        _array(arrays, FLAGS, np.bool_), noise, time, contact_time[0],
     )  # fmt: skip
-    drawn = status == STATE_OK and _next_normals(
-        tables, noise, _array(arrays, NORMALS, np.float64), _array(arrays, NEXT_ROW, np.int64)
-    )
-    return status, any_contact, n_started, check_fall, time, memory_full, drawn
+    if status != STATE_OK:
+        return status, time, 0
+    if any_contact:
+        contact_time[0] = time
+    events = (TOUCHDOWN if n_started else 0) | (CHECK_FALL if check_fall else 0)
+    used = header[layout[MAXUSE_STACK]] + header[layout[MAXUSE_ARENA]]
+    if used > MEMORY_BOUND * 8 * layout[ARENA_WORDS]:
+        events |= MEMORY_FULL
+    next_row = _array(arrays, NEXT_ROW, np.int64)
+    if not _next_normals(tables, noise, _array(arrays, NORMALS, np.float64), next_row):
+        events |= DRAW
+    return status, time, events
 
 
 @_compile

@@ -750,6 +750,8 @@ class MujocoSimulator(Backend):
         self._q_measured = self._work[at : at + nq]
         self._v_measured = self._work[at + nq :]
         self._flags = np.zeros(2 * n_points, dtype=bool)
+        self._contact_time = np.full(1, math.nan)  # end of the last step with a contact [s]
+        self._noisy = self.plant.noisy
         self._in_contact, self._started = self._flags[:n_points], self._flags[n_points:]
         self._qpos, self._qvel, self._qfrc_applied = data.qpos, data.qvel, data.qfrc_applied
         self._site_xpos, self._warnings = data.site_xpos, data.warning.number[_UNSTABLE]
@@ -798,12 +800,12 @@ class MujocoSimulator(Backend):
             "qfrc_applied": self._qfrc_applied, "site_xpos": self._site_xpos,
             "tables": self._tables, "constants": self._constants, "work": self._work,
             "flags": self._flags, "noise": plant.noise, "normals": plant.normals,
-            "next_row": plant.next_row,
+            "next_row": plant.next_row, "contact_time": self._contact_time,
         }  # fmt: skip
         self._advance_arrays = kernels_mujoco.array_table(self._native_arrays)
         advance.compile(
             tuple(numba.typeof(a) for a in (np.zeros(self.n_actuated), _NO_FORCE,
-                                             self._advance_arrays, math.nan))
+                                             self._advance_arrays))
         )  # fmt: skip
 
     def _leave_native(self, reason: str) -> None:
@@ -935,7 +937,7 @@ class MujocoSimulator(Backend):
         self.plant.reset()
         self.plant.draw()
         self._read_contacts()
-        self._last_contact_time = t if self._in_contact.any() else math.nan  # NaN: none yet
+        self._contact_time[0] = t if self._in_contact.any() else math.nan  # NaN: none yet
         return self.state
 
     @property
@@ -1008,29 +1010,17 @@ class MujocoSimulator(Backend):
         if self.fall_detector is not self._packed_detector:
             self._pack_fall_checks()
         if self._advance_arrays is not None and not self._pushes:
-            status, any_contact, n_started, check_fall, time, memory_full, drawn = advance(
-                tau, force, self._advance_arrays, self._last_contact_time
-            )
-            if memory_full:  # a MuJoCo error from here on would end the process
-                self._leave_native("MuJoCo's stack and arena use passed half its arena")
+            status, time, events = advance(tau, force, self._advance_arrays)
         else:
-            status, any_contact, n_started, check_fall, time = self._step_bindings(tau, force)
-            drawn = False
+            status, time, events = self._step_bindings(tau, force)
         if status != STATE_OK:
             self._raise_for(status, tau, base_force)
         self._last_touchdowns = ()
-        if any_contact:
-            self._last_contact_time = time  # end of a step with contact
-            if n_started:
-                self._record_touchdowns()
-        plant = self.plant
-        if not drawn and plant.noisy:
-            plant.draw_next()
-        if check_fall or not self._screened:
-            self._check_fall()
+        if events or not self._screened:
+            self._after_step(events)
         q, v = self._q.copy(), self._v.copy()
         q_measured, v_measured = q, v
-        if plant.noisy:
+        if self._noisy:
             q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
         # SimState(...) without the frozen dataclass's per-field object.__setattr__ (a third
         # of the cost) and the call of a constructor: the same object
@@ -1046,13 +1036,13 @@ class MujocoSimulator(Backend):
     def _step_bindings(self, tau, force) -> tuple:
         """:func:`dmpopt.sim.kernels_mujoco.advance` through the Python bindings: the step's
         torques, ``mj_step`` (``mj_step1``, the pushes, ``mj_step2`` while a push acts) and
-        :func:`dmpopt.sim.kernels.settle`, the same numbers; its first five results."""
+        :func:`dmpopt.sim.kernels.settle`, the same numbers and results."""
         plant, data = self.plant, self.mj_data
         if not apply_torques(
             tau, force, plant.torque_limit, plant.line, plant.ring, self._qfrc_applied,
             self._dof_index, self.n_base_dofs,
         ):  # fmt: skip
-            return STATE_BAD_INPUT, False, 0, False, math.nan
+            return STATE_BAD_INPUT, 0.0, 0
         if self._pushes:
             self._mj.mj_step1(self.mj_model, data)  # kinematics and collisions at the start
             self._apply_pushes()
@@ -1061,12 +1051,36 @@ class MujocoSimulator(Backend):
             self._mj.mj_step(self.mj_model, data)
         contact = data.contact  # contacts found and solved at the start of the step
         time = data.time
-        return *settle(
+        status, any_contact, n_started, check_fall = settle(
             self._qpos, self._qvel, self._warnings, contact.geom, contact.efc_address,
             contact.frame, contact.pos, data.efc_force, self._site_xpos, self._tables,
             self._constants, self._work, self._flags, plant.noise, time,
-            self._last_contact_time,
-        ), time  # fmt: skip
+            self._contact_time[0],
+        )  # fmt: skip
+        if status != STATE_OK:
+            return status, time, 0
+        if any_contact:
+            self._contact_time[0] = time  # end of a step with contact
+        events = (
+            (kernels_mujoco.TOUCHDOWN if n_started else 0)
+            | (kernels_mujoco.CHECK_FALL if check_fall else 0)
+            | (kernels_mujoco.DRAW if self._noisy else 0)
+        )
+        return status, time, events
+
+    def _after_step(self, events: int) -> None:
+        """What a step's ``events`` (:func:`dmpopt.sim.kernels_mujoco.advance`) ask for, in
+        order: record touchdowns, draw the next tick's normals, check for a fall; and leave
+        the compiled step when MuJoCo's memory fills (a MuJoCo error there would end the
+        process)."""
+        if events & kernels_mujoco.MEMORY_FULL:
+            self._leave_native("MuJoCo's stack and arena use passed half its arena")
+        if events & kernels_mujoco.TOUCHDOWN:
+            self._record_touchdowns()
+        if events & kernels_mujoco.DRAW:
+            self.plant.draw_next()
+        if events & kernels_mujoco.CHECK_FALL or not self._screened:
+            self._check_fall()
 
     def _raise_for(self, status: int, tau, base_force) -> None:
         """Raise for a step that did not end in ``STATE_OK``."""
@@ -1126,7 +1140,7 @@ class MujocoSimulator(Backend):
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
         height, tilt, spin = self._watched.height_tilt_spin(self._q, self._v)
-        last = self._last_contact_time
+        last = float(self._contact_time[0])
         t = self.mj_data.time
         self.fall = self.fall_detector.check(
             t, height, tilt, 0.0 if math.isnan(last) else t - last, spin

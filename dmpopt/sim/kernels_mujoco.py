@@ -12,22 +12,29 @@ How the compiled code reaches MuJoCo
     ``mujoco`` package, already loaded with them) is made known to numba's linker by path, and
     :func:`advance` calls its ``mj_step(const mjModel*, mjData*)`` by name (the two addresses
     passed as unsigned integers, as pointers are passed on the platforms MuJoCo supports), so
-    the kernel stays cached on disk. The arrays MuJoCo keeps in place (``qpos``, ``qvel``,
-    ``qfrc_applied``, ``site_xpos``, the warning counters) are the bindings' numpy views; what
-    moves with each step (the number of contacts, the contacts and the constraint forces in
-    MuJoCo's arena, the time) is read through two views made here, of the ``mjData`` struct
-    and of its arena, at offsets from the struct declarations the ``mujoco`` package ships
-    (``mujoco.introspect``), laid out by :mod:`ctypes`. :func:`native_layout` checks every
-    offset it uses against the bindings' own reading of a data with contacts; any difference,
-    a ``mujoco`` without those declarations or without ``_address``, or a shared library not
-    found raises :class:`dmpopt.exceptions.MissingDependency`, and the simulator then steps
-    through the bindings (the same states, bit for bit).
+    the kernel stays cached on disk. What moves with each step (the number of contacts, the
+    contacts and the constraint forces in MuJoCo's arena, the time, the warning counters) is
+    read from the ``mjData`` struct and its arena at offsets from the struct declarations the
+    ``mujoco`` package ships (``mujoco.introspect``), laid out by :mod:`ctypes`.
+    :func:`native_layout` checks every offset it uses against the bindings' own views of a
+    data with contacts; any difference, a ``mujoco`` without those declarations or without
+    ``_address``, or a shared library not found raises
+    :class:`dmpopt.exceptions.MissingDependency`, and the simulator then steps through the
+    bindings (the same states, bit for bit).
+Arguments
+    A numba call costs about 70 ns per array argument, and more when its caches have gone
+    cold between two steps, so :func:`advance` takes the torques, the base force and one
+    int64 array of the addresses and sizes of every other array it uses (:func:`array_table`:
+    MuJoCo's arrays that stay in place, ``qpos``, ``qvel``, ``qfrc_applied``, ``site_xpos``,
+    and the simulator's and the plant's buffers, allocated once), and makes arrays of them.
+    Whoever builds the table keeps those arrays alive and in place.
 Errors and warnings
     MuJoCo's warnings (counted in ``mjData.warning``, printed by MuJoCo) come out as through
     the bindings. A MuJoCo *error* inside ``mj_step`` (its stack or arena overflowing) is an
     exception through the bindings but would end the process here, so :func:`advance` reports
     a step whose stack and arena use (``maxuse_stack + maxuse_arena``) passed half the arena
-    (:data:`MEMORY_BOUND`), and the simulator steps through the bindings from then on.
+    (``MEMORY_BOUND``), and the simulator steps through the bindings from then on. MuJoCo
+    does not change the memory of an ``mjData`` after it is made (its arena included).
 """
 
 from __future__ import annotations

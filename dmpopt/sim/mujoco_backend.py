@@ -59,8 +59,13 @@ one reaches its threshold or comes within 1e-9 (relative) of it is decided by
 :meth:`~dmpopt.sim.falls.FallDetector.check` on the watched frame's measures, as before (a
 ``FallDetector`` subclass is asked every step).
 
-Speed: a step costs ``mj_step`` plus two compiled calls and the copies of the returned state
-(``benchmarks/bench_mujoco.py --overhead`` measures the ratio).
+Speed: a step is one compiled call, :func:`dmpopt.sim.kernels_mujoco.advance` (torques,
+MuJoCo's C ``mj_step``, the read-out above), plus the copies of the returned state
+(``benchmarks/bench_mujoco.py --overhead`` measures the ratio to ``mj_step``). Steps while a
+push acts (``mj_step1``, the push, ``mj_step2``), and every step when the compiled call is not
+available (``native_step_unavailable`` says why: e.g. a ``mujoco`` without ``_address``), go
+through the Python bindings and :func:`dmpopt.sim.kernels.settle`: the same numbers, bit for
+bit.
 
 The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
 defaults to ``egl`` (headless rendering) when unset at that moment.
@@ -295,6 +300,9 @@ class MujocoSimulator(Backend):
         The thresholds in use (None: no fall checks).
     fall : Fall or None
         The fall that stopped the simulation, if any.
+    native_step_unavailable : str or None
+        Why the steps go through MuJoCo's Python bindings instead of the compiled call with
+        MuJoCo's ``mj_step`` inside (module docstring, Speed); None while they do not.
     """
 
     def __init__(

@@ -85,6 +85,9 @@ def test_the_compiled_step_is_the_bindings_step_bit_for_bit(biped):
     assert_same(first, second)
     assert first[-1].fallen and sum(len(s.touchdowns) for s in first) > 0
     assert native._advance_arrays is not None  # still compiled after the run
+    # MuJoCo kept the data's memory in place through the resets and steps
+    layout = kernels_mujoco.native_layout(mujoco, native.mj_model, native.mj_data)
+    np.testing.assert_array_equal(native._native_arrays["layout"], layout)
 
 
 def test_a_free_base_steps_the_same_on_both_paths(talos):

@@ -43,6 +43,7 @@ Errors and warnings
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 from pathlib import Path
 
@@ -217,11 +218,10 @@ def native_layout(mujoco, mj_model, mj_data) -> np.ndarray:
             f"this mujoco {mujoco.__version__} does not give the C address of its MjModel and "
             "MjData (_address)"
         )
-    data_type, contact_type = _ctypes_layout(mujoco)
+    data_type, contact_type = _checked_layout(mujoco)
     struct = data_type.from_address(mj_data._address)
-    if ctypes.sizeof(data_type) % 8 or ctypes.sizeof(contact_type) % 8 or struct.arena % 8:
-        raise MissingDependency("mjData or mjContact is not laid out in 8-byte words")
-    _check_layout(mujoco, data_type, contact_type)
+    if struct.arena % 8:
+        raise MissingDependency("MuJoCo's arena is not aligned to 8 bytes")
     warning = type(struct.warning[0])
     layout = np.zeros(LAYOUT_SIZE, dtype=np.int64)
     layout[NCON], layout[NEFC] = data_type.ncon.offset // 4, data_type.nefc.offset // 4
@@ -257,6 +257,17 @@ def array_table(arrays: dict) -> np.ndarray:
             )
         table[2 * k], table[2 * k + 1] = array.ctypes.data, array.size
     return table
+
+
+@functools.cache
+def _checked_layout(mujoco):
+    """:func:`_ctypes_layout`, checked against the bindings (:func:`_check_layout`), once
+    per ``mujoco`` module."""
+    data_type, contact_type = _ctypes_layout(mujoco)
+    if ctypes.sizeof(data_type) % 8 or ctypes.sizeof(contact_type) % 8:
+        raise MissingDependency("mjData or mjContact is not laid out in 8-byte words")
+    _check_layout(mujoco, data_type, contact_type)
+    return data_type, contact_type
 
 
 def _check_layout(mujoco, data_type, contact_type) -> None:

@@ -28,13 +28,14 @@ URDF in link positions [m] and rotation matrices, link velocities (local frame),
 and the bias forces (relative to their largest entry), after the coordinate change.
 
 Last, the step overhead (``--overhead`` prints only this): the CPU time (thread time) of
-``MujocoSimulator.step`` against that of the ``mj_step`` it calls, on alternate steps of the
-same run: one step is timed whole, the next times only its ``mj_step``, so neither reading
-holds the other's timer. The ``mj_step`` is timed inside the step: in the compiled call
-(:func:`dmpopt.sim.kernels_mujoco.advance`) by its own clock, on steps through the Python
-bindings (a push, or no compiled call) by wrapping the simulator's ``mujoco`` module
-(``mj_step``, or ``mj_step1`` + ``mj_step2``); the timers' own costs (a reading around
-nothing, two thread-time reads in a row), measured in the same run, are taken off. (Earlier
+``MujocoSimulator.step`` against that of the ``mj_step`` it calls, on steps of the same run
+drawn at random (seeded): a step is timed whole or times only its ``mj_step``, so neither
+reading holds the other's timer (drawn, not alternate: the biped's DMP steps every 4th tick,
+and the step after it finds colder caches). The ``mj_step`` is timed inside the step: in the
+compiled call (:func:`dmpopt.sim.kernels_mujoco.advance`) by its own clock, on steps through
+the Python bindings (a push, or no compiled call) by wrapping the simulator's ``mujoco``
+module (``mj_step``, or ``mj_step1`` + ``mj_step2``); the timers' own costs (a reading
+around nothing, two thread-time reads in a row), measured in the same run, are taken off. (Earlier
 versions ran ``mj_step`` on a copy of the data beside the step: copying before the step
 evicted the step's Python objects from the cache (the walking biped's step measured 85-95 us
 after a copy, 50 us without), and a copy kept in step and run right after the step found
@@ -55,6 +56,7 @@ Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped
 
 import argparse
 import dataclasses
+import random
 import time
 from contextlib import contextmanager
 
@@ -147,18 +149,19 @@ class _NoMujoco:
 
 @contextmanager
 def step_timer():
-    """Time ``MujocoSimulator.step`` and the ``mj_step`` it calls, on alternate steps (see
-    the module notes); yields the lists of thread times [s] of the steps, of the ``mj_step``
-    calls and whether each went through the compiled call, filled as the steps run (raw: the
-    timers' own costs are taken off in :func:`overhead`)."""
+    """Time ``MujocoSimulator.step`` and the ``mj_step`` it calls, each on half the steps
+    drawn at random (see the module notes); yields the lists of thread times [s] of the
+    steps, of the ``mj_step`` calls and whether each went through the compiled call, filled as
+    the steps run (raw: the timers' own costs are taken off in :func:`overhead`)."""
     original = MujocoSimulator.step
     steps, mj_steps, paths, mj_paths = [], [], [], []
+    roles = random.Random(0)  # not alternate: the biped's DMP steps every 4th tick
 
     def timed(simulator, tau, base_force=None):
         module = simulator._mj
         if isinstance(module, _TimedMujoco):
             module = module._module
-        inner = len(steps) > len(mj_steps)  # this step times its mj_step, the next one itself
+        inner = roles.random() < 0.5  # this step times its mj_step, else itself
         native = getattr(simulator, "_advance_arrays", None) is not None and not simulator._pushes
         simulator._mj = _TimedMujoco(module) if inner and not native else module
         if native:

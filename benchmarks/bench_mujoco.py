@@ -28,16 +28,23 @@ URDF in link positions [m] and rotation matrices, link velocities (local frame),
 and the bias forces (relative to their largest entry), after the coordinate change.
 
 Last, the step overhead (``--overhead`` prints only this): the CPU time (thread time) of
-``MujocoSimulator.step`` against that of the ``mj_step`` it calls, in the same call: the
-simulator's ``mujoco`` module is wrapped so that its ``mj_step`` (``mj_step1`` + ``mj_step2``
-on steps with a push) is timed inside the step; the timer's own cost (a timed call of nothing,
-measured in the same run) is taken off both. Same state, same forces, same caches. (Earlier
+``MujocoSimulator.step`` against that of the ``mj_step`` it calls, on steps of the same run
+drawn at random (seeded): a step is timed whole or times only its ``mj_step``, so neither
+reading holds the other's timer (drawn, not alternate: the biped's DMP steps every 4th tick,
+and the step after it finds colder caches). The ``mj_step`` is timed inside the step: in the
+compiled call (:func:`dmpopt.sim.kernels_mujoco.advance`) by its own clock, on steps through
+the Python bindings (a push, or no compiled call) by wrapping the simulator's ``mujoco``
+module (``mj_step``, or ``mj_step1`` + ``mj_step2``); the timers' own costs (a reading
+around nothing, two thread-time reads in a row), measured in the same run, are taken off. (Earlier
 versions ran ``mj_step`` on a copy of the data beside the step: copying before the step
 evicted the step's Python objects from the cache (the walking biped's step measured 85-95 us
 after a copy, 50 us without), and a copy kept in step and run right after the step found
-MuJoCo's code warm (its ``mj_step`` measured 13.5 us against 19 us inside the step).) For
-Talos drumming and the biped walking, each on the ideal and the realistic plant
-(:mod:`dmpopt_robots.plants`). The ratio of the medians is the overhead (the issue's bound: 1.5).
+MuJoCo's code warm (its ``mj_step`` measured 13.5 us against 19 us inside the step). Then
+one step held both timers: a cold clock inside the compiled call added about 1 us to the step
+that its warm cost, taken off, did not cover.) For Talos drumming and the biped walking, each
+on the ideal and the realistic plant (:mod:`dmpopt_robots.plants`). The ratio of the medians
+is the overhead (the issue's bound: 1.5); the last column is the share of the timed steps
+that went through the compiled call.
 
 ``--trace FILE`` records every state of a few runs (:func:`trace`) and ``--compare A B``
 compares two such files bitwise: run ``--trace`` on the code before a change and after it.
@@ -49,6 +56,7 @@ Run: ``python benchmarks/bench_mujoco.py [--seconds 5] [--variant full] [--biped
 
 import argparse
 import dataclasses
+import random
 import time
 from contextlib import contextmanager
 
@@ -61,6 +69,7 @@ from dmpopt_studies import biped as biped_study
 from dmpopt_studies import humanoid
 
 from dmpopt.sim import MujocoSimulator
+from dmpopt.sim.kernels_mujoco import timer_reading
 
 DT = humanoid.DT
 
@@ -100,17 +109,34 @@ class _TimedMujoco:
         self._timed(self._module.mj_step2, model, data)
 
 
-def _timer_costs(n: int = 2000) -> tuple[float, float]:
-    """``(outer, inner)`` [s], medians: the thread time the wrapped ``mj_step`` of a module
-    whose ``mj_step`` does nothing adds to a timer around it, and the time it reads itself."""
-    timed, outer, inner = _TimedMujoco(_NoMujoco), [], []
+def _timer_costs(n: int = 2000) -> float:
+    """[s], median: what the wrapped ``mj_step`` of a module whose ``mj_step`` does nothing
+    reads (the timer's own cost in its reading)."""
+    timed, inner = _TimedMujoco(_NoMujoco), []
     for _ in range(n):
         timed.inner = 0.0
-        begin = time.thread_time()
         timed.mj_step(None, None)
-        outer.append(time.thread_time() - begin)
         inner.append(timed.inner)
-    return float(np.median(outer)), float(np.median(inner))
+    return float(np.median(inner))
+
+
+def _native_timer_costs(n: int = 2000) -> float:
+    """[s], median: what the timer of the compiled step's ``mj_step``
+    (:func:`dmpopt.sim.kernels_mujoco.advance`) reads around nothing."""
+    clock, inner = np.zeros(2), []
+    for _ in range(n):
+        timer_reading(clock)
+        inner.append(clock[1])
+    return float(np.median(inner))
+
+
+def _thread_time_cost(n: int = 2000) -> float:
+    """[s], median: what two reads of the thread time with nothing between them differ by."""
+    readings = []
+    for _ in range(n):
+        begin = time.thread_time()
+        readings.append(time.thread_time() - begin)
+    return float(np.median(readings))
 
 
 class _NoMujoco:
@@ -123,25 +149,40 @@ class _NoMujoco:
 
 @contextmanager
 def step_timer():
-    """Time every ``MujocoSimulator.step`` and the ``mj_step`` it calls (see the module
-    notes); yields the two lists of thread times [s], filled as the steps run (raw: the
-    timer's own cost is taken off in :func:`overhead`)."""
+    """Time ``MujocoSimulator.step`` and the ``mj_step`` it calls, each on half the steps
+    drawn at random (see the module notes); yields the lists of thread times [s] of the
+    steps, of the ``mj_step`` calls and whether each went through the compiled call, filled as
+    the steps run (raw: the timers' own costs are taken off in :func:`overhead`)."""
     original = MujocoSimulator.step
-    steps, mj_steps = [], []
+    steps, mj_steps, paths, mj_paths = [], [], [], []
+    roles = random.Random(0)  # not alternate: the biped's DMP steps every 4th tick
 
     def timed(simulator, tau, base_force=None):
-        if not isinstance(simulator._mj, _TimedMujoco):
-            simulator._mj = _TimedMujoco(simulator._mj)
-        simulator._mj.inner = 0.0
+        module = simulator._mj
+        if isinstance(module, _TimedMujoco):
+            module = module._module
+        inner = roles.random() < 0.5  # this step times its mj_step, else itself
+        native = getattr(simulator, "_advance_arrays", None) is not None and not simulator._pushes
+        simulator._mj = _TimedMujoco(module) if inner and not native else module
+        if native:
+            simulator._clock[:] = float(inner), 0.0  # advance times its mj_step
         begin = time.thread_time()
         state = original(simulator, tau, base_force)
-        steps.append(time.thread_time() - begin)
-        mj_steps.append(simulator._mj.inner)
+        elapsed = time.thread_time() - begin
+        if not inner:
+            steps.append(elapsed)
+            paths.append(native)
+        elif native:
+            mj_steps.append(simulator._clock[1])
+            mj_paths.append(True)
+        else:
+            mj_steps.append(simulator._mj.inner)
+            mj_paths.append(False)
         return state
 
     MujocoSimulator.step = timed
     try:
-        yield steps, mj_steps
+        yield steps, mj_steps, paths, mj_paths
     finally:
         MujocoSimulator.step = original
 
@@ -152,21 +193,22 @@ def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> 
     _, gait = biped_study.learn_gait()
     rows = {}
     for plant in ("ideal", "realistic"):
-        with step_timer() as (steps, mj_steps):
+        with step_timer() as timings:
             parameters = realistic_plant(robot) if plant == "realistic" else None
             run("mujoco", robot, dmps, talos_seconds, parameters=parameters)
-        rows[f"talos {plant}"] = steps, mj_steps
-        with step_timer() as (steps, mj_steps):
+        rows[f"talos {plant}"] = timings
+        with step_timer() as timings:
             parameters = realistic_plant(biped) if plant == "realistic" else None
             biped_study.walk(
                 biped, gait, biped_seconds, biped_study.DEMO_FREQUENCY, plant=parameters
             )
-        rows[f"biped {plant}"] = steps, mj_steps
-    outer, inner = _timer_costs()
+        rows[f"biped {plant}"] = timings
+    inner = {False: _timer_costs(), True: _native_timer_costs()}
+    outer = _thread_time_cost()
     table = {}
-    for name, (steps, mj_steps) in rows.items():
-        steps = np.asarray(steps) - outer  # the timer inside the step
-        mj_steps = np.asarray(mj_steps) - inner  # the timer's own reading
+    for name, (steps, mj_steps, paths, mj_paths) in rows.items():
+        steps = np.asarray(steps) - outer  # the timer around the step
+        mj_steps = np.asarray(mj_steps) - np.where(mj_paths, inner[True], inner[False])
         step, mj_step = 1e6 * np.median(steps), 1e6 * np.median(mj_steps)
         table[name] = {
             "steps": len(steps),
@@ -174,18 +216,23 @@ def overhead(robot, dmps, biped, talos_seconds: float, biped_seconds: float) -> 
             "mj_step_us": mj_step,
             "ratio": step / mj_step,
             "mean_ratio": float(np.sum(steps) / np.sum(mj_steps)),
+            "native": float(np.mean(paths)),
+            "mj_steps": len(mj_steps),
         }
     return table
 
 
 def print_overhead(table: dict) -> None:
     print("MujocoSimulator.step against mj_step, median thread time per step")
-    header = ("steps", 7), ("step [us]", 11), ("mj_step [us]", 14), ("ratio", 7), ("(means)", 9)
+    header = (
+        ("steps", 7), ("step [us]", 11), ("mj_step [us]", 14), ("ratio", 7), ("(means)", 9),
+        ("compiled mj_step", 18),
+    )  # fmt: skip
     print(f"{'':18s}" + "".join(f"{label:>{width}s}" for label, width in header))
     for name, row in table.items():
         print(
             f"{name:18s}{row['steps']:7d}{row['step_us']:11.1f}{row['mj_step_us']:14.1f}"
-            f"{row['ratio']:7.2f}{row['mean_ratio']:9.2f}"
+            f"{row['ratio']:7.2f}{row['mean_ratio']:9.2f}{row['native']:17.0%}"
         )
 
 

@@ -4,9 +4,11 @@ Around MuJoCo's own step, :class:`dmpopt.sim.MujocoSimulator` writes the plant's
 (saturation, delay: :func:`apply_torques`), then turns MuJoCo's state into Pinocchio's, reads
 the contact forces of the feet, makes the tick's sensor noise and screens the base for a fall.
 In NumPy that is a few dozen calls of about a microsecond each, several times MuJoCo's step
-itself; here it is two compiled calls, :func:`apply_torques` before ``mj_step`` and
-:func:`settle` after it, which write into buffers the simulator allocates once (returning
-new arrays from a compiled call costs about a microsecond each). The maths is that of
+itself; here it is :func:`apply_torques` before ``mj_step`` and :func:`settle` after it, which
+write into buffers the simulator allocates once (returning new arrays from a compiled call
+costs about a microsecond each), both inside the one compiled call that also makes MuJoCo's
+step (:func:`dmpopt.sim.kernels_mujoco.advance`), or around the ``mj_step`` of MuJoCo's
+Python bindings. The maths is that of
 :mod:`dmpopt.sim.mujoco_backend` (coordinates, contacts), :mod:`dmpopt.sim.plant` (the
 plant) and :mod:`dmpopt.sim.falls` (the watched base frame), where it is described; the fall
 screen flags a step whose measures reach a threshold or come within ``FALL_MARGIN`` of one,

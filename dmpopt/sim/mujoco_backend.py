@@ -59,8 +59,13 @@ one reaches its threshold or comes within 1e-9 (relative) of it is decided by
 :meth:`~dmpopt.sim.falls.FallDetector.check` on the watched frame's measures, as before (a
 ``FallDetector`` subclass is asked every step).
 
-Speed: a step costs ``mj_step`` plus two compiled calls and the copies of the returned state
-(``benchmarks/bench_mujoco.py --overhead`` measures the ratio).
+Speed: a step is one compiled call, :func:`dmpopt.sim.kernels_mujoco.advance` (torques,
+MuJoCo's C ``mj_step``, the read-out above), plus the copies of the returned state
+(``benchmarks/bench_mujoco.py --overhead`` measures the ratio to ``mj_step``). Steps while a
+push acts (``mj_step1``, the push, ``mj_step2``), and every step when the compiled call is not
+available (``native_step_unavailable`` says why: e.g. a ``mujoco`` without ``_address``), go
+through the Python bindings and :func:`dmpopt.sim.kernels.settle`: the same numbers, bit for
+bit.
 
 The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
 defaults to ``egl`` (headless rendering) when unset at that moment.
@@ -74,6 +79,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 import pinocchio as pin
 
@@ -85,7 +91,7 @@ from dmpopt.exceptions import (
     ShapeError,
     SimulationDiverged,
 )
-from dmpopt.sim import kernels
+from dmpopt.sim import kernels, kernels_mujoco
 from dmpopt.sim.falls import (
     Fall,
     FallDetector,
@@ -101,6 +107,7 @@ from dmpopt.sim.kernels import (
     settle,
     to_pinocchio,
 )
+from dmpopt.sim.kernels_mujoco import STATE_BAD_INPUT, advance
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
@@ -113,10 +120,14 @@ _FLOOR_BIT, _BODY_BIT = 1, 2  # contype bits: contact geometry of the feet, the 
 _PACKAGE_URI = re.compile(r"package://+([^/\"']+)/([^\"']+)")
 _ROBOT_TAG = re.compile(r"<robot\b[^>]*>")
 _FLOOR_RGBA = (0.82, 0.84, 0.86, 1.0)
-_UNSTABLE = slice(3, 6)  # MuJoCo's warnings BADQPOS, BADQVEL, BADQACC: it reset the data
+# MuJoCo's warnings BADQPOS, BADQVEL, BADQACC: it reset the data
+_UNSTABLE = slice(
+    kernels_mujoco.FIRST_UNSTABLE, kernels_mujoco.FIRST_UNSTABLE + kernels_mujoco.UNSTABLE_WARNINGS
+)
 _NONE = np.zeros(0, dtype=np.int32)
 _NO_FORCE = np.zeros(0)
 _FLOAT = np.dtype(float)
+_new = object.__new__
 
 
 @dataclass(frozen=True)
@@ -289,6 +300,9 @@ class MujocoSimulator(Backend):
         The thresholds in use (None: no fall checks).
     fall : Fall or None
         The fall that stopped the simulation, if any.
+    native_step_unavailable : str or None
+        Why the steps go through MuJoCo's Python bindings instead of the compiled call with
+        MuJoCo's ``mj_step`` inside (module docstring, Speed); None while they do not.
     """
 
     def __init__(
@@ -335,6 +349,7 @@ class MujocoSimulator(Backend):
         self._base = base_joint_kind(model)
         self.n_base_dofs = 0 if self._base is None else model.joints[1].nv
         self.n_actuated = model.nv - self.n_base_dofs
+        self._torque_shape, self._base_shape = (self.n_actuated,), (self.n_base_dofs,)
         first = 1 if self._base is None else 2
         self.plant = PlantRuntime(plant, model, self._base, model.names[first:])
 
@@ -383,6 +398,7 @@ class MujocoSimulator(Backend):
         self._index_contact_geoms(contact_points)
         self._pack_step_arrays()
         self._compile_step()
+        self._compile_advance()
         self.reset(pin.neutral(model), np.zeros(model.nv))
         if self.fall_detector is not None:  # and the fall check's, before any timed step
             self._watched.height_tilt_spin(self._q, self._v)
@@ -742,6 +758,8 @@ class MujocoSimulator(Backend):
         self._q_measured = self._work[at : at + nq]
         self._v_measured = self._work[at + nq :]
         self._flags = np.zeros(2 * n_points, dtype=bool)
+        self._contact_time = np.full(1, math.nan)  # end of the last step with a contact [s]
+        self._noisy = self.plant.noisy
         self._in_contact, self._started = self._flags[:n_points], self._flags[n_points:]
         self._qpos, self._qvel, self._qfrc_applied = data.qpos, data.qvel, data.qfrc_applied
         self._site_xpos, self._warnings = data.site_xpos, data.warning.number[_UNSTABLE]
@@ -769,6 +787,39 @@ class MujocoSimulator(Backend):
                 np.zeros(0), self._site_xpos, self._tables, self._constants, self._work,
                 self._flags, self.plant.noise, 0.0, math.nan,
             )  # fmt: skip
+
+    def _compile_advance(self) -> None:
+        """Set up the compiled step with MuJoCo's ``mj_step`` inside
+        (:mod:`dmpopt.sim.kernels_mujoco`) and compile it (or load it from numba's cache), or
+        keep in ``native_step_unavailable`` why the steps go through the Python bindings."""
+        self._advance_arrays = None
+        self.native_step_unavailable = None
+        try:
+            kernels_mujoco.load_library(self._mj)
+            layout = kernels_mujoco.native_layout(self._mj, self.mj_model, self.mj_data)
+        except MissingDependency as error:
+            self.native_step_unavailable = str(error)
+            return
+        plant = self.plant
+        self._clock = np.zeros(2)  # advance's mj_step timer (benchmarks): on, reading [s]
+        self._native_arrays = {  # kept alive here: advance reads them by address
+            "torque_limit": plant.torque_limit, "line": plant.line, "ring": plant.ring,
+            "layout": layout, "clock": self._clock, "qpos": self._qpos, "qvel": self._qvel,
+            "qfrc_applied": self._qfrc_applied, "site_xpos": self._site_xpos,
+            "tables": self._tables, "constants": self._constants, "work": self._work,
+            "flags": self._flags, "noise": plant.noise, "normals": plant.normals,
+            "next_row": plant.next_row, "contact_time": self._contact_time,
+        }  # fmt: skip
+        self._advance_arrays = kernels_mujoco.array_table(self._native_arrays)
+        advance.compile(
+            tuple(numba.typeof(a) for a in (np.zeros(self.n_actuated), _NO_FORCE,
+                                             self._advance_arrays))
+        )  # fmt: skip
+
+    def _leave_native(self, reason: str) -> None:
+        """Step through the Python bindings from now on, for ``reason``."""
+        self._advance_arrays = self._native_arrays = None
+        self.native_step_unavailable = reason
 
     def _pack_fall_checks(self) -> None:
         """The fall thresholds and base kind in the packed arrays, for the detector in
@@ -862,8 +913,8 @@ class MujocoSimulator(Backend):
         (a contiguous float array; non-finite entries are left to the caller)."""
         if not (
             type(force) is np.ndarray
-            and force.dtype == _FLOAT
-            and force.shape == (self.n_base_dofs,)
+            and force.dtype is _FLOAT
+            and force.shape == self._base_shape
             and force.flags.c_contiguous
         ):
             force = np.ascontiguousarray(_vector("base_force", force, self.n_base_dofs))
@@ -894,7 +945,7 @@ class MujocoSimulator(Backend):
         self.plant.reset()
         self.plant.draw()
         self._read_contacts()
-        self._last_contact_time = t if self._in_contact.any() else math.nan  # NaN: none yet
+        self._contact_time[0] = t if self._in_contact.any() else math.nan  # NaN: none yet
         return self.state
 
     @property
@@ -958,22 +1009,48 @@ class MujocoSimulator(Backend):
         tau = torques
         if not (
             type(tau) is np.ndarray
-            and tau.dtype == _FLOAT
-            and tau.shape == (self.n_actuated,)
+            and tau.dtype is _FLOAT
+            and tau.shape == self._torque_shape
             and tau.flags.c_contiguous
         ):  # else checked for finite entries in apply_torques
             tau = _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
         force = _NO_FORCE if base_force is None else self._base_force(base_force)
-        plant, data = self.plant, self.mj_data
         if self.fall_detector is not self._packed_detector:
             self._pack_fall_checks()
+        if self._advance_arrays is not None and not self._pushes:
+            status, time, events = advance(tau, force, self._advance_arrays)
+        else:
+            status, time, events = self._step_bindings(tau, force)
+        if status != STATE_OK:
+            self._raise_for(status, tau, base_force)
+        self._last_touchdowns = ()
+        if events or not self._screened:
+            self._after_step(events)
+        q, v = self._q.copy(), self._v.copy()
+        q_measured, v_measured = q, v
+        if self._noisy:
+            q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
+        # SimState(...) without the frozen dataclass's per-field object.__setattr__ (a third
+        # of the cost) and the call of a constructor: the same object
+        state = _new(SimState)
+        state.__dict__.update(
+            t=time, q=q, v=v, contact_forces=self._forces.copy(),
+            in_contact=self._in_contact.copy(), contact_positions=self._positions.copy(),
+            touchdowns=self._last_touchdowns, fall=self.fall, q_measured=q_measured,
+            v_measured=v_measured,
+        )  # fmt: skip
+        return state
+
+    def _step_bindings(self, tau, force) -> tuple:
+        """:func:`dmpopt.sim.kernels_mujoco.advance` through the Python bindings: the step's
+        torques, ``mj_step`` (``mj_step1``, the pushes, ``mj_step2`` while a push acts) and
+        :func:`dmpopt.sim.kernels.settle`, the same numbers and results."""
+        plant, data = self.plant, self.mj_data
         if not apply_torques(
             tau, force, plant.torque_limit, plant.line, plant.ring, self._qfrc_applied,
             self._dof_index, self.n_base_dofs,
         ):  # fmt: skip
-            _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)  # raises
-            _vector("base_force", base_force, self.n_base_dofs)  # raises
-            raise InvalidInputError(f"base_force {base_force} turned to the world overflows")
+            return STATE_BAD_INPUT, 0.0, 0
         if self._pushes:
             self._mj.mj_step1(self.mj_model, data)  # kinematics and collisions at the start
             self._apply_pushes()
@@ -981,33 +1058,47 @@ class MujocoSimulator(Backend):
         else:
             self._mj.mj_step(self.mj_model, data)
         contact = data.contact  # contacts found and solved at the start of the step
+        time = data.time
         status, any_contact, n_started, check_fall = settle(
             self._qpos, self._qvel, self._warnings, contact.geom, contact.efc_address,
             contact.frame, contact.pos, data.efc_force, self._site_xpos, self._tables,
-            self._constants, self._work, self._flags, plant.noise, data.time,
-            self._last_contact_time,
+            self._constants, self._work, self._flags, plant.noise, time,
+            self._contact_time[0],
         )  # fmt: skip
+        if status != STATE_OK:
+            return status, time, 0
+        if any_contact:
+            self._contact_time[0] = time  # end of a step with contact
+        events = (
+            (kernels_mujoco.TOUCHDOWN if n_started else 0)
+            | (kernels_mujoco.CHECK_FALL if check_fall else 0)
+            | (kernels_mujoco.DRAW if self._noisy else 0)
+        )
+        return status, time, events
+
+    def _after_step(self, events: int) -> None:
+        """What a step's ``events`` (:func:`dmpopt.sim.kernels_mujoco.advance`) ask for, in
+        order: record touchdowns, draw the next tick's normals, check for a fall; and leave
+        the compiled step when MuJoCo's memory fills (a MuJoCo error there would end the
+        process)."""
+        if events & kernels_mujoco.MEMORY_FULL:
+            self._leave_native("MuJoCo's stack and arena use passed half its arena")
+        if events & kernels_mujoco.TOUCHDOWN:
+            self._record_touchdowns()
+        if events & kernels_mujoco.DRAW:
+            self.plant.draw_next()
+        if events & kernels_mujoco.CHECK_FALL or not self._screened:
+            self._check_fall()
+
+    def _raise_for(self, status: int, tau, base_force) -> None:
+        """Raise for a step that did not end in ``STATE_OK``."""
+        if status == STATE_BAD_INPUT:  # a non-finite torque or base force: nothing done
+            _actuated(tau, self.n_actuated, self.n_base_dofs, self.model.nv)  # raises
+            _vector("base_force", base_force, self.n_base_dofs)  # raises
+            raise InvalidInputError(f"base_force {base_force} turned to the world overflows")
         if status == STATE_UNSTABLE:  # MuJoCo reset the data: never go on silently
             self._raise_unstable()
-        if status != STATE_OK:
-            self._raise_too_fast()
-        self._last_touchdowns = ()
-        if any_contact:
-            self._last_contact_time = data.time  # end of a step with contact
-            if n_started:
-                self._record_touchdowns()
-        if plant.noisy:
-            plant.draw_next()
-        if check_fall or not self._screened:
-            self._check_fall()
-        q, v = self._q.copy(), self._v.copy()
-        q_measured, v_measured = q, v
-        if plant.noisy:
-            q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
-        return SimState._of_step(
-            data.time, q, v, self._forces.copy(), self._in_contact.copy(),
-            self._positions.copy(), self._last_touchdowns, self.fall, q_measured, v_measured,
-        )  # fmt: skip
+        self._raise_too_fast()
 
     def _record_touchdowns(self) -> None:
         self._last_touchdowns = tuple(
@@ -1057,7 +1148,7 @@ class MujocoSimulator(Backend):
     def _check_fall(self) -> None:
         """Measure the base (:mod:`dmpopt.sim.falls`) and record the first fall."""
         height, tilt, spin = self._watched.height_tilt_spin(self._q, self._v)
-        last = self._last_contact_time
+        last = float(self._contact_time[0])
         t = self.mj_data.time
         self.fall = self.fall_detector.check(
             t, height, tilt, 0.0 if math.isnan(last) else t - last, spin

@@ -43,6 +43,7 @@ __all__ = ["IDEAL", "PlantParameters", "SensorNoise", "base_joint_kind", "with_a
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _PER_JOINT = ("armature", "damping", "friction")
 _NO_FORCE = np.zeros(0)
+NORMAL_BLOCK = 64  # ticks of sensor-noise normals drawn in one call
 
 
 @dataclass(frozen=True)
@@ -345,16 +346,25 @@ class PlantRuntime:
         self.reset()
 
     def reset(self) -> None:
-        """Empty the delay line and restart the noise from the seed."""
+        """Empty the delay line and restart the noise from the seed (the arrays stay in place:
+        compiled steps hold their addresses)."""
         n = len(self.joint_names)
-        self.line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
-        self.ring = np.zeros(2, dtype=np.int64)  # the oldest command's row, line filled
+        if not hasattr(self, "line"):
+            self.line = np.zeros((self.parameters.delay, n))  # the commands in flight, a ring
+            self.ring = np.zeros(2, dtype=np.int64)  # the oldest command's row, line filled
+        self.line[:], self.ring[:] = 0.0, 0
         self._applied = np.zeros(n)
         self._order = np.arange(n)
         self._rng = np.random.default_rng(self.parameters.seed)
         self._q_noise[:], self._v_noise[:], self._rotation_noise[:] = 0.0, 0.0, 0.0
+        if not hasattr(self, "normals"):
+            # the coming ticks' normals, drawn NORMAL_BLOCK ticks at a time: the same numbers
+            # as one draw per tick (NumPy's Generator fills an array draw by draw)
+            self.normals = np.zeros((NORMAL_BLOCK if self.noisy else 0, self._draws.size))
+            self.next_row = np.zeros(1, dtype=np.int64)  # the row of the next tick's normals
         if self.noisy:
-            self._rng.standard_normal(out=self._draws)  # the first tick's normals
+            self.next_row[0] = len(self.normals)
+            self.draw_next()  # the first tick's normals
 
     def actuate(self, tau: np.ndarray) -> np.ndarray:
         """The torque the motors apply this step for the finite command ``tau``: saturated,
@@ -378,10 +388,15 @@ class PlantRuntime:
         self.draw_next()
 
     def draw_next(self) -> None:
-        """Draw the next tick's normals: those of q, of v, then of the base rotation, in one
-        call. They are drawn a tick ahead, so a step that raises before making its noise
-        leaves the sequence as it was."""
-        self._rng.standard_normal(out=self._draws)
+        """Draw the next tick's normals: those of q, of v, then of the base rotation (the next
+        row of ``normals``, refilled when used up). They are drawn a tick ahead, so a step
+        that raises before making its noise leaves the sequence as it was."""
+        row = self.next_row[0]
+        if row == len(self.normals):
+            self._rng.standard_normal(out=self.normals)
+            row = 0
+        self._draws[:] = self.normals[row]
+        self.next_row[0] = row + 1
 
     def measure(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The measured ``(q, v)``: the truth plus this tick's noise (a free base's orientation

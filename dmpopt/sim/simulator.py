@@ -113,21 +113,6 @@ class SimState:
         """True once the robot has fallen (``fall is not None``)."""
         return self.fall is not None
 
-    @classmethod
-    def _of_step(
-        cls, t, q, v, forces, in_contact, positions, touchdowns, fall, q_measured, v_measured
-    ):
-        """The state a simulator's ``step`` returns, every field given: the same object as
-        ``SimState(...)`` without the frozen dataclass's per-field ``object.__setattr__``
-        (a third of the cost, on the path of every step)."""
-        state = object.__new__(cls)
-        state.__dict__.update(
-            t=t, q=q, v=v, contact_forces=forces, in_contact=in_contact,
-            contact_positions=positions, touchdowns=touchdowns, fall=fall,
-            q_measured=q_measured, v_measured=v_measured,
-        )  # fmt: skip
-        return state
-
 
 @dataclass
 class _Push:

@@ -1,0 +1,146 @@
+"""MujocoSimulator's compiled step with MuJoCo's C mj_step inside (dmpopt.sim.kernels_mujoco).
+
+Answer key: the step through MuJoCo's Python bindings (``mj_step`` of the bindings, the contact
+views, :func:`dmpopt.sim.kernels.settle`), whose every value
+``tests/sim/test_mujoco_step.py`` checks against MuJoCo's ``mj_contactForce`` and Pinocchio.
+Both paths do the same floating-point operations, so every value must agree bit for bit (no
+tolerance). The offsets the compiled step reads ``mjData`` at are checked against the
+bindings' own views of a data with contacts.
+"""
+
+import ctypes
+import os
+import types
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from dmpopt_robots.biped import BIPED_URDF
+
+from dmpopt.exceptions import MissingDependency
+from dmpopt.sim import MujocoSimulator, PlantParameters, SensorNoise, kernels_mujoco
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+mujoco = pytest.importorskip("mujoco")
+
+NOISY = PlantParameters(  # every branch of the step: saturation, delay, damping, noise
+    damping=0.5,
+    torque_limit=30.0,
+    delay=2,
+    noise=SensorNoise(*([1e-3] * 6)),
+    seed=7,
+)
+
+
+def biped_simulator(biped, **options):
+    return MujocoSimulator(
+        biped.model, BIPED_URDF, contact_points=biped.contact_points,
+        fall_frame=biped.torso_frame, plant=NOISY, **options,
+    )  # fmt: skip
+
+
+def run(sim, q0, n_steps, seed, frame):
+    """Random torques and base forces, a push on ``frame`` from step 40: every step's state."""
+    sim.reset(q0)
+    rng = np.random.default_rng(seed)
+    trace = []
+    for k in range(n_steps):
+        if k == 40:
+            sim.push(frame, [30.0, 0.0, 0.0], 0.01)  # 10 steps through mj_step1/2
+        tau, base_force = (
+            rng.normal(scale=5.0, size=sim.n_actuated),
+            rng.normal(size=sim.n_base_dofs),
+        )
+        state = sim.step(tau, base_force if k % 2 else None)
+        trace.append(state)
+        if state.fallen:
+            break
+    return trace
+
+
+def assert_same(first, second):
+    assert len(first) == len(second)
+    for a, b in zip(first, second):
+        for field in ("q", "v", "contact_forces", "in_contact", "contact_positions",
+                      "q_measured", "v_measured"):  # fmt: skip
+            x, y = getattr(a, field), getattr(b, field)
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), (a.t, field)
+        assert a.t == b.t and a.fall == b.fall
+        assert [(e.time, e.point, e.position.tobytes()) for e in a.touchdowns] == [
+            (e.time, e.point, e.position.tobytes()) for e in b.touchdowns
+        ]
+
+
+def test_the_compiled_step_is_the_bindings_step_bit_for_bit(biped):
+    """The walking study's biped (noisy, delayed, saturated plant), limp under random torques
+    and base forces, pushed, until it falls: the compiled step and the bindings' step return
+    the same bits at every step, through touchdowns, the push and the fall."""
+    q0 = pin.neutral(biped.model)
+    q0[1] = 0.62
+    native = biped_simulator(biped)
+    assert native.native_step_unavailable is None
+    bindings = biped_simulator(biped)
+    bindings._leave_native("the answer key")
+    first, second = (run(sim, q0, 1500, 4, biped.torso_frame) for sim in (native, bindings))
+    assert_same(first, second)
+    assert first[-1].fallen and sum(len(s.touchdowns) for s in first) > 0
+    assert native._advance_arrays is not None  # still compiled after the run
+    # MuJoCo kept the data's memory in place through the resets and steps
+    layout = kernels_mujoco.native_layout(mujoco, native.mj_model, native.mj_data)
+    np.testing.assert_array_equal(native._native_arrays["layout"], layout)
+
+
+def test_a_free_base_steps_the_same_on_both_paths(talos):
+    """Talos (free flyer: quaternion, base force turned to the world frame), 60 steps."""
+    points = [(f, c) for f in talos.foot_frames for c in talos.sole_corners]
+    sims = [
+        MujocoSimulator(talos.model, talos.source, contact_points=points, plant=NOISY)
+        for _ in range(2)
+    ]
+    sims[1]._leave_native("the answer key")
+    q0 = pin.neutral(talos.model)
+    q0[2] = 1.02
+    first, second = (run(sim, q0, 60, 5, "base_link") for sim in sims)
+    assert_same(first, second)
+    assert any(state.in_contact.any() for state in first)
+
+
+def test_without_addresses_the_simulator_steps_through_the_bindings(biped, monkeypatch):
+    """A mujoco whose MjData gives no C address: the simulator says why and steps through
+    the bindings, with the states of the compiled step."""
+    real_layout = kernels_mujoco.native_layout
+
+    def no_address(module, model, data):
+        return real_layout(module, types.SimpleNamespace(), data)  # no _address
+
+    monkeypatch.setattr(kernels_mujoco, "native_layout", no_address)
+    fallback = biped_simulator(biped)
+    monkeypatch.undo()
+    assert "_address" in fallback.native_step_unavailable
+    assert fallback._advance_arrays is None
+    q0 = pin.neutral(biped.model)
+    q0[1] = 0.62
+    assert_same(*(run(s, q0, 80, 6, biped.torso_frame) for s in (fallback, biped_simulator(biped))))
+
+
+def test_a_missing_shared_library_is_named(tmp_path):
+    """No libmujoco in the package folder, or one the bindings did not load: the message
+    names the folder or the file and what to do."""
+    fake = types.SimpleNamespace(__file__=str(tmp_path / "__init__.py"), __version__="0")
+    with pytest.raises(MissingDependency, match="no MuJoCo shared library .* in " + str(tmp_path)):
+        kernels_mujoco.load_library(fake)
+    (tmp_path / "libmujoco.so.0").write_bytes(b"not a library")
+    with pytest.raises(MissingDependency, match="is not the one the mujoco bindings loaded"):
+        kernels_mujoco.load_library(fake)
+
+
+def test_a_layout_that_disagrees_with_the_bindings_is_refused():
+    """An mjContact declared with its fields shifted: the check against the bindings' views
+    names the fields that disagree."""
+    data_type, contact_type = kernels_mujoco._ctypes_layout(mujoco)
+    shifted = type("mjContact", (ctypes.Structure,), {
+        "_fields_": [("padding", ctypes.c_double)] + list(contact_type._fields_)
+    })  # fmt: skip
+    with pytest.raises(MissingDependency, match="contact geom"):
+        kernels_mujoco._check_layout(mujoco, data_type, shifted)
+    kernels_mujoco._check_layout(mujoco, data_type, contact_type)  # the real one passes

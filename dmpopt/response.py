@@ -1,0 +1,246 @@
+r"""The response matrices of a rollout of one DOF, in one compiled pass (numba).
+
+A rollout's positions, velocities and accelerations are linear in the initial transformation
+states, the goal and the forcing weights (:mod:`dmpopt.dmp`). Their coefficients, the
+response matrices, follow from the RK4 step of the transformation system as matrices
+(:func:`symbolic.transformation_matrices`) driven at each of the step's four stages by the
+features there. :func:`response_matrices` runs that recurrence, the canonical system's step
+and the features in one loop over the steps, compiled by numba, without arrays of features.
+
+Where the numbers come from. Every form- and kernel-specific expression is CasADi's: the
+canonical step (:func:`symbolic.canonical_step_function`), the basis phase, carrier and their
+rates (:func:`symbolic.phase_point_function`) and one basis function's log-activation and its
+slope (:func:`symbolic.log_activation_function`) are translated instruction by instruction
+into Python for numba (:func:`symbolic.numba_source`), so they are computed by the same
+operations in the same order as CasADi's virtual machine. What the loop adds is the same for
+every form and kernel: the normalisation of :func:`forms.normalised_activations`
+(:math:`a_j = e^{l_j - M} / \sum_i e^{l_i - M}`, :math:`M = \max_i l_i`), the layout of
+:meth:`forms.Form.features` (:math:`\phi_{j,e} = a_j C_e` with the carrier :math:`C`) and the
+rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j' - \sum_i a_i
+l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`, :math:`p` the basis
+phase). tests/core/test_response.py checks the result against CasADi's own
+:func:`symbolic.feature_rate_function` for every form and kernel, and the rollout against the
+step-by-step integration. (Evaluating CasADi's instruction list on arrays instead, as
+:class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that the LASA demo's
+plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
+temporaries.)
+
+Truncation. A basis whose log-activation is more than :math:`L` below the largest,
+:math:`l_j < M - L`, is left out of the normalisation (its feature is 0), so only the exp of
+the few bases near the phase is taken. For the kernels' log-activations (all :math:`l \le 0`,
+and :math:`l'^2 \le 4 h |l|` with the width :math:`h`: equality for the Gaussian and the
+printed periodic kernel, :math:`h^2 \sin^2\theta \le 2 h^2 (1 - \cos\theta)` for von Mises)
+this changes (:func:`truncation_bounds`):
+
+- each normalised activation by at most :math:`n e^{-L}` (:math:`n` bases): the kept ones by
+  the relative change :math:`\eta \le n e^{-L}` of the sum, the dropped ones are below
+  :math:`e^{-L}`;
+- each normalised activation's rate by at most :math:`4 n e^{-L} G |\dot p|` with
+  :math:`G = 2\sqrt{h_\max (|M| + L)}`, which bounds :math:`|l_j'|` of every kept basis and
+  :math:`e^{u - L} |l_j'|` of every dropped one (:math:`u = M - l_j \ge L`, as :math:`e^{-u}
+  \sqrt{|M| + u}` decreases for :math:`u \ge 1/2`).
+
+At the stage points :math:`L = L_0 = \ln(2 n / \epsilon)` makes the first bound
+:math:`\epsilon / 2`; at the samples, where the rates are needed,
+:math:`L = L_0 + \ln(1 + 4 G)` (:math:`G` taken at :math:`L = 3 L_0`, valid while :math:`L \le
+3 L_0`, else nothing is left out) makes both at most :math:`\epsilon / 2` times :math:`|C|`
+and :math:`|\dot p||C| + |\dot C|`. The features are then those of all the bases to
+rounding, and the rollout equals the stepper's integration as before.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import math
+import os
+import sys
+from functools import lru_cache
+
+import numpy as np
+
+from . import symbolic
+
+EPS = float(np.finfo(float).eps)
+
+
+def truncation_bounds(n_basis: int, top: float, max_width: float) -> tuple[float, float]:
+    r"""Truncation levels :math:`(L_0, L)` of the features at the stage points and at the
+    samples (module docstring): :math:`L_0 = \ln(2 n / \epsilon)`, :math:`L = L_0 + \ln(1 +
+    4 G)` with :math:`G = 2 \sqrt{h_\max (|M| + 3 L_0)}`, or infinity (no truncation) if that
+    exceeds :math:`3 L_0`. ``top`` is :math:`M`, the largest log-activation at the point."""
+    first = math.log(2.0 * n_basis / EPS)
+    slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
+    extra = math.log1p(4.0 * slope)
+    return first, first + extra if extra <= 2.0 * first else math.inf
+
+
+_KERNELS = '''
+_compile = numba.njit(cache=True, nogil=True, error_model="numpy")
+canonical_step = _compile(canonical_step)
+phase_point = _compile(phase_point)
+log_activation = _compile(log_activation)
+N_CARRIER = {n_carrier}
+
+
+@_compile
+def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
+             slopes, active, values, rates):
+    """Features (and with_rate their rates) at one canonical state: the kept bases' indices in
+    active[:count], values[:count, e] = a_j C_e, rates[:count, e]; returns count."""
+    point = phase_point(canonical, target, gains)
+    phase, phase_rate = point[0], point[1]
+    n_basis = centres.size
+    top = -math.inf
+    for j in range(n_basis):
+        value = log_activation(phase, centres[j], widths[j])[0]
+        logs[j] = value
+        top = max(top, value)
+    bound = first
+    if with_rate:  # truncation_bounds
+        slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
+        extra = math.log1p(4.0 * slope)
+        bound = first + extra if extra <= 2.0 * first else math.inf
+    count = 0
+    total = 0.0
+    for j in range(n_basis):
+        if logs[j] >= top - bound:
+            weight = math.exp(logs[j] - top)
+            active[count] = j
+            logs[count] = weight  # j >= count: entries still to be read are not overwritten
+            total += weight
+            count += 1
+    slope_sum = 0.0
+    for i in range(count):
+        logs[i] = logs[i] / total
+        if with_rate:
+            slopes[i] = log_activation(phase, centres[active[i]], widths[active[i]])[1]
+            slope_sum += logs[i] * slopes[i]
+    for i in range(count):
+        for e in range(N_CARRIER):
+            values[i, e] = logs[i] * point[2 + e]
+            if with_rate:
+                rate = logs[i] * (slopes[i] - slope_sum) * phase_rate
+                rates[i, e] = rate * point[2 + e] + logs[i] * point[4 + e]
+    return count
+
+
+@_compile
+def response(canonical0, dt, target, gains, centres, widths, first, step, step_goal,
+             step_forcing, output, output_goal, output_forcing, out):
+    """Fill out (3, n_steps, n + 1 + n_features): responses of position, velocity and
+    acceleration to the initial transformation states, the goal and the weights."""
+    n, n_steps, m = step.shape[0], out.shape[1], out.shape[2]
+    n_basis = centres.size
+    states = np.zeros((n, m))
+    following = np.empty((n, m))
+    for i in range(n):
+        states[i, i] = 1.0
+    canonical = canonical0.copy()
+    stage = np.empty(2)
+    logs, slopes = np.empty(n_basis), np.empty(n_basis)
+    active = np.empty(n_basis, np.int64)
+    values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
+    max_width = widths.max()
+    for k in range(n_steps):
+        count = features(canonical, target, gains, centres, widths, max_width, first, True,
+                         logs, slopes, active, values, rates)
+        for j in range(3):  # O x + O_g g + O_f (f, fdot)
+            row = out[j, k]
+            row[:] = 0.0
+            for a in range(n):
+                factor = output[j, a]
+                for column in range(m):
+                    row[column] += factor * states[a, column]
+            row[n] += output_goal[j]
+            for i in range(count):
+                for e in range(N_CARRIER):
+                    row[n + 1 + N_CARRIER * active[i] + e] += (
+                        output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
+                    )
+        if k == n_steps - 1:
+            break
+        for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
+            row = following[i]
+            row[:] = 0.0
+            for a in range(n):
+                factor = step[i, a]
+                for column in range(m):
+                    row[column] += factor * states[a, column]
+            row[n] += step_goal[i]
+            for a in range(count):
+                for e in range(N_CARRIER):
+                    row[n + 1 + N_CARRIER * active[a] + e] += step_forcing[i, 0] * values[a, e]
+        result = canonical_step(canonical, dt, target, gains)
+        for s in range(1, 4):
+            stage[0] = result[2 + 2 * s]
+            stage[1] = result[3 + 2 * s]
+            count = features(stage, target, gains, centres, widths, max_width, first, False,
+                             logs, slopes, active, values, rates)
+            for i in range(n):
+                for a in range(count):
+                    for e in range(N_CARRIER):
+                        column = n + 1 + N_CARRIER * active[a] + e
+                        following[i, column] += step_forcing[i, s] * values[a, e]
+        canonical[0] = result[0]
+        canonical[1] = result[1]
+        states, following = following, states
+'''
+
+
+def kernel_source(form: str, kernel: str) -> str:
+    """Source of the compiled response of ``form`` with ``kernel``: CasADi's expressions as
+    Python (:func:`symbolic.numba_source`) and the loop (module docstring)."""
+    signature = symbolic.Signature(form, 1, 1, kernel)
+    generated = [
+        symbolic.numba_source(symbolic.canonical_step_function(signature), "canonical_step"),
+        symbolic.numba_source(symbolic.phase_point_function(form), "phase_point"),
+        symbolic.numba_source(symbolic.log_activation_function(kernel), "log_activation"),
+    ]
+    loop = _KERNELS.replace("{n_carrier}", str(symbolic.FORMS[form].vectors_per_basis))
+    header = (
+        f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
+        "import math\n\nimport numba\nimport numpy as np\n\n\n"
+    )
+    return header + "\n\n".join(generated) + loop
+
+
+@lru_cache(maxsize=None)
+def kernels(form: str, kernel: str):
+    """The compiled module of :func:`kernel_source`, written once per machine to
+    :func:`symbolic.cache_dir` (under a hash of its source) so that numba caches its
+    compiled code there too: a few seconds the first time, then a load."""
+    source = kernel_source(form, kernel)
+    digest = hashlib.sha1(source.encode()).hexdigest()[:16]
+    name = f"response_{form}_{kernel}_{digest}"
+    path = symbolic.cache_dir() / "generated" / f"{name}.py"
+    if not path.exists():  # written whole or not at all: other processes may read it
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.tmp")
+        partial.write_text(source)
+        partial.replace(path)
+    spec = importlib.util.spec_from_file_location(f"dmpopt_generated.{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def response_matrices(key: tuple) -> np.ndarray:
+    """Response matrices of one DOF for the cache key of :func:`dmpopt.dmp._response`, in time
+    normalised by ``tau``: shape (3, n_steps, n_inputs), positions, velocities and
+    accelerations against the initial transformation states, the goal and the weights."""
+    (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
+    gains = np.array(gains, dtype=float)
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=gains)
+    matrices = {name: value.full() for name, value in matrices.items()}
+    n = symbolic.n_transformation_states(form)
+    out = np.empty((3, n_steps, n + 1 + symbolic.n_features(form, n_basis)))
+    kernels(form, kernel).response(
+        np.array(canonical0, dtype=float), float(dt), float(target), gains,
+        np.array(centres, dtype=float), np.array(widths, dtype=float),
+        truncation_bounds(n_basis, 0.0, 1.0)[0],
+        matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
+        matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"], out,
+    )  # fmt: skip
+    return out

@@ -81,48 +81,57 @@ canonical_step = _compile(canonical_step)
 phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 N_CARRIER = {n_carrier}
+N_STATES = {n_states}
 
 
 @_compile
 def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
-             slopes, active, values, rates):
-    """Features (and with_rate their rates) at one canonical state: the kept bases' indices in
-    active[:count], values[:count, e] = a_j C_e, rates[:count, e]; returns count."""
+             slopes, values, rates):
+    """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
+    count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
+    rates[i, e] its rate. Returns (lo, count)."""
     point = phase_point(canonical, target, gains)
     phase, phase_rate = point[0], point[1]
     n_basis = centres.size
-    top = -math.inf
     for j in range(n_basis):
-        value = log_activation(phase, centres[j], widths[j])[0]
-        logs[j] = value
-        top = max(top, value)
+        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+    top = logs[0]
+    for j in range(1, n_basis):
+        top = max(top, logs[j])
     bound = first
     if with_rate:  # truncation_bounds
         slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
         extra = math.log1p(4.0 * slope)
         bound = first + extra if extra <= 2.0 * first else math.inf
-    count = 0
+    level = top - bound  # the bases from the first to the last at or above it are kept
+    lo, hi = 0, n_basis - 1
+    while logs[lo] < level:
+        lo += 1
+    while logs[hi] < level:
+        hi -= 1
     total = 0.0
-    for j in range(n_basis):
-        if logs[j] >= top - bound:
-            weight = math.exp(logs[j] - top)
-            active[count] = j
-            logs[count] = weight  # j >= count: entries still to be read are not overwritten
-            total += weight
-            count += 1
+    for j in range(lo, hi + 1):
+        weight = math.exp(logs[j] - top)
+        logs[j] = weight
+        total += weight
+    inverse = 1.0 / total
+    count = hi + 1 - lo
     slope_sum = 0.0
     for i in range(count):
-        logs[i] = logs[i] / total
-        if with_rate:
-            slopes[i] = log_activation(phase, centres[active[i]], widths[active[i]])[1]
-            slope_sum += logs[i] * slopes[i]
-    for i in range(count):
+        activation = logs[lo + i] * inverse
+        logs[lo + i] = activation
         for e in range(N_CARRIER):
-            values[i, e] = logs[i] * point[2 + e]
-            if with_rate:
-                rate = logs[i] * (slopes[i] - slope_sum) * phase_rate
-                rates[i, e] = rate * point[2 + e] + logs[i] * point[4 + e]
-    return count
+            values[i, e] = activation * point[2 + e]
+        if with_rate:
+            slopes[i] = log_activation(phase, centres[lo + i], widths[lo + i])[1]
+            slope_sum += activation * slopes[i]
+    if with_rate:
+        for i in range(count):
+            activation = logs[lo + i]
+            rate = activation * (slopes[i] - slope_sum) * phase_rate
+            for e in range(N_CARRIER):
+                rates[i, e] = rate * point[2 + e] + activation * point[4 + e]
+    return lo, count
 
 
 @_compile
@@ -130,7 +139,7 @@ def response(canonical0, dt, target, gains, centres, widths, first, step, step_g
              step_forcing, output, output_goal, output_forcing, out):
     """Fill out (3, n_steps, n + 1 + n_features): responses of position, velocity and
     acceleration to the initial transformation states, the goal and the weights."""
-    n, n_steps, m = step.shape[0], out.shape[1], out.shape[2]
+    n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
     n_basis = centres.size
     states = np.zeros((n, m))
     following = np.empty((n, m))
@@ -139,49 +148,49 @@ def response(canonical0, dt, target, gains, centres, widths, first, step, step_g
     canonical = canonical0.copy()
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
-    active = np.empty(n_basis, np.int64)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
     max_width = widths.max()
     for k in range(n_steps):
-        count = features(canonical, target, gains, centres, widths, max_width, first, True,
-                         logs, slopes, active, values, rates)
+        lo, count = features(canonical, target, gains, centres, widths, max_width, first, True,
+                             logs, slopes, values, rates)
+        start = n + 1 + N_CARRIER * lo  # the first kept basis's first column
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
             row = out[j, k]
-            row[:] = 0.0
-            for a in range(n):
-                factor = output[j, a]
-                for column in range(m):
-                    row[column] += factor * states[a, column]
+            for column in range(m):
+                total = 0.0
+                for a in range(N_STATES):
+                    total += output[j, a] * states[a, column]
+                row[column] = total
             row[n] += output_goal[j]
             for i in range(count):
                 for e in range(N_CARRIER):
-                    row[n + 1 + N_CARRIER * active[i] + e] += (
+                    row[start + N_CARRIER * i + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
         if k == n_steps - 1:
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
             row = following[i]
-            row[:] = 0.0
-            for a in range(n):
-                factor = step[i, a]
-                for column in range(m):
-                    row[column] += factor * states[a, column]
+            for column in range(m):
+                total = 0.0
+                for a in range(N_STATES):
+                    total += step[i, a] * states[a, column]
+                row[column] = total
             row[n] += step_goal[i]
             for a in range(count):
                 for e in range(N_CARRIER):
-                    row[n + 1 + N_CARRIER * active[a] + e] += step_forcing[i, 0] * values[a, e]
+                    row[start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
         result = canonical_step(canonical, dt, target, gains)
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
-            count = features(stage, target, gains, centres, widths, max_width, first, False,
-                             logs, slopes, active, values, rates)
+            lo, count = features(stage, target, gains, centres, widths, max_width, first, False,
+                                 logs, slopes, values, rates)
+            start = n + 1 + N_CARRIER * lo
             for i in range(n):
                 for a in range(count):
                     for e in range(N_CARRIER):
-                        column = n + 1 + N_CARRIER * active[a] + e
-                        following[i, column] += step_forcing[i, s] * values[a, e]
+                        following[i, start + N_CARRIER * a + e] += step_forcing[i, s] * values[a, e]
         canonical[0] = result[0]
         canonical[1] = result[1]
         states, following = following, states
@@ -197,7 +206,9 @@ def kernel_source(form: str, kernel: str) -> str:
         symbolic.numba_source(symbolic.phase_point_function(form), "phase_point"),
         symbolic.numba_source(symbolic.log_activation_function(kernel), "log_activation"),
     ]
-    loop = _KERNELS.replace("{n_carrier}", str(symbolic.FORMS[form].vectors_per_basis))
+    equations = symbolic.FORMS[form]
+    loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
+    loop = loop.replace("{n_states}", str(equations.n_transformation))
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
         "import math\n\nimport numba\nimport numpy as np\n\n\n"

@@ -35,13 +35,12 @@ Amplification: a goal moved by :math:`\delta` moves no point of the plan by more
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import functools
 import math
-import threading
 import warnings
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -165,51 +164,20 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-class _ResponseCache:
-    """Response matrices of one DOF of the last :attr:`size` plans, read-only, by the key of
-    :func:`dmpopt.response.response_matrices` (an entry holds 3 x n_steps x (n_features + 3)
-    floats).
+@lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
+def _response(key: tuple) -> np.ndarray:
+    """Response matrices of one DOF, in time normalised by ``tau``, read-only.
 
-    Calling it returns ``(response, plan)``: the array of shape (3, n_steps, n_inputs), the
-    position, velocity and acceleration responses to each input (initial transformation
-    states, goal, weights), in time normalised by ``tau``; and, where the response is
-    computed by this call and ``inputs`` (n_inputs, n_dofs) are given, the plan ``response
-    @ inputs`` of shape (3, n_steps, n_dofs), taken in the same pass (else ``None``). The
-    pass is compiled (:mod:`dmpopt.response`): 4-8 ms of thread time for the LASA demo's
-    plan of 10676 steps and 53 inputs, where evaluating the features at all stages on
-    arrays and the recurrence in numpy blocks took 60-165 ms (benchmarks/bench_core.py).
+    Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
+    responses to each input (initial transformation states, goal, weights), computed in one
+    compiled pass (:func:`dmpopt.response.response_matrices`): 3-6 ms of thread time for the
+    LASA demo's plan of 10676 steps and 53 inputs, where evaluating the features at all
+    stages on arrays and the recurrence in numpy blocks took 60-165 ms
+    (benchmarks/bench_core.py).
     """
-
-    size = 16
-
-    def __init__(self):
-        self._entries = collections.OrderedDict()
-        self._lock = threading.Lock()
-
-    def __call__(self, key: tuple, inputs=None, keep: bool = True):
-        """``(response, plan)`` of ``key``; ``keep=False`` leaves a new response out of the
-        cache (one too large to keep)."""
-        with self._lock:
-            response = self._entries.get(key)
-            if response is not None:
-                self._entries.move_to_end(key)
-                return response, None
-        response, plan = response_matrices(key, inputs)
-        response.setflags(write=False)
-        if keep:
-            with self._lock:
-                self._entries[key] = response
-                while len(self._entries) > self.size:
-                    self._entries.popitem(last=False)
-        return response, plan
-
-    def cache_clear(self) -> None:
-        """Forget every response (as for DMPs whose responses are new)."""
-        with self._lock:
-            self._entries.clear()
-
-
-_response = _ResponseCache()
+    matrices = response_matrices(key)
+    matrices.setflags(write=False)
+    return matrices
 
 
 @dataclass(frozen=True, eq=False)
@@ -362,16 +330,27 @@ class _DmpCommon:
             gains=np.asarray(self.gains),
         )
 
-    def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0, plan=False):
-        """Sample times, the response matrices (:data:`_response`), their inputs and (with
-        ``plan``) the plan ``response @ inputs`` if the response was computed by this call
-        (taken in the same pass), else ``None``.
+    def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):
+        """Sample times, the response matrices (:func:`_response`) and their inputs.
 
         A DMP is a frozen value, so the last plan's times and response are kept with it (a
         repeated rollout then skips the checks that the same floats already passed, and the
         cache key of 2 n_basis floats), and so are the inputs of its default start.
         """
         canonical0 = tuple(canonical0)
+        key = (duration, dt, canonical0)
+        last = self.__dict__.get("_last_plan")
+        if (
+            last is None
+            or last[0] != key
+            or type(duration) is not float
+            or type(dt) is not float
+            or not last[3] <= validation.MEMORY_BUDGET  # the bounds may have been lowered since
+            or last[1].size > validation.MAX_SAMPLES
+        ):
+            last = (key, *self._plan_matrices(duration, dt, canonical0))
+            self.__dict__["_last_plan"] = last
+        _, times, response, _ = last
         if start is None and start_velocity is None:  # the default start, kept with the DMP
             inputs = _memo(
                 self,
@@ -384,29 +363,11 @@ class _DmpCommon:
             start = self.start if start is None else start
             start_velocity = self.start_velocity if start_velocity is None else start_velocity
             inputs = self._response_inputs(start, start_velocity, canonical0)
-        key = (duration, dt, canonical0)
-        last = self.__dict__.get("_last_plan")
-        product = None
-        if (
-            last is None
-            or last[0] != key
-            or type(duration) is not float
-            or type(dt) is not float
-            or not last[3] <= validation.MEMORY_BUDGET  # the bounds may have been lowered since
-            or last[1].size > validation.MAX_SAMPLES
-        ):
-            times, response, n_bytes, product = self._plan_matrices(
-                duration, dt, canonical0, inputs if plan else None
-            )
-            last = (key, times, response, n_bytes)
-            self.__dict__["_last_plan"] = last
-        _, times, response, _ = last
-        return times, response, inputs, product
+        return times, response, inputs
 
-    def _plan_matrices(self, duration, dt, canonical0, inputs=None):
-        """Checked sample times, the response matrices of one DOF for them, the bytes a plan
-        of them takes (checked against the budget) and the plan for ``inputs`` if the
-        response was computed now (:data:`_response`), else ``None``."""
+    def _plan_matrices(self, duration, dt, canonical0):
+        """Checked sample times, the response matrices of one DOF for them, and the bytes a
+        plan of them takes (checked against the budget)."""
         duration = positive("duration", duration)
         dt = self.check_step(dt)
         n_steps = int(round(duration / dt)) + 1
@@ -415,8 +376,11 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
-        # counted as 6 floats per input and sample (the response takes 3 of them) and 6 per
-        # DOF for the plan (positions, velocities, accelerations and their product)
+        # at most 6 floats per input and sample at once while the response is computed: the
+        # features at the samples with their rates (2), one stage's features (1) and the
+        # buffer of states then outputs (3); then the response (3) and the plan (6 per DOF).
+        # Work arrays of at most 16 MiB (symbolic.ArrayFunction) and chunks of CHUNK steps
+        # come on top.
         n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",
@@ -445,11 +409,10 @@ class _DmpCommon:
         times = _frozen(np.arange(n_steps) * dt)
         # the cache keeps 16 entries: keep out those that would hold over 1/16 of the budget
         small = 24.0 * n_steps * n_inputs <= validation.MEMORY_BUDGET / 16
-        response, plan = _response(key, inputs, keep=small)
-        return times, response, n_bytes, plan
+        return times, _response(key) if small else _response.__wrapped__(key), n_bytes
 
     def _affine(self, duration, dt, start, start_velocity, canonical0) -> AffinePlan:
-        times, response, inputs, _ = self._response_and_inputs(
+        times, response, inputs = self._response_and_inputs(
             duration, dt, start, start_velocity, canonical0
         )
         scale = np.array([1.0, self.tau, self.tau**2])[:, None, None]
@@ -469,19 +432,18 @@ class _DmpCommon:
         )
 
     def _rollout(self, duration, dt, start, start_velocity, canonical0) -> Trajectory:
-        times, response, inputs, plan = self._response_and_inputs(
-            duration, dt, start, start_velocity, canonical0, plan=True
+        times, response, inputs = self._response_and_inputs(
+            duration, dt, start, start_velocity, canonical0
         )
-        if plan is None:  # one product for positions, velocities and accelerations
-            # for a few DOFs one matrix-vector product per DOF reads the response faster than
-            # OpenBLAS's matrix product (LASA, 2 DOFs, 1000 steps: 83 against 136 us;
-            # benchmarks/bench_core.py)
-            flat = response.reshape(-1, inputs.shape[0])
-            if inputs.shape[1] <= 4:
-                plan = np.stack([flat @ column for column in inputs.T], axis=1)
-            else:
-                plan = flat @ inputs
-            plan = plan.reshape(3, times.size, -1)
+        # one product for positions, velocities and accelerations: (3, n_steps, n_dofs); for a
+        # few DOFs one matrix-vector product per DOF reads the response faster than OpenBLAS's
+        # matrix product (LASA, 2 DOFs, 1000 steps: 83 against 136 us; benchmarks/bench_core.py)
+        flat = response.reshape(-1, inputs.shape[0])
+        if inputs.shape[1] <= 4:
+            plan = np.stack([flat @ column for column in inputs.T], axis=1)
+        else:
+            plan = flat @ inputs
+        plan = plan.reshape(3, times.size, -1)
         plan[1] /= self.tau
         plan[2] /= self.tau**2
         return Trajectory.trusted(times, plan[0], plan[1], plan[2])

@@ -136,10 +136,9 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
 
 @_compile
 def response(canonical0, dt, target, gains, centres, widths, first, step, step_goal,
-             step_forcing, output, output_goal, output_forcing, inputs, out, plan):
+             step_forcing, output, output_goal, output_forcing, out):
     """Fill out (3, n_steps, n + 1 + n_features): responses of position, velocity and
-    acceleration to the initial transformation states, the goal and the weights; and plan
-    (3, n_steps, n_dofs), their products with inputs (n_dofs, n + 1 + n_features)."""
+    acceleration to the initial transformation states, the goal and the weights."""
     n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
     n_basis = centres.size
     states = np.zeros((n, m))
@@ -168,11 +167,6 @@ def response(canonical0, dt, target, gains, centres, widths, first, step, step_g
                     row[start + N_CARRIER * i + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
-            for dof in range(inputs.shape[0]):
-                total = 0.0
-                for column in range(m):
-                    total += row[column] * inputs[dof, column]
-                plan[j, k, dof] = total
         if k == n_steps - 1:
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
@@ -243,29 +237,21 @@ def kernels(form: str, kernel: str):
     return module
 
 
-def response_matrices(key: tuple, inputs=None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Response matrices of one DOF, in time normalised by ``tau``: shape (3, n_steps,
-    n_inputs), positions, velocities and accelerations against the initial transformation
-    states, the goal and the weights; and, for ``inputs`` of shape (n_inputs, n_dofs), the
-    plan ``response @ inputs`` (3, n_steps, n_dofs) taken in the same pass, else ``None``.
-
-    ``key`` is ``(form, kernel, n_basis, n_steps, dt / tau, canonical_target, canonical0,
-    centres, widths, gains)`` (:data:`dmpopt.dmp._response`)."""
+def response_matrices(key: tuple) -> np.ndarray:
+    """Response matrices of one DOF for the cache key of :func:`dmpopt.dmp._response`, in time
+    normalised by ``tau``: shape (3, n_steps, n_inputs), positions, velocities and
+    accelerations against the initial transformation states, the goal and the weights."""
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
     matrices = symbolic.transformation_matrices(form)(dt=dt, gains=gains)
     matrices = {name: value.full() for name, value in matrices.items()}
     n = symbolic.n_transformation_states(form)
-    n_inputs = n + 1 + symbolic.n_features(form, n_basis)
-    out = np.empty((3, n_steps, n_inputs))
-    inputs = np.zeros((0, n_inputs)) if inputs is None else np.array(np.asarray(inputs).T)
-    plan = np.empty((3, n_steps, inputs.shape[0]))
+    out = np.empty((3, n_steps, n + 1 + symbolic.n_features(form, n_basis)))
     kernels(form, kernel).response(
         np.array(canonical0, dtype=float), float(dt), float(target), gains,
         np.array(centres, dtype=float), np.array(widths, dtype=float),
         truncation_bounds(n_basis, 0.0, 1.0)[0],
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
-        matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"],
-        inputs, out, plan,
+        matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"], out,
     )  # fmt: skip
-    return out, plan if inputs.shape[0] else None
+    return out

@@ -45,8 +45,8 @@ from functools import lru_cache
 import numpy as np
 
 from . import basis, forms, symbolic, validation
-from .response import response_matrices
 from .exceptions import InvalidInputError, ShapeError
+from .response import response_matrices
 from .stepper import Stepper
 from .trajectory import Trajectory
 from .validation import check_resources, flag, positive, real, real_array, vector

@@ -25,27 +25,33 @@ step-by-step integration. (Evaluating CasADi's instruction list on arrays instea
 plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
 temporaries.)
 
-Truncation. A basis whose log-activation is more than :math:`L` below the largest,
-:math:`l_j < M - L`, is left out of the normalisation (its feature is 0), so only the exp of
-the few bases near the phase is taken. For the kernels' log-activations (all :math:`l \le 0`,
-and :math:`l'^2 \le 4 h |l|` with the width :math:`h`: equality for the Gaussian and the
-printed periodic kernel, :math:`h^2 \sin^2\theta \le 2 h^2 (1 - \cos\theta)` for von Mises)
-this changes (:func:`truncation_bounds`):
+Truncation. Bases whose log-activation is more than :math:`L` below the largest,
+:math:`l_j < M - L`, before the first or after the last basis at or above :math:`M - L`, are
+left out of the normalisation (their features are 0), so only the exp of the few bases near
+the phase is taken. For the kernels' log-activations (all :math:`l \le 0`, and :math:`l'^2 \le
+4 h |l|` with the width :math:`h`: equality for the Gaussian and the printed periodic kernel,
+:math:`h^2 \sin^2\theta \le 2 h^2 (1 - \cos\theta)` for von Mises) this changes, with
+:math:`n` bases and :math:`n e^{-L} \le 1/8`:
 
-- each normalised activation by at most :math:`n e^{-L}` (:math:`n` bases): the kept ones by
-  the relative change :math:`\eta \le n e^{-L}` of the sum, the dropped ones are below
-  :math:`e^{-L}`;
-- each normalised activation's rate by at most :math:`4 n e^{-L} G |\dot p|` with
-  :math:`G = 2\sqrt{h_\max (|M| + L)}`, which bounds :math:`|l_j'|` of every kept basis and
-  :math:`e^{u - L} |l_j'|` of every dropped one (:math:`u = M - l_j \ge L`, as :math:`e^{-u}
-  \sqrt{|M| + u}` decreases for :math:`u \ge 1/2`).
+- each normalised activation by at most :math:`n e^{-L}`: the kept ones by the relative
+  change :math:`(S - \tilde S) / \tilde S \le n e^{-L}` of the sum (:math:`\tilde S \ge 1`
+  holds the largest, :math:`e^0`), the dropped ones are below :math:`e^{-L}`;
+- each normalised activation's rate by at most :math:`5 n e^{-L} G |\dot p|` with
+  :math:`G = 2\sqrt{h_\max (|M| + L)}`: :math:`G` bounds :math:`|l_j'|` of every basis with
+  :math:`l_j \ge M - L`, and :math:`e^{u} a_j |l_j'| \le e^{u - L} G` of every other
+  (:math:`u = M - l_j`, as :math:`e^{-u} \sqrt{|M| + u}` decreases for :math:`u \ge 1/2`), so
+  the weighted slope :math:`T = \sum_i a_i l_i'` changes by at most :math:`2 n e^{-L} G (1 +
+  n e^{-L})` and :math:`a_j' = a_j (l_j' - T) \dot p` by at most :math:`4 n e^{-L} G (1 + 2 n
+  e^{-L}) |\dot p|`.
 
-At the stage points :math:`L = L_0 = \ln(2 n / \epsilon)` makes the first bound
-:math:`\epsilon / 2`; at the samples, where the rates are needed,
-:math:`L = L_0 + \ln(1 + 4 G)` (:math:`G` taken at :math:`L = 3 L_0`, valid while :math:`L \le
-3 L_0`, else nothing is left out) makes both at most :math:`\epsilon / 2` times :math:`|C|`
-and :math:`|\dot p||C| + |\dot C|`. The features are then those of all the bases to
-rounding, and the rollout equals the stepper's integration as before.
+At the stage points :math:`L = L_0 = \ln(2 n / \epsilon)` (:func:`first_level`) makes the first
+bound :math:`\epsilon / 2`; at the samples, where the rates are needed,
+:math:`L = L_0 + \ln(1 + 5 G)` (:math:`G` taken at :math:`L = 3 L_0`, valid while :math:`L
+\le 3 L_0`, else nothing is left out) makes the features' rates :math:`\dot\phi = \dot a C + a
+\dot C` change by at most :math:`\frac{\epsilon}{2} (|\dot p| |C| + |\dot C|)`. The features
+are then those of all the bases to rounding, and the rollout equals the stepper's integration
+as before (tests/core/test_response.py checks both bounds at levels far below these, where
+the truncation shows).
 """
 
 from __future__ import annotations
@@ -64,15 +70,11 @@ from . import symbolic
 EPS = float(np.finfo(float).eps)
 
 
-def truncation_bounds(n_basis: int, top: float, max_width: float) -> tuple[float, float]:
-    r"""Truncation levels :math:`(L_0, L)` of the features at the stage points and at the
-    samples (module docstring): :math:`L_0 = \ln(2 n / \epsilon)`, :math:`L = L_0 + \ln(1 +
-    4 G)` with :math:`G = 2 \sqrt{h_\max (|M| + 3 L_0)}`, or infinity (no truncation) if that
-    exceeds :math:`3 L_0`. ``top`` is :math:`M`, the largest log-activation at the point."""
-    first = math.log(2.0 * n_basis / EPS)
-    slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
-    extra = math.log1p(4.0 * slope)
-    return first, first + extra if extra <= 2.0 * first else math.inf
+def first_level(n_basis: int) -> float:
+    r"""The truncation level at the stage points, :math:`L_0 = \ln(2 n / \epsilon)`
+    (module docstring): the normalised activations change by at most :math:`n e^{-L_0} =
+    \epsilon / 2`. The level at the samples follows from it in the compiled loop."""
+    return math.log(2.0 * n_basis / EPS)
 
 
 _KERNELS = '''
@@ -99,9 +101,9 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
     for j in range(1, n_basis):
         top = max(top, logs[j])
     bound = first
-    if with_rate:  # truncation_bounds
+    if with_rate:  # the level at the samples (module docstring)
         slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
-        extra = math.log1p(4.0 * slope)
+        extra = math.log1p(5.0 * slope)
         bound = first + extra if extra <= 2.0 * first else math.inf
     level = top - bound  # the bases from the first to the last at or above it are kept
     lo, hi = 0, n_basis - 1
@@ -250,7 +252,7 @@ def response_matrices(key: tuple) -> np.ndarray:
     kernels(form, kernel).response(
         np.array(canonical0, dtype=float), float(dt), float(target), gains,
         np.array(centres, dtype=float), np.array(widths, dtype=float),
-        truncation_bounds(n_basis, 0.0, 1.0)[0],
+        first_level(n_basis),
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
         matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"], out,
     )  # fmt: skip

@@ -543,7 +543,7 @@ _NUMBA_BINARY = {
     ca.OP_CONSTPOW: "{0} ** {1}",
     ca.OP_FMIN: "np.fmin({0}, {1})",
     ca.OP_FMAX: "np.fmax({0}, {1})",
-    ca.OP_FMOD: "math.fmod({0}, {1})",
+    ca.OP_FMOD: "np.fmod({0}, {1})",
     ca.OP_ATAN2: "math.atan2({0}, {1})",
     ca.OP_COPYSIGN: "math.copysign({0}, {1})",
     ca.OP_LT: "float({0} < {1})",

@@ -376,11 +376,10 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
-        # at most 6 floats per input and sample at once while the response is computed: the
-        # features at the samples with their rates (2), one stage's features (1) and the
-        # buffer of states then outputs (3); then the response (3) and the plan (6 per DOF).
-        # Work arrays of at most 16 MiB (symbolic.ArrayFunction) and chunks of CHUNK steps
-        # come on top.
+        # counted as 6 floats per input and sample, though the compiled pass that computes
+        # the response (dmpopt.response) holds only the response (3) and work arrays of a
+        # few inputs; the plan takes 6 per DOF (positions, velocities, accelerations and the
+        # product they come from)
         n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",

@@ -61,7 +61,9 @@ import importlib.util
 import math
 import os
 import sys
+import tempfile
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -220,23 +222,35 @@ def kernel_source(form: str, kernel: str) -> str:
 
 @lru_cache(maxsize=None)
 def kernels(form: str, kernel: str):
-    """The compiled module of :func:`kernel_source`, written once per machine to
-    :func:`symbolic.cache_dir` (under a hash of its source) so that numba caches its
-    compiled code there too: a few seconds the first time, then a load."""
+    """The compiled module of :func:`kernel_source`.
+
+    Its source is written once per machine to ``generated`` in :func:`symbolic.cache_dir`,
+    under a hash of the source, so that numba caches the compiled code with it: 1-3 s the
+    first time for each form and kernel, then a load. If that folder cannot be written, to a
+    temporary folder of the process (compiled again in each process)."""
     source = kernel_source(form, kernel)
-    digest = hashlib.sha1(source.encode()).hexdigest()[:16]
-    name = f"response_{form}_{kernel}_{digest}"
-    path = symbolic.cache_dir() / "generated" / f"{name}.py"
-    if not path.exists():  # written whole or not at all: other processes may read it
-        path.parent.mkdir(parents=True, exist_ok=True)
+    name = f"response_{form}_{kernel}_{hashlib.sha1(source.encode()).hexdigest()[:16]}"
+    try:
+        path = _write(symbolic.cache_dir() / "generated", name, source)
+    except OSError:
+        path = _write(Path(tempfile.mkdtemp(prefix="dmpopt-generated-")), name, source)
+    spec = importlib.util.spec_from_file_location(f"dmpopt_generated.{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # numba's cache imports the module by this name
+    spec.loader.exec_module(module)
+    return module
+
+
+def _write(folder: Path, name: str, source: str) -> Path:
+    """``folder/name.py`` holding ``source``, written whole or not at all (other processes may
+    read it)."""
+    path = folder / f"{name}.py"
+    if not path.exists():
+        folder.mkdir(parents=True, exist_ok=True)
         partial = path.with_suffix(f".{os.getpid()}.tmp")
         partial.write_text(source)
         partial.replace(path)
-    spec = importlib.util.spec_from_file_location(f"dmpopt_generated.{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return path
 
 
 def response_matrices(key: tuple) -> np.ndarray:

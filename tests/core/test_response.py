@@ -210,3 +210,15 @@ def test_rollout_equals_the_stepwise_integration(form):
     for got, expected in zip((plan.positions, plan.velocities, plan.accelerations), stepped[1:]):
         bound = 4 * plan.n_steps * EPS * np.abs(expected).max()
         np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
+def test_the_generated_source_goes_to_a_temporary_folder_if_the_cache_cannot_be_written(
+    monkeypatch,
+):
+    """A cache folder that cannot be created (under a file) sends the generated module to a
+    temporary folder of the process instead of failing the rollout."""
+    monkeypatch.setattr(symbolic, "cache_dir", lambda: symbolic.Path("/dev/null/dmpopt"))
+    monkeypatch.setattr(response, "kernels", response.kernels.__wrapped__)
+    module = response.kernels("velocity", "gaussian")
+    assert "dmpopt-generated-" in module.__file__
+    assert module.N_CARRIER == 1 and module.N_STATES == 2

@@ -5,7 +5,8 @@ whole system (canonical and transformation states of all DOFs) from them and bui
 compiled functions. Every numeric result of dmpopt (rollouts, online steps, fitting matrices,
 gradients) is evaluated from these expressions; nothing re-implements them in numpy. (To
 evaluate one expression at tens of thousands of points, :class:`ArrayFunction` runs CasADi's
-own instruction list on numpy arrays.)
+own instruction list on numpy arrays, and :func:`numba_source` translates it into Python for
+numba, for the compiled pass of a rollout's response matrices, :mod:`dmpopt.response`.)
 
 The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
 phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried

@@ -20,7 +20,10 @@ rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j'
 l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`, :math:`p` the basis
 phase). tests/core/test_response.py checks the result against CasADi's own
 :func:`symbolic.feature_rate_function` for every form and kernel, and the rollout against the
-step-by-step integration. (Evaluating CasADi's instruction list on arrays instead, as
+step-by-step integration. So a form or kernel added to :mod:`dmpopt.forms` reaches this pass
+with no code here, if its log-activations have the two properties the truncation uses
+(below); a numba copy of each form's equations was not written, as it would be a second
+definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on arrays instead, as
 :class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that the LASA demo's
 plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
 temporaries.)
@@ -38,8 +41,9 @@ the phase is taken. For the kernels' log-activations (all :math:`l \le 0`, and :
   holds the largest, :math:`e^0`), the dropped ones are below :math:`e^{-L}`;
 - each normalised activation's rate by at most :math:`5 n e^{-L} G |\dot p|` with
   :math:`G = 2\sqrt{h_\max (|M| + L)}`: :math:`G` bounds :math:`|l_j'|` of every basis with
-  :math:`l_j \ge M - L`, and :math:`e^{u} a_j |l_j'| \le e^{u - L} G` of every other
-  (:math:`u = M - l_j`, as :math:`e^{-u} \sqrt{|M| + u}` decreases for :math:`u \ge 1/2`), so
+  :math:`l_j \ge M - L`, and :math:`a_j |l_j'| \le 2 e^{-u} \sqrt{h_\max (|M| + u)} \le e^{-L}
+  G` of every other (:math:`u = M - l_j > L`, :math:`a_j \le e^{-u}`, and :math:`e^{-u}
+  \sqrt{|M| + u}` decreases for :math:`u \ge 1/2`), so
   the weighted slope :math:`T = \sum_i a_i l_i'` changes by at most :math:`2 n e^{-L} G (1 +
   n e^{-L})` and :math:`a_j' = a_j (l_j' - T) \dot p` by at most :math:`4 n e^{-L} G (1 + 2 n
   e^{-L}) |\dot p|`.

@@ -278,18 +278,23 @@ def response_matrices(key: tuple) -> np.ndarray:
     return out
 
 
-def fresh_array(shape: tuple) -> np.ndarray:
-    """A new float array of ``shape`` whose memory the system maps and zeroes in one call where
-    it can (Linux: ``MAP_POPULATE``), else ``np.empty``.
+HUGE_PAGE_ADVICE = 4 * 1024**2
+"""Bytes from which numpy asks Linux for transparent huge pages for an array (numpy 1.22+)."""
 
-    numpy asks Linux for transparent huge pages for arrays over 4 MiB; where memory is
+
+def fresh_array(shape: tuple) -> np.ndarray:
+    """A new float array of ``shape``: from :data:`HUGE_PAGE_ADVICE` bytes on, memory that the
+    system maps and zeroes in one call where it can (Linux: ``MAP_POPULATE``), else
+    ``np.empty``.
+
+    numpy asks Linux for transparent huge pages for large arrays; where memory is
     fragmented, the first write to such an array waits for the system to compact memory.
     The 13.6 MB response of the LASA demo's plan took 35-45 ms of thread time to allocate
-    and fill so on this machine (loaded, 2-4 ms where huge pages were at hand), 7 ms mapped
+    and fill so on this machine (loaded, 2-4 ms where huge pages were at hand), 6-8 ms mapped
     and populated in one call, 9-11 ms by one page fault per 4 KiB page.
     """
-    if not hasattr(mmap, "MAP_POPULATE"):
+    if 8 * math.prod(shape) < HUGE_PAGE_ADVICE or not hasattr(mmap, "MAP_POPULATE"):
         return np.empty(shape)
     flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | mmap.MAP_POPULATE
-    memory = mmap.mmap(-1, max(8 * math.prod(shape), 1), flags=flags)
+    memory = mmap.mmap(-1, 8 * math.prod(shape), flags=flags)
     return np.frombuffer(memory, dtype=float, count=math.prod(shape)).reshape(shape)

@@ -222,3 +222,14 @@ def test_the_generated_source_goes_to_a_temporary_folder_if_the_cache_cannot_be_
     module = response.kernels("velocity", "gaussian")
     assert "dmpopt-generated-" in module.__file__
     assert module.N_CARRIER == 1 and module.N_STATES == 2
+
+
+@pytest.mark.parametrize("shape", [(3, 5, 4), (3, 4000, 53)])
+def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
+    """Small arrays come from numpy, those of 4 MiB and more (5 MB here) from a populated
+    mapping where the system has one: either way a writable float array that keeps what is
+    written to it."""
+    array = response.fresh_array(shape)
+    assert array.shape == shape and array.dtype == np.float64 and array.flags.writeable
+    array[...] = np.arange(array.size).reshape(shape)
+    assert array[-1, -1, -1] == array.size - 1 and array.sum() == array.size * (array.size - 1) / 2

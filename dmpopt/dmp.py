@@ -170,10 +170,11 @@ def _response(key: tuple) -> np.ndarray:
 
     Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
     responses to each input (initial transformation states, goal, weights), computed in one
-    compiled pass (:func:`dmpopt.response.response_matrices`): 3-6 ms of thread time for the
-    LASA demo's plan of 10676 steps and 53 inputs, where evaluating the features at all
-    stages on arrays and the recurrence in numpy blocks took 60-165 ms
-    (benchmarks/bench_core.py).
+    compiled pass (:func:`dmpopt.response.response_matrices`). The first rollout of the LASA
+    demo's plan (10676 steps, 53 inputs) took 18-23 ms of thread time with it on this 2-core
+    machine at load 12-14, of which 6-8 ms mapping its 13.6 MB and 2-3 ms the product;
+    evaluating the features at all stages on arrays and the recurrence in numpy blocks took
+    110-170 ms at that load (benchmarks/bench_core.py).
     """
     matrices = response_matrices(key)
     matrices.setflags(write=False)

@@ -46,6 +46,7 @@ import numpy as np
 
 from . import basis, forms, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
+from .response import response_matrices
 from .stepper import Stepper
 from .trajectory import Trajectory
 from .validation import check_resources, flag, positive, real, real_array, vector
@@ -163,73 +164,21 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return target_norm / source_norm * rotation
 
 
-CHUNK = 4096
-"""Steps of the response computed at once where a whole-plan temporary is not needed."""
-
-
-def _add_in_chunks(target: np.ndarray, factor: float, values: np.ndarray) -> None:
-    """``target += factor * values`` with temporaries of at most :data:`CHUNK` rows."""
-    for begin in range(0, values.shape[0], CHUNK):
-        rows = slice(begin, begin + CHUNK)
-        target[rows] += factor * values[rows]
-
-
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
 def _response(key: tuple) -> np.ndarray:
-    """Response matrices of one DOF, in time normalised by ``tau``.
+    """Response matrices of one DOF, in time normalised by ``tau``, read-only.
 
     Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
-    responses to each input (initial transformation states, goal, weights). The RK4 step is
-    affine in these inputs (:func:`symbolic.transformation_matrices`), the forcing term
-    entering at its four stages through the features there; so the features are evaluated
-    at each stage of all steps at once (:class:`symbolic.ArrayFunction`) and the responses
-    follow from the linear recurrence in blocks (:func:`symbolic.linear_states`). Calling the
-    Jacobian of the whole step once per step, as before, took 460 ms for 10676 steps and 53
-    inputs (the LASA demo's plan); this takes 60-165 ms of thread time, by the machine's load
-    (benchmarks/bench_core.py), most of it the features: 4 x 10676 points x 50 bases, each an
-    exp and about 13 other operations.
+    responses to each input (initial transformation states, goal, weights), computed in one
+    compiled pass (:func:`dmpopt.response.response_matrices`). The first rollout of the LASA
+    demo's plan (10676 steps, 53 inputs) took 18-23 ms of thread time with it on this 2-core
+    machine at load 12-14, of which 6-8 ms mapping its 13.6 MB and 2-3 ms the product;
+    evaluating the features at all stages on arrays and the recurrence in numpy blocks took
+    110-170 ms at that load (benchmarks/bench_core.py).
     """
-    (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
-    signature = symbolic.Signature(form, 1, n_basis, kernel)
-    n = symbolic.n_transformation_states(form)
-    n_features = signature.n_features
-    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains))
-    matrices = {name: value.full() for name, value in matrices.items()}
-    samples, stages = symbolic.canonical_trajectory(
-        signature, n_steps, dt, canonical0, target, gains
-    )
-    shared = (np.array(centres), np.array(widths), target, np.array(gains))
-    # the features and their rates at the samples: the outputs' direct part, stage 1's drive
-    direct = np.empty((2, n_steps, n_features))
-    symbolic.array_function(symbolic.feature_rate_function(signature))(
-        samples, *shared, n_points=n_steps, out=list(direct)
-    )
-    # the states' buffer holds first what drives each step: S_g g and S_f (f_1, .., f_4)
-    length, padded = symbolic.linear_blocks(n_steps)
-    states = np.zeros((3, padded, n + 1 + n_features))  # 3 rows: later the 3 outputs
-    states[:n, : n_steps - 1, n] = matrices["step_goal"]
-    features = symbolic.array_function(symbolic.feature_function(signature))
-    stage_features = direct[0, :-1]
-    for stage in range(4):
-        if stage > 0:  # one stage at a time: at most one array of features besides direct
-            (stage_features,) = features(stages[stage], *shared[:2], n_points=n_steps - 1)
-        for i in range(n):
-            _add_in_chunks(states[i, : n_steps - 1, n + 1 :], matrices["step_forcing"][i, stage],
-                           stage_features)  # fmt: skip
-        del stage_features
-    symbolic.linear_states(matrices["step"], np.eye(n, n + 1 + n_features), states[:n], length)
-    # the outputs O x + O_g g + O_f (f, fdot), in place, a chunk of steps at a time
-    output, forcing = matrices["output"], matrices["output_forcing"]
-    for begin in range(0, n_steps, CHUNK):
-        rows = slice(begin, min(begin + CHUNK, n_steps))
-        chunk = np.tensordot(output, states[:n, rows], axes=1)
-        chunk[:, :, n] += matrices["output_goal"]
-        chunk[:, :, n + 1 :] += np.tensordot(forcing, direct[:, rows], axes=1)
-        states[:, rows] = chunk
-    del direct
-    response = np.ascontiguousarray(states[:, :n_steps])
-    response.setflags(write=False)
-    return response
+    matrices = response_matrices(key)
+    matrices.setflags(write=False)
+    return matrices
 
 
 @dataclass(frozen=True, eq=False)
@@ -428,11 +377,10 @@ class _DmpCommon:
                 f"duration {duration} is shorter than two steps of dt = {dt}; lower dt"
             )
         n_inputs = symbolic.n_transformation_states(self.form) + 1 + self.signature.n_features
-        # at most 6 floats per input and sample at once while the response is computed: the
-        # features at the samples with their rates (2), one stage's features (1) and the
-        # buffer of states then outputs (3); then the response (3) and the plan (6 per DOF).
-        # Work arrays of at most 16 MiB (symbolic.ArrayFunction) and chunks of CHUNK steps
-        # come on top.
+        # counted as 6 floats per input and sample, though the compiled pass that computes
+        # the response (dmpopt.response) holds only the response (3) and work arrays of a
+        # few inputs; the plan takes 6 per DOF (positions, velocities, accelerations and the
+        # product they come from)
         n_bytes = 8.0 * n_steps * (6 * n_inputs + 6 * self.n_dofs)
         check_resources(
             f"a plan of {duration:.4g} s at dt = {dt:.4g} s",

@@ -5,7 +5,8 @@ whole system (canonical and transformation states of all DOFs) from them and bui
 compiled functions. Every numeric result of dmpopt (rollouts, online steps, fitting matrices,
 gradients) is evaluated from these expressions; nothing re-implements them in numpy. (To
 evaluate one expression at tens of thousands of points, :class:`ArrayFunction` runs CasADi's
-own instruction list on numpy arrays.)
+own instruction list on numpy arrays, and :func:`numba_source` translates it into Python for
+numba, for the compiled pass of a rollout's response matrices, :mod:`dmpopt.response`.)
 
 The discrete canonical system (6) is integrated normalised (start 0, goal 1), so that its
 phase does not depend on any DOF's goal; the forcing term's dependence on the goal is carried
@@ -473,6 +474,132 @@ def feature_rate_function(signature: Signature) -> ca.Function:
     inputs |= {"canonical_target": s.canonical_target, "gains": s.gains}
     outputs = {"features": phi, "feature_rate": ca.jtimes(phi, canonical, rate)}
     return function("dmp_feature_rate", inputs, outputs)
+
+
+@lru_cache(maxsize=8)
+def phase_point_function(form_name: str) -> ca.Function:
+    r"""``(canonical, canonical_target, gains) -> (phase, phase_rate, carrier, carrier_rate)``
+    at one canonical state of the uncoupled canonical system, in time normalised by ``tau``:
+    the basis functions' argument (:meth:`Form.basis_phase`), the vector the normalised
+    activations multiply (:meth:`Form.carrier`, padded with zeros to 2 entries) and their time
+    derivatives along the canonical system (eqs. (6), (11), (13)). With
+    :func:`log_activation_function` these are the form- and kernel-specific parts of the
+    features (:meth:`Form.features`), evaluated piecewise by :mod:`dmpopt.response`."""
+    form = FORMS[form_name]
+    canonical, target = ca.SX.sym("canonical", 2), ca.SX.sym("canonical_target")
+    gains = ca.SX.sym("gains", len(form.gain_names))
+    rate = form.canonical_rhs(canonical, target, gains, 0.0)
+    phase = form.basis_phase(canonical)
+    carrier = ca.vertcat(form.carrier(canonical), ca.SX.zeros(2 - form.vectors_per_basis))
+    outputs = {
+        "phase": phase,
+        "phase_rate": ca.jtimes(phase, canonical, rate),
+        "carrier": carrier,
+        "carrier_rate": ca.jtimes(carrier, canonical, rate),
+    }
+    inputs = {"canonical": canonical, "canonical_target": target, "gains": gains}
+    return function(
+        "dmp_phase_point", inputs, {name: ca.densify(value) for name, value in outputs.items()}
+    )
+
+
+@lru_cache(maxsize=8)
+def log_activation_function(kernel: str) -> ca.Function:
+    r"""``(phase, centre, width) -> (log_activation, log_activation_slope)``: the logarithm
+    :math:`l` of one basis function's activation (:func:`basis_log_activations`) and
+    :math:`\partial l / \partial \phi`."""
+    phase, centre, width = ca.SX.sym("phase"), ca.SX.sym("centre"), ca.SX.sym("width")
+    log_psi = basis_log_activations(kernel, phase, centre, width)
+    return function(
+        "dmp_log_activation",
+        {"phase": phase, "centre": centre, "width": width},
+        {"log_activation": log_psi, "log_activation_slope": ca.jacobian(log_psi, phase)},
+    )
+
+
+_NUMBA_UNARY = {
+    ca.OP_ASSIGN: "{0}",
+    ca.OP_NEG: "-{0}",
+    ca.OP_EXP: "math.exp({0})",
+    ca.OP_LOG: "math.log({0})",
+    ca.OP_SQRT: "math.sqrt({0})",
+    ca.OP_SQ: "{0} * {0}",
+    ca.OP_INV: "1.0 / {0}",
+    ca.OP_SIN: "math.sin({0})",
+    ca.OP_COS: "math.cos({0})",
+    ca.OP_TAN: "math.tan({0})",
+    ca.OP_FABS: "abs({0})",
+    ca.OP_SIGN: "np.sign({0})",
+    ca.OP_FLOOR: "np.floor({0})",
+    ca.OP_CEIL: "np.ceil({0})",
+    ca.OP_NOT: "float({0} == 0.0)",
+    ca.OP_TWICE: "{0} + {0}",
+}
+_NUMBA_BINARY = {
+    ca.OP_ADD: "{0} + {1}",
+    ca.OP_SUB: "{0} - {1}",
+    ca.OP_MUL: "{0} * {1}",
+    ca.OP_DIV: "{0} / {1}",
+    ca.OP_POW: "{0} ** {1}",
+    ca.OP_CONSTPOW: "{0} ** {1}",
+    ca.OP_FMIN: "np.fmin({0}, {1})",
+    ca.OP_FMAX: "np.fmax({0}, {1})",
+    ca.OP_FMOD: "np.fmod({0}, {1})",
+    ca.OP_ATAN2: "math.atan2({0}, {1})",
+    ca.OP_COPYSIGN: "math.copysign({0}, {1})",
+    ca.OP_LT: "float({0} < {1})",
+    ca.OP_LE: "float({0} <= {1})",
+    ca.OP_EQ: "float({0} == {1})",
+    ca.OP_NE: "float({0} != {1})",
+    ca.OP_AND: "float({0} != 0.0 and {1} != 0.0)",
+    ca.OP_OR: "float({0} != 0.0 or {1} != 0.0)",
+    ca.OP_IF_ELSE_ZERO: "({1} if {0} != 0.0 else 0.0)",
+}
+"""CasADi's scalar operations as Python expressions that numba compiles (the operations of
+:data:`_UNARY` and :data:`_BINARY`, the same C library functions for exp, sin, ...)."""
+
+
+def numba_source(function: ca.Function, name: str) -> str:
+    """Python source of a function ``name`` that computes the SX ``function``, one line per
+    CasADi instruction, for numba to compile (:mod:`dmpopt.response`).
+
+    An input with one nonzero is a float argument, a larger one an array argument indexed
+    by nonzero; the result is the tuple of every output's nonzeros, in order. The
+    expressions are CasADi's own instruction list, so the compiled code performs the same
+    operations in the same order as CasADi's virtual machine.
+    """
+    arguments = [f"a{i}" for i in range(function.n_in())]
+    offsets = np.cumsum([0] + [function.nnz_out(i) for i in range(function.n_out())])
+    results = ["0.0"] * int(offsets[-1])
+    lines = [f"def {name}({', '.join(arguments)}):"]
+    for k in range(function.n_instructions()):
+        op = function.instruction_id(k)
+        inputs, outputs = function.instruction_input(k), function.instruction_output(k)
+        target = f"w{outputs[0]}"
+        if op == ca.OP_INPUT:
+            single = function.nnz_in(inputs[0]) == 1
+            value = arguments[inputs[0]] + ("" if single else f"[{inputs[1]}]")
+        elif op == ca.OP_OUTPUT:  # a fresh name: a later instruction may reuse the entry
+            index = int(offsets[outputs[0]]) + outputs[1]
+            results[index] = f"r{index}"
+            lines.append(f"    r{index} = w{inputs[0]}")
+            continue
+        elif op == ca.OP_CONST:
+            constant = function.instruction_constant(k)
+            special = {math.inf: "math.inf", -math.inf: "-math.inf"}.get(constant, "math.nan")
+            value = repr(constant) if math.isfinite(constant) else special
+        elif op in _NUMBA_UNARY:
+            value = _NUMBA_UNARY[op].format(f"w{inputs[0]}")
+        elif op in _NUMBA_BINARY:
+            value = _NUMBA_BINARY[op].format(f"w{inputs[0]}", f"w{inputs[1]}")
+        else:
+            raise NotImplementedError(
+                f"{function.name()}: CasADi operation {op} has no numba expression; add it "
+                "to symbolic._NUMBA_UNARY or _NUMBA_BINARY"
+            )
+        lines.append(f"    {target} = {value}")
+    lines.append(f"    return ({', '.join(results)},)")
+    return "\n".join(lines) + "\n"
 
 
 _UNARY = {

@@ -1,0 +1,300 @@
+r"""The response matrices of a rollout of one DOF, in one compiled pass (numba).
+
+A rollout's positions, velocities and accelerations are linear in the initial transformation
+states, the goal and the forcing weights (:mod:`dmpopt.dmp`). Their coefficients, the
+response matrices, follow from the RK4 step of the transformation system as matrices
+(:func:`symbolic.transformation_matrices`) driven at each of the step's four stages by the
+features there. :func:`response_matrices` runs that recurrence, the canonical system's step
+and the features in one loop over the steps, compiled by numba, without arrays of features.
+
+Where the numbers come from. Every form- and kernel-specific expression is CasADi's: the
+canonical step (:func:`symbolic.canonical_step_function`), the basis phase, carrier and their
+rates (:func:`symbolic.phase_point_function`) and one basis function's log-activation and its
+slope (:func:`symbolic.log_activation_function`) are translated instruction by instruction
+into Python for numba (:func:`symbolic.numba_source`), so they are computed by the same
+operations in the same order as CasADi's virtual machine. What the loop adds is the same for
+every form and kernel: the normalisation of :func:`forms.normalised_activations`
+(:math:`a_j = e^{l_j - M} / \sum_i e^{l_i - M}`, :math:`M = \max_i l_i`), the layout of
+:meth:`forms.Form.features` (:math:`\phi_{j,e} = a_j C_e` with the carrier :math:`C`) and the
+rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j' - \sum_i a_i
+l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`, :math:`p` the basis
+phase). tests/core/test_response.py checks the result against CasADi's own
+:func:`symbolic.feature_rate_function` for every form and kernel, and the rollout against the
+step-by-step integration. So a form or kernel added to :mod:`dmpopt.forms` reaches this pass
+with no code here, if its log-activations have the two properties the truncation uses
+(below); a numba copy of each form's equations was not written, as it would be a second
+definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on arrays instead, as
+:class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that the LASA demo's
+plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
+temporaries.)
+
+Truncation. Bases whose log-activation is more than :math:`L` below the largest,
+:math:`l_j < M - L`, before the first or after the last basis at or above :math:`M - L`, are
+left out of the normalisation (their features are 0), so only the exp of the few bases near
+the phase is taken. For the kernels' log-activations (all :math:`l \le 0`, and :math:`l'^2 \le
+4 h |l|` with the width :math:`h`: equality for the Gaussian and the printed periodic kernel,
+:math:`h^2 \sin^2\theta \le 2 h^2 (1 - \cos\theta)` for von Mises) this changes, with
+:math:`n` bases and :math:`n e^{-L} \le 1/8`:
+
+- each normalised activation by at most :math:`n e^{-L}`: the kept ones by the relative
+  change :math:`(S - \tilde S) / \tilde S \le n e^{-L}` of the sum (:math:`\tilde S \ge 1`
+  holds the largest, :math:`e^0`), the dropped ones are below :math:`e^{-L}`;
+- each normalised activation's rate by at most :math:`5 n e^{-L} G |\dot p|` with
+  :math:`G = 2\sqrt{h_\max (|M| + L)}`: :math:`G` bounds :math:`|l_j'|` of every basis with
+  :math:`l_j \ge M - L`, and :math:`a_j |l_j'| \le 2 e^{-u} \sqrt{h_\max (|M| + u)} \le e^{-L}
+  G` of every other (:math:`u = M - l_j > L`, :math:`a_j \le e^{-u}`, and :math:`e^{-u}
+  \sqrt{|M| + u}` decreases for :math:`u \ge 1/2`), so
+  the weighted slope :math:`T = \sum_i a_i l_i'` changes by at most :math:`2 n e^{-L} G (1 +
+  n e^{-L})` and :math:`a_j' = a_j (l_j' - T) \dot p` by at most :math:`4 n e^{-L} G (1 + 2 n
+  e^{-L}) |\dot p|`.
+
+At the stage points :math:`L = L_0 = \ln(2 n / \epsilon)` (:func:`first_level`) makes the first
+bound :math:`\epsilon / 2`; at the samples, where the rates are needed,
+:math:`L = L_0 + \ln(1 + 5 G)` (:math:`G` taken at :math:`L = 3 L_0`, valid while :math:`L
+\le 3 L_0`, else nothing is left out) makes the features' rates :math:`\dot\phi = \dot a C + a
+\dot C` change by at most :math:`\frac{\epsilon}{2} (|\dot p| |C| + |\dot C|)`. The features
+are then those of all the bases to rounding, and the rollout equals the stepper's integration
+as before (tests/core/test_response.py checks both bounds at levels far below these, where
+the truncation shows).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import math
+import mmap
+import os
+import sys
+import tempfile
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from . import symbolic
+
+EPS = float(np.finfo(float).eps)
+
+
+def first_level(n_basis: int) -> float:
+    r"""The truncation level at the stage points, :math:`L_0 = \ln(2 n / \epsilon)`
+    (module docstring): the normalised activations change by at most :math:`n e^{-L_0} =
+    \epsilon / 2`. The level at the samples follows from it in the compiled loop."""
+    return math.log(2.0 * n_basis / EPS)
+
+
+_KERNELS = '''
+_compile = numba.njit(cache=True, nogil=True, error_model="numpy")
+canonical_step = _compile(canonical_step)
+phase_point = _compile(phase_point)
+log_activation = _compile(log_activation)
+N_CARRIER = {n_carrier}
+N_STATES = {n_states}
+
+
+@_compile
+def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
+             slopes, values, rates):
+    """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
+    count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
+    rates[i, e] its rate. Returns (lo, count)."""
+    point = phase_point(canonical, target, gains)
+    phase, phase_rate = point[0], point[1]
+    n_basis = centres.size
+    for j in range(n_basis):
+        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+    top = logs[0]
+    for j in range(1, n_basis):
+        top = max(top, logs[j])
+    bound = first
+    if with_rate:  # the level at the samples (module docstring)
+        slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
+        extra = math.log1p(5.0 * slope)
+        bound = first + extra if extra <= 2.0 * first else math.inf
+    level = top - bound  # the bases from the first to the last at or above it are kept
+    lo, hi = 0, n_basis - 1
+    while logs[lo] < level:
+        lo += 1
+    while logs[hi] < level:
+        hi -= 1
+    total = 0.0
+    for j in range(lo, hi + 1):
+        weight = math.exp(logs[j] - top)
+        logs[j] = weight
+        total += weight
+    inverse = 1.0 / total
+    count = hi + 1 - lo
+    slope_sum = 0.0
+    for i in range(count):
+        activation = logs[lo + i] * inverse
+        logs[lo + i] = activation
+        for e in range(N_CARRIER):
+            values[i, e] = activation * point[2 + e]
+        if with_rate:
+            slopes[i] = log_activation(phase, centres[lo + i], widths[lo + i])[1]
+            slope_sum += activation * slopes[i]
+    if with_rate:
+        for i in range(count):
+            activation = logs[lo + i]
+            rate = activation * (slopes[i] - slope_sum) * phase_rate
+            for e in range(N_CARRIER):
+                rates[i, e] = rate * point[2 + e] + activation * point[4 + e]
+    return lo, count
+
+
+@_compile
+def response(canonical0, dt, target, gains, centres, widths, first, step, step_goal,
+             step_forcing, output, output_goal, output_forcing, out):
+    """Fill out (3, n_steps, n + 1 + n_features): responses of position, velocity and
+    acceleration to the initial transformation states, the goal and the weights."""
+    n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
+    n_basis = centres.size
+    states = np.zeros((n, m))
+    following = np.empty((n, m))
+    for i in range(n):
+        states[i, i] = 1.0
+    canonical = canonical0.copy()
+    stage = np.empty(2)
+    logs, slopes = np.empty(n_basis), np.empty(n_basis)
+    values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
+    max_width = widths.max()
+    for k in range(n_steps):
+        lo, count = features(canonical, target, gains, centres, widths, max_width, first, True,
+                             logs, slopes, values, rates)
+        start = n + 1 + N_CARRIER * lo  # the first kept basis's first column
+        for j in range(3):  # O x + O_g g + O_f (f, fdot)
+            row = out[j, k]
+            for column in range(m):
+                total = 0.0
+                for a in range(N_STATES):
+                    total += output[j, a] * states[a, column]
+                row[column] = total
+            row[n] += output_goal[j]
+            for i in range(count):
+                for e in range(N_CARRIER):
+                    row[start + N_CARRIER * i + e] += (
+                        output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
+                    )
+        if k == n_steps - 1:
+            break
+        for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
+            row = following[i]
+            for column in range(m):
+                total = 0.0
+                for a in range(N_STATES):
+                    total += step[i, a] * states[a, column]
+                row[column] = total
+            row[n] += step_goal[i]
+            for a in range(count):
+                for e in range(N_CARRIER):
+                    row[start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
+        result = canonical_step(canonical, dt, target, gains)
+        for s in range(1, 4):
+            stage[0] = result[2 + 2 * s]
+            stage[1] = result[3 + 2 * s]
+            lo, count = features(stage, target, gains, centres, widths, max_width, first, False,
+                                 logs, slopes, values, rates)
+            start = n + 1 + N_CARRIER * lo
+            for i in range(n):
+                for a in range(count):
+                    for e in range(N_CARRIER):
+                        following[i, start + N_CARRIER * a + e] += step_forcing[i, s] * values[a, e]
+        canonical[0] = result[0]
+        canonical[1] = result[1]
+        states, following = following, states
+'''
+
+
+def kernel_source(form: str, kernel: str) -> str:
+    """Source of the compiled response of ``form`` with ``kernel``: CasADi's expressions as
+    Python (:func:`symbolic.numba_source`) and the loop (module docstring)."""
+    signature = symbolic.Signature(form, 1, 1, kernel)
+    generated = [
+        symbolic.numba_source(symbolic.canonical_step_function(signature), "canonical_step"),
+        symbolic.numba_source(symbolic.phase_point_function(form), "phase_point"),
+        symbolic.numba_source(symbolic.log_activation_function(kernel), "log_activation"),
+    ]
+    equations = symbolic.FORMS[form]
+    loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
+    loop = loop.replace("{n_states}", str(equations.n_transformation))
+    header = (
+        f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
+        "import math\n\nimport numba\nimport numpy as np\n\n\n"
+    )
+    return header + "\n\n".join(generated) + loop
+
+
+@lru_cache(maxsize=None)
+def kernels(form: str, kernel: str):
+    """The compiled module of :func:`kernel_source`.
+
+    Its source is written once per machine to ``generated`` in :func:`symbolic.cache_dir`,
+    under a hash of the source, so that numba caches the compiled code with it: 1-3 s the
+    first time for each form and kernel, then a load. If that folder cannot be written, to a
+    temporary folder of the process (compiled again in each process)."""
+    source = kernel_source(form, kernel)
+    name = f"response_{form}_{kernel}_{hashlib.sha1(source.encode()).hexdigest()[:16]}"
+    try:
+        path = _write(symbolic.cache_dir() / "generated", name, source)
+    except OSError:
+        path = _write(Path(tempfile.mkdtemp(prefix="dmpopt-generated-")), name, source)
+    spec = importlib.util.spec_from_file_location(f"dmpopt_generated.{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # numba's cache imports the module by this name
+    spec.loader.exec_module(module)
+    return module
+
+
+def _write(folder: Path, name: str, source: str) -> Path:
+    """``folder/name.py`` holding ``source``, written whole or not at all (other processes may
+    read it)."""
+    path = folder / f"{name}.py"
+    if not path.exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.tmp")
+        partial.write_text(source)
+        partial.replace(path)
+    return path
+
+
+def response_matrices(key: tuple) -> np.ndarray:
+    """Response matrices of one DOF for the cache key of :func:`dmpopt.dmp._response`, in time
+    normalised by ``tau``: shape (3, n_steps, n_inputs), positions, velocities and
+    accelerations against the initial transformation states, the goal and the weights."""
+    (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
+    gains = np.array(gains, dtype=float)
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=gains)
+    matrices = {name: value.full() for name, value in matrices.items()}
+    n = symbolic.n_transformation_states(form)
+    out = fresh_array((3, n_steps, n + 1 + symbolic.n_features(form, n_basis)))
+    kernels(form, kernel).response(
+        np.array(canonical0, dtype=float), float(dt), float(target), gains,
+        np.array(centres, dtype=float), np.array(widths, dtype=float),
+        first_level(n_basis),
+        matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
+        matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"], out,
+    )  # fmt: skip
+    return out
+
+
+HUGE_PAGE_ADVICE = 4 * 1024**2
+"""Bytes from which numpy asks Linux for transparent huge pages for an array (numpy 1.22+)."""
+
+
+def fresh_array(shape: tuple) -> np.ndarray:
+    """A new float array of ``shape``: from :data:`HUGE_PAGE_ADVICE` bytes on, memory that the
+    system maps and zeroes in one call where it can (Linux: ``MAP_POPULATE``), else
+    ``np.empty``.
+
+    numpy asks Linux for transparent huge pages for large arrays; where memory is
+    fragmented, the first write to such an array waits for the system to compact memory.
+    The 13.6 MB response of the LASA demo's plan took 35-45 ms of thread time to allocate
+    and fill so on this machine (loaded, 2-4 ms where huge pages were at hand), 6-8 ms mapped
+    and populated in one call, 9-11 ms by one page fault per 4 KiB page.
+    """
+    if 8 * math.prod(shape) < HUGE_PAGE_ADVICE or not hasattr(mmap, "MAP_POPULATE"):
+        return np.empty(shape)
+    flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | mmap.MAP_POPULATE
+    memory = mmap.mmap(-1, 8 * math.prod(shape), flags=flags)
+    return np.frombuffer(memory, dtype=float, count=math.prod(shape)).reshape(shape)

@@ -1,0 +1,237 @@
+"""The compiled pass of a rollout's response matrices (dmpopt.response): CasADi's expressions
+translated for numba, the truncated features against CasADi's features of all the bases and
+against the truncation bounds derived in dmpopt/response.py, and the rollout against the
+step-by-step integration."""
+
+import math
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from problems import random_discrete, random_rhythmic
+
+from dmpopt import response, symbolic
+from dmpopt.basis import discrete_basis, rhythmic_basis
+
+EPS = np.finfo(float).eps
+DISCRETE_GAINS = [25.0, 6.25, 25.0, 6.25]
+CASES = [
+    ("velocity", "gaussian"),
+    ("acceleration", "gaussian"),
+    ("phase", "von_mises"),
+    ("phase", "paper"),
+    ("energy", "von_mises"),
+    ("energy", "paper"),
+]
+
+
+def _problem(form, kernel, n_basis=30, n_points=200, seed=0):
+    """Centres, widths, target, gains and random canonical states (as in test_symbolic)."""
+    rng = np.random.default_rng(seed)
+    if form in ("velocity", "acceleration"):
+        centres, widths = discrete_basis(n_basis, tuple(DISCRETE_GAINS))
+        gains = np.array(DISCRETE_GAINS + [12.5] * (form == "acceleration"))
+        points = np.vstack([rng.uniform(-0.1, 1.1, n_points), rng.uniform(-1.0, 3.0, n_points)])
+    else:
+        centres, widths = rhythmic_basis(n_basis, kernel)
+        gains = np.array([25.0, 6.25, 10.0] + [2.0] * (form == "energy"))
+        points = np.vstack([rng.uniform(-10, 10, n_points), rng.uniform(-2.0, 2.0, n_points)])
+    return centres, widths, 1.3, gains, points
+
+
+def _features(module, canonical, target, gains, centres, widths, first, with_rate=True):
+    """The compiled features (and rates) at one canonical state, spread over all bases."""
+    n_basis, n_carrier = centres.size, module.N_CARRIER
+    logs, slopes = np.empty(n_basis), np.empty(n_basis)
+    values, rates = np.empty((n_basis, n_carrier)), np.empty((n_basis, n_carrier))
+    lo, count = module.features(
+        np.asarray(canonical, dtype=float), target, gains, centres, widths, widths.max(),
+        first, with_rate, logs, slopes, values, rates,
+    )  # fmt: skip
+    dense = np.zeros((2, n_basis, n_carrier))
+    dense[0, lo : lo + count], dense[1, lo : lo + count] = values[:count], rates[:count]
+    return dense.reshape(2, -1), count
+
+
+@pytest.mark.parametrize("form, kernel", CASES)
+def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
+    """The canonical step (only +, -, * and / in every form) is CasADi's to the bit: the same
+    operations in the same order; the phase, carrier and log-activation (with cos, sin,
+    atan2, fmod from the C library on both sides) agree within 100 eps of their size."""
+    centres, widths, target, gains, points = _problem(form, kernel, n_points=50)
+    module = response.kernels(form, kernel)
+    step = symbolic.canonical_step_function(symbolic.Signature(form, 1, 1, kernel))
+    point = symbolic.phase_point_function(form)
+    log_activation = symbolic.log_activation_function(kernel)
+    for state in points.T:
+        expected = step(canonical=state, dt=0.01, canonical_target=target, gains=gains)
+        expected = np.concatenate([expected["next_canonical"].full().ravel(),
+                                   expected["stages"].full().ravel(order="F")])  # fmt: skip
+        np.testing.assert_array_equal(module.canonical_step(state, 0.01, target, gains), expected)
+        expected = np.concatenate([v.full().ravel() for v in point(state, target, gains)])
+        got = np.array(module.phase_point(state, target, gains))
+        np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * np.abs(expected).max())
+        for centre, width in zip(centres[::7], widths[::7]):
+            expected = np.array([float(v) for v in log_activation(state[0], centre, width)])
+            got = np.array(module.log_activation(state[0], centre, width))
+            np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * abs(expected).max())
+
+
+@pytest.mark.parametrize("form, kernel", CASES)
+def test_truncated_features_equal_casadis_features_of_all_bases(form, kernel):
+    """At the levels of a rollout (dmpopt/response.py) the left-out bases change the features
+    by at most eps/2 |C| and their rates by eps/2 (|p'| |C| + |C'|): the features and rates
+    equal CasADi's own of all 30 bases (feature_rate_function) to rounding: within 100 eps of
+    their size as for symbolic.ArrayFunction (tests/core/test_symbolic.py), the rates of the
+    size of their largest term (_rate_terms); fewer bases than all are evaluated at some
+    points."""
+    centres, widths, target, gains, points = _problem(form, kernel)
+    module = response.kernels(form, kernel)
+    casadi = symbolic.feature_rate_function(symbolic.Signature(form, 1, centres.size, kernel))
+    first = response.first_level(centres.size)
+    counts = []
+    for state in points.T:
+        expected = [v.full().ravel() for v in casadi(state, centres, widths, target, gains)]
+        for with_rate in (True, False):
+            got, count = _features(module, state, target, gains, centres, widths, first, with_rate)
+            counts.append(count)
+            scale = np.abs(expected[0]).max()
+            np.testing.assert_allclose(got[0], expected[0], rtol=0, atol=100 * EPS * scale)
+            if with_rate:
+                scale = _rate_terms(kernel, state, centres, widths, target, gains, form)
+                np.testing.assert_allclose(got[1], expected[1], rtol=0, atol=100 * EPS * scale)
+    assert min(counts) < centres.size
+
+
+def _log_activations(kernel, phase, centres, widths):
+    """l_j and dl_j/dp of eq. (7) (Gaussian), the von Mises kernel and eq. (12) as printed."""
+    if kernel == "von_mises":
+        return widths * (np.cos(phase - centres) - 1.0), -widths * np.sin(phase - centres)
+    if kernel == "paper":
+        phase = np.fmod(np.fmod(phase, 2 * np.pi) + 2 * np.pi, 2 * np.pi)
+    return -widths * (phase - centres) ** 2, -2 * widths * (phase - centres)
+
+
+def _rate_terms(kernel, state, centres, widths, target, gains, form):
+    """The size of the largest term of a feature's rate, a_j (|l_j'| + sum_i a_i |l_i'|) |p'|
+    |C| + a_j |C'|: the rate is their sum, so it rounds within a few eps of it."""
+    phase, phase_rate, carrier, carrier_rate = (
+        v.full().ravel() for v in symbolic.phase_point_function(form)(state, target, gains)
+    )
+    logs, slopes = _log_activations(kernel, phase[0], centres, widths)
+    activations = np.exp(logs - logs.max())
+    activations /= activations.sum()
+    weighted = activations @ np.abs(slopes)
+    terms = activations * (np.abs(slopes) + weighted) * abs(phase_rate[0])
+    return (terms * np.abs(carrier).max() + activations * np.abs(carrier_rate).max()).max()
+
+
+def _bounds(kernel, phase, centres, widths, first, phase_rate, carrier, carrier_rate):
+    """The truncation bounds of dmpopt/response.py, written out: the features change by at most
+    n e^-L0 |C|, the rates by 5 n e^-L G |p'| |C| + n e^-L |C'| at the samples' level L = L0 +
+    ln(1 + 5 G), G = 2 sqrt(h_max (|M| + 3 L0)) (no truncation if ln(1 + 5 G) > 2 L0)."""
+    n = centres.size
+    top = _log_activations(kernel, phase, centres, widths)[0].max()
+    slope = 2 * math.sqrt(widths.max() * (abs(top) + 3 * first))
+    extra = math.log1p(5 * slope)
+    level = first + extra if extra <= 2 * first else math.inf
+    carrier_size, rate_size = np.abs(carrier).max(), np.abs(carrier_rate).max()
+    feature_bound = n * math.exp(-first) * carrier_size
+    rate_bound = n * math.exp(-level) * (5 * slope * abs(phase_rate) * carrier_size + rate_size)
+    return feature_bound, rate_bound
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    form=st.sampled_from(["velocity", "phase"]),
+    phase=st.floats(-0.2, 1.2),
+    width_scale=st.floats(0.02, 3.0),
+    first=st.floats(1.0, 12.0),
+)
+def test_the_truncation_bounds_hold_where_the_truncation_shows(form, phase, width_scale, first):
+    """At levels L0 of 1 to 12 (a rollout uses ln(2 n / eps) = 39.3 for 30 bases) the
+    truncated features differ from CasADi's of all bases by up to ~1e-1, always within the
+    bounds derived in dmpopt/response.py (written out in _bounds) plus 100 eps of rounding;
+    drawn: the phase (times 2 pi for the periodic kernel), the widths' scale and the level."""
+    kernel = "gaussian" if form == "velocity" else "von_mises"
+    centres, widths, target, gains, _ = _problem(form, kernel)
+    widths = widths * width_scale
+    if form == "velocity":
+        state = np.array([phase, 1.0 + phase])
+    else:
+        state = np.array([2 * np.pi * phase, 1.0 + phase])
+    module = response.kernels(form, kernel)
+    casadi = symbolic.feature_rate_function(symbolic.Signature(form, 1, centres.size, kernel))
+    expected = [v.full().ravel() for v in casadi(state, centres, widths, target, gains)]
+    point = [v.full().ravel() for v in symbolic.phase_point_function(form)(state, target, gains)]
+    feature_bound, rate_bound = _bounds(kernel, point[0][0], centres, widths, first,
+                                        point[1][0], point[2], point[3])  # fmt: skip
+    got, _ = _features(module, state, target, gains, centres, widths, first, with_rate=False)
+    rounding = 100 * EPS * np.abs(expected[0]).max()
+    assert np.abs(got[0] - expected[0]).max() <= feature_bound + rounding
+    got, _ = _features(module, state, target, gains, centres, widths, first, with_rate=True)
+    rounding = 100 * EPS * _rate_terms(kernel, state, centres, widths, target, gains, form)
+    assert np.abs(got[1] - expected[1]).max() <= rate_bound + rounding
+
+
+def test_the_truncation_shows_at_a_low_level_and_stays_within_its_bound():
+    """The bound is not idle: at L0 = 3 between two Gaussian centres the features of the
+    velocity form differ from all bases' by more than 1e-4, and by less than n e^-3 |C|."""
+    centres, widths, target, gains, _ = _problem("velocity", "gaussian")
+    state = np.array([0.5 * (centres[10] + centres[11]), 1.0])
+    module = response.kernels("velocity", "gaussian")
+    casadi = symbolic.feature_function(symbolic.Signature("velocity", 1, centres.size, "gaussian"))
+    expected = casadi(state, centres, widths).full().ravel()
+    got, count = _features(module, state, target, gains, centres, widths, 3.0, False)
+    error = np.abs(got[0] - expected).max()
+    assert count < centres.size and 1e-4 < error <= centres.size * math.exp(-3.0)
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration", "phase", "energy"])
+def test_rollout_equals_the_stepwise_integration(form):
+    """The response pass and the integration step by step (symbolic.simulate: CasADi's RK4
+    step of the whole system, the stepper's arithmetic) agree over 800 steps within 4
+    n_steps eps of each output's largest value: both round each step's sums differently."""
+    if form in ("velocity", "acceleration"):
+        dmp = random_discrete(seed=4, n_basis=12, form=form)
+        canonical, rows = (0.0, 0.0), [dmp.start, np.zeros(2)]
+        rows += [dmp.start] if form == "acceleration" else []
+        plan = dmp.rollout(0.8, 0.001, start_velocity=np.zeros(2))
+        forcing = dmp.forcing_weights() @ dmp._features(canonical)
+        rows[1] = rows[1] - forcing if form == "velocity" else rows[1]
+    else:
+        dmp = random_rhythmic(seed=4, n_basis=12, form=form)
+        canonical, rows = dmp.canonical_state(0.0), [dmp.setpoint, np.zeros(2)]
+        plan = dmp.rollout(0.8, 0.001)
+        rows[1] = rows[1] - dmp.forcing_weights() @ dmp._features(canonical)
+    initial = np.concatenate([canonical, *rows])
+    stepped = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.001, dmp.parameters())
+    for got, expected in zip((plan.positions, plan.velocities, plan.accelerations), stepped[1:]):
+        bound = 4 * plan.n_steps * EPS * np.abs(expected).max()
+        np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
+def test_the_generated_source_goes_to_a_temporary_folder_if_the_cache_cannot_be_written(
+    monkeypatch,
+):
+    """A cache folder that cannot be created (under a file) sends the generated module to a
+    temporary folder of the process instead of failing the rollout."""
+    cached = response.kernels("velocity", "gaussian")
+    monkeypatch.setitem(sys.modules, cached.__name__, cached)  # put back after the test
+    monkeypatch.setattr(symbolic, "cache_dir", lambda: symbolic.Path("/dev/null/dmpopt"))
+    module = response.kernels.__wrapped__("velocity", "gaussian")
+    assert "dmpopt-generated-" in module.__file__
+    assert module.N_CARRIER == 1 and module.N_STATES == 2
+
+
+@pytest.mark.parametrize("shape", [(3, 5, 4), (3, 4000, 53)])
+def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
+    """Small arrays come from numpy, those of 4 MiB and more (5 MB here) from a populated
+    mapping where the system has one: either way a writable float array that keeps what is
+    written to it."""
+    array = response.fresh_array(shape)
+    assert array.shape == shape and array.dtype == np.float64 and array.flags.writeable
+    array[...] = np.arange(array.size).reshape(shape)
+    assert array[-1, -1, -1] == array.size - 1 and array.sum() == array.size * (array.size - 1) / 2

@@ -393,9 +393,13 @@ def gc_replays(names, seconds: float, replays: int, loop) -> None:
     ``gc.callbacks``: the collections that start inside a tick (count, generation 2, longest
     [ms]) and those between ticks, the longest tick by thread CPU and by wall time (which counts
     waiting for a core on a busy machine too), and the ticks over 2 ms of CPU."""
-    print(f"{replays} replays of dmpopt per scenario; gc {'without' if loop is contextlib.nullcontext else 'in'} control_loop")
-    print(f"{'':16s} {'ticks':>6s} {'gc in ticks':>11s} {'gen 2':>5s} {'longest':>8s} "
-          f"{'gc between':>10s} {'longest':>8s} {'max CPU':>8s} {'max wall':>8s} {'CPU > 2 ms':>10s}")  # fmt: skip
+    where = "without" if loop is contextlib.nullcontext else "in"
+    print(f"{replays} replays of dmpopt per scenario, {where} control_loop")
+    print(
+        f"{'':16s} {'ticks':>6s} {'gc in ticks':>11s} {'gen 2':>5s} {'longest':>8s} "
+        f"{'gc between':>10s} {'longest':>8s} {'max CPU':>8s} {'max wall':>8s} "
+        f"{'CPU > 2 ms':>10s}"
+    )
     for name in names:
         scenario = SCENARIOS[name](seconds)
         ticks = scenario.record(seconds, loop)

@@ -9,6 +9,7 @@ contact-switching API (``remove_contact`` with a normal-force ramp, ``add_contac
 from __future__ import annotations
 
 import dataclasses
+import gc
 import math
 import numbers
 from collections import OrderedDict
@@ -480,7 +481,23 @@ class InverseDynamicsController:
         -------
         ndarray, shape (n_actuated,)
             Torques of the actuated joints [N m], within the torque limits, always finite.
+
+        Notes
+        -----
+        Python's cyclic garbage collector is paused for the whole call (contact transitions,
+        a switch to another contact set's QP and the joint impedance included), as in
+        :meth:`Tick.compute_torques <dmpopt.control.tick.Tick.compute_torques>`.
         """
+        if not gc.isenabled():
+            return self._compute_torques(q, v, t)
+        gc.disable()
+        try:
+            return self._compute_torques(q, v, t)
+        finally:
+            gc.enable()
+
+    def _compute_torques(self, q, v, t) -> np.ndarray:
+        """:meth:`compute_torques` with the collector paused."""
         q, v = self._check_state(q, v)
         if self._ramps:
             self._advance_transitions(t)

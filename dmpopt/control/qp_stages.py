@@ -193,7 +193,8 @@ def _active_set(
 
 class ActiveSetWorkspace:
     """The arguments of :func:`kernels.active_set` for one QP, made once: its arrays as
-    given (views allowed, no copies: a stage's QP arrays are refilled in place each tick),
+    given (float64 views allowed, no copies: a stage's QP arrays are refilled in place each
+    tick; arrays of another dtype are converted once, so later changes to them are not seen),
     the scratch arrays and the solution, with the kernel compiled for their types
     (:func:`kernels.entry_point`: called without numba's type dispatch).
 

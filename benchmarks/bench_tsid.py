@@ -37,7 +37,9 @@ pin 3.4.0 (``benchmarks/tsid-constraints.txt``) runs::
 Run from the repository root: ``PYTHONPATH=.:benchmarks python benchmarks/bench_tsid.py
 [--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking] [--no-freeze]``. After the
 walk it prints the CPU time per stage of dmpopt's one-foot QP ticks (one more replay); with
-``--stages``, only those.
+``--stages``, only those. ``--gc-replays N``: only dmpopt, N replays of each recording watching
+the garbage collector (collections started inside and between ticks, the longest tick by CPU
+and wall time and the ticks over 2 ms of CPU), e.g. ``--gc-replays 10``.
 
 Garbage collection: dmpopt's tick pauses the collector (``gc in dmpopt ticks`` counts the
 collections started inside them: 0 by construction); the closed loop that records each
@@ -385,6 +387,55 @@ def stage_timers(scenario, ticks) -> None:
         print(f"  {label:45s} {totals[name][mask].mean():7.1f}")
 
 
+def gc_replays(names, seconds: float, replays: int, loop) -> None:
+    """dmpopt alone on each scenario's recording, ``replays`` times (new controllers each
+    time, in ``loop`` as the closed loop), watching Python's garbage collector through
+    ``gc.callbacks``: the collections that start inside a tick (count, generation 2, longest
+    [ms]) and those between ticks, the longest tick by thread CPU and by wall time (which counts
+    waiting for a core on a busy machine too), and the ticks over 2 ms of CPU."""
+    where = "without" if loop is contextlib.nullcontext else "in"
+    print(f"{replays} replays of dmpopt per scenario, {where} control_loop")
+    print(
+        f"{'':16s} {'ticks':>6s} {'gc in ticks':>11s} {'gen 2':>5s} {'longest':>8s} "
+        f"{'gc between':>10s} {'longest':>8s} {'max CPU':>8s} {'max wall':>8s} "
+        f"{'CPU > 2 ms':>10s}"
+    )
+    for name in names:
+        scenario = SCENARIOS[name](seconds)
+        ticks = scenario.record(seconds, loop)
+        inside, between = _GcWatch(), _GcWatch()  # collections started in / between ticks
+        cpu, wall, started = [], [], [None]
+
+        def watch(phase, info):  # a collection goes to the watch where it started
+            if phase == "start":
+                started[0] = inside if inside.inside else between
+            started[0](phase, info)
+
+        gc.callbacks.append(watch)
+        try:
+            for _ in range(replays):
+                controller, set_targets, tick = scenario.dmpopt()
+                with loop():  # its collection on entry is not counted
+                    between.inside = True
+                    for k, (q, v, t, target) in enumerate(ticks):
+                        set_targets(k, target)
+                        inside.inside = True
+                        begin, begin_wall = time.thread_time_ns(), time.perf_counter_ns()
+                        tick(q, v, t)
+                        cpu.append(time.thread_time_ns() - begin)
+                        wall.append(time.perf_counter_ns() - begin_wall)
+                        inside.inside = False
+                    between.inside = False
+        finally:
+            gc.callbacks.remove(watch)
+        cpu, wall = np.array(cpu) / 1e6, np.array(wall) / 1e6  # [ms]
+        print(
+            f"{name:16s} {cpu.size:6d} {inside.count:11d} {inside.gen2:5d} "
+            f"{1e3 * inside.longest:6.2f}ms {between.count:10d} {1e3 * between.longest:6.2f}ms "
+            f"{cpu.max():6.2f}ms {wall.max():6.2f}ms {int((cpu > 2).sum()):10d}"
+        )
+
+
 def _counts(answers) -> dict:
     values, counts = np.unique(answers, return_counts=True)
     return {str(value): int(count) for value, count in zip(values, counts)}
@@ -410,8 +461,15 @@ def main():
         "--no-freeze", action="store_true",
         help="record the closed loops without dmpopt.control.control_loop (gc.freeze)",
     )  # fmt: skip
+    parser.add_argument(
+        "--gc-replays", type=int, default=0, metavar="N",
+        help="only replay dmpopt N times per scenario, watching the garbage collector",
+    )  # fmt: skip
     args = parser.parse_args()
     loop = contextlib.nullcontext if args.no_freeze else control_loop
+    if args.gc_replays:
+        gc_replays(args.scenarios, args.seconds, args.gc_replays, loop)
+        return
     if args.stages:
         scenario = Walking()
         stage_timers(scenario, scenario.record(args.seconds, loop))

@@ -242,7 +242,12 @@ class Assembly:
             "torque_rows": self._torque_arguments,
         }
         used = self._rows[: layout.dynamics_start]
-        bound["map_rows"] = (used, layout.n_cost, self._row_scale, self._base_map, self.mapped)
+        self._map_arguments = (used, layout.n_cost, self._row_scale, self._base_map, self.mapped)
+        bound["map_rows"] = self._map_arguments
+        cost = self.mapped[: layout.n_cost, : layout.n]  # views of assemble_y, made once
+        self._cost_views = (cost, cost.T, self.mapped[: layout.n_cost, layout.n], self.gradient)
+        self._posture_gradient_y = self._posture_gradient[layout.n_base :]
+        self._base_map_views = (self._base_map[:, : layout.n], self._base_map[:, layout.n])
         if layout.n_base:
             bound["base_map"] = self._base_arguments
         if self.joint_space:
@@ -385,21 +390,19 @@ class Assembly:
 
     def assemble_y(self) -> None:
         """Base rows eliminated with M_bb: Hessian, gradient and contact equalities over y."""
-        rows, n_base, n, n_cost = self._rows, self.layout.n_base, self.layout.n, self.layout.n_cost
-        mapped, used = self.mapped, rows[: self.layout.dynamics_start]
+        n_base = self.layout.n_base
         if n_base and not self._compiled.base_map(*self._base_arguments):
             # M_bb not positive definite: only for a corrupted model
             mass = self._mass[:n_base, :n_base]
             self._base_map[:] = np.linalg.lstsq(mass, self._base_rhs, rcond=None)[0]
         # [A_b | A_y | t] -> [A_y + A_b X_y | t + A_b X_c], qdd_b = X_y y - X_c
-        self._compiled.map_rows(used, n_cost, self._row_scale, self._base_map, mapped)
-        cost = mapped[:n_cost, :n]
-        np.dot(cost.T, cost, out=self.hessian)
+        self._compiled.map_rows(*self._map_arguments)
+        cost, cost_t, target, gradient = self._cost_views
+        np.dot(cost_t, cost, out=self.hessian)
         self._hessian_diagonal_view += self._hessian_diagonal
-        gradient = self.gradient
-        np.dot(cost.T, mapped[:n_cost, n], out=gradient)
+        np.dot(cost_t, target, out=gradient)
         if self._posture_tasks:  # g = p - A^T t
-            np.subtract(self._posture_gradient[n_base:], gradient, out=gradient)
+            np.subtract(self._posture_gradient_y, gradient, out=gradient)
         else:
             np.negative(gradient, out=gradient)
 
@@ -416,9 +419,10 @@ class Assembly:
         else:  # x = (qdd_b, y), qdd_b = X_y y - X_c
             x[n_base:] = solution
             if n_base:
-                base_map, n = self._base_map, self.layout.n
-                np.dot(base_map[:, :n], solution, out=x[:n_base])
-                x[:n_base] -= base_map[:, n]
+                base_x, base_c = self._base_map_views
+                base = x[:n_base]
+                np.dot(base_x, solution, out=base)
+                base -= base_c
         self._compiled.torques(self._kernel_rows, self._dynamics, x, self.tau)
 
     def accept_eliminated(self, solution: np.ndarray) -> None:

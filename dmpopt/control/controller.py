@@ -8,6 +8,8 @@ contact-switching API (``remove_contact`` with a normal-force ramp, ``add_contac
 
 from __future__ import annotations
 
+import dataclasses
+import gc
 import math
 import numbers
 from collections import OrderedDict
@@ -16,16 +18,15 @@ from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
-import proxsuite
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.validation import real_array, unit_rotation_blocks
 
 from .inverse_dynamics import (
-    DEFAULT_TIME_BUDGET,
     AssembledQp,
     ContactSetQP,
     ControllerStats,
+    SolverSettings,
     _check_items,
     _check_positive,
 )
@@ -206,16 +207,16 @@ class InverseDynamicsController:
         *,
         inactive: Sequence[str] = (),
         joint_impedance: JointImpedance | None = None,
-        acceleration_regularization: float = 1e-6,
-        force_regularization: float = 1e-8,
-        tolerance: float = 1e-6,
-        max_iterations: int = 50,
-        time_budget: float = DEFAULT_TIME_BUDGET,
-        raise_on_failure: bool = False,
-        joint_limit_horizon: float | None = 0.05,
-        limited_joints: str | Sequence[str] | None = None,
-        torque_limit_scale: float = 1.0,
-        dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
+        acceleration_regularization: float = SolverSettings.acceleration_regularization,
+        force_regularization: float = SolverSettings.force_regularization,
+        tolerance: float = SolverSettings.tolerance,
+        max_iterations: int = SolverSettings.max_iterations,
+        time_budget: float = SolverSettings.time_budget,
+        raise_on_failure: bool = SolverSettings.raise_on_failure,
+        joint_limit_horizon: float | None = SolverSettings.joint_limit_horizon,
+        limited_joints: str | Sequence[str] | None = SolverSettings.limited_joints,
+        torque_limit_scale: float = SolverSettings.torque_limit_scale,
+        dense_backend=SolverSettings.dense_backend,
     ):
         _check_items(robot, tasks, contacts)
         if joint_impedance is not None and not isinstance(joint_impedance, JointImpedance):
@@ -243,18 +244,11 @@ class InverseDynamicsController:
         self._initial = tuple(f for f in frames if f not in set(inactive))
         self._active = self._initial
         self._tasks = tuple(tasks)
-        self._settings = dict(
-            acceleration_regularization=acceleration_regularization,
-            force_regularization=force_regularization,
-            tolerance=tolerance,
-            max_iterations=max_iterations,
-            time_budget=time_budget,
-            raise_on_failure=raise_on_failure,
-            joint_limit_horizon=joint_limit_horizon,
-            limited_joints=limited_joints,
-            torque_limit_scale=torque_limit_scale,
-            dense_backend=dense_backend,
-        )
+        self._settings = SolverSettings(
+            acceleration_regularization, force_regularization, tolerance, max_iterations,
+            time_budget, raise_on_failure, joint_limit_horizon, limited_joints,
+            torque_limit_scale, dense_backend,
+        )  # fmt: skip
         self._stats = ControllerStats()
         self._formulations: OrderedDict[tuple, ContactSetQP] = OrderedDict()
         self._ramps: dict[str, _Ramp] = {}
@@ -426,7 +420,7 @@ class InverseDynamicsController:
         if formulation is None:
             contacts = [self._by_frame[f] for f in self._active]
             formulation = ContactSetQP(
-                self.robot, self._tasks, contacts, settings_source=self.qp, **self._settings
+                self.robot, self._tasks, contacts, settings=self._settings, settings_source=self.qp
             )
         self._formulations[key] = formulation
         if len(self._formulations) > _CACHE_SIZE:
@@ -487,7 +481,23 @@ class InverseDynamicsController:
         -------
         ndarray, shape (n_actuated,)
             Torques of the actuated joints [N m], within the torque limits, always finite.
+
+        Notes
+        -----
+        Python's cyclic garbage collector is paused for the whole call (contact transitions,
+        a switch to another contact set's QP and the joint impedance included), as in
+        :meth:`Tick.compute_torques <dmpopt.control.tick.Tick.compute_torques>`.
         """
+        if not gc.isenabled():
+            return self._compute_torques(q, v, t)
+        gc.disable()
+        try:
+            return self._compute_torques(q, v, t)
+        finally:
+            gc.enable()
+
+    def _compute_torques(self, q, v, t) -> np.ndarray:
+        """:meth:`compute_torques` with the collector paused."""
         q, v = self._check_state(q, v)
         if self._ramps:
             self._advance_transitions(t)
@@ -592,7 +602,7 @@ class InverseDynamicsController:
         self._set_everywhere("raise_on_failure", bool(value))
 
     def _set_everywhere(self, name: str, value) -> None:
-        self._settings[name] = value
+        self._settings = dataclasses.replace(self._settings, **{name: value})
         for formulation in self._formulations.values():
             setattr(formulation, name, value)
 

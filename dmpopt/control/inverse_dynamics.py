@@ -98,7 +98,7 @@ from .qp_stages import ControllerStats, StageSolver, _active_set, _arguments, _S
 from .tasks import PostureTask, Task
 from .tick import Tick
 
-__all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats"]
+__all__ = ["JOINT_LIMIT_TOLERANCE", "ContactSetQP", "ControllerStats", "SolverSettings"]
 
 # [rad] how far past a position limit the acceleration bounds let a joint go: a joint resting
 # exactly at its limit then leaves its bound slack.
@@ -193,12 +193,48 @@ DEFAULT_TIME_BUDGET = 5e-3
 """CPU seconds per tick the controller may spend by default (see ``time_budget``)."""
 
 
+@dataclass(frozen=True)
+class SolverSettings:
+    """The settings of a controller's QPs, the same for every contact set: each field is the
+    :class:`~dmpopt.control.InverseDynamicsController` parameter of that name (documented
+    there), checked here once (``joint_limit_horizon`` and ``limited_joints`` by the QP,
+    which knows the robot)."""
+
+    acceleration_regularization: float = 1e-6
+    force_regularization: float = 1e-8
+    tolerance: float = 1e-6
+    max_iterations: int = 50
+    time_budget: float = DEFAULT_TIME_BUDGET
+    raise_on_failure: bool = False
+    joint_limit_horizon: float | None = 0.05
+    limited_joints: str | Sequence[str] | None = None
+    torque_limit_scale: float = 1.0
+    dense_backend: proxsuite.proxqp.dense.DenseBackend = (
+        proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT
+    )
+
+    def __post_init__(self):
+        for name in (
+            "acceleration_regularization", "force_regularization", "tolerance", "time_budget",
+            "torque_limit_scale",
+        ):  # fmt: skip
+            _check_positive(name, getattr(self, name))
+        max_iterations = self.max_iterations
+        if isinstance(max_iterations, bool) or not (
+            isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1
+        ):
+            raise InvalidInputError(
+                f"max_iterations must be an integer >= 1, got {max_iterations!r}"
+            )
+
+
 class ContactSetQP:
     """The QP of :class:`~dmpopt.control.InverseDynamicsController` for one set of active
     contacts and tasks: its rows, eliminated basic joints, sized proxsuite QPs and compiled
     stages (see the module docstring). The controller builds one per set it meets and keeps
-    them; the parameters are the controller's (``settings_source``: the proxsuite QP whose
-    settings every stage takes, the controller's ``qp``).
+    them; its ``settings`` (:class:`SolverSettings`) are the controller's, and
+    ``settings_source`` is the proxsuite QP whose settings every stage takes (the
+    controller's ``qp``).
 
     Its parts, each with its own state: ``layout`` (:class:`~dmpopt.control.layout.QpLayout`:
     sizes, blocks, row names), ``assembly`` (:class:`~dmpopt.control.assembly.Assembly`: the
@@ -214,47 +250,33 @@ class ContactSetQP:
         tasks: Sequence[Task],
         contacts: Sequence[Contact] = (),
         *,
-        acceleration_regularization: float = 1e-6,
-        force_regularization: float = 1e-8,
-        tolerance: float = 1e-6,
-        max_iterations: int = 50,
-        time_budget: float = DEFAULT_TIME_BUDGET,
-        raise_on_failure: bool = False,
-        joint_limit_horizon: float | None = 0.05,
-        limited_joints: str | Sequence[str] | None = None,
-        torque_limit_scale: float = 1.0,
-        dense_backend=proxsuite.proxqp.dense.DenseBackend.PrimalDualLDLT,
+        settings: SolverSettings | None = None,
         settings_source: proxsuite.proxqp.dense.QP | None = None,
     ):
         _check_items(robot, tasks, contacts)
-        for name, value in (
-            ("acceleration_regularization", acceleration_regularization),
-            ("force_regularization", force_regularization),
-            ("tolerance", tolerance),
-            ("time_budget", time_budget),
-            ("torque_limit_scale", torque_limit_scale),
-        ):
-            _check_positive(name, value)
-        if isinstance(max_iterations, bool) or not (
-            isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1
-        ):
+        settings = SolverSettings() if settings is None else settings
+        if not isinstance(settings, SolverSettings):
             raise InvalidInputError(
-                f"max_iterations must be an integer >= 1, got {max_iterations!r}"
+                f"settings must be a SolverSettings, got {type(settings).__name__}"
             )
+        self.settings = settings
+        tolerance, dense_backend = settings.tolerance, settings.dense_backend
         self.robot = robot
         self.model = robot.model
         self.data = robot.create_data()
         self.tasks = tuple(tasks)
         self.contacts = tuple(contacts)
 
-        self.torque_limit = float(torque_limit_scale) * np.asarray(robot.torque_limit, float)
+        self.torque_limit = float(settings.torque_limit_scale) * np.asarray(
+            robot.torque_limit, float
+        )
         if not (self.torque_limit > 0).all():  # NaN too
             raise InvalidInputError(
                 f"robot.torque_limit must be > 0 for every actuated joint, got "
                 f"{robot.torque_limit!r}; fix the robot model's effort limits"
             )
         # Arguments of kernels.acceleration_bounds (no joints without limits).
-        bounds = self._joint_limits(joint_limit_horizon, limited_joints)
+        bounds = self._joint_limits(settings.joint_limit_horizon, settings.limited_joints)
         posture_tasks = tuple(t for t in self.tasks if isinstance(t, PostureTask))
         stacked_tasks = tuple(t for t in self.tasks if not isinstance(t, PostureTask))
         # The QP's wrench unknowns are wrenches divided by the robot's weight (force_scale):
@@ -263,7 +285,8 @@ class ContactSetQP:
         self.layout = layout = build_layout(robot, stacked_tasks, self.contacts, bounds.v_index)
         self.assembly = assembly = Assembly(
             robot, self.data, layout, stacked_tasks, posture_tasks, self.contacts,
-            bounds, self.torque_limit, acceleration_regularization, force_regularization,
+            bounds, self.torque_limit, settings.acceleration_regularization,
+            settings.force_regularization,
             -tolerance,  # margin of kernels.feasible: bounds within tolerance
         )  # fmt: skip
         n_act, n_force, n, n_cone = layout.n_act, layout.n_force, layout.n, layout.n_cone
@@ -331,14 +354,14 @@ class ContactSetQP:
         self.qp = limited.qp
         self.qp.settings.eps_abs = tolerance
         self.qp.settings.eps_rel = 0.0
-        self.qp.settings.max_iter = int(max_iterations)
+        self.qp.settings.max_iter = int(settings.max_iterations)
         self.qp.settings.eps_duality_gap_abs = tolerance
         if settings_source is not None:  # another contact set's QP: one source for all sets
             self.qp = settings_source
         self.tick = Tick(
             robot, self.data, layout, assembly, (eliminated_cones, free, limited, relaxed),
-            StageSolver(self.qp), self.torque_limit, tolerance, float(time_budget),
-            raise_on_failure,
+            StageSolver(self.qp), self.torque_limit, tolerance, float(settings.time_budget),
+            settings.raise_on_failure,
         )  # fmt: skip
         self._compile_kernels(-tolerance)
 

@@ -974,9 +974,16 @@ def _cholesky(matrix, factor) -> bool:
 @_compile
 def _forward(factor, vector):
     """``vector`` := L^-1 ``vector`` for the lower triangle L of ``factor``."""
-    for i in range(vector.size):
+    _forward_from(factor, vector, 0)
+
+
+@_compile
+def _forward_from(factor, vector, start):
+    """:func:`_forward` of a ``vector`` whose entries before ``start`` are zero (they stay
+    zero; the same bits as from 0: the skipped terms are exact zeros)."""
+    for i in range(start, vector.size):
         value = vector[i]
-        for m in range(i):
+        for m in range(start, i):
             value -= factor[i, m] * vector[m]
         vector[i] = value / factor[i, i]
 
@@ -1009,7 +1016,10 @@ def _schur_solve(
             for j in range(n):
                 row[j] = in_matrix[active, j]
             target = upper[active] if at_upper[active] else lower[active]
-        _forward(factor, row)
+        start = 0  # rows of joint bounds and contact cones start with zeros
+        while start < n and row[start] == 0.0:
+            start += 1
+        _forward_from(factor, row, start)
         value = target
         for j in range(n):
             value += row[j] * shifted[j]

@@ -108,7 +108,8 @@ class _Stage:
     (``known``): the next tick starts from them. ``stale``: inequality bounds changed (a
     contact transition), so the next proxsuite update passes them too. ``warm`` holds the
     last certified optimum and its multipliers (x, y, z) (``certified``), proxsuite's next
-    warm start.
+    warm start; ``workspace`` the :class:`ActiveSetWorkspace` of the active-set iterations on
+    ``problem``, whose multipliers go to ``warm``.
     """
 
     __slots__ = (
@@ -136,7 +137,7 @@ class _Stage:
         self.stale = False  # bounds changed since proxsuite last saw them: update with all
         self.warm = (np.zeros(n), np.zeros(n_eq), np.zeros(n_in))
         self.certified = False
-        self.workspace = _workspace(n, n_eq, n_in)
+        self.workspace = ActiveSetWorkspace(self.problem, self.warm[1:])
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -158,7 +159,7 @@ def _active_set(
     tolerance: float,
     rounds: int,
     duals: tuple | None = None,
-    workspace: tuple | None = None,
+    workspace: ActiveSetWorkspace | None = None,
 ) -> tuple[np.ndarray | None, int]:
     r"""Primal-dual active-set iterations from the active set ``at_upper | at_lower``.
 
@@ -176,41 +177,67 @@ def _active_set(
     ``at_upper`` and ``at_lower`` are updated in place; ``duals`` (y, z), if given, receive
     the multipliers of the certified optimum (those of the equality rows, and of every
     inequality row: 0 if inactive, in proxsuite's convention
-    :math:`H x + g + A^\top y + C^\top z = 0`). ``workspace``: :func:`_workspace` of the
-    problem, made here if not given.
+    :math:`H x + g + A^\top y + C^\top z = 0`). ``workspace``: the :class:`ActiveSetWorkspace`
+    of ``problem`` and ``duals`` (a stage's, made once), else made here.
 
     Returns
     -------
     (x, solves) : the certified optimum, or None if no set verified (or the active rows are
-    dependent); and the number of KKT solves made.
+    dependent); and the number of KKT solves made. x is the workspace's own array,
+    overwritten by its next solve.
     """
-    hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
-    n = hessian.shape[0]
-    if eq_matrix is None:
-        eq_matrix, eq_vector = np.zeros((0, n)), np.zeros(0)
-    contiguous = np.ascontiguousarray  # one compiled variant: C-ordered arrays
-    arrays = tuple(  # the fields of kernels.QpArrays, as a plain tuple (faster dispatch)
-        contiguous(a, dtype=float)
-        for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
-    )
-    if duals is None:
-        duals = np.zeros(eq_matrix.shape[0]), np.zeros(in_matrix.shape[0])
-    x = np.empty(n)
-    workspace = workspace or _workspace(n, eq_matrix.shape[0], in_matrix.shape[0])
-    solves = kernels.active_set(
-        arrays, at_upper, at_lower, float(tolerance), int(rounds), workspace, x, *duals
-    )
-    return (x, solves) if solves > 0 else (None, -solves)
+    if workspace is None or workspace.problem is not problem or workspace.duals is not duals:
+        workspace = ActiveSetWorkspace(problem, duals)
+    return workspace.solve(at_upper, at_lower, tolerance, rounds)
 
 
-def _workspace(n: int, n_eq: int, n_in: int) -> tuple:
-    """Scratch arrays of :func:`kernels.active_set` for a QP of these sizes: the fields of
-    :class:`kernels.KktWorkspace`, as a plain tuple (faster dispatch)."""
-    size = n + n_eq + min(n, n_in)
-    return (
-        np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64),
-        np.zeros(3 * size),
-    )  # fmt: skip
+class ActiveSetWorkspace:
+    """The arguments of :func:`kernels.active_set` for one QP, made once: its arrays as
+    given (float64 views allowed, no copies: a stage's QP arrays are refilled in place each
+    tick; arrays of another dtype are converted once, so later changes to them are not seen),
+    the scratch arrays and the solution, with the kernel compiled for their types
+    (:func:`kernels.entry_point`: called without numba's type dispatch).
+
+    ``problem`` is (H, g, A, b, C, l, u) with None for absent blocks; ``duals`` (y, z)
+    receive the multipliers of a certified optimum (made here if None).
+    """
+
+    __slots__ = ("problem", "duals", "x", "_arguments", "_code")
+
+    def __init__(self, problem: tuple, duals: tuple | None = None):
+        hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = problem
+        n = hessian.shape[0]
+        if eq_matrix is None:
+            eq_matrix, eq_vector = np.zeros((0, n)), np.zeros(0)
+        if in_matrix is None:
+            in_matrix, lower, upper = np.zeros((0, n)), np.zeros(0), np.zeros(0)
+        arrays = tuple(  # the fields of kernels.QpArrays, as a plain tuple (faster dispatch)
+            a if isinstance(a, np.ndarray) and a.dtype == np.float64 else np.asarray(a, float)
+            for a in (hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper)
+        )
+        n_eq, n_in = arrays[2].shape[0], arrays[4].shape[0]
+        if duals is None:
+            duals = np.zeros(n_eq), np.zeros(n_in)
+        self.problem, self.duals, self.x = problem, duals, np.zeros(n)
+        size = n + n_eq + min(n, n_in)
+        scratch = (  # the fields of kernels.KktWorkspace
+            np.zeros(size * size), np.zeros(size), np.zeros(n_in), np.zeros(n_in, np.int64),
+            np.zeros(3 * size),
+        )  # fmt: skip
+        self._arguments = (arrays, scratch, self.x, *duals)
+        flags = np.zeros(n_in, dtype=bool)
+        self._code = kernels.entry_point(
+            kernels.active_set, arrays, flags, flags, 0.0, 1, scratch, self.x, *duals
+        )
+
+    def solve(self, at_upper, at_lower, tolerance: float, rounds: int) -> tuple:
+        """:func:`_active_set` on this workspace's problem: (x or None, KKT solves)."""
+        arrays, scratch, x, y, z = self._arguments
+        # the compiled code takes only the types it was made for; others go through numba's
+        # dispatch (e.g. a caller's non-boolean flags)
+        code = self._code if at_upper.dtype == at_lower.dtype == np.bool_ else kernels.active_set
+        solves = code(arrays, at_upper, at_lower, float(tolerance), int(rounds), scratch, x, y, z)
+        return (x, solves) if solves > 0 else (None, -solves)
 
 
 class StageSolver:
@@ -255,7 +282,7 @@ class StageSolver:
             tolerance = self.settings_source.settings.eps_abs
             solution, solves = _active_set(
                 stage.problem, stage.at_upper, stage.at_lower, tolerance, _WARM_ROUNDS,
-                stage.warm[1:], stage.workspace,
+                stage.workspace.duals, stage.workspace,
             )  # fmt: skip
             stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
             if solution is not None and self._certified(stage, solution, accept):
@@ -328,7 +355,7 @@ class StageSolver:
         _guess_active_set(z, stage.at_upper, stage.at_lower)
         solution, _ = _active_set(
             stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS,
-            stage.warm[1:], stage.workspace,
+            stage.workspace.duals, stage.workspace,
         )  # fmt: skip
         if solution is not None and self._certified(stage, solution, accept):
             return True

@@ -1208,19 +1208,21 @@ def test_sole_contact_without_corners_and_unknown_posture_group(upper_body):
 
 def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
     """With the collector's threshold at one allocation, collections start around the ticks
-    but none inside one (compute_torques pauses the collector), and it is on again after."""
+    but none inside one (compute_torques pauses the collector), and it is on again after;
+    ticks that ramp a contact down and switch to another contact set's QP (built then, not
+    prepared) included."""
     import gc
 
-    from dmpopt.control.tick import Tick
+    from dmpopt.control.controller import InverseDynamicsController
 
     controller, _ = standing_controller(talos)
     inside, collections = [False], []
-    tick = Tick._tick
+    tick = InverseDynamicsController._compute_torques
 
-    def watched(self, q, v):
+    def watched(self, q, v, t):
         inside[0] = True
         try:
-            return tick(self, q, v)
+            return tick(self, q, v, t)
         finally:
             inside[0] = False
 
@@ -1228,18 +1230,21 @@ def test_no_garbage_collection_starts_inside_a_tick(talos, monkeypatch):
         if phase == "start":
             collections.append(inside[0])
 
-    monkeypatch.setattr(Tick, "_tick", watched)
+    monkeypatch.setattr(InverseDynamicsController, "_compute_torques", watched)
     threshold = gc.get_threshold()
     gc.callbacks.append(watch)
     gc.set_threshold(1)
     try:
         q, v = talos.reference_configuration, np.zeros(talos.nv)
-        for _ in range(5):
-            controller.compute_torques(q, v)
+        for k in range(6):
+            if k == 2:
+                controller.remove_contact(talos.foot_frames[1], transition_time=0.002)
+            controller.compute_torques(q, v, 0.001 * k)
             [[] for _ in range(3)]  # garbage between ticks: collections must start here
     finally:
         gc.set_threshold(*threshold)
         gc.callbacks.remove(watch)
+    assert controller.active_contacts == (talos.foot_frames[0],)  # switched
     assert collections and not any(collections)
     assert gc.isenabled()
 

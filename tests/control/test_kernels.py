@@ -184,6 +184,53 @@ def test_active_set_kkt_solve_has_a_backward_stable_residual(n, n_eq, n_in, seed
     np.testing.assert_allclose(x, optimum, rtol=0, atol=max(bound, 1e-13))
 
 
+@settings(max_examples=20, deadline=None)
+@given(n=st.integers(2, 30), n_eq=st.integers(0, 6), n_in=st.integers(1, 12),
+       seed=st.integers(0, 2**16))  # fmt: skip
+def test_a_stages_workspace_solves_views_and_rows_with_leading_zeros(n, n_eq, n_in, seed):
+    """A stage's ActiveSetWorkspace (made once, its kernel bound to the arrays' types) on the
+    problem as a stage holds it: equality rows a strided view of a wider array, active rows
+    that start with zeros (joint-bound rows e_j, cone rows on the wrench columns only). The
+    answer key is the chosen optimum x* (as in the test above): the KKT residuals of a
+    backward-stable solve and x* to eps * cond(KKT); refilling the arrays in place and
+    solving again reads the new values."""
+    from dmpopt.control.qp_stages import ActiveSetWorkspace, _active_set
+
+    rng = np.random.default_rng(seed)
+    n_eq, n_in = min(n_eq, n - 1), min(n_in, n - min(n_eq, n - 1))
+    hessian = _ill_conditioned_spd(rng, n, 1e7)
+    wide = np.zeros((n_eq, n + 3))
+    eq_matrix, eq_vector = wide[:, :n], wide[:, n]  # views, as a stage's contact rows
+    in_matrix = rng.normal(size=(n_in, n))
+    starts = np.sort(rng.choice(n, size=n_in, replace=False))  # distinct: independent rows
+    for row, start in zip(in_matrix, starts):
+        row[:start] = 0.0
+    gradient, upper = np.zeros(n), np.zeros(n_in)
+    problem = (hessian, gradient, eq_matrix, eq_vector, in_matrix, np.full(n_in, -1e20), upper)
+    workspace = ActiveSetWorkspace(problem)
+    for _ in range(2):  # the arrays refilled in place between solves
+        eq_matrix[:] = rng.normal(size=(n_eq, n))
+        optimum = rng.normal(size=n)
+        y, z = rng.normal(size=n_eq), rng.uniform(0.5, 2.0, size=n_in)
+        gradient[:] = -hessian @ optimum - eq_matrix.T @ y - in_matrix.T @ z
+        upper[:] = in_matrix @ optimum
+        eq_vector[:] = eq_matrix @ optimum
+        at_upper, at_lower = np.ones(n_in, bool), np.zeros(n_in, bool)
+        x, solves = _active_set(
+            problem, at_upper, at_lower, 1e-9, 3, workspace.duals, workspace
+        )  # fmt: skip
+        assert solves == 1 and x is not None
+        rows = np.vstack([eq_matrix, in_matrix])
+        nu = np.concatenate(workspace.duals)
+        size = np.abs(hessian) @ np.abs(x) + np.abs(rows.T) @ np.abs(nu) + np.abs(gradient)
+        assert np.all(np.abs(hessian @ x + rows.T @ nu + gradient) <= 1e-12 * size.max())
+        scale = (np.abs(rows) @ np.abs(x)).max(initial=0.0)
+        assert np.all(np.abs(rows @ x - np.r_[eq_vector, upper]) <= 1e-12 * scale)
+        kkt = np.block([[hessian, rows.T], [rows, np.zeros((len(rows), len(rows)))]])
+        bound = 1e-15 * np.linalg.cond(kkt) * max(1.0, np.abs(optimum).max())
+        np.testing.assert_allclose(x, optimum, rtol=0, atol=max(bound, 1e-13))
+
+
 def test_active_set_solves_dependent_active_rows():
     """Equality rows that are all zero (a fixed base's contact rows) and an active row that
     repeats another make the KKT matrix singular: the certificate still holds, with x the

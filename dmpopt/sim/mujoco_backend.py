@@ -127,6 +127,7 @@ _UNSTABLE = slice(
 _NONE = np.zeros(0, dtype=np.int32)
 _NO_FORCE = np.zeros(0)
 _FLOAT = np.dtype(float)
+_ONE_FLOAT = (_FLOAT.itemsize,)  # the strides of a contiguous 1-D float array
 _new = object.__new__
 
 
@@ -915,7 +916,7 @@ class MujocoSimulator(Backend):
             type(force) is np.ndarray
             and force.dtype is _FLOAT
             and force.shape == self._base_shape
-            and force.flags.c_contiguous
+            and force.strides == _ONE_FLOAT
         ):
             force = np.ascontiguousarray(_vector("base_force", force, self.n_base_dofs))
         if self._quaternion is not None:
@@ -1007,14 +1008,25 @@ class MujocoSimulator(Backend):
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         tau = torques
+        # contiguous: one float per stride (a flags object costs more than the strides tuple)
         if not (
             type(tau) is np.ndarray
             and tau.dtype is _FLOAT
             and tau.shape == self._torque_shape
-            and tau.flags.c_contiguous
+            and tau.strides == _ONE_FLOAT
         ):  # else checked for finite entries in apply_torques
             tau = _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
-        force = _NO_FORCE if base_force is None else self._base_force(base_force)
+        force = base_force
+        if force is None:
+            force = _NO_FORCE
+        elif not (  # a planar or fixed base takes the force as it is: checked here inline
+            self._quaternion is None
+            and type(force) is np.ndarray
+            and force.dtype is _FLOAT
+            and force.shape == self._base_shape
+            and force.strides == _ONE_FLOAT
+        ):
+            force = self._base_force(force)
         if self.fall_detector is not self._packed_detector:
             self._pack_fall_checks()
         if self._advance_arrays is not None and not self._pushes:
@@ -1031,14 +1043,16 @@ class MujocoSimulator(Backend):
         if self._noisy:
             q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
         # SimState(...) without the frozen dataclass's per-field object.__setattr__ (a third
-        # of the cost) and the call of a constructor: the same object
+        # of the cost) and the call of a constructor: the same object, its fields stored in
+        # its dict one by one (faster than update() with keywords, which builds a second dict)
         state = _new(SimState)
-        state.__dict__.update(
-            t=time, q=q, v=v, contact_forces=self._forces.copy(),
-            in_contact=self._in_contact.copy(), contact_positions=self._positions.copy(),
-            touchdowns=self._last_touchdowns, fall=self.fall, q_measured=q_measured,
-            v_measured=v_measured,
-        )  # fmt: skip
+        fields = state.__dict__
+        fields["t"], fields["q"], fields["v"] = time, q, v
+        fields["contact_forces"] = self._forces.copy()
+        fields["in_contact"] = self._in_contact.copy()
+        fields["contact_positions"] = self._positions.copy()
+        fields["touchdowns"], fields["fall"] = self._last_touchdowns, self.fall
+        fields["q_measured"], fields["v_measured"] = q_measured, v_measured
         return state
 
     def _step_bindings(self, tau, force) -> tuple:

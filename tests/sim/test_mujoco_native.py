@@ -8,6 +8,7 @@ tolerance). The offsets the compiled step reads ``mjData`` at are checked agains
 bindings' own views of a data with contacts.
 """
 
+import copy
 import ctypes
 import os
 import types
@@ -17,7 +18,7 @@ import pinocchio as pin
 import pytest
 from dmpopt_robots.biped import BIPED_URDF
 
-from dmpopt.exceptions import MissingDependency
+from dmpopt.exceptions import InvalidInputError, MissingDependency, ShapeError
 from dmpopt.sim import MujocoSimulator, PlantParameters, SensorNoise, kernels_mujoco
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -88,6 +89,39 @@ def test_the_compiled_step_is_the_bindings_step_bit_for_bit(biped):
     # MuJoCo kept the data's memory in place through the resets and steps
     layout = kernels_mujoco.native_layout(mujoco, native.mj_model, native.mj_data)
     np.testing.assert_array_equal(native._native_arrays["layout"], layout)
+
+
+def test_a_planar_base_force_in_any_form_steps_as_a_contiguous_float_array(biped):
+    """The biped's planar base takes its force without a turn (checked inline in ``step``):
+    a list, a strided view, an int array and the contiguous float array (the answer key: the
+    same numbers, so the same bits) give the same states; a force of the wrong length or with
+    a NaN is refused by name, not written past the base dofs."""
+    q0 = pin.neutral(biped.model)
+    q0[1] = 0.62
+    forces = np.array([[3.0, -2.0, 1.0], [-1.0, 4.0, 0.0]])
+    forms = (
+        lambda f: f.copy(),
+        lambda f: f.tolist(),
+        lambda f: np.repeat(f, 2)[::2],  # strided: the same values, not contiguous
+        lambda f: f.astype(np.int64),
+    )
+    traces = []
+    for form in forms:
+        sim = biped_simulator(biped)
+        sim.reset(q0)
+        tau = np.full(sim.n_actuated, 0.5)
+        trace, kept = [], []
+        for k in range(20):
+            trace.append(sim.step(tau, form(forces[k % 2])))
+            kept.append(copy.deepcopy(trace[-1]))  # what the step returned, as it returned it
+        assert_same(trace, kept)  # a state a caller keeps is not changed by later steps
+        traces.append(trace)
+    for trace in traces[1:]:
+        assert_same(traces[0], trace)
+    with pytest.raises(ShapeError, match=r"base_force has shape \(2,\), expected \(3,\)"):
+        sim.step(tau, np.zeros(2))
+    with pytest.raises(InvalidInputError, match=r"base_force\[1\] is nan"):
+        sim.step(tau, np.array([0.0, np.nan, 0.0]))
 
 
 def test_a_free_base_steps_the_same_on_both_paths(talos):

@@ -268,7 +268,7 @@ class _ActionSpaceGradient(PolicySearch):
         the exploration is learned.
         """
         variance = self.exploration_std**2
-        weight_scores = np.einsum("ktd,tb->kdb", noise, self.features) / variance
+        weight_scores = (np.swapaxes(noise, 1, 2) @ self.features) / variance  # (K, D, B)
         columns = [weight_scores.reshape(noise.shape[0], -1)]
         if self.learn_exploration:
             columns.append(np.sum(noise**2 / variance - 1.0, axis=(1, 2))[:, None])

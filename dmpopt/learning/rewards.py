@@ -361,9 +361,8 @@ class RewardTask:
             # causal convolution with the acceleration row of H, by FFT
             spectrum = np.fft.rfft(noise, n=self._fft_size, axis=2)
             spectrum *= rows["acceleration_spectrum"]
-            accelerations = (
-                accelerations + np.fft.irfft(spectrum, n=self._fft_size, axis=2)[:, :, : self.n_steps]
-            )
+            response = np.fft.irfft(spectrum, n=self._fft_size, axis=2)
+            accelerations = accelerations + response[:, :, : self.n_steps]
             positions = positions + noise @ rows["noise_positions"]
             velocity = velocity + noise @ rows["noise_velocity"]
         elif shared:

@@ -104,7 +104,7 @@ def orientation_log(orientations, goal_orientation, name: str = "orientations") 
             f"{name}[{k}] is a full turn (2 pi) from the goal along the quaternions' sign, "
             "where the logarithm has no axis; pass orientations on the goal's side"
         )
-    function = symbolic.orientation_log_function().map(len(q))
+    function = symbolic.mapped(symbolic.orientation_log_function(), len(q))
     log = function(q.T, np.asarray(goal_orientation)).full().T
     return log if np.ndim(orientations) == 2 else log[0]
 
@@ -112,7 +112,7 @@ def orientation_log(orientations, goal_orientation, name: str = "orientations") 
 def _orientation_outputs(log, goal_orientation) -> tuple:
     """Orientations, angular velocities and accelerations of a log-space plan, (n, 4|3)."""
     n = log.positions.shape[0]
-    outputs = symbolic.orientation_function().map(n)(
+    outputs = symbolic.mapped(symbolic.orientation_function(), n)(
         log.positions.T, log.velocities.T, log.accelerations.T, goal_orientation
     )
     return tuple(outputs[k].full().T for k in range(3))

@@ -724,6 +724,19 @@ class ArrayFunction:
                     work[result] = function(a, b, out=buffers[result])
 
 
+@lru_cache(maxsize=256)
+def mapped(function: ca.Function, n: int) -> ca.Function:
+    """``function.map(n)``, built once per function and ``n`` (building a map costs about as
+    much as evaluating it on a demonstration)."""
+    return function.map(n)
+
+
+@lru_cache(maxsize=256)
+def accumulated(function: ca.Function, n: int) -> ca.Function:
+    """``function.mapaccum(n)``, built once per function and ``n``."""
+    return function.mapaccum(n)
+
+
 @lru_cache(maxsize=64)
 def array_function(function: ca.Function) -> ArrayFunction:
     """The :class:`ArrayFunction` of a (cached) ``function``, decoded once."""

@@ -272,7 +272,7 @@ def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> n
 
 def _solved_targets(dmp, demo: Trajectory, transformation: np.ndarray) -> np.ndarray:
     """:func:`dmpopt.symbolic.forcing_target` at every sample, shape (n_steps, n_dofs)."""
-    target = symbolic.forcing_target_function(dmp.signature).map(demo.n_steps)
+    target = symbolic.mapped(symbolic.forcing_target_function(dmp.signature), demo.n_steps)
     forcing = target(
         transformation=transformation.T,
         velocity=demo.velocities.T,
@@ -293,7 +293,7 @@ def _filtered(dmp, demo: Trajectory, periodic: bool) -> np.ndarray:
     (the filter's steady cycle on a periodic demonstration).
     """
     y = demo.positions
-    accumulate = symbolic.filter_function(dmp.signature).mapaccum(demo.n_steps - 1)
+    accumulate = symbolic.accumulated(symbolic.filter_function(dmp.signature), demo.n_steps - 1)
     inputs = {
         "position": (0.5 * (y[1:] + y[:-1])).T,
         "dt": np.diff(demo.times)[None, :],
@@ -311,7 +311,7 @@ def _filtered(dmp, demo: Trajectory, periodic: bool) -> np.ndarray:
 
 def _features(dmp, states: np.ndarray) -> np.ndarray:
     """Regressors at every sample, shape (n_steps, n_features)."""
-    function = symbolic.feature_function(dmp.signature).map(states.shape[0])
+    function = symbolic.mapped(symbolic.feature_function(dmp.signature), states.shape[0])
     return function(states[:, :2].T, dmp.centres, dmp.widths).full().T
 
 
@@ -325,18 +325,10 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
     normalised activations :math:`\bar\psi_i` summing to one.
     """
     n_steps = canonical.shape[0]
-    activation = (
-        symbolic.activation_function(dmp.signature)
-        .map(n_steps)(canonical.T, dmp.centres, dmp.widths)
-        .full()
-        .T
-    )
-    regressors = (
-        symbolic.feature_function(dmp.signature)
-        .map(n_steps)(canonical.T, dmp.centres, dmp.widths)
-        .full()
-        .T
-    )
+    activation = symbolic.mapped(symbolic.activation_function(dmp.signature), n_steps)
+    activation = activation(canonical.T, dmp.centres, dmp.widths).full().T
+    regressors = symbolic.mapped(symbolic.feature_function(dmp.signature), n_steps)
+    regressors = regressors(canonical.T, dmp.centres, dmp.widths).full().T
     if dmp.equations.vectors_per_basis == 1:
         carrier = regressors.sum(axis=1)[:, None, None]  # the phase velocity v
     else:
@@ -580,12 +572,8 @@ def fit_rhythmic(
     else:
         phases = direction * (demo.times - demo.times[0]) / unit.tau
         canonical = np.array([unit.canonical_state(p) for p in phases])
-        regressors = (
-            symbolic.feature_function(unit.signature)
-            .map(demo.n_steps)(canonical.T, unit.centres, unit.widths)
-            .full()
-            .T
-        )
+        regressors = symbolic.mapped(symbolic.feature_function(unit.signature), demo.n_steps)
+        regressors = regressors(canonical.T, unit.centres, unit.widths).full().T
         transformation = np.hstack([demo.positions, _filtered(unit, demo, periodic=True)])
         targets = _solved_targets(unit, demo, transformation)
         if method == "least_squares":

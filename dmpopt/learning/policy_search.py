@@ -243,7 +243,8 @@ class _ActionSpaceGradient(PolicySearch):
         self.n_trials = 0
         self.n_updates = 0
         self._pending = None
-        self._gram = features.T @ features  # sum_t phi_t phi_t^T
+        # sum_t phi_t phi_t^T, one block per DOF: the Fisher matrix times sigma^2
+        self._blocks = np.kron(np.eye(weights.shape[0]), features.T @ features)
 
     @property
     def mean(self) -> np.ndarray:
@@ -268,7 +269,7 @@ class _ActionSpaceGradient(PolicySearch):
         the exploration is learned.
         """
         variance = self.exploration_std**2
-        weight_scores = np.einsum("ktd,tb->kdb", noise, self.features) / variance
+        weight_scores = (np.swapaxes(noise, 1, 2) @ self.features) / variance  # (K, D, B)
         columns = [weight_scores.reshape(noise.shape[0], -1)]
         if self.learn_exploration:
             columns.append(np.sum(noise**2 / variance - 1.0, axis=(1, 2))[:, None])
@@ -277,7 +278,7 @@ class _ActionSpaceGradient(PolicySearch):
     def fisher(self) -> np.ndarray:
         """Exact Fisher matrix of the roll-out distribution, in the layout of :meth:`scores`."""
         n_dofs = self._weights.shape[0]
-        blocks = np.kron(np.eye(n_dofs), self._gram) / self.exploration_std**2
+        blocks = self._blocks / self.exploration_std**2
         if not self.learn_exploration:
             return blocks
         size = blocks.shape[0] + 1

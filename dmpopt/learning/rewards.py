@@ -214,6 +214,23 @@ class RewardTask:
         object.__setattr__(self, "_fft_size", fft_size)
         impulse = response[:, :, 0]  # effect of an input at step 0 on every sample
         object.__setattr__(self, "_impulse_spectrum", np.fft.rfft(impulse, n=fft_size, axis=1))
+        # the reward reads whole acceleration series but positions only at the via points and
+        # the end, velocities only at the end: the rows of F, G, H at those samples
+        samples = tuple(sorted({index for index, _, _ in via} | {n_steps - 1}))
+        rows = {  # time along the last axis: (n_dofs or n_basis, samples)
+            "samples": samples,
+            "via": tuple(samples.index(index) for index, _, _ in via),
+            "free_positions": plan.free[0, list(samples)].T.copy(),
+            "positions": plan.weight_response[0, list(samples)].T.copy(),
+            "free_velocity": plan.free[1, -1],
+            "velocity": plan.weight_response[1, -1],
+            "free_accelerations": plan.free[2].T.copy(),
+            "accelerations": plan.weight_response[2].T.copy(),
+            "noise_positions": response[0, list(samples)].T.copy(),  # (n_steps - 1, S)
+            "noise_velocity": response[1, -1],
+            "acceleration_spectrum": np.fft.rfft(impulse[2], n=fft_size),
+        }
+        object.__setattr__(self, "_rows", rows)
         # d mu_k / d w_i = phi_i(x_k) / tau^2 at each step's sample, (n_steps - 1, n_basis)
         features = self.dmp.phase_features(n_steps, self.dt)[:-1] / self.dmp.tau**2
         features.setflags(write=False)
@@ -271,13 +288,7 @@ class RewardTask:
         forced = (response @ flat).reshape(3, self.n_steps, k, self.n_dofs)
         plans = self.plan.free[None] + forced.transpose(2, 0, 1, 3)
         if acceleration_noise is not None:
-            noise = real_array("acceleration_noise", acceleration_noise)
-            expected = (weights.shape[0], self.n_actions, self.n_dofs)
-            if noise.shape != expected:
-                raise ShapeError(
-                    f"acceleration_noise has shape {noise.shape}, expected {expected} "
-                    "(roll-outs, steps - 1, DOFs)"
-                )
+            noise = self._check_noise(acceleration_noise, k)
             # H is lower-triangular Toeplitz: H @ noise is a causal convolution, done by FFT
             spectrum = np.fft.rfft(noise, n=self._fft_size, axis=1)  # (K, n_freq, D)
             noisy = np.fft.irfft(
@@ -299,24 +310,76 @@ class RewardTask:
                 f"plans has shape {plans.shape}, expected (K, 3, {self.n_steps}, {self.n_dofs}) "
                 "as returned by rollouts()"
             )
-        positions, velocities, accelerations = plans[:, 0], plans[:, 1], plans[:, 2]
+        samples = list(self._rows["samples"])
+        return self._step_rewards(
+            np.swapaxes(plans[:, 0, samples], 1, 2), plans[:, 1, -1], np.swapaxes(plans[:, 2], 1, 2)
+        )
+
+    def _step_rewards(self, positions, final_velocity, accelerations) -> np.ndarray:
+        """The reward of the module docstring, per step, shape (K, n_steps).
+
+        ``positions`` (K, n_dofs, S) at the samples ``self._rows["samples"]`` (the via points
+        and the end), ``final_velocity`` (K, n_dofs), ``accelerations`` (K, n_dofs, n_steps).
+        """
         dt = self.dt
-        rewards = np.zeros(positions.shape[:2])
-        commands = accelerations[:, :-1]
-        rewards[:, :-1] -= self.acceleration_weight * dt * np.sum(commands**2, axis=-1)
+        rewards = np.zeros((accelerations.shape[0], accelerations.shape[2]))
+        commands = accelerations[:, :, :-1]
+        rewards[:, :-1] -= self.acceleration_weight * dt * np.sum(commands**2, axis=1)
         if self.jerk_weight > 0.0:
-            jerk = np.diff(accelerations, axis=1) / dt
-            rewards[:, :-1] -= self.jerk_weight * dt * np.sum(jerk**2, axis=-1)
-        for index, position, weight in self._via:
-            rewards[:, index] -= weight * np.sum((positions[:, index] - position) ** 2, axis=-1)
+            jerk = np.diff(accelerations, axis=2) / dt
+            rewards[:, :-1] -= self.jerk_weight * dt * np.sum(jerk**2, axis=1)
+        for (index, position, weight), column in zip(self._via, self._rows["via"]):
+            rewards[:, index] -= weight * np.sum((positions[:, :, column] - position) ** 2, axis=1)
         goal = np.asarray(self.dmp.goal)
-        rewards[:, -1] -= self.goal_weight * np.sum((positions[:, -1] - goal) ** 2, axis=-1)
-        rewards[:, -1] -= self.velocity_weight * np.sum(velocities[:, -1] ** 2, axis=-1)
+        rewards[:, -1] -= self.goal_weight * np.sum((positions[:, :, -1] - goal) ** 2, axis=1)
+        rewards[:, -1] -= self.velocity_weight * np.sum(final_velocity**2, axis=1)
         if self.delayed:
             total = rewards.sum(axis=1)
             rewards = np.zeros_like(rewards)
             rewards[:, -1] = total
         return rewards
+
+    def _sampled_rewards(self, weights, acceleration_noise=None) -> np.ndarray:
+        """Per-step rewards of a batch from the rows of ``F, G, H`` the reward reads.
+
+        The same plans as :meth:`rollouts` (``Y = F + G W^T + H epsilon``) evaluated only
+        where :meth:`_step_rewards` looks: the accelerations of every sample, the positions
+        at the via points and the end, the velocity at the end. Roll-outs that share their
+        weights (action-space exploration) share one noise-free plan.
+        """
+        rows = self._rows
+        weights = self._batch_weights(weights)
+        k = weights.shape[0]
+        shared = bool(np.all(weights == weights[:1]))
+        mean = weights[:1] if shared else weights
+        # (K, D, B) @ (B, samples) -> (K, D, samples); time along the last axis
+        positions = rows["free_positions"] + mean @ rows["positions"]
+        velocity = rows["free_velocity"] + mean @ rows["velocity"]
+        accelerations = rows["free_accelerations"] + mean @ rows["accelerations"]
+        if acceleration_noise is not None:
+            noise = np.swapaxes(self._check_noise(acceleration_noise, k), 1, 2).copy()
+            # causal convolution with the acceleration row of H, by FFT
+            spectrum = np.fft.rfft(noise, n=self._fft_size, axis=2)
+            spectrum *= rows["acceleration_spectrum"]
+            response = np.fft.irfft(spectrum, n=self._fft_size, axis=2)
+            accelerations = accelerations + response[:, :, : self.n_steps]
+            positions = positions + noise @ rows["noise_positions"]
+            velocity = velocity + noise @ rows["noise_velocity"]
+        elif shared:
+            positions, velocity, accelerations = (
+                np.broadcast_to(a, (k,) + a.shape[1:]) for a in (positions, velocity, accelerations)
+            )
+        return self._step_rewards(positions, velocity, accelerations)
+
+    def _check_noise(self, acceleration_noise, n_rollouts: int) -> np.ndarray:
+        noise = real_array("acceleration_noise", acceleration_noise)
+        expected = (n_rollouts, self.n_actions, self.n_dofs)
+        if noise.shape != expected:
+            raise ShapeError(
+                f"acceleration_noise has shape {noise.shape}, expected {expected} "
+                "(roll-outs, steps - 1, DOFs)"
+            )
+        return noise
 
     def evaluate(self, exploration) -> np.ndarray:
         """Per-step rewards (K, n_steps) of the roll-outs an optimiser asked for.
@@ -329,11 +392,11 @@ class RewardTask:
                 f"exploration must be an Exploration (from an optimiser's ask()), got "
                 f"{type(exploration).__name__}"
             )
-        return self.rewards(self.rollouts(exploration.weights, exploration.acceleration_noise))
+        return self._sampled_rewards(exploration.weights, exploration.acceleration_noise)
 
     def returns(self, weights, acceleration_noise=None) -> np.ndarray:
         """Returns (sums of rewards) of a batch, shape (K,)."""
-        return self.rewards(self.rollouts(weights, acceleration_noise)).sum(axis=1)
+        return self._sampled_rewards(weights, acceleration_noise).sum(axis=1)
 
     def deterministic_return(self, weights) -> float:
         """Return of the noise-free plan with ``weights`` (n_dofs, n_basis)."""

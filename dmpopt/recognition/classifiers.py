@@ -66,6 +66,38 @@ class NearestNeighbourClassifier:
         queries = self._queries(features)
         return self.estimator_.predict(queries)
 
+    def leave_one_out(self, features, labels, queries) -> np.ndarray:
+        """Leave-one-out predictions from one tree: query ``i`` against all samples but ``i``.
+
+        Each query's ``n_neighbours + 1`` nearest samples, sample ``i`` dropped (else the
+        farthest), vote as :meth:`predict` (ties to the first class in sorted order). The
+        distances are the same sums as in a tree fitted on the others, so the predictions
+        are those of :func:`~dmpopt.recognition.leave_one_out` refitting for every sample
+        (the order of exactly equal distances aside); one fit instead of ``n_samples``.
+        """
+        features = check_features(features)
+        labels = check_labels(labels, features.shape[0])
+        n = features.shape[0]
+        k = self.n_neighbours
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k < n:
+            raise InvalidInputError(
+                f"n_neighbours must be a positive integer below the {n} samples (one is left "
+                f"out), got {k!r}"
+            )
+        queries = check_features(queries, "queries", n_features=features.shape[1])
+        if queries.shape[0] != n:
+            raise InvalidInputError(
+                f"queries has {queries.shape[0]} rows, expected {n}: one per sample"
+            )
+        fitted = NearestNeighbourClassifier(int(k) + 1).fit(features, labels)
+        _, nearest = fitted.estimator_.kneighbors(queries)
+        classes, index = np.unique(labels, return_inverse=True)
+        predictions = []
+        for i, row in enumerate(nearest):
+            kept = row[row != i][:k]
+            predictions.append(classes[np.argmax(np.bincount(index[kept], minlength=classes.size))])
+        return np.array(predictions)
+
     def _queries(self, features) -> np.ndarray:
         check_fitted(self, "estimator_")
         return check_features(features, n_features=self.estimator_.n_features_in_)

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..exceptions import InvalidInputError, ShapeError
 from ._checks import check_labels, sklearn
+from .classifiers import NearestNeighbourClassifier
 
 
 def _take(samples, indices):
@@ -62,6 +63,8 @@ def leave_one_out(classifier, samples, labels, queries=None) -> np.ndarray:
         raise ShapeError(
             f"queries has {len(queries)} entries, expected {labels.size}: one per sample"
         )
+    if isinstance(classifier, NearestNeighbourClassifier):  # one tree serves every split
+        return classifier.leave_one_out(samples, labels, queries)
     splits = sklearn("model_selection", "leave_one_out").LeaveOneOut().split(labels)
     predictions = []
     for others, held_out in splits:

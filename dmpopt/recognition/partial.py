@@ -25,15 +25,19 @@ def _resample(times: np.ndarray, positions: np.ndarray, n_samples: int) -> np.nd
     return np.stack([np.interp(grid, times, p) for p in positions.T], axis=1)
 
 
-def _match_residuals(templates: np.ndarray, observed: np.ndarray, rotation: bool) -> np.ndarray:
+def _match_residuals(
+    templates: np.ndarray, observed: np.ndarray, rotation: bool, template_norms=None
+) -> np.ndarray:
     r"""Relative residual of the best similarity fit of each template onto the observation.
 
     Both are relative to their first sample. ``templates`` (K, n, D), ``observed`` (n, D).
     Minimises :math:`\|O - s T R\|^2` over the scale :math:`s \ge 0` (and a proper
     rotation :math:`R` if ``rotation``) and returns it divided by :math:`\|O\|^2`.
+    ``template_norms``: :math:`\|T\|^2` of each template if already known.
     """
     observed_norm = float((observed**2).sum())
-    template_norms = (templates**2).sum(axis=(1, 2))
+    if template_norms is None:
+        template_norms = _norms(templates)
     cross = np.einsum("kni,nj->kij", templates, observed)  # T^T O
     if rotation:
         u, singular, vt = np.linalg.svd(cross)
@@ -46,6 +50,10 @@ def _match_residuals(templates: np.ndarray, observed: np.ndarray, rotation: bool
     with np.errstate(divide="ignore", invalid="ignore"):
         explained = np.where(template_norms > 0, correlation**2 / template_norms, 0.0)
     return 1.0 - explained / observed_norm
+
+
+def _norms(templates: np.ndarray) -> np.ndarray:
+    return (templates**2).sum(axis=(1, 2))
 
 
 class PartialObservationClassifier:
@@ -124,6 +132,18 @@ class PartialObservationClassifier:
         self.plans_ = np.array(plans)
         self.labels_ = labels.copy()
         self.classes_ = np.unique(labels)
+        # the first fraction of every plan, resampled: the same for every observation
+        last = self.plans_.shape[1] - 1
+        segments = []
+        for fraction in self.fractions_:
+            position = np.linspace(0.0, fraction * last, self.n_samples)
+            lower = np.minimum(np.floor(position).astype(int), last - 1)
+            weight = (position - lower)[None, :, None]
+            segments.append(
+                (1.0 - weight) * self.plans_[:, lower] + weight * self.plans_[:, lower + 1]
+            )
+        self._segments = segments
+        self._segment_norms = [_norms(segment) for segment in segments]
         return self
 
     def match(self, observation: Trajectory) -> tuple[np.ndarray, np.ndarray]:
@@ -139,18 +159,14 @@ class PartialObservationClassifier:
                 f"observation has {observation.n_dofs} DOFs, expected {self.plans_.shape[2]} "
                 "like the fitted DMPs"
             )
-        observed = _resample(observation.times, observation.positions, self.n_samples)
+        n_samples = self._segments[0].shape[1]  # as fitted
+        observed = _resample(observation.times, observation.positions, n_samples)
         observed = observed - observed[0]
         if not np.abs(observed).max() > 0.0:
             raise InvalidInputError("observation does not move, so it matches every shape")
-        last = self.plans_.shape[1] - 1
         residuals = np.empty((self.fractions_.size, self.plans_.shape[0]))
-        for row, fraction in enumerate(self.fractions_):
-            position = np.linspace(0.0, fraction * last, self.n_samples)
-            lower = np.minimum(np.floor(position).astype(int), last - 1)
-            weight = (position - lower)[None, :, None]
-            segments = (1.0 - weight) * self.plans_[:, lower] + weight * self.plans_[:, lower + 1]
-            residuals[row] = _match_residuals(segments, observed, self.rotation)
+        for row, (segments, norms) in enumerate(zip(self._segments, self._segment_norms)):
+            residuals[row] = _match_residuals(segments, observed, self.rotation, norms)
         best = np.argmin(residuals, axis=0)
         return residuals[best, np.arange(best.size)], self.fractions_[best]
 

@@ -666,6 +666,24 @@ def test_path_distance_in_chunks_equals_the_brute_force_distance(monkeypatch):
     assert metrics.path_distance(points, polyline) == pytest.approx(expected, rel=1e-12)
 
 
+@pytest.mark.parametrize("n_dofs", [1, 2, 3])
+def test_path_distance_measures_only_candidate_segments_without_changing_the_result(n_dofs):
+    """Pruned to the segments that can be nearest, every closest distance is the same float
+    as the all-pairs minimum (written out here), on random walks with a zero-length segment
+    and with a few chunks; a pruning that dropped the nearest segment would differ."""
+    rng = np.random.default_rng(n_dofs)
+    points = np.cumsum(rng.standard_normal((300, n_dofs)), axis=0)
+    polyline = np.cumsum(rng.standard_normal((200, n_dofs)), axis=0)
+    polyline[5] = polyline[4]
+    start, segment = polyline[:-1], np.diff(polyline, axis=0)
+    length2 = np.maximum(np.sum(segment**2, axis=1), 1e-300)
+    offset = points[:, None, :] - start[None]
+    fraction = np.clip(np.sum(offset * segment[None], axis=2) / length2, 0.0, 1.0)
+    nearest = start[None] + fraction[..., None] * segment[None]
+    expected = np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1)
+    assert np.array_equal(metrics._closest_distances(points, polyline), expected)
+
+
 def test_the_learning_via_point_is_a_reward_term_under_its_own_name():
     """A task's via-point is a weighted reward, not the fit's hard ViaPoint: it is called
     ViaPointReward; the former name dmpopt.learning.ViaPoint (deprecated in 0.1.0) is gone,

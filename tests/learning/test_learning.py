@@ -11,6 +11,7 @@ from dmpopt.learning import (
     PIBB,
     EpisodicNAC,
     EpisodicReinforce,
+    Exploration,
     RewardTask,
     ViaPointReward,
     enac_gradient,
@@ -798,6 +799,43 @@ def test_noisy_rollouts_of_several_dofs_are_plan_plus_h_eps():
         np.testing.assert_allclose(plans[k], expected, rtol=1e-10, atol=1e-10)
     assert response.shape == (3, via.n_steps, via.n_actions)
     assert np.all(np.triu(response[0], 1) == 0.0)  # causal: no effect before the input
+
+
+@pytest.mark.parametrize("shared", [False, True])
+@pytest.mark.parametrize("noisy", [False, True])
+def test_evaluate_gives_the_rewards_of_the_full_plans(shared, noisy):
+    """evaluate() reads only the samples the reward needs; its rewards are the plain formula
+    on the full plans Y = F + G W^T + H eps (H applied by einsum, not by FFT), for distinct
+    weights and for roll-outs sharing one weight vector (action-space exploration)."""
+    task = RewardTask(
+        via_point_task(dt=0.01).dmp,
+        duration=0.5,
+        dt=0.01,
+        goal_weight=500.0,
+        velocity_weight=2.0,
+        acceleration_weight=0.01,
+        jerk_weight=1e-6,
+        via_points=(ViaPointReward(0.2, (0.3, 0.6), 50.0),),
+    )
+    rng = np.random.default_rng(21)
+    weights = 10 * rng.standard_normal((4, 2, task.n_basis))
+    if shared:
+        weights = np.broadcast_to(weights[0], weights.shape)
+    noise = rng.standard_normal((4, task.n_actions, 2)) if noisy else None
+    rewards = task.evaluate(Exploration(weights, noise))
+    dt, n = 0.01, task.n_steps
+    expected = np.zeros((4, n))
+    for k in range(4):
+        y, yd, ydd = task.plan.evaluate(weights[k])
+        if noisy:
+            y, yd, ydd = (y, yd, ydd) + np.einsum("ist,td->isd", task.noise_response, noise[k])
+        jerk = np.diff(ydd, axis=0) / dt
+        expected[k, :-1] = -0.01 * dt * np.sum(ydd[:-1] ** 2, 1) - 1e-6 * dt * np.sum(jerk**2, 1)
+        expected[k, 20] -= 50.0 * np.sum((y[20] - [0.3, 0.6]) ** 2)
+        expected[k, -1] -= 500.0 * np.sum((y[-1] - [1.0, 0.0]) ** 2) + 2.0 * np.sum(yd[-1] ** 2)
+    # FFT round-off: a few ulps of the largest plan value times log2(fft size), far below 1e-9
+    np.testing.assert_allclose(rewards, expected, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(task.returns(weights, noise), expected.sum(1), rtol=1e-9)
 
 
 def test_pibb_weights_ignore_a_shift_of_the_returns_and_count_updates():

@@ -77,3 +77,22 @@ def test_leave_one_out_needs_fit_and_predict():
     """An object without predict is refused before any fit."""
     with _raises(InvalidInputError, "classifier must have fit() and predict(), got _FitOnly"):
         leave_one_out(_FitOnly(), np.eye(3), [0, 1, 1])
+
+
+def test_nearest_neighbour_leave_one_out_matches_refitting_for_every_sample():
+    """One tree queried for k + 1 neighbours gives the predictions of a classifier refitted
+    without each sample (the answer key: a fit per held-out sample, queried alone), for
+    several k, with the samples themselves and with moved queries as the held-out inputs."""
+    rng = np.random.default_rng(8)
+    features = rng.normal(size=(20, 4))
+    labels = rng.choice(np.array(["a", "b", "c"]), size=20)
+    moved = features + 0.8 * rng.normal(size=features.shape)
+    for k in (1, 4):
+        for queries in (features, moved):
+            expected = []
+            for i in range(20):
+                others = np.arange(20) != i
+                fitted = NearestNeighbourClassifier(k).fit(features[others], labels[others])
+                expected.append(fitted.predict(queries[[i]])[0])
+            got = leave_one_out(NearestNeighbourClassifier(k), features, labels, queries)
+            assert got.tolist() == expected

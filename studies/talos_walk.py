@@ -114,8 +114,13 @@ def _robot_and_start():
     return robot, q0
 
 
-def _sole_positions(robot, data) -> np.ndarray:
-    return np.array([data.oMf[robot.model.getFrameId(f)].translation for f in robot.foot_frames])
+def _sole_ids(robot) -> list:
+    """The frame ids of the soles, left then right."""
+    return [robot.model.getFrameId(f) for f in robot.foot_frames]
+
+
+def _sole_positions(data, sole_ids) -> np.ndarray:
+    return np.array([data.oMf[i].translation for i in sole_ids])
 
 
 @dataclass
@@ -585,7 +590,7 @@ class Walker:
         level = {side: self._level[f] - self._ground[f]
                  for side, f in zip(("left", "right"), self.robot.foot_frames)}  # fmt: skip
         times, steps = self.plan.knot_times, self.plan.footsteps
-        k = int(np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2))
+        k = min(max(int(np.searchsorted(times, t, side="right")) - 1, 0), len(times) - 2)
 
         def knot(j: int) -> float:  # the ground under the ZMP knot j
             step = (j - 2) // 2
@@ -620,27 +625,32 @@ def make_simulator(robot, plant=IDEAL, boxes=()):
     )
 
 
-def _foot_loads(state, robot, data) -> tuple[np.ndarray, np.ndarray, float]:
+def _sole_bounds(robot) -> tuple:
+    """The sole's extent in its frame: smallest and largest x, smallest and largest y [m]."""
+    corners = np.asarray(robot.sole_corners)
+    return corners[:, 0].min(), corners[:, 0].max(), corners[:, 1].min(), corners[:, 1].max()
+
+
+def _foot_loads(state, data, sole_ids, bounds) -> tuple[np.ndarray, np.ndarray, float]:
     """Measured normal force of each foot [N], its CoP's distance inside the sole [m], and
-    the vertical moment of the contact forces about each sole frame's origin, summed [N m]."""
-    n_corners = len(robot.sole_corners)
-    forces = state.contact_forces.reshape(2, n_corners, 3)
-    points = state.contact_positions.reshape(2, n_corners, 3)
+    the vertical moment of the contact forces about each sole frame's origin, summed [N m]
+    (``sole_ids``: :func:`_sole_ids`; ``bounds``: :func:`_sole_bounds`)."""
+    forces = state.contact_forces.reshape(2, -1, 3)
+    points = state.contact_positions.reshape(2, -1, 3)
     normal = forces[:, :, 2].sum(axis=1)
     margin = np.full(2, np.nan)
-    corners = np.asarray(robot.sole_corners)
+    x_min, x_max, y_min, y_max = bounds
     yaw = 0.0
-    for foot, frame in enumerate(robot.foot_frames):
-        placement = data.oMf[robot.model.getFrameId(frame)]
+    for foot, frame_id in enumerate(sole_ids):
+        placement = data.oMf[frame_id]
         arms = points[foot] - placement.translation
         yaw += float(np.sum(arms[:, 0] * forces[foot, :, 1] - arms[:, 1] * forces[foot, :, 0]))
         if normal[foot] > 1.0:
             cop = forces[foot, :, 2] @ points[foot] / normal[foot]
             local = placement.actInv(cop)
             margin[foot] = min(
-                local[0] - corners[:, 0].min(), corners[:, 0].max() - local[0],
-                local[1] - corners[:, 1].min(), corners[:, 1].max() - local[1],
-            )  # fmt: skip
+                local[0] - x_min, x_max - local[0], local[1] - y_min, y_max - local[1]
+            )
     return normal, margin, yaw
 
 
@@ -663,6 +673,7 @@ def simulate(
     normal, margin, yaw = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n)
     tick = np.zeros(n)
     frames = []
+    sole_ids, bounds = _sole_ids(robot), _sole_bounds(robot)
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
@@ -678,8 +689,8 @@ def simulate(
         com[k] = pin.centerOfMass(robot.model, data, state.q, state.v)
         dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
         pin.updateFramePlacements(robot.model, data)
-        feet[k] = _sole_positions(robot, data)
-        normal[k], margin[k], yaw[k] = _foot_loads(state, robot, data)
+        feet[k] = _sole_positions(data, sole_ids)
+        normal[k], margin[k], yaw[k] = _foot_loads(state, data, sole_ids, bounds)
         if record_every and k % record_every == 0:
             frames.append(state.q.copy())
         try:
@@ -724,7 +735,7 @@ def build_plan(robot, q0, quick: bool, step_length: float = STEP_LENGTH):
     data = robot.create_data()
     pin.framesForwardKinematics(robot.model, data, q0)
     com = pin.centerOfMass(robot.model, data, q0)
-    left, right = _sole_positions(robot, data)
+    left, right = _sole_positions(data, _sole_ids(robot))
     n_in_place, n_forward = STEPS["quick" if quick else "full"]
     steps = footstep_plan(left, right, n_in_place, n_forward, step_length)
     height = com[2] - left[2]  # above the ground the robot stands on

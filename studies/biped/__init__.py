@@ -140,6 +140,8 @@ RANGES_QUICK = TrialRanges(warmup=0.5, push_time=(0.6, 0.9), slope_time=(0.5, 0.
 SURVIVAL_QUICK = Survival(after=1.0, window=0.8)
 REALISTIC_SECONDS = 40.0  # [s] the QP walk on the realistic plant
 VIDEO_SECONDS_WALK = 4.0  # [s] the clip shows the last seconds of the QP walk
+QP_WALK = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+"""The study's walks: the QP controller, the boom applying no pitch torque (:func:`walk`)."""
 
 
 def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
@@ -202,28 +204,28 @@ def _summary(log: WalkLog, mass: float) -> dict:
     }
 
 
+def _qp_walk(duration: float, backend: str, plant, **options) -> WalkLog:
+    """The QP walk from ``MAIN_START`` without pitch torque for ``duration`` [s] on ``plant``
+    (:class:`dmpopt.sim.PlantParameters`), the controller believing the realistic preset
+    (:func:`dmpopt_robots.plants.biped_realistic`); ``options`` go to :func:`walk`. The reality
+    gap's walks: the realistic plant's and each case of its plant sweep."""
+    biped = load_biped()
+    _, dmp = learn_gait()
+    return walk(
+        biped, dmp, duration, MAIN_START, **QP_WALK, backend=backend, plant=plant,
+        nominal_plant=biped_realistic(biped), **options,
+    )  # fmt: skip
+
+
 def _plant_case(case) -> dict:
     """One QP walk of the plant sweep: steps and fall. A link-mass case ``mass`` (the model's
     links x ``mass``) gives the plant's moving bodies ``1 / mass`` of their mass instead."""
     duration, plant, mass, backend = case
-    biped = load_biped()
-    _, dmp = learn_gait()
     disturbance = None
     if mass != 1.0:
-        disturbance = Disturbance(mass_scale=(1.0 / mass,) * n_moving_bodies(biped))
-    log = walk(
-        biped,
-        dmp,
-        duration,
-        MAIN_START,
-        controller="qp",
-        boom_pitch_stiffness=0.0,
-        boom_pitch_damping=0.0,
-        backend=backend,
-        plant=plant,
-        nominal_plant=biped_realistic(biped),
-        disturbance=disturbance,
-    )
+        n_bodies = n_moving_bodies(load_biped())
+        disturbance = Disturbance(mass_scale=(1.0 / mass,) * n_bodies)
+    log = _qp_walk(duration, backend, plant, disturbance=disturbance)
     return {
         "steps": len(log.strikes),
         "fell": log.fell,
@@ -260,22 +262,7 @@ def _pd_from_demonstration(biped, qp_walk, quick: bool, backend: str, seed: int)
 def _realistic_walk(job) -> dict:
     """The QP walk on the realistic plant (an independent run): steps, fall, final frequency."""
     duration, realistic, backend, seed = job
-    biped = load_biped()
-    _, dmp = learn_gait()
-    log = walk(
-        biped,
-        dmp,
-        duration,
-        MAIN_START,
-        controller="qp",
-        boom_pitch_stiffness=0.0,
-        boom_pitch_damping=0.0,
-        backend=backend,
-        seed=seed,
-        plant=realistic,
-        nominal_plant=realistic,
-        log_every=10**9,
-    )
+    log = _qp_walk(duration, backend, realistic, seed=seed, log_every=10**9)
     return {
         "steps_walked": len(log.strikes),
         "fell": log.fell,
@@ -322,8 +309,7 @@ def _plan(quick: bool, backend: str, seed: int) -> dict:
     """Every walk of the first batch, by name: Fig. 7's starts, the scaling and controller
     controls, the fixed-frequency sweep, the paper's PD without pitch torque, and the
     undisturbed walks of each arm at the candidate starts of the robustness trials."""
-    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
-    base = {**qp, "backend": backend, "seed": seed, "log_every": LOG_EVERY}
+    base = {**QP_WALK, "backend": backend, "seed": seed, "log_every": LOG_EVERY}
     converge = 1.5 if quick else 20.0  # [s] Fig. 7's starts (the one from MAIN_START: main)
     control = 1.5 if quick else 15.0  # [s] each control walk
     jobs = {}
@@ -419,14 +405,13 @@ def run(
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
     n_trials = 1 if quick else N_TRIALS
     disturbances = random_disturbances(biped, n_trials, seed, ranges)
-    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
     trials = trial_jobs(
         biped,
         dmp,
         TRIAL_START,
         disturbances,
         rule=rule,
-        **qp,
+        **QP_WALK,
         backend=backend,
         warmup=ranges.warmup,
     )

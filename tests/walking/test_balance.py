@@ -356,6 +356,8 @@ BOX = ([-1.0, -1.0], [1.0, 1.0])
          r"^foothold_reference has shape"),
         (lambda: ground_tilt([[0, 0, 1]]), r"^normal has shape"),
         (lambda: ground_tilt([1.0, 0.0, 0.0]), r"^normal must .* pointing up"),  # n_z = 0
+        (lambda: convex_hull([0, 0]),
+         r"^points has shape \(2,\), expected 2 dim.*\(horizontal points, shape \(n, 2\)\)$"),
     ],
 )  # fmt: skip
 def test_each_argument_is_named_with_its_bound(call, match):
@@ -382,6 +384,17 @@ def test_separating_axes_of_slanted_edges_and_of_unit_edges():
     assert polygons_overlap(unit, unit + [1.2, 0.0], clearance=0.21)
     assert not polygons_overlap(unit + [1.0, 0.0], unit)  # touching, either order
     assert not polygons_overlap(unit, unit + [1.0, 0.0])
+    # a triangle's vertex touching the other's edge: x = 1 is the only axis on which they
+    # meet (0 apart), and neither has the opposite normal (-1, 0) to see it from the other side
+    right = np.array([[1.0, 0.0], [2.0, 0.0], [1.0, 1.0]])
+    left = np.array([[0.0, 0.0], [1.0, 0.5], [0.0, 1.0]])
+    assert not polygons_overlap(right, left)
+    assert not polygons_overlap(left, right)
+    assert polygons_overlap(right - [0.01, 0.0], left)
+
+
+def test_convex_hull_of_one_point_is_that_point():
+    np.testing.assert_array_equal(convex_hull([[0.3, 0.2]]), [[0.3, 0.2]])
 
 
 def test_capture_foothold_clips_to_both_corners_and_a_box_may_be_flat():

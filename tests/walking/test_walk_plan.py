@@ -581,3 +581,59 @@ def test_replanning_names_a_bad_step_or_time():
         InvalidInputError, match=r"^time must be .* >= 2.6, .*start of step 1.s double support"
     ):
         plan.with_lift_off(1, plan.touchdown[0] - 0.01)
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: quintic([np.nan], [0.0], [0.0], [1.0], 0.5, 0.1), r"^position\[0\] is nan"),
+        (lambda: quintic([0.0], [np.nan], [0.0], [1.0], 0.5, 0.1), r"^velocity\[0\] is nan"),
+        (lambda: quintic([0.0], [0.0], [np.nan], [1.0], 0.5, 0.1), r"^acceleration\[0\] is nan"),
+        (lambda: quintic([0.0], [0.0], [0.0], [np.nan], 0.5, 0.1), r"^goal\[0\] is nan"),
+        (lambda: quintic([0.0], [0.0], [0.0], [1.0], 0.0, 0.1),
+         r"^duration must be a finite number > 0, got 0"),
+        (lambda: quintic([0.0], [0.0], [0.0], [1.0], 0.5, -0.1),
+         r"^t must be a finite number >= 0, got -0\.1"),
+    ],
+)  # fmt: skip
+def test_quintic_names_each_argument_with_its_bound(call, match):
+    with pytest.raises(InvalidInputError, match=match):
+        call()
+
+
+def test_replanned_walks_keep_the_com_height_and_the_feet_chain():
+    """A replanned plan's CoM stays at the 0.87 m it was planned at; after with_goal each step
+    starts where its foot last landed (the first ones from the initial LEFT and RIGHT)."""
+    plan = walk()
+    t = np.linspace(0.0, plan.duration, 7)
+    for replanned in (
+        plan.with_lift_off(2, plan.lift_off[2] - 0.1),
+        plan.with_goal(2, plan.footsteps[2].goal + [0.05, 0.02, 0.0]),
+        plan.with_touchdown(2, plan.touchdown[2] - 0.1, shift_later=False),
+    ):
+        np.testing.assert_array_equal(replanned.com(t)[0][:, 2], 0.87)  # fmt: skip
+    moved = plan.with_goal(2, plan.footsteps[2].goal + [0.05, 0.02, 0.0])
+    last = {"left": LEFT, "right": RIGHT}
+    for step in moved.footsteps:
+        np.testing.assert_array_equal(step.start, last[step.side])
+        last[step.side] = step.goal
+
+
+def test_swing_dmps_are_fitted_to_the_demonstration_at_its_sample_period():
+    """The default demonstration (L = 0.2 m, h = 0.05 m, d = 0.4) written here from the
+    docstring, sampled every 0.01 s over the 0.8 s swing (81 samples), fitted with 20
+    basis functions: the same DMPs as fit_swing_dmps' (one fit of the same data)."""
+    from dmpopt.fitting import fit_discrete
+    from dmpopt.trajectory import Trajectory
+
+    times = np.arange(81) * 0.01
+    s = times / 0.8
+    forward = 0.2 * _minimum_jerk(s / 0.8)
+    lift = 0.05 * _minimum_jerk(np.minimum(s, 1 - s) / 0.4)
+    horizontal = fit_discrete(Trajectory.from_positions(times, np.column_stack([forward, 0 * s])),
+                              20, goal_scaling="rotation")  # fmt: skip
+    vertical = fit_discrete(Trajectory.from_positions(times, lift[:, None]), 20,
+                            goal_scaling="translation")  # fmt: skip
+    dmps = fit_swing_dmps(0.8)
+    np.testing.assert_allclose(dmps.horizontal.weights, horizontal.weights, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(dmps.vertical.weights, vertical.weights, rtol=1e-9, atol=1e-9)

@@ -356,6 +356,17 @@ BOX = ([-1.0, -1.0], [1.0, 1.0])
          r"^foothold_reference has shape"),
         (lambda: ground_tilt([[0, 0, 1]]), r"^normal has shape"),
         (lambda: ground_tilt([1.0, 0.0, 0.0]), r"^normal must .* pointing up"),  # n_z = 0
+        (lambda: capture_time([0], [0, 0], OMEGA, [0, 0], *BOX, 0.1, 0.5), r"^dcm has shape"),
+        (lambda: capture_time([0, 0], [0], OMEGA, [0, 0], *BOX, 0.1, 0.5), r"^zmp has shape"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0], *BOX, 0.1, 0.5), r"^offset has"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], [0], BOX[1], 0.1, 0.5),
+         r"^lower has shape"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], BOX[0], [0], 0.1, 0.5),
+         r"^upper has shape"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], *BOX, -0.1, 0.5),
+         r"^shortest must be a finite number >= 0, got -0\.1"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], *BOX, 0.1, 0.05),
+         r"^longest must be a finite number >= 0\.1, got 0\.05; longest >= shortest$"),
         (lambda: convex_hull([0, 0]),
          r"^points has shape \(2,\), expected 2 dim.*\(horizontal points, shape \(n, 2\)\)$"),
     ],
@@ -391,6 +402,17 @@ def test_separating_axes_of_slanted_edges_and_of_unit_edges():
     assert not polygons_overlap(right, left)
     assert not polygons_overlap(left, right)
     assert polygons_overlap(right - [0.01, 0.0], left)
+
+
+def test_capture_time_written_out_for_a_dcm_behind_and_one_a_metre_ahead():
+    """tau = ln(room / |d|) / omega with room the distance from the ZMP to the box's side the
+    DCM diverges to (b = 0): 0.3 m behind for d = -0.015 m (ratio 20, tau = 0.892 s), 5 m
+    ahead for d = 1 m (ratio 5, 0.479 s); both inside [0.1, 2] s."""
+    lower, upper = np.array([-0.3, -0.2]), np.array([5.0, 0.2])
+    behind = capture_time([-0.015, 0.0], [0.0, 0.0], OMEGA, [0, 0], lower, upper, 0.1, 2.0)
+    assert behind == pytest.approx(np.log(0.3 / 0.015) / OMEGA, rel=1e-14)
+    ahead = capture_time([1.0, 0.0], [0.0, 0.0], OMEGA, [0, 0], lower, upper, 0.1, 2.0)
+    assert ahead == pytest.approx(np.log(5.0) / OMEGA, rel=1e-14)
 
 
 def test_convex_hull_of_one_point_is_that_point():

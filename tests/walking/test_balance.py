@@ -355,6 +355,7 @@ BOX = ([-1.0, -1.0], [1.0, 1.0])
         (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0], *BOX),
          r"^foothold_reference has shape"),
         (lambda: ground_tilt([[0, 0, 1]]), r"^normal has shape"),
+        (lambda: ground_tilt([0, np.nan, 1]), r"^normal\[1\] is nan"),
         (lambda: ground_tilt([1.0, 0.0, 0.0]), r"^normal must .* pointing up"),  # n_z = 0
         (lambda: capture_time([0], [0, 0], OMEGA, [0, 0], *BOX, 0.1, 0.5), r"^dcm has shape"),
         (lambda: capture_time([0, 0], [0], OMEGA, [0, 0], *BOX, 0.1, 0.5), r"^zmp has shape"),

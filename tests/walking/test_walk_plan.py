@@ -612,6 +612,7 @@ def test_replanned_walks_keep_the_com_height_and_the_feet_chain():
         plan.with_touchdown(2, plan.touchdown[2] - 0.1, shift_later=False),
     ):
         np.testing.assert_array_equal(replanned.com(t)[0][:, 2], 0.87)  # fmt: skip
+        assert replanned.com(0.0)[0][:2] == pytest.approx(COM[:2], abs=1e-15)  # at rest at COM
     moved = plan.with_goal(2, plan.footsteps[2].goal + [0.05, 0.02, 0.0])
     last = {"left": LEFT, "right": RIGHT}
     for step in moved.footsteps:
@@ -637,3 +638,18 @@ def test_swing_dmps_are_fitted_to_the_demonstration_at_its_sample_period():
     dmps = fit_swing_dmps(0.8)
     np.testing.assert_allclose(dmps.horizontal.weights, horizontal.weights, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(dmps.vertical.weights, vertical.weights, rtol=1e-9, atol=1e-9)
+    assert (dmps.horizontal.goal_scaling, dmps.vertical.goal_scaling) == ("rotation", "translation")
+
+
+def test_replanning_names_the_step_and_the_lift_off_and_allows_touchdown_at_the_end():
+    """shift_later=False accepts a touchdown at the end of the step's double support itself
+    (the double support then lasts 0 s: the ZMP jumps onto the next stance foot)."""
+    plan = walk()
+    with pytest.raises(InvalidInputError, match=r"^step must be an integer >= 0, got -1"):
+        plan.with_goal(-1, [0.0, 0.0, 0.0])
+    lift_off = plan.lift_off[2]
+    with pytest.raises(InvalidInputError, match=rf"; after step 2's lift-off at {lift_off:.4g} s$"):
+        plan.with_touchdown(2, lift_off)
+    end = plan.knot_times[4 + 2 * 2]
+    at_end = plan.with_touchdown(2, end, shift_later=False)
+    assert at_end.touchdown[2] == end == at_end.lift_off[3]

@@ -330,6 +330,17 @@ BOX = ([-1.0, -1.0], [1.0, 1.0])
 @pytest.mark.parametrize(
     ("call", "match"),
     [
+        (lambda: dcm([0, 0], [0], OMEGA), r"^com_velocity has shape"),
+        (lambda: dcm_feedback_zmp([0], [0, 0], [0, 0], 1.0, OMEGA), r"^dcm has shape"),
+        (lambda: dcm_feedback_zmp([0, 0], [0], [0, 0], 1.0, OMEGA), r"^dcm_reference has"),
+        (lambda: dcm_feedback_zmp([0, 0], [0, 0], [0], 1.0, OMEGA), r"^zmp_reference has"),
+        (lambda: lipm_acceleration([0], [0, 0], OMEGA), r"^com has shape"),
+        (lambda: lipm_acceleration([0, 0], [0], OMEGA), r"^zmp has shape"),
+        (lambda: predict_dcm([0], [0, 0], OMEGA, 0.1), r"^dcm has shape"),
+        (lambda: predict_dcm([0, 0], [0], OMEGA, 0.1), r"^zmp has shape"),
+        (lambda: clip_to_polygon([0], SQUARE), r"^point has shape"),
+        (lambda: clip_to_polygon([0, 0], [0, 0]), r"^polygon has shape \(2,\), expected 2 dim"),
+        (lambda: clip_to_polygon([0, 0], np.zeros((3, 3))), r"^polygon has shape \(3, 3\)"),
         (lambda: recovery_zmp([0], [0, 0], [0, 0], SQUARE, OMEGA, 0.1), r"^dcm has shape"),
         (lambda: recovery_zmp([0, 0], [0], [0, 0], SQUARE, OMEGA, 0.1), r"^dcm_reference has"),
         (lambda: recovery_zmp([0, 0], [0, 0], [0], SQUARE, OMEGA, 0.1), r"^zmp_reference has"),
@@ -414,6 +425,16 @@ def test_capture_time_written_out_for_a_dcm_behind_and_one_a_metre_ahead():
     assert behind == pytest.approx(np.log(0.3 / 0.015) / OMEGA, rel=1e-14)
     ahead = capture_time([1.0, 0.0], [0.0, 0.0], OMEGA, [0, 0], lower, upper, 0.1, 2.0)
     assert ahead == pytest.approx(np.log(5.0) / OMEGA, rel=1e-14)
+
+
+def test_clip_to_a_triangle_reaches_its_closing_edge_and_a_point_needs_no_division():
+    """The triangle (0,0), (1,0), (0,1): (-0.5, 0.5) is nearest to (0, 0.5) on the closing edge
+    from (0,1) back to (0,0) (the others' nearest points are the corners, 0.707 away). A
+    one-point polygon has an edge of length 0, whose projection is not divided out."""
+    triangle = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    assert clip_to_polygon([-0.5, 0.5], triangle) == pytest.approx([0.0, 0.5], abs=1e-15)
+    with np.errstate(all="raise"):
+        np.testing.assert_array_equal(clip_to_polygon([3.0, 1.0], [[0.2, 0.3]]), [0.2, 0.3])
 
 
 def test_convex_hull_of_one_point_is_that_point():

@@ -331,6 +331,9 @@ BOX = ([-1.0, -1.0], [1.0, 1.0])
     ("call", "match"),
     [
         (lambda: dcm([0, 0], [0], OMEGA), r"^com_velocity has shape"),
+        (lambda: dcm([np.nan, 0], [0, 0], OMEGA), r"^com\[0\] is nan"),
+        (lambda: dcm([0, 0], [0, 0], 0.0),
+         r"^omega must be a finite number > 0, got 0\.0; omega = sqrt\(g / z_c\)$"),
         (lambda: dcm_feedback_zmp([0], [0, 0], [0, 0], 1.0, OMEGA), r"^dcm has shape"),
         (lambda: dcm_feedback_zmp([0, 0], [0], [0, 0], 1.0, OMEGA), r"^dcm_reference has"),
         (lambda: dcm_feedback_zmp([0, 0], [0, 0], [0], 1.0, OMEGA), r"^zmp_reference has"),
@@ -435,6 +438,11 @@ def test_clip_to_a_triangle_reaches_its_closing_edge_and_a_point_needs_no_divisi
     assert clip_to_polygon([-0.5, 0.5], triangle) == pytest.approx([0.0, 0.5], abs=1e-15)
     with np.errstate(all="raise"):
         np.testing.assert_array_equal(clip_to_polygon([3.0, 1.0], [[0.2, 0.3]]), [0.2, 0.3])
+
+
+def test_a_slow_pendulum_omega_below_one_is_accepted():
+    """xi = x + v / omega = 0 + 0.1 / 0.5 = 0.2 m (omega = 0.5 1/s: a 39 m tall pendulum)."""
+    assert dcm([0.0, 0.0], [0.1, 0.0], 0.5) == pytest.approx([0.2, 0.0], abs=1e-15)
 
 
 def test_convex_hull_of_one_point_is_that_point():

@@ -654,3 +654,13 @@ def test_replanning_names_the_step_and_the_lift_off_and_allows_touchdown_at_the_
     end = plan.knot_times[4 + 2 * 2]
     at_end = plan.with_touchdown(2, end, shift_later=False)
     assert at_end.touchdown[2] == end == at_end.lift_off[3]
+
+
+def test_zmp_and_dcm_in_one_call_are_the_two_queries():
+    """The ZMP on the stance foot mid-swing (plan_walk's docstring) and the DCM query."""
+    plan = walk()
+    t = np.array([0.5 * (plan.lift_off[2] + plan.touchdown[2]), plan.duration])
+    zmp, dcm = plan.zmp_and_dcm(t)
+    assert zmp[0] == pytest.approx(plan.footsteps[2].stance[:2], abs=1e-15)
+    np.testing.assert_array_equal(zmp, plan.zmp(t))
+    np.testing.assert_array_equal(dcm, plan.dcm(t))

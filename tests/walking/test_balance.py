@@ -321,3 +321,149 @@ def test_ground_tilt_takes_up_to_the_normal_without_turning_about_the_vertical(n
 def test_bad_input_names_the_argument(call, error, match):
     with pytest.raises(error, match=match):
         call()
+
+
+# ------------------------------------------------------------- answer keys (mutation run)
+BOX = ([-1.0, -1.0], [1.0, 1.0])
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: dcm([0, 0], [0], OMEGA), r"^com_velocity has shape"),
+        (lambda: dcm([np.nan, 0], [0, 0], OMEGA), r"^com\[0\] is nan"),
+        (lambda: dcm([0, 0], [0, 0], 0.0),
+         r"^omega must be a finite number > 0, got 0\.0; omega = sqrt\(g / z_c\)$"),
+        (lambda: dcm_feedback_zmp([0], [0, 0], [0, 0], 1.0, OMEGA), r"^dcm has shape"),
+        (lambda: dcm_feedback_zmp([0, 0], [0], [0, 0], 1.0, OMEGA), r"^dcm_reference has"),
+        (lambda: dcm_feedback_zmp([0, 0], [0, 0], [0], 1.0, OMEGA), r"^zmp_reference has"),
+        (lambda: lipm_acceleration([0], [0, 0], OMEGA), r"^com has shape"),
+        (lambda: lipm_acceleration([0, 0], [0], OMEGA), r"^zmp has shape"),
+        (lambda: predict_dcm([0], [0, 0], OMEGA, 0.1), r"^dcm has shape"),
+        (lambda: predict_dcm([0, 0], [0], OMEGA, 0.1), r"^zmp has shape"),
+        (lambda: clip_to_polygon([0], SQUARE), r"^point has shape"),
+        (lambda: clip_to_polygon([0, 0], [0, 0]), r"^polygon has shape \(2,\), expected 2 dim"),
+        (lambda: clip_to_polygon([0, 0], np.zeros((3, 3))), r"^polygon has shape \(3, 3\)"),
+        (lambda: recovery_zmp([0], [0, 0], [0, 0], SQUARE, OMEGA, 0.1), r"^dcm has shape"),
+        (lambda: recovery_zmp([0, 0], [0], [0, 0], SQUARE, OMEGA, 0.1), r"^dcm_reference has"),
+        (lambda: recovery_zmp([0, 0], [0, 0], [0], SQUARE, OMEGA, 0.1), r"^zmp_reference has"),
+        (lambda: recovery_zmp([0, 0], [0, 0], [0, 0], SQUARE, OMEGA, 0.0),
+         r"^t must be a finite number > 0, got 0"),
+        (lambda: polygons_overlap([0, 0, 0], SQUARE), r"^first has shape \(3,\), expected 2 dim"),
+        (lambda: polygons_overlap(SQUARE, SQUARE, -0.01),
+         r"^clearance must be a finite number >= 0"),
+        (lambda: transfer_time([0, 0], [0], OMEGA, *BOX, 0.6, 0.05, 0.2), r"^foothold has"),
+        (lambda: transfer_time([0], [0, 0], OMEGA, *BOX, 0.6, 0.05, 0.2), r"^error has"),
+        (lambda: transfer_time([0, 0], [0, 0], OMEGA, *BOX, 0.0, 0.05, 0.2),
+         r"^swing must be a finite number > 0, got 0"),
+        (lambda: transfer_time([0, 0], [0, 0], OMEGA, *BOX, 0.6, -0.01, 0.2),
+         r"^shortest must be a finite number >= 0, got -0\.01"),
+        (lambda: transfer_time([0, 0], [0, 0], OMEGA, *BOX, 0.6, 0.05, 0.01),
+         r"^longest must be a finite number >= 0\.05, got 0\.01; longest >= shortest$"),
+        (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0, 0], [0], [1, 1]),
+         r"^lower has shape"),
+        (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0, 0], [0, 0], [1]),
+         r"^upper has shape"),
+        (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0], [0, 0], *BOX),
+         r"^dcm_reference_end has shape"),
+        (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0], *BOX),
+         r"^foothold_reference has shape"),
+        (lambda: ground_tilt([[0, 0, 1]]), r"^normal has shape"),
+        (lambda: ground_tilt([0, np.nan, 1]), r"^normal\[1\] is nan"),
+        (lambda: ground_tilt([1.0, 0.0, 0.0]), r"^normal must .* pointing up"),  # n_z = 0
+        (lambda: capture_time([0], [0, 0], OMEGA, [0, 0], *BOX, 0.1, 0.5), r"^dcm has shape"),
+        (lambda: capture_time([0, 0], [0], OMEGA, [0, 0], *BOX, 0.1, 0.5), r"^zmp has shape"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0], *BOX, 0.1, 0.5), r"^offset has"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], [0], BOX[1], 0.1, 0.5),
+         r"^lower has shape"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], BOX[0], [0], 0.1, 0.5),
+         r"^upper has shape"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], *BOX, -0.1, 0.5),
+         r"^shortest must be a finite number >= 0, got -0\.1"),
+        (lambda: capture_time([0, 0], [0, 0], OMEGA, [0, 0], *BOX, 0.1, 0.05),
+         r"^longest must be a finite number >= 0\.1, got 0\.05; longest >= shortest$"),
+        (lambda: convex_hull([0, 0]),
+         r"^points has shape \(2,\), expected 2 dim.*\(horizontal points, shape \(n, 2\)\)$"),
+    ],
+)  # fmt: skip
+def test_each_argument_is_named_with_its_bound(call, match):
+    from dmpopt.exceptions import DmpoptError
+
+    with pytest.raises(DmpoptError, match=match):
+        call()
+
+
+def test_separating_axes_of_slanted_edges_and_of_unit_edges():
+    """Hand geometry. The triangle (0,0), (1,0), (0,1) and a square [0.6, 0.9]^2 overlap on x
+    and on y; only the hypotenuse x + y = 1 separates them, by (1.2 - 1) / sqrt 2 = 0.1414 m.
+    A repeated vertex (an edge of length 0) is skipped, not the end of the search. Two unit
+    squares side by side 0.2 apart are separated by their unit-length edges' normals; touching
+    ones are exactly 0 apart, which is not closer than a clearance of 0."""
+    triangle = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    square = np.array([[0.6, 0.6], [0.9, 0.6], [0.9, 0.9], [0.6, 0.9]])
+    assert not polygons_overlap(triangle, square, clearance=0.14)
+    assert polygons_overlap(triangle, square, clearance=0.15)
+    assert not polygons_overlap(triangle[1:], square + 0.3, clearance=0.56)  # gap 0.5657
+    assert polygons_overlap(triangle[1:], square + 0.3, clearance=0.57)
+    unit = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert not polygons_overlap(unit, unit + [1.2, 0.0], clearance=0.19)
+    assert polygons_overlap(unit, unit + [1.2, 0.0], clearance=0.21)
+    assert not polygons_overlap(unit + [1.0, 0.0], unit)  # touching, either order
+    assert not polygons_overlap(unit, unit + [1.0, 0.0])
+    # a triangle's vertex touching the other's edge: x = 1 is the only axis on which they
+    # meet (0 apart), and neither has the opposite normal (-1, 0) to see it from the other side
+    right = np.array([[1.0, 0.0], [2.0, 0.0], [1.0, 1.0]])
+    left = np.array([[0.0, 0.0], [1.0, 0.5], [0.0, 1.0]])
+    assert not polygons_overlap(right, left)
+    assert not polygons_overlap(left, right)
+    assert polygons_overlap(right - [0.01, 0.0], left)
+
+
+def test_capture_time_written_out_for_a_dcm_behind_and_one_a_metre_ahead():
+    """tau = ln(room / |d|) / omega with room the distance from the ZMP to the box's side the
+    DCM diverges to (b = 0): 0.3 m behind for d = -0.015 m (ratio 20, tau = 0.892 s), 5 m
+    ahead for d = 1 m (ratio 5, 0.479 s); both inside [0.1, 2] s."""
+    lower, upper = np.array([-0.3, -0.2]), np.array([5.0, 0.2])
+    behind = capture_time([-0.015, 0.0], [0.0, 0.0], OMEGA, [0, 0], lower, upper, 0.1, 2.0)
+    assert behind == pytest.approx(np.log(0.3 / 0.015) / OMEGA, rel=1e-14)
+    ahead = capture_time([1.0, 0.0], [0.0, 0.0], OMEGA, [0, 0], lower, upper, 0.1, 2.0)
+    assert ahead == pytest.approx(np.log(5.0) / OMEGA, rel=1e-14)
+
+
+def test_clip_to_a_triangle_reaches_its_closing_edge_and_a_point_needs_no_division():
+    """The triangle (0,0), (1,0), (0,1): (-0.5, 0.5) is nearest to (0, 0.5) on the closing edge
+    from (0,1) back to (0,0) (the others' nearest points are the corners, 0.707 away). A
+    one-point polygon has an edge of length 0, whose projection is not divided out."""
+    triangle = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    assert clip_to_polygon([-0.5, 0.5], triangle) == pytest.approx([0.0, 0.5], abs=1e-15)
+    with np.errstate(all="raise"):
+        np.testing.assert_array_equal(clip_to_polygon([3.0, 1.0], [[0.2, 0.3]]), [0.2, 0.3])
+
+
+def test_a_slow_pendulum_omega_below_one_is_accepted():
+    """xi = x + v / omega = 0 + 0.1 / 0.5 = 0.2 m (omega = 0.5 1/s: a 39 m tall pendulum)."""
+    assert dcm([0.0, 0.0], [0.1, 0.0], 0.5) == pytest.approx([0.2, 0.0], abs=1e-15)
+
+
+def test_convex_hull_of_one_point_is_that_point():
+    np.testing.assert_array_equal(convex_hull([[0.3, 0.2]]), [[0.3, 0.2]])
+
+
+def test_capture_foothold_clips_to_both_corners_and_a_box_may_be_flat():
+    """f = f_r + xi(T) - xi_r(T) written here, below the box's low corner in x and above its
+    high one in y; a box with lower = upper along y holds the foot's y there."""
+    xi0, p = np.array([-0.03, 0.02]), np.array([0.0, 0.0])
+    f = p + (xi0 - p) * np.exp(OMEGA * 0.3)  # xi_r(T) = f_r = 0
+    assert f[0] < -0.05 and f[1] > 0.03
+    got = capture_foothold(xi0, p, OMEGA, 0.3, [0, 0], [0, 0], [-0.05, -0.03], [0.05, 0.03])
+    assert got == pytest.approx([-0.05, 0.03], abs=0.0)
+    flat = capture_foothold(xi0, p, OMEGA, 0.3, [0, 0], [0, 0], [-1.0, 0.01], [1.0, 0.01])
+    assert flat == pytest.approx([f[0], 0.01], abs=1e-15)
+
+
+def test_ground_tilt_of_a_normal_not_of_unit_length():
+    """Twice the 10-degree slope's normal (-sin a, 0, cos a) gives the pitch written out."""
+    a = np.radians(10.0)
+    tilt = ground_tilt([-2 * np.sin(a), 0.0, 2 * np.cos(a)])
+    expected = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
+    np.testing.assert_allclose(tilt, expected, atol=1e-15)

@@ -581,3 +581,86 @@ def test_replanning_names_a_bad_step_or_time():
         InvalidInputError, match=r"^time must be .* >= 2.6, .*start of step 1.s double support"
     ):
         plan.with_lift_off(1, plan.touchdown[0] - 0.01)
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: quintic([np.nan], [0.0], [0.0], [1.0], 0.5, 0.1), r"^position\[0\] is nan"),
+        (lambda: quintic([0.0], [np.nan], [0.0], [1.0], 0.5, 0.1), r"^velocity\[0\] is nan"),
+        (lambda: quintic([0.0], [0.0], [np.nan], [1.0], 0.5, 0.1), r"^acceleration\[0\] is nan"),
+        (lambda: quintic([0.0], [0.0], [0.0], [np.nan], 0.5, 0.1), r"^goal\[0\] is nan"),
+        (lambda: quintic([0.0], [0.0], [0.0], [1.0], 0.0, 0.1),
+         r"^duration must be a finite number > 0, got 0"),
+        (lambda: quintic([0.0], [0.0], [0.0], [1.0], 0.5, -0.1),
+         r"^t must be a finite number >= 0, got -0\.1"),
+    ],
+)  # fmt: skip
+def test_quintic_names_each_argument_with_its_bound(call, match):
+    with pytest.raises(InvalidInputError, match=match):
+        call()
+
+
+def test_replanned_walks_keep_the_com_height_and_the_feet_chain():
+    """A replanned plan's CoM stays at the 0.87 m it was planned at; after with_goal each step
+    starts where its foot last landed (the first ones from the initial LEFT and RIGHT)."""
+    plan = walk()
+    t = np.linspace(0.0, plan.duration, 7)
+    for replanned in (
+        plan.with_lift_off(2, plan.lift_off[2] - 0.1),
+        plan.with_goal(2, plan.footsteps[2].goal + [0.05, 0.02, 0.0]),
+        plan.with_touchdown(2, plan.touchdown[2] - 0.1, shift_later=False),
+    ):
+        np.testing.assert_array_equal(replanned.com(t)[0][:, 2], 0.87)  # fmt: skip
+        assert replanned.com(0.0)[0][:2] == pytest.approx(COM[:2], abs=1e-15)  # at rest at COM
+    forward = walk(n_in_place=0)  # its first step moves (a step in place would hide the start)
+    moved = forward.with_goal(2, forward.footsteps[2].goal + [0.05, 0.02, 0.0])
+    last = {"left": LEFT, "right": RIGHT}
+    for step in moved.footsteps:
+        np.testing.assert_array_equal(step.start, last[step.side])
+        last[step.side] = step.goal
+
+
+def test_swing_dmps_are_fitted_to_the_demonstration_at_its_sample_period():
+    """The default demonstration (L = 0.2 m, h = 0.05 m, d = 0.4) written here from the
+    docstring, sampled every 0.01 s over the 0.8 s swing (81 samples), fitted with 20
+    basis functions: the same DMPs as fit_swing_dmps' (one fit of the same data)."""
+    from dmpopt.fitting import fit_discrete
+    from dmpopt.trajectory import Trajectory
+
+    times = np.arange(81) * 0.01
+    s = times / 0.8
+    forward = 0.2 * _minimum_jerk(s / 0.8)
+    lift = 0.05 * _minimum_jerk(np.minimum(s, 1 - s) / 0.4)
+    horizontal = fit_discrete(Trajectory.from_positions(times, np.column_stack([forward, 0 * s])),
+                              20, goal_scaling="rotation")  # fmt: skip
+    vertical = fit_discrete(Trajectory.from_positions(times, lift[:, None]), 20,
+                            goal_scaling="translation")  # fmt: skip
+    dmps = fit_swing_dmps(0.8)
+    np.testing.assert_allclose(dmps.horizontal.weights, horizontal.weights, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(dmps.vertical.weights, vertical.weights, rtol=1e-9, atol=1e-9)
+    assert (dmps.horizontal.goal_scaling, dmps.vertical.goal_scaling) == ("rotation", "translation")
+
+
+def test_replanning_names_the_step_and_the_lift_off_and_allows_touchdown_at_the_end():
+    """shift_later=False accepts a touchdown at the end of the step's double support itself
+    (the double support then lasts 0 s: the ZMP jumps onto the next stance foot)."""
+    plan = walk()
+    with pytest.raises(InvalidInputError, match=r"^step must be an integer >= 0, got -1"):
+        plan.with_goal(-1, [0.0, 0.0, 0.0])
+    lift_off = plan.lift_off[2]
+    with pytest.raises(InvalidInputError, match=rf"; after step 2's lift-off at {lift_off:.4g} s$"):
+        plan.with_touchdown(2, lift_off)
+    end = plan.knot_times[4 + 2 * 2]
+    at_end = plan.with_touchdown(2, end, shift_later=False)
+    assert at_end.touchdown[2] == end == at_end.lift_off[3]
+
+
+def test_zmp_and_dcm_in_one_call_are_the_two_queries():
+    """The ZMP on the stance foot mid-swing (plan_walk's docstring) and the DCM query."""
+    plan = walk()
+    t = np.array([0.5 * (plan.lift_off[2] + plan.touchdown[2]), plan.duration])
+    zmp, dcm = plan.zmp_and_dcm(t)
+    assert zmp[0] == pytest.approx(plan.footsteps[2].stance[:2], abs=1e-15)
+    np.testing.assert_array_equal(zmp, plan.zmp(t))
+    np.testing.assert_array_equal(dcm, plan.dcm(t))

@@ -374,6 +374,7 @@ def capture_foothold(
         raise InvalidInputError(
             f"lower = {lower} exceeds upper = {upper}; pass the box's low corner first"
         )
+    remaining = real("remaining", remaining, minimum=0.0)  # named as the caller passed it
     end = predict_dcm(dcm, zmp, omega, remaining)
     offset = _plane("dcm_reference_end", dcm_reference_end) - _plane(
         "foothold_reference", foothold_reference

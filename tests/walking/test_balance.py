@@ -366,6 +366,8 @@ BOX = ([-1.0, -1.0], [1.0, 1.0])
          r"^upper has shape"),
         (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0], [0, 0], *BOX),
          r"^dcm_reference_end has shape"),
+        (lambda: capture_foothold([0, 0], [0, 0], OMEGA, -0.1, [0, 0], [0, 0], *BOX),
+         r"^remaining must be"),
         (lambda: capture_foothold([0, 0], [0, 0], OMEGA, 0.1, [0, 0], [0], *BOX),
          r"^foothold_reference has shape"),
         (lambda: ground_tilt([[0, 0, 1]]), r"^normal has shape"),

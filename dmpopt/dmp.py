@@ -86,10 +86,10 @@ step limit and start features do not depend on them (:meth:`DiscreteDMP.replace`
 
 def _frozen(array: np.ndarray) -> np.ndarray:
     """A read-only C-ordered float copy. C order always, whatever the layout given (e.g.
-    weights fitted as a transposed view): a product with the array (``forcing_weights() @
-    features``) rounds differently in another layout, and a pickled copy (a worker's, see
-    :func:`dmpopt.parallel.map_runs`) is C-ordered, so the same values would otherwise give
-    other bits in a worker than in this process."""
+    fitted weights as a transposed view): a product with the array (``forcing_weights() @
+    features``) rounds differently in another layout, and pickling (the trip to a worker of
+    :func:`dmpopt.parallel.map_runs`) turns a non-contiguous view into a C-ordered array, so
+    the same values would otherwise give other bits in a worker than in this process."""
     array = np.array(array, dtype=float, order="C")
     array.setflags(write=False)
     return array

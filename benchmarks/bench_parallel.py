@@ -49,7 +49,8 @@ NOT_RESULTS = re.compile(
     r"ticks_over|over_budget|elapsed|duration_s$|timing"
 )
 """Paths of metric values that are measurements of time or of where the runs went."""
-_TIMES_IN_TEXT = re.compile(r"[-+.e\d]+ ?(ms|us|s)\b")  # "fit 57 ms" in a summary line
+# "fit 57 ms", "0.76x real time" in a summary line
+_TIMES_IN_TEXT = re.compile(r"[-+.e\d]+ ?(ms|us|s|x real time)\b")
 
 
 def _comparable(value):

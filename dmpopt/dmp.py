@@ -85,7 +85,12 @@ step limit and start features do not depend on them (:meth:`DiscreteDMP.replace`
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
-    array = np.array(array, dtype=float)
+    """A read-only C-ordered float copy. C order always, whatever the layout given (e.g.
+    fitted weights as a transposed view): a product with the array (``forcing_weights() @
+    features``) rounds differently in another layout, and pickling (the trip to a worker of
+    :func:`dmpopt.parallel.map_runs`) turns a non-contiguous view into a C-ordered array, so
+    the same values would otherwise give other bits in a worker than in this process."""
+    array = np.array(array, dtype=float, order="C")
     array.setflags(write=False)
     return array
 

@@ -6,6 +6,14 @@ from dmpopt import DiscreteDMP, RhythmicDMP, Trajectory
 from dmpopt.basis import discrete_basis, rhythmic_basis
 
 DISCRETE_GAINS = (25.0, 6.25, 25.0, 6.25)
+FORMS_AND_KERNELS = (
+    ("velocity", "gaussian"),
+    ("acceleration", "gaussian"),
+    ("phase", "von_mises"),
+    ("phase", "paper"),
+    ("energy", "von_mises"),
+    ("energy", "paper"),
+)
 
 
 def random_discrete(seed=0, n_dofs=2, n_basis=20, form="velocity", scale=50.0, **fields):

@@ -7,6 +7,7 @@ import math
 import sys
 
 import numpy as np
+import problems
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -16,15 +17,8 @@ from dmpopt import response, symbolic
 from dmpopt.basis import discrete_basis, rhythmic_basis
 
 EPS = np.finfo(float).eps
-DISCRETE_GAINS = [25.0, 6.25, 25.0, 6.25]
-CASES = [
-    ("velocity", "gaussian"),
-    ("acceleration", "gaussian"),
-    ("phase", "von_mises"),
-    ("phase", "paper"),
-    ("energy", "von_mises"),
-    ("energy", "paper"),
-]
+DISCRETE_GAINS = list(problems.DISCRETE_GAINS)
+CASES = problems.FORMS_AND_KERNELS
 
 
 def _problem(form, kernel, n_basis=30, n_points=200, seed=0):

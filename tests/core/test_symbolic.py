@@ -3,21 +3,15 @@ on arrays, the transformation system as matrices, the canonical step and its sta
 
 import casadi as ca
 import numpy as np
+import problems
 import pytest
 
 from dmpopt import symbolic
 from dmpopt.basis import discrete_basis, rhythmic_basis
 
 EPS = np.finfo(float).eps
-DISCRETE_GAINS = [25.0, 6.25, 25.0, 6.25]
-CASES = [
-    ("velocity", "gaussian"),
-    ("acceleration", "gaussian"),
-    ("phase", "von_mises"),
-    ("phase", "paper"),
-    ("energy", "von_mises"),
-    ("energy", "paper"),
-]
+DISCRETE_GAINS = list(problems.DISCRETE_GAINS)
+CASES = problems.FORMS_AND_KERNELS
 
 
 def _problem(form, kernel, n_points=300, seed=0):

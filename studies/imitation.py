@@ -31,7 +31,7 @@ from .common import Progress, median_time, output_dir, pyplot, write_metrics
 
 # CPU seconds (process and workers; dmpopt.cli) measured on the shared 2-core machine: full
 # 95 s for 114 of the 210 demos in series, quick 14 s
-EXPECTED_SECONDS = {"full": 190, "quick": 15}
+EXPECTED_SECONDS = {"full": 135, "quick": 15}  # CPU s (dmpopt.cli); full: main job 2026-11-27
 N_BASIS = (10, 30, 100)
 DEFAULT_N_BASIS = 30  # fit_discrete's default
 METHODS = {  # label: fit options

@@ -4,7 +4,7 @@ import numpy as np
 
 # CPU seconds (process and workers; dmpopt.cli): quick ~140 s (the walk more than half); full
 # estimated from one run of each kind timed: ~300 s drumming and videos, ~440 s the walk
-EXPECTED_SECONDS = {"full": 740, "quick": 140}
+EXPECTED_SECONDS = {"full": 680, "quick": 140}  # CPU s (dmpopt.cli); full: main job 2026-11-27
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)

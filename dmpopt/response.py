@@ -144,6 +144,18 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
 
 
 @_compile
+def affine_row(row, coefficients, goal, states):
+    """row[:m] = coefficients @ states (m columns of the states' response), then goal added
+    to the goal's column N_STATES."""
+    for column in range(states.shape[1]):
+        total = 0.0
+        for a in range(N_STATES):
+            total += coefficients[a] * states[a, column]
+        row[column] = total
+    row[N_STATES] += goal
+
+
+@_compile
 def response(canonical0, dt, target, gains, centres, widths, first, step, step_goal,
              step_forcing, output, output_goal, output_forcing, out):
     """Fill out (3, n_steps, n + 1 + n_features): responses of position, velocity and
@@ -165,12 +177,7 @@ def response(canonical0, dt, target, gains, centres, widths, first, step, step_g
         start = n + 1 + N_CARRIER * lo  # the first kept basis's first column
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
             row = out[j, k]
-            for column in range(m):
-                total = 0.0
-                for a in range(N_STATES):
-                    total += output[j, a] * states[a, column]
-                row[column] = total
-            row[n] += output_goal[j]
+            affine_row(row, output[j], output_goal[j], states)
             for i in range(count):
                 for e in range(N_CARRIER):
                     row[start + N_CARRIER * i + e] += (
@@ -180,12 +187,7 @@ def response(canonical0, dt, target, gains, centres, widths, first, step, step_g
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
             row = following[i]
-            for column in range(m):
-                total = 0.0
-                for a in range(N_STATES):
-                    total += step[i, a] * states[a, column]
-                row[column] = total
-            row[n] += step_goal[i]
+            affine_row(row, step[i], step_goal[i], states)
             for a in range(count):
                 for e in range(N_CARRIER):
                     row[start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]

@@ -749,19 +749,25 @@ def test_values_on_the_bounds_are_accepted(coarse):
     assert optimise(_pibb(coarse), coarse, 0).trials.tolist() == [0.0]
 
 
-def test_per_step_rewards_with_jerk_and_via_point():
-    """Per-step rewards written plainly: acceleration and jerk at their step, the via point at
-    its sample, goal and velocity at the last; the exact optimum is the least-squares one."""
-    task = RewardTask(
-        paper_reaching_task(dt=0.01).dmp,
+def _weighted_task(dmp, via_point):
+    """A 0.5 s task at dt = 0.01 with every reward term weighted: goal 500, final velocity 2,
+    acceleration 0.01, jerk 1e-6, and ``via_point`` at 0.2 s weighted 50."""
+    return RewardTask(
+        dmp,
         duration=0.5,
         dt=0.01,
         goal_weight=500.0,
         velocity_weight=2.0,
         acceleration_weight=0.01,
         jerk_weight=1e-6,
-        via_points=(ViaPointReward(0.2, (0.3,), 50.0),),
+        via_points=(ViaPointReward(0.2, via_point, 50.0),),
     )
+
+
+def test_per_step_rewards_with_jerk_and_via_point():
+    """Per-step rewards written plainly: acceleration and jerk at their step, the via point at
+    its sample, goal and velocity at the last; the exact optimum is the least-squares one."""
+    task = _weighted_task(paper_reaching_task(dt=0.01).dmp, (0.3,))
     rng = np.random.default_rng(11)
     weights = 20 * rng.standard_normal((2, 1, task.n_basis))
     noise = rng.standard_normal((2, task.n_actions, 1))
@@ -807,16 +813,7 @@ def test_evaluate_gives_the_rewards_of_the_full_plans(shared, noisy):
     """evaluate() reads only the samples the reward needs; its rewards are the plain formula
     on the full plans Y = F + G W^T + H eps (H applied by einsum, not by FFT), for distinct
     weights and for roll-outs sharing one weight vector (action-space exploration)."""
-    task = RewardTask(
-        via_point_task(dt=0.01).dmp,
-        duration=0.5,
-        dt=0.01,
-        goal_weight=500.0,
-        velocity_weight=2.0,
-        acceleration_weight=0.01,
-        jerk_weight=1e-6,
-        via_points=(ViaPointReward(0.2, (0.3, 0.6), 50.0),),
-    )
+    task = _weighted_task(via_point_task(dt=0.01).dmp, (0.3, 0.6))
     rng = np.random.default_rng(21)
     weights = 10 * rng.standard_normal((4, 2, task.n_basis))
     if shared:

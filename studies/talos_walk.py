@@ -504,8 +504,8 @@ class Walker:
         standing sole (:func:`dmpopt.balance.polygons_overlap`), the nearest foothold of the
         box without crossing: a crossing step is taken only where the feet pass each
         other, ahead or behind."""
-        stance = self.robot.foot_frames[1 - self.robot.foot_frames.index(self._frame(step))]
-        placement = self.data.oMf[self.robot.model.getFrameId(stance)]
+        stance = 1 - self.robot.foot_frames.index(self._frame(step))
+        placement = self.data.oMf[self._frame_ids[stance]]
         swing = self._tilt @ self.sole_rotation[self._frame(step)]
         outline = self._sole_outline(swing, foothold)
         standing = self._sole_outline(placement.rotation, placement.translation[:2])

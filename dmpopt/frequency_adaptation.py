@@ -138,6 +138,13 @@ class HeelStrikeDetector:
         self._was_in_contact = [True, True]
         self._time = -np.inf
 
+    @property
+    def last_contact(self) -> tuple[bool, bool]:
+        """The contact flags of the last :meth:`update` (both True before the first): an
+        update with the same flags changes nothing and finds no heel strike, so a loop may
+        skip it."""
+        return self._was_in_contact[0], self._was_in_contact[1]
+
     def update(self, time: float, in_contact, positions=None) -> HeelStrike | None:
         """Feed the contact flags of both feet at ``time``; return a new heel strike or None.
 

@@ -793,7 +793,7 @@ class MujocoSimulator(Backend):
         """Set up the compiled step with MuJoCo's ``mj_step`` inside
         (:mod:`dmpopt.sim.kernels_mujoco`) and compile it (or load it from numba's cache), or
         keep in ``native_step_unavailable`` why the steps go through the Python bindings."""
-        self._advance_arrays = None
+        self._advance_arrays = self._advance = None
         self.native_step_unavailable = None
         try:
             kernels_mujoco.load_library(self._mj)
@@ -812,14 +812,18 @@ class MujocoSimulator(Backend):
             "next_row": plant.next_row, "contact_time": self._contact_time,
         }  # fmt: skip
         self._advance_arrays = kernels_mujoco.array_table(self._native_arrays)
-        advance.compile(
-            tuple(numba.typeof(a) for a in (np.zeros(self.n_actuated), _NO_FORCE,
-                                             self._advance_arrays))
-        )  # fmt: skip
+        signature = tuple(
+            numba.typeof(a) for a in (np.zeros(self.n_actuated), _NO_FORCE, self._advance_arrays)
+        )
+        advance.compile(signature)
+        # the compiled function's own entry point: no dispatch on the argument types (step
+        # passes only contiguous float64 vectors and the int64 table, the types compiled for;
+        # numba's unboxing does not check a dtype)
+        self._advance = getattr(advance.overloads[signature], "entry_point", advance)
 
     def _leave_native(self, reason: str) -> None:
         """Step through the Python bindings from now on, for ``reason``."""
-        self._advance_arrays = self._native_arrays = None
+        self._advance_arrays = self._native_arrays = self._advance = None
         self.native_step_unavailable = reason
 
     def _pack_fall_checks(self) -> None:
@@ -1030,7 +1034,7 @@ class MujocoSimulator(Backend):
         if self.fall_detector is not self._packed_detector:
             self._pack_fall_checks()
         if self._advance_arrays is not None and not self._pushes:
-            status, time, events = advance(tau, force, self._advance_arrays)
+            status, time, events = self._advance(tau, force, self._advance_arrays)
         else:
             status, time, events = self._step_bindings(tau, force)
         if status != STATE_OK:

@@ -262,9 +262,9 @@ class QPControl:
         reach = 0.5 * speed * step_duration
         reach += self.gains.placement_gain * (speed - self.gains.target_speed)
         knee = reference[self.knees[leg]]
-        length = np.hypot(self.thigh + self.shank * np.cos(knee), self.shank * np.sin(knee))
-        offset = np.arctan2(self.shank * np.sin(knee), self.thigh + self.shank * np.cos(knee))
-        landing = np.arcsin(np.clip(reach / length, -0.8, 0.8)) + offset
+        along, across = self.thigh + self.shank * np.cos(knee), self.shank * np.sin(knee)
+        length, offset = np.hypot(along, across), np.arctan2(across, along)
+        landing = np.arcsin(min(max(reach / length, -0.8), 0.8)) + offset
         hip = self.hips[leg]
         reference[hip] += min(progress, 1.0) * (landing - reference[hip])
 
@@ -361,6 +361,7 @@ def walk(
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
     index = np.sort(biped.velocity_indices("gait"))
     detector = HeelStrikeDetector(min_swing_time=0.1)
+    contact = detector.last_contact
     # before ``warmup`` every walk resets and adapts (its start-up); the arm's switches after
     adaptation = FrequencyAdaptation(
         frequency, ADAPTATION_GAIN, reset_phase or warmup > 0, adapt or warmup > 0
@@ -388,7 +389,9 @@ def walk(
                     desired[order], desired_velocity[order] = position, velocity
                     desired_acceleration[order] = acceleration
                 begin = time.thread_time_ns()
-                sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
+                sensed = state  # the state itself when the plant measures without noise
+                if state.q_measured is not state.q or state.v_measured is not state.v:
+                    sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
                 torque = law.torques(sensed, desired, desired_velocity, desired_acceleration)
                 tick_us = (time.thread_time_ns() - begin) / 1e3
                 slow += tick_us > 1e6 * DEFAULT_TIME_BUDGET
@@ -401,8 +404,12 @@ def walk(
                 absolute_work += work
                 positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
                 _record_gait(log, state, impact)
-                if state.touchdowns or not state.in_contact.all():
-                    strike = detector.update(state.t, state.in_contact, state.contact_positions)
+                flags = state.in_contact
+                if (state.touchdowns or not flags.all()) and (
+                    flags[0] != contact[0] or flags[1] != contact[1]
+                ):  # else the detector would find nothing: the flags it saw last
+                    strike = detector.update(state.t, flags, state.contact_positions)
+                    contact = detector.last_contact
                     if strike is not None:
                         if strike.time >= warmup:
                             adaptation.reset_phase, adaptation.adapt = reset_phase, adapt

@@ -3,6 +3,8 @@ heel strikes."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.frequency_adaptation import (
@@ -77,6 +79,23 @@ def test_detector_reports_alternating_strikes_and_ignores_chatter():
     ]
     strikes = [s for t, c in sequence if (s := detector.update(t, c)) is not None]
     assert [(s.time, s.leg) for s in strikes] == [(0.40, 1), (0.90, 0)]
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(st.booleans(), st.booleans()), max_size=40))
+def test_skipping_updates_with_the_last_seen_flags_finds_the_same_strikes(flags):
+    """``last_contact`` is what the last update was given (both True at first), and updates
+    with those flags find nothing: a detector fed only the changes finds the strikes of one
+    fed every tick (the walker skips the rest)."""
+    every, changes = HeelStrikeDetector(0.1), HeelStrikeDetector(0.1)
+    assert every.last_contact == (True, True)
+    for k, pair in enumerate(flags):
+        time = 0.06 * k
+        every.update(time, pair)
+        assert every.last_contact == pair
+        if pair != changes.last_contact:
+            changes.update(time, pair)
+    assert [(s.time, s.leg) for s in changes.strikes] == [(s.time, s.leg) for s in every.strikes]
 
 
 def test_bad_arguments_are_named():

@@ -222,7 +222,13 @@ class Tick:
         outside a contact transition (cone rows nearly degenerate near a zero normal force),
         and once the QP over y holds a certified warm start (the first such QPs of a contact
         set are solved over y), so that a failed solve over z falls back to a warm one."""
-        return self.eliminated_limited is not None and not self.ramping and self.limited.certified
+        limited = self.limited
+        return (
+            self.eliminated_limited is not None
+            and not self.ramping
+            and limited.initialized
+            and limited.certified
+        )
 
     def _count(self, answer: str) -> None:
         stats = self.stats

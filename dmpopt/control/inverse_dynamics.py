@@ -52,8 +52,10 @@ The QP that proxsuite sees is smaller than this statement, with the same solutio
   within their bounds, it is also the solution with them (a convex problem whose optimum
   without some constraints satisfies them); on the drumming study this holds on every tick.
   Otherwise the QP with the cone rows is solved, and if the torques leave their limits (or
-  the accelerations their bounds) the QP with cone, torque and bound rows (over
-  :math:`(\ddot q_a, f)`, base rows eliminated). A QP with more rows is used first on the
+  the accelerations their bounds) the QP with cone, torque and bound rows, over z too
+  (the torques are affine in z); over :math:`(\ddot q_a, f)` with the base rows eliminated
+  and the contact rows as equalities during a contact transition, for a contact set's first
+  such QPs, and when the solve over z fails. A QP with more rows is used first on the
   following ticks until its extra rows are slack by a margin (1 % of the torque limits,
   0.01 rad/s^2 for the bounds, 0.1 % of the robot's weight for the cones).
 

@@ -343,6 +343,7 @@ STAGES = {  # (part of the QP, method): label
     ("Assembly", "assemble_eliminated"): "elimination (levels 1, 2)",
     ("Assembly", "assemble_y"): "base elimination over y",
     ("Assembly", "assemble_torque_rows"): "torque rows",
+    ("Assembly", "assemble_eliminated_torque_rows"): "torque rows over z",
     ("Tick", "_solve"): "QP solve (active set, proxsuite)",
 }
 

@@ -198,6 +198,13 @@ class Assembly:
             self._z_cone_release = cone_upper - CONE_RELEASE_MARGIN * scale
             self._z_cone_values = np.zeros(n_cone)
             self.z_accepted = np.zeros(n_z)  # the last accepted solution over z
+            # Inequality rows over z for the QP with every inequality row: torques,
+            # acceleration bounds (eliminated_torque_rows), cones (constant).
+            self.z_in_matrix = np.zeros((n_limit + n_cone, n_z))
+            self.z_in_matrix[n_limit:] = self.z_cone_matrix
+            self.z_in_lower = np.concatenate([np.full(n_limit, -_NO_BOUND), self.cone_lower])
+            self.z_in_upper = np.concatenate([np.full(n_limit, _NO_BOUND), cone_upper])
+            self._z_torque_rows = np.zeros((n_act, n_z + 1))
             # Arguments of the compiled stages (persistent arrays, filled in place).
             self._split = kernels.Split(
                 basic, np.append(nonbasic, n_x), np.zeros((basic.size, basic.size)),
@@ -258,6 +265,11 @@ class Assembly:
             bound["eliminate"] = (rows, dynamics, split)
             bound["reduce_costs"] = (rows, split, reduced)
             bound["expand"] = (split, self.z_accepted, x)
+            self._z_torque_arguments = (
+                rows, dynamics, split, self.torque_limit, bounds, self._z_torque_rows,
+                self.z_in_matrix, self.z_in_lower, self.z_in_upper, self.cone_upper,
+            )  # fmt: skip
+            bound["eliminated_torque_rows"] = self._z_torque_arguments
         entry_points = {
             name: kernels.entry_point(getattr(kernels, name), *arguments)
             for name, arguments in bound.items()
@@ -410,6 +422,12 @@ class Assembly:
         """tau = M_a qdd + h_a - J_ca^T f as rows over y, the torque-limit bounds and the
         acceleration bounds (one compiled call, :func:`kernels.torque_rows`)."""
         self._compiled.torque_rows(*self._torque_arguments)
+
+    def assemble_eliminated_torque_rows(self) -> None:
+        """The torque rows and acceleration bounds over z, after :meth:`assemble_eliminated`
+        or :meth:`eliminated_tick` and :meth:`acceleration_bounds` (one compiled call,
+        :func:`kernels.eliminated_torque_rows`)."""
+        self._compiled.eliminated_torque_rows(*self._z_torque_arguments)
 
     def accept(self, solution: np.ndarray, eliminated: bool) -> None:
         """Expand a QP solution (over z or y) into the candidate x and compute its torques."""

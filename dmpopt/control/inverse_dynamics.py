@@ -52,8 +52,10 @@ The QP that proxsuite sees is smaller than this statement, with the same solutio
   within their bounds, it is also the solution with them (a convex problem whose optimum
   without some constraints satisfies them); on the drumming study this holds on every tick.
   Otherwise the QP with the cone rows is solved, and if the torques leave their limits (or
-  the accelerations their bounds) the QP with cone, torque and bound rows (over
-  :math:`(\ddot q_a, f)`, base rows eliminated). A QP with more rows is used first on the
+  the accelerations their bounds) the QP with cone, torque and bound rows, over z too
+  (the torques are affine in z); over :math:`(\ddot q_a, f)` with the base rows eliminated
+  and the contact rows as equalities during a contact transition, for a contact set's first
+  such QPs, and when the solve over z fails. A QP with more rows is used first on the
   following ticks until its extra rows are slack by a margin (1 % of the torque limits,
   0.01 rad/s^2 for the bounds, 0.1 % of the robot's weight for the cones).
 
@@ -351,6 +353,16 @@ class ContactSetQP:
                 _arguments(assembly.z_hessian, assembly.z_gradient, None, z_cones),
                 _arguments(assembly.z_hessian, assembly.z_gradient),
             )
+        # ... and with every inequality row (torques, acceleration bounds, cones): the QP of
+        # `limited` over z, smaller and without equality rows.
+        eliminated_limited = None
+        if assembly.eliminable:
+            z_everything = (assembly.z_in_matrix, assembly.z_in_lower, assembly.z_in_upper)
+            z_arguments = _arguments(assembly.z_hessian, assembly.z_gradient, None, z_everything)
+            eliminated_limited = _Stage(
+                assembly.z_hessian.shape[0], 0, n_limit + n_cone, dense_backend, z_arguments,
+                z_arguments,
+            )  # fmt: skip
         self.qp = limited.qp
         self.qp.settings.eps_abs = tolerance
         self.qp.settings.eps_rel = 0.0
@@ -358,8 +370,9 @@ class ContactSetQP:
         self.qp.settings.eps_duality_gap_abs = tolerance
         if settings_source is not None:  # another contact set's QP: one source for all sets
             self.qp = settings_source
+        stages = (eliminated_cones, eliminated_limited, free, limited, relaxed)
         self.tick = Tick(
-            robot, self.data, layout, assembly, (eliminated_cones, free, limited, relaxed),
+            robot, self.data, layout, assembly, stages,
             StageSolver(self.qp), self.torque_limit, tolerance, float(settings.time_budget),
             settings.raise_on_failure,
         )  # fmt: skip
@@ -378,6 +391,7 @@ class ContactSetQP:
         kernels.acceleration_bounds(assembly.bounds, *state)
         if assembly.eliminable:
             assembly.assemble_eliminated()
+            assembly.assemble_eliminated_torque_rows()
             assembly.accept_eliminated(assembly.z_accepted)
         assembly.solve_direct()
         problem = (np.eye(1), np.ones(1), None, None, np.ones((1, 1)), -np.ones(1), np.ones(1))
@@ -499,6 +513,10 @@ class ContactSetQP:
         lower = -min(contact.min_normal_force, limit)
         if not self.assembly.set_normal_force_limit(self.layout.normal_rows[index], lower, limit):
             return
+        if limit < contact.max_normal_force:
+            self.tick.ramping.add(index)
+        else:
+            self.tick.ramping.discard(index)
         self.tick.mark_stale()
 
     def assembled_qp(self, q: np.ndarray, v: np.ndarray) -> AssembledQp:

@@ -39,6 +39,7 @@ __all__ = [
     "cholesky_solve",
     "eliminate",
     "eliminated_tick",
+    "eliminated_torque_rows",
     "entry_point",
     "expand",
     "feasible",
@@ -840,6 +841,76 @@ def torque_rows(dynamics, base_map, contact, torque_limit, bounds, torque, in_ma
     for j in range(bounds.lower.size):
         lower[n_act + j] = min(max(bounds.lower[j], -1e20), 1e20)
         upper[n_act + j] = min(max(bounds.upper[j], -1e20), 1e20)
+
+
+@_compile
+def eliminated_torque_rows(
+    layout, dynamics, split, torque_limit, bounds, torque, in_matrix, lower, upper, cone_upper
+):  # fmt: skip
+    r"""The torque-limit and acceleration-bound rows over the nonbasic unknowns z of
+    :func:`eliminate` (:math:`x_B = U_c - U_N z`), for the QP over z with every inequality
+    row (no equality rows: the base and contact rows are eliminated).
+
+    The torques over x are :math:`\tau = T x + h_a`, :math:`T = [M_a \,|\, -s J_{c,a}^\top]`
+    (:func:`torques`), so over z :math:`\tau = (T_N - T_B U_N) z + T_B U_c + h_a`; written
+    into ``torque`` ([rows | constant], n_act x (n_z + 1)) and as rows ``[0, n_act)`` of
+    ``in_matrix``, ``lower``, ``upper`` with the limits :math:`\pm\tau_{max}` moved by the
+    constant. Then the acceleration bounds of ``bounds`` (:class:`JointBounds`, clipped to
+    :math:`\pm 10^{20}`, proxsuite's "no bound"): a nonbasic joint's row is its unit row, a
+    basic joint's :math:`-U_{N,b}` with the bounds moved by :math:`-U_{c,b}`. The cone rows
+    that follow in ``in_matrix`` are constant; their upper bounds are copied from
+    ``cone_upper`` (a contact's normal-force limit changes during a transition)."""
+    rows, n_cost, nv, n_base = layout.matrix, layout.n_cost, layout.nv, layout.n_base
+    mass, bias, force_scale = dynamics.mass, dynamics.bias, dynamics.force_scale
+    basic, nonbasic, elimination = split.basic, split.nonbasic, split.elimination
+    n_con, n_z = basic.size, nonbasic.size - 1
+    n_act = torque.shape[0]
+    for i in range(n_act):
+        a = n_base + i
+        constant = bias[a]
+        for j in range(n_z):  # T_N, T_B U_N subtracted below
+            column = nonbasic[j]
+            if column < nv:  # row a of the symmetric, Fortran-ordered mass matrix
+                torque[i, j] = mass[column, a]
+            else:
+                torque[i, j] = -force_scale * rows[n_cost + column - nv, a]
+        for b in range(n_con):
+            column = basic[b]
+            if column < nv:
+                coefficient = mass[column, a]
+            else:
+                coefficient = -force_scale * rows[n_cost + column - nv, a]
+            if coefficient != 0.0:
+                for j in range(n_z):
+                    torque[i, j] -= coefficient * elimination[b, j]
+                constant += coefficient * elimination[b, n_z]
+        torque[i, n_z] = constant
+        for j in range(n_z):
+            in_matrix[i, j] = torque[i, j]
+        lower[i] = -torque_limit[i] - constant
+        upper[i] = torque_limit[i] - constant
+    v_index = bounds.v_index
+    for k in range(v_index.size):
+        row = n_act + k
+        low = min(max(bounds.lower[k], -1e20), 1e20)
+        high = min(max(bounds.upper[k], -1e20), 1e20)
+        for j in range(n_z):
+            in_matrix[row, j] = 0.0
+        shift = 0.0
+        for j in range(n_z):
+            if nonbasic[j] == v_index[k]:
+                in_matrix[row, j] = 1.0
+        for b in range(n_con):
+            if basic[b] == v_index[k]:
+                for j in range(n_z):
+                    in_matrix[row, j] = -elimination[b, j]
+                shift = elimination[b, n_z]
+        # a missing bound (+-1e20) stays missing
+        lower[row] = low - shift if low > -1e20 else low
+        upper[row] = high - shift if high < 1e20 else high
+    first = n_act + v_index.size
+    for c in range(cone_upper.size):
+        upper[first + c] = cone_upper[c]
 
 
 @_compile

@@ -38,9 +38,10 @@ class Tick:
     assembly : Assembly
         The arrays the tick fills and reads.
     stages : tuple
-        ``(eliminated_cones, free, limited, relaxed)``: the QP over z with the cone rows (None
-        without an elimination or without cones), the QPs over y with the cone rows, with
-        every inequality row, and the relaxed QP.
+        ``(eliminated_cones, eliminated_limited, free, limited, relaxed)``: the QPs over z
+        with the cone rows (None without an elimination or without cones) and with every
+        inequality row (None without an elimination), the QPs over y with the cone rows and
+        with every inequality row, and the relaxed QP.
     solver : StageSolver
     torque_limit : ndarray, shape (n_actuated,)
         [N m]
@@ -57,9 +58,12 @@ class Tick:
         Where the ticks are counted (the controller's, shared by its contact sets).
     time_budget, raise_on_failure
         As given (the controller sets them on every contact set).
-    eliminated_cones, free, limited, relaxed : _Stage
+    eliminated_cones, eliminated_limited, free, limited, relaxed : _Stage
     stages : tuple of _Stage
         The stages that exist.
+    ramping : set of int
+        The contacts whose normal force is bounded below its maximum (a transition): the
+        QP with every inequality row is then solved over y only (see :meth:`_over_z`).
     solver : StageSolver
     """
 
@@ -70,7 +74,8 @@ class Tick:
         self._nq, self._name, self._data = robot.model.nq, robot.name, data
         self._has_contacts = layout.n_force > 0
         self.layout, self.assembly, self.solver = layout, assembly, solver
-        self.eliminated_cones, self.free, self.limited, self.relaxed = stages
+        self.eliminated_cones, self.eliminated_limited = stages[:2]
+        self.free, self.limited, self.relaxed = stages[2:]
         self.stages = tuple(s for s in stages if s is not None)
         self.torque_limit = torque_limit
         self._release_limit = _RELEASE_MARGIN * torque_limit
@@ -80,6 +85,7 @@ class Tick:
         self.stats = ControllerStats()
         self._deadline = self._exact_deadline = 0.0
         self._level = 0  # inequality rows in use: 0 none, 1 cones, 2 cones and torques
+        self.ramping = set()
         self._torques = np.zeros(layout.n_act)
         self._has_valid_torque = False
 
@@ -133,6 +139,7 @@ class Tick:
         # level is kept until its rows are slack by a margin (hysteresis). Without inequality
         # rows the QP is a least-squares problem, solved by one Cholesky factorisation.
         level, solved, mapped, checked = self._level, True, False, False
+        eliminated = False  # the elimination over z is filled (U, Hessian and gradient)
         # Posture tasks on a fixed base need no model terms below the torque limits.
         assembled = not (assembly.joint_space and level == 0)
         if not assembled:
@@ -149,6 +156,7 @@ class Tick:
                 outcome = assembly.eliminated_tick(q, v)
             elif assembly.eliminable:
                 outcome = assembly.assemble_eliminated()
+            eliminated = outcome != kernels.ILL_CONDITIONED
             if outcome == kernels.SOLVED:
                 checked = True  # cones, torques and acceleration bounds checked by the tick
             elif outcome == kernels.LIMITS_VIOLATED:
@@ -177,12 +185,19 @@ class Tick:
             self.stats.n_torque_limited += 1
             if not assembled:
                 assembly.assemble(q, v)
-            if not mapped:
-                assembly.assemble_y()
+            answer, solved = "solved", False
             assembly.acceleration_bounds(q, v)
-            assembly.assemble_torque_rows()
-            answer = "solved"
-            solved = self._solve(self.limited, self._exact_deadline)
+            # First over z (base and contact rows eliminated, no equality rows), else over y.
+            if self._over_z() and (
+                eliminated or assembly.assemble_eliminated() == kernels.CONES_VIOLATED
+            ):
+                assembly.assemble_eliminated_torque_rows()
+                solved = self._solve(self.eliminated_limited, self._exact_deadline)
+            if not solved:
+                if not mapped:
+                    assembly.assemble_y()
+                assembly.assemble_torque_rows()
+                solved = self._solve(self.limited, self._exact_deadline)
             if solved and self._feasible(self._release_limit, _BOUND_RELEASE_MARGIN, q, v):
                 level = 1 if self._has_contacts else 0  # without contacts there are no cone rows
             elif not solved:
@@ -201,6 +216,19 @@ class Tick:
             np.minimum(assembly.tau, self.torque_limit, out=self._torques)
             np.maximum(self._torques, -self.torque_limit, out=self._torques)
         return self._torques.copy()
+
+    def _over_z(self) -> bool:
+        """Whether the QP with every inequality row is solved over z first: if it exists,
+        outside a contact transition (cone rows nearly degenerate near a zero normal force),
+        and once the QP over y holds a certified warm start (the first such QPs of a contact
+        set are solved over y), so that a failed solve over z falls back to a warm one."""
+        limited = self.limited
+        return (
+            self.eliminated_limited is not None
+            and not self.ramping
+            and limited.initialized
+            and limited.certified
+        )
 
     def _count(self, answer: str) -> None:
         stats = self.stats
@@ -231,7 +259,7 @@ class Tick:
             return False
         if stage is self.relaxed:  # (y, slacks)
             solution = solution[: self.layout.n]
-        if stage is self.eliminated_cones:
+        if stage is self.eliminated_cones or stage is self.eliminated_limited:
             self.assembly.accept_eliminated(solution)
         else:
             self.assembly.accept(solution, eliminated=False)

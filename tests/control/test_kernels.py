@@ -85,6 +85,53 @@ def test_eliminate_solves_the_basic_block(seed):
     np.testing.assert_allclose(elimination, expected, atol=1e-9 * np.abs(expected).max())
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**16))
+def test_eliminated_torque_rows_give_the_torques_and_bounds_over_z(seed):
+    """With x_N = z, x_B = U_c - U_N z, the rows over z reproduce tau = M_a qdd + h_a -
+    s J_ca^T f and the bounded joints' accelerations, each side moved by the constant."""
+    rng = np.random.default_rng(seed)
+    nv, n_base, n_force, n_cost = 9, 2, 3, 4
+    n_x, n_act = nv + n_force, nv - n_base
+    rows = rng.normal(size=(n_cost + n_force + n_base, n_x + 1))
+    mass, bias, scale = _spd(rng, nv), rng.normal(size=nv), 7.0
+    basic = np.array([0, 1, 3, 5, 8])
+    nonbasic = np.append(np.setdiff1d(np.arange(n_x), basic), n_x)
+    n_z = nonbasic.size - 1
+    elimination = rng.normal(size=(basic.size, n_z + 1))  # [U_N | U_c]
+    v_index = np.array([3, 4, 6])  # basic, nonbasic, nonbasic with no lower bound
+    lower, upper = np.array([-1.0, -2.0, -np.inf]), np.array([1.0, 2.0, 3.0])
+    bounds = kernels.JointBounds(
+        np.zeros(3, int), v_index, lower, upper, np.ones(3), 0.1, lower, upper
+    )
+    limit, cone_upper = rng.uniform(1, 2, size=n_act), rng.normal(size=2)
+    n_in = n_act + v_index.size + cone_upper.size
+    in_matrix, in_lower, in_upper = np.zeros((n_in, n_z)), np.zeros(n_in), np.zeros(n_in)
+    kernels.eliminated_torque_rows(
+        kernels.Rows(rows, 0, n_cost, nv, n_base),
+        kernels.Dynamics(np.asfortranarray(mass), bias, scale),
+        kernels.Split(basic, nonbasic, np.zeros((5, 5)), elimination, 1e-12),
+        limit, bounds, np.zeros((n_act, n_z + 1)), in_matrix, in_lower, in_upper, cone_upper,
+    )  # fmt: skip
+    z = rng.normal(size=n_z)
+    x = np.zeros(n_x)
+    x[nonbasic[:-1]] = z
+    x[basic] = elimination[:, -1] - elimination[:, :-1] @ z
+    contact = rows[n_cost : n_cost + n_force, :nv]
+    tau = mass[n_base:] @ x[:nv] + bias[n_base:] - scale * contact[:, n_base:].T @ x[nv:]
+    # sums of ~30 products of O(10) terms: rounding below 30 * eps * 100 ~ 1e-12
+    values = in_matrix @ z
+    np.testing.assert_allclose(values[:n_act] + limit - in_upper[:n_act], tau, atol=1e-11)
+    np.testing.assert_allclose(values[:n_act] - limit - in_lower[:n_act], tau, atol=1e-11)
+    bound_rows = slice(n_act, n_act + 3)
+    np.testing.assert_allclose(values[bound_rows] - in_upper[bound_rows], x[v_index] - upper,
+                               atol=1e-11)  # fmt: skip
+    np.testing.assert_allclose(values[n_act : n_act + 2] - in_lower[n_act : n_act + 2],
+                               x[v_index[:2]] - lower[:2], atol=1e-11)  # fmt: skip
+    assert in_lower[n_act + 2] == -1e20  # a missing bound stays missing
+    np.testing.assert_array_equal(in_upper[n_act + 3 :], cone_upper)
+
+
 def test_eliminate_refuses_a_singular_basic_block():
     rows = np.zeros((3, 4))
     rows[1] = [1.0, 2.0, 0.0, 1.0]

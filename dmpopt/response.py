@@ -140,17 +140,14 @@ def window(canonical, target, gains, centres, widths, max_width, first, with_rat
 
 
 @_compile
-def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
-             slopes, values, rates):
-    """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
-    count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
-    rates[i, e] its rate. Returns (lo, count)."""
-    point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
-                                with_rate, logs)
+def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, slopes, values, rates):
+    """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
+    phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
+    rates[i, e] its rate."""
     phase, phase_rate = point[0], point[1]
     total = 0.0
     for j in range(lo, hi + 1):
-        weight = math.exp(logs[j] - top)
+        weight = math.exp(log_activation(phase, centres[j], widths[j])[0] - top)
         logs[j] = weight
         total += weight
     inverse = 1.0 / total
@@ -170,33 +167,46 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
             rate = activation * (slopes[i] - slope_sum) * phase_rate
             for e in range(N_CARRIER):
                 rates[i, e] = rate * point[2 + e] + activation * point[4 + e]
-    return lo, count
 
 
 @_compile
-def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs):
-    """lows[k], highs[k]: the first and last basis that step k forces, at its sample (the
-    output and stage 1) or at its stages 2-4 (lows.size steps; the last one's stages are not
-    taken, as the response does not step past its last sample)."""
-    n_steps = lows.size
+def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
+             slopes, values, rates):
+    """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
+    count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
+    rates[i, e] its rate. Returns (lo, count)."""
+    point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
+                                with_rate, logs)
+    kept_features(point, lo, hi, top, centres, widths, with_rate, logs, slopes, values, rates)
+    return lo, hi + 1 - lo
+
+
+@_compile
+def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, tops):
+    """The bases kept at each point of a response (:func:`window`): lows[k, s], highs[k, s],
+    tops[k, s] at step k's sample (s = 0, the level with rates) and its stages 2-4 (s = 1..3;
+    the last step's, which the response does not take, repeat its sample's)."""
+    n_steps = lows.shape[0]
     logs = np.empty(centres.size)
     canonical = canonical0.copy()
     stage = np.empty(2)
     max_width = widths.max()
     for k in range(n_steps):
-        _, lo, hi, _ = window(canonical, target, gains, centres, widths, max_width, first, True,
-                              logs)
-        if k < n_steps - 1:
-            result = canonical_step(canonical, dt, target, gains)
-            for s in range(1, 4):
-                stage[0] = result[2 + 2 * s]
-                stage[1] = result[3 + 2 * s]
-                _, low, high, _ = window(stage, target, gains, centres, widths, max_width, first,
-                                         False, logs)
-                lo, hi = min(lo, low), max(hi, high)
-            canonical[0] = result[0]
-            canonical[1] = result[1]
-        lows[k], highs[k] = lo, hi
+        _, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
+                                True, logs)
+        for s in range(4):
+            lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
+        if k == n_steps - 1:
+            break
+        result = canonical_step(canonical, dt, target, gains)
+        for s in range(1, 4):
+            stage[0] = result[2 + 2 * s]
+            stage[1] = result[3 + 2 * s]
+            _, lo, hi, top = window(stage, target, gains, centres, widths, max_width, first,
+                                    False, logs)
+            lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
+        canonical[0] = result[0]
+        canonical[1] = result[1]
 
 
 @_compile
@@ -212,24 +222,29 @@ def affine_row(row, coefficients, goal, states):
 
 
 @_compile
-def response(canonical, dt, target, gains, centres, widths, first, first_basis, advance, step,
-             step_goal, step_forcing, output, output_goal, output_forcing, states, out):
+def response(canonical, dt, target, gains, centres, widths, lows, highs, tops, first_step,
+             first_basis, advance, step, step_goal, step_forcing, output, output_goal,
+             output_forcing, states, out):
     """Fill out (3, n_steps, m): responses of position, velocity and acceleration of the m
     columns whose transformation states are ``states`` (n, m) at the canonical state
-    ``canonical``; column N_STATES takes the goal, column N_STATES + 1 + N_CARRIER i + e the
-    feature e of basis first_basis + i (a basis outside them must not be forced). ``advance``:
-    step past the last sample too. ``canonical`` and ``states`` are left at the state after
-    the last step."""
+    ``canonical``, the steps from first_step on (the bases kept at them in lows, highs,
+    tops: :func:`windows`); column N_STATES takes the goal, column N_STATES + 1 + N_CARRIER i
+    + e the feature e of basis first_basis + i (a basis outside them must not be forced).
+    ``advance``: step past the last sample too. ``canonical`` and ``states`` are left at the
+    state after the last step."""
     n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
     n_basis = centres.size
     current, following = states.copy(), np.empty((n, m))
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
-    max_width = widths.max()
     for k in range(n_steps):
-        lo, count = features(canonical, target, gains, centres, widths, max_width, first, True,
-                             logs, slopes, values, rates)
+        at = first_step + k
+        lo, hi = lows[at, 0], highs[at, 0]
+        point = phase_point(canonical, target, gains)
+        kept_features(point, lo, hi, tops[at, 0], centres, widths, True, logs, slopes, values,
+                      rates)
+        count = hi + 1 - lo
         start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
         if start < n + 1 or start + N_CARRIER * count > m:
             raise ValueError("a basis outside the response's columns is forced")
@@ -253,8 +268,11 @@ def response(canonical, dt, target, gains, centres, widths, first, first_basis, 
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
-            lo, count = features(stage, target, gains, centres, widths, max_width, first, False,
-                                 logs, slopes, values, rates)
+            lo, hi = lows[at, s], highs[at, s]
+            point = phase_point(stage, target, gains)
+            kept_features(point, lo, hi, tops[at, s], centres, widths, False, logs, slopes,
+                          values, rates)
+            count = hi + 1 - lo
             start = n + 1 + N_CARRIER * (lo - first_basis)
             if start < n + 1 or start + N_CARRIER * count > m:
                 raise ValueError("a basis outside the response's columns is forced")
@@ -442,25 +460,28 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     n_carrier = symbolic.FORMS[form].vectors_per_basis
     module = kernels(form, kernel)
     first, canonical = first_level(n_basis), np.array(canonical0, dtype=float)
+    lows, highs = np.empty((n_steps, 4), dtype=np.int64), np.empty((n_steps, 4), dtype=np.int64)
+    tops = np.empty((n_steps, 4))
+    module.windows(canonical, float(dt), float(target), gains, centres, widths, first, lows,
+                   highs, tops)  # fmt: skip
+    lowest, highest = lows.min(axis=1), highs.max(axis=1)
     n_head = n_steps
-    if factored and symbolic.FORMS[form].discrete:
-        lows, highs = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
-        module.windows(canonical, float(dt), float(target), gains, centres, widths, first,
-                       lows, highs)  # fmt: skip
-        n_head = tail_start(lows, highs, n_inputs, n + 1, n_carrier)
+    if factored:
+        n_head = tail_start(lowest, highest, n_inputs, n + 1, n_carrier)
     constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
         matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"],
     )  # fmt: skip
+    windows = (lows, highs, tops)
     states = np.zeros((n, n_inputs))
     states[:, :n] = np.eye(n)
     head = fresh_array((3, n_head, n_inputs))
-    module.response(canonical, float(dt), float(target), gains, centres, widths, first, 0,
+    module.response(canonical, float(dt), float(target), gains, centres, widths, *windows, 0, 0,
                     n_head < n_steps, *constants, states, head)  # fmt: skip
     if n_head == n_steps:
         return ResponseMatrices(head, np.empty((3, 0, n + 1)), np.zeros((n + 1, n_inputs)),
                                 slice(n_inputs, n_inputs))  # fmt: skip
-    low, high = int(lows[n_head:].min()), int(highs[n_head:].max())
+    low, high = int(lowest[n_head:].min()), int(highest[n_head:].max())
     alive = slice(n + 1 + n_carrier * low, n + 1 + n_carrier * (high + 1))
     coefficients = np.zeros((n + 1, n_inputs))
     coefficients[:n], coefficients[n, n] = states, 1.0
@@ -468,8 +489,8 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     tail_states = np.zeros((n, n + 1 + alive.stop - alive.start))
     tail_states[:, :n], tail_states[:, n + 1 :] = np.eye(n), states[:, alive]
     tail = fresh_array((3, n_steps - n_head, tail_states.shape[1]))
-    module.response(canonical, float(dt), float(target), gains, centres, widths, first, low,
-                    False, *constants, tail_states, tail)  # fmt: skip
+    module.response(canonical, float(dt), float(target), gains, centres, widths, *windows,
+                    n_head, low, False, *constants, tail_states, tail)  # fmt: skip
     return ResponseMatrices(head, tail, coefficients, alive)
 
 

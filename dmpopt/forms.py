@@ -31,6 +31,10 @@ import numpy as np
 from .exceptions import InvalidInputError
 
 KERNELS = ("gaussian", "von_mises", "paper")
+CONTINUOUS_KERNELS = ("gaussian", "von_mises")
+r"""Kernels whose log-activation is continuous in the phase (``paper`` jumps where the phase
+wraps at :math:`2\pi`): with :math:`l'^2 \le 4 h |l|` (:mod:`dmpopt.response`),
+:math:`\sqrt{-l}` changes by at most :math:`\sqrt{h}` per unit of phase."""
 
 
 def normalised_activations(log_psi):

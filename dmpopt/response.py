@@ -92,7 +92,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import symbolic
+from . import forms, symbolic
 
 EPS = float(np.finfo(float).eps)
 
@@ -111,6 +111,8 @@ phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
+CONTINUOUS = {continuous}
+SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 
 
 @_compile
@@ -140,14 +142,18 @@ def window(canonical, target, gains, centres, widths, max_width, first, with_rat
 
 
 @_compile
-def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, slopes, values, rates):
+def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, mark, slopes,
+                  values, rates):
     """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
     phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
-    rates[i, e] its rate."""
+    rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
+    mark (evaluated there by tracked_window), else evaluated."""
     phase, phase_rate = point[0], point[1]
     total = 0.0
     for j in range(lo, hi + 1):
-        weight = math.exp(log_activation(phase, centres[j], widths[j])[0] - top)
+        if seen[j] != mark:
+            logs[j] = log_activation(phase, centres[j], widths[j])[0]
+        weight = math.exp(logs[j] - top)
         logs[j] = weight
         total += weight
     inverse = 1.0 / total
@@ -177,8 +183,61 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
     rates[i, e] its rate. Returns (lo, count)."""
     point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
                                 with_rate, logs)
-    kept_features(point, lo, hi, top, centres, widths, with_rate, logs, slopes, values, rates)
+    seen = np.zeros(centres.size, dtype=np.int64)  # every log-activation is known
+    kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, 0, slopes, values,
+                  rates)
     return lo, hi + 1 - lo
+
+
+@_compile
+def level_of(top, max_width, first, with_rate):
+    """The truncation level below the largest log-activation ``top`` (module docstring): at
+    the samples (with_rate) L0 + ln(1 + 5 G), else L0 = first."""
+    bound = first
+    if with_rate:
+        slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
+        extra = math.log1p(5.0 * slope)
+        bound = first + extra if extra <= 2.0 * first else math.inf
+    return top - bound
+
+
+@_compile
+def tracked_window(canonical, target, gains, centres, widths, root_widths, max_width, first,
+                   with_rate, logs, roots, phases, seen, mark, previous):
+    """:func:`window` of a point that evaluates only the bases it cannot rule out: the
+    window of the previous point first, then each other basis j unless sqrt(-l_j) at its last
+    evaluation (roots[j], at phase phases[j]) less sqrt(h_j) (root_widths[j]) times the phase
+    moved since proves l_j more than SKIP_MARGIN below the level (CONTINUOUS kernels only;
+    the level only rises as more bases are evaluated). seen[j] == mark: evaluated here.
+    Returns (lo, hi, top), as window()'s: the others are below the level."""
+    point = phase_point(canonical, target, gains)
+    phase = point[0]
+    n_basis = centres.size
+    top = -math.inf
+    for j in range(previous[0], previous[1] + 1):
+        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+        roots[j], phases[j], seen[j] = math.sqrt(-logs[j]), phase, mark
+        top = max(top, logs[j])
+    level = level_of(top, max_width, first, with_rate)
+    for j in range(n_basis):
+        if seen[j] == mark:
+            continue
+        if CONTINUOUS:
+            low = roots[j] - root_widths[j] * abs(phase - phases[j])
+            if low > 0.0 and -low * low < level - SKIP_MARGIN:
+                continue
+        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+        roots[j], phases[j], seen[j] = math.sqrt(-logs[j]), phase, mark
+        if logs[j] > top:
+            top = logs[j]
+            level = level_of(top, max_width, first, with_rate)
+    lo, hi = 0, n_basis - 1
+    while seen[lo] != mark or logs[lo] < level:
+        lo += 1
+    while seen[hi] != mark or logs[hi] < level:
+        hi -= 1
+    previous[0], previous[1] = lo, hi
+    return lo, hi, top
 
 
 @_compile
@@ -186,14 +245,17 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
     """The bases kept at each point of a response (:func:`window`): lows[k, s], highs[k, s],
     tops[k, s] at step k's sample (s = 0, the level with rates) and its stages 2-4 (s = 1..3;
     the last step's, which the response does not take, repeat its sample's)."""
-    n_steps = lows.shape[0]
-    logs = np.empty(centres.size)
+    n_steps, n_basis = lows.shape[0], centres.size
+    logs, roots, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
+    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
+    root_widths = np.sqrt(widths)
     canonical = canonical0.copy()
     stage = np.empty(2)
     max_width = widths.max()
     for k in range(n_steps):
-        _, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
-                                True, logs)
+        lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
+                                     max_width, first, True, logs, roots, phases, seen, 4 * k,
+                                     previous)
         for s in range(4):
             lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
         if k == n_steps - 1:
@@ -202,8 +264,9 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
-            _, lo, hi, top = window(stage, target, gains, centres, widths, max_width, first,
-                                    False, logs)
+            lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
+                                         max_width, first, False, logs, roots, phases, seen,
+                                         4 * k + s, previous)
             lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
         canonical[0] = result[0]
         canonical[1] = result[1]
@@ -222,28 +285,37 @@ def affine_row(row, coefficients, goal, states):
 
 
 @_compile
-def response(canonical, dt, target, gains, centres, widths, lows, highs, tops, first_step,
-             first_basis, advance, step, step_goal, step_forcing, output, output_goal,
-             output_forcing, states, out):
+def response(canonical, dt, target, gains, centres, widths, first, lows, highs, tops, inline,
+             first_step, first_basis, advance, step, step_goal, step_forcing, output,
+             output_goal, output_forcing, states, out):
     """Fill out (3, n_steps, m): responses of position, velocity and acceleration of the m
     columns whose transformation states are ``states`` (n, m) at the canonical state
-    ``canonical``, the steps from first_step on (the bases kept at them in lows, highs,
-    tops: :func:`windows`); column N_STATES takes the goal, column N_STATES + 1 + N_CARRIER i
-    + e the feature e of basis first_basis + i (a basis outside them must not be forced).
-    ``advance``: step past the last sample too. ``canonical`` and ``states`` are left at the
-    state after the last step."""
+    ``canonical``, the steps from first_step on; the bases kept at them are in lows, highs,
+    tops (:func:`windows`) or, ``inline``, found here (tracked_window). Column N_STATES takes
+    the goal, column N_STATES + 1 + N_CARRIER i + e the feature e of basis first_basis + i (a
+    basis outside them must not be forced). ``advance``: step past the last sample too.
+    ``canonical`` and ``states`` are left at the state after the last step."""
     n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
     n_basis = centres.size
     current, following = states.copy(), np.empty((n, m))
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
+    roots, phases = np.zeros(n_basis), np.zeros(n_basis)
+    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
+    root_widths, max_width = np.sqrt(widths), widths.max()
     for k in range(n_steps):
-        at = first_step + k
-        lo, hi = lows[at, 0], highs[at, 0]
+        at, mark = first_step + k, -2  # mark: no log-activation known
+        if inline:
+            mark = 4 * k
+            lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
+                                         max_width, first, True, logs, roots, phases, seen,
+                                         mark, previous)
+        else:
+            lo, hi, top = lows[at, 0], highs[at, 0], tops[at, 0]
         point = phase_point(canonical, target, gains)
-        kept_features(point, lo, hi, tops[at, 0], centres, widths, True, logs, slopes, values,
-                      rates)
+        kept_features(point, lo, hi, top, centres, widths, True, logs, seen, mark, slopes,
+                      values, rates)
         count = hi + 1 - lo
         start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
         if start < n + 1 or start + N_CARRIER * count > m:
@@ -268,9 +340,15 @@ def response(canonical, dt, target, gains, centres, widths, lows, highs, tops, f
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
-            lo, hi = lows[at, s], highs[at, s]
+            if inline:
+                mark = 4 * k + s
+                lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
+                                             max_width, first, False, logs, roots, phases, seen,
+                                             mark, previous)
+            else:
+                lo, hi, top = lows[at, s], highs[at, s], tops[at, s]
             point = phase_point(stage, target, gains)
-            kept_features(point, lo, hi, tops[at, s], centres, widths, False, logs, slopes,
+            kept_features(point, lo, hi, top, centres, widths, False, logs, seen, mark, slopes,
                           values, rates)
             count = hi + 1 - lo
             start = n + 1 + N_CARRIER * (lo - first_basis)
@@ -299,6 +377,7 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
+    loop = loop.replace("{continuous}", str(kernel in forms.CONTINUOUS_KERNELS))
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
         "import math\n\nimport numba\nimport numpy as np\n\n\n"
@@ -460,19 +539,20 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     n_carrier = symbolic.FORMS[form].vectors_per_basis
     module = kernels(form, kernel)
     first, canonical = first_level(n_basis), np.array(canonical0, dtype=float)
-    lows, highs = np.empty((n_steps, 4), dtype=np.int64), np.empty((n_steps, 4), dtype=np.int64)
-    tops = np.empty((n_steps, 4))
-    module.windows(canonical, float(dt), float(target), gains, centres, widths, first, lows,
-                   highs, tops)  # fmt: skip
-    lowest, highest = lows.min(axis=1), highs.max(axis=1)
-    n_head = n_steps
-    if factored:
+    n_head, inline = n_steps, not (factored and symbolic.FORMS[form].discrete)
+    held = 1 if inline else n_steps  # the windows are found in the pass itself if inline
+    lows, highs = np.empty((held, 4), dtype=np.int64), np.empty((held, 4), dtype=np.int64)
+    tops = np.empty((held, 4))
+    if not inline:
+        module.windows(canonical, float(dt), float(target), gains, centres, widths, first, lows,
+                       highs, tops)  # fmt: skip
+        lowest, highest = lows.min(axis=1), highs.max(axis=1)
         n_head = tail_start(lowest, highest, n_inputs, n + 1, n_carrier)
     constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
         matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"],
     )  # fmt: skip
-    windows = (lows, highs, tops)
+    windows = (first, lows, highs, tops, inline)
     states = np.zeros((n, n_inputs))
     states[:, :n] = np.eye(n)
     head = fresh_array((3, n_head, n_inputs))

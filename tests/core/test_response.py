@@ -319,3 +319,27 @@ def test_the_tail_starts_where_the_fewest_numbers_are_held():
     assert int(np.argmin(held)) == 4 and min(held) == 66
     assert response.tail_start(lows, highs, 9, 3, 1) == 4
     assert response.tail_start(np.zeros(10, int), np.full(10, 5), 9, 3, 1) == 10
+
+
+@pytest.mark.parametrize("form, kernel", CASES)
+def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
+    """The windows pass evaluates only the bases it cannot rule out (sqrt(-l) moves by at most
+    sqrt(h) per unit of phase, as l'^2 <= 4 h |l|; not for the paper kernel, which jumps):
+    at every sample and stage of 1500 steps its kept bases and largest log-activation equal
+    those from every basis's log-activation (window), checked at each point in turn."""
+    centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
+    module = response.kernels(form, kernel)
+    canonical = np.array([0.0, 0.0] if form in ("velocity", "acceleration") else [0.3, 1.2])
+    first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
+    lows, highs = np.empty((n_steps, 4), dtype=np.int64), np.empty((n_steps, 4), dtype=np.int64)
+    tops = np.empty((n_steps, 4))
+    module.windows(canonical, dt, target, gains, centres, widths, first, lows, highs, tops)
+    logs = np.empty(centres.size)
+    for k in range(n_steps - 1):
+        result = module.canonical_step(canonical, dt, target, gains)
+        points = [canonical] + [np.array(result[2 + 2 * s : 4 + 2 * s]) for s in (1, 2, 3)]
+        for s, point in enumerate(points):
+            _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
+                                           first, s == 0, logs)  # fmt: skip
+            assert (lo, hi, top) == (lows[k, s], highs[k, s], tops[k, s])
+        canonical = np.array(result[:2])

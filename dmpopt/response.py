@@ -209,7 +209,7 @@ def tracked_window(canonical, target, gains, centres, widths, root_widths, max_w
     evaluation (roots[j], at phase phases[j]) less sqrt(h_j) (root_widths[j]) times the phase
     moved since proves l_j more than SKIP_MARGIN below the level (CONTINUOUS kernels only;
     the level only rises as more bases are evaluated). seen[j] == mark: evaluated here.
-    Returns (lo, hi, top), as window()'s: the others are below the level."""
+    Returns (point, lo, hi, top), as window(): the others are below the level."""
     point = phase_point(canonical, target, gains)
     phase = point[0]
     n_basis = centres.size
@@ -237,7 +237,7 @@ def tracked_window(canonical, target, gains, centres, widths, root_widths, max_w
     while seen[hi] != mark or logs[hi] < level:
         hi -= 1
     previous[0], previous[1] = lo, hi
-    return lo, hi, top
+    return point, lo, hi, top
 
 
 @_compile
@@ -253,9 +253,9 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
     stage = np.empty(2)
     max_width = widths.max()
     for k in range(n_steps):
-        lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
-                                     max_width, first, True, logs, roots, phases, seen, 4 * k,
-                                     previous)
+        _, lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
+                                        max_width, first, True, logs, roots, phases, seen, 4 * k,
+                                        previous)
         for s in range(4):
             lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
         if k == n_steps - 1:
@@ -264,9 +264,9 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
-            lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
-                                         max_width, first, False, logs, roots, phases, seen,
-                                         4 * k + s, previous)
+            _, lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
+                                            max_width, first, False, logs, roots, phases, seen,
+                                            4 * k + s, previous)
             lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
         canonical[0] = result[0]
         canonical[1] = result[1]
@@ -308,12 +308,12 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
         at, mark = first_step + k, -2  # mark: no log-activation known
         if inline:
             mark = 4 * k
-            lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
-                                         max_width, first, True, logs, roots, phases, seen,
-                                         mark, previous)
+            point, lo, hi, top = tracked_window(canonical, target, gains, centres, widths,
+                                                root_widths, max_width, first, True, logs, roots,
+                                                phases, seen, mark, previous)
         else:
+            point = phase_point(canonical, target, gains)
             lo, hi, top = lows[at, 0], highs[at, 0], tops[at, 0]
-        point = phase_point(canonical, target, gains)
         kept_features(point, lo, hi, top, centres, widths, True, logs, seen, mark, slopes,
                       values, rates)
         count = hi + 1 - lo
@@ -342,12 +342,12 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
             stage[1] = result[3 + 2 * s]
             if inline:
                 mark = 4 * k + s
-                lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
-                                             max_width, first, False, logs, roots, phases, seen,
-                                             mark, previous)
+                point, lo, hi, top = tracked_window(stage, target, gains, centres, widths,
+                                                    root_widths, max_width, first, False, logs,
+                                                    roots, phases, seen, mark, previous)
             else:
+                point = phase_point(stage, target, gains)
                 lo, hi, top = lows[at, s], highs[at, s], tops[at, s]
-            point = phase_point(stage, target, gains)
             kept_features(point, lo, hi, top, centres, widths, False, logs, seen, mark, slopes,
                           values, rates)
             count = hi + 1 - lo

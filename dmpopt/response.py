@@ -85,7 +85,7 @@ more than a margin below the level at phase :math:`p` if :math:`(\sqrt{-l_j(p_j)
 \sqrt{h_j} |p - p_j|)^2` says so; it is then left out, exactly as the full evaluation would
 leave it out (the largest log-activation and the kept bases are the same;
 tests/core/test_response.py compares them at every point). Only for kernels continuous in
-the phase (:data:`forms.CONTINUOUS_KERNELS`): the printed periodic kernel jumps where the
+the phase (:data:`forms.TRACKED_KERNELS`): the printed periodic kernel jumps where the
 phase wraps. (The phase form's first rollout of 50 von Mises bases, 9426 steps, fell from 75
 to 50 ms of thread CPU at load 8 with it.)
 """
@@ -124,7 +124,7 @@ phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
-CONTINUOUS = {continuous}
+TRACKED = {tracked}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 
 
@@ -216,34 +216,41 @@ def level_of(top, max_width, first, with_rate):
 
 @_compile
 def tracked_window(canonical, target, gains, centres, widths, root_widths, max_width, first,
-                   with_rate, logs, roots, phases, seen, mark, previous):
+                   with_rate, logs, lasts, phases, seen, mark, previous):
     """:func:`window` of a point that evaluates only the bases it cannot rule out: the
-    window of the previous point first, then each other basis j unless sqrt(-l_j) at its last
-    evaluation (roots[j], at phase phases[j]) less sqrt(h_j) (root_widths[j]) times the phase
-    moved since proves l_j more than SKIP_MARGIN below the level (CONTINUOUS kernels only;
-    the level only rises as more bases are evaluated). seen[j] == mark: evaluated here.
-    Returns (point, lo, hi, top), as window(): the others are below the level."""
+    window of the previous point first, then each other basis j unless its log-activation
+    at its last evaluation (lasts[j], at phase phases[j]) proves it more than SKIP_MARGIN
+    below the level here: sqrt(-l_j) changes by at most sqrt(h_j) (root_widths[j]) per unit
+    of phase, so -l_j > (sqrt(h_j) |p - p_j| + sqrt(SKIP_MARGIN - level))^2 there suffices
+    (TRACKED kernels only, else every basis is evaluated, by window(); the level only rises
+    as more bases are evaluated). seen[j] == mark: evaluated here (logs[j]). Returns
+    (point, lo, hi, top), as window(): the others are below the level."""
+    if not TRACKED:
+        return window(canonical, target, gains, centres, widths, max_width, first, with_rate,
+                      logs)
     point = phase_point(canonical, target, gains)
     phase = point[0]
     n_basis = centres.size
     top = -math.inf
     for j in range(previous[0], previous[1] + 1):
         logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        roots[j], phases[j], seen[j] = math.sqrt(-logs[j]), phase, mark
+        lasts[j], phases[j], seen[j] = logs[j], phase, mark
         top = max(top, logs[j])
     level = level_of(top, max_width, first, with_rate)
+    reach = math.sqrt(SKIP_MARGIN - level)
     for j in range(n_basis):
         if seen[j] == mark:
             continue
-        if CONTINUOUS:
-            low = roots[j] - root_widths[j] * abs(phase - phases[j])
-            if low > 0.0 and -low * low < level - SKIP_MARGIN:
+        if TRACKED:
+            distance = root_widths[j] * abs(phase - phases[j]) + reach
+            if -lasts[j] > distance * distance:
                 continue
         logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        roots[j], phases[j], seen[j] = math.sqrt(-logs[j]), phase, mark
+        lasts[j], phases[j], seen[j] = logs[j], phase, mark
         if logs[j] > top:
             top = logs[j]
             level = level_of(top, max_width, first, with_rate)
+            reach = math.sqrt(SKIP_MARGIN - level)
     lo, hi = 0, n_basis - 1
     while seen[lo] != mark or logs[lo] < level:
         lo += 1
@@ -259,7 +266,7 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
     tops[k, s] at step k's sample (s = 0, the level with rates) and its stages 2-4 (s = 1..3;
     the last step's, which the response does not take, repeat its sample's)."""
     n_steps, n_basis = lows.shape[0], centres.size
-    logs, roots, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
+    logs, lasts, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
     seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
     root_widths = np.sqrt(widths)
     canonical = canonical0.copy()
@@ -267,7 +274,7 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
     max_width = widths.max()
     for k in range(n_steps):
         _, lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
-                                        max_width, first, True, logs, roots, phases, seen, 4 * k,
+                                        max_width, first, True, logs, lasts, phases, seen, 4 * k,
                                         previous)
         for s in range(4):
             lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
@@ -278,7 +285,7 @@ def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, 
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
             _, lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
-                                            max_width, first, False, logs, roots, phases, seen,
+                                            max_width, first, False, logs, lasts, phases, seen,
                                             4 * k + s, previous)
             lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
         canonical[0] = result[0]
@@ -314,7 +321,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
-    roots, phases = np.zeros(n_basis), np.zeros(n_basis)
+    lasts, phases = np.zeros(n_basis), np.zeros(n_basis)
     seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
     root_widths, max_width = np.sqrt(widths), widths.max()
     for k in range(n_steps):
@@ -322,7 +329,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
         if inline:
             mark = 4 * k
             point, lo, hi, top = tracked_window(canonical, target, gains, centres, widths,
-                                                root_widths, max_width, first, True, logs, roots,
+                                                root_widths, max_width, first, True, logs, lasts,
                                                 phases, seen, mark, previous)
         else:
             point = phase_point(canonical, target, gains)
@@ -357,7 +364,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
                 mark = 4 * k + s
                 point, lo, hi, top = tracked_window(stage, target, gains, centres, widths,
                                                     root_widths, max_width, first, False, logs,
-                                                    roots, phases, seen, mark, previous)
+                                                    lasts, phases, seen, mark, previous)
             else:
                 point = phase_point(stage, target, gains)
                 lo, hi, top = lows[at, s], highs[at, s], tops[at, s]
@@ -390,7 +397,7 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
-    loop = loop.replace("{continuous}", str(kernel in forms.CONTINUOUS_KERNELS))
+    loop = loop.replace("{tracked}", str(kernel in forms.TRACKED_KERNELS))
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
         "import math\n\nimport numba\nimport numpy as np\n\n\n"

@@ -324,7 +324,7 @@ def test_the_tail_starts_where_the_fewest_numbers_are_held():
 @pytest.mark.parametrize("form, kernel", CASES)
 def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
     """The windows pass evaluates only the bases it cannot rule out (sqrt(-l) moves by at most
-    sqrt(h) per unit of phase, as l'^2 <= 4 h |l|; not for the paper kernel, which jumps):
+    sqrt(h) per unit of phase, as l'^2 <= 4 h |l|; von Mises only, forms.TRACKED_KERNELS):
     at every sample and stage of 1500 steps its kept bases and largest log-activation equal
     those from every basis's log-activation (window), checked at each point in turn."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)

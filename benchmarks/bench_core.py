@@ -1,9 +1,13 @@
 """Timings of the DMP core (issue targets in brackets). Run: python benchmarks/bench_core.py
 
+First rollouts (a new DMP: its response matrices computed) are reported as medians of the
+thread's and the process's CPU time and of the wall time; the rest as thread CPU time.
+
 BLAS is limited to one thread: the matrices are small, and on a loaded 2-core machine
 multithreaded BLAS turns a 0.5 ms product into tens of milliseconds.
 """
 
+import argparse
 import dataclasses
 import os
 import time
@@ -24,6 +28,23 @@ def median_us(function, repeats):
         function()
         times.append(time.thread_time() - start)
     return 1e6 * float(np.median(times))
+
+
+def medians_ms(function, repeats):
+    """Medians per call [ms] of the thread's CPU time, the process's CPU time and the wall
+    time (which counts a busy machine's waiting), as one string."""
+    clocks = (time.thread_time, time.process_time, time.perf_counter)
+    times = np.empty((repeats, 3))
+    for i in range(repeats):
+        start = [clock() for clock in clocks]
+        function()
+        times[i] = [clock() - begun for clock, begun in zip(clocks, start)]
+    thread, process, wall = 1e3 * np.median(times, axis=0)
+    return f"{thread:.1f} ms thread CPU, {process:.1f} ms process CPU, {wall:.1f} ms wall"
+
+
+FIRST_REPEATS = 15
+"""First rollouts timed per line (each a new DMP whose response matrices are computed)."""
 
 
 def main():
@@ -69,18 +90,21 @@ def main():
 
     fields = {field.name: getattr(lasa_dmp, field.name) for field in dataclasses.fields(lasa_dmp)}
     fields.pop("kernel")  # not an argument
-    fresh = iter([DiscreteDMP(**fields) for _ in range(6)])  # built afresh: nothing memoised
+    fresh = iter([DiscreteDMP(**fields) for _ in range(FIRST_REPEATS + 1)])  # nothing memoised
 
     def first_rollout():
         dmp_module._response.cache_clear()  # as for a DMP whose response matrices are new
         return next(fresh).rollout()
 
     n_steps = first_rollout().n_steps
-    first = median_us(first_rollout, 5)
+    first = medians_ms(first_rollout, FIRST_REPEATS)
     print(
         f"first rollout of a new DMP (the LASA demo's, {n_steps} steps, its default duration): "
-        f"{first / 1e3:.1f} ms median  [<= 10 ms]"
+        f"{first} (medians)  [<= 10 ms]"
     )
+    lasa_dmp.rollout()
+    again = median_us(lasa_dmp.rollout, 200)
+    print(f"repeated rollout of the LASA demo's DMP, its default duration: {again / 1e3:.3f} ms")
     first_rollouts()
     fit_discrete(demo, 50)
     fit = median_us(lambda: fit_discrete(demo, 50), 200)
@@ -113,16 +137,20 @@ def first_rollouts():
             return new_dmp().rollout()
 
         n_steps = first_rollout().n_steps
-        first = median_us(first_rollout, 5)
+        first = medians_ms(first_rollout, FIRST_REPEATS)
         dmp = new_dmp()
         dmp.rollout()
         again = median_us(dmp.rollout, 50)
         print(
-            f"{form} form, 2 DOFs, 50 bases, {n_steps} steps: first rollout {first / 1e3:.1f} ms, "
-            f"repeated {again / 1e3:.3f} ms (medians)"
+            f"{form} form, 2 DOFs, 50 bases, {n_steps} steps: first rollout {first}; "
+            f"repeated {again / 1e3:.3f} ms thread CPU (medians)"
         )
 
 
 if __name__ == "__main__":
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.parse_args()  # --help: the text above
     with threadpool_limits(limits=1, user_api="blas"):
         main()

@@ -46,7 +46,7 @@ import numpy as np
 
 from . import basis, forms, symbolic, validation
 from .exceptions import InvalidInputError, ShapeError
-from .response import response_matrices
+from .response import ResponseMatrices, response_matrices
 from .stepper import Stepper
 from .trajectory import Trajectory
 from .validation import check_resources, flag, positive, real, real_array, vector
@@ -170,19 +170,22 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)  # an entry holds 3 x n_steps x (n_features + 3) floats
-def _response(key: tuple) -> np.ndarray:
+def _response(key: tuple, factored: bool = True) -> ResponseMatrices:
     """Response matrices of one DOF, in time normalised by ``tau``, read-only.
 
-    Returns an array of shape (3, n_steps, n_inputs): position, velocity and acceleration
-    responses to each input (initial transformation states, goal, weights), computed in one
-    compiled pass (:func:`dmpopt.response.response_matrices`). The first rollout of the LASA
-    demo's plan (10676 steps, 53 inputs) took 18-23 ms of thread time with it on this 2-core
-    machine at load 12-14, of which 6-8 ms mapping its 13.6 MB and 2-3 ms the product;
-    evaluating the features at all stages on arrays and the recurrence in numpy blocks took
-    110-170 ms at that load (benchmarks/bench_core.py).
+    Position, velocity and acceleration responses to each input (initial transformation
+    states, goal, weights), computed in one compiled pass
+    (:func:`dmpopt.response.response_matrices`; ``factored``: the settling tail of a discrete
+    form kept as a factor, as for rollouts; else dense, as for :class:`AffinePlan`, whose
+    weight response is dense anyway). The first rollout of the LASA
+    demo's plan (10676 steps, 53 inputs; 2334 steps dense, 5.6 MB in all) took 22-26 ms of
+    thread time on this 2-core machine at load 11 (27 ms with the whole plan dense, 13.6 MB;
+    the windows pass ~3 ms and the response pass ~6.6 ms of it), a repeated one 0.8 ms
+    (2.6 ms dense); evaluating the features at all stages on arrays and the recurrence in
+    numpy blocks took 110-170 ms at load 12-14 (benchmarks/bench_core.py).
     """
-    matrices = response_matrices(key)
-    matrices.setflags(write=False)
+    matrices = response_matrices(key, factored)
+    matrices.freeze()
     return matrices
 
 
@@ -336,15 +339,16 @@ class _DmpCommon:
             gains=np.asarray(self.gains),
         )
 
-    def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0):
-        """Sample times, the response matrices (:func:`_response`) and their inputs.
+    def _response_and_inputs(self, duration, dt, start, start_velocity, canonical0, factored):
+        """Sample times, the response matrices (:func:`_response`, ``factored`` or not) and
+        their inputs.
 
         A DMP is a frozen value, so the last plan's times and response are kept with it (a
         repeated rollout then skips the checks that the same floats already passed, and the
         cache key of 2 n_basis floats), and so are the inputs of its default start.
         """
         canonical0 = tuple(canonical0)
-        key = (duration, dt, canonical0)
+        key = (duration, dt, canonical0, factored)
         last = self.__dict__.get("_last_plan")
         if (
             last is None
@@ -354,7 +358,7 @@ class _DmpCommon:
             or not last[3] <= validation.MEMORY_BUDGET  # the bounds may have been lowered since
             or last[1].size > validation.MAX_SAMPLES
         ):
-            last = (key, *self._plan_matrices(duration, dt, canonical0))
+            last = (key, *self._plan_matrices(duration, dt, canonical0, factored))
             self.__dict__["_last_plan"] = last
         _, times, response, _ = last
         if start is None and start_velocity is None:  # the default start, kept with the DMP
@@ -371,7 +375,7 @@ class _DmpCommon:
             inputs = self._response_inputs(start, start_velocity, canonical0)
         return times, response, inputs
 
-    def _plan_matrices(self, duration, dt, canonical0):
+    def _plan_matrices(self, duration, dt, canonical0, factored):
         """Checked sample times, the response matrices of one DOF for them, and the bytes a
         plan of them takes (checked against the budget)."""
         duration = positive("duration", duration)
@@ -414,12 +418,14 @@ class _DmpCommon:
         times = _frozen(np.arange(n_steps) * dt)
         # the cache keeps 16 entries: keep out those that would hold over 1/16 of the budget
         small = 24.0 * n_steps * n_inputs <= validation.MEMORY_BUDGET / 16
-        return times, _response(key) if small else _response.__wrapped__(key), n_bytes
+        response = _response(key, factored) if small else _response.__wrapped__(key, factored)
+        return times, response, n_bytes
 
     def _affine(self, duration, dt, start, start_velocity, canonical0) -> AffinePlan:
         times, response, inputs = self._response_and_inputs(
-            duration, dt, start, start_velocity, canonical0
+            duration, dt, start, start_velocity, canonical0, False
         )
+        response = response.dense()
         scale = np.array([1.0, self.tau, self.tau**2])[:, None, None]
         n_free = inputs.shape[0] - symbolic.n_features(self.form, self.n_basis)
         free_inputs, weight_response = inputs[:n_free], response[:, :, n_free:]
@@ -438,17 +444,9 @@ class _DmpCommon:
 
     def _rollout(self, duration, dt, start, start_velocity, canonical0) -> Trajectory:
         times, response, inputs = self._response_and_inputs(
-            duration, dt, start, start_velocity, canonical0
+            duration, dt, start, start_velocity, canonical0, True
         )
-        # one product for positions, velocities and accelerations: (3, n_steps, n_dofs); for a
-        # few DOFs one matrix-vector product per DOF reads the response faster than OpenBLAS's
-        # matrix product (LASA, 2 DOFs, 1000 steps: 83 against 136 us; benchmarks/bench_core.py)
-        flat = response.reshape(-1, inputs.shape[0])
-        if inputs.shape[1] <= 4:
-            plan = np.stack([flat @ column for column in inputs.T], axis=1)
-        else:
-            plan = flat @ inputs
-        plan = plan.reshape(3, times.size, -1)
+        plan = response.product(inputs)  # (3, n_steps, n_dofs)
         plan[1] /= self.tau
         plan[2] /= self.tau**2
         return Trajectory.trusted(times, plan[0], plan[1], plan[2])

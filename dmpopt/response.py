@@ -56,6 +56,38 @@ bound :math:`\epsilon / 2`; at the samples, where the rates are needed,
 are then those of all the bases to rounding, and the rollout equals the stepper's integration
 as before (tests/core/test_response.py checks both bounds at levels far below these, where
 the truncation shows).
+
+The settling tail (:class:`ResponseMatrices`). The forcing term does not vanish once a
+discrete plan settles: the normalisation always keeps the largest basis and the carrier, the
+phase velocity :math:`v`, only decays (2.8e-7 at the end of the LASA demo's default plan,
+whose last 77 % of steps follow its convergence time); the bases near the phase's end (10 of
+50 there) are forced to the last step. Every other column is forced only over a stretch of
+steps, then moves under the unforced step, which is affine in the state with constant
+matrices (:func:`symbolic.transformation_matrices`): its response from step :math:`K` on is
+that of the unit states and the goal, times its state at :math:`K`. A first pass
+(``windows``) finds the bases each step forces and keeps them with the largest
+log-activation, so the response pass evaluates only those; :func:`tail_start` puts :math:`K`
+where the dense head and the tail (the unit responses and the still forced columns) hold the
+fewest numbers: for the LASA demo 2334 of 10676 steps dense, 5.6 instead of 13.6 MB. The head and
+the forced columns are the dense pass's to the bit; the other columns round differently, by
+at most :math:`(n + 1) \epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3)
+||c_j||_1` at tail step :math:`i` (:math:`\tilde S`, :math:`\tilde O` the step and output
+with the goal as a constant state, :math:`P` the largest :math:`||\tilde S^i||_\infty`,
+:math:`c_j` the column's state and goal factor; derived and checked in
+tests/core/test_response.py). Rhythmic forms keep no tail: their phase cycles, so every
+basis is forced once a period; their pass (and that of a dense response) finds the kept
+bases itself.
+
+Which bases are kept is found without evaluating every basis at every point
+(``tracked_window``): :math:`l'^2 \le 4 h |l|` makes :math:`\sqrt{-l_j}` change by at most
+:math:`\sqrt{h_j}` per unit of phase, so a basis evaluated at phase :math:`p_j` is still
+more than a margin below the level at phase :math:`p` if :math:`(\sqrt{-l_j(p_j)} -
+\sqrt{h_j} |p - p_j|)^2` says so; it is then left out, exactly as the full evaluation would
+leave it out (the largest log-activation and the kept bases are the same;
+tests/core/test_response.py compares them at every point). Only for kernels continuous in
+the phase (:data:`forms.TRACKED_KERNELS`): the printed periodic kernel jumps where the
+phase wraps. (The phase form's first rollout of 50 von Mises bases, 9426 steps, fell from 75
+to 50 ms of thread CPU at load 8 with it.)
 """
 
 from __future__ import annotations
@@ -67,12 +99,13 @@ import mmap
 import os
 import sys
 import tempfile
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from . import symbolic
+from . import forms, symbolic
 
 EPS = float(np.finfo(float).eps)
 
@@ -91,19 +124,19 @@ phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
+TRACKED = {tracked}
+SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 
 
 @_compile
-def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
-             slopes, values, rates):
-    """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
-    count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
-    rates[i, e] its rate. Returns (lo, count)."""
+def window(canonical, target, gains, centres, widths, max_width, first, with_rate, logs):
+    """The point's phase values and the bases kept at one canonical state (those from the
+    first to the last at or above the truncation level): (point, lo, hi, top), logs[j] the
+    log-activation of basis j."""
     point = phase_point(canonical, target, gains)
-    phase, phase_rate = point[0], point[1]
     n_basis = centres.size
     for j in range(n_basis):
-        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+        logs[j] = log_activation(point[0], centres[j], widths[j])[0]
     top = logs[0]
     for j in range(1, n_basis):
         top = max(top, logs[j])
@@ -112,14 +145,27 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
         slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
         extra = math.log1p(5.0 * slope)
         bound = first + extra if extra <= 2.0 * first else math.inf
-    level = top - bound  # the bases from the first to the last at or above it are kept
+    level = top - bound
     lo, hi = 0, n_basis - 1
     while logs[lo] < level:
         lo += 1
     while logs[hi] < level:
         hi -= 1
+    return point, lo, hi, top
+
+
+@_compile
+def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, mark, slopes,
+                  values, rates):
+    """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
+    phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
+    rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
+    mark (evaluated there by tracked_window), else evaluated."""
+    phase, phase_rate = point[0], point[1]
     total = 0.0
     for j in range(lo, hi + 1):
+        if seen[j] != mark:
+            logs[j] = log_activation(phase, centres[j], widths[j])[0]
         weight = math.exp(logs[j] - top)
         logs[j] = weight
         total += weight
@@ -140,7 +186,110 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
             rate = activation * (slopes[i] - slope_sum) * phase_rate
             for e in range(N_CARRIER):
                 rates[i, e] = rate * point[2 + e] + activation * point[4 + e]
-    return lo, count
+
+
+@_compile
+def features(canonical, target, gains, centres, widths, max_width, first, with_rate, logs,
+             slopes, values, rates):
+    """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
+    count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
+    rates[i, e] its rate. Returns (lo, count)."""
+    point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
+                                with_rate, logs)
+    seen = np.zeros(centres.size, dtype=np.int64)  # every log-activation is known
+    kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, 0, slopes, values,
+                  rates)
+    return lo, hi + 1 - lo
+
+
+@_compile
+def level_of(top, max_width, first, with_rate):
+    """The truncation level below the largest log-activation ``top`` (module docstring): at
+    the samples (with_rate) L0 + ln(1 + 5 G), else L0 = first."""
+    bound = first
+    if with_rate:
+        slope = 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))
+        extra = math.log1p(5.0 * slope)
+        bound = first + extra if extra <= 2.0 * first else math.inf
+    return top - bound
+
+
+@_compile
+def tracked_window(canonical, target, gains, centres, widths, root_widths, max_width, first,
+                   with_rate, logs, lasts, phases, seen, mark, previous):
+    """:func:`window` of a point that evaluates only the bases it cannot rule out: the
+    window of the previous point first, then each other basis j unless its log-activation
+    at its last evaluation (lasts[j], at phase phases[j]) proves it more than SKIP_MARGIN
+    below the level here: sqrt(-l_j) changes by at most sqrt(h_j) (root_widths[j]) per unit
+    of phase, so -l_j > (sqrt(h_j) |p - p_j| + sqrt(SKIP_MARGIN - level))^2 there suffices
+    (TRACKED kernels only, else every basis is evaluated, by window(); the level only rises
+    as more bases are evaluated). seen[j] == mark: evaluated here (logs[j]). Returns
+    (point, lo, hi, top), as window(): the others are below the level."""
+    if not TRACKED:
+        return window(canonical, target, gains, centres, widths, max_width, first, with_rate,
+                      logs)
+    point = phase_point(canonical, target, gains)
+    phase = point[0]
+    n_basis = centres.size
+    top = -math.inf
+    for j in range(previous[0], previous[1] + 1):
+        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+        lasts[j], phases[j], seen[j] = logs[j], phase, mark
+        top = max(top, logs[j])
+    level = level_of(top, max_width, first, with_rate)
+    reach = math.sqrt(SKIP_MARGIN - level)
+    for j in range(n_basis):
+        if seen[j] == mark:
+            continue
+        if TRACKED:
+            distance = root_widths[j] * abs(phase - phases[j]) + reach
+            if -lasts[j] > distance * distance:
+                continue
+        logs[j] = log_activation(phase, centres[j], widths[j])[0]
+        lasts[j], phases[j], seen[j] = logs[j], phase, mark
+        if logs[j] > top:
+            top = logs[j]
+            level = level_of(top, max_width, first, with_rate)
+            reach = math.sqrt(SKIP_MARGIN - level)
+    lo, hi = 0, n_basis - 1
+    while seen[lo] != mark or logs[lo] < level:
+        lo += 1
+    while seen[hi] != mark or logs[hi] < level:
+        hi -= 1
+    previous[0], previous[1] = lo, hi
+    return point, lo, hi, top
+
+
+@_compile
+def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, tops):
+    """The bases kept at each point of a response (:func:`window`): lows[k, s], highs[k, s],
+    tops[k, s] at step k's sample (s = 0, the level with rates) and its stages 2-4 (s = 1..3;
+    the last step's, which the response does not take, repeat its sample's)."""
+    n_steps, n_basis = lows.shape[0], centres.size
+    logs, lasts, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
+    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
+    root_widths = np.sqrt(widths)
+    canonical = canonical0.copy()
+    stage = np.empty(2)
+    max_width = widths.max()
+    for k in range(n_steps):
+        _, lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
+                                        max_width, first, True, logs, lasts, phases, seen, 4 * k,
+                                        previous)
+        for s in range(4):
+            lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
+        if k == n_steps - 1:
+            break
+        result = canonical_step(canonical, dt, target, gains)
+        for s in range(1, 4):
+            stage[0] = result[2 + 2 * s]
+            stage[1] = result[3 + 2 * s]
+            _, lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
+                                            max_width, first, False, logs, lasts, phases, seen,
+                                            4 * k + s, previous)
+            lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
+        canonical[0] = result[0]
+        canonical[1] = result[1]
 
 
 @_compile
@@ -156,38 +305,54 @@ def affine_row(row, coefficients, goal, states):
 
 
 @_compile
-def response(canonical0, dt, target, gains, centres, widths, first, step, step_goal,
-             step_forcing, output, output_goal, output_forcing, out):
-    """Fill out (3, n_steps, n + 1 + n_features): responses of position, velocity and
-    acceleration to the initial transformation states, the goal and the weights."""
+def response(canonical, dt, target, gains, centres, widths, first, lows, highs, tops, inline,
+             first_step, first_basis, advance, step, step_goal, step_forcing, output,
+             output_goal, output_forcing, states, out):
+    """Fill out (3, n_steps, m): responses of position, velocity and acceleration of the m
+    columns whose transformation states are ``states`` (n, m) at the canonical state
+    ``canonical``, the steps from first_step on; the bases kept at them are in lows, highs,
+    tops (:func:`windows`) or, ``inline``, found here (tracked_window). Column N_STATES takes
+    the goal, column N_STATES + 1 + N_CARRIER i + e the feature e of basis first_basis + i (a
+    basis outside them must not be forced). ``advance``: step past the last sample too.
+    ``canonical`` and ``states`` are left at the state after the last step."""
     n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
     n_basis = centres.size
-    states = np.zeros((n, m))
-    following = np.empty((n, m))
-    for i in range(n):
-        states[i, i] = 1.0
-    canonical = canonical0.copy()
+    current, following = states.copy(), np.empty((n, m))
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
-    max_width = widths.max()
+    lasts, phases = np.zeros(n_basis), np.zeros(n_basis)
+    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
+    root_widths, max_width = np.sqrt(widths), widths.max()
     for k in range(n_steps):
-        lo, count = features(canonical, target, gains, centres, widths, max_width, first, True,
-                             logs, slopes, values, rates)
-        start = n + 1 + N_CARRIER * lo  # the first kept basis's first column
+        at, mark = first_step + k, -2  # mark: no log-activation known
+        if inline:
+            mark = 4 * k
+            point, lo, hi, top = tracked_window(canonical, target, gains, centres, widths,
+                                                root_widths, max_width, first, True, logs, lasts,
+                                                phases, seen, mark, previous)
+        else:
+            point = phase_point(canonical, target, gains)
+            lo, hi, top = lows[at, 0], highs[at, 0], tops[at, 0]
+        kept_features(point, lo, hi, top, centres, widths, True, logs, seen, mark, slopes,
+                      values, rates)
+        count = hi + 1 - lo
+        start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
+        if start < n + 1 or start + N_CARRIER * count > m:
+            raise ValueError("a basis outside the response's columns is forced")
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
             row = out[j, k]
-            affine_row(row, output[j], output_goal[j], states)
+            affine_row(row, output[j], output_goal[j], current)
             for i in range(count):
                 for e in range(N_CARRIER):
                     row[start + N_CARRIER * i + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
-        if k == n_steps - 1:
+        if k == n_steps - 1 and not advance:
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
             row = following[i]
-            affine_row(row, step[i], step_goal[i], states)
+            affine_row(row, step[i], step_goal[i], current)
             for a in range(count):
                 for e in range(N_CARRIER):
                     row[start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
@@ -195,16 +360,28 @@ def response(canonical0, dt, target, gains, centres, widths, first, step, step_g
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
-            lo, count = features(stage, target, gains, centres, widths, max_width, first, False,
-                                 logs, slopes, values, rates)
-            start = n + 1 + N_CARRIER * lo
+            if inline:
+                mark = 4 * k + s
+                point, lo, hi, top = tracked_window(stage, target, gains, centres, widths,
+                                                    root_widths, max_width, first, False, logs,
+                                                    lasts, phases, seen, mark, previous)
+            else:
+                point = phase_point(stage, target, gains)
+                lo, hi, top = lows[at, s], highs[at, s], tops[at, s]
+            kept_features(point, lo, hi, top, centres, widths, False, logs, seen, mark, slopes,
+                          values, rates)
+            count = hi + 1 - lo
+            start = n + 1 + N_CARRIER * (lo - first_basis)
+            if start < n + 1 or start + N_CARRIER * count > m:
+                raise ValueError("a basis outside the response's columns is forced")
             for i in range(n):
                 for a in range(count):
                     for e in range(N_CARRIER):
                         following[i, start + N_CARRIER * a + e] += step_forcing[i, s] * values[a, e]
         canonical[0] = result[0]
         canonical[1] = result[1]
-        states, following = following, states
+        current, following = following, current
+    states[:, :] = current
 '''
 
 
@@ -220,6 +397,7 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
+    loop = loop.replace("{tracked}", str(kernel in forms.TRACKED_KERNELS))
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
         "import math\n\nimport numba\nimport numpy as np\n\n\n"
@@ -260,24 +438,160 @@ def _write(folder: Path, name: str, source: str) -> Path:
     return path
 
 
-def response_matrices(key: tuple) -> np.ndarray:
+@dataclass(frozen=True, eq=False)
+class ResponseMatrices:
+    r"""The response matrices of one DOF (:func:`response_matrices`): the first ``n_head``
+    steps dense, the rest (the settling tail of a discrete form) as a factor.
+
+    In the tail no column but the ``alive`` ones is forced, so each other column's response
+    there is that of its transformation state at the tail's first step under the unforced,
+    affine step: with :math:`U_i` the responses (3 rows) of the :math:`n` unit states and of
+    the goal from rest :math:`i` steps into the tail, column :math:`j` at tail step
+    :math:`i` is :math:`U_i c_j`, :math:`c_j` its state at the tail's start (and a 1 for
+    the goal's column). Then :math:`R w = (U_i C w)` on them, with ``coefficients``
+    :math:`C`, plus the alive columns' own rows.
+
+    Attributes
+    ----------
+    head : ndarray, shape (3, n_head, n_inputs)
+        Positions, velocities and accelerations of the first ``n_head`` steps against every
+        input.
+    tail : ndarray, shape (3, n_tail, n + 1 + n_alive)
+        The rest: the unit states' and the goal's responses :math:`U`, then those of the
+        alive inputs.
+    coefficients : ndarray, shape (n + 1, n_inputs)
+        :math:`C`: each input's transformation state at the tail's start and its goal
+        factor; zero for the alive inputs.
+    alive : slice
+        The inputs whose tail is in ``tail[:, :, n + 1:]``.
+    """
+
+    head: np.ndarray
+    tail: np.ndarray
+    coefficients: np.ndarray
+    alive: slice
+
+    @property
+    def n_steps(self) -> int:
+        """Samples of the plan."""
+        return self.head.shape[1] + self.tail.shape[1]
+
+    @property
+    def n_inputs(self) -> int:
+        """Inputs per DOF: the initial transformation states, the goal and the weights."""
+        return self.head.shape[2]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held."""
+        return self.head.nbytes + self.tail.nbytes + self.coefficients.nbytes
+
+    def product(self, inputs: np.ndarray) -> np.ndarray:
+        """The plans of the DOFs whose inputs are the columns of ``inputs`` (n_inputs,
+        n_dofs): positions, velocities and accelerations, shape (3, n_steps, n_dofs)."""
+        n_head, n_dofs = self.head.shape[1], inputs.shape[1]
+        head = _product(self.head.reshape(-1, self.n_inputs), inputs).reshape(3, n_head, n_dofs)
+        if self.tail.shape[1] == 0:
+            return head
+        tail_inputs = np.concatenate([self.coefficients @ inputs, inputs[self.alive]])
+        tail = _product(self.tail.reshape(-1, tail_inputs.shape[0]), tail_inputs)
+        return np.concatenate([head, tail.reshape(3, -1, n_dofs)], axis=1)
+
+    def dense(self) -> np.ndarray:
+        """The whole response, shape (3, n_steps, n_inputs)."""
+        if self.tail.shape[1] == 0:
+            return self.head
+        n = self.coefficients.shape[0]
+        tail = self.tail[:, :, :n] @ self.coefficients
+        tail[:, :, self.alive] = self.tail[:, :, n:]
+        return np.concatenate([self.head, tail], axis=1)
+
+    def freeze(self) -> None:
+        """Make the arrays read-only (the cached response is shared)."""
+        for array in (self.head, self.tail, self.coefficients):
+            array.setflags(write=False)
+
+
+def _product(flat: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    """``flat @ inputs``: for a few columns one matrix-vector product per column, which reads
+    ``flat`` faster than OpenBLAS's matrix product (LASA, 2 DOFs, 1000 steps: 83 against 136
+    us; benchmarks/bench_core.py)."""
+    if inputs.shape[1] <= 4:
+        return np.stack([flat @ column for column in inputs.T], axis=1)
+    return flat @ inputs
+
+
+def tail_start(
+    lows: np.ndarray, highs: np.ndarray, n_inputs: int, n_other: int, n_carrier: int
+) -> int:
+    """The step from which the response is kept as a factor (:class:`ResponseMatrices`), the
+    one that holds the fewest numbers, from the first and last basis each step forces
+    (``lows``, ``highs``); ``len(lows)`` for none. ``n_other``: the inputs that are not
+    weights (the tail keeps as many unit responses), ``n_carrier`` weights per basis."""
+    n_steps = lows.size
+    first = np.minimum.accumulate(lows[::-1])[::-1]  # the bases forced from step k on
+    last = np.maximum.accumulate(highs[::-1])[::-1]
+    steps = np.arange(n_steps)
+    alive = n_carrier * (last - first + 1)
+    held = steps * n_inputs + (n_steps - steps) * (n_other + alive)
+    best = int(np.argmin(held))
+    return best if held[best] < n_steps * n_inputs else n_steps
+
+
+def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     """Response matrices of one DOF for the cache key of :func:`dmpopt.dmp._response`, in time
-    normalised by ``tau``: shape (3, n_steps, n_inputs), positions, velocities and
-    accelerations against the initial transformation states, the goal and the weights."""
+    normalised by ``tau``: positions, velocities and accelerations against the initial
+    transformation states, the goal and the weights (:class:`ResponseMatrices`).
+
+    Discrete forms, ``factored``: the pass first finds which bases each step forces
+    (:func:`tail_start`);
+    in the settling tail only the bases near the phase's end are forced, so the other
+    columns are kept as a factor there. Rhythmic forms: no tail (their phase cycles, each
+    basis is forced once a period), and the search is left out (it evaluates every basis at
+    every stage, 50 cosines per point)."""
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
+    centres, widths = np.array(centres, dtype=float), np.array(widths, dtype=float)
     matrices = symbolic.transformation_matrices(form)(dt=dt, gains=gains)
     matrices = {name: value.full() for name, value in matrices.items()}
     n = symbolic.n_transformation_states(form)
-    out = fresh_array((3, n_steps, n + 1 + symbolic.n_features(form, n_basis)))
-    kernels(form, kernel).response(
-        np.array(canonical0, dtype=float), float(dt), float(target), gains,
-        np.array(centres, dtype=float), np.array(widths, dtype=float),
-        first_level(n_basis),
+    n_inputs = n + 1 + symbolic.n_features(form, n_basis)
+    n_carrier = symbolic.FORMS[form].vectors_per_basis
+    module = kernels(form, kernel)
+    first, canonical = first_level(n_basis), np.array(canonical0, dtype=float)
+    n_head, inline = n_steps, not (factored and symbolic.FORMS[form].discrete)
+    held = 1 if inline else n_steps  # the windows are found in the pass itself if inline
+    lows, highs = np.empty((held, 4), dtype=np.int64), np.empty((held, 4), dtype=np.int64)
+    tops = np.empty((held, 4))
+    if not inline:
+        module.windows(canonical, float(dt), float(target), gains, centres, widths, first, lows,
+                       highs, tops)  # fmt: skip
+        lowest, highest = lows.min(axis=1), highs.max(axis=1)
+        n_head = tail_start(lowest, highest, n_inputs, n + 1, n_carrier)
+    constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
-        matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"], out,
+        matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"],
     )  # fmt: skip
-    return out
+    windows = (first, lows, highs, tops, inline)
+    states = np.zeros((n, n_inputs))
+    states[:, :n] = np.eye(n)
+    head = fresh_array((3, n_head, n_inputs))
+    module.response(canonical, float(dt), float(target), gains, centres, widths, *windows, 0, 0,
+                    n_head < n_steps, *constants, states, head)  # fmt: skip
+    if n_head == n_steps:
+        return ResponseMatrices(head, np.empty((3, 0, n + 1)), np.zeros((n + 1, n_inputs)),
+                                slice(n_inputs, n_inputs))  # fmt: skip
+    low, high = int(lowest[n_head:].min()), int(highest[n_head:].max())
+    alive = slice(n + 1 + n_carrier * low, n + 1 + n_carrier * (high + 1))
+    coefficients = np.zeros((n + 1, n_inputs))
+    coefficients[:n], coefficients[n, n] = states, 1.0
+    coefficients[:, alive] = 0.0
+    tail_states = np.zeros((n, n + 1 + alive.stop - alive.start))
+    tail_states[:, :n], tail_states[:, n + 1 :] = np.eye(n), states[:, alive]
+    tail = fresh_array((3, n_steps - n_head, tail_states.shape[1]))
+    module.response(canonical, float(dt), float(target), gains, centres, widths, *windows,
+                    n_head, low, False, *constants, tail_states, tail)  # fmt: skip
+    return ResponseMatrices(head, tail, coefficients, alive)
 
 
 HUGE_PAGE_ADVICE = 4 * 1024**2

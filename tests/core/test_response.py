@@ -229,3 +229,117 @@ def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
     assert array.shape == shape and array.dtype == np.float64 and array.flags.writeable
     array[...] = np.arange(array.size).reshape(shape)
     assert array[-1, -1, -1] == array.size - 1 and array.sum() == array.size * (array.size - 1) / 2
+
+
+def _key(dmp, duration, dt=0.001):
+    """The cache key of dmpopt.dmp._response for a default-start plan of ``dmp``."""
+    n_steps = int(round(duration / dt)) + 1
+    gains = tuple(dmp.gains)
+    return (dmp.form, dmp.kernel, dmp.n_basis, n_steps, dt / dmp.tau, 1.0, (0.0, 0.0),
+            tuple(dmp.centres), tuple(dmp.widths), gains)  # fmt: skip
+
+
+def _power_bound(step, step_goal, n_steps):
+    """P = max_i ||S~^i||_inf over i < n_steps of the augmented step S~ = [[S, S_g], [0, 1]]
+    (the goal as a constant state) and ||S~||_inf."""
+    n = step.shape[0]
+    augmented = np.eye(n + 1)
+    augmented[:n, :n], augmented[:n, n] = step, step_goal
+    power, largest = np.eye(n + 1), 1.0
+    for _ in range(n_steps):
+        power = augmented @ power
+        largest = max(largest, np.abs(power).sum(axis=1).max())
+    return largest, np.abs(augmented).sum(axis=1).max()
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_the_factored_tail_equals_the_dense_pass_within_its_rounding_bound(form):
+    r"""A discrete form's default plan keeps its settling tail as a factor (dmpopt/response.py):
+    the head and the tail's forced (alive) columns are the dense pass's to the bit (the same
+    operations), and every other column i steps into the tail differs from it by at most
+
+    .. math:: \gamma ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3) ||c_j||_1,
+              \quad \gamma = (n + 1)\,\epsilon
+
+    (the goal as a constant state: :math:`\tilde S = [[S, S_g], [0, 1]]`, :math:`\tilde O =
+    [O, O_g]`, :math:`P = \max_i ||\tilde S^i||_\infty`, :math:`c_j` the column's
+    coefficients). Both compute :math:`\tilde O \tilde S^i c_j`: each of the i steps of
+    either rounds each entry by at most :math:`\gamma/2 |\tilde S| |s|` (a sum of n + 1 terms),
+    which the later steps carry by at most P; the outputs and the factor's combination round
+    once more each. The forcing is not zero in the tail (the carrier v > 0 and the
+    normalisation keeps the largest basis), so some columns stay alive."""
+    dmp = random_discrete(seed=3, n_basis=20, form=form)
+    key = _key(dmp, dmp.settling_time)
+    factored = response.response_matrices(key)
+    dense = response.response_matrices(key, False).head
+    n, n_head = symbolic.n_transformation_states(form), factored.head.shape[1]
+    alive = factored.alive
+    assert 0 < factored.tail.shape[1] and alive.stop - alive.start < dense.shape[2] - n - 1
+    np.testing.assert_array_equal(factored.head, dense[:, :n_head])
+    np.testing.assert_array_equal(factored.tail[:, :, n + 1 :], dense[:, n_head:, alive])
+    matrices = symbolic.transformation_matrices(form)(dt=key[4], gains=np.array(key[-1]))
+    matrices = {name: value.full() for name, value in matrices.items()}
+    n_tail = factored.tail.shape[1]
+    power, step_norm = _power_bound(matrices["step"], matrices["step_goal"][:, 0], n_tail)
+    output = np.hstack([matrices["output"], matrices["output_goal"]])
+    output_norm = np.abs(output).sum(axis=1)[:, None, None]  # per output row
+    steps = np.arange(n_tail)[None, :, None]
+    size = np.abs(factored.coefficients).sum(axis=0)[None, None, :]
+    bound = (n + 1) * EPS * output_norm * power * (2 * steps * power * step_norm + 3) * size
+    error = np.abs(factored.dense()[:, n_head:] - dense[:, n_head:])
+    assert np.all(error <= bound)
+    assert error.max() > 0  # the bound is not idle: the factor rounds otherwise
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_a_default_rollout_with_a_factored_tail_equals_the_stepwise_integration(form):
+    """The whole default plan (head and factored tail) agrees with the integration step by
+    step (symbolic.simulate) within 4 n_steps eps of each output's largest value, as in
+    test_rollout_equals_the_stepwise_integration."""
+    dmp = random_discrete(seed=5, n_basis=20, form=form)
+    plan = dmp.rollout(start_velocity=np.zeros(2))
+    assert response.response_matrices(_key(dmp, dmp.settling_time)).tail.shape[1] > 0
+    rows = [dmp.start, np.zeros(2)] + [dmp.start] * (form == "acceleration")
+    if form == "velocity":
+        rows[1] = rows[1] - dmp.forcing_weights() @ dmp._features((0.0, 0.0))
+    initial = np.concatenate([(0.0, 0.0), *rows])
+    stepped = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.001, dmp.parameters())
+    for got, expected in zip((plan.positions, plan.velocities, plan.accelerations), stepped[1:]):
+        bound = 4 * plan.n_steps * EPS * np.abs(expected).max()
+        np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
+def test_the_tail_starts_where_the_fewest_numbers_are_held():
+    """Written out: with 3 inputs besides 6 bases (9 in all), 10 steps whose last 6 force only
+    bases 4-5, holding head k x 9 + tail (10 - k) x (3 + alive) is least at k = 4: 4 x 9 + 6 x
+    5 = 66 numbers, against 90 dense; plans that force every basis to the end keep no tail."""
+    lows = np.array([0, 0, 1, 2, 4, 4, 4, 5, 4, 4])
+    highs = np.array([1, 2, 3, 4, 5, 5, 5, 5, 5, 5])
+    held = [k * 9 + (10 - k) * (3 + highs[k:].max() - lows[k:].min() + 1) for k in range(10)]
+    assert int(np.argmin(held)) == 4 and min(held) == 66
+    assert response.tail_start(lows, highs, 9, 3, 1) == 4
+    assert response.tail_start(np.zeros(10, int), np.full(10, 5), 9, 3, 1) == 10
+
+
+@pytest.mark.parametrize("form, kernel", CASES)
+def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
+    """The windows pass evaluates only the bases it cannot rule out (sqrt(-l) moves by at most
+    sqrt(h) per unit of phase, as l'^2 <= 4 h |l|; von Mises only, forms.TRACKED_KERNELS):
+    at every sample and stage of 1500 steps its kept bases and largest log-activation equal
+    those from every basis's log-activation (window), checked at each point in turn."""
+    centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
+    module = response.kernels(form, kernel)
+    canonical = np.array([0.0, 0.0] if form in ("velocity", "acceleration") else [0.3, 1.2])
+    first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
+    lows, highs = np.empty((n_steps, 4), dtype=np.int64), np.empty((n_steps, 4), dtype=np.int64)
+    tops = np.empty((n_steps, 4))
+    module.windows(canonical, dt, target, gains, centres, widths, first, lows, highs, tops)
+    logs = np.empty(centres.size)
+    for k in range(n_steps - 1):
+        result = module.canonical_step(canonical, dt, target, gains)
+        points = [canonical] + [np.array(result[2 + 2 * s : 4 + 2 * s]) for s in (1, 2, 3)]
+        for s, point in enumerate(points):
+            _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
+                                           first, s == 0, logs)  # fmt: skip
+            assert (lo, hi, top) == (lows[k, s], highs[k, s], tops[k, s])
+        canonical = np.array(result[:2])

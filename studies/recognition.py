@@ -61,6 +61,8 @@ from dmpopt.recognition import (
     confusion_matrix,
     first_part,
     leave_one_out,
+    leave_one_out_sets,
+    movement_feature_sets,
     movement_features,
     normalised_weights,
 )
@@ -79,6 +81,10 @@ OBSERVED = 0.5  # fraction of the movement seen by the partial recognition
 FRACTION_CURVE = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 DIRECTION_WEIGHTS = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)  # grids of the nested leave-one-out
 PATH_WEIGHTS = (0.0, 0.5, 1.0, 1.5, 2.0)
+NESTED_GRID = tuple((d, p) for d in DIRECTION_WEIGHTS for p in PATH_WEIGHTS)
+# (direction_weight, path_weight) of the features of the demos used besides the nested grid:
+# the default, LDA's (no path), rotation invariant, and the ablations' weights
+WEIGHTINGS = ((1.0, 1.0), (1.0, 0.0), (0.0, 1.0), (1.0, 0.5), (1.0, 2.0), (0.3, 1.0), (3.0, 1.0))
 
 
 def _load_lasa(quick: bool) -> tuple[list[Trajectory], np.ndarray, list[str]]:
@@ -221,21 +227,19 @@ def _loo_distance_predictions(features: np.ndarray, labels: np.ndarray) -> np.nd
     return table
 
 
-def _nested_weights(dmps, velocities, labels) -> tuple[np.ndarray, list, dict]:
+def _nested_weights(weighted: dict, labels) -> tuple[np.ndarray, list, dict]:
     """Nested leave-one-out: the (direction, path) weights for sample ``i`` chosen on the others.
 
     Each pair of :data:`DIRECTION_WEIGHTS` x :data:`PATH_WEIGHTS` is scored by the
     leave-one-out accuracy on the other samples; ties go to the pair nearest the defaults
     (1, 1) in log ratio. Returns the nested predictions, the pair chosen for each sample,
     and the plain leave-one-out accuracy of each pair (optimistic: chosen on all samples).
+    ``weighted`` maps each pair of :data:`NESTED_GRID` to the demos' features.
     """
-    grid = [(d, p) for d in DIRECTION_WEIGHTS for p in PATH_WEIGHTS]
+    grid = NESTED_GRID
     tables = [
-        _loo_distance_predictions(
-            movement_features(dmps, start_velocities=velocities, direction_weight=d, path_weight=p),
-            labels,
-        )
-        for d, p in tqdm(grid, desc="nested weights", leave=False)
+        _loo_distance_predictions(weighted[pair], labels)
+        for pair in tqdm(grid, desc="nested weights", leave=False)
     ]
     distance_to_default = [abs(np.log(d)) + abs(np.log(max(p, 0.1))) for d, p in grid]
     predictions, chosen = [], []
@@ -426,7 +430,10 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
         np.array([demo.velocities[0] for demo in group])
         for group in (demos, transformed, rotated, resampled)
     )
-    features = movement_features(dmps, start_velocities=velocities)
+    # the demos' features under every weighting used below, from one computation of the plans
+    pairs = WEIGHTINGS + NESTED_GRID
+    weighted = dict(zip(pairs, movement_feature_sets(dmps, pairs, start_velocities=velocities)))
+    features = weighted[(1.0, 1.0)]
     moved_features = movement_features(moved_dmps, start_velocities=moved_velocities)
     resampled_features = movement_features(resampled_dmps, start_velocities=resampled_velocities)
     scale = float(np.abs(features).max())
@@ -436,16 +443,17 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
     moved_predictions = leave_one_out(nearest, features, labels, moved_features)
     resampled_predictions = leave_one_out(nearest, features, labels, resampled_features)
     # LDA on the weights and start velocity (no path: its covariance would be 400 x 400 more)
-    weight_features, moved_weight_features = (
-        movement_features(group, start_velocities=v, path_weight=0.0)
-        for group, v in ((dmps, velocities), (moved_dmps, moved_velocities))
+    weight_features = weighted[(1.0, 0.0)]
+    moved_weight_features = movement_features(
+        moved_dmps, start_velocities=moved_velocities, path_weight=0.0
     )
-    lda_predictions = leave_one_out(lda, weight_features, labels)
-    lda_moved = leave_one_out(lda, weight_features, labels, moved_weight_features)
+    lda_predictions, lda_moved = leave_one_out_sets(
+        lda, weight_features, labels, [None, moved_weight_features]
+    )
     lda_auto = leave_one_out(ShrinkageLdaClassifier("auto"), weight_features, labels)
 
     # rotation-invariant variant (no direction feature): also unchanged under rotation
-    plain = movement_features(dmps, start_velocities=velocities, direction_weight=0.0)
+    plain = weighted[(0.0, 1.0)]
     plain_rotated = movement_features(
         rotated_dmps, start_velocities=rotated_velocities, direction_weight=0.0
     )
@@ -467,14 +475,10 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
             dmps, start_velocities=velocities, metric="euclidean"
         ),
         "no direction (rotation invariant)": plain,
-        "path weight 0.5": movement_features(dmps, start_velocities=velocities, path_weight=0.5),
-        "path weight 2": movement_features(dmps, start_velocities=velocities, path_weight=2.0),
-        "direction weight 0.3": movement_features(
-            dmps, start_velocities=velocities, direction_weight=0.3
-        ),
-        "direction weight 3": movement_features(
-            dmps, start_velocities=velocities, direction_weight=3.0
-        ),
+        "path weight 0.5": weighted[(1.0, 0.5)],
+        "path weight 2": weighted[(1.0, 2.0)],
+        "direction weight 0.3": weighted[(0.3, 1.0)],
+        "direction weight 3": weighted[(3.0, 1.0)],
         "raw forcing weights [mm] (not invariant)": raw_weights,
     }
     ablations["3-NN vote (default features)"] = features
@@ -483,7 +487,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, runner: Runner | None = Non
     ablation_accuracy = dict(
         zip(ablations, map_runs(_nearest_accuracy, jobs, runner, label="ablations"))
     )
-    nested, chosen, by_weight = _nested_weights(dmps, velocities, labels)
+    nested, chosen, by_weight = _nested_weights(weighted, labels)
 
     # the 26 single shapes alone (trained and tested without the Multi_Models)
     single = np.array([not name.startswith("Multi_Models") for name in labels])

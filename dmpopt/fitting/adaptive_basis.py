@@ -22,11 +22,18 @@ from functools import lru_cache
 
 import numpy as np
 
-from .. import basis, symbolic
+from .. import basis
 from ..dmp import DiscreteDMP
 from ..exceptions import InvalidInputError
 from ..validation import integer, real
-from .imitation import _check_demo, _local_regression, _ridge, fit_discrete, forcing_targets
+from .imitation import (
+    _check_demo,
+    _local_regression,
+    _ridge,
+    fit_discrete,
+    forcing_targets,
+    unforced_states,
+)
 
 STOP_REASONS = ("tolerance", "no improvement", "max_basis")
 PATIENCE = 2
@@ -251,12 +258,7 @@ class _Demo:
         # the fitted DMP keeps the demo's start velocity: its plans start with it
         self.free = self.zero.affine_plan(demo.duration, self.dt).free[0]
         if method != "position":
-            velocity = demo.velocities[0]
-            initial = self.zero.initial_state(demo.positions[0], velocity, (0.0, 0.0))
-            parameters = self.zero.parameters()
-            self.states = symbolic.simulate(
-                self.zero.signature, demo.n_steps, initial, self.dt, parameters
-            )[0]
+            self.states = unforced_states(self.zero, demo)
             self.targets = forcing_targets(self.zero, demo, self.states)
 
     def fit(self, n_basis: int, scale: float, rows):

@@ -231,8 +231,7 @@ def fit_discrete(
             last_row=(response[-1], goal - plan.free[0][-1]),
         ).T
     else:
-        initial = unit.initial_state(start, demo.velocities[0], (0.0, 0.0))
-        states = symbolic.simulate(unit.signature, demo.n_steps, initial, dt, unit.parameters())[0]
+        states = unforced_states(unit, demo)
         targets = forcing_targets(unit, demo, states)
         regressors = _features(unit, states)
         if method == "least_squares":
@@ -251,6 +250,23 @@ def fit_discrete(
         goal_scaling=scaling,
         reference_displacement=displacement if scaling == "rotation" else None,
     )
+
+
+def unforced_states(dmp: DiscreteDMP, demo: Trajectory) -> np.ndarray:
+    """States of ``dmp``'s system with zero weights on the demo's grid, (n_steps, n_states).
+
+    Integrated (:func:`dmpopt.symbolic.simulate`) from the demo's first position and velocity.
+    With zero weights the forcing term is exactly zero, so the states do not depend on the
+    basis: they are integrated with a single basis function, whose steps cost a fraction of
+    those of many (the same numbers, bit for bit).
+    """
+    single = dmp.replace(
+        weights=np.zeros((dmp.n_dofs, 1)), centres=dmp.centres[:1], widths=dmp.widths[:1]
+    )
+    initial = single.initial_state(demo.positions[0], demo.velocities[0], (0.0, 0.0))
+    dt = demo.duration / (demo.n_steps - 1)
+    parameters = single.parameters()
+    return symbolic.simulate(single.signature, demo.n_steps, initial, dt, parameters)[0]
 
 
 def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> np.ndarray:

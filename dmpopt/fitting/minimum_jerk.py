@@ -22,6 +22,7 @@ Three baselines, each returning a :class:`~dmpopt.trajectory.Trajectory`:
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -208,7 +209,7 @@ class MinimumJerkReport(NamedTuple):
 
 
 def _ramp(x: np.ndarray, power: int) -> np.ndarray:
-    return np.maximum(x, 0.0) ** power / np.prod(np.arange(1, power + 1))
+    return np.maximum(x, 0.0) ** power / math.factorial(power)
 
 
 def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
@@ -258,11 +259,16 @@ class _ViaRow(NamedTuple):
 
 
 def _via_rows(via_points, duration: float, n_segments: int, n_dofs: int) -> list[_ViaRow]:
+    if not via_points:
+        return []
+    # the position rows at every via time from one call (the last time fixes the segments)
+    times = np.array([0.0, *(via.time for via in via_points), duration])
+    positions = jerk_response(times, n_segments)[0]
     rows = []
     for i, via in enumerate(via_points):
         point = per_dof(f"via_points[{i}].position", via.position, n_dofs)
         tolerance = per_dof(f"via_points[{i}].tolerance", via.tolerance, n_dofs)
-        row = jerk_response(np.array([0.0, via.time, duration]), n_segments)[0, 1:2]
+        row = positions[i + 1 : i + 2]
         rows.append(_ViaRow(f"via_point[{i}]", row, point - tolerance, point + tolerance))
     return rows
 

@@ -12,10 +12,11 @@ Only the classifiers and the evaluation need scikit-learn; without it they raise
 """
 
 from .classifiers import NearestNeighbourClassifier, ShrinkageLdaClassifier
-from .evaluation import confusion_matrix, leave_one_out
+from .evaluation import confusion_matrix, leave_one_out, leave_one_out_sets
 from .features import (
     METRICS,
     arc_length_resampled,
+    movement_feature_sets,
     movement_features,
     normalised_plan,
     normalised_weights,
@@ -32,6 +33,8 @@ __all__ = [
     "confusion_matrix",
     "first_part",
     "leave_one_out",
+    "leave_one_out_sets",
+    "movement_feature_sets",
     "movement_features",
     "normalised_plan",
     "normalised_weights",

@@ -41,6 +41,24 @@ def leave_one_out(classifier, samples, labels, queries=None) -> np.ndarray:
     -------
     ndarray, shape (n_samples,)
     """
+    return leave_one_out_sets(classifier, samples, labels, [queries])[0]
+
+
+def leave_one_out_sets(classifier, samples, labels, query_sets) -> list:
+    """:func:`leave_one_out` for several query sets, each split's copy fitted once for all.
+
+    Parameters
+    ----------
+    classifier, samples, labels
+        As for :func:`leave_one_out`.
+    query_sets : sequence
+        Query sets as ``queries`` of :func:`leave_one_out` (None: ``samples`` themselves).
+
+    Returns
+    -------
+    list of ndarray, shape (n_samples,) each
+        The predictions of each query set, equal to :func:`leave_one_out` on it.
+    """
     if not (hasattr(classifier, "fit") and hasattr(classifier, "predict")):
         raise InvalidInputError(
             f"classifier must have fit() and predict(), got {type(classifier).__name__}"
@@ -53,24 +71,30 @@ def leave_one_out(classifier, samples, labels, queries=None) -> np.ndarray:
     labels = check_labels(labels, len(samples))
     if labels.size < 2:
         raise InvalidInputError("leave_one_out needs at least two samples")
-    queries = samples if queries is None else queries
-    if not hasattr(queries, "__len__") or isinstance(queries, (str, bytes)):
+    if not hasattr(query_sets, "__iter__") or isinstance(query_sets, (str, bytes)):
         raise InvalidInputError(
-            f"queries must be an array or a list with one entry per sample, got "
-            f"{type(queries).__name__}"
+            f"query_sets must be a list of query sets, got {type(query_sets).__name__}"
         )
-    if len(queries) != labels.size:
-        raise ShapeError(
-            f"queries has {len(queries)} entries, expected {labels.size}: one per sample"
-        )
+    query_sets = [samples if queries is None else queries for queries in query_sets]
+    for queries in query_sets:
+        if not hasattr(queries, "__len__") or isinstance(queries, (str, bytes)):
+            raise InvalidInputError(
+                f"queries must be an array or a list with one entry per sample, got "
+                f"{type(queries).__name__}"
+            )
+        if len(queries) != labels.size:
+            raise ShapeError(
+                f"queries has {len(queries)} entries, expected {labels.size}: one per sample"
+            )
     if isinstance(classifier, NearestNeighbourClassifier):  # one tree serves every split
-        return classifier.leave_one_out(samples, labels, queries)
+        return [classifier.leave_one_out(samples, labels, queries) for queries in query_sets]
     splits = sklearn("model_selection", "leave_one_out").LeaveOneOut().split(labels)
-    predictions = []
+    predictions = [[] for _ in query_sets]
     for others, held_out in splits:
         fitted = copy.deepcopy(classifier).fit(_take(samples, others), labels[others])
-        predictions.append(fitted.predict(_take(queries, held_out))[0])
-    return np.array(predictions)
+        for found, queries in zip(predictions, query_sets):
+            found.append(fitted.predict(_take(queries, held_out))[0])
+    return [np.array(found) for found in predictions]
 
 
 def confusion_matrix(labels, predictions, classes=None) -> np.ndarray:

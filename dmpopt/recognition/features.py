@@ -285,10 +285,59 @@ def movement_features(
         Invariant to translation, uniform scaling and time stretching of the movements (the
         path block is left out when ``path_weight`` is 0).
     """
+    return movement_feature_sets(
+        dmps,
+        [(direction_weight, path_weight)],
+        start_velocities=start_velocities,
+        metric=metric,
+        n_samples=n_samples,
+    )[0]
+
+
+def movement_feature_sets(
+    dmps: Sequence[DiscreteDMP],
+    weightings,
+    *,
+    start_velocities=None,
+    metric: str = "plan",
+    n_samples: int = 200,
+) -> list:
+    """:func:`movement_features` for several ``(direction_weight, path_weight)`` pairs at once.
+
+    The plans and paths are computed once for all pairs (they do not depend on the weights);
+    each matrix equals that of :func:`movement_features` with the pair's weights.
+
+    Parameters
+    ----------
+    dmps, start_velocities, metric, n_samples
+        As for :func:`movement_features`.
+    weightings : sequence of (float, float)
+        ``(direction_weight, path_weight)`` pairs.
+
+    Returns
+    -------
+    list of ndarray
+        One feature matrix per pair, in the order of ``weightings``.
+    """
     if not isinstance(metric, str) or metric not in METRICS:
         raise InvalidInputError(f"metric must be one of {METRICS}, got {metric!r}")
-    direction_weight = _check_weight("direction_weight", direction_weight)
-    path_weight = _check_weight("path_weight", path_weight)
+    if isinstance(weightings, (str, bytes)) or not hasattr(weightings, "__iter__"):
+        raise InvalidInputError(
+            f"weightings must be a sequence of (direction_weight, path_weight) pairs, got "
+            f"{weightings!r}"
+        )
+    pairs = []
+    for i, pair in enumerate(weightings):
+        if isinstance(pair, (str, bytes)) or not hasattr(pair, "__len__") or len(pair) != 2:
+            raise InvalidInputError(
+                f"weightings[{i}] must be a (direction_weight, path_weight) pair, got {pair!r}"
+            )
+        pairs.append(
+            (
+                _check_weight("direction_weight", pair[0]),
+                _check_weight("path_weight", pair[1]),
+            )
+        )
     dmps = dmp_list(dmps)
     for index, dmp in enumerate(dmps):
         _same_system(dmps[0], dmp, index)
@@ -306,16 +355,25 @@ def movement_features(
         factor = plan_metric_factor(dmps[0], n_samples, start_velocity=True)
     else:
         factor = np.eye(dmps[0].n_basis + 1)
-    rows = []
+    with_path = any(path_weight > 0.0 for _, path_weight in pairs)
+    blocks = []  # per DMP: the weights block, the path (or None), the start-goal vector
     for dmp, velocity in zip(dmps, start_velocities):
         forcing, frame = _start_goal_frame(dmp)
         weights = np.column_stack([frame @ forcing, frame @ (dmp.tau * velocity)])
-        parts = [(weights @ factor).ravel()]
-        if path_weight > 0.0:
+        path = None
+        if with_path:
             plan = _unit_plan(dmp, weights[:, :-1], weights[:, -1], n_samples)
-            path = arc_length_resampled(plan, n_samples)
-            parts.append(path_weight / np.sqrt(n_samples) * path.ravel())
+            path = arc_length_resampled(plan, n_samples).ravel()
         displacement = np.asarray(dmp.goal) - np.asarray(dmp.start)
-        parts.append(direction_weight * displacement / np.linalg.norm(displacement))
-        rows.append(np.concatenate(parts))
-    return np.array(rows)
+        blocks.append(((weights @ factor).ravel(), path, displacement))
+    sets = []
+    for direction_weight, path_weight in pairs:
+        rows = []
+        for weights, path, displacement in blocks:
+            parts = [weights]
+            if path_weight > 0.0:
+                parts.append(path_weight / np.sqrt(n_samples) * path)
+            parts.append(direction_weight * displacement / np.linalg.norm(displacement))
+            rows.append(np.concatenate(parts))
+        sets.append(np.array(rows))
+    return sets

@@ -480,3 +480,29 @@ def test_rhythmic_position_fit_minimises_the_documented_objective(form, warm_up_
         plus, minus = objective(dmp.weights + step), objective(dmp.weights - step)
         curvature = plus + minus - 2 * at_minimum
         assert curvature > 0 and abs(plus - minus) < 1e-6 * curvature
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_unforced_states_do_not_depend_on_the_basis(form):
+    """With zero weights the forcing term is exactly zero: the states integrated with one
+    basis function equal, bit for bit, those integrated with the DMP's own 25 from the demo's
+    first position and (non-zero) velocity."""
+    from dmpopt import symbolic
+    from dmpopt.fitting.imitation import unforced_states
+
+    whole = minimum_jerk_demo()  # from its 100th sample on: it starts moving
+    demo = Trajectory(
+        whole.times[100:] - whole.times[100],
+        whole.positions[100:],
+        whole.velocities[100:],
+        whole.accelerations[100:],
+    )
+    assert np.all(np.abs(demo.velocities[0]) > 0.01)
+    dmp = fit_discrete(demo, 25, form=form, method="lwr")
+    zero = dmp.replace(weights=np.zeros_like(dmp.weights))
+    initial = zero.initial_state(demo.positions[0], demo.velocities[0], (0.0, 0.0))
+    dt = demo.duration / (demo.n_steps - 1)
+    full = symbolic.simulate(zero.signature, demo.n_steps, initial, dt, zero.parameters())[0]
+    states = unforced_states(dmp, demo)
+    assert np.array_equal(states, full)
+    assert np.array_equal(states[0], initial)

@@ -8,6 +8,7 @@ from dmpopt.recognition import (
     NearestNeighbourClassifier,
     confusion_matrix,
     leave_one_out,
+    leave_one_out_sets,
 )
 
 
@@ -96,3 +97,29 @@ def test_nearest_neighbour_leave_one_out_matches_refitting_for_every_sample():
                 expected.append(fitted.predict(queries[[i]])[0])
             got = leave_one_out(NearestNeighbourClassifier(k), features, labels, queries)
             assert got.tolist() == expected
+
+
+class _CountingNearest:
+    """1-NN in plain numpy that counts its fits (shared by its copies)."""
+
+    fits = [0]
+
+    def fit(self, features, labels):
+        self.fits[0] += 1
+        self.features, self.labels = np.asarray(features), np.asarray(labels)
+        return self
+
+    def predict(self, queries):
+        distances = np.abs(np.asarray(queries)[:, None, 0] - self.features[None, :, 0])
+        return self.labels[np.argmin(distances, axis=1)]
+
+
+def test_leave_one_out_sets_fit_each_split_once():
+    """Two query sets, one fit per split; on the line 0, 1, 3, 3.5, 10 (a a b b c) sample i
+    is classified by the nearest other sample, and so is its moved query (sample + 2.2)."""
+    features, labels = _line()
+    _CountingNearest.fits[0] = 0
+    plain, moved = leave_one_out_sets(_CountingNearest(), features, labels, [None, features + 2.2])
+    assert _CountingNearest.fits[0] == 5
+    assert plain.tolist() == list("aabbb")  # 0->1, 1->0, 3->3.5, 3.5->3, 10->3.5
+    assert moved.tolist() == list("bbbbb")  # 2.2->3, 3.2->3, 5.2->3.5, 5.7->3, 12.2->3.5

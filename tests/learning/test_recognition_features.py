@@ -10,6 +10,7 @@ from dmpopt.recognition import (
     NearestNeighbourClassifier,
     arc_length_resampled,
     first_part,
+    movement_feature_sets,
     movement_features,
     normalised_plan,
     normalised_weights,
@@ -322,3 +323,30 @@ def test_plan_metric_factor_of_a_singular_metric_is_finite():
     assert np.linalg.eigvalsh(gram).min() < 0.0  # the case this test is about
     assert np.isfinite(factor).all()
     np.testing.assert_allclose(factor @ factor.T, gram, rtol=0, atol=1e-12 * np.abs(gram).max())
+
+
+def test_feature_sets_are_the_blocks_weighted_per_pair(dmp, demo):
+    """Each pair's matrix: the weights block alone, then path_weight / sqrt(n) times the
+    resampled normalised plan, then direction_weight times the unit start-goal vector."""
+    dmps = [dmp, fit_discrete(_moved(demo, angle=0.7), N_BASIS)]
+    velocity = np.array([[0.3, -0.2], [0.0, 0.1]])
+    pairs = [(1.0, 0.0), (0.5, 2.0), (0.0, 1.5)]
+    sets = movement_feature_sets(dmps, pairs, start_velocities=velocity, n_samples=40)
+    n_plan = 2 * (N_BASIS + 1)
+    for row, (one, velocity_row) in enumerate(zip(dmps, velocity)):
+        path = arc_length_resampled(normalised_plan(one, velocity_row, n_samples=40), 40).ravel()
+        displacement = np.asarray(one.goal) - np.asarray(one.start)
+        unit = displacement / np.linalg.norm(displacement)
+        for (direction, weight), features in zip(pairs, sets):
+            assert np.array_equal(features[row, :n_plan], sets[0][row, :n_plan])
+            middle = features[row, n_plan:-2]
+            assert middle.size == (path.size if weight > 0 else 0)
+            if weight > 0:  # the same plan as normalised_plan's, up to the rollout's rounding
+                assert np.allclose(middle, weight / np.sqrt(40) * path, rtol=0, atol=1e-12)
+            assert np.allclose(features[row, -2:], direction * unit, rtol=0, atol=1e-15)
+    with _raises(
+        InvalidInputError, "weightings[0] must be a (direction_weight, path_weight) pair, got 1.0"
+    ):
+        movement_feature_sets(dmps, [1.0])
+    with _raises(InvalidInputError, "path_weight must be a finite number >= 0, got -2.0"):
+        movement_feature_sets(dmps, [(1.0, -2.0)])

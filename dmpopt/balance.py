@@ -248,9 +248,11 @@ def clip_to_polygon(point, polygon) -> np.ndarray:
         )
     n = len(vertices)
     if n >= 3:
-        edges = np.concatenate((vertices[1:], vertices[:1])) - vertices
-        cross = edges[:, 0] * (x[1] - vertices[:, 1]) - edges[:, 1] * (x[0] - vertices[:, 0])
-        signs = cross.tolist()
+        (px, py), rows = x.tolist(), vertices.tolist()
+        signs = [  # the cross product of each edge with the point (>= 0: on its left)
+            (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+            for (ax, ay), (bx, by) in zip(rows, rows[1:] + rows[:1])
+        ]
         if min(signs) >= 0.0:
             return x.copy()
         if max(signs) <= 0.0 and min(signs) < 0.0:

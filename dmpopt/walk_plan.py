@@ -252,10 +252,10 @@ class WalkPlan:
         )  # fmt: skip
 
     def _evaluate_at(self, t: float):
-        """:meth:`_evaluate` at one time ``t`` [s] (a float): the same arithmetic on the
-        segment's coefficients, computed once per segment, and the last time's answer kept
-        (a tick asks for the CoM and then the ZMP and DCM at the same time). The arrays
-        returned are read-only."""
+        """:meth:`_evaluate` at one time ``t`` [s] (a float): the same arithmetic on Python
+        floats, one axis at a time, from the segment's coefficients (computed once per
+        segment), and the last time's answer kept (a tick asks for the CoM and then the ZMP
+        and DCM at the same time). The arrays returned are read-only."""
         cache = self._cache
         if cache.get("t") == t:
             return cache["answer"]
@@ -264,14 +264,17 @@ class WalkPlan:
             times = cache["times"] = self.knot_times.tolist()
         t = min(max(t, 0.0), times[-1])
         k = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
-        segment = cache.get(k)
-        if segment is None:
-            segment = cache[k] = _segment_coefficients(
-                1.0 / self.time_constant, self.knot_times[k], self.knot_times[k + 1],
-                self.zmp_knots[k], self.zmp_knots[k + 1], self.dcm_knots[k + 1],
-                self.com_knots[k],
+        w = 1.0 / self.time_constant
+        axes = cache.get(k)
+        if axes is None:
+            ta, tb, pa, slope, c, e = _segment_coefficients(
+                w, self.knot_times[k], self.knot_times[k + 1], self.zmp_knots[k],
+                self.zmp_knots[k + 1], self.dcm_knots[k + 1], self.com_knots[k],
             )  # fmt: skip
-        answer = _segment_at(1.0 / self.time_constant, *segment, t)
+            ta, tb = float(ta), float(tb)
+            rows = zip(*(a.tolist() for a in (pa, slope, c, e)))
+            axes = cache[k] = [(ta, tb, *row) for row in rows]
+        answer = tuple(np.array(values) for values in zip(*(_segment_at(w, *a, t) for a in axes)))
         for array in answer:
             array.setflags(write=False)
         cache["t"], cache["answer"] = t, answer

@@ -560,7 +560,8 @@ class Walker:
         if polygon is not None:
             zmp = balance.clip_to_polygon(zmp, polygon)
         self.zmp_command = zmp
-        acceleration = np.append(balance.lipm_acceleration(com[:2], zmp, self.omega), 0.0)
+        horizontal = balance.lipm_acceleration(com[:2], zmp, self.omega)
+        acceleration = np.array([horizontal[0], horizontal[1], 0.0])
         position = np.array([com[0], com[1], height])
         velocity = np.array([com_velocity[0], com_velocity[1], rate])
         self.com_task.set_target(position, velocity, acceleration)

@@ -139,9 +139,7 @@ def terrain_trial(kind: str) -> dict:
     plan, swing_dmps = walk.build_plan(robot, q0, quick=True, step_length=TERRAIN_STEP_LENGTH)
     plant = talos_realistic(robot)
     walker = walk.Walker(robot, q0, plan, swing_dmps, plant)
-    log, _, _ = walk.simulate(
-        robot, q0, walker, plan.duration, 0, plant, boxes=boxes, feet=False
-    )
+    log, _, _ = walk.simulate(robot, q0, walker, plan.duration, 0, plant, boxes=boxes, feet=False)
     errors = [
         np.linalg.norm(r.landed[:2] - r.target[:2]) for r in walker.records if r.landed is not None
     ]

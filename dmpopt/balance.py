@@ -49,6 +49,8 @@ Symbols: :math:`\xi` ``dcm``, :math:`p` ``zmp``, :math:`\omega` ``omega`` [1/s],
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .exceptions import InvalidInputError, ShapeError
@@ -71,6 +73,14 @@ __all__ = [
 
 
 def _plane(name: str, value) -> np.ndarray:
+    if (
+        type(value) is np.ndarray
+        and value.shape == (2,)
+        and value.dtype == np.float64
+        and math.isfinite(value[0])
+        and math.isfinite(value[1])
+    ):  # already a point (each tick's case): used as it is, not copied
+        return value
     point = real_array(name, value)
     if point.shape != (2,):
         raise ShapeError(
@@ -80,6 +90,8 @@ def _plane(name: str, value) -> np.ndarray:
 
 
 def _omega(omega) -> float:
+    if type(omega) is float and 0.0 < omega < math.inf:  # each tick's case
+        return omega
     return real("omega", omega, minimum=0.0, open_minimum=True, fix="omega = sqrt(g / z_c)")
 
 
@@ -106,7 +118,8 @@ def dcm_feedback_zmp(dcm, dcm_reference, zmp_reference, gain: float, omega: floa
     """
     xi = _plane("dcm", dcm)
     error = xi - _plane("dcm_reference", dcm_reference)
-    gain = real("gain", gain, minimum=0.0)
+    if not (type(gain) is float and 0.0 <= gain < math.inf):  # a float gain: as it is
+        gain = real("gain", gain, minimum=0.0)
     return _plane("zmp_reference", zmp_reference) + (1.0 + gain / _omega(omega)) * error
 
 
@@ -221,18 +234,28 @@ def clip_to_polygon(point, polygon) -> np.ndarray:
         vertices: a point or a segment.
     """
     x = _plane("point", point)
-    vertices = real_array("polygon", polygon, ndim=2)
+    vertices = polygon
+    if not (
+        type(polygon) is np.ndarray
+        and polygon.dtype == np.float64
+        and polygon.ndim == 2
+        and math.isfinite(polygon.sum())  # (a NaN or an infinity makes the sum one)
+    ):
+        vertices = real_array("polygon", polygon, ndim=2)
     if vertices.shape[1] != 2 or vertices.shape[0] == 0:
         raise ShapeError(
             f"polygon has shape {vertices.shape}, expected (n, 2) with n >= 1: use convex_hull"
         )
     n = len(vertices)
     if n >= 3:
-        edges = np.roll(vertices, -1, axis=0) - vertices
-        cross = edges[:, 0] * (x[1] - vertices[:, 1]) - edges[:, 1] * (x[0] - vertices[:, 0])
-        if (cross >= 0.0).all():
-            return x
-        if (cross <= 0.0).all() and (cross < 0.0).any():
+        (px, py), rows = x.tolist(), vertices.tolist()
+        signs = [  # the cross product of each edge with the point (>= 0: on its left)
+            (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+            for (ax, ay), (bx, by) in zip(rows, rows[1:] + rows[:1])
+        ]
+        if min(signs) >= 0.0:
+            return x.copy()
+        if max(signs) <= 0.0 and min(signs) < 0.0:
             raise InvalidInputError(
                 "polygon is clockwise; pass its vertices counter-clockwise (convex_hull)"
             )
@@ -241,7 +264,7 @@ def clip_to_polygon(point, polygon) -> np.ndarray:
         a, b = vertices[k], vertices[(k + 1) % n]
         edge = b - a
         length2 = float(edge @ edge)
-        s = 0.0 if length2 == 0.0 else np.clip((x - a) @ edge / length2, 0.0, 1.0)
+        s = 0.0 if length2 == 0.0 else min(max(float((x - a) @ edge) / length2, 0.0), 1.0)
         candidate = a + s * edge
         distance = float(np.sum((x - candidate) ** 2))
         if distance < best_distance:

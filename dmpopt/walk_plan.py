@@ -36,7 +36,9 @@ goal foothold, the DMP's goal-change property (Section 3.2).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import bisect
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -223,6 +225,7 @@ class WalkPlan:
     time_constant: float
     lift_off: np.ndarray
     touchdown: np.ndarray
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def duration(self) -> float:
@@ -239,12 +242,43 @@ class WalkPlan:
         return t, k
 
     def _evaluate(self, t):
+        if isinstance(t, float) and math.isfinite(t):  # one time, as a walk's tick asks
+            return self._evaluate_at(t)
         t, k = self._segment(t)
         return _lipm_segment(
             1.0 / self.time_constant,
             self.knot_times[k], self.knot_times[k + 1], self.zmp_knots[k], self.zmp_knots[k + 1],
             self.dcm_knots[k + 1], self.com_knots[k], t,
         )  # fmt: skip
+
+    def _evaluate_at(self, t: float):
+        """:meth:`_evaluate` at one time ``t`` [s] (a float): the same arithmetic on Python
+        floats, one axis at a time, from the segment's coefficients (computed once per
+        segment), and the last time's answer kept (a tick asks for the CoM and then the ZMP
+        and DCM at the same time). The arrays returned are read-only."""
+        cache = self._cache
+        if cache.get("t") == t:
+            return cache["answer"]
+        times = cache.get("times")
+        if times is None:
+            times = cache["times"] = self.knot_times.tolist()
+        t = min(max(t, 0.0), times[-1])
+        k = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
+        w = 1.0 / self.time_constant
+        axes = cache.get(k)
+        if axes is None:
+            ta, tb, pa, slope, c, e = _segment_coefficients(
+                w, self.knot_times[k], self.knot_times[k + 1], self.zmp_knots[k],
+                self.zmp_knots[k + 1], self.dcm_knots[k + 1], self.com_knots[k],
+            )  # fmt: skip
+            ta, tb = float(ta), float(tb)
+            rows = zip(*(a.tolist() for a in (pa, slope, c, e)))
+            axes = cache[k] = [(ta, tb, *row) for row in rows]
+        answer = tuple(np.array(values) for values in zip(*(_segment_at(w, *a, t) for a in axes)))
+        for array in answer:
+            array.setflags(write=False)
+        cache["t"], cache["answer"] = t, answer
+        return answer
 
     def zmp(self, t) -> np.ndarray:
         """ZMP [m] at time(s) ``t``, shape (..., 2)."""
@@ -263,6 +297,12 @@ class WalkPlan:
         """CoM position [m], velocity [m/s] and acceleration [m/s^2] at time(s) ``t``, each of
         shape (..., 3) (the height is constant)."""
         _, _, position, velocity, acceleration = self._evaluate(t)
+        if position.ndim == 1:  # one time
+            return (
+                np.array([position[0], position[1], self.com_height]),
+                np.array([velocity[0], velocity[1], 0.0]),
+                np.array([acceleration[0], acceleration[1], 0.0]),
+            )
         height = np.full(position.shape[:-1] + (1,), self.com_height)
         zero = np.zeros_like(height)
         return (
@@ -470,10 +510,20 @@ def _lipm_segment(w, ta, tb, pa, pb, xi_b, x_a, t):
     """
     column = np.ndim(t) > 0
     ta, tb, t = (np.asarray(a, dtype=float)[..., None] if column else a for a in (ta, tb, t))
+    return _segment_at(w, ta, tb, pa, *_segment_coefficients(w, ta, tb, pa, pb, xi_b, x_a)[3:], t)
+
+
+def _segment_coefficients(w, ta, tb, pa, pb, xi_b, x_a):
+    """``(ta, tb, pa, slope, c, e)`` of :func:`_lipm_segment`: what does not depend on ``t``."""
     slope = (pb - pa) / (tb - ta)
-    p = pa + slope * (t - ta)
     c = xi_b - pb - slope / w
     e = x_a - pa - 0.5 * c * np.exp(w * (ta - tb))
+    return ta, tb, pa, slope, c, e
+
+
+def _segment_at(w, ta, tb, pa, slope, c, e, t):
+    """:func:`_lipm_segment` at ``t`` from its coefficients (:func:`_segment_coefficients`)."""
+    p = pa + slope * (t - ta)
     grow, decay = np.exp(w * (t - tb)), np.exp(-w * (t - ta))
     position = p + 0.5 * c * grow + e * decay
     velocity = slope + 0.5 * w * c * grow - w * e * decay

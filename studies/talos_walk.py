@@ -446,9 +446,10 @@ class Walker:
             velocity[2] = -SEARCH_SPEED if SEARCH_SPEED * late < SEARCH_DEPTH else 0.0
             acceleration[2] = 0.0
         task = self.swing_tasks[self._frame(self.plan.footsteps[i])]
-        twist, twist_rate = np.zeros(6), np.zeros(6)
-        twist[:3], twist_rate[:3] = velocity, acceleration
-        task.set_target(pin.SE3(self._swing_rotation, position), twist, twist_rate)
+        # the sole's attitude is set at lift-off and kept through the swing: later ticks set
+        # the position alone (and the linear velocity and acceleration, the angular ones zero)
+        target = pin.SE3(self._swing_rotation, position) if first else position
+        task.set_target(target, velocity, acceleration)
 
     def _touchdown(self, i: int, t: float, frame: str, foot: int) -> None:
         """The swinging foot reported in contact: its contact comes in (with a force ramp)
@@ -559,7 +560,8 @@ class Walker:
         if polygon is not None:
             zmp = balance.clip_to_polygon(zmp, polygon)
         self.zmp_command = zmp
-        acceleration = np.append(balance.lipm_acceleration(com[:2], zmp, self.omega), 0.0)
+        horizontal = balance.lipm_acceleration(com[:2], zmp, self.omega)
+        acceleration = np.array([horizontal[0], horizontal[1], 0.0])
         position = np.array([com[0], com[1], height])
         velocity = np.array([com_velocity[0], com_velocity[1], rate])
         self.com_task.set_target(position, velocity, acceleration)
@@ -655,12 +657,22 @@ def _foot_loads(state, data, sole_ids, bounds) -> tuple[np.ndarray, np.ndarray, 
 
 
 def simulate(
-    robot, q0, walker, duration: float, record_every: int = 0, plant=IDEAL, push=None, boxes=()
+    robot,
+    q0,
+    walker,
+    duration: float,
+    record_every: int = 0,
+    plant=IDEAL,
+    push=None,
+    boxes=(),
+    feet: bool = True,
 ):
     """Run the walk in MuJoCo on ``plant`` (and ``boxes`` on the floor) for ``duration``
     seconds; stop at a fall. ``push = (step, delay, impulse)``: a world-frame impulse [N s]
     on the pelvis, spread over ``PUSH_DURATION``, ``delay`` seconds after the lift-off of
-    step ``step`` (a fixed phase of its single support)."""
+    step ``step`` (a fixed phase of its single support). ``feet`` False leaves the feet's
+    logs (positions, loads, CoP margins, yaw moment) NaN, for a run judged without them
+    (they do not feed back: the walk is the same)."""
     simulator = make_simulator(robot, plant, boxes)
     pushed = push is None
     state = simulator.reset(q0)
@@ -669,8 +681,8 @@ def simulate(
     n = int(round(duration / DT))
     com, dcm = np.zeros((n, 3)), np.zeros((n, 2))
     reference_com, reference_dcm = np.zeros((n, 2)), np.zeros((n, 2))
-    feet = np.zeros((n, 2, 3))
-    normal, margin, yaw = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n)
+    measure_feet, feet = flag("feet", feet), np.full((n, 2, 3), np.nan)
+    normal, margin, yaw = np.full((n, 2), np.nan), np.full((n, 2), np.nan), np.full(n, np.nan)
     tick = np.zeros(n)
     frames = []
     sole_ids, bounds = _sole_ids(robot), _sole_bounds(robot)
@@ -688,9 +700,10 @@ def simulate(
         tick[k] = (time.thread_time_ns() - begin) / 1e3
         com[k] = pin.centerOfMass(robot.model, data, state.q, state.v)
         dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
-        pin.updateFramePlacements(robot.model, data)
-        feet[k] = _sole_positions(data, sole_ids)
-        normal[k], margin[k], yaw[k] = _foot_loads(state, data, sole_ids, bounds)
+        if measure_feet:
+            pin.updateFramePlacements(robot.model, data)
+            feet[k] = _sole_positions(data, sole_ids)
+            normal[k], margin[k], yaw[k] = _foot_loads(state, data, sole_ids, bounds)
         if record_every and k % record_every == 0:
             frames.append(state.q.copy())
         try:

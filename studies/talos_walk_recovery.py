@@ -51,7 +51,9 @@ def push_trial(case) -> bool:
     plant = talos_realistic(robot)
     walker = walk.Walker(robot, q0, plan, swing_dmps, plant, feedback=feedback)
     push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
-    log, _, _ = walk.simulate(robot, q0, walker, walk_duration(plan), 0, plant, push=push)
+    log, _, _ = walk.simulate(
+        robot, q0, walker, walk_duration(plan), 0, plant, push=push, feet=False
+    )
     return not (log.fell or log.diverged) and stands_still(log.times, log.com)
 
 
@@ -137,7 +139,7 @@ def terrain_trial(kind: str) -> dict:
     plan, swing_dmps = walk.build_plan(robot, q0, quick=True, step_length=TERRAIN_STEP_LENGTH)
     plant = talos_realistic(robot)
     walker = walk.Walker(robot, q0, plan, swing_dmps, plant)
-    log, _, _ = walk.simulate(robot, q0, walker, plan.duration, 0, plant, boxes=boxes)
+    log, _, _ = walk.simulate(robot, q0, walker, plan.duration, 0, plant, boxes=boxes, feet=False)
     errors = [
         np.linalg.norm(r.landed[:2] - r.target[:2]) for r in walker.records if r.landed is not None
     ]

@@ -100,7 +100,9 @@ class DrumPlan:
         self.shared = dmps.shared.stepper(dt, on_limit_cycle=True, compile=compile)
         self.elbow = dmps.elbow.stepper(dt, on_limit_cycle=True, compile=compile)
         self.time = 0.0
+        self._requested = {active: self._targets(active) for active in (False, True)}
         self._parameters = self._targets(False)
+        self._reached = self._requested[False]  # the target the parameters equal, if any
         self.position = np.empty(len(DRUM_JOINTS))
         self.velocity = np.empty(len(DRUM_JOINTS))
         self.acceleration = np.empty(len(DRUM_JOINTS))
@@ -127,16 +129,18 @@ class DrumPlan:
         """Advance both DMPs by ``dt``; the elbow's A, tau, g follow the modification."""
         mod = self.modification
         active = mod.name != "none" and mod.start <= self.time + 1e-9 < mod.end
-        target = self._targets(active)
-        if np.any(target != self._parameters):
-            rate = min(1.0, self.dt / mod.filter) if mod.filter > 0 else 1.0
-            self._parameters += (target - self._parameters) * rate
-            close = np.abs(target - self._parameters) < 1e-9
-            self._parameters[close] = target[close]
-            amplitude, tau, setpoint = self._parameters
-            self.elbow.set_amplitude(amplitude)
-            self.elbow.set_tau(tau)
-            self.elbow.set_setpoint([setpoint])
+        target = self._requested[active]
+        if target is not self._reached:  # (once reached, compared no more)
+            if np.any(target != self._parameters):
+                rate = min(1.0, self.dt / mod.filter) if mod.filter > 0 else 1.0
+                self._parameters += (target - self._parameters) * rate
+                close = np.abs(target - self._parameters) < 1e-9
+                self._parameters[close] = target[close]
+                amplitude, tau, setpoint = self._parameters
+                self.elbow.set_amplitude(amplitude)
+                self.elbow.set_tau(tau)
+                self.elbow.set_setpoint([setpoint])
+            self._reached = target if np.array_equal(target, self._parameters) else None
         # Phase lock to the shared oscillator, except while the elbow runs at its own tau.
         locked = abs(self._parameters[1] - self.dmps.elbow.tau) < 1e-6
         coupling = ELBOW_PHASE_COUPLING * np.sin(self.shared.phase - self.elbow.phase)

@@ -469,3 +469,46 @@ def test_ground_tilt_of_a_normal_not_of_unit_length():
     tilt = ground_tilt([-2 * np.sin(a), 0.0, 2 * np.cos(a)])
     expected = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
     np.testing.assert_allclose(tilt, expected, atol=1e-15)
+
+
+# ------------------------------------------------- the per-tick inputs (float64 arrays, floats)
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: dcm(np.array([np.nan, 0.0]), np.zeros(2), OMEGA), r"^com\[0\] is nan"),
+        (lambda: dcm(np.zeros(2), np.array([0.0, np.inf]), OMEGA), r"^com_velocity\[1\] is inf"),
+        (lambda: dcm(np.zeros(2), np.zeros(2), float("inf")), r"^omega must be a finite"),
+        (lambda: dcm(np.zeros(2), np.zeros(2), float("nan")), r"^omega must be a finite"),
+        (lambda: dcm_feedback_zmp(np.zeros(2), np.zeros(2), np.zeros(2), float("nan"), OMEGA),
+         r"^gain must be a finite number >= 0, got nan"),
+        (lambda: dcm_feedback_zmp(np.zeros(2), np.zeros(2), np.zeros(2), -1.0, OMEGA),
+         r"^gain must be a finite number >= 0, got -1\.0"),
+        (lambda: clip_to_polygon(np.zeros(2), np.array([[0.0, 0.0], [1.0, 0.0], [np.nan, 1.0]])),
+         r"^polygon\[2, 0\] is nan"),
+        (lambda: clip_to_polygon(np.zeros(2), np.array([[0.0, 0.0], [1.0, 0.0], [0.0, np.inf]])),
+         r"^polygon\[2, 1\] is inf"),
+        (lambda: clip_to_polygon(np.array([np.nan, 0.0]), SQUARE), r"^point\[0\] is nan"),
+    ],
+)  # fmt: skip
+def test_float64_arrays_and_floats_are_checked_as_well(call, match):
+    """A tick passes float64 arrays and floats, which take the quick check: a NaN or an
+    infinity is still refused with the argument named."""
+    from dmpopt.exceptions import DmpoptError
+
+    with pytest.raises(DmpoptError, match=match):
+        call()
+
+
+def test_clip_returns_a_new_point_and_leaves_its_inputs_alone():
+    """An inner float64 point comes back equal but as a new array (changing the answer does
+    not change the caller's point); an outer one is the nearest edge point, (1, 0.5) for
+    (2, 0.5) and the unit square (answer written here)."""
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    inner = np.array([0.25, 0.5])
+    clipped = clip_to_polygon(inner, square)
+    assert clipped is not inner
+    clipped[0] = 9.0
+    assert inner.tolist() == [0.25, 0.5]
+    outer = np.array([2.0, 0.5])
+    assert clip_to_polygon(outer, square).tolist() == [1.0, 0.5]
+    assert outer.tolist() == [2.0, 0.5] and square[1].tolist() == [1.0, 0.0]

@@ -664,3 +664,60 @@ def test_zmp_and_dcm_in_one_call_are_the_two_queries():
     assert zmp[0] == pytest.approx(plan.footsteps[2].stance[:2], abs=1e-15)
     np.testing.assert_array_equal(zmp, plan.zmp(t))
     np.testing.assert_array_equal(dcm, plan.dcm(t))
+
+
+# --------------------------------------------------------- one float time (a walk's tick)
+def _segment_written_out(plan, t):
+    """ZMP, DCM and CoM position at ``t`` from the segment formula of the module docstring:
+    p = p_a + m (t - t_a), xi = p + m / w + c e^{w (t - t_b)} with c = xi_b - p_b - m / w,
+    x = p + c/2 e^{w (t - t_b)} + E e^{-w (t - t_a)} with E from x(t_a) = x_a."""
+    times = plan.knot_times
+    t = min(max(t, 0.0), times[-1])
+    k = min(max(int(np.searchsorted(times, t, side="right")) - 1, 0), len(times) - 2)
+    w, ta, tb = 1.0 / plan.time_constant, times[k], times[k + 1]
+    pa, pb, xi_b, x_a = plan.zmp_knots[k], plan.zmp_knots[k + 1], plan.dcm_knots[k + 1], \
+        plan.com_knots[k]  # fmt: skip
+    m = (pb - pa) / (tb - ta)
+    c = xi_b - pb - m / w
+    big_e = x_a - pa - c / 2 * np.exp(-w * (tb - ta))
+    p = pa + m * (t - ta)
+    return p, p + m / w + c * np.exp(w * (t - tb)), \
+        p + c / 2 * np.exp(w * (t - tb)) + big_e * np.exp(-w * (t - ta))  # fmt: skip
+
+
+@settings(max_examples=60, deadline=None)
+@given(t=st.floats(-0.5, 12.0), late=st.floats(0.0, 0.1))
+def test_one_float_time_is_the_formula_and_the_array_query_to_the_last_bit(t, late):
+    """A walker asks for one float time each tick, answered by its own path (per-axis float
+    arithmetic on coefficients kept per segment, the last answer kept). Answer key: the
+    segment formula written out here (agreeing to 1e-12 m: a few roundings of O(1 m) terms,
+    the exponentials at most 1); and the array query at the same time, equal to the last bit
+    (the walk's logs are compared bitwise across versions), also on a re-planned walk."""
+    plan = walk()
+    for query in (plan, plan.with_touchdown(2, float(plan.touchdown[2]) + late)):
+        zmp, dcm = query.zmp_and_dcm(t)
+        position, velocity, acceleration = query.com(t)
+        np.testing.assert_allclose(
+            np.concatenate([zmp, dcm, position[:2]]),
+            np.concatenate(_segment_written_out(query, t)), rtol=0, atol=1e-12,
+        )  # fmt: skip
+        assert position[2] == COM[2] and velocity[2] == acceleration[2] == 0.0
+        array = np.array([t])
+        for one, many in zip((zmp, dcm), query.zmp_and_dcm(array)):
+            np.testing.assert_array_equal(one, many[0])
+        for one, many in zip((position, velocity, acceleration), query.com(array)):
+            np.testing.assert_array_equal(one, many[0])
+
+
+def test_the_kept_answer_is_read_only_and_each_plan_keeps_its_own():
+    """The answer kept for the last time cannot be changed by a caller, and a re-planned walk
+    (a later touchdown: the DCM differs before it) answers from its own knots."""
+    plan = walk()
+    t = float(plan.lift_off[2]) + 0.1
+    zmp, dcm = plan.zmp_and_dcm(t)
+    with pytest.raises(ValueError, match="read-only"):
+        dcm[0] = 1.0
+    later = plan.with_touchdown(2, float(plan.touchdown[2]) + 0.05)
+    assert not np.array_equal(later.dcm(t), dcm)
+    np.testing.assert_array_equal(plan.dcm(t), dcm)
+    np.testing.assert_array_equal(later.dcm(t), later.dcm(np.array([t]))[0])

@@ -1057,9 +1057,11 @@ def test_removed_task_no_longer_counts(upper_body):
         controller.remove_task(posture)
 
 
-def test_settings_reach_every_contact_set_qp(talos):
+def test_settings_reach_every_contact_set_qp(talos, monkeypatch):
     """time_budget and raise_on_failure set on the controller hold in the QP in use and in
     the QPs built later; after reset the counters start again from the next tick."""
+    from dmpopt.control import qp_stages
+
     controller, com = standing_controller(talos, friction=0.2)
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
     controller.compute_torques(q, v)
@@ -1076,6 +1078,7 @@ def test_settings_reach_every_contact_set_qp(talos):
     com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
     controller.compute_torques(q, v)
     controller.qp.settings.max_iter = 1
+    monkeypatch.setattr(qp_stages, "_REFINEMENT_ROUNDS", 0)  # see the fall-back test
     com.set_target(com.target_position + [0.05, 0.02, -0.05], acceleration=[-6.0, 4.0, 0.0])
     with pytest.raises(NoSolutionFound):
         controller.compute_torques(q, v)

@@ -28,7 +28,10 @@ between serial, process and Ray runs: the same dense QP (same input arrays), sol
 objects built after heap allocations of other sizes, gives answers that differ by ~1e-12
 (proxsuite's vectorised kernels depend on where its own buffers lie; 64-byte aligned inputs
 do not change that), while the same heap state gives the same bits. Which QPs a run solves
-after which allocations depends on what ran before in its process.
+after which allocations depends on what ran before in its process. The controller's answers
+do not carry these bits (dmpopt.control.qp_stages: an answer is the KKT solution of an
+active set guessed from a converged proxsuite answer, with a margin; an unconverged one,
+whose iterates can part far more on a near-infeasible QP, guesses nothing).
 """
 
 from __future__ import annotations

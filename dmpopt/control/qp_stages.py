@@ -321,9 +321,10 @@ class StageSolver:
         proxsuite runs in calls of ``_CHUNK_ITERATIONS`` outer iterations (of at most 10
         inner ones), each warm from the last, up to ``max_iter`` while time is left: a solve
         ends at most one call after ``deadline``, and the calls do not depend on the time.
-        Whatever proxsuite's status, its answer only seeds the active set
-        (:func:`_guess_active_set`) of the refinement; the stage is solved only if a set
-        verifies, and then its answer is that set's KKT solution.
+        proxsuite's answer only seeds the active set (:func:`_guess_active_set`) of the
+        refinement, and only if it converged (else the refinement starts from the stage's own
+        set); the stage is solved only if a set verifies, and then its answer is that set's
+        KKT solution.
         """
         qp = stage.qp
         settings = qp.settings
@@ -348,11 +349,17 @@ class StageSolver:
         settings.max_iter = limit
         stats.last_status = info.status.name
         stats.last_iterations = iterations
-        z = qp.results.z
-        if not math.isfinite(z.sum()):
-            stage.certified = False
-            return False
-        _guess_active_set(z, stage.at_upper, stage.at_lower)
+        # Only a converged proxsuite's multipliers seed the set: those of one stopped early
+        # (out of iterations, or a problem it called infeasible) can differ between
+        # processes in more than their last bits (on a near-infeasible QP, |z| grows to
+        # 1e20 and two processes' iterates part), and so would the set and whether it
+        # verifies. Then the refinement goes on from the stage's own set (deterministic).
+        if info.status == _SOLVED:
+            z = qp.results.z
+            if not math.isfinite(z.sum()):
+                stage.certified = False
+                return False
+            _guess_active_set(z, stage.at_upper, stage.at_lower)
         solution, _ = _active_set(
             stage.problem, stage.at_upper, stage.at_lower, settings.eps_abs, _REFINEMENT_ROUNDS,
             stage.workspace.duals, stage.workspace,

@@ -672,16 +672,20 @@ def test_added_contact_ramps_up_from_zero_and_a_cancelled_removal_restores_it(ta
     assert controller.active_contacts == (LEFT, RIGHT)
 
 
-def test_hold_answer_after_a_switch_is_the_torque_of_the_previous_set(talos):
-    """Torque limits at 2 % (the QPs are infeasible): the first tick on a new contact set
-    that runs out of time holds the last torque of the previous set (a relaxed answer), not
-    the new set's clipped bias torque."""
+def test_hold_answer_after_a_switch_is_the_torque_of_the_previous_set(talos, monkeypatch):
+    """Torque limits at 2 %: the first tick on a new contact set that runs out of time holds
+    the last torque of the previous set (its QP's answer, at the limits: the robot sinks),
+    not the new set's clipped bias torque. (No active-set rounds after proxsuite's solve cut
+    short: they could certify the new set's optimum on their own.)"""
+    from dmpopt.control import qp_stages
+
     controller, _ = talos_controller(talos, torque_limit_scale=0.02)
     q, v = talos.reference_configuration, np.zeros(talos.nv)
     last = controller.compute_torques(q, v)
-    assert controller.stats.last_answer == "relaxed"
+    assert controller.stats.last_answer in ("solved", "relaxed")
     controller.remove_contact(RIGHT)
     controller.time_budget = 1e-12
+    monkeypatch.setattr(qp_stages, "_REFINEMENT_ROUNDS", 0)
     held = controller.compute_torques(q, v)
     assert controller.active_contacts == (LEFT,) and controller.stats.last_answer == "hold"
     np.testing.assert_array_equal(held, last)

@@ -406,11 +406,15 @@ def test_weight_is_carried_by_the_feet(talos):
 
 
 # ---------------------------------------------------------------- failures
-def test_failed_solve_falls_back_without_nan(talos):
+def test_failed_solve_falls_back_without_nan(talos, monkeypatch):
     """A QP solve that cannot finish is retried cold, then the last torque is returned, counted.
 
     Low friction and a sideways CoM acceleration make the friction rows active, so that the
-    ticks need proxsuite (the cone-free optimum is solved directly and cannot fail this way)."""
+    ticks need proxsuite (the cone-free optimum is solved directly and cannot fail this way).
+    No active-set rounds follow proxsuite's unfinished solves (else they go on from the last
+    tick's set and can certify the optimum without it)."""
+    from dmpopt.control import qp_stages
+
     controller, com = standing_controller(talos, friction=0.2)
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
     com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
@@ -418,6 +422,7 @@ def test_failed_solve_falls_back_without_nan(talos):
     assert controller.stats.last_status == "PROXQP_SOLVED"
     assert controller.stats.last_iterations >= 1 and controller.stats.n_solved == 1
     controller.qp.settings.max_iter = 1
+    monkeypatch.setattr(qp_stages, "_REFINEMENT_ROUNDS", 0)
     com.set_target(com.target_position + [0.05, 0.02, -0.05], acceleration=[-6.0, 4.0, 0.0])
     second = controller.compute_torques(q, v)
     assert np.all(np.isfinite(second))
@@ -429,13 +434,16 @@ def test_failed_solve_falls_back_without_nan(talos):
     assert controller.stats.last_status == "PROXQP_SOLVED"
 
 
-def test_failed_solve_can_raise(talos):
+def test_failed_solve_can_raise(talos, monkeypatch):
     """With raise_on_failure, a double failure raises NoSolutionFound carrying the stats."""
+    from dmpopt.control import qp_stages
+
     controller, com = standing_controller(talos, friction=0.2, raise_on_failure=True)
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
     com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
     controller.compute_torques(q, v)
     controller.qp.settings.max_iter = 1
+    monkeypatch.setattr(qp_stages, "_REFINEMENT_ROUNDS", 0)  # as in the test above
     com.set_target(com.target_position + [0.05, 0.02, -0.05], acceleration=[-6.0, 4.0, 0.0])
     with pytest.raises(NoSolutionFound) as error:
         controller.compute_torques(q, v)
@@ -1049,9 +1057,11 @@ def test_removed_task_no_longer_counts(upper_body):
         controller.remove_task(posture)
 
 
-def test_settings_reach_every_contact_set_qp(talos):
+def test_settings_reach_every_contact_set_qp(talos, monkeypatch):
     """time_budget and raise_on_failure set on the controller hold in the QP in use and in
     the QPs built later; after reset the counters start again from the next tick."""
+    from dmpopt.control import qp_stages
+
     controller, com = standing_controller(talos, friction=0.2)
     q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
     controller.compute_torques(q, v)
@@ -1068,6 +1078,7 @@ def test_settings_reach_every_contact_set_qp(talos):
     com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
     controller.compute_torques(q, v)
     controller.qp.settings.max_iter = 1
+    monkeypatch.setattr(qp_stages, "_REFINEMENT_ROUNDS", 0)  # see the fall-back test
     com.set_target(com.target_position + [0.05, 0.02, -0.05], acceleration=[-6.0, 4.0, 0.0])
     with pytest.raises(NoSolutionFound):
         controller.compute_torques(q, v)

@@ -387,8 +387,9 @@ def run(
     sweep (:mod:`dmpopt_studies.plant_sweep`); a quick run never has them.
 
     The walks are independent runs, executed where ``runner`` says (:mod:`dmpopt.parallel`;
-    default: in series). A walk at the edge of a fall can end differently in another process:
-    proxsuite is not bitwise reproducible across processes.
+    default: in series), with the same bits in series, in worker processes and on Ray: the
+    controller's answers never depend on proxsuite's address-dependent last bits
+    (:mod:`dmpopt.control.qp_stages`).
     """
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 

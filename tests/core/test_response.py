@@ -326,14 +326,19 @@ def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
     """The windows pass evaluates only the bases it cannot rule out (sqrt(-l) moves by at most
     sqrt(h) per unit of phase, as l'^2 <= 4 h |l|; von Mises only, forms.TRACKED_KERNELS):
     at every sample and stage of 1500 steps its kept bases and largest log-activation equal
-    those from every basis's log-activation (window), checked at each point in turn."""
+    those from every basis's log-activation (window), checked at each point in turn; each
+    step's first and last kept basis are the least and largest of its points'."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
     module = response.kernels(form, kernel)
     canonical = np.array([0.0, 0.0] if form in ("velocity", "acceleration") else [0.3, 1.2])
     first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
     lows, highs = np.empty((n_steps, 4), dtype=np.int64), np.empty((n_steps, 4), dtype=np.int64)
     tops = np.empty((n_steps, 4))
-    module.windows(canonical, dt, target, gains, centres, widths, first, lows, highs, tops)
+    lowest, highest = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
+    module.windows(canonical, dt, target, gains, centres, widths, first, lows, highs, tops,
+                   lowest, highest)  # fmt: skip
+    np.testing.assert_array_equal(lowest, lows.min(axis=1))  # each step's first and last basis
+    np.testing.assert_array_equal(highest, highs.max(axis=1))
     logs = np.empty(centres.size)
     for k in range(n_steps - 1):
         result = module.canonical_step(canonical, dt, target, gains)

@@ -440,6 +440,11 @@ class CMAES(PolicySearch):
 
     ``n_rollouts`` is CMA's population size; the returns are maximised. Stopping criteria of
     ``cma`` are switched off: the caller decides how many trials to run.
+
+    The normal draws come from a private ``numpy.random.RandomState`` seeded from ``seed``
+    (cma's ``randn`` option): the same numbers cma would draw after seeding NumPy's global
+    generator, but that global generator is neither reseeded nor read, so a run gives the
+    same bits whatever else in the process uses it (other runs in a worker, user code).
     """
 
     def __init__(
@@ -468,7 +473,8 @@ class CMAES(PolicySearch):
         seed = int(np.random.default_rng(seed).integers(1, 2**31 - 1))  # cma: 0 means "random"
         settings = {
             "popsize": int(n_rollouts),
-            "seed": seed,
+            "seed": float("nan"),  # cma seeds the global generator unless the seed is NaN
+            "randn": np.random.RandomState(seed).randn,
             "verbose": -9,
             "tolfun": 0.0,
             "tolfunhist": 0.0,

@@ -511,13 +511,15 @@ class CMAES(PolicySearch):
         return np.asarray(self.strategy.mean).reshape(self.shape).copy()
 
     def ask(self) -> Exploration:
-        samples = np.asarray(self.strategy.ask())
+        with _blas().limit(limits=1, user_api="blas"):  # cma's eigendecomposition, as PI-BB
+            samples = np.asarray(self.strategy.ask())
         self._pending = samples
         return Exploration(weights=samples.reshape((-1,) + self.shape))
 
     def tell(self, rewards) -> None:
         samples, returns = self._pending_returns(rewards)
-        self.strategy.tell(list(samples), list(-returns))
+        with _blas().limit(limits=1, user_api="blas"):
+            self.strategy.tell(list(samples), list(-returns))
         self.n_trials += samples.shape[0]
         self.n_updates += 1
 

@@ -998,6 +998,17 @@ def test_posture_reference_arguments(upper_body):
         arm.set_reference(positions, outside, outside)
     with pytest.warns(UserWarning, match="outside its position limits"):
         arm.set_reference(outside)
+    # a NaN is named whatever the array's layout or type (strided view, list, read-only)
+    strided = np.repeat(positions, 2)[::2]
+    strided[4] = np.nan
+    frozen = positions.copy()
+    frozen[0] = np.nan
+    frozen.flags.writeable = False
+    for bad in (strided, list(strided), frozen):
+        with pytest.raises(InvalidInputError, match="^positions must be finite"):
+            arm.set_reference(bad)
+    with pytest.raises(InvalidInputError, match="^accelerations must be finite"):
+        arm.set_reference(positions, None, np.repeat([0.0, -np.inf], 7)[::2][::-1])
 
 
 def test_placements_must_be_finite_rigid_motions(upper_body):
@@ -1263,6 +1274,7 @@ def test_control_loop_freezes_the_objects_made_before_it():
     with pytest.raises(ZeroDivisionError), control_loop():
         1 / 0
     assert gc.get_freeze_count() == before
+
 
 
 def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(upper_body):

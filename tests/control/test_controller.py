@@ -1276,6 +1276,27 @@ def test_control_loop_freezes_the_objects_made_before_it():
     assert gc.get_freeze_count() == before
 
 
+def test_control_loop_collects_only_the_youngest_generation():
+    """Entering control_loop starts one collection, of generation 0 (a full one scanned every
+    object of the process at each loop); none starts inside an empty loop's body."""
+    import gc
+
+    from dmpopt.control import control_loop
+
+    generations = []
+
+    def watch(phase, info):
+        if phase == "start":
+            generations.append(info["generation"])
+
+    gc.callbacks.append(watch)
+    try:
+        with control_loop():
+            entered = list(generations)
+    finally:
+        gc.callbacks.remove(watch)
+    assert entered == [0]
+
 
 def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(upper_body):
     """Torque limits binding on a fixed base: a warm proxsuite solve starts from the last

@@ -288,7 +288,7 @@ class SoleContact(Contact):
         drift = pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
         # error log6(M^-1 M_ref) = -log6(M_ref^-1 M), one compiled call with the rows
         if not self._rows_kernel(
-            (v,), self._out, self._jacobians, self._columns, self._gains,
+            v, self._out, self._jacobians, self._columns, self._gains,
             reference.homogeneous, placement.homogeneous, data.J, v, drift,
         ):  # fmt: skip
             # rotation error near pi: Pinocchio's log6

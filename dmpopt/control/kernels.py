@@ -545,12 +545,12 @@ def reference_status(value, lower, upper) -> int:
 
 class Binding:
     """``kernel``'s compiled code (:func:`entry_point`) for the argument types of a caller's
-    calls, kept per tuple of the objects that may change between its calls (``keys``: e.g. the
-    state ``v`` and gains a user may rebind); every other argument must keep its type.
+    calls, kept per ``key``: the one argument that may change type between its calls (the
+    state ``v`` a task's caller passes); every other argument must keep its type.
 
     A task's rows are computed into its own arrays from Pinocchio's results, whose types are
-    fixed; only the caller's state and a user's new gains can differ. A few bindings are kept
-    (one per controller contact set using the task); beyond eight, all are forgotten.
+    fixed; only the caller's state can differ. A few bindings are kept (one per controller
+    contact set using the task); beyond eight, all are forgotten.
     """
 
     __slots__ = ("kernel", "_codes")
@@ -559,15 +559,14 @@ class Binding:
         self.kernel = kernel
         self._codes = {}
 
-    def __call__(self, keys: tuple, *arguments):
-        """Call the kernel with ``arguments``; ``keys`` are among them, by identity."""
+    def __call__(self, key, *arguments):
+        """Call the kernel with ``arguments``; ``key`` is among them, by identity."""
         # The entries hold their keys, so an identity found is that of the same live object.
-        key = tuple(map(id, keys))
-        entry = self._codes.get(key)
+        entry = self._codes.get(id(key))
         if entry is None:
             if len(self._codes) >= 8:
                 self._codes.clear()
-            entry = self._codes[key] = (keys, entry_point(self.kernel, *arguments))
+            entry = self._codes[id(key)] = (key, entry_point(self.kernel, *arguments))
         return entry[1](*arguments)
 
 

@@ -445,7 +445,7 @@ class FrameTask(Task):
         placement = pin.updateFramePlacement(model, data, frame_id)
         drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
         if not self._rows_kernel(
-            (v,), self._out, self._jacobians, self._indices, self._gains, self._reference,
+            v, self._out, self._jacobians, self._indices, self._gains, self._reference,
             placement.homogeneous, data.J, v, drift,
         ):  # fmt: skip
             # rotation error near pi: Pinocchio's log3
@@ -512,7 +512,5 @@ class ComTask(Task):
         Uses ``data.Jcom`` from ``computeAllTerms`` and the CoM drift from the zero-acceleration
         kinematics already in ``data``.
         """
-        pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
-        self._rows_kernel(
-            (v,), self._out, self.jacobian, self._gains, data.com[0], data.Jcom, v, data.acom[0]
-        )
+        com = pin.centerOfMass(self.model, data, pin.ACCELERATION, False)  # data.com[0]
+        self._rows_kernel(v, self._out, self.jacobian, self._gains, com, data.Jcom, v, data.acom[0])

@@ -388,8 +388,13 @@ class FrameTask(Task):
 
     @property
     def target_placement(self) -> pin.SE3:
-        """The desired placement (a copy: set it with :meth:`set_target`)."""
+        """The desired placement (a copy; assigning sets it, checked, and keeps the target
+        velocity and acceleration; :meth:`set_target` sets all three)."""
         return pin.SE3(self._reference[:, :3].copy(), self._reference[:, 3].copy())
+
+    @target_placement.setter
+    def target_placement(self, placement: pin.SE3 | np.ndarray) -> None:
+        self._set_placement(placement)
 
     def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
         """Set the desired placement (or position), velocity and acceleration.
@@ -403,6 +408,23 @@ class FrameTask(Task):
             3-vector is the linear part (angular zero), e.g. a position DMP's output; zero if
             omitted.
         """
+        self._set_placement(placement)
+        for name, value, slot in (
+            ("velocity", velocity, self.target_velocity),
+            ("acceleration", acceleration, self.target_acceleration),
+        ):
+            if value is None:
+                slot[:] = 0.0
+                continue
+            array = _array(value, name)
+            if array.shape not in ((), (3,), (6,)):
+                raise ShapeError(f"{name} has shape {array.shape}, expected (), (3,) or (6,)")
+            array = _vector(array, array.size, name)
+            slot[:] = 0.0
+            slot[: 3 if array.shape == (3,) else 6] = array
+
+    def _set_placement(self, placement) -> None:
+        """The desired placement (pinocchio.SE3) or position (shape (3,)), checked."""
         if isinstance(placement, pin.SE3):
             if not (
                 np.isfinite(placement.homogeneous).all()
@@ -423,19 +445,6 @@ class FrameTask(Task):
             if not np.isfinite(position).all():
                 raise InvalidInputError("placement must be finite; it holds NaN or inf")
             self._reference[:, 3] = position
-        for name, value, slot in (
-            ("velocity", velocity, self.target_velocity),
-            ("acceleration", acceleration, self.target_acceleration),
-        ):
-            if value is None:
-                slot[:] = 0.0
-                continue
-            array = _array(value, name)
-            if array.shape not in ((), (3,), (6,)):
-                raise ShapeError(f"{name} has shape {array.shape}, expected (), (3,) or (6,)")
-            array = _vector(array, array.size, name)
-            slot[:] = 0.0
-            slot[: 3 if array.shape == (3,) else 6] = array
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration (one compiled

@@ -1034,6 +1034,16 @@ def test_placements_must_be_finite_rigid_motions(upper_body):
     hand.set_target(np.zeros(3), 0.5)  # a scalar: every component; acceleration omitted: 0
     np.testing.assert_array_equal(hand.target_velocity, np.full(6, 0.5))
     np.testing.assert_array_equal(hand.target_acceleration, np.zeros(6))
+    # target_placement is a copy; assigning it sets the placement only, checked
+    turn = pin.SE3(pin.exp3(np.array([0.0, 0.0, 0.3])), np.array([0.1, 0.2, 0.3]))
+    hand.target_placement = turn
+    copy = hand.target_placement
+    copy.translation = np.full(3, 9.0)  # a copy: the task keeps its target
+    assert hand.target_placement.isApprox(turn, 0.0)
+    np.testing.assert_array_equal(hand.target_velocity, np.full(6, 0.5))
+    with pytest.raises(InvalidInputError, match="^placement must be finite;"):
+        hand.target_placement = np.array([0.0, np.inf, 0.0])
+    assert hand.target_placement.isApprox(turn, 0.0)
 
 
 def test_removed_task_no_longer_counts(upper_body):

@@ -37,7 +37,8 @@ pin 3.4.0 (``benchmarks/tsid-constraints.txt``) runs::
 Run from the repository root: ``PYTHONPATH=.:benchmarks python benchmarks/bench_tsid.py
 [--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking] [--no-freeze]``. After the
 walk it prints the CPU time per stage of dmpopt's one-foot QP ticks (one more replay); with
-``--stages``, only those. ``--gc-replays N``: only dmpopt, N replays of each recording watching
+``--stages``, only the stage timers, of each scenario given (the walk's one-foot QP ticks,
+every tick of the others), e.g. ``--stages --scenarios drumming``. ``--gc-replays N``: only dmpopt, N replays of each recording watching
 the garbage collector (collections started inside and between ticks, the longest tick by CPU
 and wall time and the ticks over 2 ms of CPU), e.g. ``--gc-replays 10``.
 
@@ -339,6 +340,7 @@ STAGES = {  # (part of the QP, method): label
     ("Tick", "compute_torques"): "whole tick",
     ("Assembly", "assemble"): "model terms, task and contact rows, posture",
     ("Assembly", "_update_rows"): "  of which task and contact rows",
+    ("Assembly", "_update_posture"): "  of which posture targets and gradient",
     ("Assembly", "eliminated_tick"): "elimination and direct solve (level 0)",
     ("Assembly", "assemble_eliminated"): "elimination (levels 1, 2)",
     ("Assembly", "assemble_y"): "base elimination over y",
@@ -349,8 +351,9 @@ STAGES = {  # (part of the QP, method): label
 
 
 def stage_timers(scenario, ticks) -> None:
-    """CPU time per stage of dmpopt's one-foot ticks that need the QP (mean us per tick;
-    each stage inclusive of the ones it calls), on one replay of the walk."""
+    """CPU time per stage of dmpopt's ticks (mean us per tick; each stage inclusive of the
+    ones it calls), on one replay: of the walk's one-foot ticks that need the QP, or of every
+    tick of another scenario."""
     from dmpopt.control.assembly import Assembly
     from dmpopt.control.tick import Tick
 
@@ -382,8 +385,12 @@ def stage_timers(scenario, ticks) -> None:
     finally:
         for name, method in originals.items():
             setattr(parts[name[0]], name[1], method)
-    mask = (np.arange(len(ticks)) >= ONE_FOOT_TICK) & (np.array(answers) != "direct")
-    print(f"stage timers of the one-foot QP ticks ({mask.sum()} ticks), mean CPU us per tick:")
+    if isinstance(scenario, Walking):
+        mask = (np.arange(len(ticks)) >= ONE_FOOT_TICK) & (np.array(answers) != "direct")
+        which = "the one-foot QP ticks"
+    else:
+        mask, which = np.ones(len(ticks), dtype=bool), "every tick"
+    print(f"stage timers of {which} ({mask.sum()} ticks), mean CPU us per tick:")
     for name, label in STAGES.items():
         print(f"  {label:45s} {totals[name][mask].mean():7.1f}")
 
@@ -456,8 +463,9 @@ def main():
     parser.add_argument("--repeats", type=int, default=3, help="replays of each recording")
     parser.add_argument("--scenarios", nargs="*", default=list(SCENARIOS), choices=SCENARIOS)
     parser.add_argument(
-        "--stages", action="store_true", help="only the stage timers of the one-foot ticks"
-    )
+        "--stages", action="store_true",
+        help="only the stage timers (the walk's one-foot QP ticks, every tick of the others)",
+    )  # fmt: skip
     parser.add_argument(
         "--no-freeze", action="store_true",
         help="record the closed loops without dmpopt.control.control_loop (gc.freeze)",
@@ -472,8 +480,10 @@ def main():
         gc_replays(args.scenarios, args.seconds, args.gc_replays, loop)
         return
     if args.stages:
-        scenario = Walking()
-        stage_timers(scenario, scenario.record(args.seconds, loop))
+        for name in args.scenarios:
+            scenario = SCENARIOS[name](args.seconds)
+            print(f"{name}:")
+            stage_timers(scenario, scenario.record(args.seconds, loop))
         return
     with_tsid = build_tsid is not None
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f}; pin {pin.__version__}")

@@ -119,14 +119,16 @@ class Assembly:
         self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
         # Each tick the tasks and contacts compute their rows into their own arrays, which are
         # copied here (the controller never rebinds a user's object), each group by one call.
+        # The tasks fill their arrays in place (Task), so the lists of them are made once.
         self._row_groups = tuple(
-            (items, self._rows[block, :nv], self._rows[block, -1])
+            (items, self._rows[block, :nv], self._rows[block, -1],
+             [item.jacobian for item in items], [item.target for item in items])
             for items, block in (
                 (stacked_tasks, slice(0, n_task)),
                 (contacts, slice(n_cost, n_cost + n_force)),
             )
             if items
-        )
+        )  # fmt: skip
         self._kernel_rows = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
         self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
 
@@ -339,13 +341,14 @@ class Assembly:
         self._update_posture(q, v)
 
     def _update_rows(self, q: np.ndarray, v: np.ndarray) -> None:
-        """The tasks and contacts compute their rows; copy them into the QP's rows."""
+        """The tasks and contacts compute their rows (into their own arrays, in place: see
+        :class:`~dmpopt.control.tasks.Task`); copy them into the QP's rows."""
         data = self.data
-        for items, jacobians, targets in self._row_groups:
+        for items, jacobians, targets, item_jacobians, item_targets in self._row_groups:
             for item in items:
                 item.update(q, v, data)
-            np.concatenate([item.jacobian for item in items], out=jacobians)
-            np.concatenate([item.target for item in items], out=targets)
+            np.concatenate(item_jacobians, out=jacobians)
+            np.concatenate(item_targets, out=targets)
 
     def _stack_posture_tasks(self, n_x: int) -> None:
         """One block for the posture tasks' references, gains and targets, filled each tick

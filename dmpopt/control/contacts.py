@@ -105,7 +105,8 @@ class Contact:
         self.frame_id = robot.model.getFrameId(frame)
         self.friction_coefficient = float(friction_coefficient)
         self.min_normal_force, self.max_normal_force = float(forces[0]), float(forces[1])
-        self._stiffness, self._damping = np.zeros(6), np.zeros(6)  # the gains, per component
+        self._gains = np.zeros((2, 6))  # the gains Kp, Kd, per component
+        self._stiffness, self._damping = self._gains
         self.stiffness = stiffness
         self.damping = 2.0 * np.sqrt(self.stiffness) if damping is None else damping
         self.reference_placement = None
@@ -241,10 +242,14 @@ class SoleContact(Contact):
         corners = self.cop_fraction * np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)
-        self._error = np.zeros(6)  # log6(M^-1 M_ref) of the last update
+        # Packed (kernels.sole_contact): out (target, error log6(M^-1 M_ref) of the last
+        # update); jacobians (rows, frame Jacobian: its other columns stay zero).
+        self._out = np.zeros(12)
+        self.target, self._error = self._out[:6], self._out[6:]
+        self._jacobians = np.zeros((12, robot.nv))
+        self.jacobian, self._frame_jacobian = self._jacobians[:6], self._jacobians[6:]
         self._columns = _support_columns(robot.model, self.frame_id)
-        self._frame_jacobian = np.zeros((6, robot.nv))  # its other columns stay zero
-        self._rows_kernel = kernels.Binding(kernels.sole_rows)
+        self._rows_kernel = kernels.Binding(kernels.sole_contact)
 
     def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
@@ -280,19 +285,17 @@ class SoleContact(Contact):
         """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
         model, frame_id = self.model, self.frame_id
         placement, reference = self.placement(data), self.reference_placement
-        jacobian = self._frame_jacobian  # from data.J, by the kernel
         drift = pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
         # error log6(M^-1 M_ref) = -log6(M_ref^-1 M), one compiled call with the rows
         if not self._rows_kernel(
-            (v,), self.target, self.jacobian, _SPATIAL, self._error, reference.rotation,
-            reference.translation, placement.rotation, placement.translation, data.J,
-            self._columns, jacobian, v, drift, _ZERO_MOTION, self._stiffness, self._damping,
+            v, self._out, self._jacobians, self._columns, self._gains,
+            reference.homogeneous, placement.homogeneous, data.J, v, drift,
         ):  # fmt: skip
             # rotation error near pi: Pinocchio's log6
             error = pin.log6(placement.actInv(reference)).vector
             kernels.pd_task_rows(
-                self.target, self.jacobian, _SPATIAL, error, jacobian, v, drift, _ZERO_MOTION,
-                _ZERO_MOTION, self._stiffness, self._damping,
+                self.target, self.jacobian, _SPATIAL, error, self._frame_jacobian, v, drift,
+                _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
             )  # fmt: skip
 
 

@@ -50,7 +50,11 @@ __all__ = [
     "pd_task_rows",
     "com_task_rows",
     "frame_task_rows",
+    "frame_task",
+    "com_task",
+    "reference_status",
     "sole_rows",
+    "sole_contact",
     "Binding",
     "reduce_costs",
     "solve_in_place",
@@ -478,14 +482,75 @@ def sole_rows(
     return True
 
 
+# The packed forms below are what the tasks and contacts call each tick: numba unboxes each
+# argument of a call (a few tenths of a microsecond per array), so each task keeps its inputs
+# and outputs in a few arrays made once and passes those; the kernels take views of them and
+# run the same arithmetic as the unpacked forms.
+
+
+@_compile
+def frame_task(out, jacobians, indices, gains, reference, pose, joint_jacobians, v, drift):
+    r""":func:`frame_task_rows` of a :class:`~dmpopt.control.tasks.FrameTask` from its packed
+    arrays: ``out`` = (target (m), error (6)), ``jacobians`` = (rows (m, nv), frame Jacobian
+    (6, nv)), ``indices`` = (tracked components (m, sorted), supporting columns), ``gains``
+    rows :math:`K_p, K_d, v_{ref}, a_{ref}` (4, 6), ``reference`` :math:`[R_{ref} | p_{ref}]`
+    (3, 4) and ``pose`` the frame's homogeneous placement (4, 4)."""
+    m = jacobians.shape[0] - 6
+    rows = indices[:m]
+    return frame_task_rows(
+        out[:m], jacobians[:m], rows, out[m:], reference[:, :3], reference[:, 3], pose[:3, :3],
+        pose[:3, 3], joint_jacobians, indices[m:], jacobians[m:], v, drift, gains[2], gains[3],
+        gains[0], gains[1], rows[0] < 3, rows[m - 1] >= 3,
+    )  # fmt: skip
+
+
+@_compile
+def com_task(out, jacobian, gains, com, com_jacobian, v, drift):
+    r""":func:`com_task_rows` of a :class:`~dmpopt.control.tasks.ComTask` from its packed
+    arrays: ``out`` = (target (3), error (3)), ``gains`` rows :math:`K_p, K_d, \dot c_{ref},
+    \ddot c_{ref}, c_{ref}` (5, 3)."""
+    com_task_rows(
+        out[:3], jacobian, np.arange(3), out[3:], gains[4], com, com_jacobian, v, drift, gains[2],
+        gains[3], gains[0], gains[1],
+    )  # fmt: skip
+
+
+@_compile
+def sole_contact(out, jacobians, columns, gains, reference, pose, joint_jacobians, v, drift):
+    r""":func:`sole_rows` of a :class:`~dmpopt.control.contacts.SoleContact` from its packed
+    arrays: ``out`` = (target (6), error (6)), ``jacobians`` = (rows (6, nv), frame Jacobian
+    (6, nv)), ``gains`` rows :math:`K_p, K_d` (2, 6), ``reference`` and ``pose`` the held and
+    the current homogeneous placements (4, 4)."""
+    zero = np.zeros(6)
+    return sole_rows(
+        out[:6], jacobians[:6], np.arange(6), out[6:], reference[:3, :3], reference[:3, 3],
+        pose[:3, :3], pose[:3, 3], joint_jacobians, columns, jacobians[6:], v, drift, zero,
+        gains[0], gains[1],
+    )  # fmt: skip
+
+
+@_compile
+def reference_status(value, lower, upper) -> int:
+    """0 if every entry of ``value`` is finite and within [lower, upper]; 1 if one is NaN or
+    infinite; 2 if all are finite but one is outside its bounds."""
+    status = 0
+    for j in range(value.size):
+        x = value[j]
+        if not math.isfinite(x):
+            return 1
+        if x < lower[j] or x > upper[j]:
+            status = 2
+    return status
+
+
 class Binding:
     """``kernel``'s compiled code (:func:`entry_point`) for the argument types of a caller's
-    calls, kept per tuple of the objects that may change between its calls (``keys``: e.g. the
-    state ``v`` and gains a user may rebind); every other argument must keep its type.
+    calls, kept per ``key``: the one argument that may change type between its calls (the
+    state ``v`` a task's caller passes); every other argument must keep its type.
 
     A task's rows are computed into its own arrays from Pinocchio's results, whose types are
-    fixed; only the caller's state and a user's new gains can differ. A few bindings are kept
-    (one per controller contact set using the task); beyond eight, all are forgotten.
+    fixed; only the caller's state can differ. A few bindings are kept (one per controller
+    contact set using the task); beyond eight, all are forgotten.
     """
 
     __slots__ = ("kernel", "_codes")
@@ -494,15 +559,14 @@ class Binding:
         self.kernel = kernel
         self._codes = {}
 
-    def __call__(self, keys: tuple, *arguments):
-        """Call the kernel with ``arguments``; ``keys`` are among them, by identity."""
+    def __call__(self, key, *arguments):
+        """Call the kernel with ``arguments``; ``key`` is among them, by identity."""
         # The entries hold their keys, so an identity found is that of the same live object.
-        key = tuple(map(id, keys))
-        entry = self._codes.get(key)
+        entry = self._codes.get(id(key))
         if entry is None:
             if len(self._codes) >= 8:
                 self._codes.clear()
-            entry = self._codes[key] = (keys, entry_point(self.kernel, *arguments))
+            entry = self._codes[id(key)] = (key, entry_point(self.kernel, *arguments))
         return entry[1](*arguments)
 
 

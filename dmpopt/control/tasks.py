@@ -35,7 +35,6 @@ from . import kernels
 __all__ = ["ComTask", "FrameTask", "PostureTask", "Task"]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
-_XYZ = np.arange(3)
 
 
 def _array(value, name: str) -> np.ndarray:
@@ -148,6 +147,26 @@ class _PostureRow:
         task._state[self.index] = value
 
 
+@dataclass(frozen=True)
+class _GainRow:
+    """Row ``index`` of a task's packed ``_gains`` block (gains and references), as an
+    attribute: reading gives a view of the row, assigning writes into it (checked)."""
+
+    index: int
+    name: str
+    size: int
+    nonnegative: bool = False
+
+    def __get__(self, task, owner=None):
+        return self if task is None else task._gains[self.index]
+
+    def __set__(self, task, value) -> None:
+        value = _vector(value, self.size, self.name)
+        if self.nonnegative and (value < 0).any():  # finite: _vector checked
+            raise InvalidInputError(f"{self.name} must be finite and >= 0")
+        task._gains[self.index] = value
+
+
 class PostureTask(Task):
     r"""Joint-space tracking of a joint group: the task a DMP drives.
 
@@ -212,6 +231,11 @@ class PostureTask(Task):
         self._lower = np.asarray(robot.position_lower, float)[self.configuration_indices]
         self._upper = np.asarray(robot.position_upper, float)[self.configuration_indices]
         self._warned: set[str] = set()
+        unbounded = (np.full(size, -np.inf), np.full(size, np.inf))
+        self._limits = ((self._lower, self._upper), unbounded, unbounded)  # per reference row
+        self._status_kernel = kernels.entry_point(
+            kernels.reference_status, self._lower, self._lower, self._upper
+        )
         self.reference_position = robot.reference_configuration[self.configuration_indices]
 
     @property
@@ -231,26 +255,36 @@ class PostureTask(Task):
         velocities, accelerations : ndarray, shape (n_joints,), optional
             Desired joint velocities [rad/s] and accelerations [rad/s^2]; zero if omitted.
         """
-        size = len(self.velocity_indices)
-        for name, value, slot in (
-            ("positions", positions, self.reference_position),
-            ("velocities", velocities, self.reference_velocity),
-            ("accelerations", accelerations, self.reference_acceleration),
-        ):
+        state = self._state
+        for row, (name, value) in enumerate(
+            (("positions", positions), ("velocities", velocities),
+             ("accelerations", accelerations))
+        ):  # fmt: skip
             if value is None:
-                slot[:] = 0.0
+                state[row] = 0.0
                 continue
-            value = _array(value, name)
-            if value.shape != (size,):
+            if not (type(value) is np.ndarray and value.dtype == np.float64):
+                value = _array(value, name)
+            if value.shape != state.shape[1:]:
                 raise ShapeError(
-                    f"{name} has shape {value.shape}, expected ({size},) for the joints "
+                    f"{name} has shape {value.shape}, expected ({state.shape[1]},) for the joints "
                     f"{self.joint_names}"
                 )
-            if not math.isfinite(value.sum()) and not np.isfinite(value).all():
+            # one compiled pass: finite, and the positions within their limits
+            status = self._status(value, *self._limits[row])
+            if status == 1:
                 raise InvalidInputError(f"{name} must be finite; it holds NaN or inf")
-            if name == "positions":
+            if status == 2 and row == 0:
                 self._warn_outside_limits(value)
-            slot[:] = value
+            state[row] = value
+
+    def _status(self, value: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> int:
+        """:func:`kernels.reference_status`, called without numba's type dispatch for a
+        writable C-ordered float64 vector (the type it was bound to)."""
+        flags = value.flags
+        if flags.c_contiguous and flags.writeable:
+            return self._status_kernel(value, lower, upper)
+        return kernels.reference_status(value, lower, upper)
 
     def _warn_outside_limits(self, positions: np.ndarray) -> None:
         """Warn, once per joint, of a reference outside the joint's position limits: the
@@ -322,24 +356,45 @@ class FrameTask(Task):
         self.rows = np.array(sorted(set(int(c) for c in components)), dtype=int)
         if self.rows.size == 0 or self.rows.min() < 0 or self.rows.max() > 5:
             raise InvalidInputError(f"components={components!r}; expected indices in 0..5")
-        self._tracks_position = bool(self.rows.min() < 3)
-        self._tracks_orientation = bool(self.rows.max() >= 3)
         self.model = robot.model
         self.frame = frame
         self.frame_id = robot.model.getFrameId(frame)
         self.weight = _check_weight(weight)
-        self.stiffness, self.damping = _gains(stiffness, damping, 6)
+        # Packed once, so that a tick passes a few arrays to its compiled call
+        # (kernels.frame_task): gains rows Kp, Kd, v_ref, a_ref; reference [R_ref | p_ref];
+        # out (target, error); jacobians (rows, frame Jacobian: its other columns stay zero);
+        # indices (tracked rows, supporting columns).
+        m = self.rows.size
+        self._gains = np.zeros((4, 6))
+        self._gains[0], self._gains[1] = _gains(stiffness, damping, 6)
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, robot.reference_configuration)
-        self.target_placement = data.oMf[self.frame_id].copy()
-        self.target_velocity = np.zeros(6)
-        self.target_acceleration = np.zeros(6)
-        self._error = np.zeros(6)
-        self.target = np.zeros(self.rows.size)
-        self.jacobian = np.zeros((self.rows.size, robot.nv))
-        self._columns = _support_columns(robot.model, self.frame_id)
-        self._frame_jacobian = np.zeros((6, robot.nv))  # its other columns stay zero
-        self._rows_kernel = kernels.Binding(kernels.frame_task_rows)
+        self._reference = np.zeros((3, 4))
+        self._reference[:, :3] = data.oMf[self.frame_id].rotation
+        self._reference[:, 3] = data.oMf[self.frame_id].translation
+        self._out = np.zeros(m + 6)
+        self.target, self._error = self._out[:m], self._out[m:]
+        self._jacobians = np.zeros((m + 6, robot.nv))
+        self.jacobian, self._frame_jacobian = self._jacobians[:m], self._jacobians[m:]
+        self._indices = np.concatenate(
+            [self.rows, _support_columns(robot.model, self.frame_id)]
+        ).astype(np.int64)
+        self._rows_kernel = kernels.Binding(kernels.frame_task)
+
+    stiffness = _GainRow(0, "stiffness", 6, nonnegative=True)
+    damping = _GainRow(1, "damping", 6, nonnegative=True)
+    target_velocity = _GainRow(2, "target_velocity", 6)
+    target_acceleration = _GainRow(3, "target_acceleration", 6)
+
+    @property
+    def target_placement(self) -> pin.SE3:
+        """The desired placement (a copy; assigning sets it, checked, and keeps the target
+        velocity and acceleration; :meth:`set_target` sets all three)."""
+        return pin.SE3(self._reference[:, :3].copy(), self._reference[:, 3].copy())
+
+    @target_placement.setter
+    def target_placement(self, placement: pin.SE3 | np.ndarray) -> None:
+        self._set_placement(placement)
 
     def set_target(self, placement: pin.SE3 | np.ndarray, velocity=None, acceleration=None):
         """Set the desired placement (or position), velocity and acceleration.
@@ -353,6 +408,23 @@ class FrameTask(Task):
             3-vector is the linear part (angular zero), e.g. a position DMP's output; zero if
             omitted.
         """
+        self._set_placement(placement)
+        for name, value, slot in (
+            ("velocity", velocity, self.target_velocity),
+            ("acceleration", acceleration, self.target_acceleration),
+        ):
+            if value is None:
+                slot[:] = 0.0
+                continue
+            array = _array(value, name)
+            if array.shape not in ((), (3,), (6,)):
+                raise ShapeError(f"{name} has shape {array.shape}, expected (), (3,) or (6,)")
+            array = _vector(array, array.size, name)
+            slot[:] = 0.0
+            slot[: 3 if array.shape == (3,) else 6] = array
+
+    def _set_placement(self, placement) -> None:
+        """The desired placement (pinocchio.SE3) or position (shape (3,)), checked."""
         if isinstance(placement, pin.SE3):
             if not (
                 np.isfinite(placement.homogeneous).all()
@@ -362,7 +434,8 @@ class FrameTask(Task):
                     "placement must be finite with a rotation matrix (R^T R = I); it holds "
                     "NaN, inf or a non-orthonormal rotation"
                 )
-            self.target_placement = placement.copy()
+            self._reference[:, :3] = placement.rotation
+            self._reference[:, 3] = placement.translation
         else:
             position = _array(placement, "placement")
             if position.shape != (3,):
@@ -371,42 +444,26 @@ class FrameTask(Task):
                 )
             if not np.isfinite(position).all():
                 raise InvalidInputError("placement must be finite; it holds NaN or inf")
-            self.target_placement.translation = position
-        for name, value, slot in (
-            ("velocity", velocity, self.target_velocity),
-            ("acceleration", acceleration, self.target_acceleration),
-        ):
-            slot[:] = 0.0
-            if value is None:
-                continue
-            array = _array(value, name)
-            if array.shape not in ((), (3,), (6,)):
-                raise ShapeError(f"{name} has shape {array.shape}, expected (), (3,) or (6,)")
-            slot[: 3 if array.shape == (3,) else 6] = _vector(array, array.size, name)
+            self._reference[:, 3] = position
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration (one compiled
-        call, :func:`kernels.frame_task_rows`: the frame Jacobian from the joint Jacobians
+        call, :func:`kernels.frame_task`: the frame Jacobian from the joint Jacobians
         ``data.J``)."""
         model, frame_id = self.model, self.frame_id
         placement = pin.updateFramePlacement(model, data, frame_id)
-        target, jacobian = self.target_placement, self._frame_jacobian
         drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
-        stiffness, damping = self.stiffness, self.damping
-        velocity, acceleration = self.target_velocity, self.target_acceleration
         if not self._rows_kernel(
-            (v, stiffness, damping, velocity, acceleration), self.target, self.jacobian,
-            self.rows, self._error, target.rotation, target.translation, placement.rotation,
-            placement.translation, data.J, self._columns, jacobian, v, drift, velocity,
-            acceleration, stiffness, damping, self._tracks_position, self._tracks_orientation,
+            v, self._out, self._jacobians, self._indices, self._gains, self._reference,
+            placement.homogeneous, data.J, v, drift,
         ):  # fmt: skip
             # rotation error near pi: Pinocchio's log3
-            error = self._error
-            np.subtract(target.translation, placement.translation, out=error[:3])
-            error[3:] = pin.log3(target.rotation @ placement.rotation.T)
+            error, reference, gains = self._error, self._reference, self._gains
+            np.subtract(reference[:, 3], placement.translation, out=error[:3])
+            error[3:] = pin.log3(reference[:, :3] @ placement.rotation.T)
             kernels.pd_task_rows(
-                self.target, self.jacobian, self.rows, error, jacobian, v, drift, velocity,
-                acceleration, stiffness, damping,
+                self.target, self.jacobian, self.rows, error, self._frame_jacobian, v, drift,
+                gains[2], gains[3], gains[0], gains[1],
             )  # fmt: skip
 
 
@@ -433,37 +490,36 @@ class ComTask(Task):
     def __init__(self, robot, weight: float = 1.0, stiffness=50.0, damping=None):
         self.model = robot.model
         self.weight = _check_weight(weight)
-        self.stiffness, self.damping = _gains(stiffness, damping, 3)
+        # Packed once (kernels.com_task): gains rows Kp, Kd, c_ref velocity, acceleration,
+        # position; out (target, error).
+        self._gains = np.zeros((5, 3))
+        self._gains[0], self._gains[1] = _gains(stiffness, damping, 3)
         data = robot.model.createData()
-        self.target_position = np.array(
-            pin.centerOfMass(robot.model, data, robot.reference_configuration), dtype=float
-        )
-        self.target_velocity = np.zeros(3)
-        self.target_acceleration = np.zeros(3)
-        self._error = np.zeros(3)
-        self.target = np.zeros(3)
+        self._gains[4] = pin.centerOfMass(robot.model, data, robot.reference_configuration)
+        self._out = np.zeros(6)
+        self.target, self._error = self._out[:3], self._out[3:]
         self.jacobian = np.zeros((3, robot.nv))
-        self._rows_kernel = kernels.Binding(kernels.com_task_rows)
+        self._rows_kernel = kernels.Binding(kernels.com_task)
+
+    stiffness = _GainRow(0, "stiffness", 3, nonnegative=True)
+    damping = _GainRow(1, "damping", 3, nonnegative=True)
+    target_velocity = _GainRow(2, "target_velocity", 3)
+    target_acceleration = _GainRow(3, "target_acceleration", 3)
+    target_position = _GainRow(4, "target_position", 3)
 
     def set_target(self, position, velocity=None, acceleration=None) -> None:
         """Set the desired CoM position [m], velocity [m/s] and acceleration [m/s^2], shape (3,)."""
-        self.target_position[:] = _vector(position, 3, "position")  # the bound array
-        self.target_velocity[:] = 0.0 if velocity is None else _vector(velocity, 3, "velocity")
-        self.target_acceleration[:] = (
-            0.0 if acceleration is None else _vector(acceleration, 3, "acceleration")
-        )
+        position = _vector(position, 3, "position")
+        velocity = 0.0 if velocity is None else _vector(velocity, 3, "velocity")
+        acceleration = 0.0 if acceleration is None else _vector(acceleration, 3, "acceleration")
+        self._gains[4], self._gains[2], self._gains[3] = position, velocity, acceleration
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
-        """Compute the CoM Jacobian and desired acceleration minus drift.
+        """Compute the CoM Jacobian and desired acceleration minus drift (one compiled call,
+        :func:`kernels.com_task`).
 
         Uses ``data.Jcom`` from ``computeAllTerms`` and the CoM drift from the zero-acceleration
         kinematics already in ``data``.
         """
-        pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
-        stiffness, damping, position = self.stiffness, self.damping, self.target_position
-        velocity, acceleration = self.target_velocity, self.target_acceleration
-        self._rows_kernel(
-            (v, stiffness, damping, velocity, acceleration, position), self.target,
-            self.jacobian, _XYZ, self._error, position, data.com[0], data.Jcom, v, data.acom[0],
-            velocity, acceleration, stiffness, damping,
-        )  # fmt: skip
+        com = pin.centerOfMass(self.model, data, pin.ACCELERATION, False)  # data.com[0]
+        self._rows_kernel(v, self._out, self.jacobian, self._gains, com, data.Jcom, v, data.acom[0])

@@ -1006,6 +1006,17 @@ def test_posture_reference_arguments(upper_body):
         arm.set_reference(positions, outside, outside)
     with pytest.warns(UserWarning, match="outside its position limits"):
         arm.set_reference(outside)
+    # a NaN is named whatever the array's layout or type (strided view, list, read-only)
+    strided = np.repeat(positions, 2)[::2]
+    strided[4] = np.nan
+    frozen = positions.copy()
+    frozen[0] = np.nan
+    frozen.flags.writeable = False
+    for bad in (strided, list(strided), frozen):
+        with pytest.raises(InvalidInputError, match="^positions must be finite"):
+            arm.set_reference(bad)
+    with pytest.raises(InvalidInputError, match="^accelerations must be finite"):
+        arm.set_reference(positions, None, np.repeat([0.0, -np.inf], 7)[::2][::-1])
 
 
 def test_placements_must_be_finite_rigid_motions(upper_body):
@@ -1031,6 +1042,16 @@ def test_placements_must_be_finite_rigid_motions(upper_body):
     hand.set_target(np.zeros(3), 0.5)  # a scalar: every component; acceleration omitted: 0
     np.testing.assert_array_equal(hand.target_velocity, np.full(6, 0.5))
     np.testing.assert_array_equal(hand.target_acceleration, np.zeros(6))
+    # target_placement is a copy; assigning it sets the placement only, checked
+    turn = pin.SE3(pin.exp3(np.array([0.0, 0.0, 0.3])), np.array([0.1, 0.2, 0.3]))
+    hand.target_placement = turn
+    copy = hand.target_placement
+    copy.translation = np.full(3, 9.0)  # a copy: the task keeps its target
+    assert hand.target_placement.isApprox(turn, 0.0)
+    np.testing.assert_array_equal(hand.target_velocity, np.full(6, 0.5))
+    with pytest.raises(InvalidInputError, match="^placement must be finite;"):
+        hand.target_placement = np.array([0.0, np.inf, 0.0])
+    assert hand.target_placement.isApprox(turn, 0.0)
 
 
 def test_removed_task_no_longer_counts(upper_body):
@@ -1274,6 +1295,28 @@ def test_control_loop_freezes_the_objects_made_before_it():
     with pytest.raises(ZeroDivisionError), control_loop():
         1 / 0
     assert gc.get_freeze_count() == before
+
+
+def test_control_loop_collects_only_the_youngest_generation():
+    """Entering control_loop starts one collection, of generation 0 (a full one scanned every
+    object of the process at each loop); none starts inside an empty loop's body."""
+    import gc
+
+    from dmpopt.control import control_loop
+
+    generations = []
+
+    def watch(phase, info):
+        if phase == "start":
+            generations.append(info["generation"])
+
+    gc.callbacks.append(watch)
+    try:
+        with control_loop():
+            entered = list(generations)
+    finally:
+        gc.callbacks.remove(watch)
+    assert entered == [0]
 
 
 def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(upper_body):

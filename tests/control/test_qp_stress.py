@@ -255,7 +255,7 @@ def assert_kkt_point(problem, y, tol=1e-8):
     multipliers = np.linalg.lstsq(normals.T, -residual_gradient, rcond=None)[0]
     scale = 1.0 + np.abs(residual_gradient).max()
     np.testing.assert_allclose(normals.T @ multipliers, -residual_gradient, atol=tol * scale)
-    assert np.all(multipliers[a.shape[0]:] >= -tol * scale)
+    assert np.all(multipliers[a.shape[0] :] >= -tol * scale)
 
 
 def active_set_matches_clarabel(problem, at_upper) -> bool:

@@ -387,9 +387,10 @@ def run(
     sweep (:mod:`dmpopt_studies.plant_sweep`); a quick run never has them.
 
     The walks are independent runs, executed where ``runner`` says (:mod:`dmpopt.parallel`;
-    default: in series), with the same bits in series, in worker processes and on Ray: the
-    controller's answers never depend on proxsuite's address-dependent last bits
-    (:mod:`dmpopt.control.qp_stages`).
+    default: in series). An unconverged proxsuite answer no longer seeds the controller's
+    active set (:mod:`dmpopt.control.qp_stages`), but one walk of the quick run (the 13 rad/s
+    sweep) still ends in different last bits in different processes: the runs are not yet
+    bitwise reproducible across processes.
     """
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
-from typing import Sequence
+from typing import ClassVar, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -126,45 +126,41 @@ class Task:
 
 
 @dataclass(frozen=True)
-class _PostureRow:
-    """Row ``index`` of a PostureTask's state block, as an attribute: reading gives a view of
-    the row, assigning writes into it (checked). A descriptor, so that its code runs when the
-    attribute is used, not when the class is built."""
-
-    index: int
-    name: str
-    nonnegative: bool = False
-
-    def __get__(self, task, owner=None):
-        return self if task is None else task._state[self.index]
-
-    def __set__(self, task, value) -> None:
-        value = _vector(value, task._state.shape[1], self.name)
-        if self.nonnegative and (value < 0).any():  # finite: _vector checked
-            raise InvalidInputError(f"{self.name} must be finite and >= 0")
-        if self.index == 0:
-            task._warn_outside_limits(value)
-        task._state[self.index] = value
-
-
-@dataclass(frozen=True)
 class _GainRow:
     """Row ``index`` of a task's packed ``_gains`` block (gains and references), as an
-    attribute: reading gives a view of the row, assigning writes into it (checked)."""
+    attribute: reading gives a view of the row, assigning writes into it (checked). A
+    descriptor, so that its code runs when the attribute is used, not when the class is
+    built."""
 
     index: int
     name: str
-    size: int
     nonnegative: bool = False
+    block: ClassVar[str] = "_gains"
 
     def __get__(self, task, owner=None):
-        return self if task is None else task._gains[self.index]
+        return self if task is None else getattr(task, self.block)[self.index]
 
     def __set__(self, task, value) -> None:
-        value = _vector(value, self.size, self.name)
+        rows = getattr(task, self.block)
+        value = _vector(value, rows.shape[1], self.name)
         if self.nonnegative and (value < 0).any():  # finite: _vector checked
             raise InvalidInputError(f"{self.name} must be finite and >= 0")
-        task._gains[self.index] = value
+        self._check(task, value)
+        rows[self.index] = value
+
+    def _check(self, task, value) -> None:
+        """A further check of a value about to be written (none here)."""
+
+
+class _PostureRow(_GainRow):
+    """Row ``index`` of a PostureTask's ``_state`` block; a reference position outside the
+    joint limits warns."""
+
+    block: ClassVar[str] = "_state"
+
+    def _check(self, task, value) -> None:
+        if self.index == 0:
+            task._warn_outside_limits(value)
 
 
 class PostureTask(Task):
@@ -381,10 +377,10 @@ class FrameTask(Task):
         ).astype(np.int64)
         self._rows_kernel = kernels.Binding(kernels.frame_task)
 
-    stiffness = _GainRow(0, "stiffness", 6, nonnegative=True)
-    damping = _GainRow(1, "damping", 6, nonnegative=True)
-    target_velocity = _GainRow(2, "target_velocity", 6)
-    target_acceleration = _GainRow(3, "target_acceleration", 6)
+    stiffness = _GainRow(0, "stiffness", nonnegative=True)
+    damping = _GainRow(1, "damping", nonnegative=True)
+    target_velocity = _GainRow(2, "target_velocity")
+    target_acceleration = _GainRow(3, "target_acceleration")
 
     @property
     def target_placement(self) -> pin.SE3:
@@ -501,11 +497,11 @@ class ComTask(Task):
         self.jacobian = np.zeros((3, robot.nv))
         self._rows_kernel = kernels.Binding(kernels.com_task)
 
-    stiffness = _GainRow(0, "stiffness", 3, nonnegative=True)
-    damping = _GainRow(1, "damping", 3, nonnegative=True)
-    target_velocity = _GainRow(2, "target_velocity", 3)
-    target_acceleration = _GainRow(3, "target_acceleration", 3)
-    target_position = _GainRow(4, "target_position", 3)
+    stiffness = _GainRow(0, "stiffness", nonnegative=True)
+    damping = _GainRow(1, "damping", nonnegative=True)
+    target_velocity = _GainRow(2, "target_velocity")
+    target_acceleration = _GainRow(3, "target_acceleration")
+    target_position = _GainRow(4, "target_position")
 
     def set_target(self, position, velocity=None, acceleration=None) -> None:
         """Set the desired CoM position [m], velocity [m/s] and acceleration [m/s^2], shape (3,)."""

@@ -339,6 +339,7 @@ class ContactSetQP:
         relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, arguments, arguments)
         # Feasible by construction: an infeasibility report would be a false alarm.
         relaxed.qp.settings.eps_primal_inf = 1e-14
+        relaxed.feasible_by_construction = True
 
         # ---- The QP over z = x_N (nonbasic), base and contact rows eliminated, with the cone
         # rows (without them it is solved by the assembly's compiled tick).

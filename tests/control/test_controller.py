@@ -887,7 +887,8 @@ def reference_solution(controller, q, v, acceleration_regularization, force_regu
 def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
     """The controller's eliminations (base and contact rows solved for the basic
     accelerations, scaled wrenches, inequality rows added on demand) give the solution of the
-    QP as stated, when no inequality is active and when cone or torque rows are."""
+    QP as stated, when no inequality is active and when cone or torque rows are; DAQP and
+    the active-set certificate answer, proxsuite is never called."""
     import dataclasses
 
     import dmpopt.control.assembly as assembly
@@ -910,6 +911,8 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         max_iterations=10_000, time_budget=1.0, **regularization,
     )  # fmt: skip
     com.set_target(com.target_position, acceleration=com_acceleration)
+    for stage in controller._current.tick.stages:
+        stage.qp = _Forbidden()
     statuses = []
     for _ in range(3):
         q, v = random_state(robot, rng, spread=0.02, speed=speed)
@@ -1362,6 +1365,13 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     np.testing.assert_array_equal(same, answer)
 
 
+class _Forbidden:
+    """A stage's proxsuite QP that must not be used: any call raises."""
+
+    def __getattr__(self, name):
+        raise AssertionError(f"proxsuite's {name} was used")
+
+
 class _NoisyProxsuite:
     """A stage's proxsuite QP whose answers (x and z) get a random error of ``size`` times
     their largest entry (at least 1) after every solve: far more than the ~1e-12 by which
@@ -1508,3 +1518,41 @@ def test_frame_and_sole_rows_from_known_errors(upper_body, talos, angle):
     np.testing.assert_allclose(sole._error, nu, rtol=0, atol=1e-12)
     local = pin.getFrameJacobian(talos.model, data, sole.frame_id, pin.LOCAL)
     np.testing.assert_allclose(sole.jacobian, local, rtol=0, atol=1e-13)
+
+
+def test_daqps_answer_does_not_depend_on_where_the_arrays_lie(upper_body):
+    """Torque limits binding on a fixed base: the QP of the stage with every inequality row,
+    copied into buffers at four byte offsets (as another process's heap would place it),
+    gives bitwise the same DAQP status, iterations and certified optimum at each (proxsuite's
+    vectorised kernels do not: its last bits follow the offsets)."""
+    from dmpopt.control.qp_stages import ControllerStats, StageSolver, _arguments, _Stage
+
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
+                                           time_budget=1.0)  # fmt: skip
+    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
+    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller.compute_torques(q, v)
+    hessian, gradient, _, _, in_matrix, lower, upper = controller._current.tick.limited.problem
+    answers = []
+    for offset in (0, 1, 2, 3):  # in float64 entries: 0, 8, 16 and 24 bytes
+
+        def placed(array, offset=offset):
+            buffer = np.empty(array.size + 4)
+            view = buffer[offset : offset + array.size].reshape(array.shape)
+            view[...] = array
+            return view
+
+        arguments = _arguments(
+            placed(hessian), placed(gradient), None,
+            (placed(in_matrix), placed(lower), placed(upper)),
+        )  # fmt: skip
+        backend = proxsuite.proxqp.dense.DenseBackend.Automatic
+        stage = _Stage(hessian.shape[0], 0, in_matrix.shape[0], backend, arguments, arguments)
+        stage.qp = _Forbidden()
+        stats = ControllerStats()
+        assert StageSolver(controller.qp)._daqp(stage, stats, lambda stage, x: True)
+        answers.append((stats.last_status, stats.last_iterations, stage.warm[0].tobytes(),
+                        stage.at_upper.tobytes(), stage.at_lower.tobytes()))  # fmt: skip
+    assert answers[0][0] == "DAQP_SOLVED" and answers[0][1] >= 3
+    assert answers[1:] == answers[:1] * 3

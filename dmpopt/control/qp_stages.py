@@ -85,6 +85,10 @@ class ControllerStats:
         Warm-started solves that failed and were solved again from scratch.
     n_torque_limited : int
         Ticks that needed the QP with torque-limit and acceleration-bound rows.
+    n_proxsuite : int
+        Solves that went on to proxsuite because DAQP failed for another reason than
+        infeasibility (or on the relaxed QP, feasible by construction); their answers can
+        differ between processes (see :class:`StageSolver`).
     last_answer : str
         ``"direct"``, ``"solved"``, ``"relaxed"`` or ``"hold"``.
     last_status : str
@@ -102,6 +106,7 @@ class ControllerStats:
     n_fallbacks: int = 0
     n_cold_restarts: int = 0
     n_torque_limited: int = 0
+    n_proxsuite: int = 0
     last_answer: str = "not run"
     last_status: str = "not run"
     last_iterations: int = 0
@@ -319,6 +324,7 @@ class StageSolver:
         if solved or (solved is False and not stage.feasible_by_construction):
             stage.known = solved
             return solved
+        stats.n_proxsuite += 1
         qp = stage.qp
         if qp is not self.settings_source:
             settings, source = qp.settings, self.settings_source.settings

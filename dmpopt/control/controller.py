@@ -173,7 +173,8 @@ class InverseDynamicsController:
 
     - ``direct``: no inequality row active; the least-squares optimum (exact).
     - ``solved``: the QP with its inequality rows: by at most 5 active-set iterations from
-      the last tick's active set, else by proxsuite (warm-started, retried cold once on
+      the last tick's active set, else by DAQP (a dual active-set solver, deterministic;
+      only if it fails numerically by proxsuite, warm-started, retried cold once on
       failure, within the first half of the time budget) whose multipliers seed
       active-set iterations: the answer is the exact optimum of an active set that verifies
       (:func:`_active_set`), the same bits in every process.

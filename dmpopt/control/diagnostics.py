@@ -29,6 +29,10 @@ _STATUS = {
     "budget",
     "PROXQP_PRIMAL_INFEASIBLE": "infeasible: no accelerations and wrenches meet every row at once",
     "PROXQP_DUAL_INFEASIBLE": "unbounded (a task leaves a direction free)",
+    "DAQP_INFEASIBLE": "infeasible: no accelerations and wrenches meet every row at once",
+    "DAQP_ITERATION_LIMIT": "out of iterations",
+    "DAQP_CYCLING": "the active-set iterations cycled (nearly dependent rows)",
+    "DAQP_NONCONVEX": "the Hessian is not positive definite (a task leaves a direction free)",
     "NON_FINITE_PROBLEM": "a NaN or inf in a task target or the state",
 }
 
@@ -96,13 +100,13 @@ def explain(controller) -> str:
     -------
     str
         One line, e.g. ``"relaxed: the QP with its inequality rows was not solved
-        (PROXQP_MAX_ITER_REACHED: out of iterations ...); the contact rows and joint-limit
+        (DAQP_INFEASIBLE: infeasible ...); the contact rows and joint-limit
         bounds were relaxed, torque and cone rows kept. At their bounds: CoP of ..."``.
     """
     stats = controller.stats
     status = stats.last_status
     if stats.last_answer == "relaxed":  # last_status is the relaxed QP's: ask the exact one
-        status = controller._current.tick.limited.qp.results.info.status.name
+        status = controller._current.tick.limited.status
     reason = f"{status}: {_STATUS[status]}" if status in _STATUS else status
     binding = active_constraints(controller)
     rows = "; ".join(binding) if binding else "nothing"

@@ -72,13 +72,15 @@ previous tick's multipliers, so proxsuite's residuals can be small while its act
 stale: with a proximal parameter of 1e-8 it returned feasible points whose cost exceeded the
 optimum by up to 268 times it (Talos with weak motors). So proxsuite keeps its default
 proximal parameter, also checks the duality gap, and its answer is refined to the exact
-optimum of its active set (:func:`_active_set`). Before proxsuite, each QP is tried by
-active-set iterations from its previous tick's active set: in a closed loop that set is
-usually still optimal, and the tick costs one KKT solve. Either way the answer carries the
-KKT certificate of :func:`_active_set`: a QP whose active set does not verify counts as
-failed, and proxsuite's own answer (whose last bits differ between processes) is never
-returned. A tick that cannot be solved gives a defined degraded answer within its time budget
-(see :class:`InverseDynamicsController`).
+optimum of its active set (:func:`_active_set`). Each QP is tried first by active-set
+iterations from its previous tick's active set (in a closed loop that set is usually still
+optimal, and the tick costs one KKT solve), then by DAQP from scratch (a dual active-set
+solver in plain C: the same bits in every process, where proxsuite's verdict on a nearly
+infeasible QP differed between processes), and proxsuite only where DAQP fails numerically.
+Either way the answer carries the KKT certificate of :func:`_active_set`: a QP whose active
+set does not verify counts as failed, and a solver's own answer is never returned. A tick
+that cannot be solved gives a defined degraded answer within its time budget (see
+:class:`InverseDynamicsController`).
 """
 
 from __future__ import annotations
@@ -339,6 +341,7 @@ class ContactSetQP:
         relaxed = _Stage(n_relaxed, n_force, n_in, dense_backend, arguments, arguments)
         # Feasible by construction: an infeasibility report would be a false alarm.
         relaxed.qp.settings.eps_primal_inf = 1e-14
+        relaxed.feasible_by_construction = True
 
         # ---- The QP over z = x_N (nonbasic), base and contact rows eliminated, with the cone
         # rows (without them it is solved by the assembly's compiled tick).

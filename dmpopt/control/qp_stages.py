@@ -1,13 +1,13 @@
 """The QP stages of the inverse-dynamics controller and their active-set certificate.
 
 Each QP the controller may solve on a tick (with cone rows, with torque and bound rows, the
-relaxed one; see :mod:`dmpopt.control.inverse_dynamics`) is a :class:`_Stage`: a proxsuite
-QP sized once, warm-started from its last solution, and the arrays it reads. A stage is solved
-first by active-set iterations from its last active set (:func:`_active_set`, one KKT solve
-when that set is still optimal), else by proxsuite in short calls within a time budget, whose
-multipliers seed active-set iterations: every answer is the exact optimum of a verified active
-set, never proxsuite's own iterate.
-"""
+relaxed one; see :mod:`dmpopt.control.inverse_dynamics`) is a :class:`_Stage`: the arrays it
+reads, its last active set and optimum, and a proxsuite QP sized once. A stage is solved first
+by active-set iterations from its last active set (:func:`_active_set`, one KKT solve when that
+set is still optimal), else by DAQP (a dual active-set solver, deterministic) from scratch, and
+only if DAQP fails for another reason than infeasibility by proxsuite in short calls within a
+time budget. The solvers' multipliers only seed active-set iterations: every answer is the
+exact optimum of a verified active set, never a solver's own iterate."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import daqp
 import numpy as np
 import proxsuite
 
@@ -25,6 +26,13 @@ _MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 _WARM_GIVEN = proxsuite.proxqp.InitialGuess.WARM_START
 _COLD = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+# DAQP's exit flags (its documentation's list; 2, "soft optimal", needs soft rows: none here)
+_DAQP_STATUS = {
+    1: "DAQP_SOLVED", -1: "DAQP_INFEASIBLE", -2: "DAQP_CYCLING", -3: "DAQP_UNBOUNDED",
+    -4: "DAQP_ITERATION_LIMIT", -5: "DAQP_NONCONVEX", -6: "DAQP_OVERDETERMINED_START",
+}  # fmt: skip
+_DAQP_SOLVED, _DAQP_INFEASIBLE = 1, -1
+_DAQP_EQUALITY = 5  # DAQP's sense flag of an equality row
 _DIRECT = "CHOLESKY_SOLVED"  # ControllerStats.last_status of a tick without inequality rows
 _ACTIVE_SET = "ACTIVE_SET_SOLVED"  # ... of a QP solved by active-set iterations alone
 _NO_BOUND = 1e20  # proxsuite treats |bound| >= 1e20 as absent
@@ -77,6 +85,10 @@ class ControllerStats:
         Warm-started solves that failed and were solved again from scratch.
     n_torque_limited : int
         Ticks that needed the QP with torque-limit and acceleration-bound rows.
+    n_proxsuite : int
+        Solves that went on to proxsuite because DAQP failed for another reason than
+        infeasibility (or on the relaxed QP, feasible by construction); their answers can
+        differ between processes (see :class:`StageSolver`).
     last_answer : str
         ``"direct"``, ``"solved"``, ``"relaxed"`` or ``"hold"``.
     last_status : str
@@ -94,6 +106,7 @@ class ControllerStats:
     n_fallbacks: int = 0
     n_cold_restarts: int = 0
     n_torque_limited: int = 0
+    n_proxsuite: int = 0
     last_answer: str = "not run"
     last_status: str = "not run"
     last_iterations: int = 0
@@ -109,12 +122,16 @@ class _Stage:
     contact transition), so the next proxsuite update passes them too. ``warm`` holds the
     last certified optimum and its multipliers (x, y, z) (``certified``), proxsuite's next
     warm start; ``workspace`` the :class:`ActiveSetWorkspace` of the active-set iterations on
-    ``problem``, whose multipliers go to ``warm``.
+    ``problem``, whose multipliers go to ``warm``; ``daqp_arguments`` DAQP's stacked rows,
+    bounds and row kinds, filled from ``problem`` before a DAQP solve; ``status`` the status
+    of its last DAQP or proxsuite solve. ``feasible_by_construction`` (the relaxed QP): an
+    infeasibility report of DAQP is a numerical failure, and proxsuite gets its turn.
     """
 
     __slots__ = (
         "qp", "initialized", "init_arguments", "update_arguments", "problem", "at_upper",
-        "at_lower", "known", "stale", "warm", "certified", "workspace",
+        "at_lower", "known", "stale", "warm", "certified", "workspace", "daqp_arguments",
+        "status", "feasible_by_construction",
     )  # fmt: skip
 
     def __init__(self, n, n_eq, n_in, backend, init_arguments, update_arguments):
@@ -137,7 +154,16 @@ class _Stage:
         self.stale = False  # bounds changed since proxsuite last saw them: update with all
         self.warm = (np.zeros(n), np.zeros(n_eq), np.zeros(n_in))
         self.certified = False
+        self.status = "not run"  # the status of its last solve (ControllerStats.last_status)
+        self.feasible_by_construction = False
         self.workspace = ActiveSetWorkspace(self.problem, self.warm[1:])
+        # DAQP's rows: the equality rows (sense "equality", b <= A x <= b), then the
+        # inequality rows, filled from ``problem`` before each DAQP solve
+        sense = np.zeros(n_eq + n_in, dtype=np.intc)
+        sense[:n_eq] = _DAQP_EQUALITY
+        self.daqp_arguments = (
+            np.zeros((n_eq + n_in, n)), np.zeros(n_eq + n_in), np.zeros(n_eq + n_in), sense,
+        )  # fmt: skip
 
 
 def _arguments(hessian, gradient, equalities=None, inequalities=None) -> tuple:
@@ -250,14 +276,16 @@ class StageSolver:
     hands each candidate optimum to ``accept(stage, solution) -> bool`` (the QP's expansion
     into accelerations, wrenches and torques, False for a non-finite one).
 
-    The answer of a solve is decided by the active-set certificate, never by proxsuite's
-    last bits: proxsuite's iterates differ in their last bits between processes for the same
-    inputs (its vectorised kernels depend on where its buffers lie in memory). Its answer is
-    only a guess of the active set, which :func:`_active_set` refines to the exact optimum,
-    and it is warm-started from the last certified optimum, not from its own iterates. So the
-    same problems give bitwise the same answers in any process, serial or parallel. A solve
-    that no active set verifies fails (the tick goes on to its next stage, in the end to the
-    hold answer); proxsuite's own answer is never returned.
+    The answer of a solve is decided by the active-set certificate and DAQP, both
+    deterministic, never by proxsuite's last bits: proxsuite's iterates differ in their last
+    bits between processes for the same inputs (its vectorised kernels depend on where its
+    buffers lie in memory), and on a nearly infeasible QP whether it converges at all differs
+    too. A solver's answer is only a guess of the active set, which :func:`_active_set`
+    refines to the exact optimum. So the same problems give bitwise the same answers in any
+    process, serial or parallel, as long as DAQP decides (it solved or refused every QP of the
+    studies' walks; proxsuite is the fallback for a QP DAQP cannot factor or cycles on). A
+    solve that no active set verifies fails (the tick goes on to its next stage, in the end to
+    the hold answer); a solver's own answer is never returned.
     """
 
     __slots__ = ("settings_source",)
@@ -266,9 +294,13 @@ class StageSolver:
         self.settings_source = settings_source
 
     def solve(self, stage: _Stage, deadline: float, stats: ControllerStats, accept) -> bool:
-        """Solve one stage: active-set iterations from its last active set, else proxsuite
-        warm (cold on its first use), then once more cold if ``deadline`` (thread CPU time)
-        allows.
+        """Solve one stage: active-set iterations from its last active set, else DAQP from
+        scratch (its active set refined by the same iterations); only if DAQP fails for
+        another reason than infeasibility (or on a stage feasible by construction),
+        proxsuite warm (cold on its first use), then once more cold if ``deadline`` (thread
+        CPU time) allows. A stage DAQP finds infeasible fails: the tick goes on to its next
+        stage, whatever proxsuite would say (its verdict on a nearly infeasible QP differs
+        between processes).
 
         A non-finite Hessian or gradient (a NaN written into a task) fails without a solve:
         proxsuite can report such a problem solved.
@@ -276,6 +308,7 @@ class StageSolver:
         hessian, gradient = stage.update_arguments[:2]
         if not math.isfinite(hessian.sum() + gradient.sum()):
             stats.last_status, stats.last_iterations = "NON_FINITE_PROBLEM", 0
+            stage.status = stats.last_status
             stage.initialized = stage.known = stage.certified = False
             return False
         if stage.known:
@@ -287,6 +320,11 @@ class StageSolver:
             stats.last_status, stats.last_iterations = _ACTIVE_SET, solves
             if solution is not None and self._certified(stage, solution, accept):
                 return True
+        solved = self._daqp(stage, stats, accept)
+        if solved or (solved is False and not stage.feasible_by_construction):
+            stage.known = solved
+            return solved
+        stats.n_proxsuite += 1
         qp = stage.qp
         if qp is not self.settings_source:
             settings, source = qp.settings, self.settings_source.settings
@@ -313,6 +351,48 @@ class StageSolver:
         if stage.certified:
             stage.warm[0][:] = solution
         return stage.certified
+
+    def _daqp(self, stage: _Stage, stats: ControllerStats, accept) -> bool | None:
+        """DAQP (a dual active-set solver) on one stage from scratch; its multipliers seed
+        the active set that :func:`_active_set` refines.
+
+        DAQP is plain C without vectorised reductions: the same problem gives the same bits
+        in every process, so whether a QP is solved or found infeasible does not depend on
+        where its buffers lie (proxsuite's iterates do, and on a nearly infeasible QP they
+        part: one process solved a QP another called infeasible).
+
+        Returns True if a set verified (the certified optimum went to ``accept``), False if
+        DAQP found the QP infeasible, None if it failed otherwise (cycling, out of
+        iterations, a Hessian it could not factor) or its set did not verify.
+        """
+        hessian, gradient, eq_matrix, eq_vector, in_matrix, lower, upper = stage.problem
+        rows, row_upper, row_lower, sense = stage.daqp_arguments
+        n_eq = 0
+        if eq_matrix is not None:
+            n_eq = eq_matrix.shape[0]
+            rows[:n_eq] = eq_matrix
+            row_upper[:n_eq] = eq_vector
+            row_lower[:n_eq] = eq_vector
+        if in_matrix is not None:
+            rows[n_eq:] = in_matrix
+            row_upper[n_eq:] = upper
+            row_lower[n_eq:] = lower
+        _, _, flag, info = daqp.solve(hessian, gradient, rows, row_upper, row_lower, sense)
+        stats.last_status = stage.status = _DAQP_STATUS.get(flag, f"DAQP_EXIT_{flag}")
+        stats.last_iterations = int(info["iterations"])
+        if flag == _DAQP_INFEASIBLE:
+            stage.certified = False
+            return False
+        if flag != _DAQP_SOLVED:
+            return None
+        _guess_active_set(info["lam"][n_eq:], stage.at_upper, stage.at_lower)
+        solution, _ = _active_set(
+            stage.problem, stage.at_upper, stage.at_lower, self.settings_source.settings.eps_abs,
+            _REFINEMENT_ROUNDS, stage.workspace.duals, stage.workspace,
+        )  # fmt: skip
+        if solution is not None and self._certified(stage, solution, accept):
+            return True
+        return None
 
     def _run(self, stage: _Stage, cold: bool, deadline: float, stats, accept) -> bool:
         """proxsuite on one stage until ``deadline``, from scratch (``cold``) or from the
@@ -347,7 +427,7 @@ class StageSolver:
             settings.max_iter = chunk
             qp.solve()
         settings.max_iter = limit
-        stats.last_status = info.status.name
+        stats.last_status = stage.status = info.status.name
         stats.last_iterations = iterations
         # Only a converged proxsuite's multipliers seed the set: those of one stopped early
         # (out of iterations, or a problem it called infeasible) can differ between

@@ -220,15 +220,9 @@ class Tick:
     def _over_z(self) -> bool:
         """Whether the QP with every inequality row is solved over z first: if it exists,
         outside a contact transition (cone rows nearly degenerate near a zero normal force),
-        and once the QP over y holds a certified warm start (the first such QPs of a contact
+        and once the QP over y holds a certified optimum (the first such QPs of a contact
         set are solved over y), so that a failed solve over z falls back to a warm one."""
-        limited = self.limited
-        return (
-            self.eliminated_limited is not None
-            and not self.ramping
-            and limited.initialized
-            and limited.certified
-        )
+        return self.eliminated_limited is not None and not self.ramping and self.limited.certified
 
     def _count(self, answer: str) -> None:
         stats = self.stats

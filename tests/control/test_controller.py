@@ -28,6 +28,15 @@ def upper_body():
     return load_talos("reduced", fixed_base=True)
 
 
+@pytest.fixture
+def proxsuite_only(monkeypatch):
+    """As if DAQP failed on every QP (cycled, say): each solve goes on to proxsuite, the
+    fallback the tests that take this fixture exercise."""
+    from dmpopt.control import qp_stages
+
+    monkeypatch.setattr(qp_stages.StageSolver, "_daqp", lambda self, stage, stats, accept: None)
+
+
 def random_state(robot, rng, spread=0.2, speed=0.5):
     q = pin.integrate(
         robot.model, robot.reference_configuration, spread * rng.normal(size=robot.nv)
@@ -284,7 +293,7 @@ def test_contact_wrenches_satisfy_friction_cones(talos):
         com.set_target(com.target_position, acceleration=[6.0, -4.0, 0.0])
         controller.reset()
         controller.compute_torques(q, v)
-        assert controller.stats.last_status == "PROXQP_SOLVED"
+        assert controller.stats.last_status == "DAQP_SOLVED"
         for contact, wrench in zip(controller.contacts, controller.contact_wrenches):
             force, torque = wrench[:3], wrench[3:]
             assert np.hypot(force[0], force[1]) <= mu * force[2] + 1e-6
@@ -406,11 +415,12 @@ def test_weight_is_carried_by_the_feet(talos):
 
 
 # ---------------------------------------------------------------- failures
-def test_failed_solve_falls_back_without_nan(talos, monkeypatch):
-    """A QP solve that cannot finish is retried cold, then the last torque is returned, counted.
+def test_failed_solve_falls_back_without_nan(talos, monkeypatch, proxsuite_only):
+    """A proxsuite solve that cannot finish (after a DAQP failure) is retried cold, then the
+    last torque is returned, counted.
 
     Low friction and a sideways CoM acceleration make the friction rows active, so that the
-    ticks need proxsuite (the cone-free optimum is solved directly and cannot fail this way).
+    ticks need a solver (the cone-free optimum is solved directly and cannot fail this way).
     No active-set rounds follow proxsuite's unfinished solves (else they go on from the last
     tick's set and can certify the optimum without it)."""
     from dmpopt.control import qp_stages
@@ -434,7 +444,7 @@ def test_failed_solve_falls_back_without_nan(talos, monkeypatch):
     assert controller.stats.last_status == "PROXQP_SOLVED"
 
 
-def test_failed_solve_can_raise(talos, monkeypatch):
+def test_failed_solve_can_raise(talos, monkeypatch, proxsuite_only):
     """With raise_on_failure, a double failure raises NoSolutionFound carrying the stats."""
     from dmpopt.control import qp_stages
 
@@ -732,12 +742,13 @@ def test_construction_checks_name_the_argument(upper_body, talos):
         InverseDynamicsController(robot, [PostureTask(robot)])
 
 
-def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_one(
+def test_the_certificate_starts_from_daqps_active_set_then_from_the_last_one(
     upper_body, monkeypatch
 ):
-    """Torque limits binding on a fixed base: the first tick's QP goes to proxsuite, whose
+    """Torque limits binding on a fixed base: the first tick's QP goes to DAQP, whose
     multipliers seed the active set that one KKT solve then certifies; the next tick at the
-    same state starts from that set (one KKT solve, no proxsuite call)."""
+    same state starts from that set (one KKT solve, no solver call). proxsuite, run on the
+    same QP as it is after a DAQP failure, certifies the same way."""
     from dmpopt.control import qp_stages
 
     real, calls = qp_stages._active_set, []
@@ -756,21 +767,23 @@ def test_the_certificate_starts_from_proxsuites_active_set_then_from_the_last_on
     posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
     first = controller.compute_torques(q, v)
     binding = int(np.sum(np.abs(first) >= controller.torque_limit * (1 - 1e-9)))
-    assert binding >= 3 and controller.stats.last_status == "PROXQP_SOLVED"
-    cold = controller.stats.last_iterations
+    assert binding >= 3 and controller.stats.last_status == "DAQP_SOLVED"
     assert calls == [(qp_stages._REFINEMENT_ROUNDS, binding, True, 1)]
     second = controller.compute_torques(q, v)
     assert calls[1:] == [(qp_stages._WARM_ROUNDS, binding, True, 1)]
     assert (controller.stats.last_status, controller.stats.last_iterations) == (
         "ACTIVE_SET_SOLVED", 1)  # fmt: skip
     np.testing.assert_allclose(second, first, rtol=0, atol=1e-9)
-    # proxsuite again on that QP (as after a failed certificate): cold, it repeats the first
-    # solve; warm from the certified optimum, it needs fewer iterations, counted as proxsuite
-    # counts
+    # proxsuite on that QP (as after a DAQP failure): cold, its answer seeds the same set
+    # (one KKT solve, the same torques); warm from the certified optimum, it needs fewer
+    # iterations, counted as proxsuite counts
     qp, stage = controller._current, controller._current.tick.limited
     run = qp.tick.solver._run  # one proxsuite solve and its refinement, as a tick makes it
+    stage.qp.init(*stage.init_arguments)
     assert run(stage, True, math.inf, qp.stats, qp.tick._take)
-    assert controller.stats.last_iterations == cold
+    assert controller.stats.last_status == "PROXQP_SOLVED" and calls[-1][1:] == (binding, True, 1)
+    np.testing.assert_allclose(qp.assembly.candidate, qp.assembly.solution, rtol=0, atol=1e-9)
+    cold = controller.stats.last_iterations
     assert run(stage, False, math.inf, qp.stats, qp.tick._take)
     warm = controller.stats.last_iterations
     assert warm < cold and warm == stage.qp.results.info.iter  # one call: proxsuite's count
@@ -874,7 +887,8 @@ def reference_solution(controller, q, v, acceleration_regularization, force_regu
 def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
     """The controller's eliminations (base and contact rows solved for the basic
     accelerations, scaled wrenches, inequality rows added on demand) give the solution of the
-    QP as stated, when no inequality is active and when cone or torque rows are."""
+    QP as stated, when no inequality is active and when cone or torque rows are; DAQP and
+    the active-set certificate answer, proxsuite is never called."""
     import dataclasses
 
     import dmpopt.control.assembly as assembly
@@ -897,6 +911,8 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         max_iterations=10_000, time_budget=1.0, **regularization,
     )  # fmt: skip
     com.set_target(com.target_position, acceleration=com_acceleration)
+    for stage in controller._current.tick.stages:
+        stage.qp = _Forbidden()
     statuses = []
     for _ in range(3):
         q, v = random_state(robot, rng, spread=0.02, speed=speed)
@@ -910,13 +926,13 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
         np.testing.assert_allclose(tau, tau_ref, atol=1e-4)
     stats = controller.stats
     assert stats.n_fallbacks == 0 and stats.n_cold_restarts == 0
-    # Without active inequalities the tick is solved by Cholesky, with them by proxsuite on
-    # the first tick, then by proxsuite or active-set iterations from the last active set.
+    # Without active inequalities the tick is solved by Cholesky, with them by DAQP on the
+    # first tick, then by DAQP or active-set iterations from the last active set.
     if case == "free":
         assert statuses == ["CHOLESKY_SOLVED"] * 3
     else:
-        assert statuses[0] == "PROXQP_SOLVED"
-        assert set(statuses) <= {"PROXQP_SOLVED", "ACTIVE_SET_SOLVED"}
+        assert statuses[0] == "DAQP_SOLVED"
+        assert set(statuses) <= {"DAQP_SOLVED", "ACTIVE_SET_SOLVED"}
     if case == "cones":
         margins = [c.cone_margin(w) for c, w in zip(controller.contacts, wrenches)]
         assert min(m.min() for m in margins) < 1e-6, "a cone row should be active"
@@ -1078,7 +1094,7 @@ def test_removed_task_no_longer_counts(upper_body):
         controller.remove_task(posture)
 
 
-def test_settings_reach_every_contact_set_qp(talos, monkeypatch):
+def test_settings_reach_every_contact_set_qp(talos, monkeypatch, proxsuite_only):
     """time_budget and raise_on_failure set on the controller hold in the QP in use and in
     the QPs built later; after reset the counters start again from the next tick."""
     from dmpopt.control import qp_stages
@@ -1319,7 +1335,9 @@ def test_control_loop_collects_only_the_youngest_generation():
     assert entered == [0]
 
 
-def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(upper_body):
+def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_iterates(
+    upper_body, proxsuite_only
+):
     """Torque limits binding on a fixed base: a warm proxsuite solve starts from the last
     certified optimum and its multipliers, so its iterations and answer are the same whatever
     proxsuite computed in between (its own iterates differ in their last bits between
@@ -1347,6 +1365,13 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     np.testing.assert_array_equal(same, answer)
 
 
+class _Forbidden:
+    """A stage's proxsuite QP that must not be used: any call raises."""
+
+    def __getattr__(self, name):
+        raise AssertionError(f"proxsuite's {name} was used")
+
+
 class _NoisyProxsuite:
     """A stage's proxsuite QP whose answers (x and z) get a random error of ``size`` times
     their largest entry (at least 1) after every solve: far more than the ~1e-12 by which
@@ -1366,7 +1391,9 @@ class _NoisyProxsuite:
             values += self._size * scale * self._rng.uniform(-1.0, 1.0, values.size)
 
 
-def test_an_unconverged_proxsuite_answer_does_not_decide_the_torques(upper_body, monkeypatch):
+def test_an_unconverged_proxsuite_answer_does_not_decide_the_torques(
+    upper_body, monkeypatch, proxsuite_only
+):
     """Torque limits binding on a fixed base, proxsuite allowed one outer iteration (it stops
     out of iterations on every call) and no warm active-set rounds: a controller whose
     proxsuite answers carry an error of 1e-3 of their scale gives bitwise the torques of one
@@ -1402,7 +1429,9 @@ def test_an_unconverged_proxsuite_answer_does_not_decide_the_torques(upper_body,
 
 
 @pytest.mark.parametrize("case", ["torque rows", "cone rows"])
-def test_torques_do_not_depend_on_proxsuites_last_bits(upper_body, talos, case, monkeypatch):
+def test_torques_do_not_depend_on_proxsuites_last_bits(
+    upper_body, talos, case, monkeypatch, proxsuite_only
+):
     """Every tick through proxsuite (no warm active-set rounds): two controllers, the second
     built after other heap allocations and with proxsuite's answers perturbed by 1e-11 of
     their scale, give bitwise the same torques on the same states, because the answer is the
@@ -1489,3 +1518,41 @@ def test_frame_and_sole_rows_from_known_errors(upper_body, talos, angle):
     np.testing.assert_allclose(sole._error, nu, rtol=0, atol=1e-12)
     local = pin.getFrameJacobian(talos.model, data, sole.frame_id, pin.LOCAL)
     np.testing.assert_allclose(sole.jacobian, local, rtol=0, atol=1e-13)
+
+
+def test_daqps_answer_does_not_depend_on_where_the_arrays_lie(upper_body):
+    """Torque limits binding on a fixed base: the QP of the stage with every inequality row,
+    copied into buffers at four byte offsets (as another process's heap would place it),
+    gives bitwise the same DAQP status, iterations and certified optimum at each (proxsuite's
+    vectorised kernels do not: its last bits follow the offsets)."""
+    from dmpopt.control.qp_stages import ControllerStats, StageSolver, _arguments, _Stage
+
+    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
+                                           time_budget=1.0)  # fmt: skip
+    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
+    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller.compute_torques(q, v)
+    hessian, gradient, _, _, in_matrix, lower, upper = controller._current.tick.limited.problem
+    answers = []
+    for offset in (0, 1, 2, 3):  # in float64 entries: 0, 8, 16 and 24 bytes
+
+        def placed(array, offset=offset):
+            buffer = np.empty(array.size + 4)
+            view = buffer[offset : offset + array.size].reshape(array.shape)
+            view[...] = array
+            return view
+
+        arguments = _arguments(
+            placed(hessian), placed(gradient), None,
+            (placed(in_matrix), placed(lower), placed(upper)),
+        )  # fmt: skip
+        backend = proxsuite.proxqp.dense.DenseBackend.Automatic
+        stage = _Stage(hessian.shape[0], 0, in_matrix.shape[0], backend, arguments, arguments)
+        stage.qp = _Forbidden()
+        stats = ControllerStats()
+        assert StageSolver(controller.qp)._daqp(stage, stats, lambda stage, x: True)
+        answers.append((stats.last_status, stats.last_iterations, stage.warm[0].tobytes(),
+                        stage.at_upper.tobytes(), stage.at_lower.tobytes()))  # fmt: skip
+    assert answers[0][0] == "DAQP_SOLVED" and answers[0][1] >= 3
+    assert answers[1:] == answers[:1] * 3

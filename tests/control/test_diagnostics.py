@@ -77,6 +77,6 @@ def test_relaxed_answer_says_why(talos):
     controller.compute_torques(talos.reference_configuration.copy(), np.zeros(talos.nv))
     assert controller.stats.last_answer == "relaxed"
     assert explain(controller).startswith(
-        "relaxed: the QP with its inequality rows was not solved (PROXQP_PRIMAL_INFEASIBLE: "
+        "relaxed: the QP with its inequality rows was not solved (DAQP_INFEASIBLE: "
         "infeasible: no accelerations and wrenches meet every row at once)"
     )

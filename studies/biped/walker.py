@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
+from operator import mul
 
 import numpy as np
 from dmpopt_robots import biped as biped_model
@@ -400,13 +401,16 @@ def walk(
                 joint_velocities = state.v[index]
                 state = sim.step(torque, base_force)
                 power = torque @ joint_velocities
-                work = np.abs(torque * joint_velocities).sum()
+                # sum |tau_i qdot_i| in Python floats: numpy's sum of these few terms, in the
+                # same order, without its per-call overhead (the same bits)
+                work = sum(map(abs, map(mul, torque.tolist(), joint_velocities.tolist())))
                 absolute_work += work
                 positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
-                _record_gait(log, state, impact)
                 flags = state.in_contact
-                if (state.touchdowns or not flags.all()) and (
-                    flags[0] != contact[0] or flags[1] != contact[1]
+                left, right = touching = flags.tolist()  # Python bools: cheap to compare
+                _record_gait(log, state, touching, impact)
+                if (state.touchdowns or not (left and right)) and (
+                    left != contact[0] or right != contact[1]
                 ):  # else the detector would find nothing: the flags it saw last
                     strike = detector.update(state.t, flags, state.contact_positions)
                     contact = detector.last_contact
@@ -447,19 +451,20 @@ def walk(
 IMPACT_WINDOW = 0.05  # [s] after a heel strike in which its peak vertical force is taken
 
 
-def _record_gait(log: WalkLog, state, impact: list) -> None:
+def _record_gait(log: WalkLog, state, in_contact: list, impact: list) -> None:
     """Double support, the impact force of the last heel strike and stance-foot contact losses.
 
-    ``impact``: [leg, time, in contact] of the last heel strike's leg (the stance leg), updated.
+    ``in_contact``: ``state.in_contact`` as a list of bools; ``impact``: [leg, time, in
+    contact] of the last heel strike's leg (the stance leg), updated.
     """
     leg, time, was_in_contact = impact
     if leg is None:
         return
-    if state.in_contact.all():
+    if all(in_contact):
         log.double_support_time += DT
     if state.t - time <= IMPACT_WINDOW:
         log.impact_forces[-1] = max(log.impact_forces[-1], float(state.contact_forces[leg, 2]))
-    touching = bool(state.in_contact[leg])
+    touching = in_contact[leg]
     log.contact_losses += was_in_contact and not touching
     impact[2] = touching
 

@@ -20,6 +20,7 @@ The boom keeps the robot in the sagittal plane (the planar base); its pitch spri
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
 from operator import mul
@@ -257,15 +258,18 @@ class QPControl:
         """Move the swing hip's reference towards the Raibert landing angle over the swing."""
         if not (self.lifted[0] or self.lifted[1]):
             return
+        # in Python floats and the math module (numpy's ufuncs on scalars cost microseconds
+        # each); the same bits: numpy's sin, cos, arctan2 and arcsin are the C library's here,
+        # and its hypot (not Python's) is kept
         leg = 0 if self.lifted[0] else 1
-        speed = state.v[0]
-        step_duration = np.pi / self.frequency
+        speed = float(state.v[0])
+        step_duration = math.pi / self.frequency
         reach = 0.5 * speed * step_duration
         reach += self.gains.placement_gain * (speed - self.gains.target_speed)
-        knee = reference[self.knees[leg]]
-        along, across = self.thigh + self.shank * np.cos(knee), self.shank * np.sin(knee)
-        length, offset = np.hypot(along, across), np.arctan2(across, along)
-        landing = np.arcsin(min(max(reach / length, -0.8), 0.8)) + offset
+        knee = float(reference[self.knees[leg]])
+        along, across = self.thigh + self.shank * math.cos(knee), self.shank * math.sin(knee)
+        length, offset = float(np.hypot(along, across)), math.atan2(across, along)
+        landing = math.asin(min(max(reach / length, -0.8), 0.8)) + offset
         hip = self.hips[leg]
         reference[hip] += min(progress, 1.0) * (landing - reference[hip])
 

@@ -1,7 +1,8 @@
 r"""MuJoCo backend of :mod:`dmpopt.sim`: the same robot, from the same URDF, under MuJoCo physics.
 
 :class:`MujocoSimulator` has the interface of :class:`dmpopt.sim.Simulator` (``reset(q, v)``,
-``state``, ``step(tau)``, ``push``, ``push_impulse``, touchdown events, falls) and speaks
+``state``, ``step(tau)``, ``push``, ``push_impulse``, touchdown events, falls; besides,
+``snapshot()`` and ``restore(snapshot)`` to continue a run from a saved point) and speaks
 Pinocchio's coordinates, so a controller written against the Pinocchio model drives either.
 
 Model
@@ -112,7 +113,7 @@ from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_ki
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
 
-__all__ = ["SOLE_THICKNESS", "FreeBox", "MujocoSimulator", "render_animation"]
+__all__ = ["SOLE_THICKNESS", "FreeBox", "MujocoSimulator", "MujocoSnapshot", "render_animation"]
 
 SOLE_THICKNESS = 0.01  # [m] of the box that stands for a sole
 _FLOOR_BIT, _BODY_BIT = 1, 2  # contype bits: contact geometry of the feet, the rest of the body
@@ -243,6 +244,19 @@ def _urdf_for_mujoco(urdf: Path, package_dirs) -> str:
         f'meshdir="{urdf.parent}"/></mujoco>'
     )
     return _ROBOT_TAG.sub(lambda m: m.group(0) + compiler, text, count=1)
+
+
+@dataclass(frozen=True, eq=False)
+class MujocoSnapshot:
+    """A :meth:`MujocoSimulator.snapshot`: pass it to :meth:`MujocoSimulator.restore`."""
+
+    data: object  # mujoco.MjData
+    arrays: tuple
+    pushes: tuple
+    touchdown_events: tuple
+    last_touchdowns: tuple
+    fall: Fall | None
+    rng_state: dict
 
 
 class MujocoSimulator(Backend):
@@ -952,6 +966,50 @@ class MujocoSimulator(Backend):
         self._read_contacts()
         self._contact_time[0] = t if self._in_contact.any() else math.nan  # NaN: none yet
         return self.state
+
+    def snapshot(self) -> MujocoSnapshot:
+        """What the next steps depend on, to continue from here later with :meth:`restore`
+        (e.g. several continuations of one approach phase, each as a run from the start
+        would give it, bit for bit): MuJoCo's data, the last step's read-out, the plant's
+        delay line and noise, the pushes, touchdowns and fall. The model (``mj_model``:
+        masses, gravity) is not part of it: changes to it stay."""
+        data = self._mj.MjData(self.mj_model)
+        self._mj.mj_copyData(data, self.mj_model, self.mj_data)
+        return MujocoSnapshot(
+            data=data,
+            arrays=tuple(array.copy() for array in self._buffers()),
+            pushes=tuple(self._pushes),
+            touchdown_events=tuple(self.touchdown_events),
+            last_touchdowns=self._last_touchdowns,
+            fall=self.fall,
+            rng_state=self.plant._rng.bit_generator.state,
+        )
+
+    def restore(self, snapshot: MujocoSnapshot) -> SimState:
+        """Set the simulation back to a :meth:`snapshot` of this simulator; returns its state.
+
+        The buffers stay in place (the compiled step holds their addresses): their contents
+        are copied back."""
+        if not isinstance(snapshot, MujocoSnapshot) or snapshot.data.qpos.size != self.mj_model.nq:
+            raise InvalidInputError(
+                f"restore takes a snapshot() of this simulator, got {type(snapshot).__name__}"
+            )
+        self._mj.mj_copyData(self.mj_data, self.mj_model, snapshot.data)
+        for array, saved in zip(self._buffers(), snapshot.arrays):
+            array[...] = saved
+        self._pushes = list(snapshot.pushes)
+        self.touchdown_events = list(snapshot.touchdown_events)
+        self._last_touchdowns, self.fall = snapshot.last_touchdowns, snapshot.fall
+        self.plant._rng.bit_generator.state = snapshot.rng_state
+        return self.state
+
+    def _buffers(self) -> tuple:
+        """The arrays a step updates in place besides MuJoCo's data (:meth:`snapshot`)."""
+        plant = self.plant
+        return (
+            self._work, self._flags, self._contact_time, plant.line, plant.ring, plant._applied,
+            plant.noise, plant.normals, plant.next_row,
+        )  # fmt: skip
 
     @property
     def t(self) -> float:

@@ -20,8 +20,10 @@ The boom keeps the robot in the sagittal plane (the planar base); its pitch spri
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
+from operator import mul
 
 import numpy as np
 from dmpopt_robots import biped as biped_model
@@ -256,15 +258,18 @@ class QPControl:
         """Move the swing hip's reference towards the Raibert landing angle over the swing."""
         if not (self.lifted[0] or self.lifted[1]):
             return
+        # in Python floats and the math module (numpy's ufuncs on scalars cost microseconds
+        # each); the same bits: numpy's sin, cos, arctan2 and arcsin are the C library's here,
+        # and its hypot (not Python's) is kept
         leg = 0 if self.lifted[0] else 1
-        speed = state.v[0]
-        step_duration = np.pi / self.frequency
+        speed = float(state.v[0])
+        step_duration = math.pi / self.frequency
         reach = 0.5 * speed * step_duration
         reach += self.gains.placement_gain * (speed - self.gains.target_speed)
-        knee = reference[self.knees[leg]]
-        along, across = self.thigh + self.shank * np.cos(knee), self.shank * np.sin(knee)
-        length, offset = np.hypot(along, across), np.arctan2(across, along)
-        landing = np.arcsin(min(max(reach / length, -0.8), 0.8)) + offset
+        knee = float(reference[self.knees[leg]])
+        along, across = self.thigh + self.shank * math.cos(knee), self.shank * math.sin(knee)
+        length, offset = float(np.hypot(along, across)), math.atan2(across, along)
+        landing = math.asin(min(max(reach / length, -0.8), 0.8)) + offset
         hip = self.hips[leg]
         reference[hip] += min(progress, 1.0) * (landing - reference[hip])
 
@@ -400,13 +405,16 @@ def walk(
                 joint_velocities = state.v[index]
                 state = sim.step(torque, base_force)
                 power = torque @ joint_velocities
-                work = np.abs(torque * joint_velocities).sum()
+                # sum |tau_i qdot_i| in Python floats: numpy's sum of these few terms, in the
+                # same order, without its per-call overhead (the same bits)
+                work = sum(map(abs, map(mul, torque.tolist(), joint_velocities.tolist())))
                 absolute_work += work
                 positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
-                _record_gait(log, state, impact)
                 flags = state.in_contact
-                if (state.touchdowns or not flags.all()) and (
-                    flags[0] != contact[0] or flags[1] != contact[1]
+                left, right = touching = flags.tolist()  # Python bools: cheap to compare
+                _record_gait(log, state, touching, impact)
+                if (state.touchdowns or not (left and right)) and (
+                    left != contact[0] or right != contact[1]
                 ):  # else the detector would find nothing: the flags it saw last
                     strike = detector.update(state.t, flags, state.contact_positions)
                     contact = detector.last_contact
@@ -447,19 +455,20 @@ def walk(
 IMPACT_WINDOW = 0.05  # [s] after a heel strike in which its peak vertical force is taken
 
 
-def _record_gait(log: WalkLog, state, impact: list) -> None:
+def _record_gait(log: WalkLog, state, in_contact: list, impact: list) -> None:
     """Double support, the impact force of the last heel strike and stance-foot contact losses.
 
-    ``impact``: [leg, time, in contact] of the last heel strike's leg (the stance leg), updated.
+    ``in_contact``: ``state.in_contact`` as a list of bools; ``impact``: [leg, time, in
+    contact] of the last heel strike's leg (the stance leg), updated.
     """
     leg, time, was_in_contact = impact
     if leg is None:
         return
-    if state.in_contact.all():
+    if all(in_contact):
         log.double_support_time += DT
     if state.t - time <= IMPACT_WINDOW:
         log.impact_forces[-1] = max(log.impact_forces[-1], float(state.contact_forces[leg, 2]))
-    touching = bool(state.in_contact[leg])
+    touching = in_contact[leg]
     log.contact_losses += was_in_contact and not touching
     impact[2] = touching
 

@@ -178,3 +178,42 @@ def test_a_layout_that_disagrees_with_the_bindings_is_refused():
     with pytest.raises(MissingDependency, match="contact geom"):
         kernels_mujoco._check_layout(mujoco, data_type, shifted)
     kernels_mujoco._check_layout(mujoco, data_type, contact_type)  # the real one passes
+
+
+def test_a_restored_snapshot_continues_as_the_run_from_the_start(biped):
+    """Answer key: one uninterrupted run from reset (noisy, delayed plant; random torques and
+    base forces; a push across the snapshot). A second run takes a snapshot at step 30, takes
+    50 other steps (other torques, its own push, touchdowns, the plant's next block of noise
+    draws), restores, and continues with the
+    first run's inputs: every later state must be the first run's, bit for bit."""
+    q0 = pin.neutral(biped.model)
+    q0[1] = 0.62
+    rng = np.random.default_rng(3)
+    inputs = [(rng.normal(scale=5.0, size=4), rng.normal(size=3)) for _ in range(120)]
+    sim = biped_simulator(biped)
+
+    def steps(first, last, push_at, scale=1.0):
+        states = []
+        for k in range(first, last):
+            if k == push_at:
+                sim.push(biped.torso_frame, [30.0, 0.0, 0.0], 0.02)  # 20 steps
+            tau, base_force = inputs[k]
+            states.append(sim.step(scale * tau, base_force))
+        return states
+
+    sim.reset(q0)
+    uninterrupted = steps(0, 120, push_at=20)
+    sim.reset(q0)
+    steps(0, 30, push_at=20)
+    snapshot = sim.snapshot()
+    detour = steps(30, 80, push_at=35, scale=-1.0)  # past a block of noise draws (64)
+    restored = sim.restore(snapshot)
+    assert detour[-1].q.tobytes() != uninterrupted[79].q.tobytes()  # the detour went elsewhere
+    assert restored.q.tobytes() == uninterrupted[29].q.tobytes()
+    assert restored.t == uninterrupted[29].t
+    assert_same(steps(30, 120, push_at=-1), uninterrupted[30:])
+    assert [e.time for e in sim.touchdown_events] == [
+        e.time for state in uninterrupted for e in state.touchdowns
+    ]
+    with pytest.raises(InvalidInputError, match="snapshot"):
+        sim.restore(uninterrupted[0])

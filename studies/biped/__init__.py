@@ -387,10 +387,10 @@ def run(
     sweep (:mod:`dmpopt_studies.plant_sweep`); a quick run never has them.
 
     The walks are independent runs, executed where ``runner`` says (:mod:`dmpopt.parallel`;
-    default: in series). An unconverged proxsuite answer no longer seeds the controller's
-    active set (:mod:`dmpopt.control.qp_stages`), but one walk of the quick run (the 13 rad/s
-    sweep) still ends in different last bits in different processes: the runs are not yet
-    bitwise reproducible across processes.
+    default: in series), with the same bits in series, in worker processes and on Ray: the
+    QPs the controller's warm active set does not certify are decided by DAQP, whose answers
+    do not depend on where its buffers lie (:mod:`dmpopt.control.qp_stages`; the quick run's
+    walks made 435 DAQP solves and no proxsuite one).
     """
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 

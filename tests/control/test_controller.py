@@ -888,10 +888,23 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
     """The controller's eliminations (base and contact rows solved for the basic
     accelerations, scaled wrenches, inequality rows added on demand) give the solution of the
     QP as stated, when no inequality is active and when cone or torque rows are; DAQP and
-    the active-set certificate answer, proxsuite is never called."""
+    the active-set certificate answer, proxsuite is never called, and DAQP's active set (over
+    the full variables, with the contact rows as equalities, on a contact set's first QPs) is
+    the optimal one: its certificate takes one KKT solve."""
     import dataclasses
 
     import dmpopt.control.assembly as assembly
+    from dmpopt.control import qp_stages
+
+    real, refinements = qp_stages._active_set, []
+
+    def recorded(problem, at_upper, at_lower, tolerance, rounds, duals=None, workspace=None):
+        solution, solves = real(problem, at_upper, at_lower, tolerance, rounds, duals, workspace)
+        if rounds == qp_stages._REFINEMENT_ROUNDS:  # after DAQP
+            refinements.append((problem[2] is not None, solves))
+        return solution, solves
+
+    monkeypatch.setattr(qp_stages, "_active_set", recorded)
 
     rng = np.random.default_rng(7)
     robot, friction, com_acceleration, speed = talos, 0.7, [0.0, 0.0, 0.0], 0.2
@@ -933,6 +946,9 @@ def test_reduced_qp_matches_the_full_qp(talos, case, monkeypatch):
     else:
         assert statuses[0] == "DAQP_SOLVED"
         assert set(statuses) <= {"DAQP_SOLVED", "ACTIVE_SET_SOLVED"}
+    if case in ("torque_limits", "contact_rows_kept"):  # QPs with equality rows went to DAQP
+        assert (True, 1) in refinements
+    assert all(solves == 1 for _, solves in refinements), refinements
     if case == "cones":
         margins = [c.cone_margin(w) for c, w in zip(controller.contacts, wrenches)]
         assert min(m.min() for m in margins) < 1e-6, "a cone row should be active"

@@ -126,6 +126,7 @@ def first_level(n_basis: int) -> float:
 
 _KERNELS = '''
 _compile = numba.njit(cache=True, nogil=True, error_model="numpy")
+_inline = numba.njit(nogil=True, error_model="numpy", inline="always")  # per point: no call
 canonical_step = _compile(canonical_step)
 phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
@@ -133,6 +134,7 @@ N_CARRIER = {n_carrier}
 N_STATES = {n_states}
 TRACKED = {tracked}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
+BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
 
 
 @_compile
@@ -161,7 +163,7 @@ def window(canonical, target, gains, centres, widths, max_width, first, with_rat
     return point, lo, hi, top
 
 
-@_compile
+@_inline
 def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, mark, slopes,
                   values, rates):
     """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
@@ -271,42 +273,82 @@ def tracked_window(canonical, target, gains, centres, widths, root_widths, max_w
 
 
 @_compile
-def windows(canonical0, dt, target, gains, centres, widths, first, lows, highs, tops, lowest,
-            highest):
-    """The bases kept at each point of a response (:func:`window`): lows[k, s], highs[k, s],
-    tops[k, s] at step k's sample (s = 0, the level with rates) and its stages 2-4 (s = 1..3;
-    the last step's, which the response does not take, repeat its sample's); lowest[k],
-    highest[k] the first and last basis that step k keeps at any of them."""
-    n_steps, n_basis = lows.shape[0], centres.size
-    logs, lasts, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
-    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
+def candidates(canonical0, dt, target, gains, centres, widths, first, lowest, highest):
+    """The bases step k may keep at its sample or stages, lowest[k] .. highest[k]: every
+    other basis is proved more than SKIP_MARGIN below the truncation level at all four
+    points, by blocks of steps whose points' phases lie within BLOCK_REACH / sqrt(max h) of
+    the block's middle m (module docstring, "Candidates"): sqrt(-l_j) moves by at most
+    sqrt(h_j) r from its value at m over a block of half-width r."""
+    n_steps, n_basis = lowest.size, centres.size
     root_widths = np.sqrt(widths)
+    max_width = widths.max()
+    reach = BLOCK_REACH / math.sqrt(max_width)
     canonical = canonical0.copy()
     stage = np.empty(2)
-    max_width = widths.max()
+    begin = 0
+    low = high = phase_point(canonical, target, gains)[0]
     for k in range(n_steps):
-        _, lo, hi, top = tracked_window(canonical, target, gains, centres, widths, root_widths,
-                                        max_width, first, True, logs, lasts, phases, seen, 4 * k,
-                                        previous)
-        for s in range(4):
-            lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
-        if k == n_steps - 1:
-            break
-        result = canonical_step(canonical, dt, target, gains)
-        for s in range(1, 4):
-            stage[0] = result[2 + 2 * s]
-            stage[1] = result[3 + 2 * s]
-            _, lo, hi, top = tracked_window(stage, target, gains, centres, widths, root_widths,
-                                            max_width, first, False, logs, lasts, phases, seen,
-                                            4 * k + s, previous)
-            lows[k, s], highs[k, s], tops[k, s] = lo, hi, top
-        canonical[0] = result[0]
-        canonical[1] = result[1]
-    for k in range(n_steps):  # numpy's min(axis=1) over 4 columns took 0.5 ms per 10^4 steps
-        lowest[k], highest[k] = lows[k, 0], highs[k, 0]
-        for s in range(1, 4):
-            lowest[k] = min(lowest[k], lows[k, s])
-            highest[k] = max(highest[k], highs[k, s])
+        step_low = step_high = phase_point(canonical, target, gains)[0]
+        if k < n_steps - 1:
+            result = canonical_step(canonical, dt, target, gains)
+            for s in range(1, 4):
+                stage[0] = result[2 + 2 * s]
+                stage[1] = result[3 + 2 * s]
+                phase = phase_point(stage, target, gains)[0]
+                step_low, step_high = min(step_low, phase), max(step_high, phase)
+            canonical[0] = result[0]
+            canonical[1] = result[1]
+        if k > begin and max(high, step_high) - min(low, step_low) > 2.0 * reach:
+            block_candidates(low, high, begin, k, centres, widths, root_widths, max_width,
+                             first, lowest, highest)
+            begin, low, high = k, step_low, step_high
+        else:
+            low, high = min(low, step_low), max(high, step_high)
+    block_candidates(low, high, begin, n_steps, centres, widths, root_widths, max_width, first,
+                     lowest, highest)
+
+
+@_compile
+def block_candidates(low, high, begin, end, centres, widths, root_widths, max_width, first,
+                     lowest, highest):
+    """lowest[begin:end], highest[begin:end]: the first and last basis not proved below the
+    level anywhere on the phases low .. high (:func:`candidates`)."""
+    n_basis = centres.size
+    middle, radius = 0.5 * (low + high), 0.5 * (high - low)
+    roots = np.empty(n_basis)
+    top = -math.inf  # a lower bound of the largest log-activation on the block
+    for j in range(n_basis):
+        roots[j] = math.sqrt(-log_activation(middle, centres[j], widths[j])[0])
+        spread = roots[j] + root_widths[j] * radius
+        top = max(top, -spread * spread)
+    level = level_of(top, max_width, first, True) - SKIP_MARGIN  # the sample's, the lowest
+    lo, hi = 0, n_basis - 1
+    while lo < hi and -max(roots[lo] - root_widths[lo] * radius, 0.0) ** 2 < level:
+        lo += 1
+    while hi > lo and -max(roots[hi] - root_widths[hi] * radius, 0.0) ** 2 < level:
+        hi -= 1
+    for k in range(begin, end):
+        lowest[k], highest[k] = lo, hi
+
+
+@_inline
+def candidate_window(point, low, high, centres, widths, max_width, first, with_rate, logs,
+                     seen, mark):
+    """:func:`window` of a point from the bases low .. high only (:func:`candidates`: the
+    others are below the level there): (lo, hi, top), logs[j] the log-activation of basis j
+    for low <= j <= high, marked seen[j] = mark."""
+    top = -math.inf
+    for j in range(low, high + 1):
+        logs[j] = log_activation(point[0], centres[j], widths[j])[0]
+        seen[j] = mark
+        top = max(top, logs[j])
+    level = level_of(top, max_width, first, with_rate)
+    lo, hi = low, high
+    while logs[lo] < level:
+        lo += 1
+    while logs[hi] < level:
+        hi -= 1
+    return lo, hi, top
 
 
 @_compile
@@ -322,13 +364,14 @@ def affine_row(row, coefficients, goal, states):
 
 
 @_compile
-def response(canonical, dt, target, gains, centres, widths, first, lows, highs, tops, inline,
+def response(canonical, dt, target, gains, centres, widths, first, lowest, highest, inline,
              first_step, first_basis, advance, step, step_goal, step_forcing, output,
              output_goal, output_forcing, states, out):
     """Fill out (3, n_steps, m): responses of position, velocity and acceleration of the m
     columns whose transformation states are ``states`` (n, m) at the canonical state
-    ``canonical``, the steps from first_step on; the bases kept at them are in lows, highs,
-    tops (:func:`windows`) or, ``inline``, found here (tracked_window). Column N_STATES takes
+    ``canonical``, the steps from first_step on; the bases kept at them are found among step
+    k's candidates lowest[k] .. highest[k] (:func:`candidates`) or, ``inline``, among all
+    (tracked_window). Column N_STATES takes
     the goal, column N_STATES + 1 + N_CARRIER i + e the feature e of basis first_basis + i (a
     basis outside them must not be forced). ``advance``: step past the last sample too.
     ``canonical`` and ``states`` are left at the state after the last step."""
@@ -342,15 +385,15 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
     seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
     root_widths, max_width = np.sqrt(widths), widths.max()
     for k in range(n_steps):
-        at, mark = first_step + k, -2  # mark: no log-activation known
+        at, mark = first_step + k, 4 * k
         if inline:
-            mark = 4 * k
             point, lo, hi, top = tracked_window(canonical, target, gains, centres, widths,
                                                 root_widths, max_width, first, True, logs, lasts,
                                                 phases, seen, mark, previous)
         else:
             point = phase_point(canonical, target, gains)
-            lo, hi, top = lows[at, 0], highs[at, 0], tops[at, 0]
+            lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
+                                           max_width, first, True, logs, seen, mark)
         kept_features(point, lo, hi, top, centres, widths, True, logs, seen, mark, slopes,
                       values, rates)
         count = hi + 1 - lo
@@ -377,14 +420,15 @@ def response(canonical, dt, target, gains, centres, widths, first, lows, highs, 
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
+            mark = 4 * k + s
             if inline:
-                mark = 4 * k + s
                 point, lo, hi, top = tracked_window(stage, target, gains, centres, widths,
                                                     root_widths, max_width, first, False, logs,
                                                     lasts, phases, seen, mark, previous)
             else:
                 point = phase_point(stage, target, gains)
-                lo, hi, top = lows[at, s], highs[at, s], tops[at, s]
+                lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
+                                               max_width, first, False, logs, seen, mark)
             kept_features(point, lo, hi, top, centres, widths, False, logs, seen, mark, slopes,
                           values, rates)
             count = hi + 1 - lo
@@ -560,12 +604,12 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     normalised by ``tau``: positions, velocities and accelerations against the initial
     transformation states, the goal and the weights (:class:`ResponseMatrices`).
 
-    Discrete forms, ``factored``: the pass first finds which bases each step forces
-    (:func:`tail_start`);
-    in the settling tail only the bases near the phase's end are forced, so the other
-    columns are kept as a factor there. Rhythmic forms: no tail (their phase cycles, each
-    basis is forced once a period), and the search is left out (it evaluates every basis at
-    every stage, 50 cosines per point)."""
+    Discrete forms: a first pass finds each step's candidate bases (:func:`candidates`),
+    from which the response pass finds the kept ones at each point; ``factored``: in the
+    settling tail only the bases near the phase's end are forced, so the other columns are
+    kept as a factor there (:func:`tail_start`). Rhythmic forms: no tail (their phase
+    cycles, each basis is forced once a period), and the response pass finds the kept bases
+    itself (tracked_window), as their phase wraps."""
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
     centres, widths = np.array(centres, dtype=float), np.array(widths, dtype=float)
@@ -576,20 +620,19 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     n_carrier = symbolic.FORMS[form].vectors_per_basis
     module = kernels(form, kernel)
     first, canonical = first_level(n_basis), np.array(canonical0, dtype=float)
-    n_head, inline = n_steps, not (factored and symbolic.FORMS[form].discrete)
-    held = 1 if inline else n_steps  # the windows are found in the pass itself if inline
-    lows, highs = np.empty((held, 4), dtype=np.int64), np.empty((held, 4), dtype=np.int64)
-    tops = np.empty((held, 4))
+    n_head, inline = n_steps, not symbolic.FORMS[form].discrete
+    held = 1 if inline else n_steps
     lowest, highest = np.empty(held, dtype=np.int64), np.empty(held, dtype=np.int64)
     if not inline:
-        module.windows(canonical, float(dt), float(target), gains, centres, widths, first, lows,
-                       highs, tops, lowest, highest)  # fmt: skip
-        n_head = tail_start(lowest, highest, n_inputs, n + 1, n_carrier)
+        module.candidates(canonical, float(dt), float(target), gains, centres, widths, first,
+                          lowest, highest)  # fmt: skip
+        if factored:
+            n_head = tail_start(lowest, highest, n_inputs, n + 1, n_carrier)
     constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
         matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"],
     )  # fmt: skip
-    windows = (first, lows, highs, tops, inline)
+    windows = (first, lowest, highest, inline)
     states = np.zeros((n, n_inputs))
     states[:, :n] = np.eye(n)
     head = fresh_array((3, n_head, n_inputs))

@@ -65,10 +65,10 @@ whose last 77 % of steps follow its convergence time); the bases near the phase'
 steps, then moves under the unforced step, which is affine in the state with constant
 matrices (:func:`symbolic.transformation_matrices`): its response from step :math:`K` on is
 that of the unit states and the goal, times its state at :math:`K`. A first pass
-(``windows``) finds the bases each step forces and keeps them with the largest
-log-activation, so the response pass evaluates only those; :func:`tail_start` puts :math:`K`
-where the dense head and the tail (the unit responses and the still forced columns) hold the
-fewest numbers: for the LASA demo 2334 of 10676 steps dense, 5.6 instead of 13.6 MB. The head and
+(``candidates``, below) bounds the bases each step may force; :func:`tail_start` puts
+:math:`K` where the dense head and the tail (the unit responses and the columns still forced
+after :math:`K`) hold the fewest numbers: for the LASA demo 2237 of 10676 steps dense, 5.9
+instead of 13.6 MB. The head and
 the forced columns are the dense pass's to the bit; the other columns round differently, by
 at most :math:`(n + 1) \epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3)
 ||c_j||_1` at tail step :math:`i` (:math:`\tilde S`, :math:`\tilde O` the step and output
@@ -78,23 +78,42 @@ tests/core/test_response.py). Rhythmic forms keep no tail: their phase cycles, s
 basis is forced once a period; their pass (and that of a dense response) finds the kept
 bases itself.
 
-Which bases are kept is found without evaluating every basis at every point
-(``tracked_window``): :math:`l'^2 \le 4 h |l|` makes :math:`\sqrt{-l_j}` change by at most
-:math:`\sqrt{h_j}` per unit of phase, so a basis evaluated at phase :math:`p_j` is still
-more than a margin below the level at phase :math:`p` if :math:`(\sqrt{-l_j(p_j)} -
-\sqrt{h_j} |p - p_j|)^2` says so; it is then left out, exactly as the full evaluation would
-leave it out (the largest log-activation and the kept bases are the same;
-tests/core/test_response.py compares them at every point). Only for kernels continuous in
-the phase (:data:`forms.TRACKED_KERNELS`): the printed periodic kernel jumps where the
-phase wraps. (The phase form's first rollout of 50 von Mises bases, 9426 steps, fell from 75
-to 50 ms of thread CPU at load 8 with it.)
+Which bases are kept is found without evaluating every basis at every point. Both ways
+rest on :math:`l'^2 \le 4 h |l|`: :math:`\sqrt{-l_j}` changes by at most :math:`\sqrt{h_j}`
+per unit of phase, for kernels continuous in the phase.
 
-Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; thread
-CPU at load 5-10, medians of 30-40 new DMPs, shares stable while the totals varied 12-19
-ms): the windows pass 28 %, the dense head (2334 steps, 53 columns) 20 %, the tail (8342
-steps, 13 columns: about 10 bases forced at each of 4 points per step, an exp each) 44 %,
-the rest of :func:`response_matrices` (CasADi's transformation matrices, :func:`tail_start`)
-under 4 %; outside it the plan's product about 1.5 ms and the inputs 0.5 ms.
+- Discrete forms (``candidates``): their phase runs once from 0 towards 1, so consecutive
+  steps are grouped into blocks whose points (samples and stages) lie within :math:`r =`
+  ``BLOCK_REACH`` :math:`/ \sqrt{h_\max}` of the block's middle phase :math:`m`. With
+  :math:`s_j = \sqrt{-l_j(m)}`, every point of the block has :math:`-(s_j + \sqrt{h_j} r)^2
+  \le l_j \le -\max(s_j - \sqrt{h_j} r, 0)^2`, so its largest log-activation :math:`M` is at
+  least :math:`T = \max_j -(s_j + \sqrt{h_j} r)^2` and its level (the samples', the lowest;
+  the level :math:`M - L(M)` falls as :math:`M` does) at least that of :math:`T`. A basis
+  whose upper bound is more than ``SKIP_MARGIN`` (which covers the rounding of these few
+  operations) below it is below the level at every point of the block; the others, from
+  the first to the last, are the step's candidates, 50 log-activations per block instead
+  of per point. At each point the response pass evaluates the candidates only: the largest
+  log-activation and the kept bases are those of every basis (tests/core/test_response.py
+  compares them at every point), so the features, and the response, are the same to the
+  bit. (The Gaussian is continuous in the phase, and a discrete phase stays far from
+  :math:`2\pi`, where the printed periodic kernel jumps.)
+- Rhythmic forms (``tracked_window``, :data:`forms.TRACKED_KERNELS`): their phase cycles, so
+  the pass tracks the bases itself: a basis evaluated at phase :math:`p_j` is still more
+  than a margin below the level at phase :math:`p` if :math:`(\sqrt{-l_j(p_j)} - \sqrt{h_j}
+  |p - p_j|)^2` says so, and is then left out. Not for the printed periodic kernel, which
+  jumps where the phase wraps. (The phase form's first rollout of 50 von Mises bases, 9426
+  steps, fell from 75 to 50 ms of thread CPU at load 8 with it.)
+
+Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps;
+benchmarks/bench_core.py; thread CPU at load 9, medians of 40 new DMPs, 18.9 ms in all):
+the candidates pass 2 %, the head pass (2237 steps, 53 columns) 25 %, the tail pass (8439
+steps, 15 columns: about 10 bases kept at each of 4 points per step, an exp each) 54 %, the
+product 9 %. A third of it (6.4 ms) was the system's: the passes' first writes to the 5.9
+MB of fresh response fault it in page by page (1440 pages), as the memory of the last
+response had gone back to the system. Before the candidates (one pass evaluating all 50
+bases at all 4 points of each step, 28 % of the first rollout, and the head and tail
+passes each basis again) the same first rollout cost 1.3-1.5 times as much, measured
+side by side.
 """
 
 from __future__ import annotations
@@ -169,7 +188,7 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
     """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
     phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
     rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
-    mark (evaluated there by tracked_window), else evaluated."""
+    mark (evaluated there by tracked_window or candidate_window), else evaluated."""
     phase, phase_rate = point[0], point[1]
     total = 0.0
     for j in range(lo, hi + 1):
@@ -277,9 +296,9 @@ def candidates(canonical0, dt, target, gains, centres, widths, first, lowest, hi
     """The bases step k may keep at its sample or stages, lowest[k] .. highest[k]: every
     other basis is proved more than SKIP_MARGIN below the truncation level at all four
     points, by blocks of steps whose points' phases lie within BLOCK_REACH / sqrt(max h) of
-    the block's middle m (module docstring, "Candidates"): sqrt(-l_j) moves by at most
+    the block's middle m (module docstring, discrete forms): sqrt(-l_j) moves by at most
     sqrt(h_j) r from its value at m over a block of half-width r."""
-    n_steps, n_basis = lowest.size, centres.size
+    n_steps = lowest.size
     root_widths = np.sqrt(widths)
     max_width = widths.max()
     reach = BLOCK_REACH / math.sqrt(max_width)

@@ -109,11 +109,12 @@ benchmarks/bench_core.py; thread CPU at load 9, medians of 40 new DMPs, 18.9 ms 
 the candidates pass 2 %, the head pass (2237 steps, 53 columns) 25 %, the tail pass (8439
 steps, 15 columns: about 10 bases kept at each of 4 points per step, an exp each) 54 %, the
 product 9 %. A third of it (6.4 ms) was the system's: the passes' first writes to the 5.9
-MB of fresh response fault it in page by page (1440 pages), as the memory of the last
-response had gone back to the system. Before the candidates (one pass evaluating all 50
-bases at all 4 points of each step, 28 % of the first rollout, and the head and tail
-passes each basis again) the same first rollout cost 1.3-1.5 times as much, measured
-side by side.
+MB of new response fault it in page by page (1440 pages of 4 KiB; each new DMP keeps its
+last plan, so the memory is new). Before the candidates (one pass evaluating all 50 bases
+at all 4 points of each step, 28 % of the first rollout, and the head and tail passes each
+kept basis again) the first rollout cost 1.1-1.4 times as much in side-by-side runs of
+benchmarks/bench_core.py at load 8-9, and the response passes alone 1.3 times (medians of
+40, interleaved).
 """
 
 from __future__ import annotations

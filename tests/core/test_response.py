@@ -331,15 +331,17 @@ def _points(module, canonical, target, gains, n_steps, dt):
 
 
 @pytest.mark.parametrize("form, kernel", [case for case in CASES if case[0] in DISCRETE])
-def test_the_candidate_bases_hold_every_kept_basis(form, kernel):
+@pytest.mark.parametrize("n_steps, dt", [(1500, 0.002), (60, 0.05)])
+def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
     """A discrete form's bases are evaluated only among each step's candidates (proved by
     blocks: sqrt(-l) moves by at most sqrt(h) per unit of phase, as l'^2 <= 4 h |l|): at
-    every sample and stage of 1500 steps the kept bases and the largest log-activation found
+    every sample and stage of the steps (small ones, and steps that each cross several
+    bases, a block of one step each) the kept bases and the largest log-activation found
     among them equal those from every basis's log-activation (window), checked at each point
     in turn, and the candidates leave out some basis (the proof is not idle)."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
     module = response.kernels(form, kernel)
-    first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
+    first = response.first_level(centres.size)
     lowest, highest = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
     module.candidates(np.zeros(2), dt, target, gains, centres, widths, first, lowest, highest)
     assert np.all(highest - lowest + 1 < centres.size)

@@ -19,6 +19,7 @@ from dmpopt.basis import discrete_basis, rhythmic_basis
 EPS = np.finfo(float).eps
 DISCRETE_GAINS = list(problems.DISCRETE_GAINS)
 CASES = problems.FORMS_AND_KERNELS
+DISCRETE = ("velocity", "acceleration")
 
 
 def _problem(form, kernel, n_basis=30, n_points=200, seed=0):
@@ -321,30 +322,59 @@ def test_the_tail_starts_where_the_fewest_numbers_are_held():
     assert response.tail_start(np.zeros(10, int), np.full(10, 5), 9, 3, 1) == 10
 
 
-@pytest.mark.parametrize("form, kernel", CASES)
-def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
-    """The windows pass evaluates only the bases it cannot rule out (sqrt(-l) moves by at most
-    sqrt(h) per unit of phase, as l'^2 <= 4 h |l|; von Mises only, forms.TRACKED_KERNELS):
-    at every sample and stage of 1500 steps its kept bases and largest log-activation equal
-    those from every basis's log-activation (window), checked at each point in turn; each
-    step's first and last kept basis are the least and largest of its points'."""
+def _points(module, canonical, target, gains, n_steps, dt):
+    """Each step's sample and stages (canonical states) along n_steps steps."""
+    for _ in range(n_steps - 1):
+        result = module.canonical_step(canonical, dt, target, gains)
+        yield [canonical] + [np.array(result[2 + 2 * s : 4 + 2 * s]) for s in (1, 2, 3)]
+        canonical = np.array(result[:2])
+
+
+@pytest.mark.parametrize("form, kernel", [case for case in CASES if case[0] in DISCRETE])
+@pytest.mark.parametrize("n_steps, dt", [(1500, 0.002), (60, 0.05)])
+def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
+    """A discrete form's bases are evaluated only among each step's candidates (proved by
+    blocks: sqrt(-l) moves by at most sqrt(h) per unit of phase, as l'^2 <= 4 h |l|): at
+    every sample and stage of the steps (small ones, and steps that each cross several
+    bases, a block of one step each) the kept bases and the largest log-activation found
+    among them equal those from every basis's log-activation (window), checked at each point
+    in turn, and the candidates leave out some basis (the proof is not idle)."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
     module = response.kernels(form, kernel)
-    canonical = np.array([0.0, 0.0] if form in ("velocity", "acceleration") else [0.3, 1.2])
-    first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
-    lows, highs = np.empty((n_steps, 4), dtype=np.int64), np.empty((n_steps, 4), dtype=np.int64)
-    tops = np.empty((n_steps, 4))
+    first = response.first_level(centres.size)
     lowest, highest = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
-    module.windows(canonical, dt, target, gains, centres, widths, first, lows, highs, tops,
-                   lowest, highest)  # fmt: skip
-    np.testing.assert_array_equal(lowest, lows.min(axis=1))  # each step's first and last basis
-    np.testing.assert_array_equal(highest, highs.max(axis=1))
-    logs = np.empty(centres.size)
-    for k in range(n_steps - 1):
-        result = module.canonical_step(canonical, dt, target, gains)
-        points = [canonical] + [np.array(result[2 + 2 * s : 4 + 2 * s]) for s in (1, 2, 3)]
+    module.candidates(np.zeros(2), dt, target, gains, centres, widths, first, lowest, highest)
+    assert np.all(highest - lowest + 1 < centres.size)
+    logs, seen = np.empty(centres.size), np.full(centres.size, -1)
+    for k, points in enumerate(_points(module, np.zeros(2), target, gains, n_steps, dt)):
         for s, point in enumerate(points):
             _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
                                            first, s == 0, logs)  # fmt: skip
-            assert (lo, hi, top) == (lows[k, s], highs[k, s], tops[k, s])
-        canonical = np.array(result[:2])
+            phases = module.phase_point(point, target, gains)
+            found = module.candidate_window(phases, lowest[k], highest[k], centres, widths,
+                                            widths.max(), first, s == 0, logs, seen, 0)  # fmt: skip
+            assert found == (lo, hi, top)
+
+
+@pytest.mark.parametrize("form, kernel", [case for case in CASES if case[0] not in DISCRETE])
+def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
+    """A rhythmic form's pass finds the kept bases itself, evaluating only those it cannot
+    rule out (von Mises only, forms.TRACKED_KERNELS): at every sample and stage of 1500
+    steps, in the pass's order, its kept bases and largest log-activation equal those from
+    every basis's log-activation (window)."""
+    centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
+    module = response.kernels(form, kernel)
+    first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
+    n_basis = centres.size
+    logs, lasts, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
+    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
+    expected_logs = np.empty(n_basis)
+    canonical = np.array([0.3, 1.2])
+    for k, points in enumerate(_points(module, canonical, target, gains, n_steps, dt)):
+        for s, point in enumerate(points):
+            _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
+                                           first, s == 0, expected_logs)  # fmt: skip
+            found = module.tracked_window(point, target, gains, centres, widths, np.sqrt(widths),
+                                          widths.max(), first, s == 0, logs, lasts, phases, seen,
+                                          4 * k + s, previous)[1:]  # fmt: skip
+            assert found == (lo, hi, top)

@@ -132,8 +132,9 @@ class Task:
 
         ``data`` holds the joint kinematics of :math:`(q, \dot q, \ddot q = 0)` and the joint
         Jacobians (on a floating base, everything ``computeAllTerms`` fills). Frame
-        placements are not refreshed for all frames: a task that reads a frame updates its
-        own (``pin.updateFramePlacement``).
+        placements (``data.oMf``) are not refreshed: a task that reads a frame computes its
+        placement from its parent joint's (``data.oMi``), or updates its own
+        (``pin.updateFramePlacement``).
         """
         raise NotImplementedError
 

@@ -1558,9 +1558,10 @@ def test_tick_rows_are_pinocchios(talos):
             com.target_acceleration + com.stiffness * (com.target_position - position)
             + com.damping * (com.target_velocity - data.vcom[0]) - data.acom[0]
         )  # fmt: skip
-        expected[lean] = pin.getFrameJacobian(
-            model, data, lean.frame_id, pin.LOCAL_WORLD_ALIGNED
-        )[3:], np.full(3, 0.5)
+        expected[lean] = (
+            pin.getFrameJacobian(model, data, lean.frame_id, pin.LOCAL_WORLD_ALIGNED)[3:],
+            np.full(3, 0.5),
+        )
         stacked = [t for t in controller.tasks if not isinstance(t, PostureTask)]
         for task, block in zip(stacked, layout.task_rows):
             jacobian, target = expected[task]

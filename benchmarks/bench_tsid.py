@@ -38,9 +38,10 @@ Run from the repository root: ``PYTHONPATH=.:benchmarks python benchmarks/bench_
 [--seconds 2] [--repeats 3] [--scenarios drumming wave com-step walking] [--no-freeze]``. After the
 walk it prints the CPU time per stage of dmpopt's one-foot QP ticks (one more replay); with
 ``--stages``, only the stage timers, of each scenario given (the walk's one-foot QP ticks,
-every tick of the others), e.g. ``--stages --scenarios drumming``. ``--gc-replays N``: only dmpopt, N replays of each recording watching
-the garbage collector (collections started inside and between ticks, the longest tick by CPU
-and wall time and the ticks over 2 ms of CPU), e.g. ``--gc-replays 10``.
+every tick of the others), e.g. ``--stages --scenarios drumming``. ``--gc-replays N``: only
+dmpopt, N replays of each recording watching the garbage collector (collections started inside
+and between ticks, the longest tick by CPU and wall time and the ticks over 2 ms of CPU), e.g.
+``--gc-replays 10``.
 
 Garbage collection: dmpopt's tick pauses the collector (``gc in dmpopt ticks`` counts the
 collections started inside them: 0 by construction); the closed loop that records each
@@ -339,8 +340,7 @@ def replay(scenario, ticks, with_tsid: bool, watch: _GcWatch):
 STAGES = {  # (part of the QP, method): label
     ("Tick", "compute_torques"): "whole tick",
     ("Assembly", "assemble"): "model terms, task and contact rows, posture",
-    ("Assembly", "_update_rows"): "  of which task and contact rows",
-    ("Assembly", "_update_posture"): "  of which posture targets and gradient",
+    ("Assembly", "_update_rows"): "  of which task and contact rows, posture",
     ("Assembly", "eliminated_tick"): "elimination and direct solve (level 0)",
     ("Assembly", "assemble_eliminated"): "elimination (levels 1, 2)",
     ("Assembly", "assemble_y"): "base elimination over y",

@@ -16,13 +16,24 @@ import pinocchio as pin
 import scipy.linalg
 
 from . import kernels
+from .contacts import SoleContact
 from .qp_stages import _NO_BOUND
-from .tasks import FrameTask
+from .tasks import ComTask, FrameTask, joint_views
 
 # Leave the QP with cone rows once all are slack by this fraction of the robot's weight [N].
 CONE_RELEASE_MARGIN = 1e-3
 # Smallest |pivot| ratio of the LU factorisation of the basic block for the elimination.
 _MIN_PIVOT_RATIO = 1e-9
+_UNHELD = object()  # a sole's reference placement not yet read by the compiled rows
+
+
+def _compiled_kind(item) -> str | None:
+    """Which part of :func:`kernels.stacked_rows` computes an item's rows: "frame", "sole",
+    "com", or None (its own :meth:`update`, e.g. a subclass that overrides it)."""
+    for kind, cls in (("frame", FrameTask), ("sole", SoleContact), ("com", ComTask)):
+        if isinstance(item, cls) and type(item).update is cls.update:
+            return kind
+    return None
 
 
 def _contact_joints(robot, contacts, n_base: int) -> np.ndarray | None:
@@ -118,17 +129,12 @@ class Assembly:
             self._row_scale[rows] = np.sqrt(task.weight)
         self._row_scale[n_task:] = np.sqrt(acceleration_regularization)
         # Each tick the tasks and contacts compute their rows into their own arrays, which are
-        # copied here (the controller never rebinds a user's object), each group by one call.
-        # The tasks fill their arrays in place (Task), so the lists of them are made once.
-        self._row_groups = tuple(
-            (items, self._rows[block, :nv], self._rows[block, -1],
-             [item.jacobian for item in items], [item.target for item in items])
-            for items, block in (
-                (stacked_tasks, slice(0, n_task)),
-                (contacts, slice(n_cost, n_cost + n_force)),
-            )
-            if items
-        )  # fmt: skip
+        # copied here (the controller never rebinds a user's object): the frame tasks, sole
+        # contacts and a CoM task by one compiled call with the posture gradient, reading the
+        # Pinocchio data through views (see _pack_items); any other item by its update.
+        first_rows = [rows.start for rows in layout.task_rows]
+        first_rows += [n_cost + forces.start for forces in layout.force_slices]
+        self._pack_items(list(stacked_tasks) + list(contacts), first_rows)
         self._kernel_rows = kernels.Rows(self._rows, n_task, n_cost, nv, n_base)
         self._dynamics = kernels.Dynamics(self._mass, self._bias, float(scale))
 
@@ -244,7 +250,15 @@ class Assembly:
             np.zeros((layout.n_base, layout.n_base)), self._base_map,
         )  # fmt: skip
         bound = {
-            "posture_gradient": (self.posture, q, v),
+            "stacked_rows": (
+                self._frame_items,
+                self._com_item,
+                self._posture_blocks,
+                self.posture,
+                self._rows,
+                q,
+                v,
+            ),
             "acceleration_bounds": (bounds, q, v),
             "feasible": (tau, self.torque_limit, x, bounds, q, v, bound_tolerance),
             "torques": (rows, dynamics, x, tau),
@@ -324,8 +338,7 @@ class Assembly:
         if self._stacked_tasks:
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.computeJointJacobians(model, data)
-            self._update_rows(q, v)
-        self._stack_posture()
+        self._update_rows(q, v)
         if not self._compiled.joint_space_accelerations(
             self.posture, self._kernel_rows, self._woodbury, q, v, x
         ):
@@ -335,30 +348,105 @@ class Assembly:
 
     def assemble(self, q: np.ndarray, v: np.ndarray) -> None:
         """Model terms, then the task and contact rows and the posture gradient over x."""
-        model, data = self.model, self.data
-        pin.computeAllTerms(model, data, q, v)
+        pin.computeAllTerms(self.model, self.data, q, v)
         self._update_rows(q, v)
-        self._update_posture(q, v)
+
+    def _pack_items(self, items: list, first_rows: list) -> None:
+        """Sort the stacked tasks and contacts by who computes their rows each tick
+        (:func:`_compiled_kind`): the frame tasks and sole contacts into a
+        :class:`kernels.FrameItems`, the first CoM task into a :class:`kernels.ComItem` (their
+        own arrays, views of the Pinocchio data of their frames' joints and their first rows
+        in the QP's rows), the others with the views of the QP's rows their rows go to."""
+        data, rows, nv = self.data, self._rows, self.layout.nv
+        frames, self._com_item, self._others, self._soles = [], None, [], []
+        for item, first in zip(items, first_rows):
+            kind = _compiled_kind(item)
+            if kind in ("frame", "sole"):
+                if kind == "sole":
+                    self._soles.append((len(frames), item))
+                frames.append((item, first, kind == "sole"))
+            elif kind == "com" and self._com_item is None:
+                self._com_item = kernels.ComItem(
+                    item._out, item.jacobian, item._gains, data.com[0], data.Jcom,
+                    data.acom[0], first,
+                )  # fmt: skip
+            else:
+                block = slice(first, first + item.target.size)
+                self._others.append((item, rows[block, :nv], rows[block, -1]))
+        self._frames = [item for item, _, _ in frames]
+        self._frame_items = None
+        if frames:
+            views = [joint_views(data, item._joint) for item in self._frames]
+            # a sole's reference placement is read at its first tick (_hold_references)
+            references = [
+                (np.eye(3, order="F"), np.zeros(3)) if sole else
+                (item._reference[:, :3], item._reference[:, 3])
+                for item, _, sole in frames
+            ]  # fmt: skip
+            self._frame_items = kernels.FrameItems(
+                *(tuple(getattr(item, name) for item in self._frames)
+                  for name in ("_out", "_jacobians", "_indices", "_gains")),
+                *(tuple(pair[k] for pair in references) for k in range(2)),
+                *(tuple(view[k] for view in views) for k in range(4)),
+                np.array([item._placement for item in self._frames]),
+                np.array([sole for _, _, sole in frames]),
+                np.array([first for _, first, _ in frames], dtype=np.int64),
+                data.J,
+            )  # fmt: skip
+        self._held = [_UNHELD] * len(self._soles)
+
+    def _hold_references(self) -> None:
+        """Point the compiled rows at each sole contact's reference placement (its placement
+        now if it has none: :meth:`Contact.placement`); called whenever a contact's reference
+        is another object than the one held (an in-place change is seen through the views)."""
+        rotations = list(self._frame_items.reference_rotations)
+        translations = list(self._frame_items.reference_translations)
+        for index, contact in self._soles:
+            if contact.reference_placement is None:
+                contact.placement(self.data)
+            reference = contact.reference_placement
+            rotations[index], translations[index] = reference.rotation, reference.translation
+        self._held = [contact.reference_placement for _, contact in self._soles]
+        self._frame_items = self._frame_items._replace(
+            reference_rotations=tuple(rotations), reference_translations=tuple(translations)
+        )
 
     def _update_rows(self, q: np.ndarray, v: np.ndarray) -> None:
         """The tasks and contacts compute their rows (into their own arrays, in place: see
-        :class:`~dmpopt.control.tasks.Task`); copy them into the QP's rows."""
+        :class:`~dmpopt.control.tasks.Task`), copied into the QP's rows, and the posture
+        targets (the PD law of :class:`PostureTask`) their gradient terms -w qdd* over x:
+        one compiled call (:func:`kernels.stacked_rows`), then the items it does not know."""
+        for (_, contact), held in zip(self._soles, self._held):
+            if contact.reference_placement is not held:
+                self._hold_references()
+                break
         data = self.data
-        for items, jacobians, targets, item_jacobians, item_targets in self._row_groups:
-            for item in items:
+        if self._com_item is not None:  # the CoM drift into data.acom[0]
+            pin.centerOfMass(self.model, data, pin.ACCELERATION, False)
+        if not self._compiled.stacked_rows(
+            self._frame_items, self._com_item, self._posture_blocks, self.posture, self._rows,
+            q, v,
+        ):  # fmt: skip
+            # a rotation error near a half turn: each frame item by its update
+            for item, first in zip(self._frames, self._frame_items.destinations):
                 item.update(q, v, data)
-            np.concatenate(item_jacobians, out=jacobians)
-            np.concatenate(item_targets, out=targets)
+                m = item.target.size
+                self._rows[first : first + m, : self.layout.nv] = item.jacobian
+                self._rows[first : first + m, -1] = item.target
+        for item, jacobian, target in self._others:
+            item.update(q, v, data)
+            np.copyto(jacobian, item.jacobian)
+            np.copyto(target, item.target)
 
     def _stack_posture_tasks(self, n_x: int) -> None:
         """One block for the posture tasks' references, gains and targets, filled each tick
-        from the tasks: their gradient terms -w qdd* are then scattered over x by one
-        compiled call."""
+        from the tasks' own blocks: their gradient terms -w qdd* are then scattered over x by
+        one compiled call."""
         tasks = self._posture_tasks
         sizes = [task.velocity_indices.size for task in tasks]
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
         self._posture_state = np.zeros((7, int(offsets[-1])))
-        self._posture_blocks = [task.state for task in tasks]  # the tasks' own arrays
+        self._posture_blocks = tuple(task.state for task in tasks) or None  # the tasks' own
 
         indices = [np.zeros(0, dtype=np.int64)]
         self._posture_gradient = np.zeros(n_x)
@@ -369,18 +457,6 @@ class Assembly:
             np.concatenate([[]] + [np.full(size, t.weight) for t, size in zip(tasks, sizes)]),
             self._posture_gradient,
         )
-
-    def _update_posture(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Posture targets (the PD law of :class:`PostureTask`) and their gradient terms
-        -w qdd* over x."""
-        self._stack_posture()
-        self._compiled.posture_gradient(self.posture, q, v)
-
-    def _stack_posture(self) -> None:
-        """Copy the posture tasks' references and gains into the stacked block (one call);
-        their PD law is evaluated there, for all of them by one compiled call."""
-        if self._posture_blocks:
-            np.concatenate(self._posture_blocks, axis=1, out=self._posture_state)
 
     def eliminated_tick(self, q: np.ndarray, v: np.ndarray) -> int:
         """The tick without inequality rows over z, as one compiled call (an outcome of

@@ -28,7 +28,7 @@ import pinocchio as pin
 from dmpopt.exceptions import InvalidInputError
 
 from . import kernels
-from .tasks import _array, _gain, _support_columns
+from .tasks import _array, _frame_in_joint, _gain, _support_columns, joint_views
 
 __all__ = ["Contact", "PointContact", "SoleContact", "SurfaceContact"]
 
@@ -242,14 +242,16 @@ class SoleContact(Contact):
         corners = self.cop_fraction * np.asarray(robot.sole_corners)
         self.x_min, self.y_min = corners[:, :2].min(axis=0)
         self.x_max, self.y_max = corners[:, :2].max(axis=0)
-        # Packed (kernels.sole_contact): out (target, error log6(M^-1 M_ref) of the last
-        # update); jacobians (rows, frame Jacobian: its other columns stay zero).
+        # Packed (kernels.frame_rows): out (target, error log6(M^-1 M_ref) of the last
+        # update); jacobians (rows, frame Jacobian: its other columns stay zero); indices
+        # (the 6 rows, the supporting columns); the frame's parent joint and placement in it.
         self._out = np.zeros(12)
         self.target, self._error = self._out[:6], self._out[6:]
         self._jacobians = np.zeros((12, robot.nv))
         self.jacobian, self._frame_jacobian = self._jacobians[:6], self._jacobians[6:]
-        self._columns = _support_columns(robot.model, self.frame_id)
-        self._rows_kernel = kernels.Binding(kernels.sole_contact)
+        self._indices = np.concatenate([_SPATIAL, _support_columns(robot.model, self.frame_id)])
+        self._joint, self._placement = _frame_in_joint(robot.model, self.frame_id)
+        self._rows_kernel = kernels.Binding(kernels.frame_rows)
 
     def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
@@ -282,21 +284,29 @@ class SoleContact(Contact):
         return pin.getFrameJacobian(self.model, data, self.frame_id, pin.LOCAL)
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
-        """Sole Jacobian (LOCAL) and desired sole acceleration minus drift."""
-        model, frame_id = self.model, self.frame_id
-        placement, reference = self.placement(data), self.reference_placement
-        drift = pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
-        # error log6(M^-1 M_ref) = -log6(M_ref^-1 M), one compiled call with the rows
+        """Sole Jacobian (LOCAL) and desired sole acceleration minus drift (one compiled call,
+        :func:`kernels.frame_rows`), the error log6(M^-1 M_ref) = -log6(M_ref^-1 M)."""
+        if self.reference_placement is None:
+            self.placement(data)
+        reference = self.reference_placement
         if not self._rows_kernel(
-            v, self._out, self._jacobians, self._columns, self._gains,
-            reference.homogeneous, placement.homogeneous, data.J, v, drift,
+            v, self._out, self._jacobians, self._indices, self._gains, reference.rotation,
+            reference.translation, *joint_views(data, self._joint), self._placement, True,
+            data.J, v,
         ):  # fmt: skip
-            # rotation error near pi: Pinocchio's log6
-            error = pin.log6(placement.actInv(reference)).vector
-            kernels.pd_task_rows(
-                self.target, self.jacobian, _SPATIAL, error, self._frame_jacobian, v, drift,
-                _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
-            )  # fmt: skip
+            self._near_half_turn(v, data)
+
+    def _near_half_turn(self, v: np.ndarray, data: pin.Data) -> None:
+        """:meth:`update` for a rotation error near pi (the frame Jacobian written): the
+        error by Pinocchio's log6."""
+        model, frame_id = self.model, self.frame_id
+        placement = pin.updateFramePlacement(model, data, frame_id)
+        drift = pin.getFrameAcceleration(model, data, frame_id, pin.LOCAL).vector
+        self._error[:] = pin.log6(placement.actInv(self.reference_placement)).vector
+        kernels.pd_task_rows(
+            self.target, self.jacobian, _SPATIAL, self._error, self._frame_jacobian, v, drift,
+            _ZERO_MOTION, _ZERO_MOTION, self._stiffness, self._damping,
+        )  # fmt: skip
 
 
 class PointContact(Contact):

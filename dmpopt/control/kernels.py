@@ -23,7 +23,9 @@ import numpy as np
 
 __all__ = [
     "Checks",
+    "ComItem",
     "Dynamics",
+    "FrameItems",
     "JointBounds",
     "KktWorkspace",
     "PostureStack",
@@ -48,13 +50,13 @@ __all__ = [
     "posture_gradient",
     "posture_law",
     "pd_task_rows",
+    "com_rows",
     "com_task_rows",
+    "frame_rows",
     "frame_task_rows",
-    "frame_task",
-    "com_task",
     "reference_status",
     "sole_rows",
-    "sole_contact",
+    "stacked_rows",
     "Binding",
     "reduce_costs",
     "solve_in_place",
@@ -482,51 +484,195 @@ def sole_rows(
     return True
 
 
-# The packed forms below are what the tasks and contacts call each tick: numba unboxes each
-# argument of a call (a few tenths of a microsecond per array), so each task keeps its inputs
-# and outputs in a few arrays made once and passes those; the kernels take views of them and
-# run the same arithmetic as the unpacked forms.
+# A tick computes the rows of its frame tasks, sole contacts and CoM task in one compiled call
+# (stacked_rows): numba unboxes each argument of a call (a few tenths of a microsecond per
+# array) and each Pinocchio getter costs a Python call, so the call reads the joint placements,
+# velocities and accelerations through views of the Pinocchio data made once, and each item
+# keeps its inputs and outputs in a few arrays made once.
 
 
 @_compile
-def frame_task(out, jacobians, indices, gains, reference, pose, joint_jacobians, v, drift):
-    r""":func:`frame_task_rows` of a :class:`~dmpopt.control.tasks.FrameTask` from its packed
-    arrays: ``out`` = (target (m), error (6)), ``jacobians`` = (rows (m, nv), frame Jacobian
+def _frame_placement(joint_rotation, joint_translation, placement, rotation, translation):
+    """A frame's placement :math:`{}^oM_f = {}^oM_i\\, {}^iM_f` from its parent joint's
+    (``joint_rotation``, ``joint_translation``) and its placement in the joint [R | p]
+    (``placement``, 3 x 4), into ``rotation``, ``translation``."""
+    for a in range(3):
+        for b in range(3):
+            rotation[a, b] = (
+                joint_rotation[a, 0] * placement[0, b]
+                + joint_rotation[a, 1] * placement[1, b]
+                + joint_rotation[a, 2] * placement[2, b]
+            )
+        translation[a] = joint_translation[a] + (
+            joint_rotation[a, 0] * placement[0, 3]
+            + joint_rotation[a, 1] * placement[1, 3]
+            + joint_rotation[a, 2] * placement[2, 3]
+        )
+
+
+@_compile
+def _shifted(rotation, transposed, motion, placement, out):
+    r"""A joint's spatial motion :math:`(v, \omega)` (joint axes, ``motion``) at a frame's
+    origin :math:`p` (``placement[:, 3]``), rotated by R (``rotation``, or its transpose):
+    :math:`(R (v + \omega \times p),\, R \omega)` into ``out``."""
+    px, py, pz = placement[0, 3], placement[1, 3], placement[2, 3]
+    wx, wy, wz = motion[3], motion[4], motion[5]
+    lx = motion[0] + (wy * pz - wz * py)
+    ly = motion[1] + (wz * px - wx * pz)
+    lz = motion[2] + (wx * py - wy * px)
+    for a in range(3):
+        if transposed:
+            r0, r1, r2 = rotation[0, a], rotation[1, a], rotation[2, a]
+        else:
+            r0, r1, r2 = rotation[a, 0], rotation[a, 1], rotation[a, 2]
+        out[a] = r0 * lx + r1 * ly + r2 * lz
+        out[3 + a] = r0 * wx + r1 * wy + r2 * wz
+
+
+@_compile
+def frame_rows(
+    out, jacobians, indices, gains, reference_rotation, reference_translation, joint_rotation,
+    joint_translation, joint_velocity, joint_acceleration, placement, sole, joint_jacobians, v,
+) -> bool:  # fmt: skip
+    r"""The rows of a :class:`~dmpopt.control.tasks.FrameTask` (:func:`frame_task_rows`) or,
+    with ``sole``, of a :class:`~dmpopt.control.contacts.SoleContact` (:func:`sole_rows`),
+    from the item's arrays and its frame's parent joint in the Pinocchio data.
+
+    Item: ``out`` = (target (m), error (6)), ``jacobians`` = (rows (m, nv), frame Jacobian
     (6, nv)), ``indices`` = (tracked components (m, sorted), supporting columns), ``gains``
-    rows :math:`K_p, K_d, v_{ref}, a_{ref}` (4, 6), ``reference`` :math:`[R_{ref} | p_{ref}]`
-    (3, 4) and ``pose`` the frame's homogeneous placement (4, 4)."""
-    m = jacobians.shape[0] - 6
+    rows :math:`K_p, K_d` (and :math:`v_{ref}, a_{ref}` of a frame task), the reference
+    rotation and translation. Joint (``data.oMi``, ``data.v``, ``data.a`` of the frame's
+    parent joint, the velocities in joint axes, linear part first): the frame's placement is
+    :math:`{}^oM_i\, {}^iM_f` (``placement`` = :math:`{}^iM_f` as [R | p]); the drift of a
+    sole is its spatial acceleration in frame axes, :math:`{}^iM_f^{-1} a_i`, that of a frame
+    task its classical acceleration in world axes, :math:`a_p + \omega \times v_p` with
+    :math:`(v_p, \omega)`, :math:`a_p` the joint's velocity and acceleration at the frame
+    origin in world axes (Pinocchio's ``getFrameAcceleration`` and
+    ``getFrameClassicalAcceleration``, :math:`\ddot q = 0`). False near a half turn, as the
+    row kernels.
+    """
+    m = out.size - 6
+    rotation, translation = np.empty((3, 3)), np.empty(3)
+    _frame_placement(joint_rotation, joint_translation, placement, rotation, translation)
+    drift = np.empty(6)
+    if sole:  # iM_f^-1 a = (R_f^T (a_v - p_f x a_w), R_f^T a_w)
+        _shifted(placement, True, joint_acceleration, placement, drift)
+        zero = np.zeros(6)
+        return sole_rows(
+            out[:6], jacobians[:6], indices[:6], out[6:], reference_rotation,
+            reference_translation, rotation, translation, joint_jacobians, indices[6:],
+            jacobians[6:], v, drift, zero, gains[0], gains[1],
+        )  # fmt: skip
+    velocity = np.empty(6)
+    _shifted(joint_rotation, False, joint_velocity, placement, velocity)
+    _shifted(joint_rotation, False, joint_acceleration, placement, drift)
+    wx, wy, wz = velocity[3], velocity[4], velocity[5]
+    drift[0] += wy * velocity[2] - wz * velocity[1]
+    drift[1] += wz * velocity[0] - wx * velocity[2]
+    drift[2] += wx * velocity[1] - wy * velocity[0]
     rows = indices[:m]
     return frame_task_rows(
-        out[:m], jacobians[:m], rows, out[m:], reference[:, :3], reference[:, 3], pose[:3, :3],
-        pose[:3, 3], joint_jacobians, indices[m:], jacobians[m:], v, drift, gains[2], gains[3],
-        gains[0], gains[1], rows[0] < 3, rows[m - 1] >= 3,
+        out[:m], jacobians[:m], rows, out[m:], reference_rotation, reference_translation,
+        rotation, translation, joint_jacobians, indices[m:], jacobians[m:], v, drift, gains[2],
+        gains[3], gains[0], gains[1], rows[0] < 3, rows[m - 1] >= 3,
     )  # fmt: skip
 
 
 @_compile
-def com_task(out, jacobian, gains, com, com_jacobian, v, drift):
+def com_rows(out, jacobian, gains, com, com_jacobian, drift, v):
     r""":func:`com_task_rows` of a :class:`~dmpopt.control.tasks.ComTask` from its packed
     arrays: ``out`` = (target (3), error (3)), ``gains`` rows :math:`K_p, K_d, \dot c_{ref},
-    \ddot c_{ref}, c_{ref}` (5, 3)."""
+    \ddot c_{ref}, c_{ref}` (5, 3); ``drift`` the CoM acceleration at zero joint
+    acceleration."""
     com_task_rows(
         out[:3], jacobian, np.arange(3), out[3:], gains[4], com, com_jacobian, v, drift, gains[2],
         gains[3], gains[0], gains[1],
     )  # fmt: skip
 
 
+class FrameItems(NamedTuple):
+    """The frame tasks and sole contacts of a QP for :func:`stacked_rows`: per item (tuples,
+    one entry per item) the arguments of :func:`frame_rows` up to the placement, the joint's
+    views of the Pinocchio data included; then ``placements`` (n, 3, 4), ``soles`` (n,) and
+    ``destinations`` (n,), each item's first row in the QP's rows, and ``joint_jacobians``
+    (``data.J``)."""
+
+    outs: tuple
+    jacobians: tuple
+    indices: tuple
+    gains: tuple
+    reference_rotations: tuple
+    reference_translations: tuple
+    joint_rotations: tuple
+    joint_translations: tuple
+    joint_velocities: tuple
+    joint_accelerations: tuple
+    placements: np.ndarray
+    soles: np.ndarray
+    destinations: np.ndarray
+    joint_jacobians: np.ndarray
+
+
+class ComItem(NamedTuple):
+    """A CoM task for :func:`stacked_rows`: the arguments of :func:`com_rows` but v (those of
+    the Pinocchio data as views: ``data.com[0]``, ``data.Jcom``, ``data.acom[0]``), and the
+    task's first row in the QP's rows."""
+
+    out: np.ndarray
+    jacobian: np.ndarray
+    gains: np.ndarray
+    com: np.ndarray
+    com_jacobian: np.ndarray
+    drift: np.ndarray
+    destination: int
+
+
 @_compile
-def sole_contact(out, jacobians, columns, gains, reference, pose, joint_jacobians, v, drift):
-    r""":func:`sole_rows` of a :class:`~dmpopt.control.contacts.SoleContact` from its packed
-    arrays: ``out`` = (target (6), error (6)), ``jacobians`` = (rows (6, nv), frame Jacobian
-    (6, nv)), ``gains`` rows :math:`K_p, K_d` (2, 6), ``reference`` and ``pose`` the held and
-    the current homogeneous placements (4, 4)."""
-    zero = np.zeros(6)
-    return sole_rows(
-        out[:6], jacobians[:6], np.arange(6), out[6:], reference[:3, :3], reference[:3, 3],
-        pose[:3, :3], pose[:3, 3], joint_jacobians, columns, jacobians[6:], v, drift, zero,
-        gains[0], gains[1],
-    )  # fmt: skip
+def _copy_rows(out, jacobian, m, rows, destination):
+    """An item's m rows [J | b] (``jacobian[:m]``, ``out[:m]``) into ``rows`` from row
+    ``destination`` (columns :math:`\\ddot q` and the last)."""
+    last = rows.shape[1] - 1
+    for k in range(m):
+        for j in range(jacobian.shape[1]):
+            rows[destination + k, j] = jacobian[k, j]
+        rows[destination + k, last] = out[k]
+
+
+@_compile
+def stacked_rows(frames, com, blocks, posture, rows, q, v) -> bool:
+    """The rows of a tick's items in one call: the frame tasks and sole contacts of
+    ``frames`` (:class:`FrameItems`, :func:`frame_rows`) and the CoM task ``com``
+    (:class:`ComItem`, :func:`com_rows`), each into its own arrays and into ``rows`` (the QP's
+    rows [A | t], :class:`Rows`); then the posture tasks' ``blocks`` (their (7, n) arrays)
+    copied side by side into ``posture.state`` and :func:`posture_gradient`. ``frames``,
+    ``com`` and ``blocks`` may be None (none of them). False if a frame item's rotation error
+    is near a half turn (see :func:`frame_rows`; the other items are filled)."""
+    done = True
+    if frames is not None:
+        for i in range(len(frames.outs)):
+            out, jacobians = frames.outs[i], frames.jacobians[i]
+            if frame_rows(
+                out, jacobians, frames.indices[i], frames.gains[i],
+                frames.reference_rotations[i], frames.reference_translations[i],
+                frames.joint_rotations[i], frames.joint_translations[i],
+                frames.joint_velocities[i], frames.joint_accelerations[i],
+                frames.placements[i], frames.soles[i], frames.joint_jacobians, v,
+            ):  # fmt: skip
+                _copy_rows(out, jacobians, out.size - 6, rows, frames.destinations[i])
+            else:
+                done = False
+    if com is not None:
+        com_rows(com.out, com.jacobian, com.gains, com.com, com.com_jacobian, com.drift, v)
+        _copy_rows(com.out, com.jacobian, 3, rows, com.destination)
+    if blocks is not None:
+        state, column = posture.state, 0
+        for block in blocks:
+            for i in range(block.shape[0]):
+                for j in range(block.shape[1]):
+                    state[i, column + j] = block[i, j]
+            column += block.shape[1]
+        posture_gradient(posture, q, v)
+    return done
 
 
 @_compile

@@ -84,6 +84,23 @@ def _support_columns(model: pin.Model, frame_id: int) -> np.ndarray:
     return np.array([c for block in columns for c in block], dtype=np.int64)
 
 
+def _frame_in_joint(model: pin.Model, frame_id: int) -> tuple[int, np.ndarray]:
+    """A frame's parent joint and its placement in that joint as [R | p], shape (3, 4)."""
+    frame = model.frames[frame_id]
+    placement = np.zeros((3, 4))
+    placement[:, :3], placement[:, 3] = frame.placement.rotation, frame.placement.translation
+    return frame.parentJoint, placement
+
+
+def joint_views(data: pin.Data, joint: int) -> tuple[np.ndarray, ...]:
+    """Views of a joint's placement (rotation, translation), velocity and acceleration (joint
+    axes, linear part first) in ``data``: arrays that see every later update of ``data``
+    (Pinocchio returns views of its own storage, which it never reallocates); whoever keeps
+    them keeps ``data`` alive."""
+    placement = data.oMi[joint]
+    return placement.rotation, placement.translation, data.v[joint].vector, data.a[joint].vector
+
+
 def _check_weight(weight: float) -> float:
     number = _array(weight, "weight")
     if number.shape != () or not (np.isfinite(number) and number > 0):
@@ -115,8 +132,9 @@ class Task:
 
         ``data`` holds the joint kinematics of :math:`(q, \dot q, \ddot q = 0)` and the joint
         Jacobians (on a floating base, everything ``computeAllTerms`` fills). Frame
-        placements are not refreshed for all frames: a task that reads a frame updates its
-        own (``pin.updateFramePlacement``).
+        placements (``data.oMf``) are not refreshed: a task that reads a frame computes its
+        placement from its parent joint's (``data.oMi``), or updates its own
+        (``pin.updateFramePlacement``).
         """
         raise NotImplementedError
 
@@ -357,15 +375,16 @@ class FrameTask(Task):
         self.frame_id = robot.model.getFrameId(frame)
         self.weight = _check_weight(weight)
         # Packed once, so that a tick passes a few arrays to its compiled call
-        # (kernels.frame_task): gains rows Kp, Kd, v_ref, a_ref; reference [R_ref | p_ref];
-        # out (target, error); jacobians (rows, frame Jacobian: its other columns stay zero);
-        # indices (tracked rows, supporting columns).
+        # (kernels.frame_rows): gains rows Kp, Kd, v_ref, a_ref; reference [R_ref | p_ref]
+        # (column-major: R_ref and p_ref are contiguous, as Pinocchio's); out (target, error);
+        # jacobians (rows, frame Jacobian: its other columns stay zero); indices (tracked
+        # rows, supporting columns); the frame's parent joint and placement in it.
         m = self.rows.size
         self._gains = np.zeros((4, 6))
         self._gains[0], self._gains[1] = _gains(stiffness, damping, 6)
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, robot.reference_configuration)
-        self._reference = np.zeros((3, 4))
+        self._reference = np.zeros((3, 4), order="F")
         self._reference[:, :3] = data.oMf[self.frame_id].rotation
         self._reference[:, 3] = data.oMf[self.frame_id].translation
         self._out = np.zeros(m + 6)
@@ -375,7 +394,8 @@ class FrameTask(Task):
         self._indices = np.concatenate(
             [self.rows, _support_columns(robot.model, self.frame_id)]
         ).astype(np.int64)
-        self._rows_kernel = kernels.Binding(kernels.frame_task)
+        self._joint, self._placement = _frame_in_joint(robot.model, self.frame_id)
+        self._rows_kernel = kernels.Binding(kernels.frame_rows)
 
     stiffness = _GainRow(0, "stiffness", nonnegative=True)
     damping = _GainRow(1, "damping", nonnegative=True)
@@ -444,23 +464,29 @@ class FrameTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the rows of the frame Jacobian and the desired acceleration (one compiled
-        call, :func:`kernels.frame_task`: the frame Jacobian from the joint Jacobians
+        call, :func:`kernels.frame_rows`: the frame's placement, Jacobian and drift from its
+        parent joint's placement, velocity and acceleration and the joint Jacobians
         ``data.J``)."""
-        model, frame_id = self.model, self.frame_id
+        reference = self._reference
+        if not self._rows_kernel(
+            v, self._out, self._jacobians, self._indices, self._gains, reference[:, :3],
+            reference[:, 3], *joint_views(data, self._joint), self._placement, False, data.J, v,
+        ):  # fmt: skip
+            self._near_half_turn(v, data)
+
+    def _near_half_turn(self, v: np.ndarray, data: pin.Data) -> None:
+        """:meth:`update` for a rotation error near pi (the frame Jacobian written): the
+        error by Pinocchio's log3."""
+        model, frame_id, gains = self.model, self.frame_id, self._gains
         placement = pin.updateFramePlacement(model, data, frame_id)
         drift = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector
-        if not self._rows_kernel(
-            v, self._out, self._jacobians, self._indices, self._gains, self._reference,
-            placement.homogeneous, data.J, v, drift,
-        ):  # fmt: skip
-            # rotation error near pi: Pinocchio's log3
-            error, reference, gains = self._error, self._reference, self._gains
-            np.subtract(reference[:, 3], placement.translation, out=error[:3])
-            error[3:] = pin.log3(reference[:, :3] @ placement.rotation.T)
-            kernels.pd_task_rows(
-                self.target, self.jacobian, self.rows, error, self._frame_jacobian, v, drift,
-                gains[2], gains[3], gains[0], gains[1],
-            )  # fmt: skip
+        error, reference = self._error, self._reference
+        np.subtract(reference[:, 3], placement.translation, out=error[:3])
+        error[3:] = pin.log3(reference[:, :3] @ placement.rotation.T)
+        kernels.pd_task_rows(
+            self.target, self.jacobian, self.rows, error, self._frame_jacobian, v, drift,
+            gains[2], gains[3], gains[0], gains[1],
+        )  # fmt: skip
 
 
 class ComTask(Task):
@@ -486,7 +512,7 @@ class ComTask(Task):
     def __init__(self, robot, weight: float = 1.0, stiffness=50.0, damping=None):
         self.model = robot.model
         self.weight = _check_weight(weight)
-        # Packed once (kernels.com_task): gains rows Kp, Kd, c_ref velocity, acceleration,
+        # Packed once (kernels.com_rows): gains rows Kp, Kd, c_ref velocity, acceleration,
         # position; out (target, error).
         self._gains = np.zeros((5, 3))
         self._gains[0], self._gains[1] = _gains(stiffness, damping, 3)
@@ -495,7 +521,7 @@ class ComTask(Task):
         self._out = np.zeros(6)
         self.target, self._error = self._out[:3], self._out[3:]
         self.jacobian = np.zeros((3, robot.nv))
-        self._rows_kernel = kernels.Binding(kernels.com_task)
+        self._rows_kernel = kernels.Binding(kernels.com_rows)
 
     stiffness = _GainRow(0, "stiffness", nonnegative=True)
     damping = _GainRow(1, "damping", nonnegative=True)
@@ -512,10 +538,10 @@ class ComTask(Task):
 
     def update(self, q: np.ndarray, v: np.ndarray, data: pin.Data) -> None:
         """Compute the CoM Jacobian and desired acceleration minus drift (one compiled call,
-        :func:`kernels.com_task`).
+        :func:`kernels.com_rows`).
 
         Uses ``data.Jcom`` from ``computeAllTerms`` and the CoM drift from the zero-acceleration
         kinematics already in ``data``.
         """
         com = pin.centerOfMass(self.model, data, pin.ACCELERATION, False)  # data.com[0]
-        self._rows_kernel(v, self._out, self.jacobian, self._gains, com, data.Jcom, v, data.acom[0])
+        self._rows_kernel(v, self._out, self.jacobian, self._gains, com, data.Jcom, data.acom[0], v)

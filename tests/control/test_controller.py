@@ -1572,3 +1572,92 @@ def test_daqps_answer_does_not_depend_on_where_the_arrays_lie(upper_body):
                         stage.at_upper.tobytes(), stage.at_lower.tobytes()))  # fmt: skip
     assert answers[0][0] == "DAQP_SOLVED" and answers[0][1] >= 3
     assert answers[1:] == answers[:1] * 3
+
+
+def test_tick_rows_are_pinocchios(talos):
+    """The QP's task and contact rows after a tick (frame tasks, sole contacts and the CoM
+    task computed together in one compiled call, another task by its own update) are those
+    written from Pinocchio's frame Jacobians and accelerations: J and b = a_ref + K_p e +
+    K_d (v_ref - J v) - drift, with e = (p_ref - p, log3(R_ref R^T)) and the classical
+    acceleration in world axes for a frame task, e = log6(M^-1 M_ref) and the spatial
+    acceleration in sole axes for a sole; a sole's reference placement changed in place or
+    replaced is the one used next tick."""
+
+    class Lean(FrameTask):  # a subclass with its own update: rows from that update
+        def update(self, q, v, data):
+            super().update(q, v, data)
+            self.target[:] = 0.5
+
+    rng = np.random.default_rng(11)
+    model, data = talos.model, talos.create_data()
+    hand = FrameTask(talos, "gripper_left_base_link", weight=2.0, stiffness=30.0)
+    lean = Lean(talos, "torso_2_link", components="orientation")
+    controller, com = standing_controller(talos)
+    controller.add_task(hand)
+    controller.add_task(lean)
+    q, v = random_state(talos, rng, spread=0.05, speed=0.3)
+    pin.framesForwardKinematics(model, data, q)
+    placement = data.oMf[hand.frame_id].copy()
+    hand.set_target(
+        placement * pin.exp6(pin.Motion(0.1 * rng.normal(size=6))),
+        rng.normal(size=6), rng.normal(size=6),
+    )  # fmt: skip
+    com.set_target(com.target_position + [0.01, -0.02, 0.0], rng.normal(size=3))
+    left, right = controller.contacts
+    for step in ("first", "in place", "replaced"):
+        if step == "in place":
+            left.reference_placement.rotation = pin.exp3(rng.normal(size=3) * 0.01) @ (
+                left.reference_placement.rotation
+            )
+        elif step == "replaced":
+            right.reference_placement = right.reference_placement * pin.exp6(
+                pin.Motion(0.01 * rng.normal(size=6))
+            )
+        controller.compute_torques(q, v)
+        formulation = controller._current
+        rows, layout = formulation.assembly._rows, formulation.layout
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        expected = {}
+        for task in (hand, controller.tasks[2]):
+            placement, frame = data.oMf[task.frame_id], task.frame_id
+            reference = task.target_placement
+            error = np.r_[
+                reference.translation - placement.translation,
+                pin.log3(reference.rotation @ placement.rotation.T),
+            ]
+            jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+            drift = pin.getFrameClassicalAcceleration(
+                model, data, frame, pin.LOCAL_WORLD_ALIGNED
+            ).vector
+            target = (
+                task.target_acceleration + task.stiffness * error
+                + task.damping * (task.target_velocity - jacobian @ v) - drift
+            )  # fmt: skip
+            expected[task] = jacobian[task.rows], target[task.rows]
+        com_jacobian = pin.jacobianCenterOfMass(model, data, q)
+        position = pin.centerOfMass(model, data, q, v, np.zeros(talos.nv)).copy()
+        expected[com] = com_jacobian, (
+            com.target_acceleration + com.stiffness * (com.target_position - position)
+            + com.damping * (com.target_velocity - data.vcom[0]) - data.acom[0]
+        )  # fmt: skip
+        expected[lean] = (
+            pin.getFrameJacobian(model, data, lean.frame_id, pin.LOCAL_WORLD_ALIGNED)[3:],
+            np.full(3, 0.5),
+        )
+        stacked = [t for t in controller.tasks if not isinstance(t, PostureTask)]
+        for task, block in zip(stacked, layout.task_rows):
+            jacobian, target = expected[task]
+            np.testing.assert_allclose(rows[block, : talos.nv], jacobian, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(rows[block, -1], target, rtol=1e-12, atol=1e-10)
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        for contact, forces in zip(controller.contacts, layout.force_slices):
+            frame = contact.frame_id
+            jacobian = pin.getFrameJacobian(model, data, frame, pin.LOCAL)
+            error = pin.log6(data.oMf[frame].actInv(contact.reference_placement)).vector
+            drift = pin.getFrameAcceleration(model, data, frame, pin.LOCAL).vector
+            target = contact.stiffness * error - contact.damping * (jacobian @ v) - drift
+            block = slice(layout.n_cost + forces.start, layout.n_cost + forces.stop)
+            np.testing.assert_allclose(rows[block, : talos.nv], jacobian, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(rows[block, -1], target, rtol=1e-12, atol=1e-10)

@@ -811,8 +811,9 @@ def test_noisy_rollouts_of_several_dofs_are_plan_plus_h_eps():
 @pytest.mark.parametrize("noisy", [False, True])
 def test_evaluate_gives_the_rewards_of_the_full_plans(shared, noisy):
     """evaluate() reads only the samples the reward needs; its rewards are the plain formula
-    on the full plans Y = F + G W^T + H eps (H applied by einsum, not by FFT), for distinct
-    weights and for roll-outs sharing one weight vector (action-space exploration)."""
+    on the full plans Y = F + G W^T + H eps (H applied by einsum, not by the state-space
+    recurrence of evaluate), for distinct weights and for roll-outs sharing one weight vector
+    (action-space exploration)."""
     task = _weighted_task(via_point_task(dt=0.01).dmp, (0.3, 0.6))
     rng = np.random.default_rng(21)
     weights = 10 * rng.standard_normal((4, 2, task.n_basis))
@@ -830,7 +831,8 @@ def test_evaluate_gives_the_rewards_of_the_full_plans(shared, noisy):
         expected[k, :-1] = -0.01 * dt * np.sum(ydd[:-1] ** 2, 1) - 1e-6 * dt * np.sum(jerk**2, 1)
         expected[k, 20] -= 50.0 * np.sum((y[20] - [0.3, 0.6]) ** 2)
         expected[k, -1] -= 500.0 * np.sum((y[-1] - [1.0, 0.0]) ** 2) + 2.0 * np.sum(yd[-1] ** 2)
-    # FFT round-off: a few ulps of the largest plan value times log2(fft size), far below 1e-9
+    # round-off of a sum over at most n = 51 inputs: about n ulps of the largest plan value,
+    # far below 1e-9
     np.testing.assert_allclose(rewards, expected, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(task.returns(weights, noise), expected.sum(1), rtol=1e-9)
 

@@ -156,76 +156,78 @@ def _reward_kernel(
 ):
     """Per-step rewards of a batch into ``rewards`` (K, n_steps), zero on entry.
 
-    ``accelerations`` (K' , D, n_steps), ``positions`` (K', D, S) at the samples ``samples``,
+    ``accelerations`` (K', D, n_steps), ``positions`` (K', D, S) at the samples ``samples``,
     ``velocity`` (K', D) at the end: the noise-free plans, K' = K or 1 (shared by every
     roll-out). ``noise`` (K, n_steps - 1, D) or of size 0: the held acceleration inputs,
     whose response is run through the state space ``system`` (:func:`_noise_system`, packed
     as rows ``A``, ``b``, ``C``, ``d`` in a (8, 3) array) sample by sample. ``via`` rows
     ``(column in samples, sample, weight, target per DOF)``; ``weights`` ``(c_a, c_j, c_g, c_v)``.
-    The terms and their order are those of :meth:`RewardTask.rewards`.
+    The terms, and the order in which they are summed, are those of the module docstring:
+    per step the acceleration, the jerk, the via points, the goal, the final velocity, each
+    summed over the DOFs first.
     """
     n_rollouts, n_steps = rewards.shape
     n_dofs = accelerations.shape[1]
+    n_samples = samples.size
     noisy = noise.size > 0
-    shared = accelerations.shape[0] == 1
     acceleration_weight, jerk_weight, goal_weight, velocity_weight = weights
-    state = np.zeros((n_dofs, 3))
-    response = np.zeros((n_dofs, 3))  # (position, velocity, acceleration) of the noise
-    previous = np.zeros(n_dofs)
+    a, b, c, d = system[0:3], system[3], system[4:7], system[7]
+    squares = np.empty(n_steps)
+    jerks = np.empty(n_steps)
+    sampled = np.empty((n_dofs, n_samples))  # positions at the samples
+    final = np.empty(n_dofs)  # velocity at the end
     for k in range(n_rollouts):
-        plan = 0 if shared else k
-        state[:] = 0.0
-        column = 0
-        for m in range(n_steps):
-            squares = 0.0
-            jerks = 0.0
-            for d in range(n_dofs):
-                if noisy:
-                    epsilon = noise[k, m, d] if m < n_steps - 1 else 0.0
-                    s0, s1, s2 = state[d, 0], state[d, 1], state[d, 2]
-                    for i in range(3):
-                        response[d, i] = (
-                            system[4 + i, 0] * s0
-                            + system[4 + i, 1] * s1
-                            + system[4 + i, 2] * s2
-                            + system[7, i] * epsilon
-                        )
-                    for i in range(3):
-                        state[d, i] = (
-                            system[i, 0] * s0
-                            + system[i, 1] * s1
-                            + system[i, 2] * s2
-                            + system[3, i] * epsilon
-                        )
-                acceleration = accelerations[plan, d, m] + response[d, 2]
-                squares += acceleration * acceleration
-                if m > 0:
-                    jerk = (acceleration - previous[d]) / dt
-                    jerks += jerk * jerk
-                previous[d] = acceleration
-            if m < n_steps - 1:
-                rewards[k, m] -= acceleration_weight * dt * squares
-            if m > 0 and jerk_weight > 0.0:
-                rewards[k, m - 1] -= jerk_weight * dt * jerks
-            if column < samples.size and samples[column] == m:
-                for v in range(via.shape[0]):
-                    if via[v, 0] == column:
-                        error = 0.0
-                        for d in range(n_dofs):
-                            deviation = positions[plan, d, column] + response[d, 0] - via[v, 3 + d]
-                            error += deviation * deviation
-                        rewards[k, m] -= via[v, 2] * error
+        plan = 0 if accelerations.shape[0] == 1 else k
+        squares[:] = 0.0
+        jerks[:] = 0.0
+        for j in range(n_dofs):
+            s0 = s1 = s2 = 0.0  # state of the noise response
+            previous = 0.0
+            column = 0
+            for m in range(n_steps):
+                epsilon = noise[k, m, j] if noisy and m < n_steps - 1 else 0.0
+                acceleration = accelerations[plan, j, m] + (
+                    c[2, 0] * s0 + c[2, 1] * s1 + c[2, 2] * s2 + d[2] * epsilon
+                )
+                squares[m] += acceleration * acceleration
+                if jerk_weight > 0.0 and m > 0:
+                    jerk = (acceleration - previous) / dt
+                    jerks[m - 1] += jerk * jerk
+                previous = acceleration
+                if column < n_samples and samples[column] == m:
+                    sampled[j, column] = positions[plan, j, column] + (
+                        c[0, 0] * s0 + c[0, 1] * s1 + c[0, 2] * s2 + d[0] * epsilon
+                    )
+                    column += 1
                 if m == n_steps - 1:
-                    error = 0.0
-                    speed = 0.0
-                    for d in range(n_dofs):
-                        deviation = positions[plan, d, column] + response[d, 0] - goal[d]
-                        error += deviation * deviation
-                        final = velocity[plan, d] + response[d, 1]
-                        speed += final * final
-                    rewards[k, m] -= goal_weight * error
-                    rewards[k, m] -= velocity_weight * speed
-                column += 1
+                    final[j] = velocity[plan, j] + (
+                        c[1, 0] * s0 + c[1, 1] * s1 + c[1, 2] * s2 + d[1] * epsilon
+                    )
+                if noisy:
+                    s0, s1, s2 = (
+                        a[0, 0] * s0 + a[0, 1] * s1 + a[0, 2] * s2 + b[0] * epsilon,
+                        a[1, 0] * s0 + a[1, 1] * s1 + a[1, 2] * s2 + b[1] * epsilon,
+                        a[2, 0] * s0 + a[2, 1] * s1 + a[2, 2] * s2 + b[2] * epsilon,
+                    )
+        for m in range(n_steps - 1):
+            rewards[k, m] -= acceleration_weight * dt * squares[m]
+            if jerk_weight > 0.0:
+                rewards[k, m] -= jerk_weight * dt * jerks[m]
+        for v in range(via.shape[0]):
+            column = int(via[v, 0])
+            error = 0.0
+            for j in range(n_dofs):
+                deviation = sampled[j, column] - via[v, 3 + j]
+                error += deviation * deviation
+            rewards[k, int(via[v, 1])] -= via[v, 2] * error
+        error = 0.0
+        speed = 0.0
+        for j in range(n_dofs):
+            deviation = sampled[j, n_samples - 1] - goal[j]
+            error += deviation * deviation
+            speed += final[j] * final[j]
+        rewards[k, n_steps - 1] -= goal_weight * error
+        rewards[k, n_steps - 1] -= velocity_weight * speed
 
 
 @dataclass(frozen=True, eq=False)

@@ -133,6 +133,14 @@ class ScaledTask:
         """Returns of noise-free plans with ``weights`` in this parametrisation."""
         return self.task.returns(np.asarray(weights) * self.scale)
 
+    def reward_arrays(self) -> tuple:
+        """The task's compiled-reward arrays with the weight rows ``G D`` (scaled rows)."""
+        arrays = list(self.task.reward_arrays())
+        for index in (1, 3):  # weight rows of the accelerations and positions, (n_basis, ...)
+            arrays[index] = arrays[index] * self.scale[:, None]
+        arrays[5] = arrays[5] * self.scale  # weight row of the final velocity, (n_basis,)
+        return tuple(arrays)
+
 
 @lru_cache(maxsize=4)
 def _base_task(name: str):

@@ -230,6 +230,41 @@ def _reward_kernel(
         rewards[k, n_steps - 1] -= velocity_weight * speed
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _row_sums(rewards):
+    """Returns of per-step rewards (K, n_steps), summed step by step (one order for the
+    compiled learning loop, :meth:`RewardTask.returns` and the optimisers' ``tell``)."""
+    returns = np.zeros(rewards.shape[0])
+    for k in range(rewards.shape[0]):
+        for t in range(rewards.shape[1]):
+            returns[k] += rewards[k, t]
+    return returns
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _plan_samples(
+    weights, free_accelerations, accelerations, free_positions, positions, free_velocity, velocity
+):
+    """Noise-free plans ``F + G W^T`` at the samples the reward reads, for ``weights``
+    (K, D, B): accelerations (K, D, n_steps), positions (K, D, S), final velocity (K, D),
+    from the rows of ``F`` (D, ...) and ``G`` (B, ...) with time along the last axis."""
+    n_rollouts, n_dofs, n_basis = weights.shape
+    planned_accelerations = np.zeros((n_rollouts, n_dofs, accelerations.shape[1]))
+    planned_positions = np.zeros((n_rollouts, n_dofs, positions.shape[1]))
+    planned_velocity = np.zeros((n_rollouts, n_dofs))
+    for k in range(n_rollouts):
+        for d in range(n_dofs):
+            for i in range(n_basis):
+                w = weights[k, d, i]
+                planned_accelerations[k, d] += w * accelerations[i]
+                planned_positions[k, d] += w * positions[i]
+                planned_velocity[k, d] += w * velocity[i]
+            planned_accelerations[k, d] += free_accelerations[d]
+            planned_positions[k, d] += free_positions[d]
+            planned_velocity[k, d] += free_velocity[d]
+    return planned_accelerations, planned_positions, planned_velocity
+
+
 @dataclass(frozen=True, eq=False)
 class RewardTask:
     r"""A DMP, a horizon and a quadratic reward (module docstring); values are read-only.
@@ -421,7 +456,6 @@ class RewardTask:
         (K, n_steps - 1, n_dofs) the held acceleration inputs added to them (``H epsilon``,
         run through the state space of :func:`_noise_system` step by step), or None.
         """
-        rows = self._rows
         k = accelerations.shape[0] if noise is None else noise.shape[0]
         rewards = np.zeros((k, self.n_steps))
         _reward_kernel(
@@ -429,16 +463,11 @@ class RewardTask:
             np.ascontiguousarray(positions),
             np.ascontiguousarray(final_velocity),
             np.empty((0, 0, 0)) if noise is None else np.ascontiguousarray(noise),
-            rows["system"],
-            rows["samples_array"],
-            rows["via_rows"],
-            rows["goal"],
-            rows["weights"],
-            self.dt,
+            *self.reward_arrays()[6:],
             rewards,
         )
         if self.delayed:
-            total = rewards.sum(axis=1)
+            total = _row_sums(rewards)
             rewards = np.zeros_like(rewards)
             rewards[:, -1] = total
         return rewards
@@ -451,15 +480,13 @@ class RewardTask:
         at the via points and the end, the velocity at the end. Roll-outs that share their
         weights (action-space exploration) share one noise-free plan.
         """
-        rows = self._rows
         weights = self._batch_weights(weights)
         k = weights.shape[0]
         shared = bool(np.all(weights == weights[:1]))
         mean = weights[:1] if shared else weights
-        # (K, D, B) @ (B, samples) -> (K, D, samples); time along the last axis
-        positions = rows["free_positions"] + mean @ rows["positions"]
-        velocity = rows["free_velocity"] + mean @ rows["velocity"]
-        accelerations = rows["free_accelerations"] + mean @ rows["accelerations"]
+        accelerations, positions, velocity = _plan_samples(
+            np.ascontiguousarray(mean), *self.reward_arrays()[:6]
+        )
         if acceleration_noise is None:
             rewards = self._step_rewards(positions, velocity, accelerations)
             return np.repeat(rewards, k, axis=0) if shared else rewards
@@ -491,7 +518,35 @@ class RewardTask:
 
     def returns(self, weights, acceleration_noise=None) -> np.ndarray:
         """Returns (sums of rewards) of a batch, shape (K,)."""
-        return self._sampled_rewards(weights, acceleration_noise).sum(axis=1)
+        return _row_sums(self._sampled_rewards(weights, acceleration_noise))
+
+    def reward_arrays(self) -> tuple:
+        """What the compiled reward reads, in the order of its arguments.
+
+        The rows of ``F`` and ``G`` the reward reads, time along the last axis:
+        accelerations (n_dofs, n_steps) and (n_basis, n_steps), positions at the via points
+        and the end (n_dofs, S) and (n_basis, S), final velocity (n_dofs,) and (n_basis,);
+        then the noise response as a state space (rows ``A``, ``b``, ``C``, ``d`` of
+        :func:`_noise_system`, (8, 3)), the samples read (S,), the via points (rows of column
+        in the samples, sample, weight, target per DOF), the goal, the weights
+        ``(c_a, c_j, c_g, c_v)`` and ``dt``. A reparametrised task (weights ``v`` with
+        ``W = D v``) gives ``G D`` instead of ``G``.
+        """
+        rows = self._rows
+        return (
+            rows["free_accelerations"],
+            rows["accelerations"],
+            rows["free_positions"],
+            rows["positions"],
+            rows["free_velocity"],
+            rows["velocity"],
+            rows["system"],
+            rows["samples_array"],
+            rows["via_rows"],
+            rows["goal"],
+            rows["weights"],
+            self.dt,
+        )
 
     def deterministic_return(self, weights) -> float:
         """Return of the noise-free plan with ``weights`` (n_dofs, n_basis)."""

@@ -1258,3 +1258,17 @@ def test_compiled_learning_loop_refuses_an_overflowing_update_like_tell():
     assert str(error.value) == str(expected.value)
     assert str(error.value).startswith("the update overflows")
     assert compiled.n_updates == python.n_updates
+
+
+def test_compiled_six_dof_enac_does_not_depend_on_blas_threads():
+    """The compiled loop's regression (62 x 61, LAPACK gelsd through SciPy's OpenBLAS) gives
+    the same bits with two BLAS threads as with one, like PI-BB's pinned linear algebra.
+    Answer key: the one-thread run."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    six = multi_dof_reaching_task()
+    runs = []
+    for threads in (1, 2):
+        with threadpoolctl.threadpool_limits(limits=threads, user_api="blas"):
+            method = make_method("enac", six, seed=1, exploration_std=10.0, n_rollouts=62)
+            runs.append(np.stack(method.learn(six, 10)))
+    np.testing.assert_array_equal(runs[1].view(np.uint64), runs[0].view(np.uint64))

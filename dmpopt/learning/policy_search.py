@@ -6,7 +6,8 @@ updates its mean weights. A task (:class:`dmpopt.learning.RewardTask`) turns an
 ``Exploration`` into rewards in one batched call; :func:`optimise` runs the loop
 (:meth:`PolicySearch.learn`). eNAC and eREINFORCE on a reward task run it as one compiled
 (numba) loop: the same normal draws, rewards and updates as the rounds in Python, bit for
-bit, at a quarter of their cost (``benchmarks/bench_learning.py``).
+bit, without their per-round overhead (about half their CPU time on the paper task,
+``benchmarks/bench_learning.py``).
 
 Two kinds of exploration:
 

@@ -254,13 +254,17 @@ def _plan_samples(
     planned_velocity = np.zeros((n_rollouts, n_dofs))
     for k in range(n_rollouts):
         for d in range(n_dofs):
-            for i in range(n_basis):
+            for i in range(n_basis):  # scalar loops: slices would allocate a temporary each
                 w = weights[k, d, i]
-                planned_accelerations[k, d] += w * accelerations[i]
-                planned_positions[k, d] += w * positions[i]
+                for m in range(accelerations.shape[1]):
+                    planned_accelerations[k, d, m] += w * accelerations[i, m]
+                for m in range(positions.shape[1]):
+                    planned_positions[k, d, m] += w * positions[i, m]
                 planned_velocity[k, d] += w * velocity[i]
-            planned_accelerations[k, d] += free_accelerations[d]
-            planned_positions[k, d] += free_positions[d]
+            for m in range(accelerations.shape[1]):
+                planned_accelerations[k, d, m] += free_accelerations[d, m]
+            for m in range(positions.shape[1]):
+                planned_positions[k, d, m] += free_positions[d, m]
             planned_velocity[k, d] += free_velocity[d]
     return planned_accelerations, planned_positions, planned_velocity
 

@@ -104,9 +104,10 @@ CONDITIONING_TARGETS = ("equilibrated", 500.0, CLASSIC_LAYOUT_CONDITION, 10_000.
 # A bell-shaped velocity profile of a reach: one interior peak, no rebound or reversal above
 # 1 % of the peak speed, at rest at the end (5 % of the peak) and arrived (1 % of the distance).
 BELL_LIMITS = {"rebound": 0.01, "reversal": 0.01, "end_speed": 0.05, "goal_error": 0.01}
-# CPU seconds (dmpopt.cli), measured on the shared 2-core machine: quick 33 s in series; full
-# estimated from 2,222 runs at 0.08-1.5 s each (one run of each method and task timed)
-EXPECTED_SECONDS = {"full": 360, "quick": 35}  # CPU s (dmpopt.cli); full: main job 2026-11-27
+# CPU seconds (user + sys of dmpopt.cli), measured on the shared 2-core machine with a warm
+# numba cache: quick 17.5 s in series, full 194 s with the default 2 workers (1,765 runs, load
+# 1.4-3.8); the first run after a change to dmpopt.learning compiles its kernels (~40 CPU-s)
+EXPECTED_SECONDS = {"full": 195, "quick": 18}  # CPU s (dmpopt.cli), 2026-11-27
 
 
 class ScaledTask:

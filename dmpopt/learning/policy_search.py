@@ -3,7 +3,11 @@ r"""Policy search on DMP weights behind one ask/tell interface.
 Every optimiser proposes a batch of ``K`` exploratory roll-outs (:meth:`PolicySearch.ask`
 returns an :class:`Exploration`), receives their rewards (:meth:`PolicySearch.tell`) and
 updates its mean weights. A task (:class:`dmpopt.learning.RewardTask`) turns an
-``Exploration`` into rewards in one batched call; :func:`optimise` runs the loop.
+``Exploration`` into rewards in one batched call; :func:`optimise` runs the loop
+(:meth:`PolicySearch.learn`). eNAC and eREINFORCE on a reward task run it as one compiled
+(numba) loop: the same normal draws, rewards and updates as the rounds in Python, bit for
+bit, without their per-round overhead (about half their CPU time on the paper task,
+``benchmarks/bench_learning.py``).
 
 Two kinds of exploration:
 
@@ -35,15 +39,18 @@ estimate, a decaying one settles.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numba
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from ..exceptions import InvalidInputError, MissingDependency, ShapeError
 from ..validation import check_resources, integer, real, real_array
+from .rewards import _plan_samples, _reward_kernel, _row_sums
 
 __all__ = [
     "CMAES",
@@ -60,6 +67,7 @@ __all__ = [
 ]
 
 STEP_RULES = ("constant", "kl")
+_compile = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,7 +96,7 @@ def _as_returns(rewards, n_rollouts: int) -> np.ndarray:
         "rewards", rewards, fix="a failed roll-out needs a finite (e.g. very low) reward"
     )
     if rewards.ndim == 2:
-        rewards = rewards.sum(axis=1)
+        rewards = _row_sums(rewards)
     if rewards.shape != (n_rollouts,):
         raise ShapeError(
             f"rewards has shape {rewards.shape}, expected ({n_rollouts},) returns or "
@@ -155,9 +163,19 @@ def enac_gradient(scores, returns) -> tuple[np.ndarray, float]:
     baseline : float
     """
     scores, returns = _scores_and_returns(scores, returns)
-    design = np.column_stack([scores, np.ones(scores.shape[0])])
-    solution = np.linalg.lstsq(design, returns, rcond=None)[0]
+    solution = _enac_solution(scores, returns)
     return solution[:-1], float(solution[-1])
+
+
+@_compile
+def _enac_solution(scores, returns):
+    """``[g, c]`` of :func:`enac_gradient`: least squares by SVD (LAPACK ``gelsd``), singular
+    values below ``eps * max(K, n_params + 1)`` of the largest dropped (NumPy's default)."""
+    n_rollouts, n_params = scores.shape
+    design = np.ones((n_rollouts, n_params + 1))
+    design[:, :n_params] = scores
+    rcond = np.finfo(np.float64).eps * max(n_rollouts, n_params + 1)
+    return np.linalg.lstsq(design, returns, rcond=rcond)[0]
 
 
 def reinforce_gradient(scores, returns) -> np.ndarray:
@@ -169,9 +187,26 @@ def reinforce_gradient(scores, returns) -> np.ndarray:
     (Williams 1992; the variance-minimising baseline of Peters & Schaal 2008.)
     """
     scores, returns = _scores_and_returns(scores, returns)
-    squared = scores**2
-    baseline = (squared * returns[:, None]).sum(axis=0) / np.maximum(squared.sum(axis=0), 1e-300)
-    return np.mean(scores * (returns[:, None] - baseline), axis=0)
+    return _reinforce_direction(scores, returns)
+
+
+@_compile
+def _reinforce_direction(scores, returns):
+    """:func:`reinforce_gradient`, summed roll-out by roll-out."""
+    n_rollouts, n_params = scores.shape
+    gradient = np.zeros(n_params)
+    for h in range(n_params):
+        weighted = 0.0
+        total = 0.0
+        for k in range(n_rollouts):
+            squared = scores[k, h] * scores[k, h]
+            weighted += squared * returns[k]
+            total += squared
+        baseline = weighted / max(total, 1e-300)
+        for k in range(n_rollouts):
+            gradient[h] += scores[k, h] * (returns[k] - baseline)
+        gradient[h] /= n_rollouts
+    return gradient
 
 
 class PolicySearch(ABC):
@@ -197,6 +232,15 @@ class PolicySearch(ABC):
     @abstractmethod
     def tell(self, rewards) -> None:
         """Rewards of the last batch asked: (K,) returns or (K, n_steps) per-step rewards."""
+
+    def learn(self, task, n_updates: int) -> list[np.ndarray]:
+        """``n_updates`` rounds of ask, ``task.evaluate``, tell; the mean weights after each."""
+        n_updates = integer("n_updates", n_updates, minimum=0)
+        means = []
+        for _ in range(n_updates):
+            self.tell(task.evaluate(self.ask()))
+            means.append(self.mean)
+        return means
 
     def _pending_returns(self, rewards) -> tuple[np.ndarray, np.ndarray]:
         """The pending batch and the checked returns; the batch stays pending on an error."""
@@ -252,7 +296,8 @@ class _ActionSpaceGradient(PolicySearch):
         self.n_updates = 0
         self._pending = None
         # sum_t phi_t phi_t^T, one block per DOF: the Fisher matrix times sigma^2
-        self._blocks = np.kron(np.eye(weights.shape[0]), features.T @ features)
+        self._gram = features.T @ features
+        self._blocks = np.kron(np.eye(weights.shape[0]), self._gram)
 
     @property
     def mean(self) -> np.ndarray:
@@ -261,7 +306,7 @@ class _ActionSpaceGradient(PolicySearch):
     @property
     def exploration_std(self) -> float:
         """Current :math:`\\sigma` [acceleration units]."""
-        return float(np.exp(self.log_std))
+        return math.exp(self.log_std)
 
     def ask(self) -> Exploration:
         k, (n_dofs, _) = self.n_rollouts, self._weights.shape
@@ -276,12 +321,8 @@ class _ActionSpaceGradient(PolicySearch):
         Columns: the weights, flattened row-major (DOF, basis), then :math:`\log\sigma` if
         the exploration is learned.
         """
-        variance = self.exploration_std**2
-        weight_scores = (np.swapaxes(noise, 1, 2) @ self.features) / variance  # (K, D, B)
-        columns = [weight_scores.reshape(noise.shape[0], -1)]
-        if self.learn_exploration:
-            columns.append(np.sum(noise**2 / variance - 1.0, axis=(1, 2))[:, None])
-        return np.concatenate(columns, axis=1)
+        noise = real_array("noise", noise, ndim=3)
+        return _scores(noise, self.features, self.exploration_std**2, self.learn_exploration)
 
     def fisher(self) -> np.ndarray:
         """Exact Fisher matrix of the roll-out distribution, in the layout of :meth:`scores`."""
@@ -295,39 +336,240 @@ class _ActionSpaceGradient(PolicySearch):
         fisher[-1, -1] = 2.0 * self.features.shape[0] * n_dofs
         return fisher
 
-    @abstractmethod
-    def direction(self, scores, returns) -> np.ndarray:
-        """Ascent direction in the layout of :meth:`scores`."""
+    def _change(self, noise, returns) -> np.ndarray:
+        """Change of ``[vec(W), log sigma]`` in one update (:func:`_gradient_change`)."""
+        return _gradient_change(
+            noise,
+            returns,
+            self.features,
+            self._gram,
+            self.exploration_std**2,
+            self.learn_exploration,
+            self.natural,
+            self.step_rule == "kl",
+            self.step_size,
+            self.decay,
+            self.n_updates,
+        )
 
-    def tell(self, rewards) -> None:
-        noise, returns = self._pending_returns(rewards)
-        # both gradients are linear in the returns: compute them for returns scaled into
-        # [-1, 1] by a power of two (exact), so that returns near the float range do not
-        # overflow the direction and its curvature (a KL step then silently became 0)
-        scale = float(np.ldexp(1.0, int(np.frexp(np.max(np.abs(returns)))[1])))
-        direction = self.direction(self.scores(noise), returns / scale)
-        if not np.ptp(returns) > 0.0:
-            # equal returns carry no gradient; the KL rule would scale round-off to a full step
-            direction = np.zeros_like(direction)
-        if self.step_rule == "kl":  # the step does not depend on the scale of the returns
-            curvature = float(direction @ self.fisher() @ direction)
-            step = np.sqrt(2.0 * self.step_size / curvature) if curvature > 0 else 0.0
-        else:
-            step = self.step_size * scale
-        step /= 1.0 + self.decay * self.n_updates
-        change = step * direction
+    def _overflow(self, returns) -> InvalidInputError:
+        return InvalidInputError(
+            f"the update overflows: returns up to {np.max(np.abs(returns)):.3g} times "
+            f"step_size = {self.step_size:g} (step_rule='constant') exceed the float range; "
+            "rescale the rewards or lower step_size"
+        )
+
+    def _apply(self, change, returns, n_rollouts: int) -> None:
         if not np.all(np.isfinite(change)):
-            raise InvalidInputError(
-                f"the update overflows: returns up to {np.max(np.abs(returns)):.3g} times "
-                f"step_size = {self.step_size:g} (step_rule='constant') exceed the float range; "
-                "rescale the rewards or lower step_size"
-            )
+            raise self._overflow(returns)
         n = self._weights.size
         self._weights = self._weights + change[:n].reshape(self._weights.shape)
         if self.learn_exploration:
             self.log_std += float(change[n])
-        self.n_trials += noise.shape[0]
+        self.n_trials += n_rollouts
         self.n_updates += 1
+
+    def tell(self, rewards) -> None:
+        noise, returns = self._pending_returns(rewards)
+        self._apply(self._change(noise, returns), returns, noise.shape[0])
+
+    def learn(self, task, n_updates: int) -> list[np.ndarray]:
+        """``n_updates`` ask/evaluate/tell rounds on ``task``; the mean weights after each.
+
+        On a task with ``reward_arrays()`` (:meth:`dmpopt.learning.RewardTask.reward_arrays`)
+        the rounds run in one compiled loop: the same numbers as the rounds in Python (the
+        same normal draws from ``rng``, the same reward and update functions) without their
+        per-round overhead.
+        """
+        if not hasattr(task, "reward_arrays"):
+            return super().learn(task, n_updates)
+        n_updates = integer("n_updates", n_updates, minimum=0)
+        means, log_stds, returns, done, status = _learn_action_space(
+            self.rng,
+            n_updates,
+            self.n_rollouts,
+            self._weights,
+            self.log_std,
+            self.features,
+            self._gram,
+            self.learn_exploration,
+            self.natural,
+            self.step_rule == "kl",
+            self.step_size,
+            self.decay,
+            self.n_updates,
+            *task.reward_arrays(),
+        )
+        for u in range(done):
+            self._weights, self.log_std = means[u].copy(), float(log_stds[u])
+            self.n_trials += self.n_rollouts
+            self.n_updates += 1
+        if status == 1:
+            raise InvalidInputError("rewards overflow when summed over the steps; rescale them")
+        if status == 2:
+            raise self._overflow(returns)
+        return [means[u].copy() for u in range(done)]
+
+
+@_compile
+def _scores(noise, features, variance, learn_exploration):
+    """:meth:`_ActionSpaceGradient.scores` of ``noise`` (K, n_actions, n_dofs)."""
+    n_rollouts, n_actions, n_dofs = noise.shape
+    n_basis = features.shape[1]
+    n_weights = n_dofs * n_basis
+    scores = np.zeros((n_rollouts, n_weights + (1 if learn_exploration else 0)))
+    for k in range(n_rollouts):
+        for d in range(n_dofs):
+            row = scores[k, d * n_basis : (d + 1) * n_basis]
+            for t in range(n_actions):
+                epsilon = noise[k, t, d]
+                for i in range(n_basis):
+                    row[i] += epsilon * features[t, i]
+            for i in range(n_basis):
+                row[i] /= variance
+        if learn_exploration:
+            total = 0.0
+            for t in range(n_actions):
+                for d in range(n_dofs):
+                    total += noise[k, t, d] * noise[k, t, d] / variance - 1.0
+            scores[k, n_weights] = total
+    return scores
+
+
+@_compile
+def _gradient_change(
+    noise, returns, features, gram, variance, learn_exploration, natural, kl, step, decay, n_updates
+):
+    """Change of ``[vec(W), log sigma]`` in one update of eNAC (``natural``) or eREINFORCE.
+
+    Both gradients are linear in the returns: they are computed for returns scaled into
+    [-1, 1] by a power of two (exact), so that returns near the float range do not overflow
+    the direction and its curvature (a KL step then silently became 0). Equal returns carry
+    no gradient (the KL rule would scale round-off to a full step). ``kl``: the step makes
+    the KL divergence ``step`` (module docstring; ``gram = Phi^T Phi``, the Fisher matrix
+    times sigma^2 per DOF), else ``W += step g``; divided by ``1 + decay n_updates``.
+    Not finite if the update overflows.
+    """
+    largest = 0.0
+    for value in returns:
+        largest = max(largest, abs(value))
+    scale = math.ldexp(1.0, math.frexp(largest)[1])
+    scores = _scores(noise, features, variance, learn_exploration)
+    scaled = returns / scale
+    if natural:
+        direction = _enac_solution(scores, scaled)[:-1].copy()
+    else:
+        direction = _reinforce_direction(scores, scaled)
+    if not returns.max() - returns.min() > 0.0:
+        direction[:] = 0.0
+    if kl:  # the step does not depend on the scale of the returns
+        n_basis = gram.shape[0]
+        curvature = 0.0
+        for d in range(noise.shape[2]):
+            for i in range(n_basis):
+                row = 0.0
+                for j in range(n_basis):
+                    row += gram[i, j] * direction[d * n_basis + j]
+                curvature += direction[d * n_basis + i] * row
+        curvature /= variance
+        if learn_exploration:
+            curvature += 2.0 * noise.shape[1] * noise.shape[2] * direction[-1] ** 2
+        length = math.sqrt(2.0 * step / curvature) if curvature > 0 else 0.0
+    else:
+        length = step * scale
+    length /= 1.0 + decay * n_updates
+    return length * direction
+
+
+@_compile
+def _learn_action_space(
+    rng,
+    n_updates,
+    n_rollouts,
+    weights,
+    log_std,
+    features,
+    gram,
+    learn_exploration,
+    natural,
+    kl,
+    step,
+    decay,
+    n_done,
+    free_accelerations,
+    accelerations,
+    free_positions,
+    positions,
+    free_velocity,
+    velocity,
+    system,
+    samples,
+    via,
+    goal,
+    reward_weights,
+    dt,
+):
+    """The rounds of :meth:`_ActionSpaceGradient.learn`: ask (normal draws from ``rng``),
+    rewards (:func:`dmpopt.learning.rewards._reward_kernel` on the shared plan), tell
+    (:func:`_gradient_change`). Returns the means and ``log sigma`` after each update, the
+    last returns, the number of updates done and 0, 1 (rewards not finite, stopped) or 2 (the
+    update overflows, stopped)."""
+    n_dofs, n_basis = weights.shape
+    n_actions = features.shape[0]
+    means = np.zeros((n_updates, n_dofs, n_basis))
+    log_stds = np.zeros(n_updates)
+    returns = np.zeros(n_rollouts)
+    shared = weights.reshape(1, n_dofs, n_basis).copy()
+    for u in range(n_updates):
+        std = math.exp(log_std)
+        noise = std * rng.standard_normal((n_rollouts, n_actions, n_dofs))
+        plan = _plan_samples(
+            shared,
+            free_accelerations,
+            accelerations,
+            free_positions,
+            positions,
+            free_velocity,
+            velocity,
+        )
+        rewards = np.zeros((n_rollouts, free_accelerations.shape[1]))
+        _reward_kernel(
+            plan[0],
+            plan[1],
+            plan[2],
+            noise,
+            system,
+            samples,
+            via,
+            goal,
+            reward_weights,
+            dt,
+            rewards,
+        )
+        returns = _row_sums(rewards)
+        if not np.all(np.isfinite(returns)):
+            return means, log_stds, returns, u, 1
+        change = _gradient_change(
+            noise,
+            returns,
+            features,
+            gram,
+            std**2,
+            learn_exploration,
+            natural,
+            kl,
+            step,
+            decay,
+            n_done + u,
+        )
+        if not np.all(np.isfinite(change)):
+            return means, log_stds, returns, u, 2
+        shared[0] = shared[0] + change[: n_dofs * n_basis].reshape(n_dofs, n_basis)
+        if learn_exploration:
+            log_std += change[n_dofs * n_basis]
+        means[u] = shared[0]
+        log_stds[u] = log_std
+    return means, log_stds, returns, n_updates, 0
 
 
 class EpisodicNAC(_ActionSpaceGradient):
@@ -357,8 +599,7 @@ class EpisodicNAC(_ActionSpaceGradient):
     seed : int or numpy Generator, optional
     """
 
-    def direction(self, scores, returns) -> np.ndarray:
-        return enac_gradient(scores, returns)[0]
+    natural = True
 
 
 class EpisodicReinforce(_ActionSpaceGradient):
@@ -369,8 +610,7 @@ class EpisodicReinforce(_ActionSpaceGradient):
     normalised, its direction stays the vanilla gradient.
     """
 
-    def direction(self, scores, returns) -> np.ndarray:
-        return reinforce_gradient(scores, returns)
+    natural = False
 
 
 class PIBB(PolicySearch):
@@ -603,13 +843,10 @@ def optimise(method: PolicySearch, task, n_trials: int) -> LearningCurve:
             f"{type(task).__name__}"
         )
     n_trials = integer("n_trials", n_trials, minimum=0)
-    means = [method.mean]
-    trials = [method.n_trials]
-    while method.n_trials + method.n_rollouts <= n_trials:
-        method.tell(task.evaluate(method.ask()))
-        means.append(method.mean)
-        trials.append(method.n_trials)
-    means = np.stack(means)
+    first = method.n_trials
+    n_updates = max(0, (n_trials - first) // method.n_rollouts)
+    means = np.stack([method.mean, *method.learn(task, n_updates)])
+    trials = first + method.n_rollouts * np.arange(n_updates + 1)
     returns = task.returns(means)
     start, best = task.initial_return, task.optimum_return
     return LearningCurve(

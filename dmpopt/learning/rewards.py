@@ -20,7 +20,9 @@ The transformation system is linear, so the noisy plan is still affine,
 
 with ``F, G`` the :class:`~dmpopt.AffinePlan` and ``H`` (:attr:`RewardTask.noise_response`)
 the response to a unit acceleration held over one step, derived from the symbolic RK4 step
-(the same discretisation as the plan). A batch of ``K`` roll-outs is two matrix products.
+(the same discretisation as the plan). ``H`` is lower-triangular Toeplitz, the response of a
+three-state linear system: the rewards of a batch of ``K`` roll-outs run that system over the
+noise sample by sample (a compiled loop, ``O(K n)``), on the noise-free plan ``F + G W^T``.
 
 The score of the policy (the derivative of the mean command with respect to the weights at
 a fixed state) is :math:`\partial \mu_k / \partial w_i = \phi_i(x_k) / \tau^2` with
@@ -57,6 +59,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from .. import basis, symbolic
@@ -87,13 +90,19 @@ class ViaPointReward:
     weight: float = 1000.0
 
 
-def _noise_response(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
-    """Response of positions, velocities, accelerations to a unit acceleration input.
+def _noise_system(dmp: DiscreteDMP, dt: float) -> tuple[np.ndarray, ...]:
+    r"""The transformation system's response to a held acceleration input, as a state space.
 
-    Returns ``H`` of shape (3, n_steps, n_steps - 1): ``H[:, k, j]`` is the effect on sample
-    ``k`` of an acceleration ``epsilon_j = 1`` held over step ``j`` (coupling
-    ``tau^2 epsilon_j`` on ``tau zdot`` in eq. (10)). The one-step map and the outputs are read
-    off the symbolic RK4 step; the response is time invariant (lower-triangular Toeplitz).
+    Returns ``(transition, input_column, readout, feedthrough)``: with the transformation
+    state ``s`` (position, scaled velocity, forcing; the canonical state plays no part, the
+    input enters linearly) and an acceleration ``epsilon_m`` held over step ``m`` (coupling
+    ``tau^2 epsilon_m`` on ``tau zdot`` in eq. (10)),
+
+    .. math:: s_{m+1} = A s_m + b\,\epsilon_m, \qquad
+              (y, \dot y, \ddot y)_m = C s_m + d\,\epsilon_m, \qquad s_0 = 0,
+
+    ``A`` (3, 3), ``b`` (3,), ``C`` (3 outputs, 3 states), ``d`` (3,) read off the symbolic
+    RK4 step and output functions (the same discretisation as the plan).
     """
     signature = symbolic.Signature("acceleration", 1, 1, "gaussian")
     tau = dmp.tau
@@ -118,7 +127,17 @@ def _noise_response(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
     input_column = transformation_step(np.zeros(3), tau**2)
     readout = np.column_stack([outputs(e, 0.0) for e in unit])  # (3 outputs, 3 states)
     feedthrough = outputs(np.zeros(3), tau**2)  # (0, 0, 1): the held command itself
+    return transition, input_column, readout, feedthrough
 
+
+def _noise_response(system, n_steps: int) -> np.ndarray:
+    """``H`` of shape (3, n_steps, n_steps - 1) of the state space ``system``.
+
+    ``H[:, k, j]`` is the effect on sample ``k`` of an acceleration ``epsilon_j = 1`` held over
+    step ``j``: the impulse response ``d`` at lag 0 and ``C A^(m-1) b`` at lag ``m >= 1``; the
+    response is time invariant (lower-triangular Toeplitz).
+    """
+    transition, input_column, readout, feedthrough = system
     impulse = np.zeros((3, n_steps))  # impulse[:, m]: effect m samples after the input
     impulse[:, 0] = feedthrough
     state = input_column
@@ -129,6 +148,125 @@ def _noise_response(dmp: DiscreteDMP, n_steps: int, dt: float) -> np.ndarray:
     response = np.where(lag >= 0, impulse[:, np.clip(lag, 0, None)], 0.0)
     response.setflags(write=False)
     return response
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _reward_kernel(
+    accelerations, positions, velocity, noise, system, samples, via, goal, weights, dt, rewards
+):
+    """Per-step rewards of a batch into ``rewards`` (K, n_steps), zero on entry.
+
+    ``accelerations`` (K', D, n_steps), ``positions`` (K', D, S) at the samples ``samples``,
+    ``velocity`` (K', D) at the end: the noise-free plans, K' = K or 1 (shared by every
+    roll-out). ``noise`` (K, n_steps - 1, D) or of size 0: the held acceleration inputs,
+    whose response is run through the state space ``system`` (:func:`_noise_system`, packed
+    as rows ``A``, ``b``, ``C``, ``d`` in a (8, 3) array) sample by sample. ``via`` rows
+    ``(column in samples, sample, weight, target per DOF)``; ``weights`` ``(c_a, c_j, c_g, c_v)``.
+    The terms, and the order in which they are summed, are those of the module docstring:
+    per step the acceleration, the jerk, the via points, the goal, the final velocity, each
+    summed over the DOFs first.
+    """
+    n_rollouts, n_steps = rewards.shape
+    n_dofs = accelerations.shape[1]
+    n_samples = samples.size
+    noisy = noise.size > 0
+    acceleration_weight, jerk_weight, goal_weight, velocity_weight = weights
+    a, b, c, d = system[0:3], system[3], system[4:7], system[7]
+    squares = np.empty(n_steps)
+    jerks = np.empty(n_steps)
+    sampled = np.empty((n_dofs, n_samples))  # positions at the samples
+    final = np.empty(n_dofs)  # velocity at the end
+    for k in range(n_rollouts):
+        plan = 0 if accelerations.shape[0] == 1 else k
+        squares[:] = 0.0
+        jerks[:] = 0.0
+        for j in range(n_dofs):
+            s0 = s1 = s2 = 0.0  # state of the noise response
+            previous = 0.0
+            column = 0
+            for m in range(n_steps):
+                epsilon = noise[k, m, j] if noisy and m < n_steps - 1 else 0.0
+                acceleration = accelerations[plan, j, m] + (
+                    c[2, 0] * s0 + c[2, 1] * s1 + c[2, 2] * s2 + d[2] * epsilon
+                )
+                squares[m] += acceleration * acceleration
+                if jerk_weight > 0.0 and m > 0:
+                    jerk = (acceleration - previous) / dt
+                    jerks[m - 1] += jerk * jerk
+                previous = acceleration
+                if column < n_samples and samples[column] == m:
+                    sampled[j, column] = positions[plan, j, column] + (
+                        c[0, 0] * s0 + c[0, 1] * s1 + c[0, 2] * s2 + d[0] * epsilon
+                    )
+                    column += 1
+                if m == n_steps - 1:
+                    final[j] = velocity[plan, j] + (
+                        c[1, 0] * s0 + c[1, 1] * s1 + c[1, 2] * s2 + d[1] * epsilon
+                    )
+                if noisy:
+                    s0, s1, s2 = (
+                        a[0, 0] * s0 + a[0, 1] * s1 + a[0, 2] * s2 + b[0] * epsilon,
+                        a[1, 0] * s0 + a[1, 1] * s1 + a[1, 2] * s2 + b[1] * epsilon,
+                        a[2, 0] * s0 + a[2, 1] * s1 + a[2, 2] * s2 + b[2] * epsilon,
+                    )
+        for m in range(n_steps - 1):
+            rewards[k, m] -= acceleration_weight * dt * squares[m]
+            if jerk_weight > 0.0:
+                rewards[k, m] -= jerk_weight * dt * jerks[m]
+        for v in range(via.shape[0]):
+            column = int(via[v, 0])
+            error = 0.0
+            for j in range(n_dofs):
+                deviation = sampled[j, column] - via[v, 3 + j]
+                error += deviation * deviation
+            rewards[k, int(via[v, 1])] -= via[v, 2] * error
+        error = 0.0
+        speed = 0.0
+        for j in range(n_dofs):
+            deviation = sampled[j, n_samples - 1] - goal[j]
+            error += deviation * deviation
+            speed += final[j] * final[j]
+        rewards[k, n_steps - 1] -= goal_weight * error
+        rewards[k, n_steps - 1] -= velocity_weight * speed
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _row_sums(rewards):
+    """Returns of per-step rewards (K, n_steps), summed step by step (one order for the
+    compiled learning loop, :meth:`RewardTask.returns` and the optimisers' ``tell``)."""
+    returns = np.zeros(rewards.shape[0])
+    for k in range(rewards.shape[0]):
+        for t in range(rewards.shape[1]):
+            returns[k] += rewards[k, t]
+    return returns
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _plan_samples(
+    weights, free_accelerations, accelerations, free_positions, positions, free_velocity, velocity
+):
+    """Noise-free plans ``F + G W^T`` at the samples the reward reads, for ``weights``
+    (K, D, B): accelerations (K, D, n_steps), positions (K, D, S), final velocity (K, D),
+    from the rows of ``F`` (D, ...) and ``G`` (B, ...) with time along the last axis."""
+    n_rollouts, n_dofs, n_basis = weights.shape
+    planned_accelerations = np.zeros((n_rollouts, n_dofs, accelerations.shape[1]))
+    planned_positions = np.zeros((n_rollouts, n_dofs, positions.shape[1]))
+    planned_velocity = np.zeros((n_rollouts, n_dofs))
+    for k in range(n_rollouts):
+        for d in range(n_dofs):
+            for i in range(n_basis):  # scalar loops: slices would allocate a temporary each
+                w = weights[k, d, i]
+                for m in range(accelerations.shape[1]):
+                    planned_accelerations[k, d, m] += w * accelerations[i, m]
+                for m in range(positions.shape[1]):
+                    planned_positions[k, d, m] += w * positions[i, m]
+                planned_velocity[k, d] += w * velocity[i]
+            for m in range(accelerations.shape[1]):
+                planned_accelerations[k, d, m] += free_accelerations[d, m]
+            for m in range(positions.shape[1]):
+                planned_positions[k, d, m] += free_positions[d, m]
+            planned_velocity[k, d] += free_velocity[d]
+    return planned_accelerations, planned_positions, planned_velocity
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,27 +346,31 @@ class RewardTask:
             index = min(int(round(time / dt)), n_steps - 1)
             via.append((index, position, real(f"{name}.weight", point.weight, minimum=0.0)))
         object.__setattr__(self, "_via", tuple(via))
-        response = _noise_response(self.dmp, n_steps, self.dt)
-        object.__setattr__(self, "noise_response", response)
-        fft_size = 1 << int(np.ceil(np.log2(2 * n_steps)))
-        object.__setattr__(self, "_fft_size", fft_size)
-        impulse = response[:, :, 0]  # effect of an input at step 0 on every sample
-        object.__setattr__(self, "_impulse_spectrum", np.fft.rfft(impulse, n=fft_size, axis=1))
+        system = _noise_system(self.dmp, self.dt)
+        object.__setattr__(self, "noise_response", _noise_response(system, n_steps))
         # the reward reads whole acceleration series but positions only at the via points and
         # the end, velocities only at the end: the rows of F, G, H at those samples
         samples = tuple(sorted({index for index, _, _ in via} | {n_steps - 1}))
         rows = {  # time along the last axis: (n_dofs or n_basis, samples)
             "samples": samples,
-            "via": tuple(samples.index(index) for index, _, _ in via),
             "free_positions": plan.free[0, list(samples)].T.copy(),
             "positions": plan.weight_response[0, list(samples)].T.copy(),
             "free_velocity": plan.free[1, -1],
             "velocity": plan.weight_response[1, -1],
             "free_accelerations": plan.free[2].T.copy(),
             "accelerations": plan.weight_response[2].T.copy(),
-            "noise_positions": response[0, list(samples)].T.copy(),  # (n_steps - 1, S)
-            "noise_velocity": response[1, -1],
-            "acceleration_spectrum": np.fft.rfft(impulse[2], n=fft_size),
+            # the reward kernel's inputs: the state space (rows A, b, C, d), the via points
+            # (column in samples, sample, weight, target per DOF), the weights of the terms
+            "system": np.vstack(system),
+            "via_rows": np.array(
+                [[samples.index(i), i, weight, *position] for i, position, weight in via],
+                dtype=float,
+            ).reshape(len(via), 3 + self.n_dofs),
+            "samples_array": np.array(samples, dtype=np.int64),
+            "goal": np.array(self.dmp.goal, dtype=float),
+            "weights": np.array(
+                [self.acceleration_weight, self.jerk_weight, self.goal_weight, self.velocity_weight]
+            ),
         }
         object.__setattr__(self, "_rows", rows)
         # d mu_k / d w_i = phi_i(x_k) / tau^2 at each step's sample, (n_steps - 1, n_basis)
@@ -289,14 +431,8 @@ class RewardTask:
         plans = self.plan.free[None] + forced.transpose(2, 0, 1, 3)
         if acceleration_noise is not None:
             noise = self._check_noise(acceleration_noise, k)
-            # H is lower-triangular Toeplitz: H @ noise is a causal convolution, done by FFT
-            spectrum = np.fft.rfft(noise, n=self._fft_size, axis=1)  # (K, n_freq, D)
-            noisy = np.fft.irfft(
-                self._impulse_spectrum[None, :, :, None] * spectrum[:, None],
-                n=self._fft_size,
-                axis=2,
-            )
-            plans = plans + noisy[:, :, : self.n_steps]
+            response = self.noise_response.reshape(3 * self.n_steps, self.n_actions)
+            plans = plans + (response @ noise).reshape(k, 3, self.n_steps, self.n_dofs)
         return plans
 
     def rewards(self, plans: np.ndarray) -> np.ndarray:
@@ -315,61 +451,51 @@ class RewardTask:
             np.swapaxes(plans[:, 0, samples], 1, 2), plans[:, 1, -1], np.swapaxes(plans[:, 2], 1, 2)
         )
 
-    def _step_rewards(self, positions, final_velocity, accelerations) -> np.ndarray:
+    def _step_rewards(self, positions, final_velocity, accelerations, noise=None) -> np.ndarray:
         """The reward of the module docstring, per step, shape (K, n_steps).
 
-        ``positions`` (K, n_dofs, S) at the samples ``self._rows["samples"]`` (the via points
-        and the end), ``final_velocity`` (K, n_dofs), ``accelerations`` (K, n_dofs, n_steps).
+        ``positions`` (K', n_dofs, S) at the samples ``self._rows["samples"]`` (the via points
+        and the end), ``final_velocity`` (K', n_dofs), ``accelerations`` (K', n_dofs, n_steps)
+        of the noise-free plans, K' = K or 1 (one plan shared by the K roll-outs); ``noise``
+        (K, n_steps - 1, n_dofs) the held acceleration inputs added to them (``H epsilon``,
+        run through the state space of :func:`_noise_system` step by step), or None.
         """
-        dt = self.dt
-        rewards = np.zeros((accelerations.shape[0], accelerations.shape[2]))
-        commands = accelerations[:, :, :-1]
-        rewards[:, :-1] -= self.acceleration_weight * dt * np.sum(commands**2, axis=1)
-        if self.jerk_weight > 0.0:
-            jerk = np.diff(accelerations, axis=2) / dt
-            rewards[:, :-1] -= self.jerk_weight * dt * np.sum(jerk**2, axis=1)
-        for (index, position, weight), column in zip(self._via, self._rows["via"]):
-            rewards[:, index] -= weight * np.sum((positions[:, :, column] - position) ** 2, axis=1)
-        goal = np.asarray(self.dmp.goal)
-        rewards[:, -1] -= self.goal_weight * np.sum((positions[:, :, -1] - goal) ** 2, axis=1)
-        rewards[:, -1] -= self.velocity_weight * np.sum(final_velocity**2, axis=1)
+        k = accelerations.shape[0] if noise is None else noise.shape[0]
+        rewards = np.zeros((k, self.n_steps))
+        _reward_kernel(
+            np.ascontiguousarray(accelerations),
+            np.ascontiguousarray(positions),
+            np.ascontiguousarray(final_velocity),
+            np.empty((0, 0, 0)) if noise is None else np.ascontiguousarray(noise),
+            *self.reward_arrays()[6:],
+            rewards,
+        )
         if self.delayed:
-            total = rewards.sum(axis=1)
+            total = _row_sums(rewards)
             rewards = np.zeros_like(rewards)
             rewards[:, -1] = total
         return rewards
 
     def _sampled_rewards(self, weights, acceleration_noise=None) -> np.ndarray:
-        """Per-step rewards of a batch from the rows of ``F, G, H`` the reward reads.
+        """Per-step rewards of a batch from the rows of ``F, G`` the reward reads.
 
         The same plans as :meth:`rollouts` (``Y = F + G W^T + H epsilon``) evaluated only
         where :meth:`_step_rewards` looks: the accelerations of every sample, the positions
         at the via points and the end, the velocity at the end. Roll-outs that share their
         weights (action-space exploration) share one noise-free plan.
         """
-        rows = self._rows
         weights = self._batch_weights(weights)
         k = weights.shape[0]
         shared = bool(np.all(weights == weights[:1]))
         mean = weights[:1] if shared else weights
-        # (K, D, B) @ (B, samples) -> (K, D, samples); time along the last axis
-        positions = rows["free_positions"] + mean @ rows["positions"]
-        velocity = rows["free_velocity"] + mean @ rows["velocity"]
-        accelerations = rows["free_accelerations"] + mean @ rows["accelerations"]
-        if acceleration_noise is not None:
-            noise = np.swapaxes(self._check_noise(acceleration_noise, k), 1, 2).copy()
-            # causal convolution with the acceleration row of H, by FFT
-            spectrum = np.fft.rfft(noise, n=self._fft_size, axis=2)
-            spectrum *= rows["acceleration_spectrum"]
-            response = np.fft.irfft(spectrum, n=self._fft_size, axis=2)
-            accelerations = accelerations + response[:, :, : self.n_steps]
-            positions = positions + noise @ rows["noise_positions"]
-            velocity = velocity + noise @ rows["noise_velocity"]
-        elif shared:
-            positions, velocity, accelerations = (
-                np.broadcast_to(a, (k,) + a.shape[1:]) for a in (positions, velocity, accelerations)
-            )
-        return self._step_rewards(positions, velocity, accelerations)
+        accelerations, positions, velocity = _plan_samples(
+            np.ascontiguousarray(mean), *self.reward_arrays()[:6]
+        )
+        if acceleration_noise is None:
+            rewards = self._step_rewards(positions, velocity, accelerations)
+            return np.repeat(rewards, k, axis=0) if shared else rewards
+        noise = self._check_noise(acceleration_noise, k)
+        return self._step_rewards(positions, velocity, accelerations, noise)
 
     def _check_noise(self, acceleration_noise, n_rollouts: int) -> np.ndarray:
         noise = real_array("acceleration_noise", acceleration_noise)
@@ -396,7 +522,35 @@ class RewardTask:
 
     def returns(self, weights, acceleration_noise=None) -> np.ndarray:
         """Returns (sums of rewards) of a batch, shape (K,)."""
-        return self._sampled_rewards(weights, acceleration_noise).sum(axis=1)
+        return _row_sums(self._sampled_rewards(weights, acceleration_noise))
+
+    def reward_arrays(self) -> tuple:
+        """What the compiled reward reads, in the order of its arguments.
+
+        The rows of ``F`` and ``G`` the reward reads, time along the last axis:
+        accelerations (n_dofs, n_steps) and (n_basis, n_steps), positions at the via points
+        and the end (n_dofs, S) and (n_basis, S), final velocity (n_dofs,) and (n_basis,);
+        then the noise response as a state space (rows ``A``, ``b``, ``C``, ``d`` of
+        :func:`_noise_system`, (8, 3)), the samples read (S,), the via points (rows of column
+        in the samples, sample, weight, target per DOF), the goal, the weights
+        ``(c_a, c_j, c_g, c_v)`` and ``dt``. A reparametrised task (weights ``v`` with
+        ``W = D v``) gives ``G D`` instead of ``G``.
+        """
+        rows = self._rows
+        return (
+            rows["free_accelerations"],
+            rows["accelerations"],
+            rows["free_positions"],
+            rows["positions"],
+            rows["free_velocity"],
+            rows["velocity"],
+            rows["system"],
+            rows["samples_array"],
+            rows["via_rows"],
+            rows["goal"],
+            rows["weights"],
+            self.dt,
+        )
 
     def deterministic_return(self, weights) -> float:
         """Return of the noise-free plan with ``weights`` (n_dofs, n_basis)."""

@@ -811,8 +811,9 @@ def test_noisy_rollouts_of_several_dofs_are_plan_plus_h_eps():
 @pytest.mark.parametrize("noisy", [False, True])
 def test_evaluate_gives_the_rewards_of_the_full_plans(shared, noisy):
     """evaluate() reads only the samples the reward needs; its rewards are the plain formula
-    on the full plans Y = F + G W^T + H eps (H applied by einsum, not by FFT), for distinct
-    weights and for roll-outs sharing one weight vector (action-space exploration)."""
+    on the full plans Y = F + G W^T + H eps (H applied by einsum, not by the state-space
+    recurrence of evaluate), for distinct weights and for roll-outs sharing one weight vector
+    (action-space exploration)."""
     task = _weighted_task(via_point_task(dt=0.01).dmp, (0.3, 0.6))
     rng = np.random.default_rng(21)
     weights = 10 * rng.standard_normal((4, 2, task.n_basis))
@@ -830,7 +831,8 @@ def test_evaluate_gives_the_rewards_of_the_full_plans(shared, noisy):
         expected[k, :-1] = -0.01 * dt * np.sum(ydd[:-1] ** 2, 1) - 1e-6 * dt * np.sum(jerk**2, 1)
         expected[k, 20] -= 50.0 * np.sum((y[20] - [0.3, 0.6]) ** 2)
         expected[k, -1] -= 500.0 * np.sum((y[-1] - [1.0, 0.0]) ** 2) + 2.0 * np.sum(yd[-1] ** 2)
-    # FFT round-off: a few ulps of the largest plan value times log2(fft size), far below 1e-9
+    # round-off of a sum over at most n = 51 inputs: about n ulps of the largest plan value,
+    # far below 1e-9
     np.testing.assert_allclose(rewards, expected, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(task.returns(weights, noise), expected.sum(1), rtol=1e-9)
 
@@ -1198,4 +1200,75 @@ def test_pibb_batches_and_updates_do_not_depend_on_blas_threads():
                 method.tell(-np.sum(batch**2, axis=1))
                 draws.append(np.concatenate([batch.ravel(), method.covariance.ravel()]))
             runs.append(np.concatenate(draws))
+    np.testing.assert_array_equal(runs[1].view(np.uint64), runs[0].view(np.uint64))
+
+
+def _python_rounds(method, task, n_updates):
+    """Answer key of the compiled loop: ask, task.evaluate, tell, written out in Python."""
+    means = []
+    for _ in range(n_updates):
+        exploration = method.ask()
+        method.tell(task.evaluate(exploration))
+        means.append(method.mean)
+    return np.stack(means)
+
+
+@pytest.mark.parametrize(
+    "name, options, builder",
+    [
+        ("enac", {"step_rule": "kl", "decay": 0.05, "step_size": 10.0}, paper_reaching_task),
+        ("enac", {"step_rule": "constant", "step_size": 20.0}, via_point_task),
+        ("ereinforce", {"step_rule": "constant", "step_size": 40.0}, paper_reaching_task),
+        ("ereinforce", {"step_rule": "kl", "step_size": 3.0}, via_point_task),
+        ("enac", {"step_size": 1.0, "learn_exploration": True}, paper_reaching_task),
+        ("enac", {"step_size": 10.0}, lambda: paper_reaching_task(delayed=True, jerk_weight=1e-5)),
+    ],
+)
+def test_compiled_learning_loop_is_the_python_rounds_bit_for_bit(name, options, builder):
+    """learn() runs ask/evaluate/tell in one compiled loop: the same normal draws, rewards and
+    updates, so the same bits as the rounds in Python (and the generator ends in the same
+    state); a one-line slip (a draw order, a missed decay, a stale sigma) breaks equality."""
+    task = builder()
+    n_rollouts = max(20, task.n_dofs * task.n_basis + 2)
+    compiled, python = (
+        make_method(name, task, seed=4, exploration_std=10.0, n_rollouts=n_rollouts, **options)
+        for _ in range(2)
+    )
+    means = np.stack(compiled.learn(task, 12))
+    np.testing.assert_array_equal(means, _python_rounds(python, task, 12))
+    assert compiled.log_std == python.log_std and compiled.n_updates == python.n_updates == 12
+    assert compiled.n_trials == python.n_trials == 12 * n_rollouts
+    np.testing.assert_array_equal(compiled.rng.standard_normal(3), python.rng.standard_normal(3))
+
+
+def test_compiled_learning_loop_refuses_an_overflowing_update_like_tell():
+    """The compiled loop stops where tell would raise, with tell's message and the updates
+    done so far kept."""
+    task = paper_reaching_task()
+    compiled, python = (
+        make_method(
+            "enac", task, seed=0, exploration_std=10.0, step_rule="constant", step_size=1e308
+        )
+        for _ in range(2)
+    )
+    with pytest.raises(InvalidInputError) as expected:
+        _python_rounds(python, task, 5)
+    with pytest.raises(InvalidInputError) as error:
+        compiled.learn(task, 5)
+    assert str(error.value) == str(expected.value)
+    assert str(error.value).startswith("the update overflows")
+    assert compiled.n_updates == python.n_updates
+
+
+def test_compiled_six_dof_enac_does_not_depend_on_blas_threads():
+    """The compiled loop's regression (62 x 61, LAPACK gelsd through SciPy's OpenBLAS) gives
+    the same bits with two BLAS threads as with one, like PI-BB's pinned linear algebra.
+    Answer key: the one-thread run."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    six = multi_dof_reaching_task()
+    runs = []
+    for threads in (1, 2):
+        with threadpoolctl.threadpool_limits(limits=threads, user_api="blas"):
+            method = make_method("enac", six, seed=1, exploration_std=10.0, n_rollouts=62)
+            runs.append(np.stack(method.learn(six, 10)))
     np.testing.assert_array_equal(runs[1].view(np.uint64), runs[0].view(np.uint64))

@@ -154,3 +154,24 @@ def test_results_do_not_depend_on_the_runner():
     parallel = map_runs(rl.learn, jobs, Runner(2))
     for a, b in zip(serial, parallel):
         np.testing.assert_array_equal(a.weights, b.weights)
+
+
+def test_compiled_loop_on_a_scaled_task_follows_its_python_rounds():
+    """Answer key: ask, ScaledTask.evaluate (the original task at ``scale * v``), tell, in
+    Python. The compiled loop reads the rows ``G D`` instead: the same plans up to the
+    rounding of ``(D v) G`` against ``v (D G)`` (a few ulps), which ten eNAC updates carry
+    over amplified by the regression's condition number (below 1e3): far below 1e-9."""
+    base = rl._base_task("paper")
+    scaled = rl.ScaledTask(base, rl.column_scaling(base.policy_features, 2170.0))
+    compiled, python = (
+        make_method("enac", scaled, seed=2, exploration_std=10.0, n_rollouts=20, step_size=10.0)
+        for _ in range(2)
+    )
+    means = np.stack(compiled.learn(scaled, 10))
+    expected = []
+    for _ in range(10):
+        python.tell(scaled.evaluate(python.ask()))
+        expected.append(python.mean)
+    np.testing.assert_allclose(
+        means, np.stack(expected), rtol=1e-9, atol=1e-9 * np.abs(means).max()
+    )

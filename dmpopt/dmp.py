@@ -797,6 +797,19 @@ class RhythmicDMP(_DmpCommon):
         """Weights flattened to (n_dofs, 2 n_basis), the layout of the features."""
         return np.asarray(self.weights).reshape(self.n_dofs, -1)
 
+    def replace(self, **changes) -> RhythmicDMP:
+        """As :meth:`DiscreteDMP.replace`; a phase-form copy that also differs in ``amplitude``
+        keeps the step limit: ``A`` enters eq. (11) only as ``tau r' = alpha_r (A - r)``, so
+        the Jacobian, and the limit, do not depend on it (the energy form's ``E_0`` of eq.
+        (13) multiplies ``v``: there it does). A stepper's amplitude change each tick (a
+        filtered change, :meth:`Stepper.set_amplitude`) then costs no new limit."""
+        copy = super().replace(**changes)
+        memo = self.__dict__.get("_memo", {})
+        if self.form == "phase" and set(changes) <= PLACEMENT_FIELDS | {"amplitude"}:
+            if "max_step" in memo:
+                copy.__dict__.setdefault("_memo", {})["max_step"] = memo["max_step"]
+        return copy
+
     def with_setpoint(self, setpoint) -> RhythmicDMP:
         """Same oscillation around a new setpoint."""
         return self.replace(setpoint=setpoint)

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-# CPU seconds (process and workers; dmpopt.cli): quick ~140 s (the walk more than half); full
-# estimated from one run of each kind timed: ~300 s drumming and videos, ~440 s the walk
-EXPECTED_SECONDS = {"full": 680, "quick": 140}  # CPU s (dmpopt.cli); full: main job 2026-11-27
+# CPU seconds (process and workers, user + sys; dmpopt.cli), 2026-11-27 at load 7-11: quick
+# 107 serial, 119 with the default two workers; full 544 with two workers (the walk about half)
+EXPECTED_SECONDS = {"full": 545, "quick": 110}  # CPU s (dmpopt.cli)
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)

@@ -118,7 +118,7 @@ def run(out_dir, quick: bool = False, seed: int = 0, backend: str = "mujoco", ru
     if on_mujoco:
         metrics["mujoco"] = mujoco_metrics(study.runs["none"], study.mujoco)
         metrics["plant"] = plant_comparison(
-            floating, dmps, compile, study.runs["none"], quick, progress
+            floating, dmps, compile, study.runs["none"], quick, progress, durations.sweep
         )
         progress("plant sweep: drumming")
         metrics["plant_sweep"] = drumming_sweep(

@@ -710,3 +710,24 @@ def test_a_changed_copy_plans_as_a_dmp_built_afresh(changes):
         np.testing.assert_array_equal(planned.positions, expected.positions)
         np.testing.assert_array_equal(planned.accelerations, expected.accelerations)
     assert copy.max_step == fresh.max_step
+
+
+@pytest.mark.parametrize("form", ["phase", "energy"])
+def test_an_amplitude_copy_keeps_only_a_step_limit_that_does_not_depend_on_it(form):
+    """A rhythmic copy with another amplitude has the step limit of the same DMP built afresh:
+    the phase form keeps its limit (eq. (11) is linear in r, A only shifts it), and the
+    answer key is the limit on RK4's negative real axis, h |lambda| <= 2.785293563 (the root
+    of 1 + z + z^2/2 + z^3/6 + z^4/24 = 1), for the slowest-to-bound eigenvalues -alpha_r
+    and -alpha_z / 2 (critically damped); the energy form's limit moves with E_0 = (k A)^2/2
+    and is recomputed (keeping it is the bug this catches)."""
+    from dmpopt import RhythmicDMP
+
+    dmp = random_rhythmic(seed=3, form=form)
+    dmp.max_step  # noqa: B018 - computed, so that a copy could keep it
+    for amplitude in (0.5, 4.0):
+        copy = dmp.replace(amplitude=amplitude)
+        fields = {f.name: getattr(copy, f.name) for f in dataclasses.fields(copy) if f.init}
+        assert copy.max_step == RhythmicDMP(**fields).max_step
+        if form == "phase":
+            fastest = max(dmp.alpha_r, dmp.alpha_z / 2)
+            assert copy.max_step == pytest.approx(2.785293563 / fastest * dmp.tau, rel=1e-8)

@@ -427,3 +427,23 @@ def test_videos_skipped_with_the_reason(tmp_path, monkeypatch):
     )
     assert humanoid.write_videos(tmp_path, clips, "quick run") == ([], "quick run")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_drum_summary_over_a_first_window_counts_only_its_ticks_and_falls():
+    """The reality gap's runs are judged over their first seconds: the RMS and maximum of the
+    first window's errors (written plainly here), and a fall only if it happened in it."""
+    from dmpopt_studies.humanoid.plant import drum_summary
+
+    n = 3000  # 3 s at 1 kHz
+    times = np.arange(n) * humanoid.DT
+    error = np.where(times < 1.0, 0.002, 0.5)[:, None] * np.array([1.0, -2.0])
+    log = SimpleNamespace(
+        times=times, desired=error, actual=np.zeros_like(error), fell=True, diverged=None
+    )
+    first = drum_summary(log, 1.0)
+    assert first["tracking_rms_rad"] == pytest.approx(0.002 * np.sqrt((1 + 4) / 2), rel=1e-12)
+    assert first["tracking_max_rad"] == pytest.approx(0.004, rel=1e-12)
+    assert not first["fell"] and first["simulated_s"] == pytest.approx(1.0)
+    whole = drum_summary(log)
+    assert whole["fell"] and whole["tracking_max_rad"] == pytest.approx(1.0)
+    assert drum_summary(log, 5.0) == whole  # a window past the end: the whole (fallen) run

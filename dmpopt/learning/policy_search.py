@@ -336,20 +336,15 @@ class _ActionSpaceGradient(PolicySearch):
         fisher[-1, -1] = 2.0 * self.features.shape[0] * n_dofs
         return fisher
 
+    def _rule(self) -> tuple:
+        """The update's settings and count, as the compiled update functions take them."""
+        kl = self.step_rule == "kl"
+        return self.learn_exploration, self.natural, kl, self.step_size, self.decay, self.n_updates
+
     def _change(self, noise, returns) -> np.ndarray:
         """Change of ``[vec(W), log sigma]`` in one update (:func:`_gradient_change`)."""
         return _gradient_change(
-            noise,
-            returns,
-            self.features,
-            self._gram,
-            self.exploration_std**2,
-            self.learn_exploration,
-            self.natural,
-            self.step_rule == "kl",
-            self.step_size,
-            self.decay,
-            self.n_updates,
+            noise, returns, self.features, self._gram, self.exploration_std**2, *self._rule()
         )
 
     def _overflow(self, returns) -> InvalidInputError:
@@ -392,12 +387,7 @@ class _ActionSpaceGradient(PolicySearch):
             self.log_std,
             self.features,
             self._gram,
-            self.learn_exploration,
-            self.natural,
-            self.step_rule == "kl",
-            self.step_size,
-            self.decay,
-            self.n_updates,
+            *self._rule(),
             *task.reward_arrays(),
         )
         for u in range(done):

@@ -28,6 +28,17 @@ def upper_body():
     return load_talos("reduced", fixed_base=True)
 
 
+def saturating_posture(robot):
+    """A posture task asking 500 rad/s^2 of every joint of a fixed base at rest: the torque
+    limits bind. Returns the controller and the state (q, v)."""
+    posture = PostureTask(robot, weight=1.0, stiffness=0.0, damping=0.0)
+    controller = InverseDynamicsController(robot, [posture], joint_limit_horizon=None,
+                                           time_budget=1.0)  # fmt: skip
+    q, v = robot.reference_configuration, np.zeros(robot.nv)
+    posture.set_reference(q, v, np.full(robot.nv, 500.0))
+    return controller, q, v
+
+
 @pytest.fixture
 def proxsuite_only(monkeypatch):
     """As if DAQP failed on every QP (cycled, say): each solve goes on to proxsuite, the
@@ -760,11 +771,7 @@ def test_the_certificate_starts_from_daqps_active_set_then_from_the_last_one(
         return solution, solves
 
     monkeypatch.setattr(qp_stages, "_active_set", recorded)
-    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
-    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
-                                           time_budget=1.0)  # fmt: skip
-    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
-    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller, q, v = saturating_posture(upper_body)
     first = controller.compute_torques(q, v)
     binding = int(np.sum(np.abs(first) >= controller.torque_limit * (1 - 1e-9)))
     assert binding >= 3 and controller.stats.last_status == "DAQP_SOLVED"
@@ -1358,11 +1365,7 @@ def test_proxsuite_starts_from_the_last_certified_optimum_not_from_its_own_itera
     certified optimum and its multipliers, so its iterations and answer are the same whatever
     proxsuite computed in between (its own iterates differ in their last bits between
     processes; started from them, the solves of two processes drift apart)."""
-    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
-    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
-                                           time_budget=1.0)  # fmt: skip
-    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
-    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller, q, v = saturating_posture(upper_body)
     controller.compute_torques(q, v)
     qp, stage = controller._current, controller._current.tick.limited
     assert stage.certified
@@ -1543,11 +1546,7 @@ def test_daqps_answer_does_not_depend_on_where_the_arrays_lie(upper_body):
     vectorised kernels do not: its last bits follow the offsets)."""
     from dmpopt.control.qp_stages import ControllerStats, StageSolver, _arguments, _Stage
 
-    posture = PostureTask(upper_body, weight=1.0, stiffness=0.0, damping=0.0)
-    controller = InverseDynamicsController(upper_body, [posture], joint_limit_horizon=None,
-                                           time_budget=1.0)  # fmt: skip
-    q, v = upper_body.reference_configuration, np.zeros(upper_body.nv)
-    posture.set_reference(q, v, np.full(upper_body.nv, 500.0))
+    controller, q, v = saturating_posture(upper_body)
     controller.compute_torques(q, v)
     hessian, gradient, _, _, in_matrix, lower, upper = controller._current.tick.limited.problem
     answers = []

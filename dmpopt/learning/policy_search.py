@@ -379,6 +379,7 @@ class _ActionSpaceGradient(PolicySearch):
         if not hasattr(task, "reward_arrays"):
             return super().learn(task, n_updates)
         n_updates = integer("n_updates", n_updates, minimum=0)
+        arrays = task.reward_arrays()
         means, log_stds, returns, done, status = _learn_action_space(
             self.rng,
             n_updates,
@@ -388,7 +389,8 @@ class _ActionSpaceGradient(PolicySearch):
             self.features,
             self._gram,
             *self._rule(),
-            *task.reward_arrays(),
+            arrays[:6],  # the plan's rows (dmpopt.learning.rewards._plan_samples)
+            *arrays[6:],
         )
         for u in range(done):
             self._weights, self.log_std = means[u].copy(), float(log_stds[u])
@@ -486,12 +488,7 @@ def _learn_action_space(
     step,
     decay,
     n_done,
-    free_accelerations,
-    accelerations,
-    free_positions,
-    positions,
-    free_velocity,
-    velocity,
+    plan_rows,
     system,
     samples,
     via,
@@ -503,7 +500,8 @@ def _learn_action_space(
     rewards (:func:`dmpopt.learning.rewards._reward_kernel` on the shared plan), tell
     (:func:`_gradient_change`). Returns the means and ``log sigma`` after each update, the
     last returns, the number of updates done and 0, 1 (rewards not finite, stopped) or 2 (the
-    update overflows, stopped)."""
+    update overflows, stopped). ``plan_rows``: the six arrays :func:`_plan_samples` takes
+    after the weights."""
     n_dofs, n_basis = weights.shape
     n_actions = features.shape[0]
     means = np.zeros((n_updates, n_dofs, n_basis))
@@ -513,16 +511,8 @@ def _learn_action_space(
     for u in range(n_updates):
         std = math.exp(log_std)
         noise = std * rng.standard_normal((n_rollouts, n_actions, n_dofs))
-        plan = _plan_samples(
-            shared,
-            free_accelerations,
-            accelerations,
-            free_positions,
-            positions,
-            free_velocity,
-            velocity,
-        )
-        rewards = np.zeros((n_rollouts, free_accelerations.shape[1]))
+        plan = _plan_samples(shared, *plan_rows)
+        rewards = np.zeros((n_rollouts, plan_rows[0].shape[1]))
         _reward_kernel(
             plan[0],
             plan[1],

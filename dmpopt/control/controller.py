@@ -177,7 +177,8 @@ class InverseDynamicsController:
       only if it fails numerically by proxsuite, warm-started, retried cold once on
       failure, within the first half of the time budget) whose multipliers seed
       active-set iterations: the answer is the exact optimum of an active set that verifies
-      (:func:`_active_set`), the same bits in every process.
+      (:func:`_active_set`), the same bits in every process wherever DAQP decides
+      (``stats.n_proxsuite`` counts the solves that reached proxsuite).
     - ``relaxed``: if that QP fails (infeasible, e.g. torque limits too weak to hold the
       robot, out of iterations or of its half of the budget, or no active set verified),
       the QP with every

@@ -23,6 +23,21 @@ symbol                          meaning                                API name
 The full table, with units: ``docs/glossary.md``.
 """  # noqa: E501
 
+import os as _os
+import sys as _sys
+
+from .symbolic import cache_dir as _cache_dir
+
+# numba caches compiled kernels next to their source unless told otherwise: in an installed
+# package that is site-packages, where the files outlive an uninstall. Every module with numba
+# kernels (rollouts, rewards, controller, simulator) lies below this package, so setting the
+# user's cache folder here, before numba reads its configuration (at import, and again when it
+# compiles), covers them all.
+if not _os.environ.get("NUMBA_CACHE_DIR"):
+    _os.environ["NUMBA_CACHE_DIR"] = str(_cache_dir() / "numba")
+    if "numba" in _sys.modules:
+        _sys.modules["numba"].core.config.reload_config()
+
 from .cartesian import CartesianDMP, CartesianStepper, CartesianTrajectory
 from .dmp import AffinePlan, DiscreteDMP, RhythmicDMP, similarity_transform
 from .exceptions import (

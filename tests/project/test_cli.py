@@ -582,28 +582,48 @@ def test_cache_dir_follows_the_platform(monkeypatch, tmp_path):
 
 
 NUMBA_PROBE = """
-import sys
+import importlib
 {first}
-import dmpopt.control.kernels as kernels
 import numba.core.config as config
+from numba.core.registry import CPUDispatcher
+for name in {modules}:
+    module = importlib.import_module(name)
+    kernels = [k for k in vars(module).values() if isinstance(k, CPUDispatcher)]
+    print(name, len(kernels), *(kernel._cache._cache_path for kernel in kernels))
 print(config.CACHE_DIR)
-print(kernels.all_finite._cache._cache_path)
 """
+
+NUMBA_MODULES = [
+    "dmpopt.learning.rewards",
+    "dmpopt.learning.policy_search",
+    "dmpopt.control.kernels",
+    "dmpopt.sim.kernels",
+    "dmpopt.sim.kernels_mujoco",
+]
+"""Every module of dmpopt with numba kernels of its own; the rollout kernels of
+``dmpopt.response`` are generated into the cache folder itself."""
 
 
 @pytest.mark.parametrize("numba_first", [False, True])
 def test_numba_cache_is_outside_the_package(tmp_path, numba_first):
-    """In a fresh interpreter (numba imported before dmpopt or not), numba's cache folder is
-    $XDG_CACHE_HOME/dmpopt/numba, outside the installed package."""
+    """In a fresh interpreter (numba imported before dmpopt or not), every numba kernel of
+    dmpopt caches in $XDG_CACHE_HOME/dmpopt/numba, outside the installed package (the
+    learning kernels first, as ``dmpopt study run rl`` imports them, without the controller)."""
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "DMPOPT_CACHE")}
     env["XDG_CACHE_HOME"] = str(tmp_path)
-    code = NUMBA_PROBE.format(first="import numba" if numba_first else "")
+    first = "import numba" if numba_first else ""
+    code = NUMBA_PROBE.format(first=first, modules=NUMBA_MODULES)
     lines = subprocess.run(
         [sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True
     ).stdout.splitlines()
-    assert lines[0] == str(tmp_path / "dmpopt" / "numba")
-    assert Path(lines[1]).is_relative_to(tmp_path / "dmpopt" / "numba")
-    assert not Path(lines[1]).is_relative_to(Path(dmpopt.__file__).parent)
+    assert lines[-1] == str(tmp_path / "dmpopt" / "numba")
+    assert [line.split()[0] for line in lines[:-1]] == NUMBA_MODULES
+    for line in lines[:-1]:
+        _, count, *paths = line.split()
+        assert int(count) > 0 and len(paths) == int(count)
+        for path in map(Path, paths):
+            assert path.is_relative_to(tmp_path / "dmpopt" / "numba")
+            assert not path.is_relative_to(Path(dmpopt.__file__).parent)
 
 
 def test_user_numba_cache_dir_is_kept(tmp_path):

@@ -1235,20 +1235,43 @@ _PROXIMAL_STEPS = 4
 
 @_compile
 def _cholesky(matrix, factor) -> bool:
-    """Lower Cholesky factor of the symmetric positive definite ``matrix`` into the lower
-    triangle of ``factor``; False if it is not positive definite (or holds a NaN)."""
+    r"""Lower Cholesky factor of the symmetric positive definite ``matrix`` (its lower triangle
+    is read) into the lower triangle of ``factor`` (which may be ``matrix``); False if it is
+    not positive definite (or holds a NaN).
+
+    Column by column; each entry is :math:`l_{ik} = (a_{ik} - l_{i0} l_{k0} - l_{i1} l_{k1} -
+    \dots) / l_{kk}`, summed in that order. The entries of a column are independent, so four
+    rows are summed at once, each in its own accumulator: four chains of additions in flight
+    instead of one (twice as fast for Talos's 44 x 44 Hessian), with the bits and the verdict
+    (the first non-positive pivot) of one entry at a time.
+    """
     n = matrix.shape[0]
-    for i in range(n):
-        for k in range(i + 1):
-            value = matrix[i, k]
+    for k in range(n):
+        value = matrix[k, k]
+        for m in range(k):
+            value -= factor[k, m] * factor[k, m]
+        if not value > 0.0:  # also NaN
+            return False
+        pivot = math.sqrt(value)
+        factor[k, k] = pivot
+        i = k + 1
+        while i + 3 < n:
+            a0, a1 = matrix[i, k], matrix[i + 1, k]
+            a2, a3 = matrix[i + 2, k], matrix[i + 3, k]
             for m in range(k):
-                value -= factor[i, m] * factor[k, m]
-            if k < i:
-                factor[i, k] = value / factor[k, k]
-            elif value > 0.0:
-                factor[i, i] = math.sqrt(value)
-            else:
-                return False
+                column = factor[k, m]
+                a0 -= factor[i, m] * column
+                a1 -= factor[i + 1, m] * column
+                a2 -= factor[i + 2, m] * column
+                a3 -= factor[i + 3, m] * column
+            factor[i, k], factor[i + 1, k] = a0 / pivot, a1 / pivot
+            factor[i + 2, k], factor[i + 3, k] = a2 / pivot, a3 / pivot
+            i += 4
+        for r in range(i, n):
+            value = matrix[r, k]
+            for m in range(k):
+                value -= factor[r, m] * factor[k, m]
+            factor[r, k] = value / pivot
     return True
 
 

@@ -948,11 +948,24 @@ def expand(split, z, x):
     n_z = z.size
     for j in range(n_z):
         x[nonbasic[j]] = z[j]
-    for i in range(basic.size):
-        value = elimination[i, n_z]
+    n_con = basic.size
+    i = 0
+    while i + 3 < n_con:  # four rows at once, each summed in its own order (as below)
+        a0, a1 = elimination[i, n_z], elimination[i + 1, n_z]
+        a2, a3 = elimination[i + 2, n_z], elimination[i + 3, n_z]
         for j in range(n_z):
-            value -= elimination[i, j] * z[j]
-        x[basic[i]] = value
+            value = z[j]
+            a0 -= elimination[i, j] * value
+            a1 -= elimination[i + 1, j] * value
+            a2 -= elimination[i + 2, j] * value
+            a3 -= elimination[i + 3, j] * value
+        x[basic[i]], x[basic[i + 1]], x[basic[i + 2]], x[basic[i + 3]] = a0, a1, a2, a3
+        i += 4
+    for r in range(i, n_con):
+        value = elimination[r, n_z]
+        for j in range(n_z):
+            value -= elimination[r, j] * z[j]
+        x[basic[r]] = value
 
 
 @_compile
@@ -965,14 +978,33 @@ def torques(layout, dynamics, x, tau):
     nv = mass.shape[0]
     for k in range(nv, x.size):
         x[k] *= force_scale
-    for i in range(tau.size):
+    n_act, n_force = tau.size, x.size - nv
+    i = 0
+    while i + 3 < n_act:  # four joints at once, each summed in its own order (as below)
         joint = n_base + i
+        a0, a1, a2, a3 = bias[joint], bias[joint + 1], bias[joint + 2], bias[joint + 3]
+        for j in range(nv):
+            value = x[j]
+            a0 += mass[j, joint] * value
+            a1 += mass[j, joint + 1] * value
+            a2 += mass[j, joint + 2] * value
+            a3 += mass[j, joint + 3] * value
+        for k in range(n_force):
+            value = x[nv + k]
+            a0 -= rows[n_cost + k, joint] * value
+            a1 -= rows[n_cost + k, joint + 1] * value
+            a2 -= rows[n_cost + k, joint + 2] * value
+            a3 -= rows[n_cost + k, joint + 3] * value
+        tau[i], tau[i + 1], tau[i + 2], tau[i + 3] = a0, a1, a2, a3
+        i += 4
+    for r in range(i, n_act):
+        joint = n_base + r
         value = bias[joint]
         for j in range(nv):  # row `joint` of the symmetric, Fortran-ordered mass matrix
             value += mass[j, joint] * x[j]
-        for k in range(x.size - nv):
+        for k in range(n_force):
             value -= rows[n_cost + k, joint] * x[nv + k]
-        tau[i] = value
+        tau[r] = value
 
 
 @_compile

@@ -1274,7 +1274,7 @@ def _cholesky(matrix, factor) -> bool:
     Column by column; each entry is :math:`l_{ik} = (a_{ik} - l_{i0} l_{k0} - l_{i1} l_{k1} -
     \dots) / l_{kk}`, summed in that order. The entries of a column are independent, so four
     rows are summed at once, each in its own accumulator: four chains of additions in flight
-    instead of one (twice as fast for Talos's 44 x 44 Hessian), with the bits and the verdict
+    instead of one (Talos's 44 x 44 Hessian: 13-14 -> 7-9 us alone), with the bits and the verdict
     (the first non-positive pivot) of one entry at a time.
     """
     n = matrix.shape[0]

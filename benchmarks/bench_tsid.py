@@ -338,7 +338,7 @@ def replay(scenario, ticks, with_tsid: bool, watch: _GcWatch):
 
 
 STAGES = {  # (part of the QP, method): label
-    ("Tick", "compute_torques"): "whole tick",
+    ("Tick", "_tick"): "whole tick",
     ("Assembly", "assemble"): "model terms, task and contact rows, posture",
     ("Assembly", "_update_rows"): "  of which task and contact rows, posture",
     ("Assembly", "eliminated_tick"): "elimination and direct solve (level 0)",

@@ -260,6 +260,7 @@ class Assembly:
                 v,
             ),
             "acceleration_bounds": (bounds, q, v),
+            "all_finite": (q, v),
             "feasible": (tau, self.torque_limit, x, bounds, q, v, bound_tolerance),
             "torques": (rows, dynamics, x, tau),
             "torque_rows": self._torque_arguments,
@@ -302,6 +303,11 @@ class Assembly:
         np.copyto(self.q, q)
         np.copyto(self.v, v)
         return self.q, self.v
+
+    def state_finite(self) -> bool:
+        """Whether :attr:`q` and :attr:`v` hold no NaN or inf (:func:`kernels.all_finite`,
+        bound to their types: no dispatch)."""
+        return self._compiled.all_finite(self.q, self.v)
 
     def keep_candidate(self) -> None:
         """The candidate becomes the accepted :attr:`solution` (the arrays swap roles)."""

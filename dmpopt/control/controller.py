@@ -507,7 +507,7 @@ class InverseDynamicsController:
             _time(t, "t")
         if self._changed:
             self._switch()
-        torques = self._current.compute_torques(q, v)
+        torques = self._current.tick._tick(q, v)  # (the collector is paused here already)
         if self.joint_impedance is None:
             return torques
         current = self._current

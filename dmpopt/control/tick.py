@@ -129,7 +129,7 @@ class Tick:
             )
         assembly = self.assembly
         q, v = assembly.set_state(q, v)  # the tick's own float64 copies
-        if not kernels.all_finite(q, v):
+        if not assembly.state_finite():
             raise InvalidInputError("q and v must be finite; the state holds NaN or inf")
         self.stats.n_ticks += 1
         start = time.thread_time()

@@ -132,6 +132,40 @@ def test_eliminated_torque_rows_give_the_torques_and_bounds_over_z(seed):
     np.testing.assert_array_equal(in_upper[n_act + 3 :], cone_upper)
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**16), n_base=st.sampled_from([0, 2, 6]))
+def test_expand_and_torques_follow_the_equations_of_motion(seed, n_base):
+    """x_N = z, x_B = U_c - U_N z (expand), then the wrenches scaled by s and
+    tau = M_a qdd + h_a - s J_ca^T f (torques), written out with NumPy; 5 basic unknowns and
+    7 to 11 torques: the kernels' blocks of four rows and their remainders."""
+    rng = np.random.default_rng(seed)
+    nv, n_force, n_cost = 13, 3, 4
+    n_x = nv + n_force
+    rows = rng.normal(size=(n_cost + n_force + n_base, n_x + 1))
+    mass, bias, scale = _spd(rng, nv), rng.normal(size=nv), 7.0
+    basic = np.array([0, 1, 3, 5, 8])
+    nonbasic = np.append(np.setdiff1d(np.arange(n_x), basic), n_x)
+    elimination = rng.normal(size=(basic.size, nonbasic.size))  # [U_N | U_c]
+    z = rng.normal(size=nonbasic.size - 1)
+    x, tau = np.zeros(n_x), np.zeros(nv - n_base)
+    kernels.expand(kernels.Split(basic, nonbasic, np.zeros((5, 5)), elimination, 1e-12), z, x)
+    expected = np.zeros(n_x)
+    expected[nonbasic[:-1]] = z
+    expected[basic] = elimination[:, -1] - elimination[:, :-1] @ z
+    # sums of ~15 products of O(1) terms: rounding below 15 * eps * 10 ~ 1e-13
+    np.testing.assert_allclose(x, expected, rtol=0, atol=1e-12)
+    kernels.torques(
+        kernels.Rows(rows, 0, n_cost, nv, n_base),
+        kernels.Dynamics(np.asfortranarray(mass), bias, scale), x, tau,
+    )  # fmt: skip
+    contact = rows[n_cost : n_cost + n_force, :nv]
+    forces = scale * expected[nv:]
+    np.testing.assert_allclose(x[nv:], forces, rtol=1e-15)  # unscaled in place
+    expected_tau = mass[n_base:] @ expected[:nv] + bias[n_base:] - contact[:, n_base:].T @ forces
+    # ~16 products of O(10 * 7) terms: rounding below 16 * eps * 1e3 ~ 4e-12
+    np.testing.assert_allclose(tau, expected_tau, rtol=0, atol=1e-10)
+
+
 def test_eliminate_refuses_a_singular_basic_block():
     rows = np.zeros((3, 4))
     rows[1] = [1.0, 2.0, 0.0, 1.0]

@@ -30,9 +30,9 @@ from . import lasa
 from .common import Progress, median_time, output_dir, pyplot, write_metrics
 
 # CPU seconds (process and workers; dmpopt.cli) measured on the shared 2-core machine: full
-# 120 s in series (148 s before the unforced states took one basis function; load average
-# about 10 during both runs), quick 14 s
-EXPECTED_SECONDS = {"full": 120, "quick": 15}  # CPU s (dmpopt.cli)
+# 77 s in series (114 s before the regressors were read through CasADi's buffers, 148 s
+# before the unforced states took one basis function; load average 7-20), quick 8 s
+EXPECTED_SECONDS = {"full": 80, "quick": 10}  # CPU s (dmpopt.cli), 2026-11-28
 N_BASIS = (10, 30, 100)
 DEFAULT_N_BASIS = 30  # fit_discrete's default
 METHODS = {  # label: fit options

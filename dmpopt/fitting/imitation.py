@@ -325,10 +325,38 @@ def _filtered(dmp, demo: Trajectory, periodic: bool) -> np.ndarray:
     return np.vstack([first, z.T])
 
 
+def _at_samples(function, canonical: np.ndarray, dmp) -> np.ndarray:
+    """``function`` of (canonical state, centres, widths) at every sample, (n_steps, nnz).
+
+    The mapped function (:func:`dmpopt.symbolic.mapped`) evaluated through CasADi's buffers
+    on numpy memory: the same evaluation as calling it, bit for bit, without converting its
+    answer to numpy (``DM.full()`` of n_steps x n_basis values cost as much as evaluating
+    them).
+    """
+    n_steps = canonical.shape[0]
+    mapped = symbolic.mapped(function, n_steps)
+    inputs = [
+        np.ascontiguousarray(canonical, dtype=float).ravel(),  # column-major (2, n_steps)
+        np.tile(np.asarray(dmp.centres, dtype=float), n_steps),
+        np.tile(np.asarray(dmp.widths, dtype=float), n_steps),
+    ]
+    values = np.empty((n_steps, function.nnz_out(0)))  # column-major (nnz, n_steps)
+    if not mapped.sparsity_out(0).is_dense() or any(
+        a.size != mapped.nnz_in(i) for i, a in enumerate(inputs)
+    ):  # a sparse answer has no dense buffer layout: through the DM
+        return mapped(canonical.T, dmp.centres, dmp.widths).full().T
+    buffer, evaluate = mapped.buffer()
+    for i, array in enumerate(inputs):
+        buffer.set_arg(i, memoryview(array))
+    buffer.set_res(0, memoryview(values.reshape(-1)))
+    evaluate()
+    # laid out as DM.full().T was: einsum and matmul sum in an order that follows the layout
+    return np.ascontiguousarray(values.T).T
+
+
 def _features(dmp, states: np.ndarray) -> np.ndarray:
     """Regressors at every sample, shape (n_steps, n_features)."""
-    function = symbolic.mapped(symbolic.feature_function(dmp.signature), states.shape[0])
-    return function(states[:, :2].T, dmp.centres, dmp.widths).full().T
+    return _at_samples(symbolic.feature_function(dmp.signature), states[:, :2], dmp)
 
 
 def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -341,10 +369,8 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
     normalised activations :math:`\bar\psi_i` summing to one.
     """
     n_steps = canonical.shape[0]
-    activation = symbolic.mapped(symbolic.activation_function(dmp.signature), n_steps)
-    activation = activation(canonical.T, dmp.centres, dmp.widths).full().T
-    regressors = symbolic.mapped(symbolic.feature_function(dmp.signature), n_steps)
-    regressors = regressors(canonical.T, dmp.centres, dmp.widths).full().T
+    activation = _at_samples(symbolic.activation_function(dmp.signature), canonical, dmp)
+    regressors = _at_samples(symbolic.feature_function(dmp.signature), canonical, dmp)
     if dmp.equations.vectors_per_basis == 1:
         carrier = regressors.sum(axis=1)[:, None, None]  # the phase velocity v
     else:
@@ -588,8 +614,7 @@ def fit_rhythmic(
     else:
         phases = direction * (demo.times - demo.times[0]) / unit.tau
         canonical = np.array([unit.canonical_state(p) for p in phases])
-        regressors = symbolic.mapped(symbolic.feature_function(unit.signature), demo.n_steps)
-        regressors = regressors(canonical.T, unit.centres, unit.widths).full().T
+        regressors = _at_samples(symbolic.feature_function(unit.signature), canonical, unit)
         transformation = np.hstack([demo.positions, _filtered(unit, demo, periodic=True)])
         targets = _solved_targets(unit, demo, transformation)
         if method == "least_squares":

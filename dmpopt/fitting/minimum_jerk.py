@@ -23,6 +23,7 @@ Three baselines, each returning a :class:`~dmpopt.trajectory.Trajectory`:
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -226,10 +227,20 @@ def jerk_response(times: np.ndarray, n_segments: int) -> np.ndarray:
         8.0 * (3 * times.size * n_segments),
         "lower n_segments or use fewer times",
     )
+    return _response(times.tobytes(), n_segments).copy()
+
+
+@lru_cache(maxsize=4)  # an entry holds 3 x n_samples x n_segments floats
+def _response(times: bytes, n_segments: int) -> np.ndarray:
+    """:func:`jerk_response` of the float64 ``times`` (as bytes), read-only; one per grid:
+    a search over via-points (e.g. the constrained study's) solves many QPs on one grid."""
+    times = np.frombuffer(times)
     knots = np.linspace(0.0, times[-1], n_segments + 1)
     begin = times[:, None] - knots[None, :-1]
     end = times[:, None] - knots[None, 1:]
-    return np.stack([_ramp(begin, p) - _ramp(end, p) for p in (3, 2, 1)])
+    response = np.stack([_ramp(begin, p) - _ramp(end, p) for p in (3, 2, 1)])
+    response.setflags(write=False)
+    return response
 
 
 def _box_via_points(via_points, duration: float) -> tuple:
@@ -348,7 +359,7 @@ def minimum_jerk_constrained(
         8.0 * ((3 + 4) * times.size * n_segments),
         "lower n_segments or sample more coarsely (raise dt)",
     )
-    response = jerk_response(times, n_segments)
+    response = _response(times.tobytes(), n_segments)  # checked above; read-only, shared
     vias = _via_rows(via_points, duration, n_segments, n_dofs)  # checks their sizes
     length = _length_scale(start, goal, via_points)
     units = dict(

@@ -26,6 +26,15 @@ def sklearn(module: str, user: str):
         ) from error
 
 
+def checked_by_dmpopt(user: str):
+    """Context in which scikit-learn skips its own input and parameter checks, for calls
+    whose arrays (finite, 2-D) and parameters dmpopt has checked already. The answers are
+    the same; the checks were a third of a small LDA fit (44 vs 68 ms on 209 x 62)."""
+    return sklearn("_config", user).config_context(
+        assume_finite=True, skip_parameter_validation=True
+    )
+
+
 def check_dmp(dmp, name: str = "dmp") -> DiscreteDMP:
     """``dmp`` if it is a DiscreteDMP."""
     if not isinstance(dmp, DiscreteDMP):

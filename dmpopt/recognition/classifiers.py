@@ -12,7 +12,7 @@ import numpy as np
 
 from ..exceptions import InvalidInputError
 from ..validation import check_resources, real
-from ._checks import check_features, check_fitted, check_labels, sklearn
+from ._checks import check_features, check_fitted, check_labels, checked_by_dmpopt, sklearn
 
 
 class NearestNeighbourClassifier:
@@ -160,7 +160,8 @@ class ShrinkageLdaClassifier:
             )
         analysis = sklearn("discriminant_analysis", "ShrinkageLdaClassifier")
         self.estimator_ = analysis.LinearDiscriminantAnalysis(solver="lsqr", shrinkage=shrinkage)
-        self.estimator_.fit(features, labels)
+        with checked_by_dmpopt("ShrinkageLdaClassifier"):
+            self.estimator_.fit(features, labels)
         self.classes_ = self.estimator_.classes_
         return self
 
@@ -168,4 +169,5 @@ class ShrinkageLdaClassifier:
         """Predicted label of each row of ``features``, shape (n_queries,)."""
         check_fitted(self, "estimator_")
         features = check_features(features, n_features=self.estimator_.n_features_in_)
-        return self.estimator_.predict(features)
+        with checked_by_dmpopt("ShrinkageLdaClassifier"):
+            return self.estimator_.predict(features)

@@ -13,6 +13,7 @@ from dmpopt import (
     fit_rhythmic,
     fit_to_accuracy,
     reproduction_error,
+    symbolic,
 )
 from dmpopt.fitting import estimate_period
 
@@ -506,3 +507,29 @@ def test_unforced_states_do_not_depend_on_the_basis(form):
     states = unforced_states(dmp, demo)
     assert np.array_equal(states, full)
     assert np.array_equal(states[0], initial)
+
+
+@pytest.mark.parametrize("rhythmic", [False, True])
+def test_values_at_samples_are_casadis_mapped_call_bit_for_bit(rhythmic):
+    """The buffer path of the regressions gives the mapped CasADi call's answer, to the bit
+    and in its memory layout (the regressions' sums follow the layout).
+
+    Answer key: calling the mapped function and converting its DM, as the fits did before.
+    """
+    from dmpopt.fitting import imitation
+
+    if rhythmic:
+        demo = periodic_demo()
+        dmp = fit_rhythmic(demo, 12, method="lwr")
+        canonical = np.array([dmp.canonical_state(p) for p in np.linspace(0.0, 3.0, 257)])
+    else:
+        demo = minimum_jerk_demo(seed=3)
+        dmp = fit_discrete(demo, 17, method="lwr")
+        canonical = imitation.unforced_states(dmp, demo)[::3, :2]  # a strided view
+    for make in (symbolic.activation_function, symbolic.feature_function):
+        function = make(dmp.signature)
+        mapped = symbolic.mapped(function, canonical.shape[0])
+        expected = mapped(canonical.T, dmp.centres, dmp.widths).full().T
+        got = imitation._at_samples(function, canonical, dmp)
+        assert got.shape == expected.shape and got.strides == expected.strides
+        np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))

@@ -1,6 +1,7 @@
 """Minimum-jerk baselines: closed form, via-points, and the bounded QP."""
 
 import importlib
+import math
 
 import numpy as np
 import pytest
@@ -297,3 +298,28 @@ def test_a_box_via_point_binds_at_the_edge_of_its_band_and_a_hold_stays():
     hold, _ = minimum_jerk_constrained([1.0], [1.0], 1.0, dt=0.01)
     np.testing.assert_allclose(hold.positions, 1.0, rtol=0, atol=1e-9)
     np.testing.assert_allclose(hold.velocities, 0.0, rtol=0, atol=1e-9)
+
+
+def test_jerk_response_is_the_ramp_formula_and_a_callers_copy():
+    """Unit jerk on segment i from rest: position R3(t - t_i) - R3(t - t_{i+1}), R_k(x) =
+    max(x, 0)^k / k!, velocity with R2, acceleration with R1 (the docstring's formula).
+
+    The responses are kept per grid for searches that solve many QPs on one grid: what a
+    caller gets is its own copy, so writing into it changes no later answer.
+    """
+    times = np.linspace(0.0, 2.0, 41)
+    knots = np.linspace(0.0, 2.0, 5)
+
+    def ramp(x, k):
+        return np.maximum(x, 0.0) ** k / math.factorial(k)
+
+    expected = np.stack(
+        [
+            ramp(times[:, None] - knots[:-1], k) - ramp(times[:, None] - knots[1:], k)
+            for k in (3, 2, 1)
+        ]
+    )
+    first = jerk_response(times, 4)
+    np.testing.assert_allclose(first, expected, rtol=0, atol=1e-15)
+    first[:] = 7.0
+    np.testing.assert_allclose(jerk_response(times, 4), expected, rtol=0, atol=1e-15)

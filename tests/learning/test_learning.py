@@ -1203,6 +1203,35 @@ def test_pibb_batches_and_updates_do_not_depend_on_blas_threads():
     np.testing.assert_array_equal(runs[1].view(np.uint64), runs[0].view(np.uint64))
 
 
+def test_one_blas_thread_is_set_once_for_nested_entries_and_restored():
+    """``ask``/``tell`` inside ``learn`` run on one BLAS thread without setting it again,
+    and the caller's thread count comes back when the outermost entry ends.
+
+    Answer key: threadpoolctl's own report of the BLAS libraries' thread counts.
+    """
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from dmpopt.learning import policy_search
+
+    def counts():
+        return [
+            info["num_threads"]
+            for info in threadpoolctl.threadpool_info()
+            if info["user_api"] == "blas"
+        ]
+
+    guard = policy_search._one_blas_thread
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        before = counts()
+        with guard:
+            limiter = guard._limiter
+            with guard:
+                assert guard._limiter is limiter  # nested: not set again
+                assert all(n == 1 for n in counts())
+            assert all(n == 1 for n in counts())  # the inner exit keeps the limit
+        assert counts() == before
+        assert guard._depth == 0 and guard._limiter is None
+
+
 def _python_rounds(method, task, n_updates):
     """Answer key of the compiled loop: ask, task.evaluate, tell, written out in Python."""
     means = []

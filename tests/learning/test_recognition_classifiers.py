@@ -153,3 +153,27 @@ def test_float_labels_and_the_whole_plan(dmp):
     whole = PartialObservationClassifier(fractions=[1.0], plan_samples=101, n_samples=101)
     residuals, fractions = whole.fit([dmp], ["a"]).match(plan)
     assert fractions.tolist() == [1.0] and residuals[0] < 1e-12
+
+
+@pytest.mark.parametrize("shrinkage", [0.3, "auto"])
+def test_lda_without_sklearns_own_checks_is_sklearns_lda_to_the_bit(shrinkage):
+    """The shrinkage LDA skips scikit-learn's input checks (dmpopt checks the inputs): the
+    same coefficients and predictions as scikit-learn's LDA with its checks, and the
+    checks are back on afterwards.
+
+    Answer key: ``LinearDiscriminantAnalysis(solver="lsqr")`` called directly.
+    """
+    sklearn = pytest.importorskip("sklearn")
+    from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
+
+    rng = np.random.default_rng(4)
+    features = rng.standard_normal((40, 7)) + np.repeat(np.eye(4, 7) * 2.0, 10, axis=0)
+    labels = np.repeat(np.arange(4), 10)
+    queries = rng.standard_normal((9, 7))
+    reference = LinearDiscriminantAnalysis(solver="lsqr", shrinkage=shrinkage)
+    reference.fit(features, labels)
+    classifier = ShrinkageLdaClassifier(shrinkage).fit(features, labels)
+    np.testing.assert_array_equal(classifier.estimator_.coef_, reference.coef_)
+    np.testing.assert_array_equal(classifier.predict(queries), reference.predict(queries))
+    assert sklearn.get_config()["assume_finite"] is False
+    assert sklearn.get_config()["skip_parameter_validation"] is False

@@ -204,9 +204,26 @@ def entry_point(kernel, *arguments):
     such as :class:`Rows`) it does so field by field in Python, about a microsecond per
     structure. A controller's arrays never change type (it passes its own float64 arrays,
     sized once), so it binds its kernels once and calls them directly. Only arguments of the
-    types given here may be passed to the result: call ``kernel`` itself for any other.
+    types given here may be passed to the result: call ``kernel`` itself for any other. An
+    argument may be given as its numba type instead (e.g. :func:`with_open_layout`).
     """
-    return kernel.compile(tuple(numba.typeof(argument) for argument in arguments))
+    return kernel.compile(
+        tuple(a if isinstance(a, numba.types.Type) else numba.typeof(a) for a in arguments)
+    )
+
+
+def with_open_layout(arrays: tuple, positions) -> numba.types.Type:
+    """The numba type of the tuple ``arrays`` with the memory layout of the arrays at
+    ``positions`` left open ("A"): contiguous arrays and strided views alike pass.
+
+    numba compiles a kernel anew for each layout of its arguments (the active-set iterations:
+    about 20 CPU-seconds each time, in every fresh install); a kernel bound by
+    :func:`entry_point` to this type is compiled once for both.
+    """
+    types = [numba.typeof(a) for a in arrays]
+    for i in positions:
+        types[i] = types[i].copy(layout="A")
+    return numba.types.BaseTuple.from_types(types)
 
 
 # eliminated_tick's outcomes

@@ -252,9 +252,12 @@ class ActiveSetWorkspace:
         )  # fmt: skip
         self._arguments = (arrays, scratch, self.x, *duals)
         flags = np.zeros(n_in, dtype=bool)
+        # the equality rows are a strided view of a stage's stacked rows in some QPs, arrays
+        # of their own in others: one compiled code for both
         self._code = kernels.entry_point(
-            kernels.active_set, arrays, flags, flags, 0.0, 1, scratch, self.x, *duals
-        )
+            kernels.active_set, kernels.with_open_layout(arrays, (2, 3)), flags, flags, 0.0, 1,
+            scratch, self.x, *duals,
+        )  # fmt: skip
 
     def solve(self, at_upper, at_lower, tolerance: float, rounds: int) -> tuple:
         """:func:`_active_set` on this workspace's problem: (x or None, KKT solves)."""

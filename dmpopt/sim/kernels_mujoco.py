@@ -23,8 +23,9 @@ How the compiled code reaches MuJoCo
     bindings (the same states, bit for bit).
 Arguments
     A numba call costs about 70 ns per array argument, and more when its caches have gone
-    cold between two steps, so :func:`advance` takes the torques, the base force and one
-    int64 array of the addresses and sizes of every other array it uses (:func:`array_table`:
+    cold between two steps, so :func:`advance` takes the torques, the base force and, as an
+    integer, the address of one int64 array of the addresses and sizes of every other array
+    it uses (:func:`array_table`:
     MuJoCo's arrays that stay in place, ``qpos``, ``qvel``, ``qfrc_applied``, ``site_xpos``,
     and the simulator's and the plant's buffers, allocated once), and makes arrays of them.
     Whoever builds the table keeps those arrays alive and in place. The table also holds the
@@ -62,6 +63,7 @@ from numba.extending import intrinsic
 
 from dmpopt.exceptions import MissingDependency
 from dmpopt.sim.kernels import (
+    N_BASE_DOFS,
     N_POINTS,
     N_Q,
     N_V,
@@ -111,6 +113,7 @@ ARRAYS = (
 STATE_SLOTS, SLOT_OBJECTS = 2, 9
 SLOT_WORDS = 3 + 2 * SLOT_OBJECTS
 SLOTS = 2 * len(ARRAYS)  # the table entry of the first slot
+TABLE_SIZE = SLOTS + STATE_SLOTS * SLOT_WORDS
 NEVER = -1  # a reference word no object has: the slot counts as held at every step
 # advance's events: what the caller does after a step (bits)
 TOUCHDOWN, CHECK_FALL, MEMORY_FULL, DRAW, SLOT_HELD = 1, 2, 4, 8, 16
@@ -264,7 +267,7 @@ def array_table(arrays: dict) -> np.ndarray:
     """The address and size of each array :func:`advance` takes (``ARRAYS``, in order), then
     room for ``STATE_SLOTS`` slots of returned states (:func:`enter_slot`), as one int64
     array. The arrays must live, in place, as long as the table is used."""
-    table = np.zeros(SLOTS + STATE_SLOTS * SLOT_WORDS, dtype=np.int64)
+    table = np.zeros(TABLE_SIZE, dtype=np.int64)
     for k, name in enumerate(ARRAYS):
         array = arrays[name]
         expected = np.dtype(_TYPES.get(name, np.float64))
@@ -424,7 +427,7 @@ def fill(arrays, slot):
 
 
 @_compile
-def advance(tau, base_force, arrays, slot):
+def advance(tau, base_force, table, slot):
     """One step of the MuJoCo simulator: torques, MuJoCo's ``mj_step``, the read-out.
 
     Writes the torques as :func:`dmpopt.sim.kernels.apply_torques` (returns
@@ -436,17 +439,19 @@ def advance(tau, base_force, arrays, slot):
     Parameters
     ----------
     tau, base_force : ndarray
-        As :func:`dmpopt.sim.kernels.apply_torques`.
-    arrays : int64 array
-        The :func:`array_table` of the arrays named in ``ARRAYS`` and of the state slots: the
-        plant's torque limits,
-        delay line (rows of ``tau.size``) and ring, the layout, the clock (with ``clock[0]``
-        non-zero, ``clock[1]`` is set to the thread time of ``mj_step`` [s], for benchmarks),
-        MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and ``site_xpos`` (rows of 3),
-        :func:`~dmpopt.sim.kernels.settle`'s ``tables``, ``constants``, ``work``, ``flags``
-        and ``noise``, the plant's block of ``normals`` and ``next_row``
-        (:class:`dmpopt.sim.PlantRuntime`), and ``contact_time``: the end of the last step
-        with a contact [s] (NaN: none yet), updated here.
+        As :func:`dmpopt.sim.kernels.apply_torques`, contiguous or not; of the wrong length
+        (``tau`` one entry per actuated dof, ``base_force`` none or one per base dof):
+        ``STATE_BAD_INPUT``, nothing done.
+    table : int
+        The address of the :func:`array_table` (an int64 array of ``TABLE_SIZE``: one array
+        argument fewer to convert) of the arrays named in ``ARRAYS`` and of the state slots:
+        the plant's torque limits, delay line (rows of ``tau.size``) and ring, the layout,
+        the clock (with ``clock[0]`` non-zero, ``clock[1]`` is set to the thread time of
+        ``mj_step`` [s], for benchmarks), MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and
+        ``site_xpos`` (rows of 3), :func:`~dmpopt.sim.kernels.settle`'s ``tables``,
+        ``constants``, ``work``, ``flags`` and ``noise``, the plant's block of ``normals``
+        and ``next_row`` (:class:`dmpopt.sim.PlantRuntime`), and ``contact_time``: the end
+        of the last step with a contact [s] (NaN: none yet), updated here.
     slot : int
         The state slot the step's state is copied into (:func:`publish`), after a step in
         ``STATE_OK``.
@@ -465,17 +470,20 @@ def advance(tau, base_force, arrays, slot):
         holds a part of state slot ``slot``: nothing copied there, the caller makes new
         objects for it and fills them, :func:`fill`).
     """
+    arrays = numba.carray(_pointer(table, np.int64), TABLE_SIZE)
     layout = _array(arrays, LAYOUT, np.int64)
     tables = _array(arrays, TABLES, np.int64)
+    nq, nv, n_base = tables[N_Q], tables[N_V], tables[N_BASE_DOFS]
+    if tau.size != nv - n_base or base_force.size not in (0, n_base):
+        return STATE_BAD_INPUT, 0.0, 0
     qfrc_applied = _array(arrays, QFRC_APPLIED, np.float64)
     torque_limit = _array(arrays, TORQUE_LIMIT, np.float64)
     line = _array(arrays, LINE, np.float64).reshape(-1, tau.size)
     ring = _array(arrays, RING, np.int64)
     clock = _array(arrays, CLOCK, np.float64)
-    nq, nv = tables[N_Q], tables[N_V]
     dof_index = tables[TABLES_HEADER + nq : TABLES_HEADER + nq + nv]
     if not apply_torques(
-        tau, base_force, torque_limit, line, ring, qfrc_applied, dof_index, nv - tau.size
+        tau, base_force, torque_limit, line, ring, qfrc_applied, dof_index, n_base
     ):
         return STATE_BAD_INPUT, 0.0, 0
     if clock[0]:

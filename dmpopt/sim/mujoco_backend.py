@@ -141,6 +141,7 @@ _NONE = np.zeros(0, dtype=np.int32)
 _NO_FORCE = np.zeros(0)
 _FLOAT = np.dtype(float)
 _ONE_FLOAT = (_FLOAT.itemsize,)  # the strides of a contiguous 1-D float array
+_ARRAY = np.ndarray
 _new = object.__new__
 
 
@@ -762,6 +763,7 @@ class MujocoSimulator(Backend):
         header[kernels.N_PARTS] = len(axes)
         header[kernels.QUATERNION_START] = self._quaternion_start
         header[kernels.NOISY] = self.plant.noisy
+        header[kernels.N_BASE_DOFS] = self.n_base_dofs
         self._tables = np.concatenate(
             [
                 header,
@@ -819,7 +821,7 @@ class MujocoSimulator(Backend):
         """Set up the compiled step with MuJoCo's ``mj_step`` inside
         (:mod:`dmpopt.sim.kernels_mujoco`) and compile it (or load it from numba's cache), or
         keep in ``native_step_unavailable`` why the steps go through the Python bindings; and
-        the state slots both fill (:meth:`_returned_state`)."""
+        the state slots both paths fill (module docstring, Returned states)."""
         self._advance = None
         self.native_step_unavailable = None
         try:
@@ -846,13 +848,13 @@ class MujocoSimulator(Backend):
             self._fresh_slot(slot)
         if self.native_step_unavailable is not None:
             return
-        signature = tuple(
-            numba.typeof(a) for a in (np.zeros(self.n_actuated), _NO_FORCE, self._advance_arrays, 0)
-        )
+        self._table_address = self._advance_arrays.ctypes.data
+        vector = numba.typeof(np.zeros(4)[::2])  # a float vector, contiguous or not
+        signature = (vector, vector, numba.typeof(self._table_address), numba.typeof(0))
         advance.compile(signature)
         # the compiled function's own entry point: no dispatch on the argument types (step
-        # passes only contiguous float64 vectors and the int64 table, the types compiled for;
-        # numba's unboxing does not check a dtype)
+        # passes only float64 vectors and two integers, the types compiled for; numba's
+        # unboxing does not check a dtype nor the number of dimensions)
         self._advance = getattr(advance.overloads[signature], "entry_point", advance)
 
     def _leave_native(self, reason: str) -> None:
@@ -1128,23 +1130,17 @@ class MujocoSimulator(Backend):
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         tau = torques
-        # contiguous: one float per stride (a flags object costs more than the strides tuple)
-        if not (
-            type(tau) is np.ndarray
-            and tau.dtype is _FLOAT
-            and tau.shape == self._torque_shape
-            and tau.strides == _ONE_FLOAT
-        ):  # else checked for finite entries in apply_torques
+        # a float vector goes as it is: the compiled step checks its length and entries
+        if not (type(tau) is _ARRAY and tau.dtype is _FLOAT and tau.ndim == 1):
             tau = _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
         force = base_force
         if force is None:
             force = _NO_FORCE
-        elif not (  # a planar or fixed base takes the force as it is: checked here inline
+        elif not (  # a planar or fixed base takes the force as it is, as the torques
             self._quaternion is None
-            and type(force) is np.ndarray
+            and type(force) is _ARRAY
             and force.dtype is _FLOAT
-            and force.shape == self._base_shape
-            and force.strides == _ONE_FLOAT
+            and force.ndim == 1
         ):
             force = self._base_force(force)
         if self.fall_detector is not self._packed_detector:
@@ -1152,7 +1148,7 @@ class MujocoSimulator(Backend):
         slot = self._turn
         self._turn = slot ^ 1  # STATE_SLOTS = 2
         if self._advance is not None and not self._pushes:
-            status, time, events = self._advance(tau, force, self._advance_arrays, slot)
+            status, time, events = self._advance(tau, force, self._table_address, slot)
         else:
             status, time, events = self._step_bindings(tau, force, slot)
         if status != STATE_OK:
@@ -1171,9 +1167,11 @@ class MujocoSimulator(Backend):
         :func:`dmpopt.sim.kernels.settle` and the copy into state slot ``slot``, the same
         numbers and results."""
         plant, data = self.plant, self.mj_data
+        if tau.size != self.n_actuated or force.size not in (0, self.n_base_dofs):
+            return STATE_BAD_INPUT, 0.0, 0
         if not apply_torques(
-            tau, force, plant.torque_limit, plant.line, plant.ring, self._qfrc_applied,
-            self._dof_index, self.n_base_dofs,
+            np.ascontiguousarray(tau), np.ascontiguousarray(force), plant.torque_limit,
+            plant.line, plant.ring, self._qfrc_applied, self._dof_index, self.n_base_dofs,
         ):  # fmt: skip
             return STATE_BAD_INPUT, 0.0, 0
         if self._pushes:

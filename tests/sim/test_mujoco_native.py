@@ -9,8 +9,8 @@ bindings' own views of a data with contacts.
 """
 
 import copy
-import dataclasses
 import ctypes
+import dataclasses
 import os
 import types
 

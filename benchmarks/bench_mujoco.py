@@ -162,7 +162,7 @@ def step_timer():
         if isinstance(module, _TimedMujoco):
             module = module._module
         inner = roles.random() < 0.5  # this step times its mj_step, else itself
-        native = getattr(simulator, "_advance_arrays", None) is not None and not simulator._pushes
+        native = getattr(simulator, "_advance", None) is not None and not simulator._pushes
         simulator._mj = _TimedMujoco(module) if inner and not native else module
         if native:
             simulator._clock[:] = float(inner), 0.0  # advance times its mj_step

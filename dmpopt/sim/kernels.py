@@ -380,8 +380,11 @@ def _times(a, b):
 
 
 # settle's packed arrays (built by MujocoSimulator): the header of ``tables``
-N_Q, N_V, N_POINTS, N_GEOMS, N_FEET, WIDTH, N_PARTS, QUATERNION_START, BASE, NOISY = range(10)
-TABLES_HEADER = 10
+(
+    N_Q, N_V, N_POINTS, N_GEOMS, N_FEET, WIDTH, N_PARTS, QUATERNION_START, BASE, NOISY,
+    N_BASE_DOFS,
+) = range(11)  # fmt: skip
+TABLES_HEADER = 11
 BASE_UNCHECKED, BASE_FREE, BASE_COMPOSITE = 0, 1, 2  # fall checks: none, free flyer, composite
 CONSTANTS_HEADER = 29  # max_speed, the 4 fall thresholds, placement (12), offset (12)
 FALL_MARGIN = 1e-9  # relative: measures this close to a threshold are checked by the caller
@@ -408,7 +411,7 @@ def settle(
         ``[header (TABLES_HEADER) | qpos_index (nq) | dof_index (nv) | point_sites (n_points)
         | foot_code (n_geoms) | foot_points (n_feet * width) | part axes (n_parts)]``, the
         header holding the sizes, the quaternion's start in ``qpos`` (-1: no free base), the
-        base kind of the fall checks and whether the plant is noisy.
+        base kind of the fall checks, whether the plant is noisy and the base's dofs.
     constants : float array
         ``[max_speed, min_height, max_tilt, max_flight_time, max_spin | base placement (12) |
         watched frame's offset (12) | parts' placements (12 * n_parts)]``.

@@ -23,11 +23,18 @@ How the compiled code reaches MuJoCo
     bindings (the same states, bit for bit).
 Arguments
     A numba call costs about 70 ns per array argument, and more when its caches have gone
-    cold between two steps, so :func:`advance` takes the torques, the base force and one
-    int64 array of the addresses and sizes of every other array it uses (:func:`array_table`:
+    cold between two steps, so :func:`advance` takes the torques, the base force and, as an
+    integer, the address of one int64 array of the addresses and sizes of every other array
+    it uses (:func:`array_table`:
     MuJoCo's arrays that stay in place, ``qpos``, ``qvel``, ``qfrc_applied``, ``site_xpos``,
     and the simulator's and the plant's buffers, allocated once), and makes arrays of them.
-    Whoever builds the table keeps those arrays alive and in place.
+    Whoever builds the table keeps those arrays alive and in place. The table also holds the
+    state slots of the simulator's returned states (:func:`enter_slot`, :func:`publish`).
+Reference counts
+    :func:`publish` reads the first word of a Python object at its address (``id``): in
+    CPython with the GIL, its reference count (:func:`counts_references` checks that on a new
+    object before the simulator relies on it). The compiled call holds the GIL, so no count
+    changes while it reads.
 Errors and warnings
     MuJoCo's warnings (counted in ``mjData.warning``, printed by MuJoCo) come out as through
     the bindings. A MuJoCo *error* inside ``mj_step`` (its stack or arena overflowing) is an
@@ -45,6 +52,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
+import sys
 from pathlib import Path
 
 import numba
@@ -55,6 +63,8 @@ from numba.extending import intrinsic
 
 from dmpopt.exceptions import MissingDependency
 from dmpopt.sim.kernels import (
+    N_BASE_DOFS,
+    N_POINTS,
     N_Q,
     N_V,
     NOISY,
@@ -65,7 +75,10 @@ from dmpopt.sim.kernels import (
     settle,
 )
 
-__all__ = ["advance", "array_table", "load_library", "native_layout", "timer_reading"]
+__all__ = [
+    "advance", "array_table", "counts_references", "enter_slot", "fill", "hold_words",
+    "load_library", "native_layout", "publish", "timer_reading",
+]  # fmt: skip
 
 _compile = numba.njit(cache=True, nogil=False, error_model="numpy")
 
@@ -95,8 +108,15 @@ ARRAYS = (
     TORQUE_LIMIT, LINE, RING, LAYOUT, CLOCK, QPOS, QVEL, QFRC_APPLIED, SITE_XPOS, TABLES,
     CONSTANTS, WORK, FLAGS, NOISE, NORMALS, NEXT_ROW, CONTACT_TIME,
 ) = range(len(ARRAYS))  # fmt: skip
+# the returned states' slots, after ARRAYS in the table (enter_slot): per slot the block's
+# address and size, how many objects, then each object's address and reference word
+STATE_SLOTS, SLOT_OBJECTS = 2, 9
+SLOT_WORDS = 3 + 2 * SLOT_OBJECTS
+SLOTS = 2 * len(ARRAYS)  # the table entry of the first slot
+TABLE_SIZE = SLOTS + STATE_SLOTS * SLOT_WORDS
+NEVER = -1  # a reference word no object has: the slot counts as held at every step
 # advance's events: what the caller does after a step (bits)
-TOUCHDOWN, CHECK_FALL, MEMORY_FULL, DRAW = 1, 2, 4, 8
+TOUCHDOWN, CHECK_FALL, MEMORY_FULL, DRAW, SLOT_HELD = 1, 2, 4, 8, 16
 _TYPES = {
     "ring": np.int64, "layout": np.int64, "tables": np.int64, "flags": np.bool_,
     "next_row": np.int64,
@@ -244,9 +264,10 @@ def native_layout(mujoco, mj_model, mj_data) -> np.ndarray:
 
 
 def array_table(arrays: dict) -> np.ndarray:
-    """The address and size of each array :func:`advance` takes (``ARRAYS``, in order), as
-    one int64 array. The arrays must live, in place, as long as the table is used."""
-    table = np.zeros(2 * len(ARRAYS), dtype=np.int64)
+    """The address and size of each array :func:`advance` takes (``ARRAYS``, in order), then
+    room for ``STATE_SLOTS`` slots of returned states (:func:`enter_slot`), as one int64
+    array. The arrays must live, in place, as long as the table is used."""
+    table = np.zeros(TABLE_SIZE, dtype=np.int64)
     for k, name in enumerate(ARRAYS):
         array = arrays[name]
         expected = np.dtype(_TYPES.get(name, np.float64))
@@ -257,6 +278,56 @@ def array_table(arrays: dict) -> np.ndarray:
             )
         table[2 * k], table[2 * k + 1] = array.ctypes.data, array.size
     return table
+
+
+def enter_slot(table: np.ndarray, slot: int, block: np.ndarray, objects) -> None:
+    """Enter the block and the objects of state slot ``slot`` into an :func:`array_table`.
+
+    ``block`` (contiguous float64) receives each step's state (:func:`publish`); ``objects``
+    (at most ``SLOT_OBJECTS``) are what a caller may hold of it: the returned state, the block
+    and its views. Their reference words are read now, with no other holder
+    (:func:`hold_words`, or ``NEVER`` where those words are not reference counts); all must
+    live, in place, while entered."""
+    if block.dtype != np.float64 or not block.flags.c_contiguous:
+        raise MissingDependency(  # pragma: no cover - the simulator's own blocks
+            f"a state block must be a contiguous float64 array, got {block.dtype}"
+        )
+    at = SLOTS + slot * SLOT_WORDS
+    table[at : at + 3] = block.ctypes.data, block.size, len(objects)
+    table[at + 3 : at + 3 + 2 * len(objects) : 2] = [id(item) for item in objects]
+    table[at + 4 : at + 4 + 2 * len(objects) : 2] = NEVER
+
+
+def counts_references() -> bool:
+    """Whether an object's first word is its reference count (CPython with the GIL: the
+    simulator then recycles slots nobody holds), checked on a new object: one more
+    reference adds one to the word, and dropping it takes it back."""
+    if getattr(sys, "_is_gil_enabled", lambda: True)() is False:
+        return False  # a free-threaded CPython keeps its counts elsewhere
+    probe = np.zeros(1)
+    words = np.zeros(3, dtype=np.int64)
+    address = np.array([id(probe)], dtype=np.int64)
+    _read_word(address, words, 0)
+    holder = [probe]
+    _read_word(address, words, 1)
+    holder.clear()
+    _read_word(address, words, 2)
+    return bool(words[1] == words[0] + 1 and words[2] == words[0])
+
+
+@_compile
+def _read_word(addresses, words, k):
+    """``words[k]``: the first word of the object at ``addresses[0]``."""
+    words[k] = numba.carray(_pointer(addresses[0], np.int64), 1)[0]
+
+
+@_compile
+def hold_words(arrays, slot):
+    """Record the reference words of state slot ``slot``'s objects as they are now."""
+    at = SLOTS + slot * SLOT_WORDS
+    for k in range(arrays[at + 2]):
+        address = arrays[at + 3 + 2 * k]
+        arrays[at + 4 + 2 * k] = numba.carray(_pointer(address, np.int64), 1)[0]
 
 
 @functools.cache
@@ -330,7 +401,33 @@ def _array(arrays, k, dtype):
 
 
 @_compile
-def advance(tau, base_force, arrays):
+def publish(arrays, slot):
+    """:func:`fill` state slot ``slot`` unless someone holds a part of it (an object's
+    reference word is not the recorded one): then False, and nothing written."""
+    at = SLOTS + slot * SLOT_WORDS
+    for k in range(arrays[at + 2]):
+        address = arrays[at + 3 + 2 * k]
+        if numba.carray(_pointer(address, np.int64), 1)[0] != arrays[at + 4 + 2 * k]:
+            return False
+    fill(arrays, slot)
+    return True
+
+
+@_compile
+def fill(arrays, slot):
+    """Copy the state a step left in ``work`` and ``flags`` (:func:`dmpopt.sim.kernels.settle`)
+    into the block of state slot ``slot`` (:func:`enter_slot`): ``work`` as it is, then the
+    ``in_contact`` flags as bytes."""
+    at = SLOTS + slot * SLOT_WORDS
+    work = _array(arrays, WORK, np.float64)
+    numba.carray(_pointer(arrays[at], np.float64), work.size)[:] = work
+    n_points = _array(arrays, TABLES, np.int64)[N_POINTS]
+    in_contact = _array(arrays, FLAGS, np.bool_)[:n_points]
+    numba.carray(_pointer(arrays[at] + 8 * work.size, np.bool_), n_points)[:] = in_contact
+
+
+@_compile
+def advance(tau, base_force, table, slot):
     """One step of the MuJoCo simulator: torques, MuJoCo's ``mj_step``, the read-out.
 
     Writes the torques as :func:`dmpopt.sim.kernels.apply_torques` (returns
@@ -342,16 +439,22 @@ def advance(tau, base_force, arrays):
     Parameters
     ----------
     tau, base_force : ndarray
-        As :func:`dmpopt.sim.kernels.apply_torques`.
-    arrays : int64 array
-        The :func:`array_table` of the arrays named in ``ARRAYS``: the plant's torque limits,
-        delay line (rows of ``tau.size``) and ring, the layout, the clock (with ``clock[0]``
-        non-zero, ``clock[1]`` is set to the thread time of ``mj_step`` [s], for benchmarks),
-        MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and ``site_xpos`` (rows of 3),
-        :func:`~dmpopt.sim.kernels.settle`'s ``tables``, ``constants``, ``work``, ``flags``
-        and ``noise``, the plant's block of ``normals`` and ``next_row``
-        (:class:`dmpopt.sim.PlantRuntime`), and ``contact_time``: the end of the last step
-        with a contact [s] (NaN: none yet), updated here.
+        As :func:`dmpopt.sim.kernels.apply_torques`, contiguous or not; of the wrong length
+        (``tau`` one entry per actuated dof, ``base_force`` none or one per base dof):
+        ``STATE_BAD_INPUT``, nothing done.
+    table : int
+        The address of the :func:`array_table` (an int64 array of ``TABLE_SIZE``: one array
+        argument fewer to convert) of the arrays named in ``ARRAYS`` and of the state slots:
+        the plant's torque limits, delay line (rows of ``tau.size``) and ring, the layout,
+        the clock (with ``clock[0]`` non-zero, ``clock[1]`` is set to the thread time of
+        ``mj_step`` [s], for benchmarks), MuJoCo's ``qpos``, ``qvel``, ``qfrc_applied`` and
+        ``site_xpos`` (rows of 3), :func:`~dmpopt.sim.kernels.settle`'s ``tables``,
+        ``constants``, ``work``, ``flags`` and ``noise``, the plant's block of ``normals``
+        and ``next_row`` (:class:`dmpopt.sim.PlantRuntime`), and ``contact_time``: the end
+        of the last step with a contact [s] (NaN: none yet), updated here.
+    slot : int
+        The state slot the step's state is copied into (:func:`publish`), after a step in
+        ``STATE_OK``.
 
     Returns
     -------
@@ -363,19 +466,24 @@ def advance(tau, base_force, arrays):
         Bits, after a step in ``STATE_OK``: ``TOUCHDOWN`` (some point started touching),
         ``CHECK_FALL`` (settle's ``check_fall``), ``MEMORY_FULL`` (the stack and arena use
         passed ``MEMORY_BOUND`` of the arena), ``DRAW`` (the plant's block of normals is used
-        up: the caller draws the next tick's, :func:`_next_normals`).
+        up: the caller draws the next tick's, :func:`_next_normals`), ``SLOT_HELD`` (someone
+        holds a part of state slot ``slot``: nothing copied there, the caller makes new
+        objects for it and fills them, :func:`fill`).
     """
+    arrays = numba.carray(_pointer(table, np.int64), TABLE_SIZE)
     layout = _array(arrays, LAYOUT, np.int64)
     tables = _array(arrays, TABLES, np.int64)
+    nq, nv, n_base = tables[N_Q], tables[N_V], tables[N_BASE_DOFS]
+    if tau.size != nv - n_base or base_force.size not in (0, n_base):
+        return STATE_BAD_INPUT, 0.0, 0
     qfrc_applied = _array(arrays, QFRC_APPLIED, np.float64)
     torque_limit = _array(arrays, TORQUE_LIMIT, np.float64)
     line = _array(arrays, LINE, np.float64).reshape(-1, tau.size)
     ring = _array(arrays, RING, np.int64)
     clock = _array(arrays, CLOCK, np.float64)
-    nq, nv = tables[N_Q], tables[N_V]
     dof_index = tables[TABLES_HEADER + nq : TABLES_HEADER + nq + nv]
     if not apply_torques(
-        tau, base_force, torque_limit, line, ring, qfrc_applied, dof_index, nv - tau.size
+        tau, base_force, torque_limit, line, ring, qfrc_applied, dof_index, n_base
     ):
         return STATE_BAD_INPUT, 0.0, 0
     if clock[0]:
@@ -421,6 +529,8 @@ def advance(tau, base_force, arrays):
     next_row = _array(arrays, NEXT_ROW, np.int64)
     if not _next_normals(tables, noise, _array(arrays, NORMALS, np.float64), next_row):
         events |= DRAW
+    if not publish(arrays, slot):
+        events |= SLOT_HELD
     return status, time, events
 
 

@@ -61,12 +61,24 @@ one reaches its threshold or comes within 1e-9 (relative) of it is decided by
 ``FallDetector`` subclass is asked every step).
 
 Speed: a step is one compiled call, :func:`dmpopt.sim.kernels_mujoco.advance` (torques,
-MuJoCo's C ``mj_step``, the read-out above), plus the copies of the returned state
+MuJoCo's C ``mj_step``, the read-out above, the returned state's arrays)
 (``benchmarks/bench_mujoco.py --overhead`` measures the ratio to ``mj_step``). Steps while a
 push acts (``mj_step1``, the push, ``mj_step2``), and every step when the compiled call is not
 available (``native_step_unavailable`` says why: e.g. a ``mujoco`` without ``_address``), go
 through the Python bindings and :func:`dmpopt.sim.kernels.settle`: the same numbers, bit for
 bit.
+
+Returned states: each step returns a :class:`SimState` of its own, whose arrays no later step
+changes while anyone holds the state, one of its arrays or a view of one. Making those objects
+anew at each step cost more than a quarter of the biped's ``mj_step``, so the simulator
+recycles them: steps take turns between two slots, each a ``SimState`` whose arrays are views
+of one block, and the compiled call copies the step's state into the slot of two steps ago
+only if nobody else holds any of its objects (their reference counts are as when the slot was
+made: :func:`dmpopt.sim.kernels_mujoco.publish`); else the slot gets new objects, as the
+caller who keeps a state (``log.append(state.q)``) expects. The usual loop
+(``state = sim.step(tau)``) holds the previous state during a step, so its states are recycled.
+Where an object's first word is not its reference count (a free-threaded Python,
+:func:`dmpopt.sim.kernels_mujoco.counts_references`), every step makes new objects.
 
 The ``mujoco`` package is imported on first use (extra ``dmpopt[mujoco]``); ``MUJOCO_GL``
 defaults to ``egl`` (headless rendering) when unset at that moment.
@@ -108,7 +120,7 @@ from dmpopt.sim.kernels import (
     settle,
     to_pinocchio,
 )
-from dmpopt.sim.kernels_mujoco import STATE_BAD_INPUT, advance
+from dmpopt.sim.kernels_mujoco import STATE_BAD_INPUT, STATE_SLOTS, advance, publish
 from dmpopt.sim.plant import IDEAL, PlantParameters, PlantRuntime, base_joint_kind
 from dmpopt.sim.simulator import Backend, SimState, TouchdownEvent, _Push
 from dmpopt.validation import real, real_array
@@ -129,6 +141,7 @@ _NONE = np.zeros(0, dtype=np.int32)
 _NO_FORCE = np.zeros(0)
 _FLOAT = np.dtype(float)
 _ONE_FLOAT = (_FLOAT.itemsize,)  # the strides of a contiguous 1-D float array
+_ARRAY = np.ndarray
 _new = object.__new__
 
 
@@ -750,6 +763,7 @@ class MujocoSimulator(Backend):
         header[kernels.N_PARTS] = len(axes)
         header[kernels.QUATERNION_START] = self._quaternion_start
         header[kernels.NOISY] = self.plant.noisy
+        header[kernels.N_BASE_DOFS] = self.n_base_dofs
         self._tables = np.concatenate(
             [
                 header,
@@ -806,15 +820,16 @@ class MujocoSimulator(Backend):
     def _compile_advance(self) -> None:
         """Set up the compiled step with MuJoCo's ``mj_step`` inside
         (:mod:`dmpopt.sim.kernels_mujoco`) and compile it (or load it from numba's cache), or
-        keep in ``native_step_unavailable`` why the steps go through the Python bindings."""
-        self._advance_arrays = self._advance = None
+        keep in ``native_step_unavailable`` why the steps go through the Python bindings; and
+        the state slots both paths fill (module docstring, Returned states)."""
+        self._advance = None
         self.native_step_unavailable = None
         try:
             kernels_mujoco.load_library(self._mj)
             layout = kernels_mujoco.native_layout(self._mj, self.mj_model, self.mj_data)
         except MissingDependency as error:
             self.native_step_unavailable = str(error)
-            return
+            layout = np.zeros(kernels_mujoco.LAYOUT_SIZE, dtype=np.int64)  # never stepped
         plant = self.plant
         self._clock = np.zeros(2)  # advance's mj_step timer (benchmarks): on, reading [s]
         self._native_arrays = {  # kept alive here: advance reads them by address
@@ -826,19 +841,62 @@ class MujocoSimulator(Backend):
             "next_row": plant.next_row, "contact_time": self._contact_time,
         }  # fmt: skip
         self._advance_arrays = kernels_mujoco.array_table(self._native_arrays)
-        signature = tuple(
-            numba.typeof(a) for a in (np.zeros(self.n_actuated), _NO_FORCE, self._advance_arrays)
-        )
+        self._slots = [None] * STATE_SLOTS
+        self._turn = 0  # the slot of the next step's state
+        self._recycles = kernels_mujoco.counts_references()
+        for slot in range(STATE_SLOTS):
+            self._fresh_slot(slot)
+        if self.native_step_unavailable is not None:
+            return
+        self._table_address = self._advance_arrays.ctypes.data
+        vector = numba.typeof(np.zeros(4)[::2])  # a float vector, contiguous or not
+        signature = (vector, vector, numba.typeof(self._table_address), numba.typeof(0))
         advance.compile(signature)
         # the compiled function's own entry point: no dispatch on the argument types (step
-        # passes only contiguous float64 vectors and the int64 table, the types compiled for;
-        # numba's unboxing does not check a dtype)
+        # passes only float64 vectors and two integers, the types compiled for; numba's
+        # unboxing does not check a dtype nor the number of dimensions)
         self._advance = getattr(advance.overloads[signature], "entry_point", advance)
 
     def _leave_native(self, reason: str) -> None:
         """Step through the Python bindings from now on, for ``reason``."""
-        self._advance_arrays = self._native_arrays = self._advance = None
+        self._advance = None
         self.native_step_unavailable = reason
+
+    def _fresh_slot(self, slot: int) -> None:
+        """New objects for state slot ``slot`` (:meth:`_slot_objects`), entered in the table
+        with their reference words while nobody else holds them (module docstring, Speed)."""
+        self._slots[slot] = self._slot_objects(slot)
+        if self._recycles:
+            kernels_mujoco.hold_words(self._advance_arrays, slot)
+
+    def _slot_objects(self, slot: int) -> list:
+        """``[state, block, q, v, contact_forces, in_contact, contact_positions(, q_measured,
+        v_measured)]``: a new block laid out as ``work`` then the contact flags
+        (:func:`dmpopt.sim.kernels_mujoco.publish`), the state's arrays as views of it, and a
+        :class:`SimState` holding them; entered in the table."""
+        nq, nv, n_points = self.model.nq, self.model.nv, self._n_points
+        size = self._work.size
+        block = np.zeros(size + -(-n_points // 8))  # the flags' bytes in whole words
+        at = nq + nv
+        q, v = block[:nq], block[nq:at]
+        forces = block[at : at + 3 * n_points].reshape(n_points, 3)
+        positions = block[at + 3 * n_points : at + 6 * n_points].reshape(n_points, 3)
+        at += 6 * n_points
+        in_contact = block[size:].view(np.bool_)[:n_points]
+        objects = [None, block, q, v, forces, in_contact, positions]
+        q_measured, v_measured = q, v
+        if self._noisy:
+            q_measured, v_measured = block[at : at + nq], block[at + nq : size]
+            objects += [q_measured, v_measured]
+        state = _new(SimState)
+        state.__dict__.update(
+            t=0.0, q=q, v=v, contact_forces=forces, in_contact=in_contact,
+            contact_positions=positions, touchdowns=(), fall=None, q_measured=q_measured,
+            v_measured=v_measured,
+        )  # fmt: skip
+        objects[0] = state
+        kernels_mujoco.enter_slot(self._advance_arrays, slot, block, objects)
+        return objects
 
     def _pack_fall_checks(self) -> None:
         """The fall thresholds and base kind in the packed arrays, for the detector in
@@ -1056,6 +1114,8 @@ class MujocoSimulator(Backend):
         -------
         SimState
             With ``fall`` set if the robot fell during this step; the simulation stops there.
+            Its arrays are not changed by later steps while anyone holds the state or one of
+            them (module docstring, Returned states).
 
         Raises
         ------
@@ -1070,61 +1130,48 @@ class MujocoSimulator(Backend):
                 " the simulation stopped there: check state.fall after each step, or reset()"
             )
         tau = torques
-        # contiguous: one float per stride (a flags object costs more than the strides tuple)
-        if not (
-            type(tau) is np.ndarray
-            and tau.dtype is _FLOAT
-            and tau.shape == self._torque_shape
-            and tau.strides == _ONE_FLOAT
-        ):  # else checked for finite entries in apply_torques
+        # a float vector goes as it is: the compiled step checks its length and entries
+        if not (type(tau) is _ARRAY and tau.dtype is _FLOAT and tau.ndim == 1):
             tau = _actuated(torques, self.n_actuated, self.n_base_dofs, self.model.nv)
         force = base_force
         if force is None:
             force = _NO_FORCE
-        elif not (  # a planar or fixed base takes the force as it is: checked here inline
+        elif not (  # a planar or fixed base takes the force as it is, as the torques
             self._quaternion is None
-            and type(force) is np.ndarray
+            and type(force) is _ARRAY
             and force.dtype is _FLOAT
-            and force.shape == self._base_shape
-            and force.strides == _ONE_FLOAT
+            and force.ndim == 1
         ):
             force = self._base_force(force)
         if self.fall_detector is not self._packed_detector:
             self._pack_fall_checks()
-        if self._advance_arrays is not None and not self._pushes:
-            status, time, events = self._advance(tau, force, self._advance_arrays)
+        slot = self._turn
+        self._turn = slot ^ 1  # STATE_SLOTS = 2
+        if self._advance is not None and not self._pushes:
+            status, time, events = self._advance(tau, force, self._table_address, slot)
         else:
-            status, time, events = self._step_bindings(tau, force)
+            status, time, events = self._step_bindings(tau, force, slot)
         if status != STATE_OK:
             self._raise_for(status, tau, base_force)
         self._last_touchdowns = ()
         if events or not self._screened:
-            self._after_step(events)
-        q, v = self._q.copy(), self._v.copy()
-        q_measured, v_measured = q, v
-        if self._noisy:
-            q_measured, v_measured = self._q_measured.copy(), self._v_measured.copy()
-        # SimState(...) without the frozen dataclass's per-field object.__setattr__ (a third
-        # of the cost) and the call of a constructor: the same object, its fields stored in
-        # its dict one by one (faster than update() with keywords, which builds a second dict)
-        state = _new(SimState)
-        fields = state.__dict__
-        fields["t"], fields["q"], fields["v"] = time, q, v
-        fields["contact_forces"] = self._forces.copy()
-        fields["in_contact"] = self._in_contact.copy()
-        fields["contact_positions"] = self._positions.copy()
-        fields["touchdowns"], fields["fall"] = self._last_touchdowns, self.fall
-        fields["q_measured"], fields["v_measured"] = q_measured, v_measured
+            self._after_step(events, slot)
+        state = self._slots[slot][0]  # its arrays hold this step's state
+        fields = state.__dict__  # a frozen dataclass: its fields set in its dict
+        fields["t"], fields["touchdowns"], fields["fall"] = time, self._last_touchdowns, self.fall
         return state
 
-    def _step_bindings(self, tau, force) -> tuple:
+    def _step_bindings(self, tau, force, slot: int) -> tuple:
         """:func:`dmpopt.sim.kernels_mujoco.advance` through the Python bindings: the step's
-        torques, ``mj_step`` (``mj_step1``, the pushes, ``mj_step2`` while a push acts) and
-        :func:`dmpopt.sim.kernels.settle`, the same numbers and results."""
+        torques, ``mj_step`` (``mj_step1``, the pushes, ``mj_step2`` while a push acts),
+        :func:`dmpopt.sim.kernels.settle` and the copy into state slot ``slot``, the same
+        numbers and results."""
         plant, data = self.plant, self.mj_data
+        if tau.size != self.n_actuated or force.size not in (0, self.n_base_dofs):
+            return STATE_BAD_INPUT, 0.0, 0
         if not apply_torques(
-            tau, force, plant.torque_limit, plant.line, plant.ring, self._qfrc_applied,
-            self._dof_index, self.n_base_dofs,
+            np.ascontiguousarray(tau), np.ascontiguousarray(force), plant.torque_limit,
+            plant.line, plant.ring, self._qfrc_applied, self._dof_index, self.n_base_dofs,
         ):  # fmt: skip
             return STATE_BAD_INPUT, 0.0, 0
         if self._pushes:
@@ -1150,13 +1197,18 @@ class MujocoSimulator(Backend):
             | (kernels_mujoco.CHECK_FALL if check_fall else 0)
             | (kernels_mujoco.DRAW if self._noisy else 0)
         )
+        if not publish(self._advance_arrays, slot):
+            events |= kernels_mujoco.SLOT_HELD
         return status, time, events
 
-    def _after_step(self, events: int) -> None:
+    def _after_step(self, events: int, slot: int) -> None:
         """What a step's ``events`` (:func:`dmpopt.sim.kernels_mujoco.advance`) ask for, in
-        order: record touchdowns, draw the next tick's normals, check for a fall; and leave
-        the compiled step when MuJoCo's memory fills (a MuJoCo error there would end the
-        process)."""
+        order: new objects for state slot ``slot`` when someone holds a part of it, record
+        touchdowns, draw the next tick's normals, check for a fall; and leave the compiled
+        step when MuJoCo's memory fills (a MuJoCo error there would end the process)."""
+        if events & kernels_mujoco.SLOT_HELD:
+            self._fresh_slot(slot)
+            kernels_mujoco.fill(self._advance_arrays, slot)
         if events & kernels_mujoco.MEMORY_FULL:
             self._leave_native("MuJoCo's stack and arena use passed half its arena")
         if events & kernels_mujoco.TOUCHDOWN:

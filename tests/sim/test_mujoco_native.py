@@ -10,6 +10,7 @@ bindings' own views of a data with contacts.
 
 import copy
 import ctypes
+import dataclasses
 import os
 import types
 
@@ -85,7 +86,7 @@ def test_the_compiled_step_is_the_bindings_step_bit_for_bit(biped):
     first, second = (run(sim, q0, 1500, 4, biped.torso_frame) for sim in (native, bindings))
     assert_same(first, second)
     assert first[-1].fallen and sum(len(s.touchdowns) for s in first) > 0
-    assert native._advance_arrays is not None  # still compiled after the run
+    assert native._advance is not None  # still compiled after the run
     # MuJoCo kept the data's memory in place through the resets and steps
     layout = kernels_mujoco.native_layout(mujoco, native.mj_model, native.mj_data)
     np.testing.assert_array_equal(native._native_arrays["layout"], layout)
@@ -151,7 +152,7 @@ def test_without_addresses_the_simulator_steps_through_the_bindings(biped, monke
     fallback = biped_simulator(biped)
     monkeypatch.undo()
     assert "_address" in fallback.native_step_unavailable
-    assert fallback._advance_arrays is None
+    assert fallback._advance is None
     q0 = pin.neutral(biped.model)
     q0[1] = 0.62
     assert_same(*(run(s, q0, 80, 6, biped.torso_frame) for s in (fallback, biped_simulator(biped))))
@@ -217,3 +218,71 @@ def test_a_restored_snapshot_continues_as_the_run_from_the_start(biped):
     ]
     with pytest.raises(InvalidInputError, match="snapshot"):
         sim.restore(uninterrupted[0])
+
+
+@pytest.mark.parametrize("recycles", [True, False])
+def test_what_a_caller_holds_of_a_state_no_later_step_changes(biped, monkeypatch, recycles):
+    """The simulator recycles the objects of states nobody holds (module notes of
+    ``mujoco_backend``, Returned states). Answer key: deep copies of what the caller holds,
+    made when the step returned it: a whole state, one of its arrays, a view of one, a
+    state rebuilt with ``dataclasses.replace``; 45 later steps must leave each as it was,
+    bit for bit. Without reference counts (``recycles`` False, as on a free-threaded Python)
+    every step makes new objects, with the same states."""
+    if not recycles:
+        monkeypatch.setattr(kernels_mujoco, "counts_references", lambda: False)
+    sim = biped_simulator(biped)
+    assert sim._recycles is recycles
+    q0 = pin.neutral(biped.model)
+    q0[1] = 0.62
+    sim.reset(q0)
+    rng = np.random.default_rng(8)
+    held, keys = [], []
+    for k in range(130):  # the feet touch down after step 60
+        state = sim.step(rng.normal(scale=5.0, size=sim.n_actuated), rng.normal(size=3))
+        kept = {
+            66: state,
+            68: state.q,
+            71: state.contact_forces[:, 2],  # a view of a view of the slot's block
+            74: state.in_contact,
+            77: state.v_measured,
+            80: dataclasses.replace(state, q=state.q_measured),
+            83: state.q[1:4],
+        }.get(k)
+        if kept is not None:
+            held.append(kept)
+            keys.append(copy.deepcopy(kept))
+    assert held[0].in_contact.any() and held[3].any() and held[2].any()  # forces read
+    for item, key in zip(held, keys):
+        if isinstance(item, np.ndarray):
+            assert item.dtype == key.dtype and item.tobytes() == key.tobytes()
+        else:
+            assert_same([item], [key])
+
+
+def test_the_usual_loop_recycles_its_states(biped, monkeypatch):
+    """``state = sim.step(tau)`` holds only the last state during a step: no step of such a
+    loop makes new objects (the speed of ``benchmarks/bench_mujoco.py --overhead`` rests on
+    it), and each state is the one the bindings' path leaves (answer key: a simulator
+    stepping through the bindings, read through its ``state`` property: copies of its
+    buffers, not its slots)."""
+    fresh = []
+    original = MujocoSimulator._fresh_slot
+    monkeypatch.setattr(
+        MujocoSimulator, "_fresh_slot", lambda sim, slot: fresh.append(slot) or original(sim, slot)
+    )
+    sims = [biped_simulator(biped) for _ in range(2)]
+    sims[1]._leave_native("the answer key")
+    q0 = pin.neutral(biped.model)
+    q0[1] = 0.62
+    for sim in sims:
+        sim.reset(q0)
+    fresh.clear()
+    rng = np.random.default_rng(9)
+    state = None
+    for _ in range(50):
+        tau, force = rng.normal(scale=5.0, size=4), rng.normal(size=3)
+        state = sims[0].step(tau, force)
+        sims[1].step(tau, force)
+        key = dataclasses.replace(sims[1].state, touchdowns=sims[1]._last_touchdowns)
+        assert_same([state], [key])
+    assert fresh == []

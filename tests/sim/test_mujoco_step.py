@@ -243,3 +243,52 @@ def test_a_step_that_raises_leaves_the_noise_sequence_as_it_was(biped):
         rtol=0,
         atol=ROUNDING * (1 + np.abs(state.q).max()),
     )
+
+
+@pytest.mark.parametrize("name", ["biped", "talos"])
+def test_each_state_is_mujocos_own_step_under_the_plant_written_here(name, biped, talos):
+    """Answer key: MuJoCo's ``mj_step`` through its Python bindings on a copy of the ideal
+    simulator's model, given here each actuated joint's armature, damping and friction loss
+    (its constants recomputed, ``mj_setConst``) and driven by the plant's law written here:
+    each command saturated to [-limit, limit], applied ``delay`` steps later (the first one
+    until then), at the joint's dof of ``qfrc_applied``; the biped's base force at its base
+    dofs as it is. A limp robot under random torques, through touchdowns: every state's ``q``
+    and MuJoCo's whole ``qpos``, ``qvel`` and time must be the key's bit for bit (the same
+    floating-point operations on the same numbers)."""
+    import copy
+
+    robot = biped if name == "biped" else talos
+    armature, damping, friction, limit, delay = 0.05, 0.5, 0.3, 10.0, 3
+    plant = PlantParameters(
+        armature=armature, damping=damping, friction=friction, torque_limit=limit, delay=delay
+    )
+    sim = simulator(robot, name, plant)
+    key_model = copy.deepcopy(simulator(robot, name, PlantParameters()).mj_model)
+    names = list(robot.model.names[2:])  # the actuated joints, in the order of tau
+    dofs = [key_model.joint(n).dofadr[0] for n in names]
+    key_model.dof_armature[dofs] = armature
+    key_model.dof_damping[dofs] = damping
+    key_model.dof_frictionloss[dofs] = friction
+    key = mujoco.MjData(key_model)
+    mujoco.mj_setConst(key_model, key)
+    sim.reset(start(robot, name))
+    key.qpos[:], key.qvel[:], key.time = sim.mj_data.qpos, sim.mj_data.qvel, sim.mj_data.time
+    mujoco.mj_forward(key_model, key)
+    if name == "biped":  # the planar base's three joints
+        base = [key_model.joint(f"{robot.model.names[1]}_{k}").dofadr[0] for k in range(3)]
+    rng = np.random.default_rng(11)
+    commands, touched = [], False
+    for k in range(300 if name == "biped" else 150):
+        commands.append(rng.normal(scale=15.0, size=sim.n_actuated))
+        force = rng.normal(size=3) if name == "biped" else None
+        state = sim.step(commands[-1], force)
+        key.qfrc_applied[dofs] = np.clip(commands[max(k - delay, 0)], -limit, limit)
+        if force is not None:
+            key.qfrc_applied[base] = force
+        mujoco.mj_step(key_model, key)
+        for mine, theirs in ((sim.mj_data.qpos, key.qpos), (sim.mj_data.qvel, key.qvel)):
+            assert mine.tobytes() == theirs.tobytes(), k
+        assert state.t == key.time
+        assert state.q.tobytes() == pinocchio_state(sim, key.qpos, key.qvel)[0].tobytes()
+        touched |= bool(state.in_contact.any())
+    assert touched

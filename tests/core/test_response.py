@@ -254,52 +254,58 @@ def _power_bound(step, step_goal, n_steps):
 
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
-def test_the_factored_tail_equals_the_dense_pass_within_its_rounding_bound(form):
-    r"""A discrete form's default plan keeps its settling tail as a factor (dmpopt/response.py):
-    the head and the tail's forced (alive) columns are the dense pass's to the bit (the same
-    operations), and every other column i steps into the tail differs from it by at most
+def test_the_segments_equal_the_dense_pass_within_their_rounding_bound(form):
+    r"""A discrete form's default plan is kept segment by segment (dmpopt/response.py): each
+    segment's window columns are the dense pass's to the bit (the same operations), and
+    every other column i steps into its segment differs from it by at most
 
     .. math:: \gamma ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3) ||c_j||_1,
               \quad \gamma = (n + 1)\,\epsilon
 
     (the goal as a constant state: :math:`\tilde S = [[S, S_g], [0, 1]]`, :math:`\tilde O =
     [O, O_g]`, :math:`P = \max_i ||\tilde S^i||_\infty`, :math:`c_j` the column's
-    coefficients). Both compute :math:`\tilde O \tilde S^i c_j`: each of the i steps of
-    either rounds each entry by at most :math:`\gamma/2 |\tilde S| |s|` (a sum of n + 1 terms),
+    factor). Both compute :math:`\tilde O \tilde S^i c_j`: each of the i steps of either
+    rounds each entry by at most :math:`\gamma/2 |\tilde S| |s|` (a sum of n + 1 terms),
     which the later steps carry by at most P; the outputs and the factor's combination round
-    once more each. The forcing is not zero in the tail (the carrier v > 0 and the
-    normalisation keeps the largest basis), so some columns stay alive."""
+    once more each. The forcing is not zero in the settling tail (the carrier v > 0 and the
+    normalisation keeps the largest basis), so the last segment has a window too."""
     dmp = random_discrete(seed=3, n_basis=20, form=form)
     key = _key(dmp, dmp.settling_time)
     factored = response.response_matrices(key)
-    dense = response.response_matrices(key, False).head
-    n, n_head = symbolic.n_transformation_states(form), factored.head.shape[1]
-    alive = factored.alive
-    assert 0 < factored.tail.shape[1] and alive.stop - alive.start < dense.shape[2] - n - 1
-    np.testing.assert_array_equal(factored.head, dense[:, :n_head])
-    np.testing.assert_array_equal(factored.tail[:, :, n + 1 :], dense[:, n_head:, alive])
+    dense = response.response_matrices(key, False).dense()
+    n = symbolic.n_transformation_states(form)
+    segments = factored.segments
+    assert len(segments) > 2 and np.all(segments[:, 4] < dense.shape[2] - n - 1)
     matrices = symbolic.transformation_matrices(form)(dt=key[4], gains=np.array(key[-1]))
     matrices = {name: value.full() for name, value in matrices.items()}
-    n_tail = factored.tail.shape[1]
-    power, step_norm = _power_bound(matrices["step"], matrices["step_goal"][:, 0], n_tail)
+    longest = int(segments[:, 1].max())
+    power, step_norm = _power_bound(matrices["step"], matrices["step_goal"][:, 0], longest)
     output = np.hstack([matrices["output"], matrices["output_goal"]])
     output_norm = np.abs(output).sum(axis=1)[:, None, None]  # per output row
-    steps = np.arange(n_tail)[None, :, None]
-    size = np.abs(factored.coefficients).sum(axis=0)[None, None, :]
-    bound = (n + 1) * EPS * output_norm * power * (2 * steps * power * step_norm + 3) * size
-    error = np.abs(factored.dense()[:, n_head:] - dense[:, n_head:])
-    assert np.all(error <= bound)
-    assert error.max() > 0  # the bound is not idle: the factor rounds otherwise
+    whole = factored.dense()
+    largest = 0.0
+    for t, (begin, length, _, _, _) in enumerate(segments):
+        steps = slice(begin, begin + length)
+        window = factored.window(t)
+        np.testing.assert_array_equal(factored.block(t)[:, :, n + 1 :], dense[:, steps, window])
+        np.testing.assert_array_equal(whole[:, steps, window], dense[:, steps, window])
+        inside = np.arange(length)[None, :, None]
+        size = np.abs(factored.factors[t]).sum(axis=0)[None, None, :]
+        bound = (n + 1) * EPS * output_norm * power * (2 * inside * power * step_norm + 3) * size
+        error = np.abs(whole[:, steps] - dense[:, steps])
+        assert np.all(error <= bound)
+        largest = max(largest, error.max())
+    assert largest > 0  # the bound is not idle: the factors round otherwise
 
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
-def test_a_default_rollout_with_a_factored_tail_equals_the_stepwise_integration(form):
-    """The whole default plan (head and factored tail) agrees with the integration step by
-    step (symbolic.simulate) within 4 n_steps eps of each output's largest value, as in
+def test_a_default_rollout_by_segments_equals_the_stepwise_integration(form):
+    """The whole default plan (kept by segments) agrees with the integration step by step
+    (symbolic.simulate) within 4 n_steps eps of each output's largest value, as in
     test_rollout_equals_the_stepwise_integration."""
     dmp = random_discrete(seed=5, n_basis=20, form=form)
     plan = dmp.rollout(start_velocity=np.zeros(2))
-    assert response.response_matrices(_key(dmp, dmp.settling_time)).tail.shape[1] > 0
+    assert len(response.response_matrices(_key(dmp, dmp.settling_time)).segments) > 2
     rows = [dmp.start, np.zeros(2)] + [dmp.start] * (form == "acceleration")
     if form == "velocity":
         rows[1] = rows[1] - dmp.forcing_weights() @ dmp._features((0.0, 0.0))
@@ -310,16 +316,49 @@ def test_a_default_rollout_with_a_factored_tail_equals_the_stepwise_integration(
         np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
 
 
-def test_the_tail_starts_where_the_fewest_numbers_are_held():
-    """Written out: with 3 inputs besides 6 bases (9 in all), 10 steps whose last 6 force only
-    bases 4-5, holding head k x 9 + tail (10 - k) x (3 + alive) is least at k = 4: 4 x 9 + 6 x
-    5 = 66 numbers, against 90 dense; plans that force every basis to the end keep no tail."""
-    lows = np.array([0, 0, 1, 2, 4, 4, 4, 5, 4, 4])
-    highs = np.array([1, 2, 3, 4, 5, 5, 5, 5, 5, 5])
-    held = [k * 9 + (10 - k) * (3 + highs[k:].max() - lows[k:].min() + 1) for k in range(10)]
-    assert int(np.argmin(held)) == 4 and min(held) == 66
-    assert response.tail_start(lows, highs, 9, 3, 1) == 4
-    assert response.tail_start(np.zeros(10, int), np.full(10, 5), 9, 3, 1) == 10
+@pytest.mark.parametrize("n_dofs", [1, 3, 7])
+def test_the_product_of_the_segments_is_the_dense_product(n_dofs):
+    r"""The plan of random inputs from the segments (a factor product and a matrix-vector
+    product per segment) equals the dense response times the inputs written with numpy
+    within the rounding of the two ways: each is within :math:`\gamma_k \sum_c |R_c| |w_c|`
+    of the exact sum of k <= n_inputs + n + 1 products (Higham, Accuracy and Stability of
+    Numerical Algorithms, 2nd ed., eq. (3.5)), and the factored columns' combination
+    :math:`U (C w)` instead of :math:`(U C) w` moves them by another :math:`\gamma_{n + 1}`
+    of the size :math:`|U| |C| |w|` (the dense response here is the segments' own, so the
+    factors' rounding against the dense pass is not in it)."""
+    dmp = random_discrete(seed=7, n_basis=20, form="acceleration")
+    factored = response.response_matrices(_key(dmp, dmp.settling_time))
+    inputs = np.random.default_rng(n_dofs).normal(size=(factored.n_inputs, n_dofs))
+    whole = factored.dense()
+    expected = np.einsum("rkc,cd->rkd", whole, inputs)
+    n1 = factored.factors.shape[1]
+    size = np.einsum("rkc,cd->rkd", np.abs(whole), np.abs(inputs))
+    for t, (begin, length, _, _, _) in enumerate(factored.segments):
+        unit = np.abs(factored.block(t)[:, :, :n1])
+        size[:, begin : begin + length] += np.einsum(
+            "rkc,ci,id->rkd", unit, np.abs(factored.factors[t]), np.abs(inputs)
+        )
+    gamma = lambda k: k * EPS / (1 - k * EPS)  # noqa: E731
+    bound = 2 * gamma(factored.n_inputs + n1) * size
+    got = factored.product(inputs)
+    assert got.shape == (3, factored.n_steps, n_dofs)
+    assert np.all(np.abs(got - expected) <= bound)
+
+
+def test_segments_grow_while_their_bases_span_at_most_the_slack_more():
+    """Written out: steps forcing bases (lows, highs) with slack 1 and at least 2 steps a
+    segment: [0, 3) spans bases 0-2 (its first step 0-1, one more), [3, 6) 2-4 (2-3, one
+    more; step 6's 4-5 would make 2-5), [6, 10) 4-5 (to the end); with slack 0 and
+    at least one step: [0, 1) (0-1), [1, 3) (0-2), [3, 4) (2-3), [4, 6) (2-4), [6, 10)."""
+    lows = np.array([0, 0, 1, 2, 2, 3, 4, 4, 4, 4])
+    highs = np.array([1, 2, 2, 3, 4, 4, 5, 5, 5, 5])
+    bounds = np.empty((10, 4), dtype=np.int64)
+    module = response.kernels("velocity", "gaussian")
+    count = module.segment_bounds(lows, highs, 1, 2, bounds)
+    assert bounds[:count].tolist() == [[0, 3, 0, 2], [3, 6, 2, 4], [6, 10, 4, 5]]
+    count = module.segment_bounds(lows, highs, 0, 1, bounds)
+    expected = [[0, 1, 0, 1], [1, 3, 0, 2], [3, 4, 2, 3], [4, 6, 2, 4], [6, 10, 4, 5]]
+    assert bounds[:count].tolist() == expected
 
 
 def _points(module, canonical, target, gains, n_steps, dt):

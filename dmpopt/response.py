@@ -57,52 +57,58 @@ are then those of all the bases to rounding, and the rollout equals the stepper'
 as before (tests/core/test_response.py checks both bounds at levels far below these, where
 the truncation shows).
 
-The settling tail (:class:`ResponseMatrices`). The forcing term does not vanish once a
-discrete plan settles: the normalisation always keeps the largest basis and the carrier, the
-phase velocity :math:`v`, only decays (2.8e-7 at the end of the LASA demo's default plan,
-whose last 77 % of steps follow its convergence time); the bases near the phase's end (10 of
-50 there) are forced to the last step. Every other column is forced only over a stretch of
-steps, then moves under the unforced step, which is affine in the state with constant
-matrices (:func:`symbolic.transformation_matrices`): its response from step :math:`K` on is
-that of the unit states and the goal, times its state at :math:`K`. A first pass
-(``candidates``, below) bounds the bases each step may force; :func:`tail_start` puts
-:math:`K` where the dense head and the tail (the unit responses and the columns still forced
-after :math:`K`) hold the fewest numbers: for the LASA demo 2237 of 10676 steps dense, 5.9
-instead of 13.6 MB. The head and
-the forced columns are the dense pass's to the bit; the other columns round differently, by
-at most :math:`(n + 1) \epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3)
-||c_j||_1` at tail step :math:`i` (:math:`\tilde S`, :math:`\tilde O` the step and output
-with the goal as a constant state, :math:`P` the largest :math:`||\tilde S^i||_\infty`,
-:math:`c_j` the column's state and goal factor; derived and checked in
-tests/core/test_response.py). Rhythmic forms keep no tail: their phase cycles, so every
-basis is forced once a period; their pass (and that of a dense response) finds the kept
-bases itself.
+Segments (:class:`ResponseMatrices`). A step forces only the columns of the bases kept at
+its points; every other column moves under the unforced step, which is affine in the state
+with constant matrices (:func:`symbolic.transformation_matrices`): its response from step
+:math:`K` on, until it is forced again, is that of the unit states and the goal, times its
+state at :math:`K`. A first pass (``candidates``, below) bounds the bases each step may
+force, and the steps are split into segments whose steps force a window of a few bases
+(``segment_bounds``: at most ``SLACK`` more than the narrowest step's, at least
+``SHORTEST`` steps): a segment holds the responses of the unit states, the goal and its
+window's columns, and the states of every column at its start as a factor. The response
+pass tracks the states of every column up to the last segment's start (they are the
+factors), then those of the last segment's window only. The forcing does not vanish once a
+discrete plan settles (the normalisation keeps the largest basis and the carrier, the phase
+velocity :math:`v`, only decays: 2.8e-7 at the end of the LASA demo's default plan), so the
+last segment, the settling tail, has a window too. For the LASA demo's default plan: 14
+segments of 3 + 12 to 15 columns, the last one 8526 of the 10676 steps, 4.4 MB against
+13.6 MB dense (5.9 MB with a dense head and a factored tail, before). The window columns are
+the dense pass's to the bit; the other columns round differently, by at most :math:`(n + 1)
+\epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3) ||c_j||_1` at step
+:math:`i` of their segment (:math:`\tilde S`, :math:`\tilde O` the step and output with the
+goal as a constant state, :math:`P` the largest :math:`||\tilde S^i||_\infty`, :math:`c_j`
+the column's state and goal factor; derived and checked in tests/core/test_response.py),
+and the plan's product (``product``: the factor times the inputs, then one matrix-vector
+product per segment and DOF) sums in another order than a dense product, within
+:math:`\gamma_k` of each sum's absolute terms (Higham, Accuracy and Stability of Numerical
+Algorithms, 2nd ed., eq. (3.5)). A rhythmic form's plan is split likewise (its phase cycles,
+so a segment where it wraps takes every basis); with the printed periodic kernel, which
+jumps where the phase wraps, it is one segment of every column, as is a dense response
+(``factored=False``).
 
-Which bases are kept is found without evaluating every basis at every point. Both ways
-rest on :math:`l'^2 \le 4 h |l|`: :math:`\sqrt{-l_j}` changes by at most :math:`\sqrt{h_j}`
-per unit of phase, for kernels continuous in the phase.
+Which bases are kept is found without evaluating every basis at every point. It rests on
+:math:`l'^2 \le 4 h |l|`: :math:`\sqrt{-l_j}` changes by at most :math:`\sqrt{h_j}` per unit
+of phase, for kernels continuous in the phase.
 
-- Discrete forms (``candidates``): their phase runs once from 0 towards 1, so consecutive
-  steps are grouped into blocks whose points (samples and stages) lie within :math:`r =`
-  ``BLOCK_REACH`` :math:`/ \sqrt{h_\max}` of the block's middle phase :math:`m`. With
-  :math:`s_j = \sqrt{-l_j(m)}`, every point of the block has :math:`-(s_j + \sqrt{h_j} r)^2
-  \le l_j \le -\max(s_j - \sqrt{h_j} r, 0)^2`, so its largest log-activation :math:`M` is at
-  least :math:`T = \max_j -(s_j + \sqrt{h_j} r)^2` and its level (the samples', the lowest;
-  the level :math:`M - L(M)` falls as :math:`M` does) at least that of :math:`T`. A basis
-  whose upper bound is more than ``SKIP_MARGIN`` (which covers the rounding of these few
-  operations) below it is below the level at every point of the block; the others, from
-  the first to the last, are the step's candidates, 50 log-activations per block instead
-  of per point. At each point the response pass evaluates the candidates only: the largest
-  log-activation and the kept bases are those of every basis (tests/core/test_response.py
-  compares them at every point), so the features, and the response, are the same to the
-  bit. (The Gaussian is continuous in the phase, and a discrete phase stays far from
-  :math:`2\pi`, where the printed periodic kernel jumps.)
-- Rhythmic forms (``tracked_window``, :data:`forms.TRACKED_KERNELS`): their phase cycles, so
-  the pass tracks the bases itself: a basis evaluated at phase :math:`p_j` is still more
-  than a margin below the level at phase :math:`p` if :math:`(\sqrt{-l_j(p_j)} - \sqrt{h_j}
-  |p - p_j|)^2` says so, and is then left out. Not for the printed periodic kernel, which
-  jumps where the phase wraps. (The phase form's first rollout of 50 von Mises bases, 9426
-  steps, fell from 75 to 50 ms of thread CPU at load 8 with it.)
+- ``candidates``: consecutive steps are grouped into blocks whose points (samples and
+  stages) lie within :math:`r =` ``BLOCK_REACH`` :math:`/ \sqrt{h_\max}` of the block's
+  middle phase :math:`m`. With :math:`s_j = \sqrt{-l_j(m)}`, every point of the block has
+  :math:`-(s_j + \sqrt{h_j} r)^2 \le l_j \le -\max(s_j - \sqrt{h_j} r, 0)^2`, so its largest
+  log-activation :math:`M` is at least :math:`T = \max_j -(s_j + \sqrt{h_j} r)^2` and its
+  level (the samples', the lowest; the level :math:`M - L(M)` falls as :math:`M` does) at
+  least that of :math:`T`. A basis whose upper bound is more than ``SKIP_MARGIN`` (which
+  covers the rounding of these few operations) below it is below the level at every point of
+  the block; the others, from the first to the last, are the step's candidates, 50
+  log-activations per block instead of per point. At each point the response pass evaluates
+  the candidates only: the largest log-activation and the kept bases are those of every
+  basis (tests/core/test_response.py compares them at every point), so the features, and the
+  response, are the same to the bit. (The Gaussian is continuous in the phase, and a
+  discrete phase stays far from :math:`2\pi`, where the printed periodic kernel jumps.)
+  The same holds for a rhythmic form's von Mises bases (:data:`forms.TRACKED_KERNELS`),
+  continuous in the phase as it wraps: a block whose phases straddle the energy form's
+  jump of :math:`\mathrm{atan2}` at :math:`\pi` has a wide interval and keeps every basis. The
+  printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
+  at every point (``window``).
 
 Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps;
 benchmarks/bench_core.py; thread CPU at load 9, medians of 40 new DMPs, 18.9 ms in all):
@@ -152,7 +158,6 @@ phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
-TRACKED = {tracked}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
 
@@ -189,7 +194,7 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
     """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
     phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
     rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
-    mark (evaluated there by tracked_window or candidate_window), else evaluated."""
+    mark (evaluated there by candidate_window), else evaluated."""
     phase, phase_rate = point[0], point[1]
     total = 0.0
     for j in range(lo, hi + 1):
@@ -244,52 +249,6 @@ def level_of(top, max_width, first, with_rate):
         extra = math.log1p(5.0 * slope)
         bound = first + extra if extra <= 2.0 * first else math.inf
     return top - bound
-
-
-@_compile
-def tracked_window(canonical, target, gains, centres, widths, root_widths, max_width, first,
-                   with_rate, logs, lasts, phases, seen, mark, previous):
-    """:func:`window` of a point that evaluates only the bases it cannot rule out: the
-    window of the previous point first, then each other basis j unless its log-activation
-    at its last evaluation (lasts[j], at phase phases[j]) proves it more than SKIP_MARGIN
-    below the level here: sqrt(-l_j) changes by at most sqrt(h_j) (root_widths[j]) per unit
-    of phase, so -l_j > (sqrt(h_j) |p - p_j| + sqrt(SKIP_MARGIN - level))^2 there suffices
-    (TRACKED kernels only, else every basis is evaluated, by window(); the level only rises
-    as more bases are evaluated). seen[j] == mark: evaluated here (logs[j]). Returns
-    (point, lo, hi, top), as window(): the others are below the level."""
-    if not TRACKED:
-        return window(canonical, target, gains, centres, widths, max_width, first, with_rate,
-                      logs)
-    point = phase_point(canonical, target, gains)
-    phase = point[0]
-    n_basis = centres.size
-    top = -math.inf
-    for j in range(previous[0], previous[1] + 1):
-        logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        lasts[j], phases[j], seen[j] = logs[j], phase, mark
-        top = max(top, logs[j])
-    level = level_of(top, max_width, first, with_rate)
-    reach = math.sqrt(SKIP_MARGIN - level)
-    for j in range(n_basis):
-        if seen[j] == mark:
-            continue
-        if TRACKED:
-            distance = root_widths[j] * abs(phase - phases[j]) + reach
-            if -lasts[j] > distance * distance:
-                continue
-        logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        lasts[j], phases[j], seen[j] = logs[j], phase, mark
-        if logs[j] > top:
-            top = logs[j]
-            level = level_of(top, max_width, first, with_rate)
-            reach = math.sqrt(SKIP_MARGIN - level)
-    lo, hi = 0, n_basis - 1
-    while seen[lo] != mark or logs[lo] < level:
-        lo += 1
-    while seen[hi] != mark or logs[hi] < level:
-        hi -= 1
-    previous[0], previous[1] = lo, hi
-    return point, lo, hi, top
 
 
 @_compile
@@ -398,18 +357,21 @@ def window_row(row, coefficients, states, window, width):
 def segment_bounds(lowest, highest, slack, shortest, bounds):
     """Split the steps into segments (:class:`ResponseMatrices`): a segment grows while the
     bases its steps may force (lowest[k] .. highest[k], :func:`candidates`) span at most
-    ``slack`` more than those of its first step, and to at least ``shortest`` steps.
+    ``slack`` more than those of its narrowest step, and to at least ``shortest`` steps.
     bounds[t] = (first step, end, first basis, last basis); returns the count."""
     n_steps = lowest.size
     count = begin = 0
     while begin < n_steps:
         lo, hi = lowest[begin], highest[begin]
-        limit = hi - lo + slack
+        narrowest = hi - lo
         end = begin + 1
         while end < n_steps and (
-            end - begin < shortest or max(hi, highest[end]) - min(lo, lowest[end]) <= limit
+            end - begin < shortest
+            or max(hi, highest[end]) - min(lo, lowest[end])
+            <= min(narrowest, highest[end] - lowest[end]) + slack
         ):
             lo, hi = min(lo, lowest[end]), max(hi, highest[end])
+            narrowest = min(narrowest, highest[end] - lowest[end])
             end += 1
         bounds[count, 0], bounds[count, 1], bounds[count, 2], bounds[count, 3] = begin, end, lo, hi
         count += 1
@@ -425,14 +387,14 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     whose transformation states are ``states`` (n, m) at the canonical state ``canonical``,
     the steps from first_step on; the bases kept at them are found among step k's
     candidates lowest[k] .. highest[k] (:func:`candidates`) or, ``inline``, among all
-    (tracked_window). Column N_STATES takes the goal, column N_STATES + 1 + N_CARRIER i + e
+    (:func:`window`). Column N_STATES takes the goal, column N_STATES + 1 + N_CARRIER i + e
     the feature e of basis first_basis + i.
 
-    Segment t (segments[t] = first step, steps, offset in ``out``, window, width; steps
+    Segment t (segments[t] = first step, steps, offset in ``out``, left, width; steps
     counted from first_step) fills out[offset:].reshape(3, steps, N_STATES + 1 + width):
     first the responses of the n unit states and of the goal from rest at its first step,
-    then those of the columns window .. window + width - 1 (a basis outside them must not be
-    forced there); starts[t, :n] takes the states at its first step. ``advance``: step
+    then those of its window, the columns left .. left + width - 1 (a basis outside them
+    must not be forced there); starts[t, :n] takes the states at its first step. ``advance``: step
     past the last sample too. ``canonical`` and ``states`` are left at the state after the
     last step."""
     n, m = N_STATES, states.shape[1]
@@ -443,16 +405,14 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
-    lasts, phases = np.zeros(n_basis), np.zeros(n_basis)
-    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
-    root_widths, max_width = np.sqrt(widths), widths.max()
-    segment, begin, window, width = -1, 0, 0, 0
+    seen, max_width = np.full(n_basis, -1), widths.max()
+    segment, begin, left, width = -1, 0, 0, 0
     block = np.empty((3, 0, n + 1))
     for k in range(n_steps):
         if segment + 1 < segments.shape[0] and k == segments[segment + 1, 0]:
             segment += 1
             begin, length, offset = segments[segment, 0], segments[segment, 1], segments[segment, 2]
-            window, width = segments[segment, 3], segments[segment, 4]
+            left, width = segments[segment, 3], segments[segment, 4]
             size = 3 * length * (n + 1 + width)
             block = out[offset : offset + size].reshape((3, length, n + 1 + width))
             starts[segment, :n, :] = current
@@ -461,9 +421,8 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                 unit[i, i] = 1.0
         at, mark = first_step + k, 4 * k
         if inline:
-            point, lo, hi, top = tracked_window(canonical, target, gains, centres, widths,
-                                                root_widths, max_width, first, True, logs, lasts,
-                                                phases, seen, mark, previous)
+            point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width,
+                                        first, True, logs)
         else:
             point = phase_point(canonical, target, gains)
             lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
@@ -472,13 +431,13 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                       values, rates)
         count = hi + 1 - lo
         start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
-        if start < window or start + N_CARRIER * count > window + width:
+        if start < left or start + N_CARRIER * count > left + width:
             raise ValueError("a basis outside the segment's columns is forced")
-        column = n + 1 + start - window  # its column in the block
+        column = n + 1 + start - left  # its column in the block
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
             row = block[j, k - begin]
             affine_row(row, output[j], output_goal[j], unit)
-            window_row(row, output[j], current, window, width)
+            window_row(row, output[j], current, left, width)
             for i in range(count):
                 for e in range(N_CARRIER):
                     row[column + N_CARRIER * i + e] += (
@@ -499,9 +458,8 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             stage[1] = result[3 + 2 * s]
             mark = 4 * k + s
             if inline:
-                point, lo, hi, top = tracked_window(stage, target, gains, centres, widths,
-                                                    root_widths, max_width, first, False, logs,
-                                                    lasts, phases, seen, mark, previous)
+                point, lo, hi, top = window(stage, target, gains, centres, widths, max_width,
+                                            first, False, logs)
             else:
                 point = phase_point(stage, target, gains)
                 lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
@@ -510,7 +468,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                           values, rates)
             count = hi + 1 - lo
             start = n + 1 + N_CARRIER * (lo - first_basis)
-            if start < window or start + N_CARRIER * count > window + width:
+            if start < left or start + N_CARRIER * count > left + width:
                 raise ValueError("a basis outside the segment's columns is forced")
             for i in range(n):
                 for a in range(count):
@@ -565,7 +523,6 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
-    loop = loop.replace("{tracked}", str(kernel in forms.TRACKED_KERNELS))
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
         "import math\n\nimport numba\nimport numpy as np\n\n\n"
@@ -697,7 +654,7 @@ class ResponseMatrices:
 
 
 def segments_of(module, lowest, highest, n_carrier, n_other) -> np.ndarray:
-    """Segments (:class:`ResponseMatrices`) of a discrete plan whose step k may force the
+    """Segments (:class:`ResponseMatrices`) of a plan whose step k may force the
     bases lowest[k] .. highest[k]: per segment its first step, steps, 0 (the offset, set
     later), first window input and window inputs (those of the bases its steps may force;
     ``n_other`` inputs come before the weights, ``n_carrier`` weights per basis)."""
@@ -716,12 +673,12 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     normalised by ``tau``: positions, velocities and accelerations against the initial
     transformation states, the goal and the weights (:class:`ResponseMatrices`).
 
-    Discrete forms: a first pass finds each step's candidate bases (:func:`candidates`),
-    from which the response pass finds the kept ones at each point; ``factored``: each
-    segment of steps keeps only the columns of the bases it forces, the others as a factor
-    (:func:`segments_of`). Else, and for rhythmic forms (their phase cycles, each basis is
-    forced once a period), one segment of every column; the response pass of a rhythmic
-    form finds the kept bases itself (tracked_window), as its phase wraps."""
+    A first pass finds each step's candidate bases (:func:`candidates`), from which the
+    response pass finds the kept ones at each point; ``factored``: each segment of steps
+    keeps only the columns of the bases it forces, the others as a factor
+    (:func:`segments_of`), else one segment of every column. The printed periodic kernel
+    (not in :data:`forms.TRACKED_KERNELS`: it jumps where the phase wraps) has no
+    candidates: one segment of every column, every basis evaluated at every point."""
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
     centres, widths = np.array(centres, dtype=float), np.array(widths, dtype=float)
@@ -732,7 +689,7 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     n_carrier = symbolic.FORMS[form].vectors_per_basis
     module = kernels(form, kernel)
     first, canonical = first_level(n_basis), np.array(canonical0, dtype=float)
-    inline = not symbolic.FORMS[form].discrete
+    inline = not symbolic.FORMS[form].discrete and kernel not in forms.TRACKED_KERNELS
     held = 1 if inline else n_steps
     lowest, highest = np.empty(held, dtype=np.int64), np.empty(held, dtype=np.int64)
     segments = np.array([[0, n_steps, 0, n + 1, n_inputs - n - 1]], dtype=np.int64)

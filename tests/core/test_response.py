@@ -233,11 +233,14 @@ def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
 
 
 def _key(dmp, duration, dt=0.001):
-    """The cache key of dmpopt.dmp._response for a default-start plan of ``dmp``."""
+    """The cache key of dmpopt.dmp._response for a default-start plan of ``dmp`` (a rhythmic
+    one at phase 0)."""
     n_steps = int(round(duration / dt)) + 1
     gains = tuple(dmp.gains)
-    return (dmp.form, dmp.kernel, dmp.n_basis, n_steps, dt / dmp.tau, 1.0, (0.0, 0.0),
-            tuple(dmp.centres), tuple(dmp.widths), gains)  # fmt: skip
+    canonical = (0.0, 0.0) if dmp.form in DISCRETE else tuple(dmp.canonical_state(0.0))
+    return (dmp.form, dmp.kernel, dmp.n_basis, n_steps, dt / dmp.tau,
+            float(dmp._canonical_target()), canonical, tuple(dmp.centres), tuple(dmp.widths),
+            gains)  # fmt: skip
 
 
 def _power_bound(step, step_goal, n_steps):
@@ -253,7 +256,7 @@ def _power_bound(step, step_goal, n_steps):
     return largest, np.abs(augmented).sum(axis=1).max()
 
 
-@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+@pytest.mark.parametrize("form", ["velocity", "acceleration", "phase", "energy"])
 def test_the_segments_equal_the_dense_pass_within_their_rounding_bound(form):
     r"""A discrete form's default plan is kept segment by segment (dmpopt/response.py): each
     segment's window columns are the dense pass's to the bit (the same operations), and
@@ -268,14 +271,19 @@ def test_the_segments_equal_the_dense_pass_within_their_rounding_bound(form):
     rounds each entry by at most :math:`\gamma/2 |\tilde S| |s|` (a sum of n + 1 terms),
     which the later steps carry by at most P; the outputs and the factor's combination round
     once more each. The forcing is not zero in the settling tail (the carrier v > 0 and the
-    normalisation keeps the largest basis), so the last segment has a window too."""
-    dmp = random_discrete(seed=3, n_basis=20, form=form)
-    key = _key(dmp, dmp.settling_time)
+    normalisation keeps the largest basis), so the last segment has a window too. A rhythmic
+    plan (three periods of von Mises bases) is split likewise but where the phase wraps."""
+    if form in DISCRETE:
+        dmp = random_discrete(seed=3, n_basis=20, form=form)
+        key = _key(dmp, dmp.settling_time)
+    else:
+        dmp = random_rhythmic(seed=3, n_basis=20, form=form)
+        key = _key(dmp, 3 * dmp.period)
     factored = response.response_matrices(key)
     dense = response.response_matrices(key, False).dense()
     n = symbolic.n_transformation_states(form)
     segments = factored.segments
-    assert len(segments) > 2 and np.all(segments[:, 4] < dense.shape[2] - n - 1)
+    assert len(segments) > 2 and np.any(segments[:, 4] < dense.shape[2] - n - 1)
     matrices = symbolic.transformation_matrices(form)(dt=key[4], gains=np.array(key[-1]))
     matrices = {name: value.full() for name, value in matrices.items()}
     longest = int(segments[:, 1].max())

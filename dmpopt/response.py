@@ -70,9 +70,10 @@ pass tracks the states of every column up to the last segment's start (they are 
 factors), then those of the last segment's window only. The forcing does not vanish once a
 discrete plan settles (the normalisation keeps the largest basis and the carrier, the phase
 velocity :math:`v`, only decays: 2.8e-7 at the end of the LASA demo's default plan), so the
-last segment, the settling tail, has a window too. For the LASA demo's default plan: 14
-segments of 3 + 12 to 15 columns, the last one 8526 of the 10676 steps, 4.4 MB against
-13.6 MB dense (5.9 MB with a dense head and a factored tail, before). The window columns are
+last segment, the settling tail, has a window too. For the LASA demo's default plan: 24
+segments of 3 + 8 to 14 columns, the last one 6444 of the 10676 steps, 3.8 MB against 13.6
+MB dense (5.9 MB with a dense head and a factored tail, before); a phase form's three
+periods of 50 von Mises bases (9426 steps): 58 segments, 8.4 against 23.3 MB. The window columns are
 the dense pass's to the bit; the other columns round differently, by at most :math:`(n + 1)
 \epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3) ||c_j||_1` at step
 :math:`i` of their segment (:math:`\tilde S`, :math:`\tilde O` the step and output with the
@@ -110,17 +111,14 @@ of phase, for kernels continuous in the phase.
   printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
   at every point (``window``).
 
-Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps;
-benchmarks/bench_core.py; thread CPU at load 9, medians of 40 new DMPs, 18.9 ms in all):
-the candidates pass 2 %, the head pass (2237 steps, 53 columns) 25 %, the tail pass (8439
-steps, 15 columns: about 10 bases kept at each of 4 points per step, an exp each) 54 %, the
-product 9 %. A third of it (6.4 ms) was the system's: the passes' first writes to the 5.9
-MB of new response fault it in page by page (1440 pages of 4 KiB; each new DMP keeps its
-last plan, so the memory is new). Before the candidates (one pass evaluating all 50 bases
-at all 4 points of each step, 28 % of the first rollout, and the head and tail passes each
-kept basis again) the first rollout cost 1.1-1.4 times as much in side-by-side runs of
-benchmarks/bench_core.py at load 8-9, and the response passes alone 1.3 times (medians of
-40, interleaved).
+Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; 40 new
+DMPs each keeping its plan, profiled with the thread's CPU clock at load 10): 15.6 ms a
+rollout (11.8 user, 3.8 system: 946 page faults on the new response's memory), of which
+the response passes 11.4 ms (about 10 bases kept at each of 4 points per step, an exp
+each), the product 0.9, the candidates 0.45. With a dense head and a factored tail (5.9 MB,
+1442 page faults) the same profile gave 18.7 ms, of which the passes 13.6 and the product
+1.35. Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
+the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at load 8-9).
 """
 
 from __future__ import annotations
@@ -594,6 +592,8 @@ class ResponseMatrices:
     factors : ndarray, shape (n_segments, n + 1, n_inputs)
         :math:`C` of each segment: each input's transformation state at the segment's first
         step and its goal factor; zero for the window's inputs.
+    product_kernel : callable
+        The compiled ``product`` of the form's and kernel's module (:func:`kernels`).
     """
 
     blocks: np.ndarray

@@ -374,6 +374,18 @@ def test_segments_grow_while_their_bases_span_at_most_the_slack_more():
     assert bounds[:count].tolist() == [[0, 1, 0, 9], [1, 4, 3, 4]]
 
 
+def test_the_tail_starts_where_the_fewest_numbers_are_held():
+    """Written out: with 3 inputs besides 6 bases (9 in all), 10 steps whose last 6 force only
+    bases 4-5, holding head k x 9 + tail (10 - k) x (3 + alive) is least at k = 4: 4 x 9 + 6 x
+    5 = 66 numbers, against 90 dense; plans that force every basis to the end keep no tail."""
+    lows = np.array([0, 0, 1, 2, 4, 4, 4, 5, 4, 4])
+    highs = np.array([1, 2, 3, 4, 5, 5, 5, 5, 5, 5])
+    held = [k * 9 + (10 - k) * (3 + highs[k:].max() - lows[k:].min() + 1) for k in range(10)]
+    assert int(np.argmin(held)) == 4 and min(held) == 66
+    assert response.tail_start(lows, highs, 9, 3, 1) == 4
+    assert response.tail_start(np.zeros(10, int), np.full(10, 5), 9, 3, 1) == 10
+
+
 def _points(module, canonical, target, gains, n_steps, dt):
     """Each step's sample and stages (canonical states) along n_steps steps."""
     for _ in range(n_steps - 1):

@@ -112,13 +112,15 @@ of phase, for kernels continuous in the phase.
   printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
   at every point (``window``).
 
-Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; 40 new
-DMPs each keeping its plan, profiled with the thread's CPU clock at load 10): 15.6 ms a
-rollout (11.8 user, 3.8 system: 946 page faults on the new response's memory), of which
-the response passes 11.4 ms (about 10 bases kept at each of 4 points per step, an exp
-each), the product 0.9, the candidates 0.45. With a dense head and a factored tail (5.9 MB,
-1442 page faults) the same profile gave 18.7 ms, of which the passes 13.6 and the product
-1.35. Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
+Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; new DMPs
+each keeping its plan; thread CPU at load 3-5): the response passes 10.6-11.4 ms timed
+alone (13-14.5 with a dense head and a factored tail, 5.9 MB), in which about 10 bases are
+kept at each of 4 points per step, an exp each (about 45 % of a pass: replacing the exp by
+a cheap stand-in for a measurement halved it), the candidates 0.45, the product 0.9 (1.35);
+the system's page faults on the 3.9 MB of new response (981 pages against 1442) about 3-4
+ms. The whole first rollout in benchmarks/bench_core.py was 16.5-20.1 ms in alternating
+runs at load 3.4-3.7, within the noise of the 16.5-18.9 ms of the dense head and factored
+tail. Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
 the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at load 8-9).
 """
 

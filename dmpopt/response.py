@@ -57,64 +57,71 @@ are then those of all the bases to rounding, and the rollout equals the stepper'
 as before (tests/core/test_response.py checks both bounds at levels far below these, where
 the truncation shows).
 
-The settling tail (:class:`ResponseMatrices`). The forcing term does not vanish once a
-discrete plan settles: the normalisation always keeps the largest basis and the carrier, the
-phase velocity :math:`v`, only decays (2.8e-7 at the end of the LASA demo's default plan,
-whose last 77 % of steps follow its convergence time); the bases near the phase's end (10 of
-50 there) are forced to the last step. Every other column is forced only over a stretch of
-steps, then moves under the unforced step, which is affine in the state with constant
-matrices (:func:`symbolic.transformation_matrices`): its response from step :math:`K` on is
-that of the unit states and the goal, times its state at :math:`K`. A first pass
-(``candidates``, below) bounds the bases each step may force; :func:`tail_start` puts
-:math:`K` where the dense head and the tail (the unit responses and the columns still forced
-after :math:`K`) hold the fewest numbers: for the LASA demo 2237 of 10676 steps dense, 5.9
-instead of 13.6 MB. The head and
-the forced columns are the dense pass's to the bit; the other columns round differently, by
-at most :math:`(n + 1) \epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3)
-||c_j||_1` at tail step :math:`i` (:math:`\tilde S`, :math:`\tilde O` the step and output
-with the goal as a constant state, :math:`P` the largest :math:`||\tilde S^i||_\infty`,
-:math:`c_j` the column's state and goal factor; derived and checked in
-tests/core/test_response.py). Rhythmic forms keep no tail: their phase cycles, so every
-basis is forced once a period; their pass (and that of a dense response) finds the kept
-bases itself.
+Segments (:class:`ResponseMatrices`). A step forces only the columns of the bases kept at
+its points; every other column moves under the unforced step, which is affine in the state
+with constant matrices (:func:`symbolic.transformation_matrices`): its response from step
+:math:`K` on, until it is forced again, is that of the unit states and the goal, times its
+state at :math:`K`. A first pass (``candidates``, below) bounds the bases each step may
+force, and the steps are split into segments whose steps force a window of a few bases
+(``segment_bounds``: at most ``SLACK`` more than the narrowest step's, at least
+``SHORTEST`` steps): a segment holds the responses of the unit states, the goal and its
+window's columns, and the states of every column at its start as a factor. The response
+pass tracks the states of every column up to the last segment's start (they are the
+factors), then those of the last segment's window only. The forcing does not vanish once a
+discrete plan settles (the normalisation keeps the largest basis and the carrier, the phase
+velocity :math:`v`, only decays: 2.8e-7 at the end of the LASA demo's default plan), so the
+last segment, the settling tail, has a window too; it starts where a dense head and the
+tail would hold the fewest numbers (:func:`tail_start`). For the LASA demo's default plan:
+21 segments of 3 + 11 to 14 columns, the tail 8439 of the 10676 steps, 3.9 MB against 13.6
+MB dense (5.9 MB with a dense head and a factored tail, before); a phase form's three
+periods of 50 von Mises bases (9426 steps): 58 segments, 8.4 against 23.3 MB. The window columns are
+the dense pass's to the bit; the other columns round differently, by at most :math:`(n + 1)
+\epsilon ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3) ||c_j||_1` at step
+:math:`i` of their segment (:math:`\tilde S`, :math:`\tilde O` the step and output with the
+goal as a constant state, :math:`P` the largest :math:`||\tilde S^i||_\infty`, :math:`c_j`
+the column's state and goal factor; derived and checked in tests/core/test_response.py),
+and the plan's product (``product``: the factor times the inputs, then one matrix-vector
+product per segment and DOF) sums in another order than a dense product, within
+:math:`\gamma_k` of each sum's absolute terms (Higham, Accuracy and Stability of Numerical
+Algorithms, 2nd ed., eq. (3.5)). A rhythmic form's plan is split likewise (its phase cycles,
+so a segment where it wraps takes every basis); with the printed periodic kernel, which
+jumps where the phase wraps, it is one segment of every column, as is a dense response
+(``factored=False``).
 
-Which bases are kept is found without evaluating every basis at every point. Both ways
-rest on :math:`l'^2 \le 4 h |l|`: :math:`\sqrt{-l_j}` changes by at most :math:`\sqrt{h_j}`
-per unit of phase, for kernels continuous in the phase.
+Which bases are kept is found without evaluating every basis at every point. It rests on
+:math:`l'^2 \le 4 h |l|`: :math:`\sqrt{-l_j}` changes by at most :math:`\sqrt{h_j}` per unit
+of phase, for kernels continuous in the phase.
 
-- Discrete forms (``candidates``): their phase runs once from 0 towards 1, so consecutive
-  steps are grouped into blocks whose points (samples and stages) lie within :math:`r =`
-  ``BLOCK_REACH`` :math:`/ \sqrt{h_\max}` of the block's middle phase :math:`m`. With
-  :math:`s_j = \sqrt{-l_j(m)}`, every point of the block has :math:`-(s_j + \sqrt{h_j} r)^2
-  \le l_j \le -\max(s_j - \sqrt{h_j} r, 0)^2`, so its largest log-activation :math:`M` is at
-  least :math:`T = \max_j -(s_j + \sqrt{h_j} r)^2` and its level (the samples', the lowest;
-  the level :math:`M - L(M)` falls as :math:`M` does) at least that of :math:`T`. A basis
-  whose upper bound is more than ``SKIP_MARGIN`` (which covers the rounding of these few
-  operations) below it is below the level at every point of the block; the others, from
-  the first to the last, are the step's candidates, 50 log-activations per block instead
-  of per point. At each point the response pass evaluates the candidates only: the largest
-  log-activation and the kept bases are those of every basis (tests/core/test_response.py
-  compares them at every point), so the features, and the response, are the same to the
-  bit. (The Gaussian is continuous in the phase, and a discrete phase stays far from
-  :math:`2\pi`, where the printed periodic kernel jumps.)
-- Rhythmic forms (``tracked_window``, :data:`forms.TRACKED_KERNELS`): their phase cycles, so
-  the pass tracks the bases itself: a basis evaluated at phase :math:`p_j` is still more
-  than a margin below the level at phase :math:`p` if :math:`(\sqrt{-l_j(p_j)} - \sqrt{h_j}
-  |p - p_j|)^2` says so, and is then left out. Not for the printed periodic kernel, which
-  jumps where the phase wraps. (The phase form's first rollout of 50 von Mises bases, 9426
-  steps, fell from 75 to 50 ms of thread CPU at load 8 with it.)
+- ``candidates``: consecutive steps are grouped into blocks whose points (samples and
+  stages) lie within :math:`r =` ``BLOCK_REACH`` :math:`/ \sqrt{h_\max}` of the block's
+  middle phase :math:`m`. With :math:`s_j = \sqrt{-l_j(m)}`, every point of the block has
+  :math:`-(s_j + \sqrt{h_j} r)^2 \le l_j \le -\max(s_j - \sqrt{h_j} r, 0)^2`, so its largest
+  log-activation :math:`M` is at least :math:`T = \max_j -(s_j + \sqrt{h_j} r)^2` and its
+  level (the samples', the lowest; the level :math:`M - L(M)` falls as :math:`M` does) at
+  least that of :math:`T`. A basis whose upper bound is more than ``SKIP_MARGIN`` (which
+  covers the rounding of these few operations) below it is below the level at every point of
+  the block; the others, from the first to the last, are the step's candidates, 50
+  log-activations per block instead of per point. At each point the response pass evaluates
+  the candidates only: the largest log-activation and the kept bases are those of every
+  basis (tests/core/test_response.py compares them at every point), so the features, and the
+  response, are the same to the bit. (The Gaussian is continuous in the phase, and a
+  discrete phase stays far from :math:`2\pi`, where the printed periodic kernel jumps.)
+  The same holds for a rhythmic form's von Mises bases (:data:`forms.TRACKED_KERNELS`),
+  continuous in the phase as it wraps: a block whose phases straddle the energy form's
+  jump of :math:`\mathrm{atan2}` at :math:`\pi` has a wide interval and keeps every basis. The
+  printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
+  at every point (``window``).
 
-Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps;
-benchmarks/bench_core.py; thread CPU at load 9, medians of 40 new DMPs, 18.9 ms in all):
-the candidates pass 2 %, the head pass (2237 steps, 53 columns) 25 %, the tail pass (8439
-steps, 15 columns: about 10 bases kept at each of 4 points per step, an exp each) 54 %, the
-product 9 %. A third of it (6.4 ms) was the system's: the passes' first writes to the 5.9
-MB of new response fault it in page by page (1440 pages of 4 KiB; each new DMP keeps its
-last plan, so the memory is new). Before the candidates (one pass evaluating all 50 bases
-at all 4 points of each step, 28 % of the first rollout, and the head and tail passes each
-kept basis again) the first rollout cost 1.1-1.4 times as much in side-by-side runs of
-benchmarks/bench_core.py at load 8-9, and the response passes alone 1.3 times (medians of
-40, interleaved).
+Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; new DMPs
+each keeping its plan; thread CPU at load 3-5): the response passes 10.6-11.4 ms timed
+alone (13-14.5 with a dense head and a factored tail, 5.9 MB), in which about 10 bases are
+kept at each of 4 points per step, an exp each (about 45 % of a pass: replacing the exp by
+a cheap stand-in for a measurement halved it), the candidates 0.45, the product 0.9 (1.35);
+the system's page faults on the 3.9 MB of new response (981 pages against 1442) about 3-4
+ms. The whole first rollout in benchmarks/bench_core.py was 16.5-20.1 ms in alternating
+runs at load 3.4-3.7, within the noise of the 16.5-18.9 ms of the dense head and factored
+tail. Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
+the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at load 8-9).
 """
 
 from __future__ import annotations
@@ -152,7 +159,6 @@ phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
-TRACKED = {tracked}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
 
@@ -189,7 +195,7 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
     """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
     phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
     rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
-    mark (evaluated there by tracked_window or candidate_window), else evaluated."""
+    mark (evaluated there by candidate_window), else evaluated."""
     phase, phase_rate = point[0], point[1]
     total = 0.0
     for j in range(lo, hi + 1):
@@ -244,52 +250,6 @@ def level_of(top, max_width, first, with_rate):
         extra = math.log1p(5.0 * slope)
         bound = first + extra if extra <= 2.0 * first else math.inf
     return top - bound
-
-
-@_compile
-def tracked_window(canonical, target, gains, centres, widths, root_widths, max_width, first,
-                   with_rate, logs, lasts, phases, seen, mark, previous):
-    """:func:`window` of a point that evaluates only the bases it cannot rule out: the
-    window of the previous point first, then each other basis j unless its log-activation
-    at its last evaluation (lasts[j], at phase phases[j]) proves it more than SKIP_MARGIN
-    below the level here: sqrt(-l_j) changes by at most sqrt(h_j) (root_widths[j]) per unit
-    of phase, so -l_j > (sqrt(h_j) |p - p_j| + sqrt(SKIP_MARGIN - level))^2 there suffices
-    (TRACKED kernels only, else every basis is evaluated, by window(); the level only rises
-    as more bases are evaluated). seen[j] == mark: evaluated here (logs[j]). Returns
-    (point, lo, hi, top), as window(): the others are below the level."""
-    if not TRACKED:
-        return window(canonical, target, gains, centres, widths, max_width, first, with_rate,
-                      logs)
-    point = phase_point(canonical, target, gains)
-    phase = point[0]
-    n_basis = centres.size
-    top = -math.inf
-    for j in range(previous[0], previous[1] + 1):
-        logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        lasts[j], phases[j], seen[j] = logs[j], phase, mark
-        top = max(top, logs[j])
-    level = level_of(top, max_width, first, with_rate)
-    reach = math.sqrt(SKIP_MARGIN - level)
-    for j in range(n_basis):
-        if seen[j] == mark:
-            continue
-        if TRACKED:
-            distance = root_widths[j] * abs(phase - phases[j]) + reach
-            if -lasts[j] > distance * distance:
-                continue
-        logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        lasts[j], phases[j], seen[j] = logs[j], phase, mark
-        if logs[j] > top:
-            top = logs[j]
-            level = level_of(top, max_width, first, with_rate)
-            reach = math.sqrt(SKIP_MARGIN - level)
-    lo, hi = 0, n_basis - 1
-    while seen[lo] != mark or logs[lo] < level:
-        lo += 1
-    while seen[hi] != mark or logs[hi] < level:
-        hi -= 1
-    previous[0], previous[1] = lo, hi
-    return point, lo, hi, top
 
 
 @_compile
@@ -384,32 +344,86 @@ def affine_row(row, coefficients, goal, states):
 
 
 @_compile
+def window_row(row, coefficients, states, window, width):
+    """row[N_STATES + 1 + c] = coefficients @ states[:, window + c] for c < width (the
+    columns of a segment's window, :func:`response`)."""
+    for c in range(width):
+        total = 0.0
+        for a in range(N_STATES):
+            total += coefficients[a] * states[a, window + c]
+        row[N_STATES + 1 + c] = total
+
+
+@_compile
+def segment_bounds(lowest, highest, slack, shortest, bounds):
+    """Split the steps into segments (:class:`ResponseMatrices`): a segment grows while the
+    bases its steps may force (lowest[k] .. highest[k], :func:`candidates`) span at most
+    ``slack`` more than those of its narrowest step, and to at least ``shortest`` steps.
+    bounds[t] = (first step, end, first basis, last basis); returns the count."""
+    n_steps = lowest.size
+    count = begin = 0
+    while begin < n_steps:
+        lo, hi = lowest[begin], highest[begin]
+        narrowest = hi - lo
+        end = begin + 1
+        while end < n_steps and (
+            end - begin < shortest
+            or max(hi, highest[end]) - min(lo, lowest[end])
+            <= min(narrowest, highest[end] - lowest[end]) + slack
+        ):
+            lo, hi = min(lo, lowest[end]), max(hi, highest[end])
+            narrowest = min(narrowest, highest[end] - lowest[end])
+            end += 1
+        bounds[count, 0], bounds[count, 1], bounds[count, 2], bounds[count, 3] = begin, end, lo, hi
+        count += 1
+        begin = end
+    return count
+
+
+@_compile
 def response(canonical, dt, target, gains, centres, widths, first, lowest, highest, inline,
              first_step, first_basis, advance, step, step_goal, step_forcing, output,
-             output_goal, output_forcing, states, out):
-    """Fill out (3, n_steps, m): responses of position, velocity and acceleration of the m
-    columns whose transformation states are ``states`` (n, m) at the canonical state
-    ``canonical``, the steps from first_step on; the bases kept at them are found among step
-    k's candidates lowest[k] .. highest[k] (:func:`candidates`) or, ``inline``, among all
-    (tracked_window). Column N_STATES takes
-    the goal, column N_STATES + 1 + N_CARRIER i + e the feature e of basis first_basis + i (a
-    basis outside them must not be forced). ``advance``: step past the last sample too.
-    ``canonical`` and ``states`` are left at the state after the last step."""
-    n, n_steps, m = N_STATES, out.shape[1], out.shape[2]
+             output_goal, output_forcing, states, segments, out, starts):
+    """Responses of position, velocity and acceleration, segment by segment, of the m columns
+    whose transformation states are ``states`` (n, m) at the canonical state ``canonical``,
+    the steps from first_step on; the bases kept at them are found among step k's
+    candidates lowest[k] .. highest[k] (:func:`candidates`) or, ``inline``, among all
+    (:func:`window`). Column N_STATES takes the goal, column N_STATES + 1 + N_CARRIER i + e
+    the feature e of basis first_basis + i.
+
+    Segment t (segments[t] = first step, steps, offset in ``out``, left, width; steps
+    counted from first_step) fills out[offset:].reshape(3, steps, N_STATES + 1 + width):
+    first the responses of the n unit states and of the goal from rest at its first step,
+    then those of its window, the columns left .. left + width - 1 (a basis outside them
+    must not be forced there); starts[t, :n] takes the states at its first step. ``advance``: step
+    past the last sample too. ``canonical`` and ``states`` are left at the state after the
+    last step."""
+    n, m = N_STATES, states.shape[1]
+    n_steps = segments[-1, 0] + segments[-1, 1]
     n_basis = centres.size
     current, following = states.copy(), np.empty((n, m))
+    unit, unit_following = np.zeros((n, n + 1)), np.empty((n, n + 1))
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
-    lasts, phases = np.zeros(n_basis), np.zeros(n_basis)
-    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
-    root_widths, max_width = np.sqrt(widths), widths.max()
+    seen, max_width = np.full(n_basis, -1), widths.max()
+    segment, begin, left, width = -1, 0, 0, 0
+    block = np.empty((3, 0, n + 1))
     for k in range(n_steps):
+        if segment + 1 < segments.shape[0] and k == segments[segment + 1, 0]:
+            segment += 1
+            begin, length, offset = segments[segment, 0], segments[segment, 1], segments[segment, 2]
+            left, width = segments[segment, 3], segments[segment, 4]
+            size = 3 * length * (n + 1 + width)
+            block = out[offset : offset + size].reshape((3, length, n + 1 + width))
+            starts[segment, :n, :] = current
+            unit[:, :] = 0.0
+            for i in range(n):
+                unit[i, i] = 1.0
         at, mark = first_step + k, 4 * k
         if inline:
-            point, lo, hi, top = tracked_window(canonical, target, gains, centres, widths,
-                                                root_widths, max_width, first, True, logs, lasts,
-                                                phases, seen, mark, previous)
+            point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width,
+                                        first, True, logs)
         else:
             point = phase_point(canonical, target, gains)
             lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
@@ -418,19 +432,22 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                       values, rates)
         count = hi + 1 - lo
         start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
-        if start < n + 1 or start + N_CARRIER * count > m:
-            raise ValueError("a basis outside the response's columns is forced")
+        if start < left or start + N_CARRIER * count > left + width:
+            raise ValueError("a basis outside the segment's columns is forced")
+        column = n + 1 + start - left  # its column in the block
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
-            row = out[j, k]
-            affine_row(row, output[j], output_goal[j], current)
+            row = block[j, k - begin]
+            affine_row(row, output[j], output_goal[j], unit)
+            window_row(row, output[j], current, left, width)
             for i in range(count):
                 for e in range(N_CARRIER):
-                    row[start + N_CARRIER * i + e] += (
+                    row[column + N_CARRIER * i + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
         if k == n_steps - 1 and not advance:
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
+            affine_row(unit_following[i], step[i], step_goal[i], unit)
             row = following[i]
             affine_row(row, step[i], step_goal[i], current)
             for a in range(count):
@@ -442,9 +459,8 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             stage[1] = result[3 + 2 * s]
             mark = 4 * k + s
             if inline:
-                point, lo, hi, top = tracked_window(stage, target, gains, centres, widths,
-                                                    root_widths, max_width, first, False, logs,
-                                                    lasts, phases, seen, mark, previous)
+                point, lo, hi, top = window(stage, target, gains, centres, widths, max_width,
+                                            first, False, logs)
             else:
                 point = phase_point(stage, target, gains)
                 lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
@@ -453,8 +469,8 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                           values, rates)
             count = hi + 1 - lo
             start = n + 1 + N_CARRIER * (lo - first_basis)
-            if start < n + 1 or start + N_CARRIER * count > m:
-                raise ValueError("a basis outside the response's columns is forced")
+            if start < left or start + N_CARRIER * count > left + width:
+                raise ValueError("a basis outside the segment's columns is forced")
             for i in range(n):
                 for a in range(count):
                     for e in range(N_CARRIER):
@@ -462,7 +478,37 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
         canonical[0] = result[0]
         canonical[1] = result[1]
         current, following = following, current
+        unit, unit_following = unit_following, unit
     states[:, :] = current
+
+
+@_compile
+def product(out, segments, starts, inputs, plan):
+    """plan (3, n_steps, n_dofs): the responses of :func:`response` (its ``out``,
+    ``segments`` and ``starts``, the latter with the goal's row and zero window columns)
+    times the inputs of each DOF (m, n_dofs): segment t's first N_STATES + 1 columns take
+    starts[t] @ inputs, its window columns their inputs. For a few DOFs one matrix-vector
+    product per DOF, which reads the responses faster than a matrix product (module
+    docstring)."""
+    n1, n_dofs = N_STATES + 1, inputs.shape[1]
+    for t in range(segments.shape[0]):
+        begin, length, offset = segments[t, 0], segments[t, 1], segments[t, 2]
+        window, width = segments[t, 3], segments[t, 4]
+        block = out[offset : offset + 3 * length * (n1 + width)].reshape((3 * length, n1 + width))
+        factors = np.empty((n1 + width, n_dofs))
+        factors[:n1] = starts[t] @ inputs
+        factors[n1:] = inputs[window : window + width]
+        if n_dofs > 4:
+            values = block @ factors
+            for r in range(3):
+                plan[r, begin : begin + length] = values[r * length : (r + 1) * length]
+            continue
+        vector = np.empty(n1 + width)
+        for d in range(n_dofs):
+            vector[:] = factors[:, d]
+            values = block @ vector
+            for r in range(3):
+                plan[r, begin : begin + length, d] = values[r * length : (r + 1) * length]
 '''
 
 
@@ -478,7 +524,6 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
-    loop = loop.replace("{tracked}", str(kernel in forms.TRACKED_KERNELS))
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
         "import math\n\nimport numba\nimport numpy as np\n\n\n"
@@ -519,101 +564,131 @@ def _write(folder: Path, name: str, source: str) -> Path:
     return path
 
 
+SLACK = 2
+"""Bases a segment's window may span beyond those of its first step (:func:`segments_of`)."""
+
+SHORTEST = 32
+"""Steps a segment has at least (its factor holds (n + 1) x n_inputs numbers)."""
+
+
 @dataclass(frozen=True, eq=False)
 class ResponseMatrices:
-    r"""The response matrices of one DOF (:func:`response_matrices`): the first ``n_head``
-    steps dense, the rest (the settling tail of a discrete form) as a factor.
+    r"""The response matrices of one DOF (:func:`response_matrices`), segment by segment.
 
-    In the tail no column but the ``alive`` ones is forced, so each other column's response
-    there is that of its transformation state at the tail's first step under the unforced,
-    affine step: with :math:`U_i` the responses (3 rows) of the :math:`n` unit states and of
-    the goal from rest :math:`i` steps into the tail, column :math:`j` at tail step
-    :math:`i` is :math:`U_i c_j`, :math:`c_j` its state at the tail's start (and a 1 for
-    the goal's column). Then :math:`R w = (U_i C w)` on them, with ``coefficients``
-    :math:`C`, plus the alive columns' own rows.
+    Within a segment of steps no column is forced but those of its window, so each other
+    column's response there is that of its transformation state at the segment's first
+    step under the unforced, affine step: with :math:`U_i` the responses (3 rows) of the
+    :math:`n` unit states and of the goal from rest :math:`i` steps into the segment,
+    column :math:`j` is :math:`U_i c_j` there, :math:`c_j` its state at the segment's start
+    (and a 1 for the goal's column). Then :math:`R w = (U_i C w)` on them, with the
+    segment's factor :math:`C`, plus the window columns' own rows.
 
     Attributes
     ----------
-    head : ndarray, shape (3, n_head, n_inputs)
-        Positions, velocities and accelerations of the first ``n_head`` steps against every
-        input.
-    tail : ndarray, shape (3, n_tail, n + 1 + n_alive)
-        The rest: the unit states' and the goal's responses :math:`U`, then those of the
-        alive inputs.
-    coefficients : ndarray, shape (n + 1, n_inputs)
-        :math:`C`: each input's transformation state at the tail's start and its goal
-        factor; zero for the alive inputs.
-    alive : slice
-        The inputs whose tail is in ``tail[:, :, n + 1:]``.
+    blocks : ndarray, shape (n_numbers,)
+        Segment t's responses at ``segments[t, 2]``, shape (3, segments[t, 1], n + 1 +
+        segments[t, 4]): positions, velocities and accelerations against the unit states and
+        the goal (:math:`U`), then against the window's inputs.
+    segments : ndarray of int, shape (n_segments, 5)
+        Per segment: first step, steps, offset in ``blocks``, first window input, window
+        inputs.
+    factors : ndarray, shape (n_segments, n + 1, n_inputs)
+        :math:`C` of each segment: each input's transformation state at the segment's first
+        step and its goal factor; zero for the window's inputs.
+    product_kernel : callable
+        The compiled ``product`` of the form's and kernel's module (:func:`kernels`).
     """
 
-    head: np.ndarray
-    tail: np.ndarray
-    coefficients: np.ndarray
-    alive: slice
+    blocks: np.ndarray
+    segments: np.ndarray
+    factors: np.ndarray
+    product_kernel: object
 
     @property
     def n_steps(self) -> int:
         """Samples of the plan."""
-        return self.head.shape[1] + self.tail.shape[1]
+        return int(self.segments[-1, 0] + self.segments[-1, 1])
 
     @property
     def n_inputs(self) -> int:
         """Inputs per DOF: the initial transformation states, the goal and the weights."""
-        return self.head.shape[2]
+        return self.factors.shape[2]
 
     @property
     def nbytes(self) -> int:
         """Bytes held."""
-        return self.head.nbytes + self.tail.nbytes + self.coefficients.nbytes
+        return self.blocks.nbytes + self.segments.nbytes + self.factors.nbytes
+
+    def block(self, t: int) -> np.ndarray:
+        """Segment t's responses, shape (3, steps, n + 1 + window inputs)."""
+        _, length, offset, _, width = (int(value) for value in self.segments[t])
+        columns = self.factors.shape[1] + width
+        return self.blocks[offset : offset + 3 * length * columns].reshape(3, length, columns)
+
+    def window(self, t: int) -> slice:
+        """Segment t's window inputs."""
+        return slice(int(self.segments[t, 3]), int(self.segments[t, 3] + self.segments[t, 4]))
 
     def product(self, inputs: np.ndarray) -> np.ndarray:
         """The plans of the DOFs whose inputs are the columns of ``inputs`` (n_inputs,
         n_dofs): positions, velocities and accelerations, shape (3, n_steps, n_dofs)."""
-        n_head, n_dofs = self.head.shape[1], inputs.shape[1]
-        plan = np.empty((3, self.n_steps, n_dofs))
-        if n_head:
-            _product(self.head, inputs, plan[:, :n_head])
-        if self.tail.shape[1]:
-            tail_inputs = np.concatenate([self.coefficients @ inputs, inputs[self.alive]])
-            _product(self.tail, tail_inputs, plan[:, n_head:])
+        plan = np.empty((3, self.n_steps, inputs.shape[1]))
+        self.product_kernel(self.blocks, self.segments, self.factors,
+                            np.ascontiguousarray(inputs), plan)  # fmt: skip
         return plan
 
     def dense(self) -> np.ndarray:
         """The whole response, shape (3, n_steps, n_inputs)."""
-        if self.tail.shape[1] == 0:
-            return self.head
-        n = self.coefficients.shape[0]
-        tail = self.tail[:, :, :n] @ self.coefficients
-        tail[:, :, self.alive] = self.tail[:, :, n:]
-        return np.concatenate([self.head, tail], axis=1)
+        n1 = self.factors.shape[1]
+        if len(self.segments) == 1 and self.window(0) == slice(n1, self.n_inputs):
+            return self.block(0)  # one segment of every column: the dense pass's
+        parts = []
+        for t in range(len(self.segments)):
+            block = self.block(t)
+            part = block[:, :, :n1] @ self.factors[t]
+            part[:, :, self.window(t)] = block[:, :, n1:]
+            parts.append(part)
+        return np.concatenate(parts, axis=1)
 
     def freeze(self) -> None:
         """Make the arrays read-only (the cached response is shared)."""
-        for array in (self.head, self.tail, self.coefficients):
+        for array in (self.blocks, self.segments, self.factors):
             array.setflags(write=False)
 
 
-def _product(response: np.ndarray, inputs: np.ndarray, out: np.ndarray) -> None:
-    """``out[...] = response @ inputs`` (``response`` (3, n, m), ``out`` (3, n, n_dofs)): for a
-    few DOFs one matrix-vector product per DOF, each written to its place in ``out``, which
-    reads ``response`` faster than OpenBLAS's matrix product (LASA, 2 DOFs, 1000 steps: 83
-    against 136 us; benchmarks/bench_core.py) and copies once."""
-    flat = response.reshape(-1, response.shape[2])
-    if inputs.shape[1] > 4:
-        out[...] = (flat @ inputs).reshape(out.shape)
-        return
-    for dof in range(inputs.shape[1]):
-        out[:, :, dof] = (flat @ inputs[:, dof]).reshape(out.shape[:2])
+def segments_of(module, lowest, highest, n_carrier, n_other, n_inputs) -> np.ndarray:
+    """Segments (:class:`ResponseMatrices`) of a plan whose step k may force the
+    bases lowest[k] .. highest[k]: per segment its first step, steps, 0 (the offset, set
+    later), first window input and window inputs (those of the bases its steps may force;
+    ``n_other`` inputs come before the weights, ``n_carrier`` weights per basis).
+
+    The settling tail of a discrete plan is one segment (:func:`tail_start`): the response
+    pass tracks only its window's states there, where before the last segment it tracks
+    every column's (LASA: 1.5 times as fast as splitting the tail where its window
+    narrows); the steps before it are split by ``segment_bounds``."""
+    n_steps = lowest.size
+    end = tail_start(lowest, highest, n_inputs, n_other, n_carrier)
+    bounds = np.empty((n_steps, 4), dtype=np.int64)
+    count = module.segment_bounds(lowest[:end], highest[:end], SLACK, SHORTEST, bounds)
+    if end < n_steps:
+        bounds[count] = end, n_steps, lowest[end:].min(), highest[end:].max()
+        count += 1
+    bounds = bounds[:count]
+    segments = np.zeros((count, 5), dtype=np.int64)
+    segments[:, 0], segments[:, 1] = bounds[:, 0], bounds[:, 1] - bounds[:, 0]
+    segments[:, 3] = n_other + n_carrier * bounds[:, 2]
+    segments[:, 4] = n_carrier * (bounds[:, 3] + 1 - bounds[:, 2])
+    return segments
 
 
 def tail_start(
     lows: np.ndarray, highs: np.ndarray, n_inputs: int, n_other: int, n_carrier: int
 ) -> int:
-    """The step from which the response is kept as a factor (:class:`ResponseMatrices`), the
-    one that holds the fewest numbers, from the first and last basis each step forces
-    (``lows``, ``highs``); ``len(lows)`` for none. ``n_other``: the inputs that are not
-    weights (the tail keeps as many unit responses), ``n_carrier`` weights per basis."""
+    """The first step of the settling tail, the last segment (:func:`segments_of`): the one
+    where a dense head and the tail hold the fewest numbers, from the first and last basis
+    each step forces (``lows``, ``highs``); ``len(lows)`` for none. ``n_other``: the inputs
+    that are not weights (the tail keeps as many unit responses), ``n_carrier`` weights per
+    basis."""
     n_steps = lows.size
     first = np.minimum.accumulate(lows[::-1])[::-1]  # the bases forced from step k on
     last = np.maximum.accumulate(highs[::-1])[::-1]
@@ -629,12 +704,12 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     normalised by ``tau``: positions, velocities and accelerations against the initial
     transformation states, the goal and the weights (:class:`ResponseMatrices`).
 
-    Discrete forms: a first pass finds each step's candidate bases (:func:`candidates`),
-    from which the response pass finds the kept ones at each point; ``factored``: in the
-    settling tail only the bases near the phase's end are forced, so the other columns are
-    kept as a factor there (:func:`tail_start`). Rhythmic forms: no tail (their phase
-    cycles, each basis is forced once a period), and the response pass finds the kept bases
-    itself (tracked_window), as their phase wraps."""
+    A first pass finds each step's candidate bases (:func:`candidates`), from which the
+    response pass finds the kept ones at each point; ``factored``: each segment of steps
+    keeps only the columns of the bases it forces, the others as a factor
+    (:func:`segments_of`), else one segment of every column. The printed periodic kernel
+    (not in :data:`forms.TRACKED_KERNELS`: it jumps where the phase wraps) has no
+    candidates: one segment of every column, every basis evaluated at every point."""
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
     centres, widths = np.array(centres, dtype=float), np.array(widths, dtype=float)
@@ -645,14 +720,19 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     n_carrier = symbolic.FORMS[form].vectors_per_basis
     module = kernels(form, kernel)
     first, canonical = first_level(n_basis), np.array(canonical0, dtype=float)
-    n_head, inline = n_steps, not symbolic.FORMS[form].discrete
+    inline = not symbolic.FORMS[form].discrete and kernel not in forms.TRACKED_KERNELS
     held = 1 if inline else n_steps
     lowest, highest = np.empty(held, dtype=np.int64), np.empty(held, dtype=np.int64)
+    segments = np.array([[0, n_steps, 0, n + 1, n_inputs - n - 1]], dtype=np.int64)
     if not inline:
         module.candidates(canonical, float(dt), float(target), gains, centres, widths, first,
                           lowest, highest)  # fmt: skip
         if factored:
-            n_head = tail_start(lowest, highest, n_inputs, n + 1, n_carrier)
+            segments = segments_of(module, lowest, highest, n_carrier, n + 1, n_inputs)
+    sizes = 3 * segments[:, 1] * (n + 1 + segments[:, 4])
+    segments[1:, 2] = np.cumsum(sizes)[:-1]
+    blocks = fresh_array((int(sizes.sum()),))
+    factors = np.zeros((len(segments), n + 1, n_inputs))
     constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
         matrices["output"], matrices["output_goal"][:, 0], matrices["output_forcing"],
@@ -660,23 +740,25 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     windows = (first, lowest, highest, inline)
     states = np.zeros((n, n_inputs))
     states[:, :n] = np.eye(n)
-    head = fresh_array((3, n_head, n_inputs))
-    module.response(canonical, float(dt), float(target), gains, centres, widths, *windows, 0, 0,
-                    n_head < n_steps, *constants, states, head)  # fmt: skip
-    if n_head == n_steps:
-        return ResponseMatrices(head, np.empty((3, 0, n + 1)), np.zeros((n + 1, n_inputs)),
-                                slice(n_inputs, n_inputs))  # fmt: skip
-    low, high = int(lowest[n_head:].min()), int(highest[n_head:].max())
-    alive = slice(n + 1 + n_carrier * low, n + 1 + n_carrier * (high + 1))
-    coefficients = np.zeros((n + 1, n_inputs))
-    coefficients[:n], coefficients[n, n] = states, 1.0
-    coefficients[:, alive] = 0.0
-    tail_states = np.zeros((n, n + 1 + alive.stop - alive.start))
-    tail_states[:, :n], tail_states[:, n + 1 :] = np.eye(n), states[:, alive]
-    tail = fresh_array((3, n_steps - n_head, tail_states.shape[1]))
+    head = segments[:-1]  # every column tracked: the factors are the states at their starts
+    if len(head):
+        module.response(canonical, float(dt), float(target), gains, centres, widths, *windows,
+                        0, 0, True, *constants, states, head, blocks, factors)  # fmt: skip
+    # the last segment tracks its window's columns only (no later factor needs the others)
+    factors[-1, :n] = states
+    tail = segments[-1:].copy()
+    begin, window, width = (int(value) for value in tail[0, [0, 3, 4]])
+    tail[0, 0], tail[0, 3] = 0, n + 1
+    tail_states = np.zeros((n, n + 1 + width))
+    tail_states[:, :n], tail_states[:, n + 1 :] = np.eye(n), states[:, window : window + width]
+    first_basis = (window - n - 1) // n_carrier
     module.response(canonical, float(dt), float(target), gains, centres, widths, *windows,
-                    n_head, low, False, *constants, tail_states, tail)  # fmt: skip
-    return ResponseMatrices(head, tail, coefficients, alive)
+                    begin, first_basis, False, *constants, tail_states, tail, blocks,
+                    np.empty((1, n + 1, tail_states.shape[1])))  # fmt: skip
+    factors[:, n, n] = 1.0
+    for t, (_, _, _, window, width) in enumerate(segments):
+        factors[t, :, window : window + width] = 0.0
+    return ResponseMatrices(blocks, segments, factors, module.product)
 
 
 HUGE_PAGE_ADVICE = 4 * 1024**2

@@ -233,11 +233,14 @@ def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
 
 
 def _key(dmp, duration, dt=0.001):
-    """The cache key of dmpopt.dmp._response for a default-start plan of ``dmp``."""
+    """The cache key of dmpopt.dmp._response for a default-start plan of ``dmp`` (a rhythmic
+    one at phase 0)."""
     n_steps = int(round(duration / dt)) + 1
     gains = tuple(dmp.gains)
-    return (dmp.form, dmp.kernel, dmp.n_basis, n_steps, dt / dmp.tau, 1.0, (0.0, 0.0),
-            tuple(dmp.centres), tuple(dmp.widths), gains)  # fmt: skip
+    canonical = (0.0, 0.0) if dmp.form in DISCRETE else tuple(dmp.canonical_state(0.0))
+    return (dmp.form, dmp.kernel, dmp.n_basis, n_steps, dt / dmp.tau,
+            float(dmp._canonical_target()), canonical, tuple(dmp.centres), tuple(dmp.widths),
+            gains)  # fmt: skip
 
 
 def _power_bound(step, step_goal, n_steps):
@@ -253,53 +256,64 @@ def _power_bound(step, step_goal, n_steps):
     return largest, np.abs(augmented).sum(axis=1).max()
 
 
-@pytest.mark.parametrize("form", ["velocity", "acceleration"])
-def test_the_factored_tail_equals_the_dense_pass_within_its_rounding_bound(form):
-    r"""A discrete form's default plan keeps its settling tail as a factor (dmpopt/response.py):
-    the head and the tail's forced (alive) columns are the dense pass's to the bit (the same
-    operations), and every other column i steps into the tail differs from it by at most
+@pytest.mark.parametrize("form", ["velocity", "acceleration", "phase", "energy"])
+def test_the_segments_equal_the_dense_pass_within_their_rounding_bound(form):
+    r"""A discrete form's default plan is kept segment by segment (dmpopt/response.py): each
+    segment's window columns are the dense pass's to the bit (the same operations), and
+    every other column i steps into its segment differs from it by at most
 
     .. math:: \gamma ||\tilde O||_\infty P (2 i P ||\tilde S||_\infty + 3) ||c_j||_1,
               \quad \gamma = (n + 1)\,\epsilon
 
     (the goal as a constant state: :math:`\tilde S = [[S, S_g], [0, 1]]`, :math:`\tilde O =
     [O, O_g]`, :math:`P = \max_i ||\tilde S^i||_\infty`, :math:`c_j` the column's
-    coefficients). Both compute :math:`\tilde O \tilde S^i c_j`: each of the i steps of
-    either rounds each entry by at most :math:`\gamma/2 |\tilde S| |s|` (a sum of n + 1 terms),
+    factor). Both compute :math:`\tilde O \tilde S^i c_j`: each of the i steps of either
+    rounds each entry by at most :math:`\gamma/2 |\tilde S| |s|` (a sum of n + 1 terms),
     which the later steps carry by at most P; the outputs and the factor's combination round
-    once more each. The forcing is not zero in the tail (the carrier v > 0 and the
-    normalisation keeps the largest basis), so some columns stay alive."""
-    dmp = random_discrete(seed=3, n_basis=20, form=form)
-    key = _key(dmp, dmp.settling_time)
+    once more each. The forcing is not zero in the settling tail (the carrier v > 0 and the
+    normalisation keeps the largest basis), so the last segment has a window too. A rhythmic
+    plan (three periods of von Mises bases) is split likewise but where the phase wraps."""
+    if form in DISCRETE:
+        dmp = random_discrete(seed=3, n_basis=20, form=form)
+        key = _key(dmp, dmp.settling_time)
+    else:
+        dmp = random_rhythmic(seed=3, n_basis=20, form=form)
+        key = _key(dmp, 3 * dmp.period)
     factored = response.response_matrices(key)
-    dense = response.response_matrices(key, False).head
-    n, n_head = symbolic.n_transformation_states(form), factored.head.shape[1]
-    alive = factored.alive
-    assert 0 < factored.tail.shape[1] and alive.stop - alive.start < dense.shape[2] - n - 1
-    np.testing.assert_array_equal(factored.head, dense[:, :n_head])
-    np.testing.assert_array_equal(factored.tail[:, :, n + 1 :], dense[:, n_head:, alive])
+    dense = response.response_matrices(key, False).dense()
+    n = symbolic.n_transformation_states(form)
+    segments = factored.segments
+    assert len(segments) > 2 and np.any(segments[:, 4] < dense.shape[2] - n - 1)
     matrices = symbolic.transformation_matrices(form)(dt=key[4], gains=np.array(key[-1]))
     matrices = {name: value.full() for name, value in matrices.items()}
-    n_tail = factored.tail.shape[1]
-    power, step_norm = _power_bound(matrices["step"], matrices["step_goal"][:, 0], n_tail)
+    longest = int(segments[:, 1].max())
+    power, step_norm = _power_bound(matrices["step"], matrices["step_goal"][:, 0], longest)
     output = np.hstack([matrices["output"], matrices["output_goal"]])
     output_norm = np.abs(output).sum(axis=1)[:, None, None]  # per output row
-    steps = np.arange(n_tail)[None, :, None]
-    size = np.abs(factored.coefficients).sum(axis=0)[None, None, :]
-    bound = (n + 1) * EPS * output_norm * power * (2 * steps * power * step_norm + 3) * size
-    error = np.abs(factored.dense()[:, n_head:] - dense[:, n_head:])
-    assert np.all(error <= bound)
-    assert error.max() > 0  # the bound is not idle: the factor rounds otherwise
+    whole = factored.dense()
+    largest = 0.0
+    for t, (begin, length, _, _, _) in enumerate(segments):
+        steps = slice(begin, begin + length)
+        window = factored.window(t)
+        np.testing.assert_array_equal(factored.block(t)[:, :, n + 1 :], dense[:, steps, window])
+        np.testing.assert_array_equal(whole[:, steps, window], dense[:, steps, window])
+        inside = np.arange(length)[None, :, None]
+        size = np.abs(factored.factors[t]).sum(axis=0)[None, None, :]
+        bound = (n + 1) * EPS * output_norm * power * (2 * inside * power * step_norm + 3) * size
+        error = np.abs(whole[:, steps] - dense[:, steps])
+        assert np.all(error <= bound)
+        largest = max(largest, error.max())
+    assert largest > 0  # the bound is not idle: the factors round otherwise
 
 
 @pytest.mark.parametrize("form", ["velocity", "acceleration"])
-def test_a_default_rollout_with_a_factored_tail_equals_the_stepwise_integration(form):
-    """The whole default plan (head and factored tail) agrees with the integration step by
-    step (symbolic.simulate) within 4 n_steps eps of each output's largest value, as in
+def test_a_default_rollout_by_segments_equals_the_stepwise_integration(form):
+    """The whole default plan (kept by segments) agrees with the integration step by step
+    (symbolic.simulate) within 4 n_steps eps of each output's largest value, as in
     test_rollout_equals_the_stepwise_integration."""
     dmp = random_discrete(seed=5, n_basis=20, form=form)
     plan = dmp.rollout(start_velocity=np.zeros(2))
-    assert response.response_matrices(_key(dmp, dmp.settling_time)).tail.shape[1] > 0
+    assert len(response.response_matrices(_key(dmp, dmp.settling_time)).segments) > 2
     rows = [dmp.start, np.zeros(2)] + [dmp.start] * (form == "acceleration")
     if form == "velocity":
         rows[1] = rows[1] - dmp.forcing_weights() @ dmp._features((0.0, 0.0))
@@ -308,6 +322,56 @@ def test_a_default_rollout_with_a_factored_tail_equals_the_stepwise_integration(
     for got, expected in zip((plan.positions, plan.velocities, plan.accelerations), stepped[1:]):
         bound = 4 * plan.n_steps * EPS * np.abs(expected).max()
         np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
+@pytest.mark.parametrize("n_dofs", [1, 3, 7])
+def test_the_product_of_the_segments_is_the_dense_product(n_dofs):
+    r"""The plan of random inputs from the segments (a factor product and a matrix-vector
+    product per segment) equals the dense response times the inputs written with numpy
+    within the rounding of the two ways: each is within :math:`\gamma_k \sum_c |R_c| |w_c|`
+    of the exact sum of k <= n_inputs + n + 1 products (Higham, Accuracy and Stability of
+    Numerical Algorithms, 2nd ed., eq. (3.5)), and the factored columns' combination
+    :math:`U (C w)` instead of :math:`(U C) w` moves them by another :math:`\gamma_{n + 1}`
+    of the size :math:`|U| |C| |w|` (the dense response here is the segments' own, so the
+    factors' rounding against the dense pass is not in it)."""
+    dmp = random_discrete(seed=7, n_basis=20, form="acceleration")
+    factored = response.response_matrices(_key(dmp, dmp.settling_time))
+    inputs = np.random.default_rng(n_dofs).normal(size=(factored.n_inputs, n_dofs))
+    whole = factored.dense()
+    expected = np.einsum("rkc,cd->rkd", whole, inputs)
+    n1 = factored.factors.shape[1]
+    size = np.einsum("rkc,cd->rkd", np.abs(whole), np.abs(inputs))
+    for t, (begin, length, _, _, _) in enumerate(factored.segments):
+        unit = np.abs(factored.block(t)[:, :, :n1])
+        size[:, begin : begin + length] += np.einsum(
+            "rkc,ci,id->rkd", unit, np.abs(factored.factors[t]), np.abs(inputs)
+        )
+    gamma = lambda k: k * EPS / (1 - k * EPS)  # noqa: E731
+    bound = 2 * gamma(factored.n_inputs + n1) * size
+    got = factored.product(inputs)
+    assert got.shape == (3, factored.n_steps, n_dofs)
+    assert np.all(np.abs(got - expected) <= bound)
+
+
+def test_segments_grow_while_their_bases_span_at_most_the_slack_more():
+    """Written out: steps forcing bases (lows, highs) with slack 1 and at least 2 steps a
+    segment: [0, 3) spans bases 0-2 (its narrowest step 0-1, one more), [3, 6) 2-4 (2-3, one
+    more; step 6's 4-5 would make 2-5), [6, 10) 4-5 (to the end); with slack 0 and at least
+    one step, a segment ends where its bases span more than its narrowest step's: [0, 1),
+    [1, 2), ..., [5, 6), then [6, 10). A wide step (where a rhythmic phase wraps) is a
+    segment of its own: the narrow steps after it would span its bases."""
+    lows = np.array([0, 0, 1, 2, 2, 3, 4, 4, 4, 4])
+    highs = np.array([1, 2, 2, 3, 4, 4, 5, 5, 5, 5])
+    bounds = np.empty((10, 4), dtype=np.int64)
+    module = response.kernels("velocity", "gaussian")
+    count = module.segment_bounds(lows, highs, 1, 2, bounds)
+    assert bounds[:count].tolist() == [[0, 3, 0, 2], [3, 6, 2, 4], [6, 10, 4, 5]]
+    count = module.segment_bounds(lows, highs, 0, 1, bounds)
+    expected = [[0, 1, 0, 1], [1, 2, 0, 2], [2, 3, 1, 2], [3, 4, 2, 3], [4, 5, 2, 4],
+                [5, 6, 3, 4], [6, 10, 4, 5]]  # fmt: skip
+    assert bounds[:count].tolist() == expected
+    count = module.segment_bounds(np.array([0, 3, 3, 3]), np.array([9, 4, 4, 4]), 1, 1, bounds)
+    assert bounds[:count].tolist() == [[0, 1, 0, 9], [1, 4, 3, 4]]
 
 
 def test_the_tail_starts_where_the_fewest_numbers_are_held():
@@ -330,51 +394,34 @@ def _points(module, canonical, target, gains, n_steps, dt):
         canonical = np.array(result[:2])
 
 
-@pytest.mark.parametrize("form, kernel", [case for case in CASES if case[0] in DISCRETE])
+CANDIDATES = [case for case in CASES if case[0] in DISCRETE or case[1] == "von_mises"]
+
+
+@pytest.mark.parametrize("form, kernel", CANDIDATES)
 @pytest.mark.parametrize("n_steps, dt", [(1500, 0.002), (60, 0.05)])
 def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
-    """A discrete form's bases are evaluated only among each step's candidates (proved by
+    """A discrete form's bases, and a rhythmic form's von Mises bases (continuous in the
+    phase, as it wraps), are evaluated only among each step's candidates (proved by
     blocks: sqrt(-l) moves by at most sqrt(h) per unit of phase, as l'^2 <= 4 h |l|): at
     every sample and stage of the steps (small ones, and steps that each cross several
     bases, a block of one step each) the kept bases and the largest log-activation found
     among them equal those from every basis's log-activation (window), checked at each point
     in turn, and the candidates leave out some basis (the proof is not idle)."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
+    # rhythmic: the energy form's phase atan2(v, x) wraps at pi within the 3 time units
+    start = np.zeros(2) if form in DISCRETE else np.array([0.3, 1.2])
     module = response.kernels(form, kernel)
     first = response.first_level(centres.size)
     lowest, highest = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
-    module.candidates(np.zeros(2), dt, target, gains, centres, widths, first, lowest, highest)
-    assert np.all(highest - lowest + 1 < centres.size)
+    module.candidates(start, dt, target, gains, centres, widths, first, lowest, highest)
+    narrower = highest - lowest + 1 < centres.size  # all but where the phase wraps
+    assert np.all(narrower) if form in DISCRETE else np.any(narrower)
     logs, seen = np.empty(centres.size), np.full(centres.size, -1)
-    for k, points in enumerate(_points(module, np.zeros(2), target, gains, n_steps, dt)):
+    for k, points in enumerate(_points(module, start, target, gains, n_steps, dt)):
         for s, point in enumerate(points):
             _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
                                            first, s == 0, logs)  # fmt: skip
             phases = module.phase_point(point, target, gains)
             found = module.candidate_window(phases, lowest[k], highest[k], centres, widths,
                                             widths.max(), first, s == 0, logs, seen, 0)  # fmt: skip
-            assert found == (lo, hi, top)
-
-
-@pytest.mark.parametrize("form, kernel", [case for case in CASES if case[0] not in DISCRETE])
-def test_the_tracked_windows_are_those_of_every_basis(form, kernel):
-    """A rhythmic form's pass finds the kept bases itself, evaluating only those it cannot
-    rule out (von Mises only, forms.TRACKED_KERNELS): at every sample and stage of 1500
-    steps, in the pass's order, its kept bases and largest log-activation equal those from
-    every basis's log-activation (window)."""
-    centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
-    module = response.kernels(form, kernel)
-    first, n_steps, dt = response.first_level(centres.size), 1500, 0.002
-    n_basis = centres.size
-    logs, lasts, phases = np.empty(n_basis), np.zeros(n_basis), np.zeros(n_basis)
-    seen, previous = np.full(n_basis, -1), np.array([0, n_basis - 1])
-    expected_logs = np.empty(n_basis)
-    canonical = np.array([0.3, 1.2])
-    for k, points in enumerate(_points(module, canonical, target, gains, n_steps, dt)):
-        for s, point in enumerate(points):
-            _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
-                                           first, s == 0, expected_logs)  # fmt: skip
-            found = module.tracked_window(point, target, gains, centres, widths, np.sqrt(widths),
-                                          widths.max(), first, s == 0, logs, lasts, phases, seen,
-                                          4 * k + s, previous)[1:]  # fmt: skip
             assert found == (lo, hi, top)

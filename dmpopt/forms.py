@@ -32,12 +32,10 @@ from .exceptions import InvalidInputError
 
 KERNELS = ("gaussian", "von_mises", "paper")
 TRACKED_KERNELS = ("von_mises",)
-r"""Kernels whose bases :mod:`dmpopt.response` evaluates only where they may be kept: their
-log-activation is continuous in the phase (``paper`` jumps where the phase wraps at
-:math:`2\pi`), so with :math:`l'^2 \le 4 h |l|` :math:`\sqrt{-l}` changes by at most
-:math:`\sqrt{h}` per unit of phase, and costs a cosine. The Gaussian is continuous too, but
-its three operations per basis cost less than the check (the LASA demo's windows: 0.27
-against 0.55 us per step)."""
+r"""Rhythmic kernels whose plans :mod:`dmpopt.response` keeps in segments, evaluating each
+step's candidate bases only (as for the Gaussian bases of the discrete forms): their
+log-activation is continuous in the phase as it wraps (``paper`` jumps where the phase wraps
+at :math:`2\pi`, so its plan is one segment with every basis evaluated at every point)."""
 
 
 def normalised_activations(log_psi):

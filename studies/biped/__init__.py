@@ -49,8 +49,10 @@ start-speed seeds (``walks_undisturbed_by_seed``, the evidence); then the same s
 randomised disturbances (push at a random phase after the warm-up, masses, slope) for every
 arm, with Wilson intervals, a paired McNemar test and a verdict read from the intervals
 (:func:`dmpopt_studies.biped.analysis.reset_verdict`: resetting raises or lowers survival only
-where the intervals do not overlap). ``gait`` puts the long walk's step length, cadence,
-Froude number, impact force and double support beside human values.
+where the intervals do not overlap). The arms of a trial (and of an undisturbed walk) are the
+same walk until the warm-up ends: it is simulated once and continued once per arm
+(``walk(arms=...)``), the same bits as four separate walks. ``gait`` puts the long walk's
+step length, cadence, Froude number, impact force and double support beside human values.
 
 The frequency a walk settles at is the median of its last 20 heel strikes. The QP walk on the
 realistic plant and its plant sweep (docs/plant.md) run in the full study only. ``summary``

@@ -342,7 +342,7 @@ def walk(
     ``adapt``: walks that differ only in these switches are the same walk up to the first
     heel strike at or after ``warmup``, so it is simulated once and then continued once per
     arm; returns one log per arm, each the same bits as ``walk`` with that arm's switches
-    (see :func:`_fork_arms`). Each log's ``cpu_time`` is its own continuation plus an equal
+    (see :class:`_Branch`). Each log's ``cpu_time`` is its own continuation plus an equal
     share of the walk before the branch.
     """
     if controller not in CONTROLLERS:
@@ -455,6 +455,9 @@ def walk(
                 if state.fallen:
                     log.fell, log.diverged = True, state.fall.reason
                     break
+    except BranchFailed:  # not a fall: the walk could not be continued per arm
+        branch.abandon()
+        raise
     except Exception as error:  # SimulationDiverged counts as a fall, with the reason kept
         log.fell, log.diverged = True, f"{type(error).__name__}: {error}"
     except BaseException:
@@ -470,6 +473,11 @@ def walk(
     log.distance = float(sim.q[0] - q[0])
     log.frequencies = adaptation.frequencies
     return log if len(arms) == 1 else branch.logs(log)
+
+
+class BranchFailed(RuntimeError):
+    """The arms of a walk could not part (no process forked) or an arm's process ended
+    without its log."""
 
 
 class _Branch:
@@ -498,7 +506,11 @@ class _Branch:
             self.index, self.forked_cpu = 0, time.process_time()
             for index in range(1, self.n_arms):
                 read, write = os.pipe()
-                pid = os.fork()
+                try:
+                    pid = os.fork()
+                except OSError as error:
+                    os.close(read), os.close(write)
+                    raise BranchFailed(f"could not fork the walk of arm {index}: {error}") from None
                 if pid == 0:  # the child: walks arm ``index`` to its end
                     os.close(read)
                     self.index, self.pipe, self.children = index, write, {}
@@ -508,7 +520,7 @@ class _Branch:
                     data = pipe.read()
                 _, status = os.waitpid(pid, 0)
                 if status != 0 or not data:
-                    raise RuntimeError(f"the walk of arm {index} ended without a log")
+                    raise BranchFailed(f"the walk of arm {index} ended without a log")
                 self.children[index] = pickle.loads(data)
         return self.index
 

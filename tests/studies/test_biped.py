@@ -402,6 +402,22 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
     assert min(calls[0], calls[2]) >= 1
 
 
+def test_a_walk_that_cannot_part_its_arms_fails_instead_of_falling(biped, gait, monkeypatch):
+    """A fork refused by the system is an error of the run, never a fall of the walker."""
+    from dmpopt_studies.biped import walker
+
+    def refused():
+        raise OSError("Resource temporarily unavailable")
+
+    monkeypatch.setattr(walker.os, "fork", refused)
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    with pytest.raises(walker.BranchFailed, match="could not fork the walk of arm 1"):
+        walker.walk(
+            biped, gait[1], 0.8, 12.0, arms=((True, True), (False, False)), warmup=0.3,
+            log_every=10**9, **qp,
+        )  # fmt: skip
+
+
 def test_arms_of_a_walk_continue_as_separate_walks_to_the_bit(biped, gait):
     """``walk(arms=...)`` simulates the warm-up once and forks one continuation per arm: each
     arm's log is bitwise the log of a separate walk with that arm's switches (pushed, masses,

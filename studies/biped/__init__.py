@@ -49,8 +49,10 @@ start-speed seeds (``walks_undisturbed_by_seed``, the evidence); then the same s
 randomised disturbances (push at a random phase after the warm-up, masses, slope) for every
 arm, with Wilson intervals, a paired McNemar test and a verdict read from the intervals
 (:func:`dmpopt_studies.biped.analysis.reset_verdict`: resetting raises or lowers survival only
-where the intervals do not overlap). ``gait`` puts the long walk's step length, cadence,
-Froude number, impact force and double support beside human values.
+where the intervals do not overlap). The arms of a trial (and of an undisturbed walk) are the
+same walk until the warm-up ends: it is simulated once and continued once per arm
+(``walk(arms=...)``), the same bits as four separate walks. ``gait`` puts the long walk's
+step length, cadence, Froude number, impact force and double support beside human values.
 
 The frequency a walk settles at is the median of its last 20 heel strikes. The QP walk on the
 realistic plant and its plant sweep (docs/plant.md) run in the full study only. ``summary``
@@ -186,6 +188,17 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
     return frequencies
 
 
+def _cpu_seconds() -> float:
+    """CPU seconds of this process and of its ended children (the arms a walk forks,
+    :func:`walk`)."""
+    import resource
+
+    return time.process_time() + sum(
+        getattr(resource.getrusage(resource.RUSAGE_CHILDREN), name)
+        for name in ("ru_utime", "ru_stime")
+    )
+
+
 def _summary(log: WalkLog, mass: float) -> dict:
     """Steps, fall, distance, speed, final frequency, cost and real-time factor of a walk."""
     return {
@@ -285,9 +298,9 @@ def _expected_seconds(item) -> float:
     """Simulated seconds a run of the batch may take (its length), to start the longest first."""
     kind, job = item
     if kind == "walk":
-        return job["duration"]
-    if kind == "trial":
-        return job[1]["duration"]
+        return job["duration"] * len(job.get("arms", (None,)))
+    if kind == "trial":  # every arm, the warm-up once
+        return job[1]["duration"] * len(job[1]["arms"])
     return job[0]
 
 
@@ -359,18 +372,28 @@ def _plan(quick: bool, backend: str, seed: int) -> dict:
             "frequency": MAIN_START,
         }
     rule, ranges = (SURVIVAL_QUICK, RANGES_QUICK) if quick else (SURVIVAL, RANGES)
-    for arm, (reset_phase, adapt) in ARMS.items():
-        for walk_seed in UNDISTURBED_SEEDS_QUICK if quick else UNDISTURBED_SEEDS:
-            jobs[("undisturbed", arm, walk_seed)] = {
-                **base,
-                "seed": walk_seed,
-                "duration": ranges.push_time[1] + rule.after,  # the longest trial
-                "frequency": TRIAL_START,
-                "reset_phase": reset_phase,
-                "adapt": adapt,
-                "warmup": ranges.warmup,
-            }
+    for walk_seed in UNDISTURBED_SEEDS_QUICK if quick else UNDISTURBED_SEEDS:
+        jobs[("undisturbed", walk_seed)] = {  # every arm, the warm-up walked once
+            **base,
+            "seed": walk_seed,
+            "duration": ranges.push_time[1] + rule.after,  # the longest trial
+            "frequency": TRIAL_START,
+            "arms": tuple(ARMS.values()),
+            "warmup": ranges.warmup,
+        }
     return jobs
+
+
+def _by_arm(logs: dict) -> dict:
+    """``logs`` with each undisturbed run (a log per arm) as one entry per arm,
+    ``("undisturbed", arm, seed)``, in the order of :data:`ARMS` for each seed."""
+    expanded = {}
+    for key, log in logs.items():
+        if key[0] == "undisturbed":
+            expanded.update({("undisturbed", arm, key[1]): each for arm, each in zip(ARMS, log)})
+        else:
+            expanded[key] = log
+    return expanded
 
 
 def run(
@@ -395,7 +418,7 @@ def run(
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 
     backend = check_backend(backend)
-    cpu_start = time.process_time()
+    cpu_start = _cpu_seconds()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = Progress("biped")
@@ -426,7 +449,7 @@ def run(
         runs += [("plant", (8.0, plant, mass, backend)) for _, _, plant, mass in cases]
     progress(
         f"{len(runs)} walks: Fig. 7's starts, controls, sweep, PD, undisturbed arms, "
-        f"{len(trials)} randomised trials ({len(ARMS)} arms x {n_trials})"
+        f"{len(ARMS) * len(trials)} randomised trials ({len(ARMS)} arms x {n_trials})"
         + (", the realistic plant's walk and sweep" if gap else "")
     )
     # the longest first, so that no worker is left with a long walk at the end
@@ -435,7 +458,7 @@ def run(
     results = [None] * len(runs)
     for i, result in zip(order, done):
         results[i] = result
-    logs = dict(zip(plan, results[: len(plan)]))
+    logs = _by_arm(dict(zip(plan, results[: len(plan)])))
     survival = survival_from_runs(results[len(plan) : len(plan) + len(trials)], n_trials)
 
     def rows(kind):
@@ -611,16 +634,17 @@ def run(
         "sweep_rad_s": SWEEP_QUICK if quick else SWEEP,
         "n_trials_per_arm": n_trials,
         "trial_start_rad_s": TRIAL_START,
-        "walks": len(plan),
+        "walks": len(logs),
     }
     cpu["walks_total"] = sum(cpu.values())
-    cpu["study_process"] = time.process_time() - cpu_start
+    cpu["study_process"] = _cpu_seconds() - cpu_start
     metrics["cpu_seconds"] = {
         **{k: round(v, 1) for k, v in cpu.items()},
         "note": (
             "process CPU time inside each walk by kind, summed over the workers, and the "
-            "study's own process (learning, swing leg, figures, video; the walks too when "
-            "they run in series); worker start-up and imports not included"
+            "study's own process and the arms its walks forked (learning, swing leg, figures, "
+            "video; the walks too when they run in series); worker start-up and imports not "
+            "included"
         ),
     }
     metrics["summary"] = summary(metrics)

@@ -160,20 +160,23 @@ def random_disturbances(biped, n: int, seed: int, ranges: TrialRanges) -> list[D
     ]
 
 
-def survived(job: tuple) -> tuple[bool, int, int, float, float]:
-    """One randomised trial, an independent run of :func:`survival_by_arm`: whether the
-    walker survived, its QP hold answers, its ticks over 5 ms, its slowest tick [us] and its
-    process CPU time [s]."""
+def survived(job: tuple) -> list[tuple[bool, int, int, float, float]]:
+    """One randomised trial in every arm, an independent run of :func:`survival_by_arm`: for
+    each arm (order of :data:`ARMS`) whether the walker survived, its QP hold answers, its
+    ticks over 5 ms, its slowest tick [us] and its process CPU time [s]. The arms walk the
+    same warm-up, simulated once (``walk(arms=...)``)."""
     rule, walk_options = job
-    log = walk(**walk_options)
-    return rule.survived(log), log.holds, log.ticks_over_budget, log.tick_us_max, log.cpu_time
+    return [
+        (rule.survived(log), log.holds, log.ticks_over_budget, log.tick_us_max, log.cpu_time)
+        for log in walk(**walk_options)
+    ]
 
 
 def trial_jobs(
     biped, dmp, frequency, disturbances, controller="qp", rule=SURVIVAL, **walk_on
 ) -> list[tuple]:
-    """The randomised trials of :func:`survival_by_arm`, arm by arm (order of :data:`ARMS`),
-    each the input of one independent run of :func:`survived`."""
+    """The randomised trials of :func:`survival_by_arm`, one per disturbance, each the input
+    of one independent run of :func:`survived` (every arm of :data:`ARMS`)."""
     return [
         (
             rule,
@@ -182,25 +185,25 @@ def trial_jobs(
                 dmp=dmp,
                 duration=disturbance.push_time + rule.after,
                 frequency=frequency,
-                adapt=adapt,
-                reset_phase=reset_phase,
+                arms=tuple(ARMS.values()),
                 controller=controller,
                 disturbance=disturbance,
                 seed=k,
                 **walk_on,
             ),
         )
-        for reset_phase, adapt in ARMS.values()
         for k, disturbance in enumerate(disturbances)
     ]
 
 
 def survival_from_runs(runs: list, n_trials: int) -> dict:
     """Survival rate of each arm with its Wilson CI from the results of :func:`survived` on
-    :func:`trial_jobs` (``n_trials`` per arm, in that order)."""
+    :func:`trial_jobs` (``n_trials`` of them, each with every arm)."""
+    if len(runs) != n_trials:
+        raise InvalidInputError(f"expected {n_trials} trials' results, got {len(runs)}")
     results = {}
     for i, name in enumerate(ARMS):
-        arm = runs[i * n_trials : (i + 1) * n_trials]
+        arm = [trial[i] for trial in runs]
         outcomes = [run[0] for run in arm]
         n, count = len(outcomes), int(sum(outcomes))
         low, high = wilson_interval(count, n)
@@ -237,7 +240,7 @@ def survival_by_arm(
     """
     jobs = trial_jobs(biped, dmp, frequency, disturbances, controller, rule, **walk_on)
     if progress:
-        progress(f"{len(jobs)} randomised trials ({len(ARMS)} arms x {len(disturbances)})")
+        progress(f"{len(ARMS) * len(jobs)} randomised trials ({len(ARMS)} arms x {len(jobs)})")
     runs = map_runs(survived, jobs, runner, label="biped trials")
     return survival_from_runs(runs, len(disturbances))
 

@@ -85,7 +85,8 @@ SENSITIVE = 0.10  # relative change that counts as "moves with the controller"
 
 
 def walk_job(job: dict):
-    """One walk of the study (an independent run): returns its :class:`WalkLog`.
+    """One walk of the study (an independent run): returns its :class:`WalkLog` (a list of
+    them, one per arm, if ``job`` has ``arms``).
 
     ``job`` holds :func:`~dmpopt_studies.biped.walker.walk`'s keywords (``biped``, ``dmp`` and
     ``urdf`` are built here) and ``gravity_factor``, ``leg_factor`` (the model's gravity and

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.interpolate import CubicSpline
 
@@ -70,8 +72,12 @@ def demonstrated_gait(period: float = 2 * np.pi / DEMO_FREQUENCY, n_samples: int
     return Trajectory.from_positions(times, positions)
 
 
+@functools.cache
 def learn_gait():
-    """Fit the four rhythmic DMPs (one shared phase) to the demonstrated gait."""
+    """Fit the four rhythmic DMPs (one shared phase) to the demonstrated gait.
+
+    Fitted once per process (every walk of the study starts from it): each call returns the
+    same demonstration and DMP, to be read, not changed."""
     demo = demonstrated_gait()
     return demo, fit_rhythmic(demo, n_basis=25, period=2 * np.pi / DEMO_FREQUENCY)
 

@@ -196,9 +196,9 @@ def test_survival_by_arm_counts_outcomes_and_intervals(monkeypatch):
     from dmpopt_studies.biped import analysis
     from dmpopt_studies.biped.walker import Disturbance
 
-    def fake_walk(biped, dmp, duration, frequency, reset_phase, disturbance, **_):
-        ok = reset_phase and disturbance.push_impulse <= 2.0
-        return _log(speed=0.4 if ok else 5.0)
+    def fake_walk(biped, dmp, duration, frequency, arms, disturbance, **_):
+        pushed = disturbance.push_impulse
+        return [_log(speed=0.4 if reset and pushed <= 2.0 else 5.0) for reset, _ in arms]
 
     monkeypatch.setattr(analysis, "walk", fake_walk)
     pushes = [Disturbance(push_impulse=p) for p in (0.5, 1.0, 2.0, 3.0, 4.0)]
@@ -371,10 +371,9 @@ def test_quick_study_reports_survival_per_arm_with_the_undisturbed_evidence(quic
 
 
 def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypatch):
-    """Real QP walks of one trial per arm (pushed, masses, slope): the oscillator's phase is
-    reset at heel strikes in the arms with resetting, never in
-    ``adapt_only`` and ``neither``. Counts Stepper.reset_phase calls, below every switch on
-    the way to it."""
+    """Real QP walks of one trial per arm (pushed, masses, slope), each arm's switches as a
+    trial passes them: the oscillator's phase is reset at heel strikes in the arms with
+    resetting, never in ``adapt_only`` and ``neither``. Counts Stepper.reset_phase calls."""
     from dmpopt_studies.biped import analysis
     from dmpopt_studies.biped.walker import Disturbance
 
@@ -387,22 +386,72 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
         calls[-1] += 1
         reset_phase(self, phase)
 
-    real_walk = analysis.walk
-
-    def walk(*args, **kwargs):
-        calls.append(0)
-        return real_walk(*args, **kwargs)
-
     monkeypatch.setattr(Stepper, "reset_phase", counted)
-    monkeypatch.setattr(analysis, "walk", walk)
     _, dmp = gait
     qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
     push = Disturbance(push_impulse=1.0, push_time=0.3, slope_deg=1.0, slope_time=0.2)
     rule = analysis.Survival(after=1.0, window=0.5)
     assert list(analysis.ARMS) == ["reset_and_adapt", "adapt_only", "reset_only", "neither"]
-    analysis.survival_by_arm(biped, dmp, 8.0, [push], rule=rule, **qp)
+    [(_, options)] = analysis.trial_jobs(biped, dmp, 8.0, [push], rule=rule, **qp)
+    arms = options.pop("arms")
+    assert arms == tuple(analysis.ARMS.values())
+    for reset, adapt in arms:
+        calls.append(0)
+        analysis.walk(**options, reset_phase=reset, adapt=adapt)
     assert calls[1] == calls[3] == 0
     assert min(calls[0], calls[2]) >= 1
+
+
+def test_a_walk_that_cannot_part_its_arms_fails_instead_of_falling(biped, gait, monkeypatch):
+    """A fork refused by the system is an error of the run, never a fall of the walker."""
+    from dmpopt_studies.biped import walker
+
+    def refused():
+        raise OSError("Resource temporarily unavailable")
+
+    monkeypatch.setattr(walker.os, "fork", refused)
+    qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
+    with pytest.raises(walker.BranchFailed, match="could not fork the walk of arm 1"):
+        walker.walk(
+            biped, gait[1], 0.8, 12.0, arms=((True, True), (False, False)), warmup=0.3,
+            log_every=10**9, **qp,
+        )  # fmt: skip
+
+
+def test_arms_of_a_walk_continue_as_separate_walks_to_the_bit(biped, gait):
+    """``walk(arms=...)`` simulates the warm-up once and forks one continuation per arm: each
+    arm's log is bitwise the log of a separate walk with that arm's switches (pushed, masses,
+    slope, QP). Fails if a continuation starts from another state or with other switches."""
+    from dmpopt_studies.biped import analysis
+    from dmpopt_studies.biped.walker import Disturbance, walk
+
+    _, dmp = gait
+    options = {
+        "biped": biped,
+        "dmp": dmp,
+        "duration": 1.1,
+        "frequency": 12.0,
+        "controller": "qp",
+        "boom_pitch_stiffness": 0.0,
+        "boom_pitch_damping": 0.0,
+        "disturbance": Disturbance(
+            push_impulse=1.0, push_time=0.7, mass_scale=(1.05,) * 5, slope_deg=1.0, slope_time=0.6
+        ),
+        "warmup": 0.5,
+        "log_every": 5,
+    }
+    arms = tuple(analysis.ARMS.values())
+    forked = walk(**options, arms=arms)
+    assert len(forked) == len(arms)
+    for (reset, adapt), log in zip(arms, forked):
+        alone = walk(**options, reset_phase=reset, adapt=adapt)
+        assert log.strikes == alone.strikes and log.frequencies == alone.frequencies
+        assert log.times == alone.times and np.array_equal(log.q, alone.q)
+        assert log.fell == alone.fell and log.positive_work == alone.positive_work
+        assert log.impact_forces == alone.impact_forces and log.holds == alone.holds
+    strikes = [t for t, _, _ in forked[0].strikes]
+    assert any(t < 0.5 for t in strikes) and any(t > 0.5 for t in strikes)  # parts mid-walk
+    assert forked[0].frequencies != forked[3].frequencies  # the arms did walk apart
 
 
 def test_quick_study_opens_with_its_summary_and_captions_every_figure(quick_run):

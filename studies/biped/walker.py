@@ -450,7 +450,7 @@ def walk(
                     progress(f"{state.t:.0f} of {duration:g} s simulated")
                 if k % log_every == 0:
                     log.times.append(state.t)
-                    log.q.append(state.q)
+                    log.q.append(state.q.copy())  # a copy: the simulator recycles the state
                     log.desired.append(desired[order])
                 if state.fallen:
                     log.fell, log.diverged = True, state.fall.reason

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-# CPU seconds (process and workers, user + sys; dmpopt.cli), 2026-11-27 at load 7-11: quick
-# 107 serial, 119 with the default two workers; full 544 with two workers (the walk about half)
-EXPECTED_SECONDS = {"full": 545, "quick": 110}  # CPU s (dmpopt.cli)
+# CPU seconds (process and workers, user + sys; dmpopt.cli): quick 107 serial at load 7-11
+# (2026-11-27); full 331 in series in the main job, warm, quiet (2026-11-28)
+EXPECTED_SECONDS = {"full": 331, "quick": 110}
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)

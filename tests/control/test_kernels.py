@@ -317,6 +317,42 @@ def test_a_stages_workspace_solves_views_and_rows_with_leading_zeros(n, n_eq, n_
         np.testing.assert_allclose(x, optimum, rtol=0, atol=max(bound, 1e-13))
 
 
+def test_workspaces_of_strided_and_contiguous_equality_rows_share_one_compiled_code():
+    """A stage's equality rows are a strided view in some QPs, arrays of their own in others
+    (or absent): every workspace binds the same compiled code (numba compiles a kernel anew
+    for each memory layout, ~20 CPU-s for the active-set iterations), and each solves its
+    own problem: x* = -H^-1 (g + A^T y) with A x* = b, written here with NumPy."""
+    from dmpopt.control.qp_stages import ActiveSetWorkspace, _active_set
+
+    rng = np.random.default_rng(5)
+    n, n_eq = 6, 2
+    hessian, gradient = _spd(rng, n), rng.normal(size=n)
+    wide = rng.normal(size=(n_eq, n + 1))
+    bound = (np.zeros((1, n)), np.full(1, -1e20), np.full(1, 1e20))  # an inactive row
+    problems = [
+        (hessian, gradient, wide[:, :n], wide[:, n], *bound),  # strided view
+        (hessian, gradient, wide[:, :n].copy(), wide[:, n].copy(), *bound),  # contiguous
+        (hessian, gradient, None, None, *bound),  # none
+    ]
+    codes = set()
+    for problem in problems:
+        workspace = ActiveSetWorkspace(problem)
+        codes.add(id(workspace._code))
+        x, _ = _active_set(problem, np.zeros(1, bool), np.zeros(1, bool), 1e-9, 3,
+                           workspace.duals, workspace)  # fmt: skip
+        if problem[2] is None:
+            kkt, rhs = hessian, -gradient
+        else:
+            a, b = problem[2], problem[3]
+            kkt = np.block([[hessian, a.T], [a, np.zeros((n_eq, n_eq))]])
+            rhs = np.r_[-gradient, b]
+        solution = np.linalg.solve(kkt, rhs)
+        # two backward-stable solves differ by at most ~eps cond(KKT) |solution| each
+        bound = 2 * len(rhs) * 2.3e-16 * np.linalg.cond(kkt) * np.abs(solution).max()
+        np.testing.assert_allclose(x, solution[:n], rtol=0, atol=bound)
+    assert len(codes) == 1
+
+
 def test_active_set_solves_dependent_active_rows():
     """Equality rows that are all zero (a fixed base's contact rows) and an active row that
     repeats another make the KKT matrix singular: the certificate still holds, with x the

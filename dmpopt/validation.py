@@ -11,6 +11,7 @@ from the arguments (a rollout's samples, a fit's matrices) is estimated with
 from __future__ import annotations
 
 import decimal
+import math
 import numbers
 
 import numpy as np
@@ -74,10 +75,8 @@ def real(
     fix : str
         What to do, appended to the message.
     """
-    expected = expected or (
-        ("a finite number" if finite else "a number") + _bounds(minimum, maximum, open_minimum)
-    )
-    if not _is_real_scalar(value):
+    if not isinstance(value, float) and not _is_real_scalar(value):  # floats need no check
+        expected = expected or _expected_real(minimum, maximum, open_minimum, finite)
         raise InvalidInputError(
             f"{name} must be a real number ({expected}), got {value!r} "
             f"({type(value).__name__}){_suffix(fix)}"
@@ -85,9 +84,15 @@ def real(
     number = float(value)
     too_low = minimum is not None and (number <= minimum if open_minimum else number < minimum)
     too_high = maximum is not None and number > maximum
-    if np.isnan(number) or (finite and np.isinf(number)) or too_low or too_high:
+    if math.isnan(number) or (finite and math.isinf(number)) or too_low or too_high:
+        expected = expected or _expected_real(minimum, maximum, open_minimum, finite)
         raise InvalidInputError(f"{name} must be {expected}, got {number!r}{_suffix(fix)}")
     return number
+
+
+def _expected_real(minimum, maximum, open_minimum: bool, finite: bool) -> str:
+    """What :func:`real` expected, stated from its bounds (built only for an error)."""
+    return ("a finite number" if finite else "a number") + _bounds(minimum, maximum, open_minimum)
 
 
 def integer(name: str, value, *, minimum: int, maximum: int | None = None, fix: str = "") -> int:

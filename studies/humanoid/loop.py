@@ -87,15 +87,10 @@ def _closed_loop(
     first = reference()
     desired = np.empty((n, first.size))
     actual = np.empty_like(desired)
-    base = np.zeros((n, 6))
-    com = np.zeros((n, 3))
+    configurations = np.empty((n, robot.model.nq))  # base pose and CoM come from them after
+    torques = np.empty((n, 2, robot.n_actuated))  # sent, and the QP's (before a joint loop)
     tick_wall = np.empty(n)
     tick_cpu = np.empty(n)
-    torque_use = np.zeros(robot.n_actuated)
-    qp_torque_use = np.zeros(robot.n_actuated)
-    torque_peak = np.empty(n)
-    ratio = np.empty(robot.n_actuated)
-    limit = np.asarray(robot.torque_limit)
     fell, diverged = False, None
     wall0, cpu0 = time.perf_counter(), time.process_time()
     with control_loop():
@@ -109,16 +104,10 @@ def _closed_loop(
             tau = controller.compute_torques(state.q_measured, state.v_measured)
             tick_cpu[k] = time.thread_time_ns() - cpu_begin
             tick_wall[k] = time.perf_counter_ns() - begin
-            np.divide(np.abs(tau), limit, out=ratio)
-            np.maximum(torque_use, ratio, out=torque_use)
-            torque_peak[k] = ratio.max()
-            np.divide(np.abs(getattr(controller, "torques", tau)), limit, out=ratio)
-            np.maximum(qp_torque_use, ratio, out=qp_torque_use)
+            torques[k, 0] = tau
+            torques[k, 1] = getattr(controller, "torques", tau)
             actual[k] = measure(state.q, data)
-            if robot.floating_base:
-                base[k, :3] = state.q[:3]
-                base[k, 3:] = pin.rpy.matrixToRpy(pin.Quaternion(state.q[3:7]).toRotationMatrix())
-                com[k] = pin.centerOfMass(robot.model, data, state.q)
+            configurations[k] = state.q
             try:
                 state = simulator.step(tau)
                 fell = state.fallen
@@ -130,6 +119,10 @@ def _closed_loop(
             if stop:
                 n = k + 1
                 break
+    # The logs the loop does not feed back, from the configurations and torques of its ticks
+    # (outside the loop, where the model's data stay in the cache: the same numbers).
+    ratios = np.abs(torques[:n]) / np.asarray(robot.torque_limit)
+    base, com = _base_and_com(robot, configurations[:n])
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     return RunLog(
         times=np.arange(n) * DT,
@@ -138,9 +131,9 @@ def _closed_loop(
         elbow_phase=np.zeros(n),
         base=base[:n],
         com=com[:n],
-        torque_use=torque_use,
-        qp_torque_use=qp_torque_use,
-        torque_peak=torque_peak[:n],
+        torque_use=ratios[:, 0].max(axis=0, initial=0.0),
+        qp_torque_use=ratios[:, 1].max(axis=0, initial=0.0),
+        torque_peak=ratios[:, 0].max(axis=1),
         tick_wall_us=tick_wall[:n] / 1e3,
         tick_cpu_us=tick_cpu[:n] / 1e3,
         wall_time=wall,
@@ -153,6 +146,20 @@ def _closed_loop(
         diverged=diverged,
         extras={"frames": frames, "simulator": simulator} if record_every else {},
     )
+
+
+def _base_and_com(robot, configurations) -> tuple[np.ndarray, np.ndarray]:
+    """Pelvis position and roll, pitch, yaw [m, rad], (n, 6), and CoM [m], (n, 3), of each
+    configuration (zeros on a fixed base)."""
+    n = configurations.shape[0]
+    base, com = np.zeros((n, 6)), np.zeros((n, 3))
+    if robot.floating_base:
+        data = robot.create_data()
+        for k, q in enumerate(configurations):
+            base[k, :3] = q[:3]
+            base[k, 3:] = pin.rpy.matrixToRpy(pin.Quaternion(q[3:7]).toRotationMatrix())
+            com[k] = pin.centerOfMass(robot.model, data, q)
+    return base, com
 
 
 def run_drumming(

@@ -97,6 +97,45 @@ def test_standing_drumming_tracks_and_stays_up(dmps):
     assert log.n_fallbacks == 0
 
 
+def test_run_logs_match_each_ticks_torques_and_configuration(dmps):
+    """The logs computed after the loop belong to their ticks: torque use |tau| / limit of the
+    torques each tick sent, the pelvis pose and CoM of the configuration each tick saw (roll,
+    pitch, yaw from the quaternion by the ZYX formulas written here: a few ulps of atan2 and
+    asin on O(1) arguments, hence 1e-12)."""
+    import pinocchio as pin
+
+    robot = load_talos("full")
+    sent = []
+
+    def build(*args, **options):
+        controller, task = humanoid.build_controller(*args, **options)
+        compute = controller.compute_torques
+
+        def recorded(q, v, t=None):
+            tau = compute(q, v, t)
+            sent.append(tau.copy())
+            return tau
+
+        controller.compute_torques = recorded
+        return controller, task
+
+    log = humanoid.run_drumming(robot, dmps, 0.05, build=build, record_every=1)
+    frames = np.array(log.extras["frames"])
+    ratios = np.abs(np.array(sent)) / np.asarray(robot.torque_limit)
+    assert frames.shape[0] == log.times.size == len(sent) == 50
+    np.testing.assert_array_equal(log.torque_peak, ratios.max(axis=1))
+    np.testing.assert_array_equal(log.torque_use, ratios.max(axis=0))
+    data = robot.create_data()
+    for k, q in enumerate(frames):
+        np.testing.assert_array_equal(log.com[k], pin.centerOfMass(robot.model, data, q))
+        x, y, z, w = q[3:7]
+        roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+        pitch = np.arcsin(2 * (w * y - z * x))
+        yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        np.testing.assert_array_equal(log.base[k, :3], q[:3])
+        np.testing.assert_allclose(log.base[k, 3:], [roll, pitch, yaw], rtol=0, atol=1e-12)
+
+
 # Quick-run values measured when these bounds were set (MuJoCo, before the study became a
 # package, same numbers after), and the factor allowed above them.
 MEASURED = {

@@ -161,8 +161,11 @@ class DrumPlan:
 
 
 def plan_rollout(dmps: DrumDmps, duration: float, modification=None, dt: float = DT) -> dict:
-    """The drumming plan alone (no robot): times, positions (n, 12), elbow phase (n,)."""
-    plan = DrumPlan(dmps, dt, modification)
+    """The drumming plan alone (no robot): times, positions (n, 12), elbow phase (n,).
+
+    Its steps are compiled where a C compiler exists, as in the closed loop (the same numbers
+    as CasADi's virtual machine; 5x faster)."""
+    plan = DrumPlan(dmps, dt, modification, compile=True)
     n = int(round(duration / dt)) + 1
     positions = np.empty((n, len(DRUM_JOINTS)))
     elbow_phase = np.empty(n)

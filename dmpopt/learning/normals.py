@@ -4,7 +4,7 @@ r"""Standard normal draws of a NumPy ``PCG64`` generator inside compiled loops.
 method of Marsaglia & Tsang (2000) fed by the 128-bit permuted congruential generator of
 O'Neill (2014). Numba's own ``Generator`` support reaches the bit generator through a
 function pointer per draw; here the generator's state is a (4,) ``uint64`` array that the
-compiled code advances itself in registers (10,000 draws: 79 instead of 110 us of process
+compiled code advances itself in registers (10,000 draws: 52 instead of 110 us of thread
 CPU), and every draw is the one NumPy would have made:
 
 * state :math:`s \leftarrow a s + c \pmod{2^{128}}` with NumPy's multiplier ``a`` and
@@ -34,6 +34,7 @@ _LOW32 = np.uint64(0xFFFFFFFF)
 _LAYER_BOUNDS = ziggurat.ki_double
 _LAYER_WIDTHS = ziggurat.wi_double
 _LAYER_HEIGHTS = ziggurat.fi_double
+_SIGNS = np.array([1.0, -1.0])
 _TAIL = ziggurat.ziggurat_nor_r  # start of the tail, r
 _INVERSE_TAIL = ziggurat.ziggurat_nor_inv_r  # 1 / r
 
@@ -103,9 +104,10 @@ def fill_standard_normal(words, out):
             layer = np.int64(r & np.uint64(0xFF))
             r >>= np.uint64(8)
             magnitude = (r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF)
-            x = np.float64(np.int64(magnitude)) * _LAYER_WIDTHS[layer]  # exact: < 2^52
-            if r & np.uint64(1):
-                x = -x
+            # magnitude < 2^52 converts exactly; the sign by a product with +-1 (exact): a
+            # branch on the random sign bit was mispredicted every other draw
+            x = np.float64(np.int64(magnitude)) * _LAYER_WIDTHS[layer]
+            x *= _SIGNS[np.int64(r & np.uint64(1))]
             if magnitude < _LAYER_BOUNDS[layer]:
                 break
             if layer == 0:  # the tail beyond r

@@ -15,6 +15,9 @@ from dmpopt.learning import (
     multi_dof_reaching_task,
     paper_reaching_task,
 )
+from dmpopt.learning.normals import fill_standard_normal, generator_state
+from dmpopt.learning.policy_search import _enac_solution, _scores
+from dmpopt.learning.rewards import _plan_samples, _reward_kernel, _row_sums
 
 OPTIONS = {
     "enac": {"exploration_std": 10.0, "step_size": 10.0},
@@ -37,6 +40,36 @@ def _per_call(function, repeats=50):
     return best
 
 
+def loop_stages(task, label: str, n_rollouts: int) -> None:
+    """Thread CPU of each stage of one update of the compiled eNAC loop (``learn``)."""
+    arrays = task.reward_arrays()
+    shape = (n_rollouts, task.n_actions, task.n_dofs)
+    rng = np.random.default_rng(0)
+    words = generator_state(rng)
+    noise = 10.0 * rng.standard_normal(shape)
+    weights = np.ascontiguousarray(task.initial_weights[None])
+    plan = _plan_samples(weights, *arrays[:6])
+    rewards = np.zeros((n_rollouts, task.n_steps))
+
+    def reward():
+        rewards[:] = 0.0
+        _reward_kernel(*plan, noise, *arrays[6:], rewards)
+
+    reward()
+    returns = _row_sums(rewards) / 1e3
+    scores = _scores(noise, task.policy_features, 100.0, False)
+    stages = {
+        "normals (NumPy)": lambda: rng.standard_normal(shape),
+        "normals (compiled)": lambda: fill_standard_normal(words, noise),
+        "shared plan": lambda: _plan_samples(weights, *arrays[:6]),
+        "rewards": reward,
+        "scores": lambda: _scores(noise, task.policy_features, 100.0, False),
+        "eNAC solve": lambda: _enac_solution(scores, returns),
+    }
+    times = ", ".join(f"{name} {1e6 * _per_call(f):.0f}" for name, f in stages.items())
+    print(f"{label}, {n_rollouts} roll-outs, one update's stages [us]: {times}")
+
+
 def main():
     start = time.thread_time()
     task = paper_reaching_task()
@@ -52,6 +85,8 @@ def main():
             noise = rng.standard_normal((k, t.n_actions, t.n_dofs))
             seconds = _per_call(lambda: t.returns(weights, noise))
             print(f"{name}: {k} noisy roll-outs + returns: {1e3 * seconds:.3f} ms")
+    loop_stages(task, "1 DOF", 20)
+    loop_stages(six, "6 DOF", 62)
     for t, label in ((task, "1 DOF"), (six, "6 DOF")):
         for name, options in OPTIONS.items():
             n_rollouts = max(20, t.n_dofs * t.n_basis + 2) if name in ("enac", "ereinforce") else 20

@@ -170,62 +170,78 @@ def _reward_kernel(
     n_dofs = accelerations.shape[1]
     n_samples = samples.size
     noisy = noise.size > 0
+    shared = accelerations.shape[0] == 1
     acceleration_weight, jerk_weight, goal_weight, velocity_weight = weights
     a, b, c, d = system[0:3], system[3], system[4:7], system[7]
-    squares = np.empty(n_steps)
-    jerks = np.empty(n_steps)
-    sampled = np.empty((n_dofs, n_samples))  # positions at the samples
-    final = np.empty(n_dofs)  # velocity at the end
-    for k in range(n_rollouts):
-        plan = 0 if accelerations.shape[0] == 1 else k
-        squares[:] = 0.0
-        jerks[:] = 0.0
-        for j in range(n_dofs):
-            s0 = s1 = s2 = 0.0  # state of the noise response
-            previous = 0.0
-            column = 0
-            for m in range(n_steps):
-                epsilon = noise[k, m, j] if noisy and m < n_steps - 1 else 0.0
-                acceleration = accelerations[plan, j, m] + (
-                    c[2, 0] * s0 + c[2, 1] * s1 + c[2, 2] * s2 + d[2] * epsilon
+    # time-major work arrays: the roll-outs advance side by side (innermost loop), each with
+    # the arithmetic, in the order, of a roll-out alone; their recursions are independent
+    squares = np.zeros((n_steps, n_rollouts))
+    jerks = np.zeros((n_steps, n_rollouts))
+    sampled = np.empty((n_samples, n_dofs, n_rollouts))  # positions at the samples
+    final = np.empty((n_dofs, n_rollouts))  # velocity at the end
+    epsilon = np.zeros(n_rollouts)
+    s0 = np.empty(n_rollouts)  # states of the noise responses
+    s1 = np.empty(n_rollouts)
+    s2 = np.empty(n_rollouts)
+    response = np.empty(n_rollouts)
+    previous = np.empty(n_rollouts)
+    for j in range(n_dofs):
+        s0[:] = 0.0
+        s1[:] = 0.0
+        s2[:] = 0.0
+        column = 0
+        for m in range(n_steps):
+            if noisy and m < n_steps - 1:
+                for k in range(n_rollouts):
+                    epsilon[k] = noise[k, m, j]
+            else:
+                epsilon[:] = 0.0
+            for k in range(n_rollouts):
+                response[k] = (
+                    c[2, 0] * s0[k] + c[2, 1] * s1[k] + c[2, 2] * s2[k] + d[2] * epsilon[k]
                 )
-                squares[m] += acceleration * acceleration
+            for k in range(n_rollouts):
+                acceleration = accelerations[0 if shared else k, j, m] + response[k]
+                squares[m, k] += acceleration * acceleration
                 if jerk_weight > 0.0 and m > 0:
-                    jerk = (acceleration - previous) / dt
-                    jerks[m - 1] += jerk * jerk
-                previous = acceleration
-                if column < n_samples and samples[column] == m:
-                    sampled[j, column] = positions[plan, j, column] + (
-                        c[0, 0] * s0 + c[0, 1] * s1 + c[0, 2] * s2 + d[0] * epsilon
+                    jerk = (acceleration - previous[k]) / dt
+                    jerks[m - 1, k] += jerk * jerk
+                previous[k] = acceleration
+            if column < n_samples and samples[column] == m:
+                for k in range(n_rollouts):
+                    sampled[column, j, k] = positions[0 if shared else k, j, column] + (
+                        c[0, 0] * s0[k] + c[0, 1] * s1[k] + c[0, 2] * s2[k] + d[0] * epsilon[k]
                     )
-                    column += 1
-                if m == n_steps - 1:
-                    final[j] = velocity[plan, j] + (
-                        c[1, 0] * s0 + c[1, 1] * s1 + c[1, 2] * s2 + d[1] * epsilon
+                column += 1
+            if m == n_steps - 1:
+                for k in range(n_rollouts):
+                    final[j, k] = velocity[0 if shared else k, j] + (
+                        c[1, 0] * s0[k] + c[1, 1] * s1[k] + c[1, 2] * s2[k] + d[1] * epsilon[k]
                     )
-                if noisy:
-                    s0, s1, s2 = (
-                        a[0, 0] * s0 + a[0, 1] * s1 + a[0, 2] * s2 + b[0] * epsilon,
-                        a[1, 0] * s0 + a[1, 1] * s1 + a[1, 2] * s2 + b[1] * epsilon,
-                        a[2, 0] * s0 + a[2, 1] * s1 + a[2, 2] * s2 + b[2] * epsilon,
-                    )
+            if noisy:
+                for k in range(n_rollouts):
+                    x0, x1, x2, e = s0[k], s1[k], s2[k], epsilon[k]
+                    s0[k] = a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2 + b[0] * e
+                    s1[k] = a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2 + b[1] * e
+                    s2[k] = a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2 + b[2] * e
+    for k in range(n_rollouts):
         for m in range(n_steps - 1):
-            rewards[k, m] -= acceleration_weight * dt * squares[m]
+            rewards[k, m] -= acceleration_weight * dt * squares[m, k]
             if jerk_weight > 0.0:
-                rewards[k, m] -= jerk_weight * dt * jerks[m]
+                rewards[k, m] -= jerk_weight * dt * jerks[m, k]
         for v in range(via.shape[0]):
             column = int(via[v, 0])
             error = 0.0
             for j in range(n_dofs):
-                deviation = sampled[j, column] - via[v, 3 + j]
+                deviation = sampled[column, j, k] - via[v, 3 + j]
                 error += deviation * deviation
             rewards[k, int(via[v, 1])] -= via[v, 2] * error
         error = 0.0
         speed = 0.0
         for j in range(n_dofs):
-            deviation = sampled[j, n_samples - 1] - goal[j]
+            deviation = sampled[n_samples - 1, j, k] - goal[j]
             error += deviation * deviation
-            speed += final[j] * final[j]
+            speed += final[j, k] * final[j, k]
         rewards[k, n_steps - 1] -= goal_weight * error
         rewards[k, n_steps - 1] -= velocity_weight * speed
 

@@ -294,10 +294,11 @@ def _objective(dmp, plan, target, objective, regularization, length):
     if key not in _OBJECTIVES:
         if len(_OBJECTIVES) >= _OBJECTIVES_SIZE:
             del _OBJECTIVES[next(iter(_OBJECTIVES))]  # the oldest
-        _OBJECTIVES[key] = _normal_equations(
-            matrix, targets, prior, regularization, length, dmp.n_basis
-        )
-    return tuple(part.copy() for part in _OBJECTIVES[key])
+        parts = _normal_equations(matrix, targets, prior, regularization, length, dmp.n_basis)
+        for part in parts:  # shared, not copied: a copy may change the memory layout
+            part.flags.writeable = False
+        _OBJECTIVES[key] = parts
+    return _OBJECTIVES[key]
 
 
 _OBJECTIVES: dict = {}

@@ -315,13 +315,19 @@ def _bytes(*arrays) -> tuple:
 
 
 def _recalled(key, compute) -> np.ndarray:
-    """``compute()``, or a copy of the answer it gave for the same ``key`` (the exact inputs)
-    among the last :data:`_RECALLED_SIZE`: the same numbers without evaluating again."""
+    """``compute()``, or the answer it gave for the same ``key`` (the exact inputs) among the
+    last :data:`_RECALLED_SIZE`: the same numbers without evaluating again.
+
+    The answer itself, read-only, not a copy: its memory layout is kept, and with it the
+    order in which later products sum over it (``einsum``, ``@``).
+    """
     if key not in _RECALLED:
         if len(_RECALLED) >= _RECALLED_SIZE:
             del _RECALLED[next(iter(_RECALLED))]  # the oldest
-        _RECALLED[key] = compute()
-    return _RECALLED[key].copy()
+        answer = compute()
+        answer.flags.writeable = False
+        _RECALLED[key] = answer
+    return _RECALLED[key]
 
 
 def _solved_targets(dmp, demo: Trajectory, transformation: np.ndarray) -> np.ndarray:

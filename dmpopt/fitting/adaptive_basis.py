@@ -263,11 +263,19 @@ class _Demo:
 
     def fit(self, n_basis: int, scale: float, rows):
         """The DMP with ``n_basis`` functions, widths scaled by ``scale``, fitted to the
-        samples ``rows``, and its plan's positions at every sample.
+        samples ``rows``, and its plan's positions at every sample (:meth:`_fitted`); the
+        forcing weights are stored per unit of the goal map at the demo's start and goal, as
+        :func:`dmpopt.fitting.fit_discrete` stores them."""
+        unit, forcing, positions = self._fitted(n_basis, scale, rows)
+        return unit.replace(weights=np.linalg.solve(self.zero.goal_map(), forcing)), positions
+
+    def _fitted(self, n_basis: int, scale: float, rows):
+        """The DMP with ``n_basis`` functions, widths scaled by ``scale`` and zero weights,
+        the forcing weights fitted to the samples ``rows`` and the plan's positions at every
+        sample.
 
         The regressions are those of :func:`dmpopt.fitting.fit_discrete` (same centres, same
-        ``tau``); the forcing weights are stored per unit of the goal map at the demo's start
-        and goal, as ``fit_discrete`` stores them.
+        ``tau``). The validation needs only the positions: no DMP of the fitted weights is built.
         """
         demo, zero = self.demo, self.zero
         centres, widths = basis.discrete_basis(n_basis, zero.gains)
@@ -287,12 +295,11 @@ class _Demo:
             forcing = _ridge(regressors[rows], self.targets[rows], self.regularization).T
         else:
             forcing = _local_regression(unit, self.states[rows, :2], self.targets[rows])
-        dmp = unit.replace(weights=np.linalg.solve(zero.goal_map(), forcing))
-        return dmp, self.free + response @ forcing.T
+        return unit, forcing, self.free + response @ forcing.T
 
     def validation_error(self, n_basis: int, scale: float, train) -> float:
         """RMS position error at the held-out samples of the layout fitted to ``train``."""
-        positions = self.fit(n_basis, scale, train)[1]
+        positions = self._fitted(n_basis, scale, train)[2]
         held_out = ~train
         distance = np.linalg.norm(positions[held_out] - self.demo.positions[held_out], axis=1)
         return float(np.sqrt(np.mean(distance**2)))

@@ -289,10 +289,36 @@ def _objective(dmp, plan, target, objective, regularization, length):
         matrix = dmp.phase_features(n_steps, plan.times[1] - plan.times[0])
         prior = dmp.forcing_weights()
         targets = matrix @ prior.T
+    numbers = np.array([regularization, length, dmp.n_basis], dtype=float).tobytes()
+    key = (numbers, _exact(matrix), _exact(targets), _exact(prior))
+    if key not in _OBJECTIVES:
+        if len(_OBJECTIVES) >= _OBJECTIVES_SIZE:
+            del _OBJECTIVES[next(iter(_OBJECTIVES))]  # the oldest
+        parts = _normal_equations(matrix, targets, prior, regularization, length, dmp.n_basis)
+        for part in parts:  # shared, not copied: a copy may change the memory layout
+            part.flags.writeable = False
+        _OBJECTIVES[key] = parts
+    return _OBJECTIVES[key]
+
+
+_OBJECTIVES: dict = {}
+_OBJECTIVES_SIZE = 4
+"""Objectives :func:`_objective` keeps: fits of one demonstration to the same request under
+other constraints (bounds, end conditions) share theirs."""
+
+
+def _exact(array: np.ndarray) -> tuple:
+    """Value and memory layout of ``array`` (the products' summation order follows the
+    layout), as part of a cache key."""
+    return (array.dtype.str, array.shape, array.strides, array.flags.aligned, array.tobytes())
+
+
+def _normal_equations(matrix, targets, prior, regularization, length, n_basis):
+    """``(s, H, g)`` of :func:`_objective` from ``M``, ``b`` and :math:`w^0`."""
     gram = matrix.T @ matrix
-    lam = regularization * np.trace(gram) / dmp.n_basis
+    lam = regularization * np.trace(gram) / n_basis
     scale = 1.0 / np.maximum(np.sqrt(np.diag(gram) + lam), 1e-300)
-    hessian = scale[:, None] * (gram + lam * np.eye(dmp.n_basis)) * scale[None, :]  # unit diagonal
+    hessian = scale[:, None] * (gram + lam * np.eye(n_basis)) * scale[None, :]  # unit diagonal
     gradient = -((matrix.T @ targets + lam * prior.T) * scale[:, None]).T / length
     return scale, hessian, gradient
 

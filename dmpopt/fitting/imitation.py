@@ -266,7 +266,10 @@ def unforced_states(dmp: DiscreteDMP, demo: Trajectory) -> np.ndarray:
     initial = single.initial_state(demo.positions[0], demo.velocities[0], (0.0, 0.0))
     dt = demo.duration / (demo.n_steps - 1)
     parameters = single.parameters()
-    return symbolic.simulate(single.signature, demo.n_steps, initial, dt, parameters)[0]
+    key = ("states", single.signature, demo.n_steps, dt, _bytes(initial, *parameters.values()))
+    return _recalled(
+        key, lambda: symbolic.simulate(single.signature, demo.n_steps, initial, dt, parameters)[0]
+    )
 
 
 def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> np.ndarray:
@@ -279,11 +282,52 @@ def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> n
     state :math:`z` comes from :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` integrated
     along the demonstration (:func:`_filtered`).
     """
-    if dmp.equations.forcing_on_velocity:
-        transformation = np.hstack([demo.positions, _filtered(dmp, demo, periodic=False)])
-    else:
-        transformation = np.hstack([demo.positions, states[:, 2 + dmp.n_dofs :]])
-    return _solved_targets(dmp, demo, transformation)
+    on_velocity = dmp.equations.forcing_on_velocity
+    key = (
+        "targets",
+        dmp.signature,
+        dmp.tau,
+        _bytes(dmp.parameters()["goal"], dmp.gains, demo.times, demo.positions),
+        _bytes(demo.velocities, demo.accelerations),
+        None if on_velocity else _bytes(states[:, 2 + dmp.n_dofs :]),
+    )
+
+    def compute():
+        if on_velocity:
+            transformation = np.hstack([demo.positions, _filtered(dmp, demo, periodic=False)])
+        else:
+            transformation = np.hstack([demo.positions, states[:, 2 + dmp.n_dofs :]])
+        return _solved_targets(dmp, demo, transformation)
+
+    return _recalled(key, compute)
+
+
+_RECALLED: dict = {}
+_RECALLED_SIZE = 8
+"""Entries :func:`_recalled` keeps: the fits of one demonstration (several methods and basis
+counts) share the states and targets of their few distinct systems."""
+
+
+def _bytes(*arrays) -> tuple:
+    """Exact values of ``arrays`` (shape and float64 bytes), as part of a cache key."""
+    values = [np.asarray(a, dtype=float) for a in arrays]
+    return tuple((v.shape, np.ascontiguousarray(v).tobytes()) for v in values)
+
+
+def _recalled(key, compute) -> np.ndarray:
+    """``compute()``, or the answer it gave for the same ``key`` (the exact inputs) among the
+    last :data:`_RECALLED_SIZE`: the same numbers without evaluating again.
+
+    The answer itself, read-only, not a copy: its memory layout is kept, and with it the
+    order in which later products sum over it (``einsum``, ``@``).
+    """
+    if key not in _RECALLED:
+        if len(_RECALLED) >= _RECALLED_SIZE:
+            del _RECALLED[next(iter(_RECALLED))]  # the oldest
+        answer = compute()
+        answer.flags.writeable = False
+        _RECALLED[key] = answer
+    return _RECALLED[key]
 
 
 def _solved_targets(dmp, demo: Trajectory, transformation: np.ndarray) -> np.ndarray:

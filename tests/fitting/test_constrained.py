@@ -1030,3 +1030,24 @@ def test_solve_blocks_adds_the_time_and_iterations_of_every_solve(monkeypatch):
     assert stopped.active.dtype == bool and stopped.active.shape == (3, twice.shape[0])
     np.testing.assert_array_equal(stopped.active[0, :-1], both.active[0])
     assert not stopped.active[1:].any()
+
+
+def test_recalled_objective_is_the_fresh_one():
+    """Fits of one demo and request under other constraints recall its objective; answer key:
+    the objective built with nothing recalled, equal bit for bit (a key of the response
+    alone would give the moved goal the first goal's gradient)."""
+    from dmpopt.fitting import constrained
+
+    reference = REFERENCES["velocity"]
+    goals = [DEMO.positions[-1], DEMO.positions[-1] + [0.2, -0.1]]
+    recalled = []
+    for goal in goals:
+        build_fitting_problem(DEMO, reference=reference, goal=goal)  # fills the store
+        bounded = Bounds(velocity=[3.0, 3.0])
+        recalled.append(build_fitting_problem(DEMO, reference=reference, goal=goal, bounds=bounded))
+    for goal, problem in zip(goals, recalled):
+        constrained._OBJECTIVES.clear()
+        fresh = build_fitting_problem(DEMO, reference=reference, goal=goal)
+        np.testing.assert_array_equal(problem.hessian, fresh.hessian)
+        np.testing.assert_array_equal(problem.gradient, fresh.gradient)
+        assert not problem.gradient.flags.writeable  # shared: no caller may change it

@@ -533,3 +533,24 @@ def test_values_at_samples_are_casadis_mapped_call_bit_for_bit(rhythmic):
         got = imitation._at_samples(function, canonical, dmp)
         assert got.shape == expected.shape and got.strides == expected.strides
         np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+@pytest.mark.parametrize("form", ["velocity", "acceleration"])
+def test_recalled_states_and_targets_give_the_fresh_fit(form):
+    """Fits recall the unforced states and forcing targets of identical inputs; answer key:
+    the same fit computed with nothing recalled, which must agree bit for bit (a key missing
+    an input, e.g. the demo's positions, would hand the second demo the first one's targets)."""
+    from dmpopt.fitting import imitation
+
+    first, second = minimum_jerk_demo(n_dofs=2, seed=0), minimum_jerk_demo(n_dofs=2, seed=1)
+    recalled = []
+    for demo in (first, second):
+        fit_discrete(demo, 12, form=form, method="least_squares")  # fills the store
+        recalled.append(fit_discrete(demo, 12, form=form, method="lwr"))
+    for demo, fit in zip((first, second), recalled):
+        imitation._RECALLED.clear()
+        fresh = fit_discrete(demo, 12, form=form, method="lwr")
+        np.testing.assert_array_equal(fit.weights, fresh.weights)
+    states = imitation.unforced_states(recalled[1], second)
+    with pytest.raises(ValueError, match="read-only"):
+        states[0, 0] = 1.0  # shared, so no caller may change it

@@ -431,9 +431,8 @@ def walk(
                 # the per-tick arithmetic in Python floats (numpy's operators on scalars and
                 # small vectors cost microseconds each), the same operations in the same order
                 velocities = state.v.tolist()  # a list: the state's arrays stay unheld
-                base_force[2] = -boom_pitch_stiffness * state.q.item(2) - boom_pitch_damping * (
-                    velocities[2]
-                )
+                pitch, pitch_rate = state.q.item(2), velocities[2]
+                base_force[2] = -boom_pitch_stiffness * pitch - boom_pitch_damping * pitch_rate
                 state = sim.step(torque, base_force)
                 # p_i = tau_i qdot_i; power = sum p_i from 0.0 in order (numpy's dot of these
                 # few terms: BLAS's plain loop), |p| = sum |p_i| (numpy's sum, in order)

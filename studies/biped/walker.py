@@ -20,7 +20,6 @@ The boom keeps the robot in the sagittal plane (the planar base); its pitch spri
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import os
 import pickle
@@ -295,6 +294,14 @@ class QPControl:
             self.lifted[leg] = False
 
 
+class _Measured:
+    """What a control law reads of a state whose plant measures with noise or a delay: its
+    time and contact flags, and the measured ``q`` and ``v`` (one object, refilled each tick,
+    instead of a new state per tick)."""
+
+    __slots__ = ("t", "q", "v", "in_contact")
+
+
 def walk(
     biped,
     dmp,
@@ -385,6 +392,7 @@ def walk(
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
     joints = np.sort(biped.velocity_indices("gait")).tolist()
     budget_us = 1e6 * DEFAULT_TIME_BUDGET
+    measured = _Measured()
     detector = HeelStrikeDetector(min_swing_time=0.1)
     contact = detector.last_contact
     # before ``warmup`` every walk resets and adapts (its start-up); the arm's switches after
@@ -421,7 +429,9 @@ def walk(
                 begin = time.thread_time_ns()
                 sensed = state  # the state itself when the plant measures without noise
                 if state.q_measured is not state.q or state.v_measured is not state.v:
-                    sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
+                    sensed = measured
+                    measured.t, measured.in_contact = state.t, state.in_contact
+                    measured.q, measured.v = state.q_measured, state.v_measured
                 torque = law.torques(sensed, desired, desired_velocity, desired_acceleration)
                 tick_us = (time.thread_time_ns() - begin) / 1e3
                 if tick_us > budget_us:

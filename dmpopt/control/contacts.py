@@ -157,6 +157,14 @@ class Contact:
         doc="Baumgarte damping :math:`K_d` [1/s].",
     )
 
+    def __getstate__(self) -> dict:
+        """A copy (pickle, deepcopy) makes its own views of the point it holds (_hold_point):
+        views into the original's placements would not follow the copy's."""
+        state = self.__dict__.copy()
+        if "_point_views" in state:
+            state["_point_views"] = (None, None)
+        return state
+
     def normal_force(self, wrench: np.ndarray) -> float:
         """The normal force [N] of a wrench (or force) of this contact."""
         return float(np.asarray(wrench, dtype=float)[self.normal_index])
@@ -352,6 +360,7 @@ class PointContact(Contact):
             damping,
         )  # fmt: skip
         self._error = np.zeros(6)
+        self._point_views = (None, None)  # see _hold_point
 
     def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         planar = self.n_force == 2
@@ -442,6 +451,7 @@ class SurfaceContact(Contact):
         self._world_jacobian = np.zeros((3, robot.nv))
         self._world_target = np.zeros(3)
         self._error = np.zeros(6)
+        self._point_views = (None, None)  # see _hold_point
 
     def friction_rows(self) -> tuple[np.ndarray, list[str]]:
         mu = self.friction_coefficient / np.sqrt(2.0)
@@ -465,11 +475,23 @@ def _hold_point(contact, v, data, target, jacobian, components) -> None:
     """Rows ``components`` (world axes) that hold ``contact``'s frame origin at its reference:
     ``jacobian`` the point Jacobian, ``target`` :math:`K_p (p_{ref} - p) - K_d \\dot p - \\dot J
     \\dot q` (the classical acceleration's drift), both filled in place."""
-    model, frame_id, error = contact.model, contact.frame_id, contact._error
-    placement = contact.placement(data)  # first: it takes the reference if none is set yet
-    np.subtract(contact.reference_placement.translation, placement.translation, out=error[:3])
+    model, frame_id = contact.model, contact.frame_id
+    if contact.reference_placement is None:
+        contact.placement(data)  # it takes the reference
+    else:
+        pin.updateFramePlacement(model, data, frame_id)
+    # p_ref - p through views made once per reference and data (Pinocchio's translations are
+    # views of their placements; a placement changed in place is seen through them)
+    views = contact._point_views
+    if views[0] is not contact.reference_placement or views[1] is not data:
+        reference = contact.reference_placement
+        views = contact._point_views = (
+            reference, data, reference.translation, data.oMf[frame_id].translation,
+            contact._error[:3],
+        )  # fmt: skip
+    np.subtract(views[2], views[3], out=views[4])
     kernels.pd_task_rows(
-        target, jacobian, components, error,
+        target, jacobian, components, contact._error,
         pin.getFrameJacobian(model, data, frame_id, _LWA), v,
         pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA).vector,
         _ZERO_MOTION, _ZERO_MOTION, contact._stiffness, contact._damping,

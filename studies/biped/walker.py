@@ -20,13 +20,13 @@ The boom keeps the robot in the sagittal plane (the planar base); its pitch spri
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import os
 import pickle
 import time
 from dataclasses import dataclass, field
-from operator import mul
+from functools import reduce
+from operator import add, mul
 
 import numpy as np
 from dmpopt_robots import biped as biped_model
@@ -235,22 +235,28 @@ class QPControl:
         self.thigh, self.shank = biped_model.leg_lengths(biped)
         self.frequency = 1.0
         self._reference = np.empty(biped.n_actuated)
+        # per-tick constants as Python values (cheaper to read than numpy scalars)
+        self._hips, self._knees = self.hips.tolist(), self.knees.tolist()
+        self._lift_phase = gains.lift_phase
+        self._placement = gains.placement_gain is not None
+        self._leg_geometry = (None, None, None)  # ((leg, knee), length, angle) of the swing leg
 
     def torques(self, state, position, velocity, acceleration) -> np.ndarray:
         """Torques in model order; lifts the swing leg a little after the other's heel strike."""
-        progress = (state.t - self.strike[1]) * self.frequency / np.pi  # of the step, from 0
-        self._lift_after_strike(state, progress)
+        progress = (state.t - self.strike[1]) * self.frequency / math.pi  # of the step, from 0
+        lifted = self.lifted
+        if not (lifted[0] or lifted[1]) and progress >= self._lift_phase:
+            self._lift_after_strike(state)
         reference = self._reference
         reference[:] = position
-        if self.gains.placement_gain is not None:
+        if self._placement and (lifted[0] or lifted[1]):
             self._place_swing_foot(state, progress, reference)
         self.posture.set_reference(reference, velocity, acceleration)
         return self.controller.compute_torques(state.q, state.v, state.t)
 
-    def _lift_after_strike(self, state, progress: float) -> None:
+    def _lift_after_strike(self, state) -> None:
+        """Ramp the swing leg's contact out, once the stance foot is on the ground."""
         stance = self.strike[0]
-        if progress < self.gains.lift_phase or self.lifted[0] or self.lifted[1]:
-            return
         if state.in_contact[stance]:
             self.controller.remove_contact(
                 self.frames[1 - stance], transition_time=self.gains.transition_time
@@ -259,8 +265,6 @@ class QPControl:
 
     def _place_swing_foot(self, state, progress: float, reference: np.ndarray) -> None:
         """Move the swing hip's reference towards the Raibert landing angle over the swing."""
-        if not (self.lifted[0] or self.lifted[1]):
-            return
         # in Python floats and the math module (numpy's ufuncs on scalars cost microseconds
         # each); the same bits: numpy's sin, cos, arctan2 and arcsin are the C library's here,
         # and its hypot (not Python's) is kept
@@ -269,11 +273,14 @@ class QPControl:
         step_duration = math.pi / self.frequency
         reach = 0.5 * speed * step_duration
         reach += self.gains.placement_gain * (speed - self.gains.target_speed)
-        knee = float(reference[self.knees[leg]])
-        along, across = self.thigh + self.shank * math.cos(knee), self.shank * math.sin(knee)
-        length, offset = float(np.hypot(along, across)), math.atan2(across, along)
+        knee = reference.item(self._knees[leg])
+        if self._leg_geometry[0] != (leg, knee):  # the knee's reference moves every DMP step
+            along, across = self.thigh + self.shank * math.cos(knee), self.shank * math.sin(knee)
+            length, offset = float(np.hypot(along, across)), math.atan2(across, along)
+            self._leg_geometry = (leg, knee), length, offset
+        _, length, offset = self._leg_geometry
         landing = math.asin(min(max(reach / length, -0.8), 0.8)) + offset
-        hip = self.hips[leg]
+        hip = self._hips[leg]
         reference[hip] += min(progress, 1.0) * (landing - reference[hip])
 
     def on_heel_strike(self, leg: int, time: float, frequency: float) -> None:
@@ -285,6 +292,14 @@ class QPControl:
             if self.frames[leg] not in self.controller.active_contacts:
                 self.controller.add_contact(self.frames[leg])
             self.lifted[leg] = False
+
+
+class _Measured:
+    """What a control law reads of a state whose plant measures with noise or a delay: its
+    time and contact flags, and the measured ``q`` and ``v`` (one object, refilled each tick,
+    instead of a new state per tick)."""
+
+    __slots__ = ("t", "q", "v", "in_contact")
 
 
 def walk(
@@ -375,7 +390,9 @@ def walk(
         law = PDControl(biped, pd_gains)
     law.frequency = frequency
     order = biped.velocity_indices("gait") - biped.n_base  # model-order slots, gait order
-    index = np.sort(biped.velocity_indices("gait"))
+    joints = np.sort(biped.velocity_indices("gait")).tolist()
+    budget_us = 1e6 * DEFAULT_TIME_BUDGET
+    measured = _Measured()
     detector = HeelStrikeDetector(min_swing_time=0.1)
     contact = detector.last_contact
     # before ``warmup`` every walk resets and adapts (its start-up); the arm's switches after
@@ -412,25 +429,34 @@ def walk(
                 begin = time.thread_time_ns()
                 sensed = state  # the state itself when the plant measures without noise
                 if state.q_measured is not state.q or state.v_measured is not state.v:
-                    sensed = dataclasses.replace(state, q=state.q_measured, v=state.v_measured)
+                    sensed = measured
+                    measured.t, measured.in_contact = state.t, state.in_contact
+                    measured.q, measured.v = state.q_measured, state.v_measured
                 torque = law.torques(sensed, desired, desired_velocity, desired_acceleration)
                 tick_us = (time.thread_time_ns() - begin) / 1e3
-                slow += tick_us > 1e6 * DEFAULT_TIME_BUDGET
-                slowest = max(slowest, tick_us)
-                base_force[2] = -boom_pitch_stiffness * state.q[2] - boom_pitch_damping * state.v[2]
-                joint_velocities = state.v[index]
+                if tick_us > budget_us:
+                    slow += 1
+                if tick_us > slowest:
+                    slowest = tick_us
+                # the per-tick arithmetic in Python floats (numpy's operators on scalars and
+                # small vectors cost microseconds each), the same operations in the same order
+                velocities = state.v.tolist()  # a list: the state's arrays stay unheld
+                pitch, pitch_rate = state.q.item(2), velocities[2]
+                base_force[2] = -boom_pitch_stiffness * pitch - boom_pitch_damping * pitch_rate
                 state = sim.step(torque, base_force)
-                power = torque @ joint_velocities
-                # sum |tau_i qdot_i| in Python floats: numpy's sum of these few terms, in the
-                # same order, without its per-call overhead (the same bits)
-                work = sum(map(abs, map(mul, torque.tolist(), joint_velocities.tolist())))
+                # p_i = tau_i qdot_i; power = sum p_i from 0.0 in order (numpy's dot of these
+                # few terms: BLAS's plain loop), |p| = sum |p_i| (numpy's sum, in order)
+                products = list(map(mul, torque.tolist(), [velocities[i] for i in joints]))
+                power = reduce(add, products, 0.0)
+                work = sum(map(abs, products))
                 absolute_work += work
                 positive_work += 0.5 * (work + power)  # sum of max(p_i, 0) = (|p| + p) / 2
                 flags = state.in_contact
                 left, right = touching = flags.tolist()  # Python bools: cheap to compare
-                _record_gait(log, state, touching, impact)
-                if (state.touchdowns or not (left and right)) and (
-                    left != contact[0] or right != contact[1]
+                if impact[0] is not None:
+                    _record_gait(log, state, touching, impact)
+                if (left != contact[0] or right != contact[1]) and (
+                    state.touchdowns or not (left and right)
                 ):  # else the detector would find nothing: the flags it saw last
                     strike = detector.update(state.t, flags, state.contact_positions)
                     contact = detector.last_contact
@@ -452,7 +478,7 @@ def walk(
                     log.times.append(state.t)
                     log.q.append(state.q.copy())  # a copy: the simulator recycles the state
                     log.desired.append(desired[order])
-                if state.fallen:
+                if state.fall is not None:
                     log.fell, log.diverged = True, state.fall.reason
                     break
     except BranchFailed:  # not a fall: the walk could not be continued per arm
@@ -565,7 +591,7 @@ def _record_gait(log: WalkLog, state, in_contact: list, impact: list) -> None:
     leg, time, was_in_contact = impact
     if leg is None:
         return
-    if all(in_contact):
+    if in_contact[0] and in_contact[1]:
         log.double_support_time += DT
     if state.t - time <= IMPACT_WINDOW:
         log.impact_forces[-1] = max(log.impact_forces[-1], float(state.contact_forces[leg, 2]))

@@ -1040,3 +1040,42 @@ def test_assembled_qp_holds_the_reference_optimum_and_names_its_rows(talos):
     assert qp.inequality_names[n_act + 5] == f"CoP of {LEFT} at its heel edge"
     assert qp.equality_names[2] == f"contact {LEFT} (fz)"
     assert qp.variable_names[n_act + 8] == f"fz of {RIGHT} / force_scale"
+
+
+def test_point_contact_rows_follow_its_reference_and_state_in_place_replaced_and_copied(biped):
+    """A point contact's rows against contact_rows' (Kp (p_ref - p) - Kd J v - drift, written
+    out), over one Pinocchio data updated in place: after the robot moves, after its reference
+    placement is moved in place and after it is replaced; and a deep copy (its own reference
+    and data) follows its own reference, not the original's. Fails if the contact reads a
+    placement or reference it held once instead of the current one."""
+    import copy
+
+    model, frame = biped.model, biped.foot_frames[0]
+    rng = np.random.default_rng(3)
+    data = model.createData()
+
+    def rows(contact, q, v, data):
+        pin.computeAllTerms(model, data, q, v)
+        contact.update(q, v, data)
+        return contact.jacobian.copy(), contact.target.copy()
+
+    def check(contact, q, v, data):
+        jacobian, target = rows(contact, q, v, data)
+        expected_jacobian, expected_target, _, _ = contact_rows(biped, contact, q, v)
+        np.testing.assert_allclose(jacobian, expected_jacobian, atol=1e-12)
+        np.testing.assert_allclose(target, expected_target, rtol=1e-9, atol=1e-9)
+
+    contact = PointContact(biped, frame, stiffness=50.0)
+    q = np.array(biped.reference_configuration)
+    v = rng.uniform(-1, 1, biped.nv)
+    check(contact, q, v, data)  # the reference taken here: the error is 0
+    q[0] += 0.1  # the robot moves (the same data object)
+    check(contact, q, v, data)
+    contact.reference_placement.translation += np.array([0.02, 0.0, -0.01])  # in place
+    check(contact, q, v, data)
+    contact.reference_placement = pin.SE3(np.eye(3), np.array([0.3, -0.05, 0.1]))  # replaced
+    check(contact, q, v, data)
+    twin, twin_data = copy.deepcopy((contact, data))
+    twin.reference_placement.translation += np.array([-0.05, 0.0, 0.02])
+    check(twin, q, v, twin_data)
+    check(contact, q, v, data)  # the original keeps its own reference

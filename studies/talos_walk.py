@@ -670,7 +670,9 @@ def simulate(
     """Run the walk in MuJoCo on ``plant`` (and ``boxes`` on the floor) for ``duration``
     seconds; stop at a fall. ``push = (step, delay, impulse)``: a world-frame impulse [N s]
     on the pelvis, spread over ``PUSH_DURATION``, ``delay`` seconds after the lift-off of
-    step ``step`` (a fixed phase of its single support). ``feet`` False leaves the feet's
+    step ``step`` (a fixed phase of its single support); the impulse may be a function,
+    called at that tick before the push, that returns it (the pushed walks of
+    :mod:`dmpopt_studies.talos_walk_recovery` part there). ``feet`` False leaves the feet's
     logs (positions, loads, CoP margins, yaw moment) NaN, for a run judged without them
     (they do not feed back: the walk is the same)."""
     simulator = make_simulator(robot, plant, boxes)
@@ -691,7 +693,8 @@ def simulate(
         t = k * DT
         records = walker.records
         if not pushed and len(records) > push[0] and t >= records[push[0]].lift_off + push[1]:
-            simulator.push_impulse("base_link", push[2], duration=PUSH_DURATION)
+            impulse = push[2]() if callable(push[2]) else push[2]
+            simulator.push_impulse("base_link", impulse, duration=PUSH_DURATION)
             pushed = True
         walker.references(k, state)
         reference_com[k], reference_dcm[k] = walker.reference_com, walker.reference_dcm

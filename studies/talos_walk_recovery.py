@@ -28,6 +28,7 @@ from dmpopt_robots.plants import talos_realistic
 from dmpopt.parallel import Runner, map_runs
 
 from . import talos_walk as walk
+from .branching import Branch
 
 PUSH_STEP, PUSH_DELAY = 1, 0.18  # the step and the time after its lift-off [s] of a push
 SETTLE_TIME = 1.0  # [s] after the (re-timed) plan's end, standing
@@ -43,18 +44,35 @@ EDGE = 0.36  # [m] the platform's (step down), the box's (step up) or the slope'
 SLOPE = 0.035  # [rad] (2 degrees) the slope, ascending along x
 
 
-def push_trial(case) -> bool:
-    """One pushed walk: ``case = (direction, impulse [N s], feedback)``; True if it survived."""
-    direction, impulse, feedback = case
+def pushed_walks(direction: str, feedback: bool, n_trials: int, choose) -> list[bool]:
+    """``n_trials`` pushed walks (``direction``, with or without the ``feedback``), the
+    impulse [N s] of each ``choose(earlier)``, from whether the trials before it survived
+    (a list of bools); whether each survived. The walks are the same up to the push: it is
+    simulated once and continued once per trial from there
+    (:class:`dmpopt_studies.branching.Branch`: the same bits as a trial walked from the
+    start)."""
     robot, q0 = walk._robot_and_start()
     plan, swing_dmps = walk.build_plan(robot, q0, quick=True)
     plant = talos_realistic(robot)
     walker = walk.Walker(robot, q0, plan, swing_dmps, plant, feedback=feedback)
-    push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
-    log, _, _ = walk.simulate(
-        robot, q0, walker, walk_duration(plan), 0, plant, push=push, feet=False
-    )
-    return not (log.fell or log.diverged) and stands_still(log.times, log.com)
+    branch = Branch(n_trials)
+
+    def impulse():  # at the push: arm k >= 1 is trial k (the children run first), arm 0 the last
+        trial = branch.arm() or n_trials
+        earlier = [branch.children[k] for k in range(1, trial)]
+        return choose(earlier) * np.array(PUSH_DIRECTIONS[direction])
+
+    push = (PUSH_STEP, PUSH_DELAY, impulse)
+    try:
+        log, _, _ = walk.simulate(
+            robot, q0, walker, walk_duration(plan), 0, plant, push=push, feet=False
+        )
+        survived = not (log.fell or log.diverged) and stands_still(log.times, log.com)
+    except BaseException:
+        branch.abandon()  # a trial's process ends here
+        raise
+    outcomes = branch.logs(survived)
+    return outcomes[1:] + outcomes[:1]
 
 
 def walk_duration(plan) -> float:
@@ -76,24 +94,34 @@ def push_bisection(case) -> dict:
     ``[0, PUSH_RANGE]``: ``survived_ns`` (the bound) and ``fell_ns`` (the smallest that fell,
     None if none did), with every trial."""
     direction, feedback, n_trials = case
+    outcomes = pushed_walks(
+        direction, feedback, n_trials, lambda earlier: _bisection(direction, earlier)[3]
+    )
+    low, fell, trials, _ = _bisection(direction, outcomes)
+    return {"survived_ns": low, "fell_ns": fell, "trials": trials}
+
+
+def _bisection(direction: str, outcomes: list) -> tuple:
+    """The bisection on ``[0, PUSH_RANGE]`` after trials with these ``outcomes`` (survived
+    or not): the largest survived impulse, the smallest that fell (or None), the trials
+    ``(impulse, survived)`` and the next impulse to try [N s]."""
     low, high, fell, trials = 0.0, PUSH_RANGE[direction], None, []
     impulse = high / 2
-    for _ in range(n_trials):
-        survived = push_trial((direction, impulse, feedback))
+    for survived in outcomes:
         trials.append((impulse, survived))
         if survived:
             low = impulse
         else:
             high = fell = impulse
         impulse = 0.5 * (low + high)
-    return {"survived_ns": low, "fell_ns": fell, "trials": trials}
+    return low, fell, trials, impulse
 
 
 def push_recovery(quick: bool, runner=None) -> dict:
     """The push-recovery bounds with and without the feedback (module docstring)."""
     if quick:
-        cases = [("lateral", impulse, True) for impulse in QUICK_PUSHES]
-        survived = map_runs(push_trial, cases, runner, label="walk pushes")
+        n = len(QUICK_PUSHES)
+        survived = pushed_walks("lateral", True, n, lambda earlier: QUICK_PUSHES[len(earlier)])
         bound = max((i for i, ok in zip(QUICK_PUSHES, survived) if ok), default=0.0)
         return {
             "lateral_ns": bound, "forward_ns": None, "backward_ns": None,

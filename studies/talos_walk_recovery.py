@@ -44,11 +44,11 @@ EDGE = 0.36  # [m] the platform's (step down), the box's (step up) or the slope'
 SLOPE = 0.035  # [rad] (2 degrees) the slope, ascending along x
 
 
-def pushed_walks(direction: str, feedback: bool, n_trials: int, choose) -> list[bool]:
-    """``n_trials`` pushed walks (``direction``, with or without the ``feedback``), the
-    impulse [N s] of each ``choose(earlier)``, from whether the trials before it survived
-    (a list of bools); whether each survived. The walks are the same up to the push: it is
-    simulated once and continued once per trial from there
+def pushed_walks(feedback: bool, n_trials: int, choose) -> list[bool]:
+    """``n_trials`` pushed walks (with or without the ``feedback``), the impulse [N s, a
+    world-frame vector] of each ``choose(earlier)``, from whether the trials before it
+    survived (a list of bools); whether each survived. The walks are the same up to the
+    push: it is simulated once and continued once per trial from there
     (:class:`dmpopt_studies.branching.Branch`: the same bits as a trial walked from the
     start)."""
     robot, q0 = walk._robot_and_start()
@@ -59,8 +59,7 @@ def pushed_walks(direction: str, feedback: bool, n_trials: int, choose) -> list[
 
     def impulse():  # at the push: arm k >= 1 is trial k (the children run first), arm 0 the last
         trial = branch.arm() or n_trials
-        earlier = [branch.children[k] for k in range(1, trial)]
-        return choose(earlier) * np.array(PUSH_DIRECTIONS[direction])
+        return choose([branch.children[k] for k in range(1, trial)])
 
     push = (PUSH_STEP, PUSH_DELAY, impulse)
     try:
@@ -89,16 +88,25 @@ def stands_still(times, com) -> bool:
     return bool(moved < STILL_SPEED * (times[-1] - times[last]))
 
 
-def push_bisection(case) -> dict:
-    """Largest survived impulse of ``case = (direction, feedback, n_trials)`` by bisection on
-    ``[0, PUSH_RANGE]``: ``survived_ns`` (the bound) and ``fell_ns`` (the smallest that fell,
-    None if none did), with every trial."""
-    direction, feedback, n_trials = case
-    outcomes = pushed_walks(
-        direction, feedback, n_trials, lambda earlier: _bisection(direction, earlier)[3]
-    )
-    low, fell, trials, _ = _bisection(direction, outcomes)
-    return {"survived_ns": low, "fell_ns": fell, "trials": trials}
+def push_bisections(case) -> list[dict]:
+    """Largest survived impulse in each of ``PUSH_DIRECTIONS`` for ``case = (feedback,
+    n_trials)`` by bisection on ``[0, PUSH_RANGE]`` (``n_trials`` each, the directions one
+    after the other in one :func:`pushed_walks`): per direction ``survived_ns`` (the bound)
+    and ``fell_ns`` (the smallest that fell, None if none did), with every trial."""
+    feedback, n_trials = case
+    directions = list(PUSH_DIRECTIONS)
+
+    def choose(earlier):
+        direction = directions[len(earlier) // n_trials]
+        own = earlier[len(earlier) - len(earlier) % n_trials :]  # this direction's trials
+        return _bisection(direction, own)[3] * np.array(PUSH_DIRECTIONS[direction])
+
+    outcomes = pushed_walks(feedback, n_trials * len(directions), choose)
+    results = []
+    for d, direction in enumerate(directions):
+        low, fell, trials, _ = _bisection(direction, outcomes[d * n_trials : (d + 1) * n_trials])
+        results.append({"survived_ns": low, "fell_ns": fell, "trials": trials})
+    return results
 
 
 def _bisection(direction: str, outcomes: list) -> tuple:
@@ -121,7 +129,8 @@ def push_recovery(quick: bool, runner=None) -> dict:
     """The push-recovery bounds with and without the feedback (module docstring)."""
     if quick:
         n = len(QUICK_PUSHES)
-        survived = pushed_walks("lateral", True, n, lambda earlier: QUICK_PUSHES[len(earlier)])
+        lateral = np.array(PUSH_DIRECTIONS["lateral"])
+        survived = pushed_walks(True, n, lambda earlier: QUICK_PUSHES[len(earlier)] * lateral)
         bound = max((i for i, ok in zip(QUICK_PUSHES, survived) if ok), default=0.0)
         return {
             "lateral_ns": bound, "forward_ns": None, "backward_ns": None,
@@ -130,10 +139,14 @@ def push_recovery(quick: bool, runner=None) -> dict:
             "quick": True,
         }  # fmt: skip
     n = PUSH_TRIALS["full"]
-    cases = [(d, feedback, n) for feedback in (True, False) for d in PUSH_DIRECTIONS]
-    results = map_runs(push_bisection, cases, runner, label="walk push bisection")
+    feedbacks = (True, False)
+    per_feedback = map_runs(
+        push_bisections, [(f, n) for f in feedbacks], runner, label="walk push bisection"
+    )
+    cases = [(d, feedback) for feedback in feedbacks for d in PUSH_DIRECTIONS]
+    results = [result for results in per_feedback for result in results]
     out = {"without_feedback": {}, "trials": {}}
-    for (direction, feedback, _), result in zip(cases, results):
+    for (direction, feedback), result in zip(cases, results):
         target = out if feedback else out["without_feedback"]
         target[f"{direction}_ns"] = result["survived_ns"]
         out["trials"][f"{direction}{'' if feedback else '_without_feedback'}"] = result["trials"]

@@ -28,6 +28,7 @@ from dmpopt_robots.plants import talos_realistic
 from dmpopt.parallel import Runner, map_runs
 
 from . import talos_walk as walk
+from .branching import Branch
 
 PUSH_STEP, PUSH_DELAY = 1, 0.18  # the step and the time after its lift-off [s] of a push
 SETTLE_TIME = 1.0  # [s] after the (re-timed) plan's end, standing
@@ -43,18 +44,34 @@ EDGE = 0.36  # [m] the platform's (step down), the box's (step up) or the slope'
 SLOPE = 0.035  # [rad] (2 degrees) the slope, ascending along x
 
 
-def push_trial(case) -> bool:
-    """One pushed walk: ``case = (direction, impulse [N s], feedback)``; True if it survived."""
-    direction, impulse, feedback = case
+def pushed_walks(feedback: bool, n_trials: int, choose) -> list[bool]:
+    """``n_trials`` pushed walks (with or without the ``feedback``), the impulse [N s, a
+    world-frame vector] of each ``choose(earlier)``, from whether the trials before it
+    survived (a list of bools); whether each survived. The walks are the same up to the
+    push: it is simulated once and continued once per trial from there
+    (:class:`dmpopt_studies.branching.Branch`: the same bits as a trial walked from the
+    start)."""
     robot, q0 = walk._robot_and_start()
     plan, swing_dmps = walk.build_plan(robot, q0, quick=True)
     plant = talos_realistic(robot)
     walker = walk.Walker(robot, q0, plan, swing_dmps, plant, feedback=feedback)
-    push = (PUSH_STEP, PUSH_DELAY, impulse * np.array(PUSH_DIRECTIONS[direction]))
-    log, _, _ = walk.simulate(
-        robot, q0, walker, walk_duration(plan), 0, plant, push=push, feet=False
-    )
-    return not (log.fell or log.diverged) and stands_still(log.times, log.com)
+    branch = Branch(n_trials)
+
+    def impulse():  # at the push: arm k >= 1 is trial k (the children run first), arm 0 the last
+        trial = branch.arm() or n_trials
+        return choose([branch.children[k] for k in range(1, trial)])
+
+    push = (PUSH_STEP, PUSH_DELAY, impulse)
+    try:
+        log, _, _ = walk.simulate(
+            robot, q0, walker, walk_duration(plan), 0, plant, push=push, feet=False
+        )
+        survived = not (log.fell or log.diverged) and stands_still(log.times, log.com)
+    except BaseException:
+        branch.abandon()  # a trial's process ends here
+        raise
+    outcomes = branch.logs(survived)
+    return outcomes[1:] + outcomes[:1]
 
 
 def walk_duration(plan) -> float:
@@ -71,29 +88,49 @@ def stands_still(times, com) -> bool:
     return bool(moved < STILL_SPEED * (times[-1] - times[last]))
 
 
-def push_bisection(case) -> dict:
-    """Largest survived impulse of ``case = (direction, feedback, n_trials)`` by bisection on
-    ``[0, PUSH_RANGE]``: ``survived_ns`` (the bound) and ``fell_ns`` (the smallest that fell,
-    None if none did), with every trial."""
-    direction, feedback, n_trials = case
+def push_bisections(case) -> list[dict]:
+    """Largest survived impulse in each of ``PUSH_DIRECTIONS`` for ``case = (feedback,
+    n_trials)`` by bisection on ``[0, PUSH_RANGE]`` (``n_trials`` each, the directions one
+    after the other in one :func:`pushed_walks`): per direction ``survived_ns`` (the bound)
+    and ``fell_ns`` (the smallest that fell, None if none did), with every trial."""
+    feedback, n_trials = case
+    directions = list(PUSH_DIRECTIONS)
+
+    def choose(earlier):
+        direction = directions[len(earlier) // n_trials]
+        own = earlier[len(earlier) - len(earlier) % n_trials :]  # this direction's trials
+        return _bisection(direction, own)[3] * np.array(PUSH_DIRECTIONS[direction])
+
+    outcomes = pushed_walks(feedback, n_trials * len(directions), choose)
+    results = []
+    for d, direction in enumerate(directions):
+        low, fell, trials, _ = _bisection(direction, outcomes[d * n_trials : (d + 1) * n_trials])
+        results.append({"survived_ns": low, "fell_ns": fell, "trials": trials})
+    return results
+
+
+def _bisection(direction: str, outcomes: list) -> tuple:
+    """The bisection on ``[0, PUSH_RANGE]`` after trials with these ``outcomes`` (survived
+    or not): the largest survived impulse, the smallest that fell (or None), the trials
+    ``(impulse, survived)`` and the next impulse to try [N s]."""
     low, high, fell, trials = 0.0, PUSH_RANGE[direction], None, []
     impulse = high / 2
-    for _ in range(n_trials):
-        survived = push_trial((direction, impulse, feedback))
+    for survived in outcomes:
         trials.append((impulse, survived))
         if survived:
             low = impulse
         else:
             high = fell = impulse
         impulse = 0.5 * (low + high)
-    return {"survived_ns": low, "fell_ns": fell, "trials": trials}
+    return low, fell, trials, impulse
 
 
 def push_recovery(quick: bool, runner=None) -> dict:
     """The push-recovery bounds with and without the feedback (module docstring)."""
     if quick:
-        cases = [("lateral", impulse, True) for impulse in QUICK_PUSHES]
-        survived = map_runs(push_trial, cases, runner, label="walk pushes")
+        n = len(QUICK_PUSHES)
+        lateral = np.array(PUSH_DIRECTIONS["lateral"])
+        survived = pushed_walks(True, n, lambda earlier: QUICK_PUSHES[len(earlier)] * lateral)
         bound = max((i for i, ok in zip(QUICK_PUSHES, survived) if ok), default=0.0)
         return {
             "lateral_ns": bound, "forward_ns": None, "backward_ns": None,
@@ -102,10 +139,14 @@ def push_recovery(quick: bool, runner=None) -> dict:
             "quick": True,
         }  # fmt: skip
     n = PUSH_TRIALS["full"]
-    cases = [(d, feedback, n) for feedback in (True, False) for d in PUSH_DIRECTIONS]
-    results = map_runs(push_bisection, cases, runner, label="walk push bisection")
+    feedbacks = (True, False)
+    per_feedback = map_runs(
+        push_bisections, [(f, n) for f in feedbacks], runner, label="walk push bisection"
+    )
+    cases = [(d, feedback) for feedback in feedbacks for d in PUSH_DIRECTIONS]
+    results = [result for results in per_feedback for result in results]
     out = {"without_feedback": {}, "trials": {}}
-    for (direction, feedback, _), result in zip(cases, results):
+    for (direction, feedback), result in zip(cases, results):
         target = out if feedback else out["without_feedback"]
         target[f"{direction}_ns"] = result["survived_ns"]
         out["trials"][f"{direction}{'' if feedback else '_without_feedback'}"] = result["trials"]

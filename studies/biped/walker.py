@@ -19,10 +19,7 @@ The boom keeps the robot in the sagittal plane (the planar base); its pitch spri
 
 from __future__ import annotations
 
-import copy
 import math
-import os
-import pickle
 import time
 from dataclasses import dataclass, field
 from functools import reduce
@@ -38,6 +35,8 @@ from dmpopt.frequency_adaptation import FrequencyAdaptation, HeelStrikeDetector
 from dmpopt.sim import IDEAL, GroundContact, Simulator
 from dmpopt.validation import real
 
+from ..branching import Branch as _Branch
+from ..branching import BranchFailed
 from ..common import TIME_BUDGET
 from .gait import limit_cycle_start
 
@@ -499,84 +498,6 @@ def walk(
     log.distance = float(sim.q[0] - q[0])
     log.frequencies = adaptation.frequencies
     return log if len(arms) == 1 else branch.logs(log)
-
-
-class BranchFailed(RuntimeError):
-    """The arms of a walk could not part (no process forked) or an arm's process ended
-    without its log."""
-
-
-class _Branch:
-    """Where the arms of :func:`walk` part: at the first heel strike at or after the
-    warm-up, the walk's process forks one child per further arm (one at a time, each run to
-    its end before the next starts, so that a walk uses one core), and goes on with the first.
-
-    A child is a copy of the whole walk (simulator, controller, DMP stepper, adaptation, log)
-    at that tick, so it continues exactly as a walk with its arm's switches from the start
-    would: the same bits (the walks are deterministic, see :mod:`dmpopt.control.qp_stages`).
-    It hands its log back through a pipe and ends (``os._exit``). A child's CPU time is its
-    own (a forked process starts its count at 0) plus an equal share of the walk's before the
-    branch, as is the parent's.
-    """
-
-    def __init__(self, n_arms: int):
-        self.n_arms = n_arms
-        self.index = None  # the arm this process walks, once parted
-        self.pipe = None  # a child's write end
-        self.forked_cpu = None  # process CPU time at the branch [s]
-        self.children = {}  # arm -> log (parent)
-
-    def arm(self) -> int:
-        """The arm this process walks; forks the children on the first call."""
-        if self.index is None:
-            self.index, self.forked_cpu = 0, time.process_time()
-            for index in range(1, self.n_arms):
-                read, write = os.pipe()
-                try:
-                    pid = os.fork()
-                except OSError as error:
-                    os.close(read), os.close(write)
-                    raise BranchFailed(f"could not fork the walk of arm {index}: {error}") from None
-                if pid == 0:  # the child: walks arm ``index`` to its end
-                    os.close(read)
-                    self.index, self.pipe, self.children = index, write, {}
-                    break
-                os.close(write)
-                with os.fdopen(read, "rb") as pipe:
-                    data = pipe.read()
-                _, status = os.waitpid(pid, 0)
-                if status != 0 or not data:
-                    raise BranchFailed(f"the walk of arm {index} ended without a log")
-                self.children[index] = pickle.loads(data)
-        return self.index
-
-    def cpu_time(self, cpu_start: float) -> float:
-        """This process's CPU time in the walk [s]: its own continuation and its share of the
-        walk before the branch (the whole walk if it did not part)."""
-        end = time.process_time()
-        if self.forked_cpu is None:
-            return end - cpu_start
-        shared = (self.forked_cpu - cpu_start) / self.n_arms
-        return shared + (end if self.pipe is not None else end - self.forked_cpu)
-
-    def logs(self, log: WalkLog) -> list:
-        """Every arm's log, in the order of the arms (a child sends its log and ends)."""
-        if self.pipe is not None:
-            try:
-                data = pickle.dumps(log, protocol=pickle.HIGHEST_PROTOCOL)
-                with os.fdopen(self.pipe, "wb") as pipe:
-                    pipe.write(data)
-            finally:
-                os._exit(0)  # the child must not return into its parent's code
-        if self.index is None:  # ended (or fell) before the branch: the arms walked alike
-            log.cpu_time /= self.n_arms
-            return [log] + [copy.deepcopy(log) for _ in range(1, self.n_arms)]
-        return [log] + [self.children[index] for index in range(1, self.n_arms)]
-
-    def abandon(self) -> None:
-        """End a child's process without a log (its parent reports the arm's failure)."""
-        if self.pipe is not None:
-            os._exit(1)
 
 
 IMPACT_WINDOW = 0.05  # [s] after a heel strike in which its peak vertical force is taken

@@ -404,12 +404,13 @@ def test_arm_without_resetting_never_resets_the_oscillator(biped, gait, monkeypa
 
 def test_a_walk_that_cannot_part_its_arms_fails_instead_of_falling(biped, gait, monkeypatch):
     """A fork refused by the system is an error of the run, never a fall of the walker."""
+    from dmpopt_studies import branching
     from dmpopt_studies.biped import walker
 
     def refused():
         raise OSError("Resource temporarily unavailable")
 
-    monkeypatch.setattr(walker.os, "fork", refused)
+    monkeypatch.setattr(branching.os, "fork", refused)
     qp = {"controller": "qp", "boom_pitch_stiffness": 0.0, "boom_pitch_damping": 0.0}
     with pytest.raises(walker.BranchFailed, match="could not fork the walk of arm 1"):
         walker.walk(

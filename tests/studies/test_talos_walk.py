@@ -148,3 +148,32 @@ def test_a_push_trial_counts_only_a_robot_standing_still_at_the_end():
     com[:, 1] = np.where(times > 0.9, 0.5, 0.0)  # a jump of 0.5 m sideways in the window
     assert recovery.stands_still(times, com) is False
     assert recovery.STILL_WINDOW == 0.2 and recovery.STILL_SPEED == 0.05
+
+
+@pytest.mark.slow
+def test_a_forked_push_trial_is_the_walk_pushed_from_the_start():
+    """The push trials walk once up to the push and fork one continuation per impulse
+    (dmpopt_studies.branching): the trial that continues in the parent gives the same bits
+    (CoM, DCM and the plan's references at every tick) as the same push walked from the
+    start; the other trial, pushed half as hard, does not."""
+    from dmpopt_robots.plants import talos_realistic
+    from dmpopt_studies import talos_walk_recovery as recovery
+    from dmpopt_studies.branching import Branch
+
+    lateral = np.array(recovery.PUSH_DIRECTIONS["lateral"])
+
+    def pushed(impulse):
+        robot, q0 = talos_walk._robot_and_start()
+        plan, swing_dmps = talos_walk.build_plan(robot, q0, quick=True)
+        plant = talos_realistic(robot)
+        walker = talos_walk.Walker(robot, q0, plan, swing_dmps, plant)
+        push = (recovery.PUSH_STEP, recovery.PUSH_DELAY, impulse)
+        duration = recovery.walk_duration(plan)
+        return talos_walk.simulate(robot, q0, walker, duration, 0, plant, push, feet=False)[0]
+
+    alone = pushed(40.0 * lateral)
+    branch = Branch(2)
+    forked = branch.logs(pushed(lambda: (40.0, 20.0)[branch.arm()] * lateral))
+    for name in ("com", "dcm", "reference_com", "reference_dcm"):
+        np.testing.assert_array_equal(getattr(forked[0], name), getattr(alone, name))
+    assert not np.array_equal(forked[1].com, alone.com)

@@ -22,12 +22,15 @@ settings.load_profile("mutation")
 
 
 def clear_caches() -> None:
-    """Empty the memoised functions of every loaded dmpopt module."""
+    """Empty the memoised functions and recalled answers of every loaded dmpopt module."""
+    recall = sys.modules.get("dmpopt.fitting._recall")
     for name, module in list(sys.modules.items()):
         if name == "dmpopt" or name.startswith("dmpopt."):
             for value in list(vars(module).values()):
                 if isinstance(value, functools._lru_cache_wrapper):
                     value.cache_clear()
+                elif recall is not None and isinstance(value, recall.Recall):
+                    value.clear()
 
 
 def pytest_sessionstart(session):

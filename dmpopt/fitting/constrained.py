@@ -49,6 +49,7 @@ from ..dmp import DiscreteDMP, goal_transform
 from ..exceptions import FittingFailed, InvalidInputError, ResourceLimitError
 from ..trajectory import Trajectory
 from ..validation import check_resources, integer, real, real_array, sequence_of
+from ._recall import Recall, exact
 from .diagnosis import diagnose_infeasibility, infeasibility_error
 from .groups import ConstraintGroup, end_groups, limit_groups, sample, via_point_groups
 from .imitation import _check_demo, fit_discrete
@@ -289,28 +290,16 @@ def _objective(dmp, plan, target, objective, regularization, length):
         matrix = dmp.phase_features(n_steps, plan.times[1] - plan.times[0])
         prior = dmp.forcing_weights()
         targets = matrix @ prior.T
-    numbers = np.array([regularization, length, dmp.n_basis], dtype=float).tobytes()
-    key = (numbers, _exact(matrix), _exact(targets), _exact(prior))
-    if key not in _OBJECTIVES:
-        if len(_OBJECTIVES) >= _OBJECTIVES_SIZE:
-            del _OBJECTIVES[next(iter(_OBJECTIVES))]  # the oldest
-        parts = _normal_equations(matrix, targets, prior, regularization, length, dmp.n_basis)
-        for part in parts:  # shared, not copied: a copy may change the memory layout
-            part.flags.writeable = False
-        _OBJECTIVES[key] = parts
-    return _OBJECTIVES[key]
+    key = exact(np.array([regularization, length, dmp.n_basis]), matrix, targets, prior)
+    return _OBJECTIVES(
+        key,
+        lambda: _normal_equations(matrix, targets, prior, regularization, length, dmp.n_basis),
+    )
 
 
-_OBJECTIVES: dict = {}
-_OBJECTIVES_SIZE = 4
-"""Objectives :func:`_objective` keeps: fits of one demonstration to the same request under
-other constraints (bounds, end conditions) share theirs."""
-
-
-def _exact(array: np.ndarray) -> tuple:
-    """Value and memory layout of ``array`` (the products' summation order follows the
-    layout), as part of a cache key."""
-    return (array.dtype.str, array.shape, array.strides, array.flags.aligned, array.tobytes())
+_OBJECTIVES = Recall(4)
+"""Objectives of the last exact inputs of :func:`_objective`: fits of one demonstration to the
+same request under other constraints (bounds, end conditions) share theirs."""
 
 
 def _normal_equations(matrix, targets, prior, regularization, length, n_basis):

@@ -23,6 +23,7 @@ from ..dmp import DiscreteDMP, RhythmicDMP, goal_transform
 from ..exceptions import FittingFailed, InvalidInputError, ShapeError
 from ..trajectory import Trajectory
 from ..validation import check_resources, flag, integer, real
+from ._recall import Recall, exact
 
 METHODS = ("position", "least_squares", "lwr")
 GOAL_SCALINGS = ("auto", "paper", "rotation", "translation")
@@ -258,7 +259,8 @@ def unforced_states(dmp: DiscreteDMP, demo: Trajectory) -> np.ndarray:
     Integrated (:func:`dmpopt.symbolic.simulate`) from the demo's first position and velocity.
     With zero weights the forcing term is exactly zero, so the states do not depend on the
     basis: they are integrated with a single basis function, whose steps cost a fraction of
-    those of many (the same numbers, bit for bit).
+    those of many (the same numbers, bit for bit). The array is read-only: fits of the same
+    demo and system share it (copy it to change it).
     """
     single = dmp.replace(
         weights=np.zeros((dmp.n_dofs, 1)), centres=dmp.centres[:1], widths=dmp.widths[:1]
@@ -266,8 +268,8 @@ def unforced_states(dmp: DiscreteDMP, demo: Trajectory) -> np.ndarray:
     initial = single.initial_state(demo.positions[0], demo.velocities[0], (0.0, 0.0))
     dt = demo.duration / (demo.n_steps - 1)
     parameters = single.parameters()
-    key = ("states", single.signature, demo.n_steps, dt, _bytes(initial, *parameters.values()))
-    return _recalled(
+    key = ("states", single.signature, demo.n_steps, dt, exact(initial, *parameters.values()))
+    return _RECALLED(
         key, lambda: symbolic.simulate(single.signature, demo.n_steps, initial, dt, parameters)[0]
     )
 
@@ -280,16 +282,17 @@ def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> n
     demonstration. Acceleration form (16): the goal filter :math:`r(t)` comes from ``states``
     (the unforced system integrated from the demonstrated start). Velocity form (15): the
     state :math:`z` comes from :math:`\tau \dot z = \alpha_z(\beta_z(g - y) - z)` integrated
-    along the demonstration (:func:`_filtered`).
+    along the demonstration (:func:`_filtered`). The array is read-only: fits of the same
+    inputs share it (copy it to change it).
     """
     on_velocity = dmp.equations.forcing_on_velocity
     key = (
         "targets",
         dmp.signature,
         dmp.tau,
-        _bytes(dmp.parameters()["goal"], dmp.gains, demo.times, demo.positions),
-        _bytes(demo.velocities, demo.accelerations),
-        None if on_velocity else _bytes(states[:, 2 + dmp.n_dofs :]),
+        exact(dmp.parameters()["goal"], dmp.gains, demo.times, demo.positions),
+        exact(demo.velocities, demo.accelerations),
+        None if on_velocity else exact(states[:, 2 + dmp.n_dofs :]),
     )
 
     def compute():
@@ -299,35 +302,12 @@ def forcing_targets(dmp: DiscreteDMP, demo: Trajectory, states: np.ndarray) -> n
             transformation = np.hstack([demo.positions, states[:, 2 + dmp.n_dofs :]])
         return _solved_targets(dmp, demo, transformation)
 
-    return _recalled(key, compute)
+    return _RECALLED(key, compute)
 
 
-_RECALLED: dict = {}
-_RECALLED_SIZE = 8
-"""Entries :func:`_recalled` keeps: the fits of one demonstration (several methods and basis
-counts) share the states and targets of their few distinct systems."""
-
-
-def _bytes(*arrays) -> tuple:
-    """Exact values of ``arrays`` (shape and float64 bytes), as part of a cache key."""
-    values = [np.asarray(a, dtype=float) for a in arrays]
-    return tuple((v.shape, np.ascontiguousarray(v).tobytes()) for v in values)
-
-
-def _recalled(key, compute) -> np.ndarray:
-    """``compute()``, or the answer it gave for the same ``key`` (the exact inputs) among the
-    last :data:`_RECALLED_SIZE`: the same numbers without evaluating again.
-
-    The answer itself, read-only, not a copy: its memory layout is kept, and with it the
-    order in which later products sum over it (``einsum``, ``@``).
-    """
-    if key not in _RECALLED:
-        if len(_RECALLED) >= _RECALLED_SIZE:
-            del _RECALLED[next(iter(_RECALLED))]  # the oldest
-        answer = compute()
-        answer.flags.writeable = False
-        _RECALLED[key] = answer
-    return _RECALLED[key]
+_RECALLED = Recall(8)
+"""The unforced states and forcing targets of the last exact inputs: the fits of one
+demonstration (several methods and basis counts) share those of their few distinct systems."""
 
 
 def _solved_targets(dmp, demo: Trajectory, transformation: np.ndarray) -> np.ndarray:

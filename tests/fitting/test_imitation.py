@@ -554,3 +554,28 @@ def test_recalled_states_and_targets_give_the_fresh_fit(form):
     states = imitation.unforced_states(recalled[1], second)
     with pytest.raises(ValueError, match="read-only"):
         states[0, 0] = 1.0  # shared, so no caller may change it
+
+
+def test_recall_keeps_the_last_answers_read_only_and_tells_layouts_apart():
+    """Recall: the answer of a key already seen without computing again, at most ``size``
+    answers (the oldest forgotten), read-only; keys tell apart equal values in other memory
+    layouts (a product's summation order follows the layout)."""
+    from dmpopt.fitting._recall import Recall, exact
+
+    calls = []
+
+    def compute(value):
+        calls.append(value)
+        return np.full(2, float(value))
+
+    recall = Recall(2)
+    for value in (1, 2, 1, 3, 1):  # the fourth forgets 1 (the oldest), the fifth recomputes it
+        answer = recall(value, lambda: compute(value))
+        assert answer[0] == value
+    assert calls == [1, 2, 3, 1]
+    with pytest.raises(ValueError, match="read-only"):
+        answer[0] = 0.0
+    matrix = np.arange(6.0).reshape(2, 3)
+    assert exact(matrix) == exact(matrix.copy())
+    assert exact(matrix) != exact(np.asfortranarray(matrix))  # same values, other layout
+    assert exact(matrix) != exact(matrix + 1e-16 * matrix.max())

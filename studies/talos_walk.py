@@ -746,12 +746,7 @@ def _sweep_case(case) -> dict:
     plan, swing_dmps = build_plan(robot, q0, quick=True)
     walker = Walker(with_scaled_masses(robot, mass), q0, plan, swing_dmps, talos_realistic(robot))
     log, _, _ = simulate(robot, q0, walker, plan.duration, 0, plant, loads=False)
-    landed, _ = _footholds(log, walker.plan, robot, walker.records)
-    # walk_metrics' steps_taken, steps_planned and fell (the feet's loads are not needed)
-    return {
-        "steps_taken": int(landed), "steps_planned": len(walker.plan.footsteps),
-        "fell": bool(log.fell),
-    }  # fmt: skip
+    return _step_counts(log, walker, robot)
 
 
 def build_plan(robot, q0, quick: bool, step_length: float = STEP_LENGTH):
@@ -816,6 +811,19 @@ def _footholds(log: WalkLog, plan, robot, records) -> tuple[int, list]:
         foothold_errors.append(error)
         landed += error < 0.05
     return landed, foothold_errors
+
+
+def _step_counts(log: WalkLog, walker, robot, errors: bool = False) -> dict:
+    """:func:`walk_metrics`' ``steps_taken``, ``steps_planned`` and ``fell`` (and, with
+    ``errors``, ``foothold_error_max_mm``) of a walk logged without the feet's loads."""
+    landed, distances = _footholds(log, walker.plan, robot, walker.records)
+    counts = {
+        "steps_taken": int(landed), "steps_planned": len(walker.plan.footsteps),
+        "fell": bool(log.fell),
+    }  # fmt: skip
+    if errors:
+        counts["foothold_error_max_mm"] = 1e3 * float(max(distances, default=np.nan))
+    return counts
 
 
 def walk_metrics(log: WalkLog, plan, robot, wall: float, records=None) -> dict:
@@ -1017,12 +1025,7 @@ def run_walk(out_dir, quick: bool = False, runner=None) -> dict:
     metrics["plant_realistic"] = {k: metrics[k] for k in ("steps_taken", "steps_planned", "fell")}
     ideal_walker = Walker(robot, q0, plan, swing_dmps)
     ideal_log, _, _ = simulate(robot, q0, ideal_walker, plan.duration, loads=False)
-    landed, errors = _footholds(ideal_log, ideal_walker.plan, robot, ideal_walker.records)
-    metrics["plant_ideal"] = {  # as walk_metrics has them (the feet's loads not needed)
-        "steps_taken": int(landed), "steps_planned": len(ideal_walker.plan.footsteps),
-        "fell": bool(ideal_log.fell),
-        "foothold_error_max_mm": 1e3 * float(max(errors, default=np.nan)),
-    }  # fmt: skip
+    metrics["plant_ideal"] = _step_counts(ideal_log, ideal_walker, robot, errors=True)
     metrics["plant_sweep"] = walk_sweep(quick, runner)
     from .talos_walk_recovery import push_recovery, uneven_ground
 

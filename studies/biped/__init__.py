@@ -64,7 +64,6 @@ Run: ``python -m dmpopt_studies.biped OUT_DIR [--quick]``.
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +73,7 @@ from dmpopt_robots.plants import biped_realistic
 
 from dmpopt.parallel import Runner, map_runs
 
-from ..common import Progress, write_metrics
+from ..common import Progress, cpu_seconds, write_metrics
 from ..plant_sweep import collect, plot_sweep, sweep_cases
 from . import fig7, plots
 from .analysis import (
@@ -186,17 +185,6 @@ def swing_leg_frequencies(biped, dmp, frequency: float) -> dict:
     straight = biped_model.swing_leg_natural_frequency(biped, 0.0)
     frequencies["passive_knee_locked_straight"] = straight
     return frequencies
-
-
-def _cpu_seconds() -> float:
-    """CPU seconds of this process and of its ended children (the arms a walk forks,
-    :func:`walk`)."""
-    import resource
-
-    return time.process_time() + sum(
-        getattr(resource.getrusage(resource.RUSAGE_CHILDREN), name)
-        for name in ("ru_utime", "ru_stime")
-    )
 
 
 def _summary(log: WalkLog, mass: float) -> dict:
@@ -418,7 +406,7 @@ def run(
     from dmpopt_studies.humanoid import VIDEO_FPS, check_backend, write_videos
 
     backend = check_backend(backend)
-    cpu_start = _cpu_seconds()
+    cpu_start = cpu_seconds()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = Progress("biped")
@@ -637,7 +625,7 @@ def run(
         "walks": len(logs),
     }
     cpu["walks_total"] = sum(cpu.values())
-    cpu["study_process"] = _cpu_seconds() - cpu_start
+    cpu["study_process"] = cpu_seconds() - cpu_start
     metrics["cpu_seconds"] = {
         **{k: round(v, 1) for k, v in cpu.items()},
         "note": (

@@ -85,8 +85,12 @@ def main():
             noise = rng.standard_normal((k, t.n_actions, t.n_dofs))
             seconds = _per_call(lambda: t.returns(weights, noise))
             print(f"{name}: {k} noisy roll-outs + returns: {1e3 * seconds:.3f} ms")
+            seconds = _per_call(lambda: t.returns(weights))
+            print(f"{name}: {k} noise-free plans + returns (PI-BB, CMA-ES): {1e3 * seconds:.3f} ms")
     loop_stages(task, "1 DOF", 20)
     loop_stages(six, "6 DOF", 62)
+    cma_split(task, "1 DOF", 10)
+    cma_split(six, "6 DOF", 16)
     for t, label in ((task, "1 DOF"), (six, "6 DOF")):
         for name, options in OPTIONS.items():
             n_rollouts = max(20, t.n_dofs * t.n_basis + 2) if name in ("enac", "ereinforce") else 20
@@ -97,6 +101,26 @@ def main():
                 f"{label} {name}: one update of {n_rollouts} roll-outs: ask/evaluate/tell in "
                 f"Python {1e3 * rounds:.3f} ms, learn() {1e3 * learned:.3f} ms"
             )
+
+
+def cma_split(task, label: str, n_rollouts: int) -> None:
+    """Thread CPU of one CMA-ES update: ``cma``'s ask and tell, and the rewards between them."""
+    method = make_method("cmaes", task, seed=0, n_rollouts=n_rollouts, exploration_std=20.0)
+    method.learn(task, 5)
+    spent = {"ask": 0.0, "rewards": 0.0, "tell": 0.0}
+    n_updates = 100
+    for _ in range(n_updates):
+        start = time.thread_time()
+        exploration = method.ask()
+        asked = time.thread_time()
+        rewards = task.evaluate(exploration)
+        evaluated = time.thread_time()
+        method.tell(rewards)
+        spent["ask"] += asked - start
+        spent["rewards"] += evaluated - asked
+        spent["tell"] += time.thread_time() - evaluated
+    times = ", ".join(f"{name} {1e6 * value / n_updates:.0f}" for name, value in spent.items())
+    print(f"{label} cmaes, {n_rollouts} roll-outs, one update [us]: {times}")
 
 
 if __name__ == "__main__":

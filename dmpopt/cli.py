@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import inspect
-import multiprocessing
 import os
 import sys
 import tempfile
@@ -270,13 +269,16 @@ def _tail(log: Path, lines: int = 5) -> str:
 
 def _run_side_by_side(studies, names, out, quick, seed, workers) -> tuple[int, int]:
     """Run ``names`` at most ``workers`` at a time, each in a process of its own (in series
-    inside it), the longest (by its ``EXPECTED_SECONDS``) first.
+    inside it), the longest (by its ``EXPECTED_SECONDS``) first. The processes start from
+    one that imported the study modules once (:func:`~dmpopt.parallel.process_context`).
 
     After a failure or Ctrl-C no new study starts; those running end as they would alone
     (their own Ctrl-C handling, or to completion). Returns (exit code, studies done)."""
     from multiprocessing.connection import wait
 
-    context = multiprocessing.get_context("spawn")
+    from .parallel import process_context
+
+    context = process_context([studies[name].__name__ for name in names])
     logs = out / "logs"
     logs.mkdir(exist_ok=True)
     waiting = sorted(names, key=lambda name: -_seconds(studies[name], quick))

@@ -938,12 +938,22 @@ def compiled(function: ca.Function) -> ca.Function:
         requested = os.environ.get("CC")
         missing = f"$CC={requested!r} was not found" if requested else "no cc or gcc on PATH"
         return _uncompiled(function, f"{missing} (install gcc, or set CC to a C compiler)")
+    return _compiled(function, tuple(command), cache_dir())
+
+
+@lru_cache(maxsize=64)
+def _compiled(function: ca.Function, command: tuple, folder: Path) -> ca.Function:
+    """:func:`compiled` with ``command`` and the cache ``folder``, kept per function object,
+    compiler and folder: generating the code that names the library costs ~45 ms, which a
+    process pays once per step function (:func:`step_function` keeps one per signature)
+    instead of once per stepper (the biped study makes one per walk)."""
+    command = list(command)
     with tempfile.TemporaryDirectory() as scratch:
         generator = ca.CodeGenerator("dmp_function.c", {"with_header": False})
         generator.add(function)
         source = Path(generator.generate(scratch + os.sep))
         key = source.read_bytes() + " ".join([*command, platform.machine()]).encode()
-        library = cache_dir() / f"{function.name()}_{hashlib.sha1(key).hexdigest()[:16]}.so"
+        library = folder / f"{function.name()}_{hashlib.sha1(key).hexdigest()[:16]}.so"
         if not library.exists():
             try:
                 _build(command, source, library)

@@ -661,6 +661,14 @@ def test_compiled_step_is_cached_by_content(monkeypatch, tmp_path, small_dmp):
     mtime = libraries[0].stat().st_mtime_ns
     np.testing.assert_array_equal(steps(small_dmp, True), first)
     assert list(tmp_path.iterdir()) == libraries and libraries[0].stat().st_mtime_ns == mtime
+    # within a process the library found is kept per function, compiler and cache folder
+    step = symbolic.step_function(small_dmp.signature)
+    assert symbolic.compiled(step) is symbolic.compiled(step)
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path / "other"))
+    elsewhere = symbolic.compiled(step)
+    assert len(list((tmp_path / "other").glob("*.so"))) == 1  # built there too
+    np.testing.assert_array_equal(steps(small_dmp, True), first)
+    assert symbolic.compiled(step) is elsewhere
 
 
 @pytest.fixture(scope="module")

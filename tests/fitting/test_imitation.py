@@ -558,8 +558,8 @@ def test_recalled_states_and_targets_give_the_fresh_fit(form):
 
 def test_recall_keeps_the_last_answers_read_only_and_tells_layouts_apart():
     """Recall: the answer of a key already seen without computing again, at most ``size``
-    answers (the oldest forgotten), read-only; keys tell apart equal values in other memory
-    layouts (a product's summation order follows the layout)."""
+    answers (the one asked for longest ago forgotten), read-only; keys tell apart equal values
+    in other memory layouts (a product's summation order follows the layout)."""
     from dmpopt.fitting._recall import Recall, exact
 
     calls = []
@@ -569,10 +569,10 @@ def test_recall_keeps_the_last_answers_read_only_and_tells_layouts_apart():
         return np.full(2, float(value))
 
     recall = Recall(2)
-    for value in (1, 2, 1, 3, 1):  # the fourth forgets 1 (the oldest), the fifth recomputes it
+    for value in (1, 2, 1, 3, 1, 2):  # 3 forgets 2 (1 was asked for since), 2 forgets 3
         answer = recall(value, lambda: compute(value))
         assert answer[0] == value
-    assert calls == [1, 2, 3, 1]
+    assert calls == [1, 2, 3, 2]
     with pytest.raises(ValueError, match="read-only"):
         answer[0] = 0.0
     matrix = np.arange(6.0).reshape(2, 3)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .exceptions import InvalidInputError, ShapeError
+from .fitting._recall import Recall, exact
 from .trajectory import Trajectory, check_times
 from .validation import integer, real, real_array, sequence_of
 
@@ -64,16 +65,23 @@ def features(phases, centres, widths) -> np.ndarray:
     speed (the CasADi expression is about 100 times slower on a thousand phases); the tests
     check it against the symbolic definition differentiated by CasADi.
     """
-    z = np.atleast_1d(np.asarray(phases, dtype=float))[:, None]
-    log_psi = -widths * (z - centres) ** 2
-    psi = np.exp(log_psi - log_psi.max(axis=1, keepdims=True))
-    psi /= psi.sum(axis=1, keepdims=True)
+    z, psi = _normalised(phases, centres, widths)
     slope, curvature = -2.0 * widths * (z - centres), -2.0 * widths
     m = np.sum(psi * slope, axis=1, keepdims=True)
     first = psi * (slope - m)
     m_rate = np.sum(first * slope + psi * curvature, axis=1, keepdims=True)
     second = first * (slope - m) + psi * (curvature - m_rate)
     return np.stack([psi, first, second])
+
+
+def _normalised(phases, centres, widths) -> tuple[np.ndarray, np.ndarray]:
+    r"""The phases as a column and the normalised activations :math:`\psi_i` at them,
+    (n_phases, n_basis): :func:`features` without the derivatives."""
+    z = np.atleast_1d(np.asarray(phases, dtype=float))[:, None]
+    log_psi = -widths * (z - centres) ** 2
+    psi = np.exp(log_psi - log_psi.max(axis=1, keepdims=True))
+    psi /= psi.sum(axis=1, keepdims=True)
+    return z, psi
 
 
 @dataclass(frozen=True, eq=False)
@@ -340,13 +348,10 @@ def fit_promp(
     kappa = real("covariance_regularization", covariance_regularization, minimum=0.0)
     weights, residuals, n_samples = [], 0.0, 0
     for demo in demos:
-        phases = (demo.times - demo.times[0]) / demo.duration
-        phi = features(phases, centres, widths)[0]
-        gram = phi.T @ phi
-        lam = regularization * np.trace(gram) / n_basis
-        w = np.linalg.solve(gram + lam * np.eye(n_basis), phi.T @ demo.positions).T
-        weights.append(w.ravel())  # DOF-major
-        residuals += float(np.sum((phi @ w.T - demo.positions) ** 2))
+        key = (exact(demo.times, demo.positions), n_basis, regularization)
+        w, residual = _DEMO_FITS(key, lambda: _demo_fit(demo, centres, widths, regularization))
+        weights.append(w)
+        residuals += float(residual)
         n_samples += demo.positions.size
     weights = np.array(weights)
     mean = weights.mean(axis=0)
@@ -362,6 +367,22 @@ def fit_promp(
         duration=float(np.mean([demo.duration for demo in demos])),
         noise_variance=residuals / n_samples,
     )
+
+
+def _demo_fit(demo: Trajectory, centres, widths, regularization: float) -> tuple:
+    """One demonstration's ridge weights (DOF-major, flat) and squared residual sum."""
+    n_basis = centres.size
+    phases = (demo.times - demo.times[0]) / demo.duration
+    phi = _normalised(phases, centres, widths)[1]
+    gram = phi.T @ phi
+    lam = regularization * np.trace(gram) / n_basis
+    w = np.linalg.solve(gram + lam * np.eye(n_basis), phi.T @ demo.positions).T
+    return w.ravel(), np.array(np.sum((phi @ w.T - demo.positions) ** 2))
+
+
+_DEMO_FITS = Recall(16)
+"""Ridge fits of the last demonstrations: a leave-one-out over N demonstrations fits each of
+them once instead of N times (each fit depends on its own demonstration alone)."""
 
 
 def coactivate(promps, times, activations) -> tuple[np.ndarray, np.ndarray]:

@@ -315,8 +315,8 @@ def carry(robot, setup, coupled: bool, duration: float, record_every: int = 0, s
                 placement = pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), position)
                 task.set_target(
                     placement,
-                    np.r_[velocity, angular],
-                    np.r_[stepper.acceleration, stepper.angular_acceleration],
+                    np.concatenate((velocity, angular)),
+                    np.concatenate((stepper.acceleration, stepper.angular_acceleration)),
                 )
             plans = [pair.state(hand)[::2] for hand in ("left", "right")]
             plan_error[k] = relative_pose_error(coupling, *plans)

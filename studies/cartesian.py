@@ -152,16 +152,17 @@ def run_hand(robot, dmp, hand: str, duration: float, goal=None) -> dict:
             target = pin.SE3(rotation(stepper.orientation), stepper.position)
             task.set_target(
                 target,
-                velocity=np.r_[stepper.velocity, stepper.angular_velocity],
-                acceleration=np.r_[stepper.acceleration, stepper.angular_acceleration],
+                velocity=np.concatenate((stepper.velocity, stepper.angular_velocity)),
+                acceleration=np.concatenate((stepper.acceleration, stepper.angular_acceleration)),
             )
             begin = time.perf_counter()
             torques = controller.compute_torques(state.q_measured, state.v_measured)
             ticks[k] = time.perf_counter() - begin
             pin.framesForwardKinematics(robot.model, data, state.q)
             placement = data.oMf[frame]
-            log["plan"][k] = np.r_[stepper.position, stepper.orientation]
-            log["hand"][k] = np.r_[placement.translation, quaternion(placement.rotation)]
+            log["plan"][k, :3], log["plan"][k, 3:] = stepper.position, stepper.orientation
+            log["hand"][k, :3] = placement.translation
+            log["hand"][k, 3:] = quaternion(placement.rotation)
             state = simulator.step(torques)
             if state.fallen:
                 fell, n = True, k + 1

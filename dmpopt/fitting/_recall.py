@@ -14,7 +14,7 @@ def exact(*arrays) -> tuple:
 
 
 class Recall:
-    """The answers of the last ``size`` distinct keys (exact inputs, :func:`exact`).
+    """The answers of the ``size`` distinct keys (exact inputs, :func:`exact`) last asked for.
 
     An answer (an array or a tuple of arrays) is kept and returned itself, read-only, not a
     copy: its memory layout is kept, and with it the order in which later products sum over
@@ -28,14 +28,16 @@ class Recall:
     def __call__(self, key, compute):
         """``compute()``, or the answer it gave for ``key``."""
         answers = self._answers
-        if key not in answers:
-            if len(answers) >= self.size:
-                del answers[next(iter(answers))]  # the oldest
-            answer = compute()
-            for part in answer if isinstance(answer, tuple) else (answer,):
-                part.flags.writeable = False
-            answers[key] = answer
-        return answers[key]
+        if key in answers:
+            answers[key] = answers.pop(key)  # now the newest
+            return answers[key]
+        if len(answers) >= self.size:
+            del answers[next(iter(answers))]  # the one asked for longest ago
+        answer = compute()
+        for part in answer if isinstance(answer, tuple) else (answer,):
+            part.flags.writeable = False
+        answers[key] = answer
+        return answer
 
     def clear(self) -> None:
         """Forget every answer."""

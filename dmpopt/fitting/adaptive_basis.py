@@ -266,40 +266,46 @@ class _Demo:
         samples ``rows``, and its plan's positions at every sample (:meth:`_fitted`); the
         forcing weights are stored per unit of the goal map at the demo's start and goal, as
         :func:`dmpopt.fitting.fit_discrete` stores them."""
-        unit, forcing, positions = self._fitted(n_basis, scale, rows)
-        return unit.replace(weights=np.linalg.solve(self.zero.goal_map(), forcing)), positions
+        centres, widths, forcing, positions = self._fitted(n_basis, scale, rows)
+        weights = np.linalg.solve(self.zero.goal_map(), forcing)
+        return self._unit(centres, widths).replace(weights=weights), positions
+
+    def _unit(self, centres: np.ndarray, widths: np.ndarray) -> DiscreteDMP:
+        """The demo's DMP with these basis functions and zero weights."""
+        weights = np.zeros((self.demo.n_dofs, centres.size))
+        return self.zero.replace(weights=weights, centres=centres, widths=widths)
 
     def _fitted(self, n_basis: int, scale: float, rows):
-        """The DMP with ``n_basis`` functions, widths scaled by ``scale`` and zero weights,
+        """The centres and widths of ``n_basis`` functions with widths scaled by ``scale``,
         the forcing weights fitted to the samples ``rows`` and the plan's positions at every
         sample.
 
         The regressions are those of :func:`dmpopt.fitting.fit_discrete` (same centres, same
-        ``tau``). The validation needs only the positions: no DMP of the fitted weights is built.
+        ``tau``). The validation needs only the positions: no DMP of the fitted weights is
+        built, and the position fit none at all (each costs about as much as its solve).
         """
         demo, zero = self.demo, self.zero
         centres, widths = basis.discrete_basis(n_basis, zero.gains)
-        unit = zero.replace(
-            weights=np.zeros((demo.n_dofs, n_basis)), centres=centres, widths=scale * widths
-        )
+        widths = scale * widths
         # dt / tau rounded: demos of equal sample counts share it up to rounding errors
-        step = float(f"{self.dt / unit.tau:.12g}")
-        key = (unit.form, demo.n_steps, step, tuple(centres), tuple(unit.widths))
-        response = _position_response(*key, unit.gains)
+        step = float(f"{self.dt / zero.tau:.12g}")
+        key = (zero.form, demo.n_steps, step, tuple(centres), tuple(widths))
+        response = _position_response(*key, zero.gains)
         if self.method == "position":
             last = (response[-1], demo.positions[-1] - self.free[-1])
             residual = (demo.positions - self.free)[rows]
             forcing = _ridge(response[rows], residual, self.regularization, last).T
         elif self.method == "least_squares":
-            regressors = unit.phase_features(demo.n_steps, self.dt)
+            regressors = self._unit(centres, widths).phase_features(demo.n_steps, self.dt)
             forcing = _ridge(regressors[rows], self.targets[rows], self.regularization).T
         else:
+            unit = self._unit(centres, widths)
             forcing = _local_regression(unit, self.states[rows, :2], self.targets[rows])
-        return unit, forcing, self.free + response @ forcing.T
+        return centres, widths, forcing, self.free + response @ forcing.T
 
     def validation_error(self, n_basis: int, scale: float, train) -> float:
         """RMS position error at the held-out samples of the layout fitted to ``train``."""
-        positions = self._fitted(n_basis, scale, train)[2]
+        positions = self._fitted(n_basis, scale, train)[3]
         held_out = ~train
         distance = np.linalg.norm(positions[held_out] - self.demo.positions[held_out], axis=1)
         return float(np.sqrt(np.mean(distance**2)))

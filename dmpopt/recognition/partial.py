@@ -38,14 +38,14 @@ def _match_residuals(
     observed_norm = float((observed**2).sum())
     if template_norms is None:
         template_norms = _norms(templates)
-    cross = np.einsum("kni,nj->kij", templates, observed)  # T^T O
     if rotation:
+        cross = np.einsum("kni,nj->kij", templates, observed)  # T^T O
         u, singular, vt = np.linalg.svd(cross)
         sign = np.sign(np.linalg.det(u @ vt))
         singular[:, -1] *= sign
         correlation = singular.sum(axis=1)
-    else:
-        correlation = np.trace(cross, axis1=1, axis2=2)
+    else:  # trace(T^T O): its diagonal alone (a D-th of the products), summed as trace sums
+        correlation = np.einsum("kni,ni->ki", templates, observed).sum(axis=1)
     correlation = np.maximum(correlation, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         explained = np.where(template_norms > 0, correlation**2 / template_norms, 0.0)

@@ -213,3 +213,25 @@ def test_mean_trajectory_derivatives_are_the_time_derivatives_of_its_positions()
     np.testing.assert_allclose(
         conditioned.mean_trajectory(times).velocities[3], [0.5, -0.2], atol=1e-10
     )
+
+
+def test_recalled_demo_fits_give_the_fresh_fit():
+    """fit_promp recalls each demonstration's ridge fit: a leave-one-out over three demos
+    gives, bit for bit, the ProMPs fitted with nothing recalled, and a demo with the same
+    times but other positions is not handed another's fit (a key without the positions
+    would hand it). Answer key: the same fits after the store is cleared."""
+    from dmpopt import promp
+
+    times = np.linspace(0.0, 1.0, 50)
+    demos = [
+        Trajectory.from_positions(times, np.column_stack([np.sin(k + 3 * times), times**k]))
+        for k in range(1, 4)
+    ]
+    recalled = [fit_promp(demos[:k] + demos[k + 1 :], 5) for k in range(3)]
+    recalled.append(fit_promp(demos, 5))
+    for k, fit in enumerate(recalled):
+        promp._DEMO_FITS.clear()
+        fresh = fit_promp(demos[:k] + demos[k + 1 :], 5)
+        np.testing.assert_array_equal(fit.mean, fresh.mean)
+        np.testing.assert_array_equal(fit.covariance, fresh.covariance)
+        assert fit.noise_variance == fresh.noise_variance

@@ -106,7 +106,8 @@ def test_shrinkage_lda_on_a_hand_computed_case():
     assert ShrinkageLdaClassifier(0.1).fit(features, labels).predict(query)[0] == "B"
     assert ShrinkageLdaClassifier(1.0).fit(features, labels).predict(query)[0] == "A"
     lda = ShrinkageLdaClassifier("auto").fit(features, labels)
-    assert lda.estimator_.shrinkage == "auto" and list(lda.classes_) == ["A", "B"]
+    assert lda.estimator_.covariance_estimator.shrinkage == "auto"
+    assert list(lda.classes_) == ["A", "B"]
 
 
 def test_lda_memory_bound():
@@ -157,9 +158,10 @@ def test_float_labels_and_the_whole_plan(dmp):
 
 @pytest.mark.parametrize("shrinkage", [0.3, "auto"])
 def test_lda_without_sklearns_own_checks_is_sklearns_lda_to_the_bit(shrinkage):
-    """The shrinkage LDA skips scikit-learn's input checks (dmpopt checks the inputs): the
-    same coefficients and predictions as scikit-learn's LDA with its checks, and the
-    checks are back on afterwards.
+    """The shrinkage LDA skips scikit-learn's input checks (dmpopt checks the inputs) and
+    recalls the covariances of classes it has seen: the same coefficients and predictions as
+    scikit-learn's LDA with its checks and its own covariances, and the checks are back on
+    afterwards.
 
     Answer key: ``LinearDiscriminantAnalysis(solver="lsqr")`` called directly.
     """
@@ -170,10 +172,20 @@ def test_lda_without_sklearns_own_checks_is_sklearns_lda_to_the_bit(shrinkage):
     features = rng.standard_normal((40, 7)) + np.repeat(np.eye(4, 7) * 2.0, 10, axis=0)
     labels = np.repeat(np.arange(4), 10)
     queries = rng.standard_normal((9, 7))
-    reference = LinearDiscriminantAnalysis(solver="lsqr", shrinkage=shrinkage)
-    reference.fit(features, labels)
-    classifier = ShrinkageLdaClassifier(shrinkage).fit(features, labels)
-    np.testing.assert_array_equal(classifier.estimator_.coef_, reference.coef_)
-    np.testing.assert_array_equal(classifier.predict(queries), reference.predict(queries))
+    # a fit, the same again (its class covariances recalled), one without sample 3 (the
+    # other classes' recalled, its class's new), and with a second class changed
+    changed = features.copy()
+    changed[15] += 0.5
+    for rows, samples in (
+        (slice(None), features),
+        (slice(None), features),
+        (np.arange(40) != 3, features),
+        (slice(None), changed),
+    ):
+        reference = LinearDiscriminantAnalysis(solver="lsqr", shrinkage=shrinkage)
+        reference.fit(samples[rows], labels[rows])
+        classifier = ShrinkageLdaClassifier(shrinkage).fit(samples[rows], labels[rows])
+        np.testing.assert_array_equal(classifier.estimator_.coef_, reference.coef_)
+        np.testing.assert_array_equal(classifier.predict(queries), reference.predict(queries))
     assert sklearn.get_config()["assume_finite"] is False
     assert sklearn.get_config()["skip_parameter_validation"] is False

@@ -392,15 +392,11 @@ def _gaussian_basis(canonical: np.ndarray, dmp) -> tuple[np.ndarray, np.ndarray]
     """
     phase, velocity = canonical[:, 0], canonical[:, 1]
     centres, widths = np.asarray(dmp.centres, dtype=float), np.asarray(dmp.widths, dtype=float)
-    log_psi = phase[None, :] - centres[:, None]  # (n_basis, n_steps), in place from here on
-    np.multiply(log_psi, log_psi, out=log_psi)
-    np.multiply(-widths[:, None], log_psi, out=log_psi)
-    features = log_psi - log_psi.max(axis=0)
-    np.exp(features, out=features)
-    total = features.sum(axis=0)  # row after row (the outer axis), as CasADi sums
-    np.divide(features, total, out=features)
-    np.multiply(velocity, features, out=features)
-    return np.exp(log_psi, out=log_psi).T, features.T
+    offsets = phase[None, :] - centres[:, None]  # (n_basis, n_steps)
+    log_psi = -widths[:, None] * (offsets * offsets)
+    shifted = np.exp(log_psi - log_psi.max(axis=0))
+    total = np.cumsum(shifted, axis=0)[-1]  # in order, as CasADi sums
+    return np.exp(log_psi).T, (velocity * (shifted / total)).T
 
 
 def _features(dmp, states: np.ndarray) -> np.ndarray:

@@ -378,31 +378,8 @@ def _at_samples(function, canonical: np.ndarray, dmp) -> np.ndarray:
     return np.ascontiguousarray(values.T).T
 
 
-def _gaussian_basis(canonical: np.ndarray, dmp) -> tuple[np.ndarray, np.ndarray]:
-    r"""Activations :math:`\psi_i = \exp(-h_i (x - c_i)^2)` (eq. (7)) and features
-    :math:`\psi_i v / \sum_j \psi_j` of a discrete DMP at every sample, each (n_steps, n_basis).
-
-    NumPy over all samples at once, with the operations of :func:`dmpopt.forms.
-    basis_log_activations`, :func:`~dmpopt.forms.normalised_activations` and
-    :meth:`~dmpopt.forms.Form.features` in their order (the sum over the basis from the
-    first term on, as CasADi's ``sum1`` adds): the numbers of :func:`_at_samples` with
-    :func:`dmpopt.symbolic.activation_function` and :func:`~dmpopt.symbolic.feature_function`
-    (bit for bit where NumPy's ``exp`` is the C library's, as on x86-64 without AVX-512) in a
-    third of their time, laid out column-major as :func:`_at_samples` lays them out.
-    """
-    phase, velocity = canonical[:, 0], canonical[:, 1]
-    centres, widths = np.asarray(dmp.centres, dtype=float), np.asarray(dmp.widths, dtype=float)
-    offsets = phase[None, :] - centres[:, None]  # (n_basis, n_steps)
-    log_psi = -widths[:, None] * (offsets * offsets)
-    shifted = np.exp(log_psi - log_psi.max(axis=0))
-    total = np.cumsum(shifted, axis=0)[-1]  # in order, as CasADi sums
-    return np.exp(log_psi).T, (velocity * (shifted / total)).T
-
-
 def _features(dmp, states: np.ndarray) -> np.ndarray:
     """Regressors at every sample, shape (n_steps, n_features)."""
-    if dmp.equations.discrete:
-        return _gaussian_basis(states[:, :2], dmp)[1]
     return _at_samples(symbolic.feature_function(dmp.signature), states[:, :2], dmp)
 
 
@@ -416,11 +393,8 @@ def _local_regression(dmp, canonical: np.ndarray, targets: np.ndarray) -> np.nda
     normalised activations :math:`\bar\psi_i` summing to one.
     """
     n_steps = canonical.shape[0]
-    if dmp.equations.discrete:
-        activation, regressors = _gaussian_basis(canonical, dmp)
-    else:
-        activation = _at_samples(symbolic.activation_function(dmp.signature), canonical, dmp)
-        regressors = _at_samples(symbolic.feature_function(dmp.signature), canonical, dmp)
+    activation = _at_samples(symbolic.activation_function(dmp.signature), canonical, dmp)
+    regressors = _at_samples(symbolic.feature_function(dmp.signature), canonical, dmp)
     if dmp.equations.vectors_per_basis == 1:
         carrier = regressors.sum(axis=1)[:, None, None]  # the phase velocity v
     else:

@@ -579,36 +579,3 @@ def test_recall_keeps_the_last_answers_read_only_and_tells_layouts_apart():
     assert exact(matrix) == exact(matrix.copy())
     assert exact(matrix) != exact(np.asfortranarray(matrix))  # same values, other layout
     assert exact(matrix) != exact(matrix + 1e-16 * matrix.max())
-
-
-@pytest.mark.parametrize("n_basis, scale", [(1, 1.0), (17, 0.3), (60, 4.0)])
-def test_gaussian_basis_is_casadis_activations_and_features(n_basis, scale):
-    """The discrete regressions' NumPy activations and features against CasADi's functions
-    of eq. (7) (symbolic.activation_function, feature_function), in the same memory layout.
-
-    Each value is a few correctly rounded operations and one ``exp``: where NumPy's ``exp``
-    is the C library's (as CasADi's is; probed with ``math.exp``), the same operations in
-    the same order give the same bits; elsewhere each library's ``exp`` is within one unit
-    in the last place, and the normalisation (a sum of positive terms, a division, a product)
-    adds at most ``n_basis + 2`` more rounding errors of relative size 2**-53.
-    """
-    import math
-
-    from dmpopt.fitting import imitation
-
-    demo = minimum_jerk_demo(seed=3)
-    dmp = fit_discrete(demo, n_basis, method="lwr")
-    dmp = dmp.replace(widths=scale * dmp.widths)
-    canonical = imitation.unforced_states(dmp, demo)[::3, :2]
-    probe = np.linspace(-40.0, 0.0, 1001)
-    same_exp = np.exp(probe).tolist() == [math.exp(x) for x in probe]
-    got = imitation._gaussian_basis(canonical, dmp)
-    for make, value in zip((symbolic.activation_function, symbolic.feature_function), got):
-        mapped = symbolic.mapped(make(dmp.signature), canonical.shape[0])
-        expected = mapped(canonical.T, dmp.centres, dmp.widths).full().T
-        assert value.shape == expected.shape  # column-major, as the regressions' sums expect
-        assert value.flags.f_contiguous and expected.flags.f_contiguous
-        if same_exp:
-            np.testing.assert_array_equal(value.view(np.uint64), expected.view(np.uint64))
-        else:
-            np.testing.assert_allclose(value, expected, rtol=(n_basis + 4) * 2.0**-53, atol=0)

@@ -22,6 +22,7 @@ import pinocchio as pin
 from dmpopt.exceptions import InvalidInputError
 from dmpopt.validation import real_array, unit_rotation_blocks
 
+from . import kernels
 from .inverse_dynamics import (
     AssembledQp,
     ContactSetQP,
@@ -325,11 +326,7 @@ class InverseDynamicsController:
                 raise InvalidInputError(
                     f"reference must be a pinocchio.SE3 or None, got {type(reference).__name__}"
                 )
-            rotation = reference.rotation
-            if not (
-                np.isfinite(reference.homogeneous).all()
-                and np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6)
-            ):
+            if not kernels.is_placement(reference.homogeneous):
                 raise InvalidInputError(
                     "reference must be finite with a rotation matrix (R^T R = I); it holds "
                     "NaN, inf or a non-orthonormal rotation"

@@ -693,6 +693,30 @@ def stacked_rows(frames, com, blocks, posture, rows, q, v) -> bool:
 
 
 @_compile
+def is_placement(homogeneous) -> bool:
+    """Whether a 4 x 4 homogeneous matrix is finite with a rotation block R such that
+    ``np.allclose(R.T @ R, np.eye(3), atol=1e-6)`` (its default rtol 1e-5): each entry of
+    :math:`R^\top R` within :math:`10^{-6} + 10^{-5} |I_{ij}|` of the identity's. Each entry
+    is summed in the order ``a_0 b_0 + a_1 b_1 + a_2 b_2``, which may round one unit apart
+    from a BLAS product; the tolerances are ten orders of magnitude wider."""
+    for i in range(4):
+        for j in range(4):
+            if not math.isfinite(homogeneous[i, j]):
+                return False
+    for i in range(3):
+        for j in range(3):
+            product = (
+                homogeneous[0, i] * homogeneous[0, j]
+                + homogeneous[1, i] * homogeneous[1, j]
+                + homogeneous[2, i] * homogeneous[2, j]
+            )
+            identity = 1.0 if i == j else 0.0
+            if not abs(product - identity) <= 1e-6 + 1e-5 * identity:
+                return False
+    return True
+
+
+@_compile
 def reference_status(value, lower, upper) -> int:
     """0 if every entry of ``value`` is finite and within [lower, upper]; 1 if one is NaN or
     infinite; 2 if all are finite but one is outside its bounds."""

@@ -442,10 +442,7 @@ class FrameTask(Task):
     def _set_placement(self, placement) -> None:
         """The desired placement (pinocchio.SE3) or position (shape (3,)), checked."""
         if isinstance(placement, pin.SE3):
-            if not (
-                np.isfinite(placement.homogeneous).all()
-                and np.allclose(placement.rotation.T @ placement.rotation, np.eye(3), atol=1e-6)
-            ):
+            if not kernels.is_placement(placement.homogeneous):
                 raise InvalidInputError(
                     "placement must be finite with a rotation matrix (R^T R = I); it holds "
                     "NaN, inf or a non-orthonormal rotation"

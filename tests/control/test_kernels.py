@@ -483,3 +483,31 @@ def test_rotation_errors_near_pi_are_left_to_the_caller():
         np.zeros(6), np.ones(6), np.ones(6),
     )  # fmt: skip
     np.testing.assert_array_equal(error, 7.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    log_scale=st.floats(-9.0, -3.0),
+    bad=st.sampled_from([None, np.nan, np.inf, -np.inf]),
+)
+def test_is_placement_is_numpys_orthonormality_check(seed, log_scale, bad):
+    """The check of a target placement against the NumPy expression it replaces:
+    finite, and np.allclose(R^T R, I, atol=1e-6) (rtol 1e-5), on rotations perturbed by noise
+    from 1e-9 to 1e-3 (both sides of the tolerance) and on entries made NaN or infinite.
+    Cases within 1e-12 of the tolerance are skipped: the kernel's sums may round one unit
+    apart from BLAS's product (its docstring)."""
+    rng = np.random.default_rng(seed)
+    rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    homogeneous = np.eye(4)
+    homogeneous[:3, :3] = rotation + 10.0**log_scale * rng.normal(size=(3, 3))
+    homogeneous[:3, 3] = rng.normal(size=3)
+    if bad is not None:
+        homogeneous[rng.integers(0, 3), rng.integers(0, 4)] = bad
+    r = homogeneous[:3, :3]
+    with np.errstate(invalid="ignore"):
+        gram = r.T @ r
+        margin = np.abs(gram - np.eye(3)) - (1e-6 + 1e-5 * np.eye(3))
+    assume(not np.isfinite(margin).all() or np.abs(margin).min() > 1e-12)
+    expected = bool(np.isfinite(homogeneous).all() and np.allclose(gram, np.eye(3), atol=1e-6))
+    assert kernels.is_placement(homogeneous) is expected

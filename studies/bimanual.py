@@ -428,7 +428,7 @@ def write_videos(out, runs: dict) -> tuple[list, str | None]:
                 distance=1.8,
                 target=tuple(HAND_CENTRE),
                 azimuth=150.0,
-                shadows=False,  # a standing robot; 3.5x faster to render
+                shadows=False,  # a standing robot; about twice as fast to render
                 free_body_qpos=run["box_frames"],
             )
         except MissingDependency as error:

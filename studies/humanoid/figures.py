@@ -60,7 +60,7 @@ def write_videos(out, clips: dict, skip_reason: str | None = None) -> tuple[list
                 width,
                 height,
                 distance,
-                shadows=False,  # standing robots; 3.5x faster to render
+                shadows=False,  # standing robots; about twice as fast to render
             )
         except MissingDependency as error:
             return written, str(error)

@@ -33,6 +33,7 @@ from dmpopt.sim import (
     render_animation,
     render_frame,
 )
+from dmpopt.sim.mujoco_backend import shadow_map_size
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; read when mujoco is imported
 mujoco = pytest.importorskip("mujoco")
@@ -372,10 +373,12 @@ def test_render_animation_writes_frames(talos, talos_sim, tmp_path):
     bent = q.copy()
     bent[talos.configuration_indices(["arm_left_4_joint"])] = -0.5
     configurations = [q, bent, q]
+    shadow_size = talos_sim.mj_model.vis.quality.shadowsize
     try:
         path = render_animation(talos_sim, configurations, tmp_path / "a.gif", width=64, height=48)
     except MissingDependency as error:
         pytest.skip(f"no offscreen rendering here: {error}")
+    assert talos_sim.mj_model.vis.quality.shadowsize == shadow_size  # the model left as it was
     from PIL import Image
 
     with Image.open(path) as image:
@@ -383,6 +386,14 @@ def test_render_animation_writes_frames(talos, talos_sim, tmp_path):
     assert path.stat().st_size < 5_000_000
     with pytest.raises(ResourceLimitError, match="max_bytes"):
         render_animation(talos_sim, [q], tmp_path / "b.webp", width=64, height=48, max_bytes=10)
+
+
+@given(width=st.integers(1, 5000), height=st.integers(1, 5000))
+def test_shadow_map_is_the_power_of_two_just_above_twice_the_frame(width, height):
+    """The shadow map's side: a power of two in [2 L, 4 L), L the longer side of the frame."""
+    size, longest = shadow_map_size(width, height), max(width, height)
+    assert size & (size - 1) == 0
+    assert 2 * longest <= size < 4 * longest
 
 
 _STILLS = """

@@ -587,6 +587,10 @@ def test_task_inputs_get_named_errors(upper_body, talos):
     com = ComTask(upper_body)
     with pytest.raises(InvalidInputError, match="position must be finite"):
         com.set_target([0.0, np.nan, 1.0])
+    with pytest.raises(InvalidInputError, match="position must be finite"):
+        com.set_target(np.array([0.0, np.nan, 1.0]))  # an array of the right type and shape
+    with pytest.raises(InvalidInputError, match="velocity must be finite"):
+        com.set_target(np.zeros(3), velocity=np.array([0.0, 0.0, -np.inf]))
     arm = PostureTask(upper_body, "left_arm")
     with pytest.raises(InvalidInputError, match="positions must be numbers"):
         arm.set_reference(["a"] * 7)

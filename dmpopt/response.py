@@ -126,11 +126,13 @@ the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at 
 
 from __future__ import annotations
 
+import decimal
 import hashlib
 import importlib.util
 import math
 import mmap
 import os
+import struct
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -161,6 +163,65 @@ N_CARRIER = {n_carrier}
 N_STATES = {n_states}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
+
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a * b + c rounded once (LLVM's fma: one instruction where the processor has one)."""
+
+    def codegen(context, builder, signature, args):
+        double = ir.DoubleType()
+        kind = ir.FunctionType(double, [double, double, double])
+        return builder.call(builder.module.declare_intrinsic("llvm.fma", [double], kind), args)
+
+    return types.float64(types.float64, types.float64, types.float64), codegen
+
+
+@intrinsic
+def bits_of(typingctx, x):
+    """The bits of the float x, as an unsigned integer."""
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return types.uint64(types.float64), codegen
+
+
+@intrinsic
+def float_of(typingctx, bits):
+    """The float whose bits are the unsigned integer ``bits``."""
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+
+    return types.float64(types.uint64), codegen
+
+
+EXP_TAILS = np.array({exp_tails})
+EXP_SCALES = np.array({exp_scales}, dtype=np.uint64)
+EXP_SHIFT = 6755399441055744.0  # 1.5 * 2**52: adding it rounds to an integer
+EXP_INVERSE = {exp_inverse}  # 128 / ln 2
+EXP_LN2_HIGH = {exp_ln2_high}  # -ln 2 / 128 in two parts
+EXP_LN2_LOW = {exp_ln2_low}
+EXP_POLYNOMIAL = {exp_polynomial}
+
+
+@_inline
+def table_exp(x):
+    """exp(x) for -512 < x < 512 (module docstring, table_exp), with no call: a loop of
+    them is vectorised."""
+    shifted = fma(x, EXP_INVERSE, EXP_SHIFT)  # k = round(128 x / ln 2) in its low bits
+    k = bits_of(shifted)
+    kd = shifted - EXP_SHIFT
+    r = fma(kd, EXP_LN2_LOW, fma(kd, EXP_LN2_HIGH, x))  # x - k ln 2 / 128
+    i = k & np.uint64(127)
+    r2 = r * r
+    c2, c3, c4, c5 = EXP_POLYNOMIAL
+    tail = fma(fma(r, c3, c2), r2, EXP_TAILS[i] + r)
+    tail = fma(r2 * r2, fma(r, c5, c4), tail)
+    scale = float_of(EXP_SCALES[i] + (k << np.uint64(45)))  # 2 ** (k / 128)
+    return fma(scale, tail, scale)
 
 
 @_compile
@@ -197,7 +258,7 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
     rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
     mark (evaluated there by candidate_window), else evaluated."""
     phase, phase_rate = point[0], point[1]
-    total = 0.0
+    least = top
     for j in range(lo, hi + 1):
         if with_rate:  # the log-activation and its slope from one evaluation
             value, slopes[j - lo] = log_activation(phase, centres[j], widths[j])
@@ -205,9 +266,16 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
                 logs[j] = value
         elif seen[j] != mark:
             logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        weight = math.exp(logs[j] - top)
-        logs[j] = weight
-        total += weight
+        least = min(least, logs[j])
+    if least - top > -512.0:  # within table_exp's range (false for NaN): a vector loop
+        for j in range(lo, hi + 1):
+            logs[j] = table_exp(logs[j] - top)
+    else:
+        for j in range(lo, hi + 1):
+            logs[j] = math.exp(logs[j] - top)
+    total = 0.0
+    for j in range(lo, hi + 1):
+        total += logs[j]
     inverse = 1.0 / total
     count = hi + 1 - lo
     slope_sum = 0.0
@@ -331,27 +399,16 @@ def candidate_window(point, low, high, centres, widths, max_width, first, with_r
     return lo, hi, top
 
 
-@_compile
-def affine_row(row, coefficients, goal, states):
-    """row[:m] = coefficients @ states (m columns of the states' response), then goal added
-    to the goal's column N_STATES."""
-    for column in range(states.shape[1]):
+@_inline
+def row_product(coefficients, i, states, first, count, out, row, offset):
+    """out[row, offset + c] = coefficients[i] @ states[:, first + c] for c < count, summed in
+    the order of the states (indices, not row views: a view per row and step would count
+    references)."""
+    for c in range(count):
         total = 0.0
         for a in range(N_STATES):
-            total += coefficients[a] * states[a, column]
-        row[column] = total
-    row[N_STATES] += goal
-
-
-@_compile
-def window_row(row, coefficients, states, window, width):
-    """row[N_STATES + 1 + c] = coefficients @ states[:, window + c] for c < width (the
-    columns of a segment's window, :func:`response`)."""
-    for c in range(width):
-        total = 0.0
-        for a in range(N_STATES):
-            total += coefficients[a] * states[a, window + c]
-        row[N_STATES + 1 + c] = total
+            total += coefficients[i, a] * states[a, first + c]
+        out[row, offset + c] = total
 
 
 @_compile
@@ -407,15 +464,15 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
     seen, max_width = np.full(n_basis, -1), widths.max()
-    segment, begin, left, width = -1, 0, 0, 0
-    block = np.empty((3, 0, n + 1))
+    segment, begin, length, left, width = -1, 0, 0, 0, 0
+    block = np.empty((0, n + 1))
     for k in range(n_steps):
         if segment + 1 < segments.shape[0] and k == segments[segment + 1, 0]:
             segment += 1
             begin, length, offset = segments[segment, 0], segments[segment, 1], segments[segment, 2]
             left, width = segments[segment, 3], segments[segment, 4]
             size = 3 * length * (n + 1 + width)
-            block = out[offset : offset + size].reshape((3, length, n + 1 + width))
+            block = out[offset : offset + size].reshape((3 * length, n + 1 + width))
             starts[segment, :n, :] = current
             unit[:, :] = 0.0
             for i in range(n):
@@ -436,23 +493,25 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             raise ValueError("a basis outside the segment's columns is forced")
         column = n + 1 + start - left  # its column in the block
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
-            row = block[j, k - begin]
-            affine_row(row, output[j], output_goal[j], unit)
-            window_row(row, output[j], current, left, width)
+            row = j * length + k - begin
+            row_product(output, j, unit, 0, n + 1, block, row, 0)
+            block[row, n] += output_goal[j]
+            row_product(output, j, current, left, width, block, row, n + 1)
             for i in range(count):
                 for e in range(N_CARRIER):
-                    row[column + N_CARRIER * i + e] += (
+                    block[row, column + N_CARRIER * i + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
         if k == n_steps - 1 and not advance:
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
-            affine_row(unit_following[i], step[i], step_goal[i], unit)
-            row = following[i]
-            affine_row(row, step[i], step_goal[i], current)
+            row_product(step, i, unit, 0, n + 1, unit_following, i, 0)
+            unit_following[i, n] += step_goal[i]
+            row_product(step, i, current, 0, m, following, i, 0)
+            following[i, n] += step_goal[i]
             for a in range(count):
                 for e in range(N_CARRIER):
-                    row[start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
+                    following[i, start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
         result = canonical_step(canonical, dt, target, gains)
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
@@ -507,6 +566,36 @@ def product(out, segments, starts, inputs, plan):
 '''
 
 
+@lru_cache(maxsize=1)
+def exp_constants() -> dict:
+    """The constants of the compiled ``table_exp`` as source text (module docstring): the
+    table of :math:`2^{i/128}`, i = 0 .. 127, each as the bits of its nearest float less
+    ``i << 45`` (``EXP_SCALES``) and the relative error of that float (``EXP_TAILS``),
+    computed to 60 digits; the reduction's constants; the polynomial's coefficients."""
+    tails, scales = [], []
+    with decimal.localcontext() as context:
+        context.prec = 60
+        step, power = decimal.Decimal(2) ** (decimal.Decimal(1) / 128), decimal.Decimal(1)
+        for i in range(128):
+            nearest = float(power)
+            tails.append(repr(float((power - decimal.Decimal(nearest)) / decimal.Decimal(nearest))))
+            scales.append(str(struct.unpack("<Q", struct.pack("<d", nearest))[0] - (i << 45)))
+            power *= step
+    return {
+        "exp_tails": "[" + ", ".join(tails) + "]",
+        "exp_scales": "[" + ", ".join(scales) + "]",
+        "exp_inverse": repr(float.fromhex("0x1.71547652b82fep+7")),
+        "exp_ln2_high": repr(float.fromhex("-0x1.62e42fefa0000p-8")),
+        "exp_ln2_low": repr(float.fromhex("-0x1.cf79abc9e3b3ap-47")),
+        "exp_polynomial": repr(tuple(float.fromhex(c) for c in EXP_POLYNOMIAL)),
+    }
+
+
+EXP_POLYNOMIAL = ("0x1.ffffffffffdbdp-2", "0x1.555555555543cp-3", "0x1.55555cf172b91p-5",
+                  "0x1.1111167a4d017p-7")
+"""Coefficients of r^2 .. r^5 in table_exp's polynomial for exp(r) - 1, |r| <= ln 2 / 256."""
+
+
 def kernel_source(form: str, kernel: str) -> str:
     """Source of the compiled response of ``form`` with ``kernel``: CasADi's expressions as
     Python (:func:`symbolic.numba_source`) and the loop (module docstring)."""
@@ -519,9 +608,12 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
+    for name, value in exp_constants().items():
+        loop = loop.replace("{" + name + "}", value)
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
-        "import math\n\nimport numba\nimport numpy as np\n\n\n"
+        "import math\n\nimport numba\nimport numpy as np\nfrom llvmlite import ir\n"
+        "from numba import types\nfrom numba.extending import intrinsic\n\n\n"
     )
     return header + "\n\n".join(generated) + loop
 

@@ -205,6 +205,7 @@ EXP_INVERSE = {exp_inverse}  # 128 / ln 2
 EXP_LN2_HIGH = {exp_ln2_high}  # -ln 2 / 128 in two parts
 EXP_LN2_LOW = {exp_ln2_low}
 EXP_POLYNOMIAL = {exp_polynomial}
+LN2 = math.log(2.0)
 
 
 @_inline
@@ -390,13 +391,30 @@ def candidate_window(point, low, high, centres, widths, max_width, first, with_r
         logs[j] = log_activation(point[0], centres[j], widths[j])[0]
         seen[j] = mark
         top = max(top, logs[j])
-    level = level_of(top, max_width, first, with_rate)
+    if with_rate:  # first without log1p: bracket the level, compute it where the scans differ
+        size = 5.0 * 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))  # level_of's
+        if 1.0 <= size < math.inf:
+            power = float(int(bits_of(size) >> np.uint64(52)) - 1023)  # 2 ** power <= size
+            least = power * LN2 - 1e-9  # <= ln(size) <= log1p(size) (and its rounding)
+            most = (power + 1.0) * LN2 + 1.0 / size + 1e-9  # >= ln(size) + 1 / size
+            if most <= 2.0 * first:  # level_of's bound is finite
+                lo, hi = window_of(logs, low, high, top - (first + least))
+                if (lo, hi) == window_of(logs, low, high, top - (first + most)):
+                    return lo, hi, top
+    lo, hi = window_of(logs, low, high, level_of(top, max_width, first, with_rate))
+    return lo, hi, top
+
+
+@_inline
+def window_of(logs, low, high, level):
+    """The first and last of the bases low .. high whose logs[j] is at least ``level`` (one
+    of them is)."""
     lo, hi = low, high
     while logs[lo] < level:
         lo += 1
     while logs[hi] < level:
         hi -= 1
-    return lo, hi, top
+    return lo, hi
 
 
 @_inline

@@ -135,6 +135,7 @@ import os
 import struct
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -816,6 +817,18 @@ def tail_start(
     return best if held[best] < n_steps * n_inputs else n_steps
 
 
+@lru_cache(maxsize=16)
+def step_matrices(form: str, dt: float, gains: tuple) -> dict:
+    """:func:`symbolic.transformation_matrices` of ``form`` at the normalised step ``dt`` with
+    ``gains``, as read-only arrays: the same for every DMP of the form with these gains and
+    ``dt / tau`` (a CasADi call, 0.15-0.3 ms of a first rollout)."""
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains, dtype=float))
+    matrices = {name: value.full() for name, value in matrices.items()}
+    for value in matrices.values():
+        value.setflags(write=False)
+    return matrices
+
+
 def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     """Response matrices of one DOF for the cache key of :func:`dmpopt.dmp._response`, in time
     normalised by ``tau``: positions, velocities and accelerations against the initial
@@ -830,8 +843,7 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
     centres, widths = np.array(centres, dtype=float), np.array(widths, dtype=float)
-    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=gains)
-    matrices = {name: value.full() for name, value in matrices.items()}
+    matrices = step_matrices(form, dt, key[-1])
     n = symbolic.n_transformation_states(form)
     n_inputs = n + 1 + symbolic.n_features(form, n_basis)
     n_carrier = symbolic.FORMS[form].vectors_per_basis
@@ -848,7 +860,7 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
             segments = segments_of(module, lowest, highest, n_carrier, n + 1, n_inputs)
     sizes = 3 * segments[:, 1] * (n + 1 + segments[:, 4])
     segments[1:, 2] = np.cumsum(sizes)[:-1]
-    blocks = fresh_array((int(sizes.sum()),))
+    blocks = block_memory(int(sizes.sum()))
     factors = np.zeros((len(segments), n + 1, n_inputs))
     constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
@@ -876,6 +888,43 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     for t, (_, _, _, window, width) in enumerate(segments):
         factors[t, :, window : window + width] = 0.0
     return ResponseMatrices(blocks, segments, factors, module.product)
+
+
+REUSED = 4
+"""Arrays of released responses' blocks kept for new ones (:func:`block_memory`)."""
+
+REUSED_BYTES = 16 * 1024**2
+"""Bytes from which a response's blocks are not kept for reuse: idle memory stays below
+``REUSED`` times this."""
+
+_REUSED: list = []  # the arrays block_memory returned views of, newest last
+_REUSED_LOCK = threading.Lock()
+
+
+def block_memory(size: int) -> np.ndarray:
+    """A new float array of ``size`` numbers for a response's blocks.
+
+    The memory of an earlier one that nothing references any more (no view of it is left)
+    where one holds ``size`` to twice ``size``, else :func:`fresh_array`: the first write to
+    new memory costs the system a page fault per 4 KiB page, about 4 ms of the LASA demo's
+    first rollout (3.9 MB) in benchmarks/bench_core.py whenever malloc returned fresh pages
+    (it maps an array of that size anew after freeing the last one). Up to :data:`REUSED`
+    arrays below :data:`REUSED_BYTES` are kept.
+    """
+    if 8 * size >= REUSED_BYTES:
+        return fresh_array((size,))
+    with _REUSED_LOCK:  # one thread takes an idle array
+        for index in range(len(_REUSED)):
+            # idle: referenced by the list and getrefcount's argument only (a view's base is
+            # the array that owns the memory, so every view counts)
+            if size <= _REUSED[index].size <= 2 * size and sys.getrefcount(_REUSED[index]) == 2:
+                _REUSED.append(_REUSED.pop(index))
+                return _REUSED[-1][:size]
+        array = fresh_array((size,))
+        owner = array if not isinstance(array.base, np.ndarray) else array.base
+        _REUSED.append(owner)
+        del _REUSED[:-REUSED]
+        return owner[:size]
 
 
 HUGE_PAGE_ADVICE = 4 * 1024**2

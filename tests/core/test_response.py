@@ -224,7 +224,7 @@ def test_the_generated_source_goes_to_a_temporary_folder_if_the_cache_cannot_be_
 
 @pytest.mark.parametrize("shape", [(3, 5, 4), (3, 4000, 53)])
 def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
-    """Small arrays come from numpy, those of 4 MiB and more (5 MB here) from a populated
+    """Small arrays come from numpy, those of 1 MiB and more (5 MB here) from a populated
     mapping where the system has one: either way a writable float array that keeps what is
     written to it."""
     array = response.fresh_array(shape)

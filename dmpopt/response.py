@@ -127,15 +127,22 @@ of phase, for kernels continuous in the phase.
   printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
   at every point (``window``).
 
-Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; new DMPs
-each keeping its plan; thread CPU at load 3-5): the response passes 10.6-11.4 ms timed
-alone (13-14.5 with a dense head and a factored tail, 5.9 MB), in which about 10 bases are
-kept at each of 4 points per step, an exp each (about 45 % of a pass: replacing the exp by
-a cheap stand-in for a measurement halved it), the candidates 0.45, the product 0.9 (1.35);
-the system's page faults on the 3.9 MB of new response (981 pages against 1442) about 3-4
-ms. The whole first rollout in benchmarks/bench_core.py was 16.5-20.1 ms in alternating
-runs at load 3.4-3.7, within the noise of the 16.5-18.9 ms of the dense head and factored
-tail. Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
+Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; thread
+CPU at load 1.9-2.1, a pass's least of 200 runs timed alone): the head pass (2237 steps, every
+column tracked) 1.45 ms and the settling tail's pass (8439 steps, 15 columns) 3.9 ms, against
+1.8-2.0 and 5.1-5.7 ms before the exp was inlined (``table_exp``: the tail spent 0.6 ms in it
+after, as timed with a cheap stand-in), the rows written by index and the samples' level
+bracketed (the exact level, a sqrt and a log1p per sample, had cost 0.65 ms of the tail; the
+bracket leaves the log1p to 11 % of the samples). In the tail's 0.46 us per step, about 10
+bases are kept at each of 4 points, the rows (3 outputs and 2 states of 15 columns, and the
+forcing of the 4 points) take 1.1 ms. The candidates take 0.45 ms, the product 0.6-0.85, the
+Python around them about 0.8 (the step matrices, a CasADi call, are kept per form, step and
+gains: :func:`step_matrices`). New memory: the 3.9 MB of segments took 2.1-2.2 ms of thread
+time where malloc gave fresh pages (a fault per 4 KiB page), 1.7 ms mapped populated
+(:func:`fresh_array`), none where a released response's memory is taken again
+(:func:`block_memory`). The whole first rollout in benchmarks/bench_core.py: 8.9-9.8 ms
+against 17.3-17.5 ms before, in alternating runs at load 1.9-2.0 (the base measured 11.4 ms
+quiet). Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
 the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at load 8-9).
 """
 

@@ -140,10 +140,12 @@ Python around them about 0.8 (the step matrices, a CasADi call, are kept per for
 gains: :func:`step_matrices`). New memory: the 3.9 MB of segments took 2.1-2.2 ms of thread
 time where malloc gave fresh pages (a fault per 4 KiB page), 1.7 ms mapped populated
 (:func:`fresh_array`), none where a released response's memory is taken again
-(:func:`block_memory`). The whole first rollout in benchmarks/bench_core.py: 8.9-9.8 ms
-against 17.3-17.5 ms before, in alternating runs at load 1.9-2.0 (the base measured 11.4 ms
-quiet). Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
-the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at load 8-9).
+(:func:`block_memory`). The whole first rollout in benchmarks/bench_core.py (its median of
+15): 8.9-15.9 ms, median 11.5, against 11.6-20.5, median 17.4, before, in 10 alternating
+runs at load 1.8-2.2 (the thread time on this 2-core machine depends on what shares its
+core; the code before measured 11.4 ms quiet). Before the candidates (one pass evaluating
+all 50 bases at all 4 points of each step) the first rollout cost 1.1-1.4 times as much
+again (benchmarks/bench_core.py at load 8-9).
 """
 
 from __future__ import annotations

@@ -179,9 +179,9 @@ def _response(key: tuple, factored: bool = True) -> ResponseMatrices:
     columns a segment does not force as a factor of their states at its start, as for
     rollouts; else dense, as for :class:`AffinePlan`, whose weight response is dense anyway).
     The first rollout of the LASA demo's plan (10676 steps, 53 inputs; 3.9 MB in all) took
-    16-20 ms of thread time on this 2-core machine at load 3-4 (27 ms with the whole plan
-    dense, 13.6 MB; where it goes: the module docstring of :mod:`dmpopt.response`), a
-    repeated one 0.4-0.5 ms (2.6 ms dense);
+    8.9-15.9 ms of thread time on this 2-core machine at load 1.8-2.2, median 11.5 (where it
+    goes: the module docstring of :mod:`dmpopt.response`; 27 ms with the whole plan dense,
+    13.6 MB, at load 3-4), a repeated one 0.4-0.5 ms (2.6 ms dense);
     evaluating the features at all stages on arrays and the recurrence in numpy blocks took
     110-170 ms at load 12-14 (benchmarks/bench_core.py).
     """

@@ -28,6 +28,21 @@ definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on a
 plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
 temporaries.)
 
+The normalisation's exp (``table_exp``) is computed in the loop rather than called from the C
+library, so that a loop of them runs without calls (the call, its wrapper and errno check
+cost more than the exp): glibc's algorithm (since 2.28, from Arm's optimized-routines),
+:math:`x = k \ln 2 / 128 + r` with :math:`|r| \le \ln 2 / 256`, :math:`e^x = 2^{k/128} (1
++ t_i + r + c_2 r^2 + c_3 r^3 + c_4 r^4 + c_5 r^5)` with :math:`i = k \bmod 128`, a table of
+the 128 powers :math:`2^{i/128}` and their rounding errors :math:`t_i` (computed to 60
+digits, :func:`exp_constants`) and the fused multiply-adds of glibc's build for processors
+with FMA, in its order. Its error is at most 0.511 ulp (tests/core/test_response.py checks
+it against the decimal module's exp); with a glibc that selects that build (this machine:
+2.36, AMD EPYC) it gives math.exp's bits (8 million arguments compared, and the response
+matrices of 34 plans of every form), so the features are those of before; with another C
+library they differ within rounding. It holds for :math:`|x| < 512`; the arguments are
+within :math:`[-3 L_0, 0]` (:math:`L_0 \approx 41` for 50 bases) except where nothing is
+left out, and there math.exp is called.
+
 Truncation. Bases whose log-activation is more than :math:`L` below the largest,
 :math:`l_j < M - L`, before the first or after the last basis at or above :math:`M - L`, are
 left out of the normalisation (their features are 0), so only the exp of the few bases near
@@ -112,27 +127,39 @@ of phase, for kernels continuous in the phase.
   printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
   at every point (``window``).
 
-Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; new DMPs
-each keeping its plan; thread CPU at load 3-5): the response passes 10.6-11.4 ms timed
-alone (13-14.5 with a dense head and a factored tail, 5.9 MB), in which about 10 bases are
-kept at each of 4 points per step, an exp each (about 45 % of a pass: replacing the exp by
-a cheap stand-in for a measurement halved it), the candidates 0.45, the product 0.9 (1.35);
-the system's page faults on the 3.9 MB of new response (981 pages against 1442) about 3-4
-ms. The whole first rollout in benchmarks/bench_core.py was 16.5-20.1 ms in alternating
-runs at load 3.4-3.7, within the noise of the 16.5-18.9 ms of the dense head and factored
-tail. Before the candidates (one pass evaluating all 50 bases at all 4 points of each step)
-the first rollout cost 1.1-1.4 times as much again (benchmarks/bench_core.py at load 8-9).
+Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; thread
+CPU at load 1.9-2.1, a pass's least of 200 runs timed alone): the head pass (2237 steps, every
+column tracked) 1.45 ms and the settling tail's pass (8439 steps, 15 columns) 3.9 ms, against
+1.8-2.0 and 5.1-5.7 ms before the exp was inlined (``table_exp``: the tail spent 0.6 ms in it
+after, as timed with a cheap stand-in), the rows written by index and the samples' level
+bracketed (the exact level, a sqrt and a log1p per sample, had cost 0.65 ms of the tail; the
+bracket leaves the log1p to 11 % of the samples). In the tail's 0.46 us per step, about 10
+bases are kept at each of 4 points, the rows (3 outputs and 2 states of 15 columns, and the
+forcing of the 4 points) take 1.1 ms. The candidates take 0.45 ms, the product 0.6-0.85, the
+Python around them about 0.8 (the step matrices, a CasADi call, are kept per form, step and
+gains: :func:`step_matrices`). New memory: the 3.9 MB of segments took 2.1-2.2 ms of thread
+time where malloc gave fresh pages (a fault per 4 KiB page), 1.7 ms mapped populated
+(:func:`fresh_array`), none where a released response's memory is taken again
+(:func:`block_memory`). The whole first rollout in benchmarks/bench_core.py (its median of
+15): 8.9-15.9 ms, median 11.5, against 11.6-20.5, median 17.4, before, in 10 alternating
+runs at load 1.8-2.2 (the thread time on this 2-core machine depends on what shares its
+core; the code before measured 11.4 ms quiet). Before the candidates (one pass evaluating
+all 50 bases at all 4 points of each step) the first rollout cost 1.1-1.4 times as much
+again (benchmarks/bench_core.py at load 8-9).
 """
 
 from __future__ import annotations
 
+import decimal
 import hashlib
 import importlib.util
 import math
 import mmap
 import os
+import struct
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -161,6 +188,65 @@ N_CARRIER = {n_carrier}
 N_STATES = {n_states}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
+
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a * b + c rounded once (LLVM's fma: one instruction where the processor has one)."""
+
+    def codegen(context, builder, signature, args):
+        double = ir.DoubleType()
+        kind = ir.FunctionType(double, [double, double, double])
+        return builder.call(builder.module.declare_intrinsic("llvm.fma", [double], kind), args)
+
+    return types.float64(types.float64, types.float64, types.float64), codegen
+
+
+@intrinsic
+def bits_of(typingctx, x):
+    """The bits of the float x, as an unsigned integer."""
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return types.uint64(types.float64), codegen
+
+
+@intrinsic
+def float_of(typingctx, bits):
+    """The float whose bits are the unsigned integer ``bits``."""
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+
+    return types.float64(types.uint64), codegen
+
+
+EXP_TAILS = np.array({exp_tails})
+EXP_SCALES = np.array({exp_scales}, dtype=np.uint64)
+EXP_SHIFT = 6755399441055744.0  # 1.5 * 2**52: adding it rounds to an integer
+EXP_INVERSE = {exp_inverse}  # 128 / ln 2
+EXP_LN2_HIGH = {exp_ln2_high}  # -ln 2 / 128 in two parts
+EXP_LN2_LOW = {exp_ln2_low}
+EXP_POLYNOMIAL = {exp_polynomial}
+LN2 = math.log(2.0)
+
+
+@_inline
+def table_exp(x):
+    """exp(x) for -512 < x < 512 (module docstring): glibc's table algorithm, inlined."""
+    shifted = fma(x, EXP_INVERSE, EXP_SHIFT)  # k = round(128 x / ln 2) in its low bits
+    k = bits_of(shifted)
+    kd = shifted - EXP_SHIFT
+    r = fma(kd, EXP_LN2_LOW, fma(kd, EXP_LN2_HIGH, x))  # x - k ln 2 / 128
+    i = k & np.uint64(127)
+    r2 = r * r
+    c2, c3, c4, c5 = EXP_POLYNOMIAL
+    tail = fma(fma(r, c3, c2), r2, EXP_TAILS[i] + r)
+    tail = fma(r2 * r2, fma(r, c5, c4), tail)
+    scale = float_of(EXP_SCALES[i] + (k << np.uint64(45)))  # 2 ** (k / 128)
+    return fma(scale, tail, scale)
 
 
 @_compile
@@ -197,7 +283,7 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
     rates[i, e] its rate. logs[j] is taken as basis j's log-activation where seen[j] ==
     mark (evaluated there by candidate_window), else evaluated."""
     phase, phase_rate = point[0], point[1]
-    total = 0.0
+    least = top
     for j in range(lo, hi + 1):
         if with_rate:  # the log-activation and its slope from one evaluation
             value, slopes[j - lo] = log_activation(phase, centres[j], widths[j])
@@ -205,9 +291,16 @@ def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, ma
                 logs[j] = value
         elif seen[j] != mark:
             logs[j] = log_activation(phase, centres[j], widths[j])[0]
-        weight = math.exp(logs[j] - top)
-        logs[j] = weight
-        total += weight
+        least = min(least, logs[j])
+    if least - top > -512.0:  # within table_exp's range (false for NaN)
+        for j in range(lo, hi + 1):
+            logs[j] = table_exp(logs[j] - top)
+    else:
+        for j in range(lo, hi + 1):
+            logs[j] = math.exp(logs[j] - top)
+    total = 0.0
+    for j in range(lo, hi + 1):
+        total += logs[j]
     inverse = 1.0 / total
     count = hi + 1 - lo
     slope_sum = 0.0
@@ -322,36 +415,42 @@ def candidate_window(point, low, high, centres, widths, max_width, first, with_r
         logs[j] = log_activation(point[0], centres[j], widths[j])[0]
         seen[j] = mark
         top = max(top, logs[j])
-    level = level_of(top, max_width, first, with_rate)
+    if with_rate:  # first without log1p: bracket the level, compute it where the scans differ
+        size = 5.0 * 2.0 * math.sqrt(max_width * (abs(top) + 3.0 * first))  # level_of's
+        if 1.0 <= size < math.inf:
+            power = float(int(bits_of(size) >> np.uint64(52)) - 1023)  # 2 ** power <= size
+            least = power * LN2 - 1e-9  # <= ln(size) <= log1p(size) (and its rounding)
+            most = (power + 1.0) * LN2 + 1.0 / size + 1e-9  # >= ln(size) + 1 / size
+            if most <= 2.0 * first:  # level_of's bound is finite
+                lo, hi = window_of(logs, low, high, top - (first + least))
+                if (lo, hi) == window_of(logs, low, high, top - (first + most)):
+                    return lo, hi, top
+    lo, hi = window_of(logs, low, high, level_of(top, max_width, first, with_rate))
+    return lo, hi, top
+
+
+@_inline
+def window_of(logs, low, high, level):
+    """The first and last of the bases low .. high whose logs[j] is at least ``level`` (one
+    of them is)."""
     lo, hi = low, high
     while logs[lo] < level:
         lo += 1
     while logs[hi] < level:
         hi -= 1
-    return lo, hi, top
+    return lo, hi
 
 
-@_compile
-def affine_row(row, coefficients, goal, states):
-    """row[:m] = coefficients @ states (m columns of the states' response), then goal added
-    to the goal's column N_STATES."""
-    for column in range(states.shape[1]):
+@_inline
+def row_product(coefficients, i, states, first, count, out, row, offset):
+    """out[row, offset + c] = coefficients[i] @ states[:, first + c] for c < count, summed in
+    the order of the states (indices, not row views: a view per row and step would count
+    references)."""
+    for c in range(count):
         total = 0.0
         for a in range(N_STATES):
-            total += coefficients[a] * states[a, column]
-        row[column] = total
-    row[N_STATES] += goal
-
-
-@_compile
-def window_row(row, coefficients, states, window, width):
-    """row[N_STATES + 1 + c] = coefficients @ states[:, window + c] for c < width (the
-    columns of a segment's window, :func:`response`)."""
-    for c in range(width):
-        total = 0.0
-        for a in range(N_STATES):
-            total += coefficients[a] * states[a, window + c]
-        row[N_STATES + 1 + c] = total
+            total += coefficients[i, a] * states[a, first + c]
+        out[row, offset + c] = total
 
 
 @_compile
@@ -407,15 +506,15 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
     seen, max_width = np.full(n_basis, -1), widths.max()
-    segment, begin, left, width = -1, 0, 0, 0
-    block = np.empty((3, 0, n + 1))
+    segment, begin, length, left, width = -1, 0, 0, 0, 0
+    block = np.empty((0, n + 1))
     for k in range(n_steps):
         if segment + 1 < segments.shape[0] and k == segments[segment + 1, 0]:
             segment += 1
             begin, length, offset = segments[segment, 0], segments[segment, 1], segments[segment, 2]
             left, width = segments[segment, 3], segments[segment, 4]
             size = 3 * length * (n + 1 + width)
-            block = out[offset : offset + size].reshape((3, length, n + 1 + width))
+            block = out[offset : offset + size].reshape((3 * length, n + 1 + width))
             starts[segment, :n, :] = current
             unit[:, :] = 0.0
             for i in range(n):
@@ -436,23 +535,25 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             raise ValueError("a basis outside the segment's columns is forced")
         column = n + 1 + start - left  # its column in the block
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
-            row = block[j, k - begin]
-            affine_row(row, output[j], output_goal[j], unit)
-            window_row(row, output[j], current, left, width)
+            row = j * length + k - begin
+            row_product(output, j, unit, 0, n + 1, block, row, 0)
+            block[row, n] += output_goal[j]
+            row_product(output, j, current, left, width, block, row, n + 1)
             for i in range(count):
                 for e in range(N_CARRIER):
-                    row[column + N_CARRIER * i + e] += (
+                    block[row, column + N_CARRIER * i + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
         if k == n_steps - 1 and not advance:
             break
         for i in range(n):  # S x + S_g g + S_f (f_1, .., f_4), stage 1 at the sample
-            affine_row(unit_following[i], step[i], step_goal[i], unit)
-            row = following[i]
-            affine_row(row, step[i], step_goal[i], current)
+            row_product(step, i, unit, 0, n + 1, unit_following, i, 0)
+            unit_following[i, n] += step_goal[i]
+            row_product(step, i, current, 0, m, following, i, 0)
+            following[i, n] += step_goal[i]
             for a in range(count):
                 for e in range(N_CARRIER):
-                    row[start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
+                    following[i, start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
         result = canonical_step(canonical, dt, target, gains)
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
@@ -507,6 +608,40 @@ def product(out, segments, starts, inputs, plan):
 '''
 
 
+@lru_cache(maxsize=1)
+def exp_constants() -> dict:
+    """The constants of the compiled ``table_exp`` as source text (module docstring): the
+    table of :math:`2^{i/128}`, i = 0 .. 127, each as the bits of its nearest float less
+    ``i << 45`` (``EXP_SCALES``) and the relative error of that float (``EXP_TAILS``),
+    computed to 60 digits; the reduction's constants; the polynomial's coefficients."""
+    tails, scales = [], []
+    with decimal.localcontext() as context:
+        context.prec = 60
+        step, power = decimal.Decimal(2) ** (decimal.Decimal(1) / 128), decimal.Decimal(1)
+        for i in range(128):
+            nearest = float(power)
+            tails.append(repr(float((power - decimal.Decimal(nearest)) / decimal.Decimal(nearest))))
+            scales.append(str(struct.unpack("<Q", struct.pack("<d", nearest))[0] - (i << 45)))
+            power *= step
+    return {
+        "exp_tails": "[" + ", ".join(tails) + "]",
+        "exp_scales": "[" + ", ".join(scales) + "]",
+        "exp_inverse": repr(float.fromhex("0x1.71547652b82fep+7")),
+        "exp_ln2_high": repr(float.fromhex("-0x1.62e42fefa0000p-8")),
+        "exp_ln2_low": repr(float.fromhex("-0x1.cf79abc9e3b3ap-47")),
+        "exp_polynomial": repr(tuple(float.fromhex(c) for c in EXP_POLYNOMIAL)),
+    }
+
+
+EXP_POLYNOMIAL = (
+    "0x1.ffffffffffdbdp-2",
+    "0x1.555555555543cp-3",
+    "0x1.55555cf172b91p-5",
+    "0x1.1111167a4d017p-7",
+)
+"""Coefficients of r^2 .. r^5 in table_exp's polynomial for exp(r) - 1, |r| <= ln 2 / 256."""
+
+
 def kernel_source(form: str, kernel: str) -> str:
     """Source of the compiled response of ``form`` with ``kernel``: CasADi's expressions as
     Python (:func:`symbolic.numba_source`) and the loop (module docstring)."""
@@ -519,9 +654,12 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
+    for name, value in exp_constants().items():
+        loop = loop.replace("{" + name + "}", value)
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
-        "import math\n\nimport numba\nimport numpy as np\n\n\n"
+        "import math\n\nimport numba\nimport numpy as np\nfrom llvmlite import ir\n"
+        "from numba import types\nfrom numba.extending import intrinsic\n\n\n"
     )
     return header + "\n\n".join(generated) + loop
 
@@ -706,6 +844,18 @@ def tail_start(
     return best if held[best] < n_steps * n_inputs else n_steps
 
 
+@lru_cache(maxsize=16)
+def step_matrices(form: str, dt: float, gains: tuple) -> dict:
+    """:func:`symbolic.transformation_matrices` of ``form`` at the normalised step ``dt`` with
+    ``gains``, as read-only arrays: the same for every DMP of the form with these gains and
+    ``dt / tau`` (a CasADi call, 0.15-0.3 ms of a first rollout)."""
+    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=np.array(gains, dtype=float))
+    matrices = {name: value.full() for name, value in matrices.items()}
+    for value in matrices.values():
+        value.setflags(write=False)
+    return matrices
+
+
 def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     """Response matrices of one DOF for the cache key of :func:`dmpopt.dmp._response`, in time
     normalised by ``tau``: positions, velocities and accelerations against the initial
@@ -720,8 +870,7 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     (form, kernel, n_basis, n_steps, dt, target, canonical0, centres, widths, gains) = key
     gains = np.array(gains, dtype=float)
     centres, widths = np.array(centres, dtype=float), np.array(widths, dtype=float)
-    matrices = symbolic.transformation_matrices(form)(dt=dt, gains=gains)
-    matrices = {name: value.full() for name, value in matrices.items()}
+    matrices = step_matrices(form, dt, key[-1])
     n = symbolic.n_transformation_states(form)
     n_inputs = n + 1 + symbolic.n_features(form, n_basis)
     n_carrier = symbolic.FORMS[form].vectors_per_basis
@@ -738,7 +887,7 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
             segments = segments_of(module, lowest, highest, n_carrier, n + 1, n_inputs)
     sizes = 3 * segments[:, 1] * (n + 1 + segments[:, 4])
     segments[1:, 2] = np.cumsum(sizes)[:-1]
-    blocks = fresh_array((int(sizes.sum()),))
+    blocks = block_memory(int(sizes.sum()))
     factors = np.zeros((len(segments), n + 1, n_inputs))
     constants = (
         matrices["step"], matrices["step_goal"][:, 0], matrices["step_forcing"],
@@ -768,22 +917,62 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     return ResponseMatrices(blocks, segments, factors, module.product)
 
 
-HUGE_PAGE_ADVICE = 4 * 1024**2
-"""Bytes from which numpy asks Linux for transparent huge pages for an array (numpy 1.22+)."""
+REUSED = 4
+"""Arrays of released responses' blocks kept for new ones (:func:`block_memory`)."""
+
+REUSED_BYTES = 16 * 1024**2
+"""Bytes from which a response's blocks are not kept for reuse: idle memory stays below
+``REUSED`` times this."""
+
+_REUSED: list = []  # the arrays block_memory returned views of, newest last
+_REUSED_LOCK = threading.Lock()
+
+
+def block_memory(size: int) -> np.ndarray:
+    """A new float array of ``size`` numbers for a response's blocks.
+
+    The memory of an earlier one that nothing references any more (no view of it is left)
+    where one holds ``size`` to twice ``size``, else :func:`fresh_array`: the first write to
+    new memory costs the system a page fault per 4 KiB page, about 4 ms of the LASA demo's
+    first rollout (3.9 MB) in benchmarks/bench_core.py whenever malloc returned fresh pages
+    (it maps an array of that size anew after freeing the last one). Up to :data:`REUSED`
+    arrays below :data:`REUSED_BYTES` are kept.
+    """
+    if 8 * size >= REUSED_BYTES:
+        return fresh_array((size,))
+    with _REUSED_LOCK:  # one thread takes an idle array
+        for index in range(len(_REUSED)):
+            # idle: referenced by the list and getrefcount's argument only (a view's base is
+            # the array that owns the memory, so every view counts)
+            if size <= _REUSED[index].size <= 2 * size and sys.getrefcount(_REUSED[index]) == 2:
+                _REUSED.append(_REUSED.pop(index))
+                return _REUSED[-1][:size]
+        array = fresh_array((size,))
+        owner = array if not isinstance(array.base, np.ndarray) else array.base
+        _REUSED.append(owner)
+        del _REUSED[:-REUSED]
+        return owner[:size]
+
+
+POPULATED_BYTES = 1024**2
+"""Bytes from which :func:`fresh_array` maps memory populated in one call."""
 
 
 def fresh_array(shape: tuple) -> np.ndarray:
-    """A new float array of ``shape``: from :data:`HUGE_PAGE_ADVICE` bytes on, memory that the
+    """A new float array of ``shape``: from :data:`POPULATED_BYTES` on, memory that the
     system maps and zeroes in one call where it can (Linux: ``MAP_POPULATE``), else
     ``np.empty``.
 
-    numpy asks Linux for transparent huge pages for large arrays; where memory is
-    fragmented, the first write to such an array waits for the system to compact memory.
+    numpy asks Linux for transparent huge pages for arrays of 4 MiB and more; where memory
+    is fragmented, the first write to such an array waits for the system to compact memory.
     The 13.6 MB response of the LASA demo's plan took 35-45 ms of thread time to allocate
     and fill so on this machine (loaded, 2-4 ms where huge pages were at hand), 6-8 ms mapped
-    and populated in one call, 9-11 ms by one page fault per 4 KiB page.
+    and populated in one call, 9-11 ms by one page fault per 4 KiB page. Below 4 MiB too, one
+    call costs less than a fault per page: 3.9 MB (the LASA demo's segments) allocated and
+    filled took 1.7 ms of thread time populated, 2.1-2.2 ms from ``np.empty`` when malloc
+    returned fresh pages (load 2-3).
     """
-    if 8 * math.prod(shape) < HUGE_PAGE_ADVICE or not hasattr(mmap, "MAP_POPULATE"):
+    if 8 * math.prod(shape) < POPULATED_BYTES or not hasattr(mmap, "MAP_POPULATE"):
         return np.empty(shape)
     flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | mmap.MAP_POPULATE
     memory = mmap.mmap(-1, 8 * math.prod(shape), flags=flags)

@@ -3,6 +3,7 @@ translated for numba, the truncated features against CasADi's features of all th
 against the truncation bounds derived in dmpopt/response.py, and the rollout against the
 step-by-step integration."""
 
+import decimal
 import math
 import sys
 
@@ -223,7 +224,7 @@ def test_the_generated_source_goes_to_a_temporary_folder_if_the_cache_cannot_be_
 
 @pytest.mark.parametrize("shape", [(3, 5, 4), (3, 4000, 53)])
 def test_a_fresh_array_is_a_writable_float_array_of_its_shape(shape):
-    """Small arrays come from numpy, those of 4 MiB and more (5 MB here) from a populated
+    """Small arrays come from numpy, those of 1 MiB and more (5 MB here) from a populated
     mapping where the system has one: either way a writable float array that keeps what is
     written to it."""
     array = response.fresh_array(shape)
@@ -425,3 +426,61 @@ def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
             found = module.candidate_window(phases, lowest[k], highest[k], centres, widths,
                                             widths.max(), first, s == 0, logs, seen, 0)  # fmt: skip
             assert found == (lo, hi, top)
+
+
+def _exact_exp(x: float) -> "decimal.Decimal":
+    """exp(x) to 50 digits (the decimal module's own algorithm)."""
+    with decimal.localcontext() as context:
+        context.prec = 50
+        return decimal.Decimal(x).exp()
+
+
+def _ulps(value: float, exact) -> float:
+    """|value - exact| in units of the last place of ``value``."""
+    return float(abs(decimal.Decimal(value) - exact) / decimal.Decimal(math.ulp(value)))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-511.0, 511.0))
+def test_the_inlined_exp_is_within_its_error_bound(x):
+    """The compiled table_exp (the normalisation's exp, the table algorithm of glibc 2.28+
+    and Arm's optimized-routines) is within their stated 0.511 ulp of exp(x) (module
+    docstring) on its range |x| < 512."""
+    module = response.kernels("velocity", "gaussian")
+    assert _ulps(module.table_exp(x), _exact_exp(x)) <= 0.511
+
+
+def test_the_inlined_exp_table_holds_the_nearest_powers_of_two():
+    """Entry i of the table: the bits of the float nearest 2**(i / 128), less i << 45, and its
+    relative error, against 2**(i / 128) as exp(i ln 2 / 128) to 50 digits (another
+    algorithm than the table's repeated products); exp(0) is 1 exactly."""
+    module = response.kernels("velocity", "gaussian")
+    with decimal.localcontext() as context:
+        context.prec = 50
+        for i in range(128):
+            power = (decimal.Decimal(i) * decimal.Decimal(2).ln() / 128).exp()
+            nearest = float(power)
+            bits = int(np.float64(nearest).view(np.uint64)) - (i << 45)
+            assert int(module.EXP_SCALES[i]) == bits
+            assert module.EXP_TAILS[i] == float(
+                (power - decimal.Decimal(nearest)) / decimal.Decimal(nearest)
+            )
+    assert module.table_exp(0.0) == 1.0 and module.table_exp(-0.0) == 1.0
+
+
+def test_block_memory_is_reused_only_once_nothing_references_it():
+    """A response's block memory is taken again once no array refers to it (a view of a view
+    holds it too), never while one does; arrays of REUSED_BYTES and more are not kept."""
+    first = response.block_memory(1000)
+    first[:] = 1.0
+    view = first.reshape(10, 100)[3:]
+    del first
+    held = response.block_memory(1000)
+    assert not np.shares_memory(held, view)
+    del view
+    again = response.block_memory(900)
+    assert again.shape == (900,) and again.flags.writeable
+    assert any(np.shares_memory(again, owner) for owner in response._REUSED)
+    assert not np.shares_memory(again, held)
+    large = response.block_memory(response.REUSED_BYTES // 8)
+    assert not any(np.shares_memory(large, owner) for owner in response._REUSED)

@@ -344,7 +344,7 @@ class Walker:
         step = self.plan.footsteps[i]
         dmps = self.swing_dmps
         self._swing = tuple(
-            dmp.replace(start=step.start[axes], goal=step.goal[axes]).stepper(DT)
+            dmp.replace(start=step.start[axes], goal=step.goal[axes]).stepper(DT, compile=True)
             for dmp, axes in ((dmps.horizontal, slice(0, 2)), (dmps.vertical, slice(2, 3)))
         )
         self._reference, self._lift_tick = self.plan, int(round(t / DT))

@@ -689,12 +689,14 @@ def _sole_bounds(robot) -> tuple:
     return corners[:, 0].min(), corners[:, 0].max(), corners[:, 1].min(), corners[:, 1].max()
 
 
-def _foot_loads(state, data, sole_ids, bounds) -> tuple[np.ndarray, np.ndarray, float]:
+def _foot_loads(forces, points, data, sole_ids, bounds) -> tuple[np.ndarray, np.ndarray, float]:
     """Measured normal force of each foot [N], its CoP's distance inside the sole [m], and
     the vertical moment of the contact forces about each sole frame's origin, summed [N m]
-    (``sole_ids``: :func:`_sole_ids`; ``bounds``: :func:`_sole_bounds`)."""
-    forces = state.contact_forces.reshape(2, -1, 3)
-    points = state.contact_positions.reshape(2, -1, 3)
+    (``forces``, ``points``: a :class:`dmpopt.sim.SimState`'s ``contact_forces`` and
+    ``contact_positions``; ``sole_ids``: :func:`_sole_ids`; ``bounds``:
+    :func:`_sole_bounds`; ``data``: with the frame placements of that state)."""
+    forces = forces.reshape(2, -1, 3)
+    points = points.reshape(2, -1, 3)
     normal = forces[:, :, 2].sum(axis=1)
     margin = np.full(2, np.nan)
     x_min, x_max, y_min, y_max = bounds
@@ -747,6 +749,11 @@ def simulate(
     tick = np.zeros(n)
     frames = []
     sole_ids, bounds = _sole_ids(robot), _sole_bounds(robot)
+    # what the loop does not feed back is computed after it, from each tick's state (there
+    # the model's data stay in the cache; the same numbers)
+    configurations, velocities = np.empty((n, robot.model.nq)), np.empty((n, robot.model.nv))
+    contact_forces = np.empty((n, *state.contact_forces.shape)) if measure_loads else None
+    contact_points = np.empty((n, *state.contact_positions.shape)) if measure_loads else None
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
@@ -760,13 +767,9 @@ def simulate(
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3
-        com[k] = pin.centerOfMass(robot.model, data, state.q, state.v)
-        dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
-        if measure_feet:
-            pin.updateFramePlacements(robot.model, data)
-            feet[k] = _sole_positions(data, sole_ids)
-            if measure_loads:
-                normal[k], margin[k], yaw[k] = _foot_loads(state, data, sole_ids, bounds)
+        configurations[k], velocities[k] = state.q, state.v
+        if measure_loads:
+            contact_forces[k], contact_points[k] = state.contact_forces, state.contact_positions
         if record_every and k % record_every == 0:
             frames.append(state.q.copy())
         try:
@@ -777,6 +780,16 @@ def simulate(
         if fell or diverged:
             n = k + 1
             break
+    for k in range(n):
+        com[k] = pin.centerOfMass(robot.model, data, configurations[k], velocities[k])
+        dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
+        if measure_feet:
+            pin.updateFramePlacements(robot.model, data)
+            feet[k] = _sole_positions(data, sole_ids)
+            if measure_loads:
+                normal[k], margin[k], yaw[k] = _foot_loads(
+                    contact_forces[k], contact_points[k], data, sole_ids, bounds
+                )
     log = WalkLog(
         np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], yaw[:n],
         reference_com[:n], reference_dcm[:n], tick[:n],

@@ -7,6 +7,10 @@ speed and amplitude between steps, adds coupling terms, and resets the phase.
 
 from __future__ import annotations
 
+import math
+import os
+from functools import lru_cache
+
 import numpy as np
 
 from . import forms, symbolic
@@ -52,7 +56,12 @@ class Stepper:
         self._max_step_per_tau = dmp.max_step / dmp.tau
         step = symbolic.step_function(dmp.signature)
         compile = flag("compile", compile)
-        self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
+        if compile:
+            step = _compiled(step, *(os.environ.get(k) for k in ("CC", "PATH")),
+                             symbolic.cache_dir())  # fmt: skip
+        self._function = symbolic.NumericFunction(step)
+        self._evaluate = self._function.evaluate
+        self._canonical_coupling = self._function.inputs["canonical_coupling"]
         self.time = 0.0
         self._start = vector("start", start, dmp.n_dofs, f"{dmp.n_dofs} DOFs")
         # eq. (7): the forcing term scales by the movement's own start
@@ -156,9 +165,10 @@ class Stepper:
                     "(one term per DOF) or a scalar"
                 )
             self._function.set_inputs(coupling=coupling)
-        canonical_coupling = real("canonical_coupling", canonical_coupling)
-        self._function.inputs["canonical_coupling"][0] = canonical_coupling
-        self._function.evaluate()
+        if not (type(canonical_coupling) is float and math.isfinite(canonical_coupling)):
+            canonical_coupling = real("canonical_coupling", canonical_coupling)
+        self._canonical_coupling[0] = canonical_coupling
+        self._evaluate()
         next_state, position, velocity, acceleration = self._outputs
         if not np.isfinite(next_state).all():
             raise InvalidInputError(
@@ -174,3 +184,12 @@ class Stepper:
             acceleration.copy(),
         )
         return self.position, self.velocity, self.acceleration
+
+
+@lru_cache(maxsize=64)
+def _compiled(step, compiler, path, cache):
+    """:func:`dmpopt.symbolic.compiled` of a step function, generated, hashed and loaded once
+    per process for the compiler settings (``$CC``, ``$PATH``) and cache folder of the call:
+    a new stepper of the same DMP signature (a walk's swing steppers, one pair per lift-off)
+    reuses the loaded library (each stepper keeps its own buffers)."""
+    return symbolic.compiled(step)

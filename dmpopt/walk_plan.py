@@ -252,33 +252,50 @@ class WalkPlan:
         )  # fmt: skip
 
     def _evaluate_at(self, t: float):
-        """:meth:`_evaluate` at one time ``t`` [s] (a float): the same arithmetic on Python
-        floats, one axis at a time, from the segment's coefficients (computed once per
-        segment), and the last time's answer kept (a tick asks for the CoM and then the ZMP
-        and DCM at the same time). The arrays returned are read-only."""
+        """:meth:`_evaluate` at one time ``t`` [s] (a float), from :meth:`values_at`, the
+        last time's answer kept (a tick asks for the CoM and then the ZMP and DCM at the same
+        time). The arrays returned are read-only."""
         cache = self._cache
         if cache.get("t") == t:
             return cache["answer"]
+        values = self.values_at(t)
+        answer = tuple(np.array(values[a : a + 2]) for a in range(0, 10, 2))
+        for array in answer:
+            array.setflags(write=False)
+        cache["t"], cache["answer"] = t, answer
+        return answer
+
+    def values_at(self, t: float) -> tuple:
+        """ZMP, DCM, CoM position, velocity and acceleration (x then y of each: ten Python
+        floats [m, m/s, m/s^2]) at one time ``t`` [s], a finite float: the numbers of
+        :meth:`zmp`, :meth:`dcm` and :meth:`com`, each bit, computed on floats from the
+        segment's coefficients (kept per segment) for a walk's tick."""
+        cache = self._cache
         times = cache.get("times")
         if times is None:
             times = cache["times"] = self.knot_times.tolist()
         t = min(max(t, 0.0), times[-1])
         k = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
         w = 1.0 / self.time_constant
-        axes = cache.get(k)
-        if axes is None:
+        segment = cache.get(k)
+        if segment is None:
             ta, tb, pa, slope, c, e = _segment_coefficients(
                 w, self.knot_times[k], self.knot_times[k + 1], self.zmp_knots[k],
                 self.zmp_knots[k + 1], self.dcm_knots[k + 1], self.com_knots[k],
             )  # fmt: skip
-            ta, tb = float(ta), float(tb)
-            rows = zip(*(a.tolist() for a in (pa, slope, c, e)))
-            axes = cache[k] = [(ta, tb, *row) for row in rows]
-        answer = tuple(np.array(values) for values in zip(*(_segment_at(w, *a, t) for a in axes)))
-        for array in answer:
-            array.setflags(write=False)
-        cache["t"], cache["answer"] = t, answer
-        return answer
+            rows = tuple(zip(*(a.tolist() for a in (pa, slope, c, e))))
+            segment = cache[k] = (float(ta), float(tb), rows)
+        ta, tb, rows = segment
+        # _segment_at on floats: the exponentials are the same for both axes
+        grow, decay = float(np.exp(w * (t - tb))), float(np.exp(-w * (t - ta)))
+        (pax, sx, cx, ex), (pay, sy, cy, ey) = rows
+        px, py = pax + sx * (t - ta), pay + sy * (t - ta)
+        x, y = px + 0.5 * cx * grow + ex * decay, py + 0.5 * cy * grow + ey * decay
+        return (
+            px, py, px + sx / w + cx * grow, py + sy / w + cy * grow, x, y,
+            sx + 0.5 * w * cx * grow - w * ex * decay, sy + 0.5 * w * cy * grow - w * ey * decay,
+            w**2 * (x - px), w**2 * (y - py),
+        )  # fmt: skip
 
     def zmp(self, t) -> np.ndarray:
         """ZMP [m] at time(s) ``t``, shape (..., 2)."""

@@ -23,6 +23,7 @@ below 0.7 m).
 
 from __future__ import annotations
 
+import bisect
 import time
 from dataclasses import dataclass
 
@@ -88,6 +89,7 @@ ARM_SWING_AMPLITUDE = 0.25  # [rad] each elbow's swing about its posture, arms i
 SETTLED_SPEED = 0.02  # [m/s] a landed sole slower than this has come to rest
 SETTLED_ANGULAR_SPEED = 0.1  # [rad/s] and turning slower than this lies on the ground
 PUSH_DURATION = 0.1  # [s] a push's impulse is spread over this
+_NO_CORRECTION = ((0.0, 0.0),) * 3  # Walker._correction_at's before any step adjustment
 
 
 @dataclass
@@ -185,8 +187,11 @@ class Walker:
         self.robot, self.plan, self.swing_dmps = robot, plan, swing_dmps
         self.feedback = feedback
         self.omega = 1.0 / plan.time_constant
+        self._omega_squared = self.omega**2  # [1/s^2] balance.lipm_acceleration's
+        self._feedback_gain = 1.0 + DCM_GAIN / self.omega  # balance.dcm_feedback_zmp's
         self.data = robot.create_data()  # the measured state's kinematics
         pin.framesForwardKinematics(robot.model, self.data, q0)
+        self._placements_stale = False  # self.data.oMf is the measured state's (_placement)
         self.sole_rotation = {
             f: self.data.oMf[robot.model.getFrameId(f)].rotation.copy() for f in robot.foot_frames
         }  # as planned, on level ground
@@ -236,17 +241,26 @@ class Walker:
         self._reference = plan  # the plan at the lift-off of the step under way
         self.records: list[StepRecord] = []
         self.zmp_command = np.zeros(2)  # the last commanded ZMP [m]
-        self._polygon_key, self._polygon = None, None
+        self._polygon_key, self._polygon, self._polygon_rows = None, None, []
+        self._offsets = (None, {})  # _ground_offset's plan and its segments' grounds
 
     def _frame(self, step) -> str:
         return f"{step.side}_sole_link"
 
     def _measure(self, state):
-        """CoM [m], CoM velocity [m/s] and sole placements of the measured state."""
-        model, data = self.robot.model, self.data
-        pin.centerOfMass(model, data, state.q_measured, state.v_measured)
-        pin.updateFramePlacements(model, data)
-        return data.com[0], data.vcom[0]
+        """CoM [m] and CoM velocity [m/s] of the measured state (its sole placements when
+        :meth:`_placement` asks: most ticks do not)."""
+        pin.centerOfMass(self.robot.model, self.data, state.q_measured, state.v_measured)
+        self._placements_stale = True
+        return self.data.com[0], self.data.vcom[0]
+
+    def _placement(self, foot: int):
+        """The measured placement of sole ``foot`` (0 left, 1 right), a pinocchio.SE3 (a
+        view into the walker's data: valid in this tick)."""
+        if self._placements_stale:
+            pin.updateFramePlacements(self.robot.model, self.data)
+            self._placements_stale = False
+        return self.data.oMf[self._frame_ids[foot]]
 
     def references(self, tick: int, state) -> None:
         """Targets and contact switches at tick ``tick`` (time ``tick * DT``) from the
@@ -283,6 +297,7 @@ class Walker:
         landed leg's stiff joint loop goes on pushing it into the floor, carries the whole
         weight on it and lifts the other, standing foot off in the double support."""
         foot, touchdown = self._settling
+        self._placement(foot)  # (the frames of this tick's state)
         velocity = pin.getFrameVelocity(
             self.robot.model, self.data, self._frame_ids[foot], pin.LOCAL_WORLD_ALIGNED
         )
@@ -298,6 +313,7 @@ class Walker:
         orients the next swinging sole, so that it lands flat on ground that goes on the
         same way."""
         foot, frame = self._conforming
+        placement = self._placement(foot)
         velocity = pin.getFrameVelocity(
             self.robot.model, self.data, self._frame_ids[foot], pin.LOCAL_WORLD_ALIGNED
         )
@@ -307,7 +323,6 @@ class Walker:
             and np.linalg.norm(velocity.linear) < SETTLED_SPEED
             and np.linalg.norm(velocity.angular) < SETTLED_ANGULAR_SPEED
         ):
-            placement = self.data.oMf[self._frame_ids[foot]]
             self._tilt = balance.ground_tilt(placement.rotation[:, 2])
             self._contacts[frame].reference_placement = placement.copy()
             self._conforming = None
@@ -315,7 +330,7 @@ class Walker:
         # until then the sole may roll onto the ground: its held attitude is the measured one
         reference = self._contacts[frame].reference_placement
         if reference is not None:
-            reference.rotation = self.data.oMf[self._frame_ids[foot]].rotation
+            reference.rotation = placement.rotation
 
     def _swing_arms(self) -> None:
         position, velocity, acceleration = self._arm_stepper.step()
@@ -329,7 +344,7 @@ class Walker:
         step = self.plan.footsteps[i]
         dmps = self.swing_dmps
         self._swing = tuple(
-            dmp.replace(start=step.start[axes], goal=step.goal[axes]).stepper(DT)
+            dmp.replace(start=step.start[axes], goal=step.goal[axes]).stepper(DT, compile=True)
             for dmp, axes in ((dmps.horizontal, slice(0, 2)), (dmps.vertical, slice(2, 3)))
         )
         self._reference, self._lift_tick = self.plan, int(round(t / DT))
@@ -438,13 +453,24 @@ class Walker:
             outputs = [(s.position, s.velocity, s.acceleration) for s in self._swing]
         else:
             outputs = [s.step() for s in self._swing]
-        position, velocity, acceleration = (np.concatenate(parts) for parts in zip(*outputs))
-        for total, added in zip((position, velocity, acceleration), self._correction_at(t)):
-            total[:2] += added
+        # on floats: the horizontal DMP's x, y and the vertical one's z of each output, the
+        # step adjustment's correction added to x and y (zero without one)
+        (position, velocity, acceleration), (height, rise, lift) = (
+            [a.tolist() for a in output] for output in outputs
+        )
+        added = _NO_CORRECTION if self._correction is None else self._correction_at(t)
+        (x, y), (vx, vy), (ax, ay) = (
+            (a + b for a, b in zip(total, more))
+            for total, more in zip((position, velocity, acceleration), added)
+        )
+        (z,), (vz,), (az,) = height, rise, lift
         if late > 0.0:  # feel for the ground: down at SEARCH_SPEED, at most SEARCH_DEPTH
-            position[2] -= min(SEARCH_SPEED * late, SEARCH_DEPTH)
-            velocity[2] = -SEARCH_SPEED if SEARCH_SPEED * late < SEARCH_DEPTH else 0.0
-            acceleration[2] = 0.0
+            z -= min(SEARCH_SPEED * late, SEARCH_DEPTH)
+            vz = -SEARCH_SPEED if SEARCH_SPEED * late < SEARCH_DEPTH else 0.0
+            az = 0.0
+        position, velocity, acceleration = (
+            np.array([x, y, z]), np.array([vx, vy, vz]), np.array([ax, ay, az])
+        )  # fmt: skip
         task = self.swing_tasks[self._frame(self.plan.footsteps[i])]
         # the sole's attitude is set at lift-off and kept through the swing: later ticks set
         # the position alone (and the linear velocity and acceleration, the angular ones zero)
@@ -457,7 +483,7 @@ class Walker:
         # held where it landed, oriented as it was sent (the measured attitude at the first
         # touch is the impact's: held, it would keep the sole on an edge); once at rest on
         # the ground, as it lies (_conform)
-        landed = self.data.oMf[self._frame_ids[foot]].translation.copy()
+        landed = self._placement(foot).translation.copy()
         placement = pin.SE3(self._swing_rotation, landed)
         self.controller.remove_task(self.swing_tasks[frame])
         self.controller.add_contact(frame, placement, TOUCHDOWN_RAMP)
@@ -466,6 +492,7 @@ class Walker:
             self.controller.joint_impedance.reset()
         self._conforming = (foot, frame)
         self._level[frame] = landed[2]
+        self._offsets = (None, {})  # _ground_offset's grounds changed
         early = t < self.plan.touchdown[i] - DT / 2  # higher ground: the rhythm is kept
         self.plan = self.plan.with_touchdown(i, t, shift_later=not early).with_goal(i, landed)
         record = self.records[-1]
@@ -506,7 +533,7 @@ class Walker:
         box without crossing: a crossing step is taken only where the feet pass each
         other, ahead or behind."""
         stance = 1 - self.robot.foot_frames.index(self._frame(step))
-        placement = self.data.oMf[self._frame_ids[stance]]
+        placement = self._placement(stance)
         swing = self._tilt @ self.sole_rotation[self._frame(step)]
         outline = self._sole_outline(swing, foothold)
         standing = self._sole_outline(placement.rotation, placement.translation[:2])
@@ -524,10 +551,8 @@ class Walker:
         """Whether ``point`` [m] lies in the convex hull of both soles (shrunk by
         ``SUPPORT_MARGIN``)."""
         local = np.column_stack([self._polygon_corners, np.zeros(len(self._polygon_corners))])
-        corners = [
-            (self.data.oMf[f].rotation @ local.T).T[:, :2] + self.data.oMf[f].translation[:2]
-            for f in self._frame_ids
-        ]
+        placements = [self._placement(foot) for foot in (0, 1)]
+        corners = [(p.rotation @ local.T).T[:, :2] + p.translation[:2] for p in placements]
         hull = balance.convex_hull(np.vstack(corners))
         return bool(np.allclose(balance.clip_to_polygon(point, hull), point, atol=0.0))
 
@@ -546,25 +571,43 @@ class Walker:
         plan's CoM (open loop); the height follows the plan above the stance ground."""
         offset, rate = self._ground_offset(t)
         height = self._com_height + offset
-        self.reference_com = self.plan.com(t)[0][:2]
-        zmp_reference, dcm_reference = self.plan.zmp_and_dcm(t)
-        self.reference_dcm = dcm_reference
         if not self.feedback:
+            self.reference_com = self.plan.com(t)[0][:2]
+            self.reference_dcm = self.plan.dcm(t)
             position, velocity, acceleration = self.plan.com(t)
             position[2], velocity[2] = height, rate
             self.com_task.set_target(position, velocity, acceleration)
             return
-        xi = balance.dcm(com[:2], com_velocity[:2], self.omega)
-        zmp = balance.dcm_feedback_zmp(xi, dcm_reference, zmp_reference, DCM_GAIN, self.omega)
+        # balance.dcm, dcm_feedback_zmp, clip_to_polygon and lipm_acceleration, each bit, on
+        # the floats of one tick (a call with their checks on arrays of two took ~5 us each)
+        zx, zy, dx, dy, reference_x, reference_y = self.plan.values_at(t)[:6]
+        self.reference_com, self.reference_dcm = (reference_x, reference_y), (dx, dy)
+        x, y, _ = com.tolist()
+        vx, vy, _ = com_velocity.tolist()
+        omega, gain = self.omega, self._feedback_gain
+        xi_x, xi_y = x + vx / omega, y + vy / omega
+        zx, zy = zx + gain * (xi_x - dx), zy + gain * (xi_y - dy)
         polygon = self._support_polygon()
-        if polygon is not None:
-            zmp = balance.clip_to_polygon(zmp, polygon)
-        self.zmp_command = zmp
-        horizontal = balance.lipm_acceleration(com[:2], zmp, self.omega)
-        acceleration = np.array([horizontal[0], horizontal[1], 0.0])
-        position = np.array([com[0], com[1], height])
-        velocity = np.array([com_velocity[0], com_velocity[1], rate])
-        self.com_task.set_target(position, velocity, acceleration)
+        if polygon is not None and not self._inside_polygon(zx, zy):
+            zx, zy = balance.clip_to_polygon(np.array([zx, zy]), polygon).tolist()
+        self.zmp_command = np.array([zx, zy])
+        square = self._omega_squared
+        self.com_task.set_target(
+            np.array([x, y, height]),
+            np.array([vx, vy, rate]),
+            np.array([square * (x - zx), square * (y - zy), 0.0]),
+        )
+
+    def _inside_polygon(self, px: float, py: float) -> bool:
+        """Whether the point lies in the support polygon (:meth:`_support_polygon`, not
+        None): the test of :func:`dmpopt.balance.clip_to_polygon`, which returns it then."""
+        rows = self._polygon_rows
+        if len(rows) < 3:
+            return False
+        return min(
+            (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+            for (ax, ay), (bx, by) in zip(rows, rows[1:] + rows[:1])
+        ) >= 0.0  # fmt: skip
 
     def _support_polygon(self):
         """Convex hull of the soles in contact (shrunk by ``SUPPORT_MARGIN``), or None; kept
@@ -574,13 +617,14 @@ class Walker:
             corners = []
             for foot, frame in enumerate(self.robot.foot_frames):
                 if frame in active:
-                    placement = self.data.oMf[self._frame_ids[foot]]
+                    placement = self._placement(foot)
                     local = np.column_stack([self._polygon_corners, np.zeros(4)])
                     corners.append(
                         (placement.rotation @ local.T).T[:, :2] + placement.translation[:2]
                     )
             self._polygon_key = active
             self._polygon = balance.convex_hull(np.vstack(corners)) if corners else None
+            self._polygon_rows = [] if self._polygon is None else self._polygon.tolist()
         return self._polygon
 
     def _ground_offset(self, t: float) -> tuple[float, float]:
@@ -589,10 +633,27 @@ class Walker:
         slope, lowers or raises the CoM with it), and in a double support the height moves
         linearly from the foot being unloaded to the one being loaded, as the ZMP does (a
         live measurement would feed a rising, unloading foot back into the CoM height)."""
+        plan, segments = self._offsets
+        if plan is not self.plan:  # (a new plan, or a foot landed: _touchdown)
+            plan, segments = self.plan, {"times": self.plan.knot_times.tolist()}
+            self._offsets = plan, segments
+        times = segments["times"]
+        k = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
+        segment = segments.get(k)
+        if segment is None:
+            segment = segments[k] = self._ground_segment(plan, k)
+        low, high, start, span = segment
+        if span <= 0.0 or low == high:
+            return low, 0.0
+        fraction = min(max((t - start) / span, 0.0), 1.0)
+        return low + fraction * (high - low), (high - low) / span
+
+    def _ground_segment(self, plan, k: int) -> tuple:
+        """:meth:`_ground_offset`'s ground under ZMP knots ``k`` and ``k + 1`` [m], the
+        segment's start [s] and length [s]."""
         level = {side: self._level[f] - self._ground[f]
                  for side, f in zip(("left", "right"), self.robot.foot_frames)}  # fmt: skip
-        times, steps = self.plan.knot_times, self.plan.footsteps
-        k = min(max(int(np.searchsorted(times, t, side="right")) - 1, 0), len(times) - 2)
+        times, steps = plan.knot_times, plan.footsteps
 
         def knot(j: int) -> float:  # the ground under the ZMP knot j
             step = (j - 2) // 2
@@ -600,12 +661,7 @@ class Walker:
                 return 0.5 * (level["left"] + level["right"])
             return level["right" if steps[step].side == "left" else "left"]
 
-        low, high = knot(k), knot(k + 1)
-        span = times[k + 1] - times[k]
-        if span <= 0.0 or low == high:
-            return low, 0.0
-        fraction = min(max((t - times[k]) / span, 0.0), 1.0)
-        return low + fraction * (high - low), (high - low) / span
+        return knot(k), knot(k + 1), float(times[k]), float(times[k + 1] - times[k])
 
 
 def make_simulator(robot, plant=IDEAL, boxes=()):
@@ -633,12 +689,14 @@ def _sole_bounds(robot) -> tuple:
     return corners[:, 0].min(), corners[:, 0].max(), corners[:, 1].min(), corners[:, 1].max()
 
 
-def _foot_loads(state, data, sole_ids, bounds) -> tuple[np.ndarray, np.ndarray, float]:
+def _foot_loads(forces, points, data, sole_ids, bounds) -> tuple[np.ndarray, np.ndarray, float]:
     """Measured normal force of each foot [N], its CoP's distance inside the sole [m], and
     the vertical moment of the contact forces about each sole frame's origin, summed [N m]
-    (``sole_ids``: :func:`_sole_ids`; ``bounds``: :func:`_sole_bounds`)."""
-    forces = state.contact_forces.reshape(2, -1, 3)
-    points = state.contact_positions.reshape(2, -1, 3)
+    (``forces``, ``points``: a :class:`dmpopt.sim.SimState`'s ``contact_forces`` and
+    ``contact_positions``; ``sole_ids``: :func:`_sole_ids`; ``bounds``:
+    :func:`_sole_bounds`; ``data``: with the frame placements of that state)."""
+    forces = forces.reshape(2, -1, 3)
+    points = points.reshape(2, -1, 3)
     normal = forces[:, :, 2].sum(axis=1)
     margin = np.full(2, np.nan)
     x_min, x_max, y_min, y_max = bounds
@@ -691,6 +749,11 @@ def simulate(
     tick = np.zeros(n)
     frames = []
     sole_ids, bounds = _sole_ids(robot), _sole_bounds(robot)
+    # what the loop does not feed back is computed after it, from each tick's state (there
+    # the model's data stay in the cache; the same numbers)
+    configurations, velocities = np.empty((n, robot.model.nq)), np.empty((n, robot.model.nv))
+    contact_forces = np.empty((n, *state.contact_forces.shape)) if measure_loads else None
+    contact_points = np.empty((n, *state.contact_positions.shape)) if measure_loads else None
     fell, diverged = False, None
     for k in range(n):
         t = k * DT
@@ -704,13 +767,9 @@ def simulate(
         begin = time.thread_time_ns()
         tau = walker.controller.compute_torques(state.q_measured, state.v_measured, t)
         tick[k] = (time.thread_time_ns() - begin) / 1e3
-        com[k] = pin.centerOfMass(robot.model, data, state.q, state.v)
-        dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
-        if measure_feet:
-            pin.updateFramePlacements(robot.model, data)
-            feet[k] = _sole_positions(data, sole_ids)
-            if measure_loads:
-                normal[k], margin[k], yaw[k] = _foot_loads(state, data, sole_ids, bounds)
+        configurations[k], velocities[k] = state.q, state.v
+        if measure_loads:
+            contact_forces[k], contact_points[k] = state.contact_forces, state.contact_positions
         if record_every and k % record_every == 0:
             frames.append(state.q.copy())
         try:
@@ -721,6 +780,16 @@ def simulate(
         if fell or diverged:
             n = k + 1
             break
+    for k in range(n):
+        com[k] = pin.centerOfMass(robot.model, data, configurations[k], velocities[k])
+        dcm[k] = com[k, :2] + data.vcom[0][:2] / omega
+        if measure_feet:
+            pin.updateFramePlacements(robot.model, data)
+            feet[k] = _sole_positions(data, sole_ids)
+            if measure_loads:
+                normal[k], margin[k], yaw[k] = _foot_loads(
+                    contact_forces[k], contact_points[k], data, sole_ids, bounds
+                )
     log = WalkLog(
         np.arange(n) * DT, com[:n], dcm[:n], feet[:n], normal[:n], margin[:n], yaw[:n],
         reference_com[:n], reference_dcm[:n], tick[:n],

@@ -177,6 +177,29 @@ def test_compile_must_be_a_bool():
         random_discrete().stepper(0.001, compile="yes")
 
 
+def test_compiled_steppers_of_one_signature_share_the_library_and_step_as_the_vm(
+    monkeypatch, tmp_path
+):
+    """Two compiled steppers of one DMP signature (a walk's swing steppers, re-targeted at
+    each lift-off) load the generated step once and keep their own states: each steps, bit
+    for bit, as its own stepper on CasADi's VM (the answer key), interleaved."""
+    from dmpopt import symbolic
+
+    monkeypatch.setenv("DMPOPT_CACHE", str(tmp_path))
+    monkeypatch.delenv("CC", raising=False)
+    if symbolic.c_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    dmp = random_discrete(seed=5)
+    other = dmp.replace(goal=dmp.goal + 0.3)
+    first, second = dmp.stepper(0.001, compile=True), other.stepper(0.001, compile=True)
+    assert first.compiled and first._function.function is second._function.function
+    vm_first, vm_second = dmp.stepper(0.001), other.stepper(0.001)
+    for _ in range(50):
+        np.testing.assert_array_equal(first.step(), vm_first.step())
+        np.testing.assert_array_equal(second.step(canonical_coupling=0.1),
+                                      vm_second.step(canonical_coupling=0.1))  # fmt: skip
+
+
 def test_a_rhythmic_start_of_the_wrong_size_is_named():
     with pytest.raises(
         ShapeError, match=r"start has shape \(5,\), expected \(2,\) to match 2 DOFs"

@@ -105,6 +105,22 @@ def test_plan_obeys_the_lipm_and_the_dcm_definition_everywhere():
     np.testing.assert_allclose(plan.com(0.0)[0], COM)
 
 
+@settings(max_examples=40, deadline=None)
+@given(t=st.floats(-0.5, 9.0))
+def test_a_ticks_floats_are_the_plans_arrays_bit_for_bit(t):
+    """values_at (a tick's floats) gives each bit of zmp, dcm and com evaluated on an array
+    of times (the other code path, one exponential per element and axis); with no ulp of
+    tolerance, a reordered sum or a shared factor computed differently fails."""
+    plan = walk()
+    values = np.array(plan.values_at(t))
+    position, velocity, acceleration = plan.com(np.array([t]))
+    arrays = [plan.zmp(np.array([t])), plan.dcm(np.array([t]))]
+    arrays += [a[:, :2] for a in (position, velocity, acceleration)]
+    np.testing.assert_array_equal(values, np.concatenate(arrays, axis=1).ravel())
+    single = np.concatenate([plan.zmp(t), plan.dcm(t), *(a[:2] for a in plan.com(t))])
+    np.testing.assert_array_equal(values, single)
+
+
 def test_zmp_sits_on_the_stance_foot_in_single_support_and_moves_in_double_support():
     plan = walk()
     for i, (step, start, end) in enumerate(zip(plan.footsteps, plan.lift_off, plan.touchdown)):

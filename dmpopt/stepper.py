@@ -8,8 +8,6 @@ speed and amplitude between steps, adds coupling terms, and resets the phase.
 from __future__ import annotations
 
 import math
-import os
-from functools import lru_cache
 
 import numpy as np
 
@@ -56,10 +54,8 @@ class Stepper:
         self._max_step_per_tau = dmp.max_step / dmp.tau
         step = symbolic.step_function(dmp.signature)
         compile = flag("compile", compile)
-        if compile:
-            step = _compiled(step, *(os.environ.get(k) for k in ("CC", "PATH")),
-                             symbolic.cache_dir())  # fmt: skip
-        self._function = symbolic.NumericFunction(step)
+        # a compiled step's library is found once per process (symbolic.compiled keeps it)
+        self._function = symbolic.NumericFunction(symbolic.compiled(step) if compile else step)
         self._evaluate = self._function.evaluate
         self._canonical_coupling = self._function.inputs["canonical_coupling"]
         self.time = 0.0
@@ -184,12 +180,3 @@ class Stepper:
             acceleration.copy(),
         )
         return self.position, self.velocity, self.acceleration
-
-
-@lru_cache(maxsize=64)
-def _compiled(step, compiler, path, cache):
-    """:func:`dmpopt.symbolic.compiled` of a step function, generated, hashed and loaded once
-    per process for the compiler settings (``$CC``, ``$PATH``) and cache folder of the call:
-    a new stepper of the same DMP signature (a walk's swing steppers, one pair per lift-off)
-    reuses the loaded library (each stepper keeps its own buffers)."""
-    return symbolic.compiled(step)

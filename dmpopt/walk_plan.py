@@ -288,14 +288,10 @@ class WalkPlan:
         ta, tb, rows = segment
         # _segment_at on floats: the exponentials are the same for both axes
         grow, decay = float(np.exp(w * (t - tb))), float(np.exp(-w * (t - ta)))
-        (pax, sx, cx, ex), (pay, sy, cy, ey) = rows
-        px, py = pax + sx * (t - ta), pay + sy * (t - ta)
-        x, y = px + 0.5 * cx * grow + ex * decay, py + 0.5 * cy * grow + ey * decay
-        return (
-            px, py, px + sx / w + cx * grow, py + sy / w + cy * grow, x, y,
-            sx + 0.5 * w * cx * grow - w * ex * decay, sy + 0.5 * w * cy * grow - w * ey * decay,
-            w**2 * (x - px), w**2 * (y - py),
-        )  # fmt: skip
+        (px, dx, x, vx, ax), (py, dy, y, vy, ay) = (
+            _segment_values(w, ta, *row, t, grow, decay) for row in rows
+        )
+        return px, py, dx, dy, x, y, vx, vy, ax, ay
 
     def zmp(self, t) -> np.ndarray:
         """ZMP [m] at time(s) ``t``, shape (..., 2)."""
@@ -540,8 +536,15 @@ def _segment_coefficients(w, ta, tb, pa, pb, xi_b, x_a):
 
 def _segment_at(w, ta, tb, pa, slope, c, e, t):
     """:func:`_lipm_segment` at ``t`` from its coefficients (:func:`_segment_coefficients`)."""
-    p = pa + slope * (t - ta)
     grow, decay = np.exp(w * (t - tb)), np.exp(-w * (t - ta))
+    return _segment_values(w, ta, pa, slope, c, e, t, grow, decay)
+
+
+def _segment_values(w, ta, pa, slope, c, e, t, grow, decay):
+    """ZMP, DCM, CoM position, velocity and acceleration of :func:`_segment_at`, given its
+    exponentials ``grow`` :math:`= e^{w (t - t_b)}` and ``decay`` :math:`= e^{-w (t - t_a)}`
+    (arrays or floats alike)."""
+    p = pa + slope * (t - ta)
     position = p + 0.5 * c * grow + e * decay
     velocity = slope + 0.5 * w * c * grow - w * e * decay
     return p, p + slope / w + c * grow, position, velocity, w**2 * (position - p)

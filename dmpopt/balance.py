@@ -63,6 +63,7 @@ __all__ = [
     "convex_hull",
     "dcm",
     "dcm_feedback_zmp",
+    "edge_signs",
     "ground_tilt",
     "lipm_acceleration",
     "predict_dcm",
@@ -222,6 +223,17 @@ def polygons_overlap(first, second, clearance: float = 0.0) -> bool:
     return True
 
 
+def edge_signs(px: float, py: float, vertices: list) -> list:
+    """The cross product of each edge of a polygon (``vertices``: [x, y] pairs of floats, in
+    order) with the point (px, py) [m^2]: >= 0 where the point is on the edge's left, so all
+    >= 0 for a point inside a counter-clockwise polygon (:func:`clip_to_polygon`'s test, on
+    floats for a controller's tick)."""
+    return [
+        (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+        for (ax, ay), (bx, by) in zip(vertices, vertices[1:] + vertices[:1])
+    ]
+
+
 def clip_to_polygon(point, polygon) -> np.ndarray:
     """The point of the convex ``polygon`` nearest to ``point`` (``point`` itself if inside).
 
@@ -248,11 +260,7 @@ def clip_to_polygon(point, polygon) -> np.ndarray:
         )
     n = len(vertices)
     if n >= 3:
-        (px, py), rows = x.tolist(), vertices.tolist()
-        signs = [  # the cross product of each edge with the point (>= 0: on its left)
-            (bx - ax) * (py - ay) - (by - ay) * (px - ax)
-            for (ax, ay), (bx, by) in zip(rows, rows[1:] + rows[:1])
-        ]
+        signs = edge_signs(*x.tolist(), vertices.tolist())
         if min(signs) >= 0.0:
             return x.copy()
         if max(signs) <= 0.0 and min(signs) < 0.0:

@@ -602,12 +602,7 @@ class Walker:
         """Whether the point lies in the support polygon (:meth:`_support_polygon`, not
         None): the test of :func:`dmpopt.balance.clip_to_polygon`, which returns it then."""
         rows = self._polygon_rows
-        if len(rows) < 3:
-            return False
-        return min(
-            (bx - ax) * (py - ay) - (by - ay) * (px - ax)
-            for (ax, ay), (bx, by) in zip(rows, rows[1:] + rows[:1])
-        ) >= 0.0  # fmt: skip
+        return len(rows) >= 3 and min(balance.edge_signs(px, py, rows)) >= 0.0
 
     def _support_polygon(self):
         """Convex hull of the soles in contact (shrunk by ``SUPPORT_MARGIN``), or None; kept

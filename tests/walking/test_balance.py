@@ -18,6 +18,7 @@ from dmpopt.balance import (
     convex_hull,
     dcm,
     dcm_feedback_zmp,
+    edge_signs,
     ground_tilt,
     lipm_acceleration,
     polygons_overlap,
@@ -512,3 +513,13 @@ def test_clip_returns_a_new_point_and_leaves_its_inputs_alone():
     outer = np.array([2.0, 0.5])
     assert clip_to_polygon(outer, square).tolist() == [1.0, 0.5]
     assert outer.tolist() == [2.0, 0.5] and square[1].tolist() == [1.0, 0.0]
+
+
+def test_edge_signs_are_each_edges_cross_product_with_the_point():
+    """The unit square, counter-clockwise: edge k from v_k to v_(k+1) has cross product
+    (b - a) x (p - a); inside all are positive (0.5 at the centre), on an edge one is zero,
+    outside to the right the right edge's is negative."""
+    square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+    assert edge_signs(0.5, 0.5, square) == [0.5, 0.5, 0.5, 0.5]
+    assert edge_signs(0.25, 0.0, square) == [0.0, 0.75, 1.0, 0.25]
+    assert edge_signs(2.0, 0.25, square) == [0.25, -1.0, 0.75, 2.0]

@@ -503,17 +503,19 @@ def phase_point_function(form_name: str) -> ca.Function:
     )
 
 
-@lru_cache(maxsize=8)
-def log_activation_function(kernel: str) -> ca.Function:
+@lru_cache(maxsize=16)
+def log_activation_function(kernel: str, slope: bool = True) -> ca.Function:
     r"""``(phase, centre, width) -> (log_activation, log_activation_slope)``: the logarithm
     :math:`l` of one basis function's activation (:func:`basis_log_activations`) and
-    :math:`\partial l / \partial \phi`."""
+    :math:`\partial l / \partial \phi`; ``slope=False``: :math:`l` only, by the same
+    instructions less those of the slope (a von Mises basis's sine)."""
     phase, centre, width = ca.SX.sym("phase"), ca.SX.sym("centre"), ca.SX.sym("width")
     log_psi = basis_log_activations(kernel, phase, centre, width)
+    outputs = {"log_activation": log_psi}
+    if slope:
+        outputs["log_activation_slope"] = ca.jacobian(log_psi, phase)
     return function(
-        "dmp_log_activation",
-        {"phase": phase, "centre": centre, "width": width},
-        {"log_activation": log_psi, "log_activation_slope": ca.jacobian(log_psi, phase)},
+        "dmp_log_activation", {"phase": phase, "centre": centre, "width": width}, outputs
     )
 
 

@@ -73,6 +73,8 @@ def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
             expected = np.array([float(v) for v in log_activation(state[0], centre, width)])
             got = np.array(module.log_activation(state[0], centre, width))
             np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * abs(expected).max())
+            # the value alone (stage points) by the same instructions less the slope's
+            assert module.log_value(state[0], centre, width) == (got[0],)
 
 
 @pytest.mark.parametrize("form, kernel", CASES)
@@ -417,15 +419,20 @@ def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
     module.candidates(start, dt, target, gains, centres, widths, first, lowest, highest)
     narrower = highest - lowest + 1 < centres.size  # all but where the phase wraps
     assert np.all(narrower) if form in DISCRETE else np.any(narrower)
-    logs, seen = np.empty(centres.size), np.full(centres.size, -1)
+    logs, slopes, seen = np.empty(centres.size), np.empty(centres.size), np.full(centres.size, -1)
     for k, points in enumerate(_points(module, start, target, gains, n_steps, dt)):
         for s, point in enumerate(points):
             _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
                                            first, s == 0, logs)  # fmt: skip
             phases = module.phase_point(point, target, gains)
             found = module.candidate_window(phases, lowest[k], highest[k], centres, widths,
-                                            widths.max(), first, s == 0, logs, seen, 0)  # fmt: skip
+                                            widths.max(), first, s == 0, logs, slopes, seen,
+                                            0)  # fmt: skip
             assert found == (lo, hi, top)
+            if s == 0:  # the sample's slopes, from the evaluation that gave the logs
+                for j in range(lowest[k], highest[k] + 1):
+                    expected = module.log_activation(phases[0], centres[j], widths[j])
+                    assert (logs[j], slopes[j]) == expected
 
 
 def _exact_exp(x: float) -> "decimal.Decimal":

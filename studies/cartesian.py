@@ -62,7 +62,7 @@ from dmpopt.control import (
 )
 from dmpopt.sim import with_armature
 
-EXPECTED_SECONDS = {"full": 9, "quick": 10}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 4, "quick": 8}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 DT = 1e-3  # [s]
 DEMO_SECONDS = 2.5
 N_BASIS = 20

@@ -39,7 +39,7 @@ import numpy as np
 from . import lasa
 from .common import Progress, command_line, pyplot, write_metrics
 
-EXPECTED_SECONDS = {"full": 30, "quick": 6}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 14, "quick": 3}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 VELOCITY_FRACTION = 0.8  # bounds: this fraction of the unconstrained plan's peak |v| per DOF
 ACCELERATION_FRACTION = 0.6  # ... and of its peak |a|
 GOAL_SHIFT = 0.1  # the goal moves by this fraction of the extent along (1, -1)

@@ -36,7 +36,7 @@ import numpy as np
 
 from .common import Progress, command_line, pyplot, write_metrics
 
-EXPECTED_SECONDS = {"full": 7, "quick": 3}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 4, "quick": 2}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 SPEED = 2.0  # the forehand demonstrated this many times faster than the humanoid study's
 COP_MARGIN = 0.01  # [m] the CoP at least this far inside the support polygon
 FRICTION = 0.7  # the controller's friction coefficient (dmpopt_studies.humanoid.parameters)

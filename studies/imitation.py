@@ -32,7 +32,7 @@ from .common import Progress, median_time, output_dir, pyplot, write_metrics
 # CPU seconds (process and workers; dmpopt.cli) measured on the shared 2-core machine: full
 # 77 s in series (114 s before the regressors were read through CasADi's buffers, 148 s
 # before the unforced states took one basis function; load average 7-20), quick 8 s
-EXPECTED_SECONDS = {"full": 60, "quick": 10}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 29, "quick": 8}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 N_BASIS = (10, 30, 100)
 DEFAULT_N_BASIS = 30  # fit_discrete's default
 METHODS = {  # label: fit options

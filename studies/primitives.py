@@ -70,7 +70,7 @@ from dmpopt import Trajectory, fit_discrete, fit_keep_out, fit_promp
 from dmpopt.fitting import minimum_jerk
 from dmpopt.obstacles import Box, PotentialField, Sphere, SteeringAngle, clearance, run_coupled
 
-EXPECTED_SECONDS = {"full": 29, "quick": 7}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 17, "quick": 5}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 N_BASIS = 20
 N_EVAL = 100
 QUICK_SHAPES = ("Angle", "GShape")

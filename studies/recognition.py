@@ -70,7 +70,7 @@ from dmpopt.recognition import (
 from .common import command_line, output_dir, pyplot, write_metrics
 
 # 2-core machine: 66 s measured beside one other job (28 s before the scikit-learn classifiers)
-EXPECTED_SECONDS = {"full": 19, "quick": 15}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 9, "quick": 8}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 N_BASIS = 30
 QUICK_SHAPES = 8
 OFFSET = 500.0  # [mm], largest translation per axis

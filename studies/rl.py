@@ -107,7 +107,7 @@ BELL_LIMITS = {"rebound": 0.01, "reversal": 0.01, "end_speed": 0.05, "goal_error
 # CPU seconds (user + sys of dmpopt.cli), measured on the shared 2-core machine with a warm
 # numba cache: quick 17.5 s in series, full 194 s with the default 2 workers (1,765 runs, load
 # 1.4-3.8); the first run after a change to dmpopt.learning compiles its kernels (~40 CPU-s)
-EXPECTED_SECONDS = {"full": 116, "quick": 18}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 66, "quick": 26}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 
 
 class ScaledTask:

@@ -125,7 +125,7 @@ __all__ = [
 # wall seconds on the 2-core machine, 2 workers (`dmpopt study run biped [--quick] --workers 2`,
 # measured at a load average of 13-17: quick 284 s, full 1500 s; full-run CPU 562 s, user +
 # system with the workers, so about 5 min of two idle cores plus the study's own 17 s)
-EXPECTED_SECONDS = {"full": 144, "quick": 90}  # CPU s (dmpopt.cli); full: main job 2026-11-28, warm
+EXPECTED_SECONDS = {"full": 68, "quick": 43}  # CPU s (dmpopt.cli): main job, 2026-11-28, EPYC
 # [rad/s] starts below and above where the QP walker settles (from 4 rad/s it makes one step
 # and falls; from 14 and 15 rad/s it falls within 1 s); the controls start at 12
 START_FREQUENCIES = (5.0, 8.0, 12.0, 13.5)

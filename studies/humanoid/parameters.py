@@ -2,9 +2,9 @@
 
 import numpy as np
 
-# CPU seconds (process and workers, user + sys; dmpopt.cli): quick 107 serial at load 7-11
-# (2026-11-27); full 255 in series in the main job, warm, quiet (2026-11-28, second round)
-EXPECTED_SECONDS = {"full": 244, "quick": 110}
+# CPU seconds (process and workers, user + sys; dmpopt.cli): the main job, warm, quiet, on the
+# 2-core AMD EPYC machine of 2026-11-28 (full 134, quick 76)
+EXPECTED_SECONDS = {"full": 134, "quick": 76}
 
 DT = 1e-3  # [s] control, DMP and simulation period (1 kHz)
 PERIOD = 1.5  # [s] drumming period (one stroke per hand per period; 80 beats per minute)

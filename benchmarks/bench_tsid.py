@@ -31,7 +31,7 @@ pin 3.4.0 (``benchmarks/tsid-constraints.txt``) runs::
 
     python3.11 -m venv /path/to/venv-tsid
     /path/to/venv-tsid/bin/pip install -c benchmarks/tsid-constraints.txt tsid pin casadi \\
-        proxsuite numba scipy toppra tqdm threadpoolctl example-robot-data mujoco
+        proxsuite daqp numba scipy toppra tqdm threadpoolctl example-robot-data mujoco
     PYTHONPATH=.:benchmarks /path/to/venv-tsid/bin/python benchmarks/bench_tsid.py
 
 Run from the repository root: ``PYTHONPATH=.:benchmarks python benchmarks/bench_tsid.py

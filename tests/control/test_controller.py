@@ -523,6 +523,32 @@ def test_input_errors(talos, upper_body):
         hand.set_target(np.zeros(3), acceleration=np.full(6, np.nan))
 
 
+def test_a_task_vector_is_checked_and_copied_on_either_path():
+    """A target vector: a float64 array of its length (the compiled check), a list or an
+    int or float32 array (numpy's) give a new float array of the same numbers; NaN or inf
+    anywhere is refused on either path; a number is repeated; a wrong length or what is not
+    numbers is named."""
+    from dmpopt.control import tasks
+
+    for value in (np.array([1.0, -2.0, 3.0]), [1.0, -2.0, 3.0], np.array([1, -2, 3]),
+                  np.array([1.0, -2.0, 3.0], dtype=np.float32)):  # fmt: skip
+        got = tasks._vector(value, 3, "x")
+        assert got.dtype == np.float64 and got.tolist() == [1.0, -2.0, 3.0]
+        assert not np.shares_memory(got, np.asarray(value))
+    for bad in (np.inf, -np.inf, np.nan):
+        for at in range(3):
+            value = np.zeros(3)
+            value[at] = bad
+            for form in (value, value.tolist()):
+                with pytest.raises(InvalidInputError, match="x must be finite"):
+                    tasks._vector(form, 3, "x")
+    assert tasks._vector(2, 4, "x").tolist() == [2.0] * 4
+    with pytest.raises(InvalidInputError, match="^x must be numbers"):
+        tasks._vector(["a", "b", "c"], 3, "x")
+    with pytest.raises(ShapeError, match=r"x has shape \(2,\), expected \(\) or \(3,\)"):
+        tasks._vector(np.zeros(2), 3, "x")
+
+
 @pytest.mark.parametrize("with_hand", [False, True])
 def test_nan_written_into_a_task_never_reaches_the_torques(upper_body, with_hand):
     """A NaN that bypasses validation (written into a task's array) fails the tick's checks:

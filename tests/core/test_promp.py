@@ -235,3 +235,103 @@ def test_recalled_demo_fits_give_the_fresh_fit():
         np.testing.assert_array_equal(fit.mean, fresh.mean)
         np.testing.assert_array_equal(fit.covariance, fresh.covariance)
         assert fit.noise_variance == fresh.noise_variance
+
+
+# answer keys (mutation run)
+
+
+def test_features_of_bases_of_different_widths_match_casadis_derivatives():
+    """As test_features_match_the_symbolic_basis_and_its_casadi_derivatives with a width per
+    basis (equal widths hide the curvature -2 h_i of the second derivative: it cancels)."""
+    centres, widths = basis(7)
+    widths = widths * np.linspace(0.5, 2.0, 7)
+    z = ca.SX.sym("z")
+    psi = symbolic.normalised_activations(
+        symbolic.basis_log_activations("gaussian", z, ca.DM(centres), ca.DM(widths))
+    )
+    first = ca.jacobian(psi, z)
+    function = ca.Function("f", [z], [psi, first, ca.jacobian(first, z)])
+    phases = np.linspace(-0.1, 1.1, 13)
+    got = features(phases, centres, widths)
+    for k, phase in enumerate(phases):
+        for order, value in enumerate(function(phase)):
+            scale = np.abs(value.full()).max()
+            np.testing.assert_allclose(got[order, k], value.full().ravel(), atol=1e-10 * scale)
+
+
+def test_features_far_from_every_centre_go_to_the_nearest_basis():
+    """At phase 50 every activation underflows (e^{-h 49^2}); normalised per phase, the last
+    basis (centre 1) takes all of it (the next one e^{-h (50.25^2 - 49^2)} of it), while
+    phase 0.5 keeps its own values summing to one."""
+    centres, widths = basis(5)
+    psi = features([0.5, 50.0], centres, widths)[0]
+    assert psi[1, 4] == 1.0 and np.all(psi[1, :4] < 1e-200)
+    assert psi[0].sum() == pytest.approx(1.0, rel=1e-15, abs=0) and psi[0, 2] == psi[0].max()
+
+
+def _plain_fit(demos, n_basis, regularization, kappa):
+    """fit_promp's docstring written out: phases (t - t_0) / duration, Gaussians exp(-h (z -
+    c)^2) normalised, ridge weights with lambda = regularization tr(G) / n_basis, the 1/N
+    covariance plus kappa times its mean variance on the diagonal, the noise as the mean
+    squared residual over every sample and DOF."""
+    centres, widths = basis(n_basis)
+    weights, squares, count = [], 0.0, 0
+    for demo in demos:
+        z = (demo.times - demo.times[0]) / (demo.times[-1] - demo.times[0])
+        activation = np.exp(-widths * (z[:, None] - centres) ** 2)
+        phi = activation / activation.sum(axis=1, keepdims=True)
+        gram = phi.T @ phi
+        lam = regularization * np.trace(gram) / n_basis
+        w = np.linalg.solve(gram + lam * np.eye(n_basis), phi.T @ demo.positions)
+        squares += float(np.sum((phi @ w - demo.positions) ** 2))
+        count += demo.positions.size
+        weights.append(w.T.ravel())
+    weights = np.array(weights)
+    mean = weights.mean(axis=0)
+    covariance = (weights - mean).T @ (weights - mean) / len(demos)
+    covariance += kappa * np.trace(covariance) / mean.size * np.eye(mean.size)
+    return mean, covariance, squares / count
+
+
+@pytest.mark.parametrize("defaults", [False, True])
+def test_fit_is_its_equations_written_out(defaults):
+    """Three 2-DOF demos on uneven times starting at t = 1.5 s, small enough that the
+    weights' mean variance is below 1, fitted with strong ridge and prior terms (and with the
+    defaults: 20 bases, 1e-8, 0.1); then demos of the same positions on other times, which
+    must not be handed the first fits. Tolerance 1e-9 relative: the ridge Gram matrices'
+    condition is below 100 here, so the two solves agree to ~1e-13."""
+    rng = np.random.default_rng(21)
+    options = (20, 1e-8, 0.1) if defaults else (6, 0.05, 0.3)
+    u = np.linspace(0.0, 1.0, 40)
+    positions = [
+        0.1 * np.column_stack([np.sin(k + 3 * u), u**k]) + 0.01 * rng.normal(size=(40, 2))
+        for k in range(1, 4)
+    ]
+    for spacing in (u**1.5, u**0.7):
+        demos = [Trajectory.from_positions(1.5 + 2.0 * spacing, y) for y in positions]
+        n_basis, regularization, kappa = options
+        fit = (
+            fit_promp(demos)
+            if defaults
+            else fit_promp(
+                demos, n_basis, regularization=regularization, covariance_regularization=kappa
+            )
+        )
+        mean, covariance, noise = _plain_fit(demos, *options)
+        assert fit.n_basis == options[0]
+        np.testing.assert_allclose(fit.mean.ravel(), mean, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(fit.covariance, covariance, rtol=1e-9, atol=1e-14)
+        assert fit.noise_variance == pytest.approx(noise, rel=1e-9, abs=0)
+
+
+def test_fit_errors_name_the_argument():
+    times = np.linspace(0.0, 1.0, 10)
+    one = Trajectory.from_positions(times, times[:, None])
+    two = Trajectory.from_positions(times, np.column_stack([times, times]))
+    with pytest.raises(ShapeError, match=r"^demonstrations\[1\] has 2 DOFs, demonstrations\[0\]"):
+        fit_promp([one, two])
+    with pytest.raises(InvalidInputError, match="^demonstrations"):
+        fit_promp([one, "a trajectory"])
+    for name in ("regularization", "covariance_regularization"):
+        with pytest.raises(InvalidInputError, match=f"^{name} "):
+            fit_promp([one, one], 5, **{name: -1.0})

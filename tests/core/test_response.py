@@ -5,6 +5,7 @@ step-by-step integration."""
 
 import decimal
 import math
+import mmap
 import sys
 
 import numpy as np
@@ -491,3 +492,156 @@ def test_block_memory_is_reused_only_once_nothing_references_it():
     assert not np.shares_memory(again, held)
     large = response.block_memory(response.REUSED_BYTES // 8)
     assert not any(np.shares_memory(large, owner) for owner in response._REUSED)
+
+
+# answer keys (mutation run): each test below names the bound, size or rule it writes out
+
+
+def test_the_first_level_leaves_at_most_half_an_epsilon_per_basis():
+    """L_0 = ln(2 n / eps) (module docstring): n e^{-L_0} = eps / 2, to the rounding of log and
+    exp (a few eps of L_0 ~ 40, so a relative 1e-13 here)."""
+    for n_basis in (1, 30, 500):
+        assert n_basis * math.exp(-response.first_level(n_basis)) == pytest.approx(
+            EPS / 2, rel=1e-13, abs=0
+        )
+
+
+def test_the_generated_source_is_written_whole_into_a_new_nested_folder(tmp_path):
+    """A cache folder whose parents do not exist yet is created with them; the file holds the
+    source and no partial file is left."""
+    folder = tmp_path / "a" / "b" / "generated"
+    path = response._write(folder, "module", "x = 1\n")
+    assert path == folder / "module.py" and path.read_text() == "x = 1\n"
+    assert [p.name for p in folder.iterdir()] == ["module.py"]
+
+
+@pytest.fixture
+def no_idle_blocks(monkeypatch):
+    """block_memory with an empty list of idle arrays (other tests leave theirs in it)."""
+    monkeypatch.setattr(response, "_REUSED", [])
+
+
+def test_block_memory_takes_an_idle_array_of_one_to_two_times_the_size(no_idle_blocks):
+    """Written out: an idle array of 1000 numbers serves a request of 1000 (the same size) and
+    of 500 (twice the size), not one of 499 (more than twice: a new array) nor one of 1001
+    (too small)."""
+    first = response.block_memory(1000)
+    address = first.ctypes.data
+    del first
+    again = response.block_memory(1000)
+    assert again.ctypes.data == address and again.shape == (1000,)
+    del again
+    half = response.block_memory(500)
+    assert half.ctypes.data == address and half.shape == (500,)
+    del half
+    smaller = response.block_memory(499)
+    assert smaller.ctypes.data != address
+    del smaller
+    larger = response.block_memory(1001)
+    assert larger.ctypes.data != address
+
+
+def test_block_memory_keeps_arrays_below_reused_bytes_only(no_idle_blocks):
+    """An array of REUSED_BYTES less 8 is kept for reuse, one of REUSED_BYTES is not."""
+    kept = response.block_memory(response.REUSED_BYTES // 8 - 1)
+    assert len(response._REUSED) == 1 and np.shares_memory(kept, response._REUSED[0])
+    response.block_memory(response.REUSED_BYTES // 8)
+    assert len(response._REUSED) == 1
+
+
+def _resident_pages(array) -> list:
+    """Whether each page of a mapped array's memory is in RAM (Linux mincore(2))."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    page = mmap.PAGESIZE
+    pages = -(-array.nbytes // page)
+    vector = (ctypes.c_ubyte * pages)()
+    status = libc.mincore(ctypes.c_void_p(array.ctypes.data), ctypes.c_size_t(pages * page), vector)
+    assert status == 0, ctypes.get_errno()
+    return [bool(v & 1) for v in vector]
+
+
+@pytest.mark.skipif(not hasattr(mmap, "MAP_POPULATE"), reason="no populated mappings here")
+def test_a_fresh_array_from_populated_bytes_on_is_mapped_in_ram_before_any_write():
+    """Below POPULATED_BYTES an array is numpy's own; from it, a mapping of exactly its bytes
+    whose every page is in RAM before anything is written (MAP_POPULATE; an anonymous
+    mapping without it gets its pages at the first write to each)."""
+    small = response.fresh_array((response.POPULATED_BYTES // 8 - 1,))
+    assert small.flags.owndata
+    for shape in [(response.POPULATED_BYTES // 8,), (3, 4000, 53)]:
+        array = response.fresh_array(shape)
+        assert not array.flags.owndata and array.shape == shape
+        owner = array
+        while isinstance(owner, np.ndarray):
+            owner = owner.base
+        assert memoryview(owner).nbytes == array.nbytes
+        assert all(_resident_pages(array))
+        assert not array.any()
+
+
+def test_the_tail_start_is_the_least_held_split_of_random_plans():
+    """Against the numbers held written out for every split k (head k x n_inputs, tail
+    (n_steps - k) x (n_other + n_carrier x (bases it forces))), on random windows: the first
+    least split, or n_steps where none holds fewer than the dense n_steps x n_inputs."""
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        n_steps, n_basis = int(rng.integers(1, 12)), int(rng.integers(1, 8))
+        n_other, n_carrier = int(rng.integers(1, 4)), int(rng.integers(1, 3))
+        n_inputs = n_other + n_carrier * n_basis
+        lows = rng.integers(0, n_basis, n_steps)
+        highs = np.minimum(lows + rng.integers(0, 3, n_steps), n_basis - 1)
+        held = [
+            k * n_inputs
+            + (n_steps - k) * (n_other + n_carrier * (max(highs[k:]) - min(lows[k:]) + 1))
+            for k in range(n_steps)
+        ]
+        best = held.index(min(held))
+        expected = best if held[best] < n_steps * n_inputs else n_steps
+        assert response.tail_start(lows, highs, n_inputs, n_other, n_carrier) == expected
+
+
+@pytest.mark.parametrize("form", ["velocity", "phase"])
+def test_the_blocks_hold_the_segments_responses_and_nothing_else(form):
+    """blocks holds 3 x steps x (n + 1 + window inputs) numbers per segment, back to back."""
+    if form in DISCRETE:
+        dmp = random_discrete(seed=3, n_basis=20, form=form)
+        key = _key(dmp, dmp.settling_time)
+    else:
+        dmp = random_rhythmic(seed=3, n_basis=20, form=form)
+        key = _key(dmp, 3 * dmp.period)
+    matrices = response.response_matrices(key)
+    n1 = symbolic.n_transformation_states(form) + 1
+    sizes = [3 * length * (n1 + width) for _, length, _, _, width in matrices.segments]
+    assert len(sizes) > 2 and matrices.blocks.size == sum(sizes)
+    assert matrices.segments[:, 2].tolist() == [sum(sizes[:t]) for t in range(len(sizes))]
+
+
+def test_a_short_plan_of_one_segment_with_a_window_equals_the_stepwise_integration():
+    """A plan too short to force every basis is one segment that keeps its window's columns
+    and the others as a factor; its dense response times the inputs is the integration step
+    by step (symbolic.simulate) within 4 n_steps eps, as in
+    test_rollout_equals_the_stepwise_integration."""
+    dmp = random_discrete(seed=5, n_basis=20, form="velocity")
+    _, matrices, inputs = dmp._response_and_inputs(0.05, 0.001, None, np.zeros(2), (0.0, 0.0), True)
+    assert len(matrices.segments) == 1 and matrices.segments[0, 4] < matrices.n_inputs - 3
+    plan = np.einsum("rkc,cd->rkd", matrices.dense(), inputs)
+    plan[1] /= dmp.tau
+    plan[2] /= dmp.tau**2
+    velocity = -dmp.forcing_weights() @ dmp._features((0.0, 0.0))
+    initial = np.concatenate([(0.0, 0.0), dmp.start, velocity])
+    stepped = symbolic.simulate(dmp.signature, plan.shape[1], initial, 0.001, dmp.parameters())
+    for got, expected in zip(plan, stepped[1:]):
+        bound = 4 * plan.shape[1] * EPS * np.abs(expected).max()
+        np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
+def test_frozen_response_matrices_are_read_only():
+    """freeze (the cached response is shared) makes blocks, segments and factors read-only."""
+    dmp = random_discrete(seed=3, n_basis=10)
+    matrices = response.response_matrices(_key(dmp, 0.2))
+    matrices.freeze()
+    for array in (matrices.blocks, matrices.segments, matrices.factors):
+        assert not array.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            array.flat[0] = 0

@@ -184,3 +184,40 @@ def test_linear_states_in_blocks_equal_the_plain_recurrence(n_steps):
     got = symbolic.linear_states(step, first, states, length)[:, :n_steps]
     bound = 4 * n_steps * EPS * np.abs(expected).max()
     np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
+def test_the_numba_source_writes_infinite_and_nan_constants_by_name():
+    """Constants inf, -inf and nan (not finite, so not written by repr) give the values CasADi
+    gives, when the generated source runs as plain Python."""
+    import math
+
+    x = ca.SX.sym("x")
+    function = ca.Function("f", [x], [ca.vertcat(x + math.inf, x * -math.inf, x + math.nan, 2 * x)])
+    namespace = {"math": math, "np": np}
+    exec(symbolic.numba_source(function, "f"), namespace)
+    got = namespace["f"](1.5)
+    expected = function(1.5).full().ravel()
+    assert got[:2] == (math.inf, -math.inf) and tuple(expected[:2]) == got[:2]
+    assert math.isnan(got[2]) and math.isnan(expected[2]) and got[3] == expected[3] == 3.0
+
+
+def test_the_array_function_is_casadis_function_at_every_point():
+    """ArrayFunction against CasADi's own evaluation point by point, over 300 points in chunks
+    of 100 (a work size of 100 sz_w + 1): an if_else (CasADi's if-else-zero), products and a
+    square root of a shared scalar input (evaluated on floats), exp and sin on the arrays.
+    Tolerance: numpy's exp and sin may differ from the C library's by an ulp (class
+    docstring), so 4 eps relative to each output's size."""
+    x, y, c = ca.SX.sym("x"), ca.SX.sym("y", 2), ca.SX.sym("c")
+    outputs = ca.vertcat(
+        ca.if_else(x > 0, ca.sin(x) * y[0], 0), c * c + 2 * c, ca.exp(-x * x) * y[1], ca.sqrt(c) * x
+    )
+    function = ca.Function("f", [x, y, c], [outputs])
+    array = symbolic.ArrayFunction(function)
+    array.work_size = 100 * function.sz_w() + 1
+    rng = np.random.default_rng(5)
+    xs, ys, shared = np.linspace(-2.0, 2.0, 300), rng.normal(size=(2, 300)), 0.7
+    (got,) = array(xs[None], ys, [shared], n_points=300)
+    expected = np.array([function(xs[k], ys[:, k], shared).full().ravel() for k in range(300)])
+    assert not np.any(got[xs <= 0, 0]) and np.all(got[:, 1] == 0.7 * 0.7 + 2 * 0.7)
+    scale = np.abs(expected).max(axis=0)
+    assert np.all(np.abs(got - expected) <= 4 * np.finfo(float).eps * scale)

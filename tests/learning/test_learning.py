@@ -1301,3 +1301,47 @@ def test_compiled_six_dof_enac_does_not_depend_on_blas_threads():
             method = make_method("enac", six, seed=1, exploration_std=10.0, n_rollouts=62)
             runs.append(np.stack(method.learn(six, 10)))
     np.testing.assert_array_equal(runs[1].view(np.uint64), runs[0].view(np.uint64))
+
+
+def test_per_step_rewards_of_two_dofs_and_two_via_points():
+    """As test_per_step_rewards_with_jerk_and_via_point on 2 DOFs with via points at 0.1 s
+    and 0.3 s: each term summed over the DOFs (squared distances and norms)."""
+    base = via_point_task(dt=0.01)
+    task = RewardTask(
+        base.dmp,
+        duration=0.5,
+        dt=0.01,
+        goal_weight=500.0,
+        velocity_weight=2.0,
+        acceleration_weight=0.01,
+        via_points=(ViaPointReward(0.1, (0.3, 0.6), 50.0), ViaPointReward(0.3, (0.1, -0.2), 7.0)),
+    )
+    rng = np.random.default_rng(13)
+    plans = task.rollouts(20 * rng.standard_normal((2, 2, task.n_basis)))
+    y, yd, ydd = plans[:, 0], plans[:, 1], plans[:, 2]  # (K, n_steps, 2)
+    goal = np.asarray(base.dmp.goal)
+    expected = np.zeros((2, task.n_steps))
+    expected[:, :-1] = -0.01 * 0.01 * np.sum(ydd[:, :-1] ** 2, axis=2)
+    expected[:, 10] -= 50.0 * np.sum((y[:, 10] - [0.3, 0.6]) ** 2, axis=1)
+    expected[:, 30] -= 7.0 * np.sum((y[:, 30] - [0.1, -0.2]) ** 2, axis=1)
+    expected[:, -1] -= 500.0 * np.sum((y[:, -1] - goal) ** 2, axis=1)
+    expected[:, -1] -= 2.0 * np.sum(yd[:, -1] ** 2, axis=1)
+    np.testing.assert_allclose(task.rewards(plans), expected, rtol=1e-12, atol=1e-12)
+
+
+def test_policy_features_scale_as_one_over_tau_squared():
+    """d mu_k / d w_i = phi_i(x_k) / tau^2: a DMP twice as slow sampled at twice the step has
+    the same phases, so its policy features are a quarter of the first's (a power of two:
+    exactly); both tasks keep them and the noise response read-only (shared arrays)."""
+    fast = RewardTask(paper_reaching_task(dt=0.01).dmp, duration=0.5, dt=0.01)
+    slow = RewardTask(fast.dmp.with_tau(2.0 * fast.dmp.tau), duration=1.0, dt=0.02)
+    assert fast.n_steps == slow.n_steps
+    np.testing.assert_array_equal(slow.policy_features, fast.policy_features / 4.0)
+    for array in (fast.policy_features, fast.noise_response):
+        assert not array.flags.writeable
+
+
+def test_a_via_point_position_that_is_not_numbers_is_named():
+    dmp = via_point_task(dt=0.01).dmp
+    with pytest.raises(InvalidInputError, match=r"^via_points\[0\]\.position"):
+        RewardTask(dmp, dt=0.01, via_points=(ViaPointReward(0.1, ("a", "b")),))

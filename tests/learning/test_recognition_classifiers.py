@@ -189,3 +189,60 @@ def test_lda_without_sklearns_own_checks_is_sklearns_lda_to_the_bit(shrinkage):
         np.testing.assert_array_equal(classifier.predict(queries), reference.predict(queries))
     assert sklearn.get_config()["assume_finite"] is False
     assert sklearn.get_config()["skip_parameter_validation"] is False
+
+
+def test_leave_one_out_on_a_hand_computed_line():
+    """1-NN, each query against the samples but its own, written out on _line (0, 1, 3,
+    3.5, 10: a a b b c): the samples themselves give a a b b b (10's nearest other is 3.5);
+    queries 0.6, 1.2, 2.0, 3.6, 9.0 give a a a b b (2.0 without 3 is nearest to 1)."""
+    features, labels = _line()
+    classifier = NearestNeighbourClassifier(1)
+    assert classifier.leave_one_out(features, labels, features).tolist() == list("aabbb")
+    queries = [[0.6], [1.2], [2.0], [3.6], [9.0]]
+    assert classifier.leave_one_out(features, labels, queries).tolist() == list("aaabb")
+
+
+def test_leave_one_out_names_each_bad_argument():
+    features, labels = _line()
+    for k in (5, 1.5, True):
+        with pytest.raises(InvalidInputError, match="^n_neighbours must be a positive integer"):
+            NearestNeighbourClassifier(k).leave_one_out(features, labels, features)
+    with pytest.raises(InvalidInputError, match="^queries"):
+        NearestNeighbourClassifier(1).leave_one_out(features, labels, features * np.nan)
+    with pytest.raises(ShapeError, match="^queries"):
+        NearestNeighbourClassifier(1).leave_one_out(features, labels, np.zeros((5, 2)))
+
+
+@pytest.mark.parametrize(
+    "module", ["discriminant_analysis", "_config", "covariance", "preprocessing"]
+)
+def test_lda_without_scikit_learn_says_which_extra_installs_it(monkeypatch, module):
+    """Each scikit-learn module the LDA imports, missing, gives the install hint naming
+    ShrinkageLdaClassifier (in fit; and in predict, after a fit with it)."""
+    from dmpopt.exceptions import MissingDependency
+    from dmpopt.recognition import _checks
+
+    rng = np.random.default_rng(len(module))  # other samples than other tests' (recalled)
+    features, labels = rng.normal(size=(20, 3)), np.repeat(["a", "b"], 10)
+    fitted = ShrinkageLdaClassifier(shrinkage="auto").fit(features + 1.0, labels)
+    imported = _checks.importlib.import_module
+
+    def without(name, *args):
+        if name == f"sklearn.{module}":
+            raise ImportError(name)
+        return imported(name, *args)
+
+    monkeypatch.setattr(_checks.importlib, "import_module", without)
+    hint = "^ShrinkageLdaClassifier needs scikit-learn, which is not installed"
+    with pytest.raises(MissingDependency, match=hint):
+        ShrinkageLdaClassifier(shrinkage="auto").fit(features, labels)
+    if module == "_config":
+        with pytest.raises(MissingDependency, match=hint):
+            fitted.predict(features)
+
+
+def test_lda_predict_names_features_of_the_wrong_width():
+    features, labels = np.random.default_rng(4).normal(size=(20, 3)), np.repeat(["a", "b"], 10)
+    fitted = ShrinkageLdaClassifier().fit(features, labels)
+    with pytest.raises(ShapeError, match="^features"):
+        fitted.predict(np.zeros((2, 4)))

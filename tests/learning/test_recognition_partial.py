@@ -139,3 +139,50 @@ def test_first_part_keeps_samples_up_to_the_end_time():
     assert first_part(line, 0.2).n_steps == 3  # three samples are enough
     long = Trajectory.from_positions(np.arange(11.0) * 1e5, np.arange(11.0)[:, None])
     assert first_part(long, (3e5 - 1e-7) / 1e6).times[-1] == 3e5
+
+
+def test_partial_fit_names_each_bad_argument(dmp):
+    """A fraction of 0, a table of fractions, fractions that are not numbers, and bad sample
+    counts are refused with the argument's name."""
+    message = "fractions must be a non-empty list of numbers in (0, 1], got "
+    for fractions in ((0.0, 0.5), ((0.5, 1.0), (0.5, 1.0))):
+        with _raises(InvalidInputError, message + repr(fractions)):
+            PartialObservationClassifier(fractions=fractions).fit([dmp], ["a"])
+    with pytest.raises(InvalidInputError, match="^fractions"):
+        PartialObservationClassifier(fractions=("a", "b")).fit([dmp], ["a"])
+    for name in ("n_samples", "plan_samples"):
+        with pytest.raises(InvalidInputError, match=f"^{name}"):
+            PartialObservationClassifier(**{name: 0}).fit([dmp], ["a"])
+
+
+def test_partial_segments_have_n_samples_samples_of_the_whole_plan(dmp):
+    """With n_samples = 7 each stored segment has 7 samples, and the whole fraction's segment
+    is the plan sampled at 7 equally spaced indices of its plan_samples (0, 1/6, .. 1 of
+    the last index, interpolated linearly), here at plan_samples = 61: every 10th sample."""
+    classifier = PartialObservationClassifier(fractions=(1.0,), n_samples=7, plan_samples=61)
+    classifier.fit([dmp], ["a"])
+    (segment,) = classifier._segments
+    np.testing.assert_array_equal(segment[0], classifier.plans_[0, ::10])
+    plan = dmp.rollout(dmp.convergence_time, dmp.convergence_time / 60).positions
+    np.testing.assert_array_equal(classifier.plans_[0], plan[:61] - plan[0])
+
+
+def test_a_mirrored_3d_observation_is_matched_by_the_best_proper_rotation():
+    """T = (e1, 2 e2, 3 e3), O = T with z negated: T^T O = diag(1, 4, -9). Over proper
+    rotations the largest trace(R^T T^T O) is 1 + 4 + 9 - 2 x 1 = 12 (R = diag(-1, 1, -1)
+    flips the smallest), so the residual is 1 - 12^2 / (|T|^2 |O|^2) = 1 - 144 / 196;
+    without rotation trace(T^T O) = -4 gives the scale 0 and the residual 1. A template of
+    zeros explains nothing (residual 1), without a numpy warning."""
+    import warnings
+
+    from dmpopt.recognition.partial import _match_residuals
+
+    template = np.diag([1.0, 2.0, 3.0])
+    observed = template * [1.0, 1.0, -1.0]
+    templates = np.stack([template, np.zeros((3, 3))])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rotated = _match_residuals(templates, observed, True)
+        fixed = _match_residuals(templates, observed, False)
+    np.testing.assert_allclose(rotated, [1.0 - 144.0 / 196.0, 1.0], rtol=1e-14)
+    np.testing.assert_array_equal(fixed, [1.0, 1.0])

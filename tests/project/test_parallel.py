@@ -1,5 +1,7 @@
 """dmpopt.parallel: the same results in series, in local processes and on Ray."""
 
+import sys
+
 import numpy as np
 import pytest
 from dmpopt_studies.recognition import _nearest_accuracy
@@ -66,11 +68,18 @@ def test_every_run_uses_one_blas_thread_wherever_it_runs():
 
 
 def test_ray_gives_the_serial_results_in_input_order():
-    pytest.importorskip("ray")
+    ray = pytest.importorskip("ray")
     jobs = _jobs()
     serial = map_runs(_nearest_accuracy, jobs, Runner(progress=False))
     with Runner(workers=2, ray="local", progress=False) as runner:
         assert map_runs(_nearest_accuracy, jobs, runner) == serial
+        # one BLAS thread there too (a Ray worker cannot import this file: send it by value)
+        here = sys.modules[__name__]
+        ray.cloudpickle.register_pickle_by_value(here)
+        try:
+            assert map_runs(_blas_threads, [0, 1], runner) == [1, 1]
+        finally:
+            ray.cloudpickle.unregister_pickle_by_value(here)
         record = runner.record()
         with pytest.raises(ShapeError, match="labels"):
             map_runs(_nearest_accuracy, [(np.zeros((3, 2)), ["a"], 1)], runner)
@@ -154,6 +163,35 @@ def test_a_pool_starts_no_more_processes_than_runs():
         assert len(multiprocessing.active_children()) == 1
         map_runs(_pid, [0, 1, 2, 3], runner)  # more runs: the pool grows to the workers
         assert len(multiprocessing.active_children()) == 2
+
+
+_CHANGED_HERE = []  # appended to by the test below, in the calling process only
+
+
+def _parent_and_state(_) -> tuple:
+    import os
+
+    return os.getppid(), len(_CHANGED_HERE)
+
+
+def test_worker_processes_start_from_freshly_imported_modules():
+    """process_context: the workers come from a fork server (their parent is not the caller)
+    and see the modules as imported, not the caller's state: a list the caller appended to
+    is empty there (a plain fork would copy it, so runs would depend on what ran before)."""
+    import multiprocessing
+    import os
+
+    _CHANGED_HERE.append(1)
+    try:
+        with Runner(workers=2, progress=False) as runner:
+            if runner.workers < 2:
+                pytest.skip("one core: no pool")
+            results = map_runs(_parent_and_state, [0, 1], runner)
+    finally:
+        _CHANGED_HERE.clear()
+    assert [state for _, state in results] == [0, 0]
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        assert all(parent != os.getpid() for parent, _ in results)
 
 
 class _Holder:

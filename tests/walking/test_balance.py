@@ -523,3 +523,40 @@ def test_edge_signs_are_each_edges_cross_product_with_the_point():
     assert edge_signs(0.5, 0.5, square) == [0.5, 0.5, 0.5, 0.5]
     assert edge_signs(0.25, 0.0, square) == [0.0, 0.75, 1.0, 0.25]
     assert edge_signs(2.0, 0.25, square) == [0.25, -1.0, 0.75, 2.0]
+
+
+def test_each_ticks_fast_path_names_what_it_refuses():
+    """The checks a float or a float64 point skips stay for everything else: a string omega
+    or gain, an infinite gain, a float64 array of three entries or a polygon array of the
+    wrong rank or of strings are refused with the argument's name, not a numpy error."""
+    point = np.array([0.1, 0.2])
+    with pytest.raises(InvalidInputError, match="^omega"):
+        dcm(point, point, "3.4")
+    with pytest.raises(InvalidInputError, match="^gain"):
+        dcm_feedback_zmp(point, point, point, "2.0", 3.4)
+    with pytest.raises(InvalidInputError, match="^gain"):
+        dcm_feedback_zmp(point, point, point, float("inf"), 3.4)
+    with pytest.raises(ShapeError, match=r"^com has shape \(3,\)"):
+        dcm(np.zeros(3), point, 3.4)
+    for polygon in (np.zeros(4), np.zeros((3, 2, 1))):
+        with pytest.raises(ShapeError, match="^polygon"):
+            clip_to_polygon(point, polygon)
+    with pytest.raises(InvalidInputError, match="^polygon"):
+        clip_to_polygon(point, np.array([["0", "0"], ["1", "0"], ["0", "1"]]))
+
+
+def test_a_point_given_as_integers_comes_back_as_floats():
+    """clip_to_polygon returns a float point, also for an integer array inside the square."""
+    square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    inside = clip_to_polygon(np.array([0, 0]), square)
+    assert inside.dtype == np.float64 and inside.tolist() == [0.0, 0.0]
+
+
+def test_a_point_on_an_edge_is_inside_and_returned_as_it_is():
+    """(1/3, 1) lies on the edge (0, 0) -> (1, 3) of a counter-clockwise triangle: its cross
+    product 1 x 1 - 3 x (1/3) is 0 in floats, so it is inside and returned bit for bit (the
+    nearest point on the edge, s (1, 3) with s = (1/3 + 3) / 10, is an ulp off)."""
+    triangle = np.array([[0.0, 0.0], [1.0, 3.0], [-1.0, 3.0]])
+    point = np.array([1.0 / 3.0, 1.0])
+    assert (1.0 / 3.0 + 3.0) / 10.0 * 1.0 != point[0]
+    assert clip_to_polygon(point, triangle).tolist() == point.tolist()

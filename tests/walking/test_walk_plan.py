@@ -737,3 +737,18 @@ def test_the_kept_answer_is_read_only_and_each_plan_keeps_its_own():
     assert not np.array_equal(later.dcm(t), dcm)
     np.testing.assert_array_equal(plan.dcm(t), dcm)
     np.testing.assert_array_equal(later.dcm(t), later.dcm(np.array([t]))[0])
+
+
+def test_com_at_a_grid_of_times_is_the_com_at_each_time():
+    """com at times of shape (2, 3) has shape (2, 3, 3): at each time the one-time values
+    (x, y, com_height), (vx, vy, 0), (ax, ay, 0)."""
+    plan = walk()
+    times = np.linspace(0.2, plan.duration - 0.2, 6).reshape(2, 3)
+    grid = plan.com(times)
+    for values in grid:
+        assert values.shape == (2, 3, 3)
+    for index in np.ndindex(2, 3):
+        one = plan.com(float(times[index]))
+        for got, expected in zip(grid, one):
+            np.testing.assert_array_equal(got[index], expected)
+    assert np.all(grid[0][..., 2] == COM[2]) and not grid[1][..., 2].any()

@@ -247,6 +247,16 @@ def _key(dmp, duration, dt=0.001):
             gains)  # fmt: skip
 
 
+def _default_plan_key(form: str) -> tuple:
+    """The cache key of a random DMP's plan of 20 bases at its default duration: the settling
+    time (discrete) or three periods (rhythmic)."""
+    if form in DISCRETE:
+        dmp = random_discrete(seed=3, n_basis=20, form=form)
+        return _key(dmp, dmp.settling_time)
+    dmp = random_rhythmic(seed=3, n_basis=20, form=form)
+    return _key(dmp, 3 * dmp.period)
+
+
 def _power_bound(step, step_goal, n_steps):
     """P = max_i ||S~^i||_inf over i < n_steps of the augmented step S~ = [[S, S_g], [0, 1]]
     (the goal as a constant state) and ||S~||_inf."""
@@ -277,12 +287,7 @@ def test_the_segments_equal_the_dense_pass_within_their_rounding_bound(form):
     once more each. The forcing is not zero in the settling tail (the carrier v > 0 and the
     normalisation keeps the largest basis), so the last segment has a window too. A rhythmic
     plan (three periods of von Mises bases) is split likewise but where the phase wraps."""
-    if form in DISCRETE:
-        dmp = random_discrete(seed=3, n_basis=20, form=form)
-        key = _key(dmp, dmp.settling_time)
-    else:
-        dmp = random_rhythmic(seed=3, n_basis=20, form=form)
-        key = _key(dmp, 3 * dmp.period)
+    key = _default_plan_key(form)
     factored = response.response_matrices(key)
     dense = response.response_matrices(key, False).dense()
     n = symbolic.n_transformation_states(form)
@@ -604,12 +609,7 @@ def test_the_tail_start_is_the_least_held_split_of_random_plans():
 @pytest.mark.parametrize("form", ["velocity", "phase"])
 def test_the_blocks_hold_the_segments_responses_and_nothing_else(form):
     """blocks holds 3 x steps x (n + 1 + window inputs) numbers per segment, back to back."""
-    if form in DISCRETE:
-        dmp = random_discrete(seed=3, n_basis=20, form=form)
-        key = _key(dmp, dmp.settling_time)
-    else:
-        dmp = random_rhythmic(seed=3, n_basis=20, form=form)
-        key = _key(dmp, 3 * dmp.period)
+    key = _default_plan_key(form)
     matrices = response.response_matrices(key)
     n1 = symbolic.n_transformation_states(form) + 1
     sizes = [3 * length * (n1 + width) for _, length, _, _, width in matrices.segments]

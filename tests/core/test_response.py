@@ -212,6 +212,29 @@ def test_rollout_equals_the_stepwise_integration(form):
         np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
 
 
+def test_a_first_stage_at_phase_zero_takes_its_own_activations():
+    """The pass reuses a stage's activations only for the next stage of the same phase (the
+    phase form's stages 2 and 3), never the sample's: started at the phase whose first
+    stage lands on exactly 0.0, the plan still agrees with the integration step by step
+    within 4 n_steps eps (taking the sample's activations there errs by O(dt))."""
+    dmp = random_rhythmic(seed=4, n_basis=12, form="phase")
+    module = response.kernels("phase", "von_mises")
+    amplitude = dmp.canonical_state(0.0)[1]
+    gains = np.array(dmp.gains, dtype=float)
+    dt = 0.001 / dmp.tau
+    half_step = module.canonical_step(np.array([0.0, amplitude]), dt, amplitude, gains)[4]
+    canonical = dmp.canonical_state(-half_step)
+    first_stage = module.canonical_step(np.array(canonical), dt, amplitude, gains)[4]
+    assert half_step > 0 and first_stage == 0.0
+    plan = dmp.rollout(0.3, 0.001, phase=-half_step)
+    velocity = -dmp.forcing_weights() @ dmp._features(canonical)
+    initial = np.concatenate([canonical, dmp.setpoint, velocity])
+    stepped = symbolic.simulate(dmp.signature, plan.n_steps, initial, 0.001, dmp.parameters())
+    for got, expected in zip((plan.positions, plan.velocities, plan.accelerations), stepped[1:]):
+        bound = 4 * plan.n_steps * EPS * np.abs(expected).max()
+        np.testing.assert_allclose(got, expected, rtol=0, atol=bound)
+
+
 def test_the_generated_source_goes_to_a_temporary_folder_if_the_cache_cannot_be_written(
     monkeypatch,
 ):

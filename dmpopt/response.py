@@ -197,6 +197,43 @@ canonical_step = _compile(canonical_step)
 phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 log_value = _compile(log_value)  # the log-activation alone: where no slope is needed
+phase_terms = _compile(phase_terms)
+basis_terms = _compile(basis_terms)
+N_PHASE_TERMS = {n_phase_terms}
+N_BASIS_TERMS = {n_basis_terms}
+
+
+@_inline
+def terms_at(phase):
+    """The phase terms and their slopes at ``phase`` (symbolic.phase_terms_function), as two
+    tuples: taken once per point for every basis."""
+    result = phase_terms(phase)
+    return {terms}, {terms_slope}
+
+
+@_inline
+def log_value_at(terms, basis, j):
+    """Basis j's log-activation at the point whose phase terms are ``terms``, ``basis`` the
+    table of :func:`basis_table`."""
+    return log_value({terms_argument}, {basis_argument})[0]
+
+
+@_inline
+def log_activation_at(terms, terms_slope, basis, j):
+    """Basis j's log-activation and its slope at the point whose phase terms are ``terms``
+    and their slopes ``terms_slope``."""
+    return log_activation({terms_argument}, {slope_argument}, {basis_argument})
+
+
+@_compile
+def basis_table(centres, widths):
+    """basis[j]: basis j's terms (symbolic.basis_terms_function), taken once per basis."""
+    table = np.empty((centres.size, N_BASIS_TERMS))
+    for j in range(centres.size):
+        terms = basis_terms(centres[j], widths[j])
+        for i in range(N_BASIS_TERMS):
+            table[j, i] = terms[i]
+    return table
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
@@ -263,14 +300,15 @@ def table_exp(x):
 
 
 @_compile
-def window(canonical, target, gains, centres, widths, max_width, first, with_rate, logs):
-    """The point's phase values and the bases kept at one canonical state (those from the
-    first to the last at or above the truncation level): (point, lo, hi, top), logs[j] the
-    log-activation of basis j."""
+def window(canonical, target, gains, basis, widths, max_width, first, with_rate, logs):
+    """The point's phase values and phase terms, and the bases kept at one canonical state
+    (those from the first to the last at or above the truncation level): (point, terms,
+    terms_slope, lo, hi, top), logs[j] the log-activation of basis j."""
     point = phase_point(canonical, target, gains)
-    n_basis = centres.size
+    terms, terms_slope = terms_at(point[0])
+    n_basis = basis.shape[0]
     for j in range(n_basis):
-        logs[j] = log_value(point[0], centres[j], widths[j])[0]
+        logs[j] = log_value_at(terms, basis, j)
     top = logs[0]
     for j in range(1, n_basis):
         top = max(top, logs[j])
@@ -285,25 +323,26 @@ def window(canonical, target, gains, centres, widths, max_width, first, with_rat
         lo += 1
     while logs[hi] < level:
         hi -= 1
-    return point, lo, hi, top
+    return point, terms, terms_slope, lo, hi, top
 
 
 @_inline
-def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, mark, slopes,
-                  values, rates):
+def kept_features(point, terms, terms_slope, lo, hi, top, basis, with_rate, logs, seen, mark,
+                  slopes, values, rates):
     """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
-    phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
+    phase_point, whose phase terms are ``terms`` (and their slopes ``terms_slope``), ``top``
+    the largest log-activation there: values[i, e] = a_(lo+i) C_e,
     rates[i, e] its rate. logs[j] (with_rate: and slopes[j]) is taken as basis j's
     log-activation (and slope) where seen[j] == mark (evaluated there by candidate_window),
     else evaluated."""
-    phase, phase_rate = point[0], point[1]
+    phase_rate = point[1]
     least = top
     for j in range(lo, hi + 1):
         if seen[j] != mark:
             if with_rate:  # the log-activation and its slope from one evaluation
-                logs[j], slopes[j] = log_activation(phase, centres[j], widths[j])
+                logs[j], slopes[j] = log_activation_at(terms, terms_slope, basis, j)
             else:
-                logs[j] = log_value(phase, centres[j], widths[j])[0]
+                logs[j] = log_value_at(terms, basis, j)
         least = min(least, logs[j])
     if least - top > -512.0:  # within table_exp's range (false for NaN)
         for j in range(lo, hi + 1):
@@ -338,12 +377,13 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
     """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
     count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
     rates[i, e] its rate. Returns (lo, count)."""
-    point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
-                                with_rate, logs)
+    basis = basis_table(centres, widths)
+    point, terms, terms_slope, lo, hi, top = window(canonical, target, gains, basis, widths,
+                                                    max_width, first, with_rate, logs)
     # window knows every log-activation, not their slopes: with_rate evaluates both again
     seen = np.full(centres.size, -1 if with_rate else 0, dtype=np.int64)
-    kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, 0, slopes, values,
-                  rates)
+    kept_features(point, terms, terms_slope, lo, hi, top, basis, with_rate, logs, seen, 0,
+                  slopes, values, rates)
     return lo, hi + 1 - lo
 
 
@@ -367,6 +407,7 @@ def candidates(canonical0, dt, target, gains, centres, widths, first, lowest, hi
     the block's middle m (module docstring, discrete forms): sqrt(-l_j) moves by at most
     sqrt(h_j) r from its value at m over a block of half-width r."""
     n_steps = lowest.size
+    basis = basis_table(centres, widths)
     root_widths = np.sqrt(widths)
     max_width = widths.max()
     reach = BLOCK_REACH / math.sqrt(max_width)
@@ -386,26 +427,27 @@ def candidates(canonical0, dt, target, gains, centres, widths, first, lowest, hi
             canonical[0] = result[0]
             canonical[1] = result[1]
         if k > begin and max(high, step_high) - min(low, step_low) > 2.0 * reach:
-            block_candidates(low, high, begin, k, centres, widths, root_widths, max_width,
-                             first, lowest, highest)
+            block_candidates(low, high, begin, k, basis, root_widths, max_width, first,
+                             lowest, highest)
             begin, low, high = k, step_low, step_high
         else:
             low, high = min(low, step_low), max(high, step_high)
-    block_candidates(low, high, begin, n_steps, centres, widths, root_widths, max_width, first,
-                     lowest, highest)
+    block_candidates(low, high, begin, n_steps, basis, root_widths, max_width, first, lowest,
+                     highest)
 
 
 @_compile
-def block_candidates(low, high, begin, end, centres, widths, root_widths, max_width, first,
-                     lowest, highest):
+def block_candidates(low, high, begin, end, basis, root_widths, max_width, first, lowest,
+                     highest):
     """lowest[begin:end], highest[begin:end]: the first and last basis not proved below the
     level anywhere on the phases low .. high (:func:`candidates`)."""
-    n_basis = centres.size
+    n_basis = basis.shape[0]
     middle, radius = 0.5 * (low + high), 0.5 * (high - low)
+    terms = terms_at(middle)[0]
     roots = np.empty(n_basis)
     top = -math.inf  # a lower bound of the largest log-activation on the block
     for j in range(n_basis):
-        roots[j] = math.sqrt(-log_value(middle, centres[j], widths[j])[0])
+        roots[j] = math.sqrt(-log_value_at(terms, basis, j))
         spread = roots[j] + root_widths[j] * radius
         top = max(top, -spread * spread)
     level = level_of(top, max_width, first, True) - SKIP_MARGIN  # the sample's, the lowest
@@ -419,18 +461,19 @@ def block_candidates(low, high, begin, end, centres, widths, root_widths, max_wi
 
 
 @_inline
-def candidate_window(point, low, high, centres, widths, max_width, first, with_rate, logs,
+def candidate_window(terms, terms_slope, low, high, basis, max_width, first, with_rate, logs,
                      slopes, seen, mark):
-    """:func:`window` of a point from the bases low .. high only (:func:`candidates`: the
-    others are below the level there): (lo, hi, top), logs[j] the log-activation of basis j
+    """:func:`window` of a point, whose phase terms are ``terms`` (and their slopes
+    ``terms_slope``), from the bases low .. high only (:func:`candidates`: the others are below
+    the level there): (lo, hi, top), logs[j] the log-activation of basis j
     (with_rate: slopes[j] its slope, from the same evaluation) for low <= j <= high, marked
     seen[j] = mark."""
     top = -math.inf
     for j in range(low, high + 1):
         if with_rate:
-            logs[j], slopes[j] = log_activation(point[0], centres[j], widths[j])
+            logs[j], slopes[j] = log_activation_at(terms, terms_slope, basis, j)
         else:
-            logs[j] = log_value(point[0], centres[j], widths[j])[0]
+            logs[j] = log_value_at(terms, basis, j)
         seen[j] = mark
         top = max(top, logs[j])
     if with_rate:  # first without log1p: bracket the level, compute it where the scans differ
@@ -518,6 +561,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     n, m = N_STATES, states.shape[1]
     n_steps = segments[-1, 0] + segments[-1, 1]
     n_basis = centres.size
+    basis = basis_table(centres, widths)
     current, following = states.copy(), np.empty((n, m))
     unit, unit_following = np.zeros((n, n + 1)), np.empty((n, n + 1))
     stage = np.empty(2)
@@ -539,14 +583,15 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                 unit[i, i] = 1.0
         at, mark = first_step + k, 4 * k
         if inline:
-            point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width,
-                                        first, True, logs)
+            point, terms, terms_slope, lo, hi, top = window(canonical, target, gains, basis,
+                                                            widths, max_width, first, True, logs)
         else:
             point = phase_point(canonical, target, gains)
-            lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
+            terms, terms_slope = terms_at(point[0])
+            lo, hi, top = candidate_window(terms, terms_slope, lowest[at], highest[at], basis,
                                            max_width, first, True, logs, slopes, seen, mark)
-        kept_features(point, lo, hi, top, centres, widths, True, logs, seen, mark, slopes,
-                      values, rates)
+        kept_features(point, terms, terms_slope, lo, hi, top, basis, True, logs, seen, mark,
+                      slopes, values, rates)
         count = hi + 1 - lo
         start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
         if start < left or start + N_CARRIER * count > left + width:
@@ -585,14 +630,16 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                         values[i, e] = logs[lo + i] * point[2 + e]
             else:
                 if inline:
-                    point, lo, hi, top = window(stage, target, gains, centres, widths,
-                                                max_width, first, False, logs)
+                    point, terms, terms_slope, lo, hi, top = window(
+                        stage, target, gains, basis, widths, max_width, first, False, logs
+                    )
                 else:
-                    lo, hi, top = candidate_window(point, lowest[at], highest[at], centres,
-                                                   widths, max_width, first, False, logs, slopes,
+                    terms, terms_slope = terms_at(point[0])
+                    lo, hi, top = candidate_window(terms, terms_slope, lowest[at], highest[at],
+                                                   basis, max_width, first, False, logs, slopes,
                                                    seen, mark)
-                kept_features(point, lo, hi, top, centres, widths, False, logs, seen, mark,
-                              slopes, values, rates)
+                kept_features(point, terms, terms_slope, lo, hi, top, basis, False, logs, seen,
+                              mark, slopes, values, rates)
             phase = point[0]
             count = hi + 1 - lo
             start = n + 1 + N_CARRIER * (lo - first_basis)
@@ -677,11 +724,32 @@ def kernel_source(form: str, kernel: str) -> str:
         symbolic.numba_source(symbolic.phase_point_function(form), "phase_point"),
         symbolic.numba_source(symbolic.log_activation_function(kernel), "log_activation"),
         symbolic.numba_source(symbolic.log_activation_function(kernel, False), "log_value"),
+        symbolic.numba_source(symbolic.phase_terms_function(kernel), "phase_terms"),
+        symbolic.numba_source(symbolic.basis_terms_function(kernel), "basis_terms"),
     ]
+    n_terms = symbolic.phase_terms_function(kernel).nnz_out(0)
+    n_basis = symbolic.basis_terms_function(kernel).nnz_out(0)
+
+    def entries(name: str, first: int, count: int) -> str:
+        """A tuple of ``name[first] .. name[first + count - 1]`` as source."""
+        return "(" + "".join(f"{name}[{first + i}], " for i in range(count)) + ")"
+
+    terms = {
+        "n_phase_terms": str(n_terms),
+        "n_basis_terms": str(n_basis),
+        "terms": entries("result", 0, n_terms),
+        "terms_slope": entries("result", n_terms, n_terms),
+        # an input of one entry is a float argument of the generated code, a longer one a tuple
+        "terms_argument": "terms[0]" if n_terms == 1 else "terms",
+        "slope_argument": "terms_slope[0]" if n_terms == 1 else "terms_slope",
+        "basis_argument": "basis[j, 0]"
+        if n_basis == 1
+        else ("(" + ", ".join(f"basis[j, {i}]" for i in range(n_basis)) + ")"),
+    }
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
-    for name, value in exp_constants().items():
+    for name, value in {**exp_constants(), **terms}.items():
         loop = loop.replace("{" + name + "}", value)
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'

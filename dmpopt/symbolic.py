@@ -47,6 +47,9 @@ from .forms import (  # noqa: F401 (re-exported: the kernels)
     KERNELS,
     Form,
     basis_log_activations,
+    kernel_basis_terms,
+    kernel_log_activations,
+    kernel_phase_terms,
     normalised_activations,
 )
 from .validation import check_resources
@@ -504,19 +507,47 @@ def phase_point_function(form_name: str) -> ca.Function:
 
 
 @lru_cache(maxsize=16)
+def phase_terms_function(kernel: str) -> ca.Function:
+    r"""``phase -> (phase_terms, phase_terms_slope)``: what the kernel's log-activations need
+    of the phase (:func:`forms.kernel_phase_terms`), taken once per phase for every basis, and
+    their derivative in the phase."""
+    phase = ca.SX.sym("phase")
+    terms = ca.vertcat(*kernel_phase_terms(kernel, phase))
+    outputs = {"phase_terms": terms, "phase_terms_slope": ca.jacobian(terms, phase)}
+    return function("dmp_phase_terms", {"phase": phase}, outputs)
+
+
+@lru_cache(maxsize=16)
+def basis_terms_function(kernel: str) -> ca.Function:
+    """``(centre, width) -> basis_terms``: what the kernel's log-activations need of one basis
+    (:func:`forms.kernel_basis_terms`), taken once per basis."""
+    centre, width = ca.SX.sym("centre"), ca.SX.sym("width")
+    terms = ca.vertcat(*kernel_basis_terms(kernel, centre, width))
+    return function("dmp_basis_terms", {"centre": centre, "width": width}, {"basis_terms": terms})
+
+
+@lru_cache(maxsize=16)
 def log_activation_function(kernel: str, slope: bool = True) -> ca.Function:
-    r"""``(phase, centre, width) -> (log_activation, log_activation_slope)``: the logarithm
-    :math:`l` of one basis function's activation (:func:`basis_log_activations`) and
-    :math:`\partial l / \partial \phi`; ``slope=False``: :math:`l` only, by the same
-    instructions less those of the slope (a von Mises basis's sine)."""
-    phase, centre, width = ca.SX.sym("phase"), ca.SX.sym("centre"), ca.SX.sym("width")
-    log_psi = basis_log_activations(kernel, phase, centre, width)
-    outputs = {"log_activation": log_psi}
-    if slope:
-        outputs["log_activation_slope"] = ca.jacobian(log_psi, phase)
-    return function(
-        "dmp_log_activation", {"phase": phase, "centre": centre, "width": width}, outputs
-    )
+    r"""``(phase_terms, phase_terms_slope, basis_terms) -> (log_activation,
+    log_activation_slope)``: the logarithm :math:`l` of one basis function's activation
+    (:func:`basis_log_activations`) from the terms of :func:`phase_terms_function` and
+    :func:`basis_terms_function`, and :math:`\partial l / \partial \phi`; ``slope=False``:
+    ``(phase_terms, basis_terms) -> log_activation``, by the same instructions less those of
+    the slope."""
+    n_phase = phase_terms_function(kernel).nnz_out(0)
+    n_basis = basis_terms_function(kernel).nnz_out(0)
+    terms, basis = ca.SX.sym("phase_terms", n_phase), ca.SX.sym("basis_terms", n_basis)
+    log_psi = kernel_log_activations(kernel, ca.vertsplit(terms), ca.vertsplit(basis))
+    if not slope:
+        inputs = {"phase_terms": terms, "basis_terms": basis}
+        return function("dmp_log_activation", inputs, {"log_activation": log_psi})
+    terms_slope = ca.SX.sym("phase_terms_slope", n_phase)
+    inputs = {"phase_terms": terms, "phase_terms_slope": terms_slope, "basis_terms": basis}
+    outputs = {
+        "log_activation": log_psi,
+        "log_activation_slope": ca.jtimes(log_psi, terms, terms_slope),
+    }
+    return function("dmp_log_activation", inputs, outputs)
 
 
 _NUMBA_UNARY = {

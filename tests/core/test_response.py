@@ -61,6 +61,8 @@ def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
     module = response.kernels(form, kernel)
     step = symbolic.canonical_step_function(symbolic.Signature(form, 1, 1, kernel))
     point = symbolic.phase_point_function(form)
+    phase_terms = symbolic.phase_terms_function(kernel)
+    basis_terms = symbolic.basis_terms_function(kernel)
     log_activation = symbolic.log_activation_function(kernel)
     for state in points.T:
         expected = step(canonical=state, dt=0.01, canonical_target=target, gains=gains)
@@ -70,12 +72,43 @@ def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
         expected = np.concatenate([v.full().ravel() for v in point(state, target, gains)])
         got = np.array(module.phase_point(state, target, gains))
         np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * np.abs(expected).max())
+        terms, terms_slope = (v.full().ravel() for v in phase_terms(state[0]))
+        got = np.array(module.phase_terms(state[0]))
+        np.testing.assert_allclose(got, np.concatenate([terms, terms_slope]), rtol=0,
+                                   atol=100 * EPS)  # fmt: skip
+        n_terms = terms.size
+        terms, terms_slope = got[:n_terms], got[n_terms:]
         for centre, width in zip(centres[::7], widths[::7]):
-            expected = np.array([float(v) for v in log_activation(state[0], centre, width)])
-            got = np.array(module.log_activation(state[0], centre, width))
+            basis = basis_terms(centre, width).full().ravel()
+            got = np.array(module.basis_terms(centre, width))
+            np.testing.assert_allclose(got, basis, rtol=0, atol=100 * EPS * abs(basis).max())
+            arguments = [t if t.size > 1 else float(t[0]) for t in (terms, terms_slope, got)]
+            expected = np.array([float(v) for v in log_activation(*arguments)])
+            got = np.array(module.log_activation(*arguments))
             np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * abs(expected).max())
             # the value alone (stage points) by the same instructions less the slope's
-            assert module.log_value(state[0], centre, width) == (got[0],)
+            assert module.log_value(arguments[0], arguments[2]) == (got[0],)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-20.0, 20.0), st.floats(0.0, 2 * np.pi), st.floats(0.1, 200.0))
+def test_von_mises_log_activation_is_the_cosine_written_out(phase, centre, width):
+    """The compiled von Mises log-activation from its terms (-h/2 |u(phi) - u(c)|^2, u(a) =
+    (cos a, sin a)) is h (cos(phi - c) - 1) = -2 h sin^2(theta / 2), theta = phi - c, and its
+    slope -h sin(theta). Bounds: with cos and sin within 1 ulp (<= eps for values <= 1), each
+    of d = u(phi) - u(c)'s entries is off by at most eps plus its rounding, so |d|^2 (|d| <= 2)
+    by at most 4 sqrt(2) |d| eps + 3 eps |d|^2 <= 24 eps and the log-activation by 12 h eps; the
+    key, theta rounded once and sin within 1 ulp, by 4 eps |l| <= 8 h eps; the slope likewise
+    within 16 h eps, and the key's sin(theta) by eps (1 + |theta|)."""
+    module = response.kernels("phase", "von_mises")
+    result = module.phase_terms(phase)
+    terms, terms_slope = result[:2], result[2:]
+    basis = module.basis_terms(centre, width)
+    log, slope = module.log_activation(terms, terms_slope, basis)
+    theta = phase - centre
+    assert log <= 0.0
+    assert abs(log - (-2.0 * width * math.sin(theta / 2) ** 2)) <= 20 * width * EPS
+    assert abs(slope - (-width * math.sin(theta))) <= width * EPS * (17 + abs(theta))
 
 
 @pytest.mark.parametrize("form, kernel", CASES)
@@ -449,18 +482,19 @@ def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
     narrower = highest - lowest + 1 < centres.size  # all but where the phase wraps
     assert np.all(narrower) if form in DISCRETE else np.any(narrower)
     logs, slopes, seen = np.empty(centres.size), np.empty(centres.size), np.full(centres.size, -1)
+    basis = module.basis_table(centres, widths)
     for k, points in enumerate(_points(module, start, target, gains, n_steps, dt)):
         for s, point in enumerate(points):
-            _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
-                                           first, s == 0, logs)  # fmt: skip
-            phases = module.phase_point(point, target, gains)
-            found = module.candidate_window(phases, lowest[k], highest[k], centres, widths,
+            _, terms, terms_slope, lo, hi, top = module.window(
+                point, target, gains, basis, widths, widths.max(), first, s == 0, logs
+            )
+            found = module.candidate_window(terms, terms_slope, lowest[k], highest[k], basis,
                                             widths.max(), first, s == 0, logs, slopes, seen,
                                             0)  # fmt: skip
             assert found == (lo, hi, top)
             if s == 0:  # the sample's slopes, from the evaluation that gave the logs
                 for j in range(lowest[k], highest[k] + 1):
-                    expected = module.log_activation(phases[0], centres[j], widths[j])
+                    expected = module.log_activation_at(terms, terms_slope, basis, j)
                     assert (logs[j], slopes[j]) == expected
 
 

@@ -236,6 +236,7 @@ def basis_table(centres, widths):
     return table
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
+PERIODIC = {periodic}  # the bases lie on a circle: a kept window may wrap past the last basis
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
 
@@ -327,17 +328,38 @@ def window(canonical, target, gains, basis, widths, max_width, first, with_rate,
 
 
 @_inline
+def basis_at(lo, i, n_basis):
+    """The i-th basis of a window starting at basis lo (past the last basis: from the first,
+    on a circle; PERIODIC is a constant of the compiled code)."""
+    j = lo + i
+    if PERIODIC and j >= n_basis:
+        return j - n_basis
+    return j
+
+
+@_inline
+def window_size(lo, hi, n_basis):
+    """The bases in the window lo .. hi, which wraps past the last basis where hi < lo."""
+    if PERIODIC and hi < lo:
+        return hi + 1 - lo + n_basis
+    return hi + 1 - lo
+
+
+@_inline
 def kept_features(point, terms, terms_slope, lo, hi, top, basis, with_rate, logs, seen, mark,
                   slopes, values, rates):
-    """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
-    phase_point, whose phase terms are ``terms`` (and their slopes ``terms_slope``), ``top``
-    the largest log-activation there: values[i, e] = a_(lo+i) C_e,
-    rates[i, e] its rate. logs[j] (with_rate: and slopes[j]) is taken as basis j's
-    log-activation (and slope) where seen[j] == mark (evaluated there by candidate_window),
-    else evaluated."""
+    """Features (with_rate: and their rates) of the bases lo .. hi (wrapping past the last
+    basis where hi < lo) at the point ``point`` of phase_point, whose phase terms are
+    ``terms`` (and their slopes ``terms_slope``), ``top`` the largest log-activation there:
+    values[i, e] = a_j C_e of the window's i-th basis j (basis_at), rates[i, e] its rate.
+    logs[j] (with_rate: and slopes[j]) is taken as basis j's log-activation (and slope) where
+    seen[j] == mark (evaluated there by candidate_window), else evaluated."""
     phase_rate = point[1]
+    n_basis = basis.shape[0]
+    count = window_size(lo, hi, n_basis)
     least = top
-    for j in range(lo, hi + 1):
+    for i in range(count):
+        j = basis_at(lo, i, n_basis)
         if seen[j] != mark:
             if with_rate:  # the log-activation and its slope from one evaluation
                 logs[j], slopes[j] = log_activation_at(terms, terms_slope, basis, j)
@@ -345,28 +367,31 @@ def kept_features(point, terms, terms_slope, lo, hi, top, basis, with_rate, logs
                 logs[j] = log_value_at(terms, basis, j)
         least = min(least, logs[j])
     if least - top > -512.0:  # within table_exp's range (false for NaN)
-        for j in range(lo, hi + 1):
+        for i in range(count):
+            j = basis_at(lo, i, n_basis)
             logs[j] = table_exp(logs[j] - top)
     else:
-        for j in range(lo, hi + 1):
+        for i in range(count):
+            j = basis_at(lo, i, n_basis)
             logs[j] = math.exp(logs[j] - top)
     total = 0.0
-    for j in range(lo, hi + 1):
-        total += logs[j]
+    for i in range(count):
+        total += logs[basis_at(lo, i, n_basis)]
     inverse = 1.0 / total
-    count = hi + 1 - lo
     slope_sum = 0.0
     for i in range(count):
-        activation = logs[lo + i] * inverse
-        logs[lo + i] = activation
+        j = basis_at(lo, i, n_basis)
+        activation = logs[j] * inverse
+        logs[j] = activation
         for e in range(N_CARRIER):
             values[i, e] = activation * point[2 + e]
         if with_rate:
-            slope_sum += activation * slopes[lo + i]
+            slope_sum += activation * slopes[j]
     if with_rate:
         for i in range(count):
-            activation = logs[lo + i]
-            rate = activation * (slopes[lo + i] - slope_sum) * phase_rate
+            j = basis_at(lo, i, n_basis)
+            activation = logs[j]
+            rate = activation * (slopes[j] - slope_sum) * phase_rate
             for e in range(N_CARRIER):
                 rates[i, e] = rate * point[2 + e] + activation * point[4 + e]
 
@@ -451,13 +476,43 @@ def block_candidates(low, high, begin, end, basis, root_widths, max_width, first
         spread = roots[j] + root_widths[j] * radius
         top = max(top, -spread * spread)
     level = level_of(top, max_width, first, True) - SKIP_MARGIN  # the sample's, the lowest
-    lo, hi = 0, n_basis - 1
-    while lo < hi and -max(roots[lo] - root_widths[lo] * radius, 0.0) ** 2 < level:
-        lo += 1
-    while hi > lo and -max(roots[hi] - root_widths[hi] * radius, 0.0) ** 2 < level:
-        hi -= 1
+    if PERIODIC:
+        lo, hi = circular_candidates(roots, root_widths, radius, level)
+    else:
+        lo, hi = 0, n_basis - 1
+        while lo < hi and -max(roots[lo] - root_widths[lo] * radius, 0.0) ** 2 < level:
+            lo += 1
+        while hi > lo and -max(roots[hi] - root_widths[hi] * radius, 0.0) ** 2 < level:
+            hi -= 1
     for k in range(begin, end):
         lowest[k], highest[k] = lo, hi
+
+
+@_compile
+def circular_candidates(roots, root_widths, radius, level):
+    """Bases on a circle: the shortest range lo .. hi (wrapping past the last basis where hi <
+    lo) holding every basis not proved below ``level`` (:func:`block_candidates`), the
+    complement of the longest circular run of bases that are; all of them if none is."""
+    n_basis = roots.size
+    below = np.empty(n_basis, dtype=np.bool_)
+    for j in range(n_basis):
+        below[j] = -max(roots[j] - root_widths[j] * radius, 0.0) ** 2 < level
+    if not below.any() or below.all():  # none below (or, by rounding, all): every basis
+        return 0, n_basis - 1
+    start = 0
+    while below[start]:  # a basis above, so that no run of those below is cut at it
+        start += 1
+    best, best_end, run = 0, 0, 0
+    for i in range(1, n_basis + 1):
+        j = basis_at(start, i, n_basis)
+        run = run + 1 if below[j] else 0
+        if run > best:
+            best, best_end = run, j
+    if best == 0:
+        return 0, n_basis - 1
+    lo = basis_at(best_end, 1, n_basis)
+    hi = basis_at(best_end, n_basis - best, n_basis)
+    return lo, hi
 
 
 @_inline
@@ -465,11 +520,13 @@ def candidate_window(terms, terms_slope, low, high, basis, max_width, first, wit
                      slopes, seen, mark):
     """:func:`window` of a point, whose phase terms are ``terms`` (and their slopes
     ``terms_slope``), from the bases low .. high only (:func:`candidates`: the others are below
-    the level there): (lo, hi, top), logs[j] the log-activation of basis j
-    (with_rate: slopes[j] its slope, from the same evaluation) for low <= j <= high, marked
-    seen[j] = mark."""
+    the level there; the range wraps past the last basis where high < low): (lo, hi, top),
+    logs[j] the log-activation of each basis j of the range (with_rate: slopes[j] its slope,
+    from the same evaluation), marked seen[j] = mark."""
     top = -math.inf
-    for j in range(low, high + 1):
+    n_basis = basis.shape[0]
+    for i in range(window_size(low, high, n_basis)):
+        j = basis_at(low, i, n_basis)
         if with_rate:
             logs[j], slopes[j] = log_activation_at(terms, terms_slope, basis, j)
         else:
@@ -492,13 +549,13 @@ def candidate_window(terms, terms_slope, low, high, basis, max_width, first, wit
 
 @_inline
 def window_of(logs, low, high, level):
-    """The first and last of the bases low .. high whose logs[j] is at least ``level`` (one
-    of them is)."""
-    lo, hi = low, high
+    """The first and last of the bases low .. high (wrapping past the last basis where high <
+    low) whose logs[j] is at least ``level`` (one of them is)."""
+    lo, hi, last = low, high, logs.size - 1
     while logs[lo] < level:
-        lo += 1
+        lo = lo + 1 if lo < last else 0
     while logs[hi] < level:
-        hi -= 1
+        hi = hi - 1 if hi > 0 else last
     return lo, hi
 
 
@@ -540,6 +597,19 @@ def segment_bounds(lowest, highest, slack, shortest, bounds):
     return count
 
 
+@_inline
+def kept_columns(lo, hi, n_basis, first_basis, left, width, columns):
+    """columns[i]: the first state column of the window's i-th basis (basis_at) when the
+    segment's window inputs start at basis first_basis; returns the window's bases. Raises
+    where one lies outside the segment's columns left .. left + width - 1."""
+    count = window_size(lo, hi, n_basis)
+    for i in range(count):
+        columns[i] = N_STATES + 1 + N_CARRIER * (basis_at(lo, i, n_basis) - first_basis)
+        if columns[i] < left or columns[i] + N_CARRIER > left + width:
+            raise ValueError("a basis outside the segment's columns is forced")
+    return count
+
+
 @_compile
 def response(canonical, dt, target, gains, centres, widths, first, lowest, highest, inline,
              first_step, first_basis, advance, step, step_goal, step_forcing, output,
@@ -568,6 +638,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
     seen, max_width = np.full(n_basis, -1), widths.max()
+    columns = np.empty(n_basis, dtype=np.int64)  # the state column of each kept basis's first
     segment, begin, length, left, width = -1, 0, 0, 0, 0
     block = np.empty((0, n + 1))
     for k in range(n_steps):
@@ -592,19 +663,16 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                                            max_width, first, True, logs, slopes, seen, mark)
         kept_features(point, terms, terms_slope, lo, hi, top, basis, True, logs, seen, mark,
                       slopes, values, rates)
-        count = hi + 1 - lo
-        start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
-        if start < left or start + N_CARRIER * count > left + width:
-            raise ValueError("a basis outside the segment's columns is forced")
-        column = n + 1 + start - left  # its column in the block
+        count = kept_columns(lo, hi, n_basis, first_basis, left, width, columns)
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
             row = j * length + k - begin
             row_product(output, j, unit, 0, n + 1, block, row, 0)
             block[row, n] += output_goal[j]
             row_product(output, j, current, left, width, block, row, n + 1)
             for i in range(count):
+                column = n + 1 + columns[i] - left  # its column in the block
                 for e in range(N_CARRIER):
-                    block[row, column + N_CARRIER * i + e] += (
+                    block[row, column + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
         if k == n_steps - 1 and not advance:
@@ -616,7 +684,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             following[i, n] += step_goal[i]
             for a in range(count):
                 for e in range(N_CARRIER):
-                    following[i, start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
+                    following[i, columns[a] + e] += step_forcing[i, 0] * values[a, e]
         result = canonical_step(canonical, dt, target, gains)
         phase = math.nan  # the last stage's phase
         for s in range(1, 4):
@@ -627,7 +695,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             if point[0] == phase:  # the last stage's activations (phase form: 2 and 3)
                 for i in range(count):
                     for e in range(N_CARRIER):
-                        values[i, e] = logs[lo + i] * point[2 + e]
+                        values[i, e] = logs[basis_at(lo, i, n_basis)] * point[2 + e]
             else:
                 if inline:
                     point, terms, terms_slope, lo, hi, top = window(
@@ -641,14 +709,11 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                 kept_features(point, terms, terms_slope, lo, hi, top, basis, False, logs, seen,
                               mark, slopes, values, rates)
             phase = point[0]
-            count = hi + 1 - lo
-            start = n + 1 + N_CARRIER * (lo - first_basis)
-            if start < left or start + N_CARRIER * count > left + width:
-                raise ValueError("a basis outside the segment's columns is forced")
+            count = kept_columns(lo, hi, n_basis, first_basis, left, width, columns)
             for i in range(n):
                 for a in range(count):
                     for e in range(N_CARRIER):
-                        following[i, start + N_CARRIER * a + e] += step_forcing[i, s] * values[a, e]
+                        following[i, columns[a] + e] += step_forcing[i, s] * values[a, e]
         canonical[0] = result[0]
         canonical[1] = result[1]
         current, following = following, current
@@ -749,6 +814,7 @@ def kernel_source(form: str, kernel: str) -> str:
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
+    loop = loop.replace("{periodic}", str(not equations.discrete))
     for name, value in {**exp_constants(), **terms}.items():
         loop = loop.replace("{" + name + "}", value)
     header = (
@@ -978,8 +1044,11 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     if not inline:
         module.candidates(canonical, float(dt), float(target), gains, centres, widths, first,
                           lowest, highest)  # fmt: skip
-        if factored:
-            segments = segments_of(module, lowest, highest, n_carrier, n + 1, n_inputs)
+        if factored:  # a window that wraps past the last basis takes every column
+            wraps = highest < lowest
+            segments = segments_of(module, np.where(wraps, 0, lowest),
+                                   np.where(wraps, n_basis - 1, highest), n_carrier, n + 1,
+                                   n_inputs)  # fmt: skip
     sizes = 3 * segments[:, 1] * (n + 1 + segments[:, 4])
     segments[1:, 2] = np.cumsum(sizes)[:-1]
     blocks = block_memory(int(sizes.sum()))

@@ -462,6 +462,42 @@ def _points(module, canonical, target, gains, n_steps, dt):
 CANDIDATES = [case for case in CASES if case[0] in DISCRETE or case[1] == "von_mises"]
 
 
+def _kept_window(logs, level, periodic):
+    """The kept bases written out: those at or above ``level``, from the first to the last
+    (lo, hi); on a circle (the rhythmic forms) the window may wrap past the last basis (hi <
+    lo): it runs from the basis after those below the level to the one before them. Von
+    Mises log-activations rise and fall once around the circle, so those below form one run
+    (checked)."""
+    above = logs >= level
+    if periodic:
+        assert np.count_nonzero(above != np.roll(above, 1)) <= 2  # one run of each
+    if periodic and above[0] and above[-1] and not above.all():
+        below = np.flatnonzero(~above)
+        return int(below[-1] + 1), int(below[0] - 1)
+    kept = np.flatnonzero(above)
+    return int(kept[0]), int(kept[-1])
+
+
+@pytest.mark.parametrize(
+    "below, expected",
+    [
+        ("-TT-TTT-", (7, 3)),  # the longest run of bases below (4 .. 6) is left out: wraps
+        ("TT---TTT", (2, 4)),  # the longest run crosses the last basis (5 .. 1)
+        ("T-------", (1, 7)),
+        ("--------", (0, 7)),  # none below: every basis
+        ("TTTTTTTT", (0, 7)),  # all below (only by rounding): every basis
+    ],
+)
+def test_circular_candidates_leave_out_the_longest_run_below_the_level(below, expected):
+    """On a circle of 8 bases, the candidates are the shortest range holding every basis not
+    proved below the level: all but the longest circular run of those below, written out
+    (zero reach: basis j is below where -roots[j]^2 < level)."""
+    module = response.kernels("phase", "von_mises")
+    roots = np.array([2.0 if mark == "T" else 0.0 for mark in below])  # -4 or 0
+    found = module.circular_candidates(roots, np.zeros(8), 0.0, -1.0)
+    assert found == expected
+
+
 @pytest.mark.parametrize("form, kernel", CANDIDATES)
 @pytest.mark.parametrize("n_steps, dt", [(1500, 0.002), (60, 0.05)])
 def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
@@ -470,32 +506,43 @@ def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
     blocks: sqrt(-l) moves by at most sqrt(h) per unit of phase, as l'^2 <= 4 h |l|): at
     every sample and stage of the steps (small ones, and steps that each cross several
     bases, a block of one step each) the kept bases and the largest log-activation found
-    among them equal those from every basis's log-activation (window), checked at each point
-    in turn, and the candidates leave out some basis (the proof is not idle)."""
+    among them equal those from every basis's log-activation (window's, with the level of
+    level_of), checked at each point in turn; the candidates leave out some basis (the proof
+    is not idle), and on the circle some candidate ranges and kept windows wrap past the last
+    basis (the rhythmic windows are circular)."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
+    n_basis, periodic = centres.size, form not in DISCRETE
     # rhythmic: the energy form's phase atan2(v, x) wraps at pi within the 3 time units
     start = np.zeros(2) if form in DISCRETE else np.array([0.3, 1.2])
     module = response.kernels(form, kernel)
-    first = response.first_level(centres.size)
+    first = response.first_level(n_basis)
     lowest, highest = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
     module.candidates(start, dt, target, gains, centres, widths, first, lowest, highest)
-    narrower = highest - lowest + 1 < centres.size  # all but where the phase wraps
+    sizes = (highest - lowest) % n_basis + 1  # a range wraps where highest < lowest
+    narrower = sizes < n_basis  # all but where the energy form's phase jumps
     assert np.all(narrower) if form in DISCRETE else np.any(narrower)
-    logs, slopes, seen = np.empty(centres.size), np.empty(centres.size), np.full(centres.size, -1)
+    assert np.any(highest < lowest) == periodic
+    logs, slopes, seen = np.empty(n_basis), np.empty(n_basis), np.full(n_basis, -1)
     basis = module.basis_table(centres, widths)
+    wrapped = 0
     for k, points in enumerate(_points(module, start, target, gains, n_steps, dt)):
         for s, point in enumerate(points):
-            _, terms, terms_slope, lo, hi, top = module.window(
+            _, terms, terms_slope, _, _, top = module.window(
                 point, target, gains, basis, widths, widths.max(), first, s == 0, logs
             )
+            level = module.level_of(top, widths.max(), first, s == 0)
+            expected = (*_kept_window(logs.copy(), level, periodic), top)
             found = module.candidate_window(terms, terms_slope, lowest[k], highest[k], basis,
                                             widths.max(), first, s == 0, logs, slopes, seen,
                                             0)  # fmt: skip
-            assert found == (lo, hi, top)
+            assert found == expected
+            wrapped += found[1] < found[0]
             if s == 0:  # the sample's slopes, from the evaluation that gave the logs
-                for j in range(lowest[k], highest[k] + 1):
+                for i in range(sizes[k]):
+                    j = (lowest[k] + i) % n_basis
                     expected = module.log_activation_at(terms, terms_slope, basis, j)
                     assert (logs[j], slopes[j]) == expected
+    assert (wrapped > 0) == periodic
 
 
 def _exact_exp(x: float) -> "decimal.Decimal":

@@ -45,16 +45,29 @@ def normalised_activations(log_psi):
     return psi / ca.sum1(psi)
 
 
-def kernel_phase_terms(kernel: str, phase) -> list:
+def kernel_phase_terms(kernel: str, phase, direction=None) -> list:
     r"""What a kernel's log-activations need of the phase (:func:`basis_log_activations`),
     computed once per phase for every basis: ``von_mises``: the unit vector :math:`(\cos\phi,
-    \sin\phi)`; ``gaussian``: the phase; ``paper``: the phase wrapped to :math:`[0, 2\pi)`."""
+    \sin\phi)` (``direction``, where the form gives it without trig functions:
+    :meth:`Form.basis_direction`); ``gaussian``: the phase; ``paper``: the phase wrapped to
+    :math:`[0, 2\pi)`."""
     if kernel == "gaussian":
         return [phase]
     if kernel == "von_mises":
-        return [ca.cos(phase), ca.sin(phase)]
+        return list(direction) if direction is not None else [ca.cos(phase), ca.sin(phase)]
     if kernel == "paper":
         return [ca.fmod(ca.fmod(phase, 2 * np.pi) + 2 * np.pi, 2 * np.pi)]
+    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
+def kernel_phase_terms_slope(kernel: str, terms) -> list:
+    r"""The derivative of :func:`kernel_phase_terms` in the phase, from the terms:
+    ``von_mises``: the unit vector turned by a right angle, :math:`(-\sin\phi, \cos\phi)`;
+    the others 1 (the wrapped phase moves with the phase)."""
+    if kernel == "von_mises":
+        return [-terms[1], terms[0]]
+    if kernel in ("gaussian", "paper"):
+        return [1.0]
     raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
 
 
@@ -139,11 +152,29 @@ class Form:
         """What the normalised activations multiply (a row per vector entry)."""
         return canonical[1]
 
+    def basis_direction(self, canonical):
+        r"""The unit vector :math:`(\cos\phi, \sin\phi)` of the basis phase where the form
+        has it without trig functions, else None (:func:`kernel_phase_terms`)."""
+        return None
+
+    def phase_terms(self, kernel: str, canonical) -> list:
+        """What the kernel's log-activations need of the canonical state
+        (:func:`kernel_phase_terms`)."""
+        return kernel_phase_terms(
+            kernel, self.basis_phase(canonical), self.basis_direction(canonical)
+        )
+
+    def log_activations(self, kernel: str, canonical, centres, widths):
+        """The bases' log-activations at a canonical state (:func:`basis_log_activations`, the
+        phase's terms from :meth:`phase_terms`)."""
+        basis_terms = kernel_basis_terms(kernel, centres, widths)
+        return kernel_log_activations(kernel, self.phase_terms(kernel, canonical), basis_terms)
+
     def features(self, kernel: str, canonical, centres, widths):
         r"""The vector that the weights multiply to give the forcing term:
         :math:`\psi_i \tilde v / \sum_j \psi_j` with :meth:`carrier` :math:`\tilde v`, laid
         out ``[psi_1 v1, psi_1 v2, psi_2 v1, ...]``."""
-        log_psi = basis_log_activations(kernel, self.basis_phase(canonical), centres, widths)
+        log_psi = self.log_activations(kernel, canonical, centres, widths)
         psi = normalised_activations(log_psi)
         return ca.vec(self.carrier(canonical) @ psi.T)
 
@@ -280,6 +311,13 @@ class EnergyForm(_Rhythmic):
     def basis_phase(self, canonical):
         r""":math:`\theta = \mathrm{atan2}(v, x)`, eq. (14)."""
         return ca.atan2(canonical[1], canonical[0])
+
+    def basis_direction(self, canonical):
+        r""":math:`(\cos\theta, \sin\theta) = (x, v) / \sqrt{x^2 + v^2}`: the phase's unit
+        vector without the trig functions of :math:`\mathrm{atan2}` (the rhythmic rollouts'
+        cost, :mod:`dmpopt.response`)."""
+        radius = ca.sqrt(canonical[0] ** 2 + canonical[1] ** 2)
+        return [canonical[0] / radius, canonical[1] / radius]
 
     def carrier(self, canonical):
         r""":math:`\tilde v = [x, v]`, eq. (14)."""

@@ -200,6 +200,7 @@ log_value = _compile(log_value)  # the log-activation alone: where no slope is n
 phase_terms = _compile(phase_terms)
 basis_terms = _compile(basis_terms)
 N_PHASE_TERMS = {n_phase_terms}
+NO_TERMS = {no_terms}  # equal to no phase terms (NaN)
 N_BASIS_TERMS = {n_basis_terms}
 
 
@@ -209,6 +210,13 @@ def terms_at(phase):
     tuples: taken once per point for every basis."""
     result = phase_terms(phase)
     return {terms}, {terms_slope}
+
+
+@_inline
+def point_terms(point):
+    """The phase terms and their slopes of a point of phase_point (which gives them from the
+    canonical state, as the form has them: Form.phase_terms), as two tuples."""
+    return {point_terms}, {point_terms_slope}
 
 
 @_inline
@@ -306,7 +314,7 @@ def window(canonical, target, gains, basis, widths, max_width, first, with_rate,
     (those from the first to the last at or above the truncation level): (point, terms,
     terms_slope, lo, hi, top), logs[j] the log-activation of basis j."""
     point = phase_point(canonical, target, gains)
-    terms, terms_slope = terms_at(point[0])
+    terms, terms_slope = point_terms(point)
     n_basis = basis.shape[0]
     for j in range(n_basis):
         logs[j] = log_value_at(terms, basis, j)
@@ -658,7 +666,7 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                                                             widths, max_width, first, True, logs)
         else:
             point = phase_point(canonical, target, gains)
-            terms, terms_slope = terms_at(point[0])
+            terms, terms_slope = point_terms(point)
             lo, hi, top = candidate_window(terms, terms_slope, lowest[at], highest[at], basis,
                                            max_width, first, True, logs, slopes, seen, mark)
         kept_features(point, terms, terms_slope, lo, hi, top, basis, True, logs, seen, mark,
@@ -686,13 +694,14 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                 for e in range(N_CARRIER):
                     following[i, columns[a] + e] += step_forcing[i, 0] * values[a, e]
         result = canonical_step(canonical, dt, target, gains)
-        phase = math.nan  # the last stage's phase
+        last = NO_TERMS  # the last stage's phase terms
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
             mark = 4 * k + s
             point = phase_point(stage, target, gains)
-            if point[0] == phase:  # the last stage's activations (phase form: 2 and 3)
+            terms, terms_slope = point_terms(point)
+            if terms == last:  # the last stage's activations (phase form: stages 2 and 3)
                 for i in range(count):
                     for e in range(N_CARRIER):
                         values[i, e] = logs[basis_at(lo, i, n_basis)] * point[2 + e]
@@ -702,13 +711,12 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                         stage, target, gains, basis, widths, max_width, first, False, logs
                     )
                 else:
-                    terms, terms_slope = terms_at(point[0])
                     lo, hi, top = candidate_window(terms, terms_slope, lowest[at], highest[at],
                                                    basis, max_width, first, False, logs, slopes,
                                                    seen, mark)
                 kept_features(point, terms, terms_slope, lo, hi, top, basis, False, logs, seen,
                               mark, slopes, values, rates)
-            phase = point[0]
+            last = terms
             count = kept_columns(lo, hi, n_basis, first_basis, left, width, columns)
             for i in range(n):
                 for a in range(count):
@@ -786,7 +794,7 @@ def kernel_source(form: str, kernel: str) -> str:
     signature = symbolic.Signature(form, 1, 1, kernel)
     generated = [
         symbolic.numba_source(symbolic.canonical_step_function(signature), "canonical_step"),
-        symbolic.numba_source(symbolic.phase_point_function(form), "phase_point"),
+        symbolic.numba_source(symbolic.phase_point_function(form, kernel), "phase_point"),
         symbolic.numba_source(symbolic.log_activation_function(kernel), "log_activation"),
         symbolic.numba_source(symbolic.log_activation_function(kernel, False), "log_value"),
         symbolic.numba_source(symbolic.phase_terms_function(kernel), "phase_terms"),
@@ -804,6 +812,9 @@ def kernel_source(form: str, kernel: str) -> str:
         "n_basis_terms": str(n_basis),
         "terms": entries("result", 0, n_terms),
         "terms_slope": entries("result", n_terms, n_terms),
+        "no_terms": "(" + "math.nan, " * n_terms + ")",
+        "point_terms": entries("point", 6, n_terms),  # after phase, rate, carrier and its rate
+        "point_terms_slope": entries("point", 6 + n_terms, n_terms),
         # an input of one entry is a float argument of the generated code, a longer one a tuple
         "terms_argument": "terms[0]" if n_terms == 1 else "terms",
         "slope_argument": "terms_slope[0]" if n_terms == 1 else "terms_slope",

@@ -60,7 +60,7 @@ def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
     centres, widths, target, gains, points = _problem(form, kernel, n_points=50)
     module = response.kernels(form, kernel)
     step = symbolic.canonical_step_function(symbolic.Signature(form, 1, 1, kernel))
-    point = symbolic.phase_point_function(form)
+    point = symbolic.phase_point_function(form, kernel)
     phase_terms = symbolic.phase_terms_function(kernel)
     basis_terms = symbolic.basis_terms_function(kernel)
     log_activation = symbolic.log_activation_function(kernel)
@@ -149,8 +149,8 @@ def _log_activations(kernel, phase, centres, widths):
 def _rate_terms(kernel, state, centres, widths, target, gains, form):
     """The size of the largest term of a feature's rate, a_j (|l_j'| + sum_i a_i |l_i'|) |p'|
     |C| + a_j |C'|: the rate is their sum, so it rounds within a few eps of it."""
-    phase, phase_rate, carrier, carrier_rate = (
-        v.full().ravel() for v in symbolic.phase_point_function(form)(state, target, gains)
+    phase, phase_rate, carrier, carrier_rate, _, _ = (
+        v.full().ravel() for v in symbolic.phase_point_function(form, kernel)(state, target, gains)
     )
     logs, slopes = _log_activations(kernel, phase[0], centres, widths)
     activations = np.exp(logs - logs.max())
@@ -197,7 +197,8 @@ def test_the_truncation_bounds_hold_where_the_truncation_shows(form, phase, widt
     module = response.kernels(form, kernel)
     casadi = symbolic.feature_rate_function(symbolic.Signature(form, 1, centres.size, kernel))
     expected = [v.full().ravel() for v in casadi(state, centres, widths, target, gains)]
-    point = [v.full().ravel() for v in symbolic.phase_point_function(form)(state, target, gains)]
+    point_function = symbolic.phase_point_function(form, kernel)
+    point = [v.full().ravel() for v in point_function(state, target, gains)]
     feature_bound, rate_bound = _bounds(kernel, point[0][0], centres, widths, first,
                                         point[1][0], point[2], point[3])  # fmt: skip
     got, _ = _features(module, state, target, gains, centres, widths, first, with_rate=False)

@@ -8,25 +8,28 @@ features there. :func:`response_matrices` runs that recurrence, the canonical sy
 and the features in one loop over the steps, compiled by numba, without arrays of features.
 
 Where the numbers come from. Every form- and kernel-specific expression is CasADi's: the
-canonical step (:func:`symbolic.canonical_step_function`), the basis phase, carrier and their
-rates (:func:`symbolic.phase_point_function`) and one basis function's log-activation and its
-slope (:func:`symbolic.log_activation_function`) are translated instruction by instruction
-into Python for numba (:func:`symbolic.numba_source`), so they are computed by the same
-operations in the same order as CasADi's virtual machine. What the loop adds is the same for
-every form and kernel: the normalisation of :func:`forms.normalised_activations`
+canonical step (:func:`symbolic.canonical_step_function`), the basis phase, carrier, their
+rates and what the kernel needs of the phase, its terms
+(:func:`symbolic.phase_point_function`: a von Mises basis needs the phase's unit vector,
+taken once per point for every basis), one basis's terms
+(:func:`symbolic.basis_terms_function`, once per basis) and its log-activation and slope
+from both (:func:`symbolic.log_activation_function`) are translated instruction by
+instruction into Python for numba (:func:`symbolic.numba_source`), so they are computed by
+the same operations in the same order as CasADi's virtual machine. What the loop adds is the
+same for every form and kernel: the normalisation of :func:`forms.normalised_activations`
 (:math:`a_j = e^{l_j - M} / \sum_i e^{l_i - M}`, :math:`M = \max_i l_i`), the layout of
-:meth:`forms.Form.features` (:math:`\phi_{j,e} = a_j C_e` with the carrier :math:`C`) and the
-rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j' - \sum_i a_i
-l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`, :math:`p` the basis
-phase). tests/core/test_response.py checks the result against CasADi's own
-:func:`symbolic.feature_rate_function` for every form and kernel, and the rollout against the
-step-by-step integration. So a form or kernel added to :mod:`dmpopt.forms` reaches this pass
-with no code here, if its log-activations have the two properties the truncation uses
-(below); a numba copy of each form's equations was not written, as it would be a second
-definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on arrays instead, as
-:class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that the LASA demo's
-plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
-temporaries.)
+:meth:`forms.Form.features` (:math:`\phi_{j,e} = a_j C_e` with the carrier :math:`C`) and
+the rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j' -
+\sum_i a_i l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`,
+:math:`p` the basis phase). tests/core/test_response.py checks the result against CasADi's
+own :func:`symbolic.feature_rate_function` for every form and kernel, and the rollout
+against the step-by-step integration. So a form or kernel added to :mod:`dmpopt.forms`
+reaches this pass with no code here, if its log-activations have the two properties the
+truncation uses (below); a numba copy of each form's equations was not written, as it would
+be a second definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on
+arrays instead, as :class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that
+the LASA demo's plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each
+through numpy temporaries.)
 
 The normalisation's exp (``table_exp``) is computed in the loop rather than called from the C
 library, so that a loop of them runs without calls (the call, its wrapper and errno check
@@ -98,9 +101,10 @@ the column's state and goal factor; derived and checked in tests/core/test_respo
 and the plan's product (``product``: the factor times the inputs, then one matrix-vector
 product per segment and DOF) sums in another order than a dense product, within
 :math:`\gamma_k` of each sum's absolute terms (Higham, Accuracy and Stability of Numerical
-Algorithms, 2nd ed., eq. (3.5)). A rhythmic form's plan is split likewise (its phase cycles,
-so a segment where it wraps takes every basis); with the printed periodic kernel, which
-jumps where the phase wraps, it is one segment of every column, as is a dense response
+Algorithms, 2nd ed., eq. (3.5)). A rhythmic form's plan is split likewise (its phase cycles:
+the kept bases of a step wrap past the last basis to the first where the phase passes
+between them, and a segment of such steps takes every column); with the printed periodic
+kernel, which jumps where the phase wraps, it is one segment of every column, as is a dense response
 (``factored=False``).
 
 Which bases are kept is found without evaluating every basis at every point. It rests on
@@ -122,22 +126,32 @@ of phase, for kernels continuous in the phase.
   response, are the same to the bit. (The Gaussian is continuous in the phase, and a
   discrete phase stays far from :math:`2\pi`, where the printed periodic kernel jumps.)
   The same holds for a rhythmic form's von Mises bases (:data:`forms.TRACKED_KERNELS`),
-  continuous in the phase as it wraps: a block whose phases straddle the energy form's
-  jump of :math:`\mathrm{atan2}` at :math:`\pi` has a wide interval and keeps every basis. The
+  continuous in the phase as it wraps, on a circle (``PERIODIC``): the candidates are the
+  complement of the longest circular run of bases proved below the level, a range that may
+  wrap past the last basis (``basis_at``, ``window_size``), as may the kept window; a block
+  whose phases straddle the energy form's jump of :math:`\mathrm{atan2}` at :math:`\pi` has
+  a wide interval and keeps every basis. The
   printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
   at every point (``window``).
 
 Each log-activation is evaluated once per point, and only what the point needs: at the
 stages, the log-activation alone (``log_value``: CasADi's function of the log-activation
-without its slope, the same instructions less those of the slope, a von Mises basis's sine);
-at the sample, each candidate's log-activation and slope from one evaluation (they had been
-evaluated again for the kept bases). Where a stage's phase equals the last stage's (the
-phase form's phase advances at a constant rate: its RK4 stages 2 and 3 have the same phase),
-it takes that stage's normalised activations, which depend on the phase only, and
-multiplies them by its own carrier. Both give the same bits as before. A phase form's trig
-functions dominate its pass: in a first rollout of 50 von Mises bases over three periods
-(9426 steps), the features of two stages per step took 5.7 ms of the 14.9 (least of 28 runs,
-load 1.7; the stages' cosines alone about 4 ms), the rows 1.3 ms.
+without its slope, the same instructions less those of the slope); at the sample, each
+candidate's log-activation and slope from one evaluation. Where a stage's phase terms equal
+the last stage's (the phase form's phase advances at a constant rate: its RK4 stages 2 and 3
+have the same phase), it takes that stage's normalised activations, which depend on the
+terms only, and multiplies them by its own carrier. A von Mises log-activation is
+:math:`-\frac{h}{2} |u(\phi) - u(c)|^2` with the unit vectors :math:`u` of the phase and the
+centre (:func:`forms.basis_log_activations`): the phase's cosine and sine once per point,
+none per basis (the energy form gives :math:`u(\phi)` as its normalised state, no trig at
+all: :meth:`forms.EnergyForm.basis_direction`). A first rollout of 50 von Mises bases over
+three periods (9426 steps, benchmarks/bench_core.py, medians of 15 at load 0.6): phase form
+15.1 ms with a cosine per basis and point and contiguous windows (every basis kept at the
+16 % of steps whose window wrapped), 10.3 with the unit vectors, 8.7 with circular windows,
+8.0 with the terms from phase_point; energy form 18.1, 12.6, 10.5, 9.1 (its pass 7.6 ms,
+the candidates 0.9, the product 1.0). The unit vectors and circular windows change von
+Mises plans in the last bits (within 2e-14 relative of the cosine form's); discrete and
+printed-kernel plans are bitwise those of before.
 
 Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; thread
 CPU at load 1.9-2.1, a pass's least of 200 runs timed alone): the head pass (2237 steps, every

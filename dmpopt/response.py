@@ -213,7 +213,6 @@ log_activation = _compile(log_activation)
 log_value = _compile(log_value)  # the log-activation alone: where no slope is needed
 phase_terms = _compile(phase_terms)
 basis_terms = _compile(basis_terms)
-N_PHASE_TERMS = {n_phase_terms}
 NO_TERMS = {no_terms}  # equal to no phase terms (NaN)
 N_BASIS_TERMS = {n_basis_terms}
 
@@ -822,7 +821,6 @@ def kernel_source(form: str, kernel: str) -> str:
         return "(" + "".join(f"{name}[{first + i}], " for i in range(count)) + ")"
 
     terms = {
-        "n_phase_terms": str(n_terms),
         "n_basis_terms": str(n_basis),
         "terms": entries("result", 0, n_terms),
         "terms_slope": entries("result", n_terms, n_terms),
@@ -830,11 +828,10 @@ def kernel_source(form: str, kernel: str) -> str:
         "point_terms": entries("point", 6, n_terms),  # after phase, rate, carrier and its rate
         "point_terms_slope": entries("point", 6 + n_terms, n_terms),
         # an input of one entry is a float argument of the generated code, a longer one a tuple
+        # (a basis has at least a centre and a width)
         "terms_argument": "terms[0]" if n_terms == 1 else "terms",
         "slope_argument": "terms_slope[0]" if n_terms == 1 else "terms_slope",
-        "basis_argument": "basis[j, 0]"
-        if n_basis == 1
-        else ("(" + ", ".join(f"basis[j, {i}]" for i in range(n_basis)) + ")"),
+        "basis_argument": "(" + ", ".join(f"basis[j, {i}]" for i in range(n_basis)) + ")",
     }
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))

@@ -45,21 +45,70 @@ def normalised_activations(log_psi):
     return psi / ca.sum1(psi)
 
 
+def kernel_phase_terms(kernel: str, phase, direction=None) -> list:
+    r"""What a kernel's log-activations need of the phase (:func:`basis_log_activations`),
+    computed once per phase for every basis: ``von_mises``: the unit vector :math:`(\cos\phi,
+    \sin\phi)` (``direction``, where the form gives it without trig functions:
+    :meth:`Form.basis_direction`); ``gaussian``: the phase; ``paper``: the phase wrapped to
+    :math:`[0, 2\pi)`."""
+    if kernel == "gaussian":
+        return [phase]
+    if kernel == "von_mises":
+        return list(direction) if direction is not None else [ca.cos(phase), ca.sin(phase)]
+    if kernel == "paper":
+        return [ca.fmod(ca.fmod(phase, 2 * np.pi) + 2 * np.pi, 2 * np.pi)]
+    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
+def kernel_phase_terms_slope(kernel: str, terms) -> list:
+    r"""The derivative of :func:`kernel_phase_terms` in the phase, from the terms:
+    ``von_mises``: the unit vector turned by a right angle, :math:`(-\sin\phi, \cos\phi)`;
+    the others 1 (the wrapped phase moves with the phase)."""
+    if kernel == "von_mises":
+        return [-terms[1], terms[0]]
+    if kernel in ("gaussian", "paper"):
+        return [1.0]
+    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
+def kernel_basis_terms(kernel: str, centres, widths) -> list:
+    r"""What a kernel's log-activations need of each basis (:func:`basis_log_activations`),
+    computed once per basis: ``von_mises``: the centre's unit vector and the width; the others
+    the centre and the width."""
+    if kernel == "von_mises":
+        return [ca.cos(centres), ca.sin(centres), widths]
+    if kernel in ("gaussian", "paper"):
+        return [centres, widths]
+    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
+def kernel_log_activations(kernel: str, phase_terms, basis_terms):
+    r"""The log-activations of :func:`basis_log_activations` from the phase's and the bases'
+    terms (:func:`kernel_phase_terms`, :func:`kernel_basis_terms`)."""
+    if kernel == "von_mises":
+        cos_phase, sin_phase = phase_terms
+        cos_centres, sin_centres, widths = basis_terms
+        return -0.5 * widths * ((cos_phase - cos_centres) ** 2 + (sin_phase - sin_centres) ** 2)
+    if kernel in ("gaussian", "paper"):
+        (phase,), (centres, widths) = phase_terms, basis_terms
+        return -widths * (phase - centres) ** 2
+    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+
+
 def basis_log_activations(kernel: str, phase, centres, widths):
     r"""Logarithm of the basis activations ``psi_i`` at ``phase``.
 
     ``gaussian``: :math:`-h_i (x - c_i)^2`, eq. (7) on the discrete phase.
-    ``von_mises``: :math:`h_i (\cos(\phi - c_i) - 1)`, periodic, smooth at :math:`2\pi`.
+    ``von_mises``: :math:`h_i (\cos(\phi - c_i) - 1)`, periodic, smooth at :math:`2\pi`,
+    computed as :math:`-\frac{h_i}{2} |u(\phi) - u(c_i)|^2` with the unit vector :math:`u(a) =
+    (\cos a, \sin a)` (:math:`|u - v|^2 = 2 - 2 u \cdot v`): the same number, at most 0 exactly
+    and accurate near the centre, and the trig functions of the phase are taken once for every
+    basis, not once per basis (the rhythmic rollouts' cost, :mod:`dmpopt.response`).
     ``paper``: :math:`-h_i (\mathrm{mod}(\phi, 2\pi) - c_i)^2`, eqs. (12) and (14) as printed.
     """
-    if kernel == "gaussian":
-        return -widths * (phase - centres) ** 2
-    if kernel == "von_mises":
-        return widths * (ca.cos(phase - centres) - 1.0)
-    if kernel == "paper":
-        wrapped = ca.fmod(ca.fmod(phase, 2 * np.pi) + 2 * np.pi, 2 * np.pi)
-        return -widths * (wrapped - centres) ** 2
-    raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    return kernel_log_activations(
+        kernel, kernel_phase_terms(kernel, phase), kernel_basis_terms(kernel, centres, widths)
+    )
 
 
 class Form:
@@ -103,11 +152,29 @@ class Form:
         """What the normalised activations multiply (a row per vector entry)."""
         return canonical[1]
 
+    def basis_direction(self, canonical):
+        r"""The unit vector :math:`(\cos\phi, \sin\phi)` of the basis phase where the form
+        has it without trig functions, else None (:func:`kernel_phase_terms`)."""
+        return None
+
+    def phase_terms(self, kernel: str, canonical) -> list:
+        """What the kernel's log-activations need of the canonical state
+        (:func:`kernel_phase_terms`)."""
+        return kernel_phase_terms(
+            kernel, self.basis_phase(canonical), self.basis_direction(canonical)
+        )
+
+    def log_activations(self, kernel: str, canonical, centres, widths):
+        """The bases' log-activations at a canonical state (:func:`basis_log_activations`, the
+        phase's terms from :meth:`phase_terms`)."""
+        basis_terms = kernel_basis_terms(kernel, centres, widths)
+        return kernel_log_activations(kernel, self.phase_terms(kernel, canonical), basis_terms)
+
     def features(self, kernel: str, canonical, centres, widths):
         r"""The vector that the weights multiply to give the forcing term:
         :math:`\psi_i \tilde v / \sum_j \psi_j` with :meth:`carrier` :math:`\tilde v`, laid
         out ``[psi_1 v1, psi_1 v2, psi_2 v1, ...]``."""
-        log_psi = basis_log_activations(kernel, self.basis_phase(canonical), centres, widths)
+        log_psi = self.log_activations(kernel, canonical, centres, widths)
         psi = normalised_activations(log_psi)
         return ca.vec(self.carrier(canonical) @ psi.T)
 
@@ -244,6 +311,13 @@ class EnergyForm(_Rhythmic):
     def basis_phase(self, canonical):
         r""":math:`\theta = \mathrm{atan2}(v, x)`, eq. (14)."""
         return ca.atan2(canonical[1], canonical[0])
+
+    def basis_direction(self, canonical):
+        r""":math:`(\cos\theta, \sin\theta) = (x, v) / \sqrt{x^2 + v^2}`: the phase's unit
+        vector without the trig functions of :math:`\mathrm{atan2}` (the rhythmic rollouts'
+        cost, :mod:`dmpopt.response`)."""
+        radius = ca.sqrt(canonical[0] ** 2 + canonical[1] ** 2)
+        return [canonical[0] / radius, canonical[1] / radius]
 
     def carrier(self, canonical):
         r""":math:`\tilde v = [x, v]`, eq. (14)."""

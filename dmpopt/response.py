@@ -8,25 +8,28 @@ features there. :func:`response_matrices` runs that recurrence, the canonical sy
 and the features in one loop over the steps, compiled by numba, without arrays of features.
 
 Where the numbers come from. Every form- and kernel-specific expression is CasADi's: the
-canonical step (:func:`symbolic.canonical_step_function`), the basis phase, carrier and their
-rates (:func:`symbolic.phase_point_function`) and one basis function's log-activation and its
-slope (:func:`symbolic.log_activation_function`) are translated instruction by instruction
-into Python for numba (:func:`symbolic.numba_source`), so they are computed by the same
-operations in the same order as CasADi's virtual machine. What the loop adds is the same for
-every form and kernel: the normalisation of :func:`forms.normalised_activations`
+canonical step (:func:`symbolic.canonical_step_function`), the basis phase, carrier, their
+rates and what the kernel needs of the phase, its terms
+(:func:`symbolic.phase_point_function`: a von Mises basis needs the phase's unit vector,
+taken once per point for every basis), one basis's terms
+(:func:`symbolic.basis_terms_function`, once per basis) and its log-activation and slope
+from both (:func:`symbolic.log_activation_function`) are translated instruction by
+instruction into Python for numba (:func:`symbolic.numba_source`), so they are computed by
+the same operations in the same order as CasADi's virtual machine. What the loop adds is the
+same for every form and kernel: the normalisation of :func:`forms.normalised_activations`
 (:math:`a_j = e^{l_j - M} / \sum_i e^{l_i - M}`, :math:`M = \max_i l_i`), the layout of
-:meth:`forms.Form.features` (:math:`\phi_{j,e} = a_j C_e` with the carrier :math:`C`) and the
-rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j' - \sum_i a_i
-l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`, :math:`p` the basis
-phase). tests/core/test_response.py checks the result against CasADi's own
-:func:`symbolic.feature_rate_function` for every form and kernel, and the rollout against the
-step-by-step integration. So a form or kernel added to :mod:`dmpopt.forms` reaches this pass
-with no code here, if its log-activations have the two properties the truncation uses
-(below); a numba copy of each form's equations was not written, as it would be a second
-definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on arrays instead, as
-:class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that the LASA demo's
-plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each through numpy
-temporaries.)
+:meth:`forms.Form.features` (:math:`\phi_{j,e} = a_j C_e` with the carrier :math:`C`) and
+the rate of that product along the canonical flow, :math:`\dot\phi_{j,e} = a_j (l_j' -
+\sum_i a_i l_i') \dot p\, C_e + a_j \dot C_e` (:math:`l' = \partial l / \partial p`,
+:math:`p` the basis phase). tests/core/test_response.py checks the result against CasADi's
+own :func:`symbolic.feature_rate_function` for every form and kernel, and the rollout
+against the step-by-step integration. So a form or kernel added to :mod:`dmpopt.forms`
+reaches this pass with no code here, if its log-activations have the two properties the
+truncation uses (below); a numba copy of each form's equations was not written, as it would
+be a second definition to keep equal to CasADi's. (Evaluating CasADi's instruction list on
+arrays instead, as :class:`symbolic.ArrayFunction` does, took 45-55 ms of the 60-170 ms that
+the LASA demo's plan of 10676 steps cost: every basis at all 4 x 10676 stage points, each
+through numpy temporaries.)
 
 The normalisation's exp (``table_exp``) is computed in the loop rather than called from the C
 library, so that a loop of them runs without calls (the call, its wrapper and errno check
@@ -98,9 +101,10 @@ the column's state and goal factor; derived and checked in tests/core/test_respo
 and the plan's product (``product``: the factor times the inputs, then one matrix-vector
 product per segment and DOF) sums in another order than a dense product, within
 :math:`\gamma_k` of each sum's absolute terms (Higham, Accuracy and Stability of Numerical
-Algorithms, 2nd ed., eq. (3.5)). A rhythmic form's plan is split likewise (its phase cycles,
-so a segment where it wraps takes every basis); with the printed periodic kernel, which
-jumps where the phase wraps, it is one segment of every column, as is a dense response
+Algorithms, 2nd ed., eq. (3.5)). A rhythmic form's plan is split likewise (its phase cycles:
+the kept bases of a step wrap past the last basis to the first where the phase passes
+between them, and a segment of such steps takes every column); with the printed periodic
+kernel, which jumps where the phase wraps, it is one segment of every column, as is a dense response
 (``factored=False``).
 
 Which bases are kept is found without evaluating every basis at every point. It rests on
@@ -122,22 +126,32 @@ of phase, for kernels continuous in the phase.
   response, are the same to the bit. (The Gaussian is continuous in the phase, and a
   discrete phase stays far from :math:`2\pi`, where the printed periodic kernel jumps.)
   The same holds for a rhythmic form's von Mises bases (:data:`forms.TRACKED_KERNELS`),
-  continuous in the phase as it wraps: a block whose phases straddle the energy form's
-  jump of :math:`\mathrm{atan2}` at :math:`\pi` has a wide interval and keeps every basis. The
+  continuous in the phase as it wraps, on a circle (``PERIODIC``): the candidates are the
+  complement of the longest circular run of bases proved below the level, a range that may
+  wrap past the last basis (``basis_at``, ``window_size``), as may the kept window; a block
+  whose phases straddle the energy form's jump of :math:`\mathrm{atan2}` at :math:`\pi` has
+  a wide interval and keeps every basis. The
   printed periodic kernel jumps where the phase wraps, so its pass evaluates every basis
   at every point (``window``).
 
 Each log-activation is evaluated once per point, and only what the point needs: at the
 stages, the log-activation alone (``log_value``: CasADi's function of the log-activation
-without its slope, the same instructions less those of the slope, a von Mises basis's sine);
-at the sample, each candidate's log-activation and slope from one evaluation (they had been
-evaluated again for the kept bases). Where a stage's phase equals the last stage's (the
-phase form's phase advances at a constant rate: its RK4 stages 2 and 3 have the same phase),
-it takes that stage's normalised activations, which depend on the phase only, and
-multiplies them by its own carrier. Both give the same bits as before. A phase form's trig
-functions dominate its pass: in a first rollout of 50 von Mises bases over three periods
-(9426 steps), the features of two stages per step took 5.7 ms of the 14.9 (least of 28 runs,
-load 1.7; the stages' cosines alone about 4 ms), the rows 1.3 ms.
+without its slope, the same instructions less those of the slope); at the sample, each
+candidate's log-activation and slope from one evaluation. Where a stage's phase terms equal
+the last stage's (the phase form's phase advances at a constant rate: its RK4 stages 2 and 3
+have the same phase), it takes that stage's normalised activations, which depend on the
+terms only, and multiplies them by its own carrier. A von Mises log-activation is
+:math:`-\frac{h}{2} |u(\phi) - u(c)|^2` with the unit vectors :math:`u` of the phase and the
+centre (:func:`forms.basis_log_activations`): the phase's cosine and sine once per point,
+none per basis (the energy form gives :math:`u(\phi)` as its normalised state, no trig at
+all: :meth:`forms.EnergyForm.basis_direction`). A first rollout of 50 von Mises bases over
+three periods (9426 steps, benchmarks/bench_core.py, medians of 15 at load 0.6): phase form
+15.1 ms with a cosine per basis and point and contiguous windows (every basis kept at the
+16 % of steps whose window wrapped), 10.3 with the unit vectors, 8.7 with circular windows,
+8.0 with the terms from phase_point; energy form 18.1, 12.6, 10.5, 9.1 (its pass 7.6 ms,
+the candidates 0.9, the product 1.0). The unit vectors and circular windows change von
+Mises plans in the last bits (within 2e-14 relative of the cosine form's); discrete and
+printed-kernel plans are bitwise those of before.
 
 Where the LASA demo's first rollout goes (2 DOFs, 50 Gaussian bases, 10676 steps; thread
 CPU at load 1.9-2.1, a pass's least of 200 runs timed alone): the head pass (2237 steps, every
@@ -197,8 +211,53 @@ canonical_step = _compile(canonical_step)
 phase_point = _compile(phase_point)
 log_activation = _compile(log_activation)
 log_value = _compile(log_value)  # the log-activation alone: where no slope is needed
+phase_terms = _compile(phase_terms)
+basis_terms = _compile(basis_terms)
+NO_TERMS = {no_terms}  # equal to no phase terms (NaN)
+N_BASIS_TERMS = {n_basis_terms}
+
+
+@_inline
+def terms_at(phase):
+    """The phase terms and their slopes at ``phase`` (symbolic.phase_terms_function), as two
+    tuples: taken once per point for every basis."""
+    result = phase_terms(phase)
+    return {terms}, {terms_slope}
+
+
+@_inline
+def point_terms(point):
+    """The phase terms and their slopes of a point of phase_point (which gives them from the
+    canonical state, as the form has them: Form.phase_terms), as two tuples."""
+    return {point_terms}, {point_terms_slope}
+
+
+@_inline
+def log_value_at(terms, basis, j):
+    """Basis j's log-activation at the point whose phase terms are ``terms``, ``basis`` the
+    table of :func:`basis_table`."""
+    return log_value({terms_argument}, {basis_argument})[0]
+
+
+@_inline
+def log_activation_at(terms, terms_slope, basis, j):
+    """Basis j's log-activation and its slope at the point whose phase terms are ``terms``
+    and their slopes ``terms_slope``."""
+    return log_activation({terms_argument}, {slope_argument}, {basis_argument})
+
+
+@_compile
+def basis_table(centres, widths):
+    """basis[j]: basis j's terms (symbolic.basis_terms_function), taken once per basis."""
+    table = np.empty((centres.size, N_BASIS_TERMS))
+    for j in range(centres.size):
+        terms = basis_terms(centres[j], widths[j])
+        for i in range(N_BASIS_TERMS):
+            table[j, i] = terms[i]
+    return table
 N_CARRIER = {n_carrier}
 N_STATES = {n_states}
+PERIODIC = {periodic}  # the bases lie on a circle: a kept window may wrap past the last basis
 SKIP_MARGIN = 1.0  # a basis is left unevaluated only if proved this far below the level
 BLOCK_REACH = 0.25  # sqrt(max h) times the half-width of a block of candidates (phase)
 
@@ -263,14 +322,15 @@ def table_exp(x):
 
 
 @_compile
-def window(canonical, target, gains, centres, widths, max_width, first, with_rate, logs):
-    """The point's phase values and the bases kept at one canonical state (those from the
-    first to the last at or above the truncation level): (point, lo, hi, top), logs[j] the
-    log-activation of basis j."""
+def window(canonical, target, gains, basis, widths, max_width, first, with_rate, logs):
+    """The point's phase values and phase terms, and the bases kept at one canonical state
+    (those from the first to the last at or above the truncation level): (point, terms,
+    terms_slope, lo, hi, top), logs[j] the log-activation of basis j."""
     point = phase_point(canonical, target, gains)
-    n_basis = centres.size
+    terms, terms_slope = point_terms(point)
+    n_basis = basis.shape[0]
     for j in range(n_basis):
-        logs[j] = log_value(point[0], centres[j], widths[j])[0]
+        logs[j] = log_value_at(terms, basis, j)
     top = logs[0]
     for j in range(1, n_basis):
         top = max(top, logs[j])
@@ -285,49 +345,74 @@ def window(canonical, target, gains, centres, widths, max_width, first, with_rat
         lo += 1
     while logs[hi] < level:
         hi -= 1
-    return point, lo, hi, top
+    return point, terms, terms_slope, lo, hi, top
 
 
 @_inline
-def kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, mark, slopes,
-                  values, rates):
-    """Features (with_rate: and their rates) of the bases lo .. hi at the point ``point`` of
-    phase_point, ``top`` the largest log-activation there: values[i, e] = a_(lo+i) C_e,
-    rates[i, e] its rate. logs[j] (with_rate: and slopes[j]) is taken as basis j's
-    log-activation (and slope) where seen[j] == mark (evaluated there by candidate_window),
-    else evaluated."""
-    phase, phase_rate = point[0], point[1]
+def basis_at(lo, i, n_basis):
+    """The i-th basis of a window starting at basis lo (past the last basis: from the first,
+    on a circle; PERIODIC is a constant of the compiled code)."""
+    j = lo + i
+    if PERIODIC and j >= n_basis:
+        return j - n_basis
+    return j
+
+
+@_inline
+def window_size(lo, hi, n_basis):
+    """The bases in the window lo .. hi, which wraps past the last basis where hi < lo."""
+    if PERIODIC and hi < lo:
+        return hi + 1 - lo + n_basis
+    return hi + 1 - lo
+
+
+@_inline
+def kept_features(point, terms, terms_slope, lo, hi, top, basis, with_rate, logs, seen, mark,
+                  slopes, values, rates):
+    """Features (with_rate: and their rates) of the bases lo .. hi (wrapping past the last
+    basis where hi < lo) at the point ``point`` of phase_point, whose phase terms are
+    ``terms`` (and their slopes ``terms_slope``), ``top`` the largest log-activation there:
+    values[i, e] = a_j C_e of the window's i-th basis j (basis_at), rates[i, e] its rate.
+    logs[j] (with_rate: and slopes[j]) is taken as basis j's log-activation (and slope) where
+    seen[j] == mark (evaluated there by candidate_window), else evaluated."""
+    phase_rate = point[1]
+    n_basis = basis.shape[0]
+    count = window_size(lo, hi, n_basis)
     least = top
-    for j in range(lo, hi + 1):
+    for i in range(count):
+        j = basis_at(lo, i, n_basis)
         if seen[j] != mark:
             if with_rate:  # the log-activation and its slope from one evaluation
-                logs[j], slopes[j] = log_activation(phase, centres[j], widths[j])
+                logs[j], slopes[j] = log_activation_at(terms, terms_slope, basis, j)
             else:
-                logs[j] = log_value(phase, centres[j], widths[j])[0]
+                logs[j] = log_value_at(terms, basis, j)
         least = min(least, logs[j])
     if least - top > -512.0:  # within table_exp's range (false for NaN)
-        for j in range(lo, hi + 1):
+        for i in range(count):
+            j = basis_at(lo, i, n_basis)
             logs[j] = table_exp(logs[j] - top)
     else:
-        for j in range(lo, hi + 1):
+        for i in range(count):
+            j = basis_at(lo, i, n_basis)
             logs[j] = math.exp(logs[j] - top)
     total = 0.0
-    for j in range(lo, hi + 1):
-        total += logs[j]
+    for i in range(count):
+        total += logs[basis_at(lo, i, n_basis)]
     inverse = 1.0 / total
-    count = hi + 1 - lo
     slope_sum = 0.0
     for i in range(count):
-        activation = logs[lo + i] * inverse
-        logs[lo + i] = activation
+        j = basis_at(lo, i, n_basis)
+        activation = logs[j] * inverse
+        logs[j] = activation
         for e in range(N_CARRIER):
             values[i, e] = activation * point[2 + e]
         if with_rate:
-            slope_sum += activation * slopes[lo + i]
+            slope_sum += activation * slopes[j]
     if with_rate:
         for i in range(count):
-            activation = logs[lo + i]
-            rate = activation * (slopes[lo + i] - slope_sum) * phase_rate
+            j = basis_at(lo, i, n_basis)
+            activation = logs[j]
+            rate = activation * (slopes[j] - slope_sum) * phase_rate
             for e in range(N_CARRIER):
                 rates[i, e] = rate * point[2 + e] + activation * point[4 + e]
 
@@ -338,12 +423,13 @@ def features(canonical, target, gains, centres, widths, max_width, first, with_r
     """Features (with_rate: and their rates) at one canonical state, of the bases lo .. lo +
     count - 1 (those left out are below the truncation level): values[i, e] = a_(lo+i) C_e,
     rates[i, e] its rate. Returns (lo, count)."""
-    point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width, first,
-                                with_rate, logs)
+    basis = basis_table(centres, widths)
+    point, terms, terms_slope, lo, hi, top = window(canonical, target, gains, basis, widths,
+                                                    max_width, first, with_rate, logs)
     # window knows every log-activation, not their slopes: with_rate evaluates both again
     seen = np.full(centres.size, -1 if with_rate else 0, dtype=np.int64)
-    kept_features(point, lo, hi, top, centres, widths, with_rate, logs, seen, 0, slopes, values,
-                  rates)
+    kept_features(point, terms, terms_slope, lo, hi, top, basis, with_rate, logs, seen, 0,
+                  slopes, values, rates)
     return lo, hi + 1 - lo
 
 
@@ -367,6 +453,7 @@ def candidates(canonical0, dt, target, gains, centres, widths, first, lowest, hi
     the block's middle m (module docstring, discrete forms): sqrt(-l_j) moves by at most
     sqrt(h_j) r from its value at m over a block of half-width r."""
     n_steps = lowest.size
+    basis = basis_table(centres, widths)
     root_widths = np.sqrt(widths)
     max_width = widths.max()
     reach = BLOCK_REACH / math.sqrt(max_width)
@@ -386,51 +473,85 @@ def candidates(canonical0, dt, target, gains, centres, widths, first, lowest, hi
             canonical[0] = result[0]
             canonical[1] = result[1]
         if k > begin and max(high, step_high) - min(low, step_low) > 2.0 * reach:
-            block_candidates(low, high, begin, k, centres, widths, root_widths, max_width,
-                             first, lowest, highest)
+            block_candidates(low, high, begin, k, basis, root_widths, max_width, first,
+                             lowest, highest)
             begin, low, high = k, step_low, step_high
         else:
             low, high = min(low, step_low), max(high, step_high)
-    block_candidates(low, high, begin, n_steps, centres, widths, root_widths, max_width, first,
-                     lowest, highest)
+    block_candidates(low, high, begin, n_steps, basis, root_widths, max_width, first, lowest,
+                     highest)
 
 
 @_compile
-def block_candidates(low, high, begin, end, centres, widths, root_widths, max_width, first,
-                     lowest, highest):
+def block_candidates(low, high, begin, end, basis, root_widths, max_width, first, lowest,
+                     highest):
     """lowest[begin:end], highest[begin:end]: the first and last basis not proved below the
     level anywhere on the phases low .. high (:func:`candidates`)."""
-    n_basis = centres.size
+    n_basis = basis.shape[0]
     middle, radius = 0.5 * (low + high), 0.5 * (high - low)
+    terms = terms_at(middle)[0]
     roots = np.empty(n_basis)
     top = -math.inf  # a lower bound of the largest log-activation on the block
     for j in range(n_basis):
-        roots[j] = math.sqrt(-log_value(middle, centres[j], widths[j])[0])
+        roots[j] = math.sqrt(-log_value_at(terms, basis, j))
         spread = roots[j] + root_widths[j] * radius
         top = max(top, -spread * spread)
     level = level_of(top, max_width, first, True) - SKIP_MARGIN  # the sample's, the lowest
-    lo, hi = 0, n_basis - 1
-    while lo < hi and -max(roots[lo] - root_widths[lo] * radius, 0.0) ** 2 < level:
-        lo += 1
-    while hi > lo and -max(roots[hi] - root_widths[hi] * radius, 0.0) ** 2 < level:
-        hi -= 1
+    if PERIODIC:
+        lo, hi = circular_candidates(roots, root_widths, radius, level)
+    else:
+        lo, hi = 0, n_basis - 1
+        while lo < hi and -max(roots[lo] - root_widths[lo] * radius, 0.0) ** 2 < level:
+            lo += 1
+        while hi > lo and -max(roots[hi] - root_widths[hi] * radius, 0.0) ** 2 < level:
+            hi -= 1
     for k in range(begin, end):
         lowest[k], highest[k] = lo, hi
 
 
+@_compile
+def circular_candidates(roots, root_widths, radius, level):
+    """Bases on a circle: the shortest range lo .. hi (wrapping past the last basis where hi <
+    lo) holding every basis not proved below ``level`` (:func:`block_candidates`), the
+    complement of the longest circular run of bases that are; all of them if none is."""
+    n_basis = roots.size
+    below = np.empty(n_basis, dtype=np.bool_)
+    for j in range(n_basis):
+        below[j] = -max(roots[j] - root_widths[j] * radius, 0.0) ** 2 < level
+    if not below.any() or below.all():  # none below (or, by rounding, all): every basis
+        return 0, n_basis - 1
+    start = 0
+    while below[start]:  # a basis above, so that no run of those below is cut at it
+        start += 1
+    best, best_end, run = 0, 0, 0
+    for i in range(1, n_basis + 1):
+        j = basis_at(start, i, n_basis)
+        run = run + 1 if below[j] else 0
+        if run > best:
+            best, best_end = run, j
+    if best == 0:
+        return 0, n_basis - 1
+    lo = basis_at(best_end, 1, n_basis)
+    hi = basis_at(best_end, n_basis - best, n_basis)
+    return lo, hi
+
+
 @_inline
-def candidate_window(point, low, high, centres, widths, max_width, first, with_rate, logs,
+def candidate_window(terms, terms_slope, low, high, basis, max_width, first, with_rate, logs,
                      slopes, seen, mark):
-    """:func:`window` of a point from the bases low .. high only (:func:`candidates`: the
-    others are below the level there): (lo, hi, top), logs[j] the log-activation of basis j
-    (with_rate: slopes[j] its slope, from the same evaluation) for low <= j <= high, marked
-    seen[j] = mark."""
+    """:func:`window` of a point, whose phase terms are ``terms`` (and their slopes
+    ``terms_slope``), from the bases low .. high only (:func:`candidates`: the others are below
+    the level there; the range wraps past the last basis where high < low): (lo, hi, top),
+    logs[j] the log-activation of each basis j of the range (with_rate: slopes[j] its slope,
+    from the same evaluation), marked seen[j] = mark."""
     top = -math.inf
-    for j in range(low, high + 1):
+    n_basis = basis.shape[0]
+    for i in range(window_size(low, high, n_basis)):
+        j = basis_at(low, i, n_basis)
         if with_rate:
-            logs[j], slopes[j] = log_activation(point[0], centres[j], widths[j])
+            logs[j], slopes[j] = log_activation_at(terms, terms_slope, basis, j)
         else:
-            logs[j] = log_value(point[0], centres[j], widths[j])[0]
+            logs[j] = log_value_at(terms, basis, j)
         seen[j] = mark
         top = max(top, logs[j])
     if with_rate:  # first without log1p: bracket the level, compute it where the scans differ
@@ -449,13 +570,13 @@ def candidate_window(point, low, high, centres, widths, max_width, first, with_r
 
 @_inline
 def window_of(logs, low, high, level):
-    """The first and last of the bases low .. high whose logs[j] is at least ``level`` (one
-    of them is)."""
-    lo, hi = low, high
+    """The first and last of the bases low .. high (wrapping past the last basis where high <
+    low) whose logs[j] is at least ``level`` (one of them is)."""
+    lo, hi, last = low, high, logs.size - 1
     while logs[lo] < level:
-        lo += 1
+        lo = lo + 1 if lo < last else 0
     while logs[hi] < level:
-        hi -= 1
+        hi = hi - 1 if hi > 0 else last
     return lo, hi
 
 
@@ -497,6 +618,19 @@ def segment_bounds(lowest, highest, slack, shortest, bounds):
     return count
 
 
+@_inline
+def kept_columns(lo, hi, n_basis, first_basis, left, width, columns):
+    """columns[i]: the first state column of the window's i-th basis (basis_at) when the
+    segment's window inputs start at basis first_basis; returns the window's bases. Raises
+    where one lies outside the segment's columns left .. left + width - 1."""
+    count = window_size(lo, hi, n_basis)
+    for i in range(count):
+        columns[i] = N_STATES + 1 + N_CARRIER * (basis_at(lo, i, n_basis) - first_basis)
+        if columns[i] < left or columns[i] + N_CARRIER > left + width:
+            raise ValueError("a basis outside the segment's columns is forced")
+    return count
+
+
 @_compile
 def response(canonical, dt, target, gains, centres, widths, first, lowest, highest, inline,
              first_step, first_basis, advance, step, step_goal, step_forcing, output,
@@ -518,12 +652,14 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
     n, m = N_STATES, states.shape[1]
     n_steps = segments[-1, 0] + segments[-1, 1]
     n_basis = centres.size
+    basis = basis_table(centres, widths)
     current, following = states.copy(), np.empty((n, m))
     unit, unit_following = np.zeros((n, n + 1)), np.empty((n, n + 1))
     stage = np.empty(2)
     logs, slopes = np.empty(n_basis), np.empty(n_basis)
     values, rates = np.empty((n_basis, N_CARRIER)), np.empty((n_basis, N_CARRIER))
     seen, max_width = np.full(n_basis, -1), widths.max()
+    columns = np.empty(n_basis, dtype=np.int64)  # the state column of each kept basis's first
     segment, begin, length, left, width = -1, 0, 0, 0, 0
     block = np.empty((0, n + 1))
     for k in range(n_steps):
@@ -539,27 +675,25 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
                 unit[i, i] = 1.0
         at, mark = first_step + k, 4 * k
         if inline:
-            point, lo, hi, top = window(canonical, target, gains, centres, widths, max_width,
-                                        first, True, logs)
+            point, terms, terms_slope, lo, hi, top = window(canonical, target, gains, basis,
+                                                            widths, max_width, first, True, logs)
         else:
             point = phase_point(canonical, target, gains)
-            lo, hi, top = candidate_window(point, lowest[at], highest[at], centres, widths,
+            terms, terms_slope = point_terms(point)
+            lo, hi, top = candidate_window(terms, terms_slope, lowest[at], highest[at], basis,
                                            max_width, first, True, logs, slopes, seen, mark)
-        kept_features(point, lo, hi, top, centres, widths, True, logs, seen, mark, slopes,
-                      values, rates)
-        count = hi + 1 - lo
-        start = n + 1 + N_CARRIER * (lo - first_basis)  # the first kept basis's first column
-        if start < left or start + N_CARRIER * count > left + width:
-            raise ValueError("a basis outside the segment's columns is forced")
-        column = n + 1 + start - left  # its column in the block
+        kept_features(point, terms, terms_slope, lo, hi, top, basis, True, logs, seen, mark,
+                      slopes, values, rates)
+        count = kept_columns(lo, hi, n_basis, first_basis, left, width, columns)
         for j in range(3):  # O x + O_g g + O_f (f, fdot)
             row = j * length + k - begin
             row_product(output, j, unit, 0, n + 1, block, row, 0)
             block[row, n] += output_goal[j]
             row_product(output, j, current, left, width, block, row, n + 1)
             for i in range(count):
+                column = n + 1 + columns[i] - left  # its column in the block
                 for e in range(N_CARRIER):
-                    block[row, column + N_CARRIER * i + e] += (
+                    block[row, column + e] += (
                         output_forcing[j, 0] * values[i, e] + output_forcing[j, 1] * rates[i, e]
                     )
         if k == n_steps - 1 and not advance:
@@ -571,37 +705,36 @@ def response(canonical, dt, target, gains, centres, widths, first, lowest, highe
             following[i, n] += step_goal[i]
             for a in range(count):
                 for e in range(N_CARRIER):
-                    following[i, start + N_CARRIER * a + e] += step_forcing[i, 0] * values[a, e]
+                    following[i, columns[a] + e] += step_forcing[i, 0] * values[a, e]
         result = canonical_step(canonical, dt, target, gains)
-        phase = math.nan  # the last stage's phase
+        last = NO_TERMS  # the last stage's phase terms
         for s in range(1, 4):
             stage[0] = result[2 + 2 * s]
             stage[1] = result[3 + 2 * s]
             mark = 4 * k + s
             point = phase_point(stage, target, gains)
-            if point[0] == phase:  # the last stage's activations (phase form: 2 and 3)
+            terms, terms_slope = point_terms(point)
+            if terms == last:  # the last stage's activations (phase form: stages 2 and 3)
                 for i in range(count):
                     for e in range(N_CARRIER):
-                        values[i, e] = logs[lo + i] * point[2 + e]
+                        values[i, e] = logs[basis_at(lo, i, n_basis)] * point[2 + e]
             else:
                 if inline:
-                    point, lo, hi, top = window(stage, target, gains, centres, widths,
-                                                max_width, first, False, logs)
+                    point, terms, terms_slope, lo, hi, top = window(
+                        stage, target, gains, basis, widths, max_width, first, False, logs
+                    )
                 else:
-                    lo, hi, top = candidate_window(point, lowest[at], highest[at], centres,
-                                                   widths, max_width, first, False, logs, slopes,
+                    lo, hi, top = candidate_window(terms, terms_slope, lowest[at], highest[at],
+                                                   basis, max_width, first, False, logs, slopes,
                                                    seen, mark)
-                kept_features(point, lo, hi, top, centres, widths, False, logs, seen, mark,
-                              slopes, values, rates)
-            phase = point[0]
-            count = hi + 1 - lo
-            start = n + 1 + N_CARRIER * (lo - first_basis)
-            if start < left or start + N_CARRIER * count > left + width:
-                raise ValueError("a basis outside the segment's columns is forced")
+                kept_features(point, terms, terms_slope, lo, hi, top, basis, False, logs, seen,
+                              mark, slopes, values, rates)
+            last = terms
+            count = kept_columns(lo, hi, n_basis, first_basis, left, width, columns)
             for i in range(n):
                 for a in range(count):
                     for e in range(N_CARRIER):
-                        following[i, start + N_CARRIER * a + e] += step_forcing[i, s] * values[a, e]
+                        following[i, columns[a] + e] += step_forcing[i, s] * values[a, e]
         canonical[0] = result[0]
         canonical[1] = result[1]
         current, following = following, current
@@ -674,14 +807,37 @@ def kernel_source(form: str, kernel: str) -> str:
     signature = symbolic.Signature(form, 1, 1, kernel)
     generated = [
         symbolic.numba_source(symbolic.canonical_step_function(signature), "canonical_step"),
-        symbolic.numba_source(symbolic.phase_point_function(form), "phase_point"),
+        symbolic.numba_source(symbolic.phase_point_function(form, kernel), "phase_point"),
         symbolic.numba_source(symbolic.log_activation_function(kernel), "log_activation"),
         symbolic.numba_source(symbolic.log_activation_function(kernel, False), "log_value"),
+        symbolic.numba_source(symbolic.phase_terms_function(kernel), "phase_terms"),
+        symbolic.numba_source(symbolic.basis_terms_function(kernel), "basis_terms"),
     ]
+    n_terms = symbolic.phase_terms_function(kernel).nnz_out(0)
+    n_basis = symbolic.basis_terms_function(kernel).nnz_out(0)
+
+    def entries(name: str, first: int, count: int) -> str:
+        """A tuple of ``name[first] .. name[first + count - 1]`` as source."""
+        return "(" + "".join(f"{name}[{first + i}], " for i in range(count)) + ")"
+
+    terms = {
+        "n_basis_terms": str(n_basis),
+        "terms": entries("result", 0, n_terms),
+        "terms_slope": entries("result", n_terms, n_terms),
+        "no_terms": "(" + "math.nan, " * n_terms + ")",
+        "point_terms": entries("point", 6, n_terms),  # after phase, rate, carrier and its rate
+        "point_terms_slope": entries("point", 6 + n_terms, n_terms),
+        # an input of one entry is a float argument of the generated code, a longer one a tuple
+        # (a basis has at least a centre and a width)
+        "terms_argument": "terms[0]" if n_terms == 1 else "terms",
+        "slope_argument": "terms_slope[0]" if n_terms == 1 else "terms_slope",
+        "basis_argument": "(" + ", ".join(f"basis[j, {i}]" for i in range(n_basis)) + ")",
+    }
     equations = symbolic.FORMS[form]
     loop = _KERNELS.replace("{n_carrier}", str(equations.vectors_per_basis))
     loop = loop.replace("{n_states}", str(equations.n_transformation))
-    for name, value in exp_constants().items():
+    loop = loop.replace("{periodic}", str(not equations.discrete))
+    for name, value in {**exp_constants(), **terms}.items():
         loop = loop.replace("{" + name + "}", value)
     header = (
         f'"""Generated by dmpopt.response for the {form} form with the {kernel} kernel."""\n\n'
@@ -910,8 +1066,11 @@ def response_matrices(key: tuple, factored: bool = True) -> ResponseMatrices:
     if not inline:
         module.candidates(canonical, float(dt), float(target), gains, centres, widths, first,
                           lowest, highest)  # fmt: skip
-        if factored:
-            segments = segments_of(module, lowest, highest, n_carrier, n + 1, n_inputs)
+        if factored:  # a window that wraps past the last basis takes every column
+            wraps = highest < lowest
+            segments = segments_of(module, np.where(wraps, 0, lowest),
+                                   np.where(wraps, n_basis - 1, highest), n_carrier, n + 1,
+                                   n_inputs)  # fmt: skip
     sizes = 3 * segments[:, 1] * (n + 1 + segments[:, 4])
     segments[1:, 2] = np.cumsum(sizes)[:-1]
     blocks = block_memory(int(sizes.sum()))

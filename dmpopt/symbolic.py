@@ -47,6 +47,10 @@ from .forms import (  # noqa: F401 (re-exported: the kernels)
     KERNELS,
     Form,
     basis_log_activations,
+    kernel_basis_terms,
+    kernel_log_activations,
+    kernel_phase_terms,
+    kernel_phase_terms_slope,
     normalised_activations,
 )
 from .validation import check_resources
@@ -313,8 +317,7 @@ def activation_function(signature: Signature) -> ca.Function:
     """``(canonical_state, centres, widths) -> psi`` (unnormalised, for local regression)."""
     s = make_symbols(signature)
     canonical = ca.SX.sym("canonical", 2)
-    phase = signature.equations.basis_phase(canonical)
-    log_psi = basis_log_activations(signature.kernel, phase, s.centres, s.widths)
+    log_psi = signature.equations.log_activations(signature.kernel, canonical, s.centres, s.widths)
     return ca.Function("dmp_activations", [canonical, s.centres, s.widths], [ca.exp(log_psi)])
 
 
@@ -476,13 +479,15 @@ def feature_rate_function(signature: Signature) -> ca.Function:
     return function("dmp_feature_rate", inputs, outputs)
 
 
-@lru_cache(maxsize=8)
-def phase_point_function(form_name: str) -> ca.Function:
-    r"""``(canonical, canonical_target, gains) -> (phase, phase_rate, carrier, carrier_rate)``
-    at one canonical state of the uncoupled canonical system, in time normalised by ``tau``:
-    the basis functions' argument (:meth:`Form.basis_phase`), the vector the normalised
-    activations multiply (:meth:`Form.carrier`, padded with zeros to 2 entries) and their time
-    derivatives along the canonical system (eqs. (6), (11), (13)). With
+@lru_cache(maxsize=16)
+def phase_point_function(form_name: str, kernel: str) -> ca.Function:
+    r"""``(canonical, canonical_target, gains) -> (phase, phase_rate, carrier, carrier_rate,
+    phase_terms, phase_terms_slope)`` at one canonical state of the uncoupled canonical system,
+    in time normalised by ``tau``: the basis functions' argument (:meth:`Form.basis_phase`),
+    the vector the normalised activations multiply (:meth:`Form.carrier`, padded with zeros to
+    2 entries), their time derivatives along the canonical system (eqs. (6), (11), (13)), and
+    what the kernel's log-activations need of the state (:meth:`Form.phase_terms`) with its
+    derivative in the phase (:func:`forms.kernel_phase_terms_slope`). With
     :func:`log_activation_function` these are the form- and kernel-specific parts of the
     features (:meth:`Form.features`), evaluated piecewise by :mod:`dmpopt.response`."""
     form = FORMS[form_name]
@@ -491,11 +496,14 @@ def phase_point_function(form_name: str) -> ca.Function:
     rate = form.canonical_rhs(canonical, target, gains, 0.0)
     phase = form.basis_phase(canonical)
     carrier = ca.vertcat(form.carrier(canonical), ca.SX.zeros(2 - form.vectors_per_basis))
+    terms = form.phase_terms(kernel, canonical)
     outputs = {
         "phase": phase,
         "phase_rate": ca.jtimes(phase, canonical, rate),
         "carrier": carrier,
         "carrier_rate": ca.jtimes(carrier, canonical, rate),
+        "phase_terms": ca.vertcat(*terms),
+        "phase_terms_slope": ca.vertcat(*kernel_phase_terms_slope(kernel, terms)),
     }
     inputs = {"canonical": canonical, "canonical_target": target, "gains": gains}
     return function(
@@ -504,19 +512,50 @@ def phase_point_function(form_name: str) -> ca.Function:
 
 
 @lru_cache(maxsize=16)
+def phase_terms_function(kernel: str) -> ca.Function:
+    r"""``phase -> (phase_terms, phase_terms_slope)``: what the kernel's log-activations need
+    of the phase (:func:`forms.kernel_phase_terms`), taken once per phase for every basis, and
+    their derivative in the phase."""
+    phase = ca.SX.sym("phase")
+    terms = kernel_phase_terms(kernel, phase)
+    outputs = {
+        "phase_terms": ca.vertcat(*terms),
+        "phase_terms_slope": ca.vertcat(*kernel_phase_terms_slope(kernel, terms)),
+    }
+    return function("dmp_phase_terms", {"phase": phase}, outputs)
+
+
+@lru_cache(maxsize=16)
+def basis_terms_function(kernel: str) -> ca.Function:
+    """``(centre, width) -> basis_terms``: what the kernel's log-activations need of one basis
+    (:func:`forms.kernel_basis_terms`), taken once per basis."""
+    centre, width = ca.SX.sym("centre"), ca.SX.sym("width")
+    terms = ca.vertcat(*kernel_basis_terms(kernel, centre, width))
+    return function("dmp_basis_terms", {"centre": centre, "width": width}, {"basis_terms": terms})
+
+
+@lru_cache(maxsize=16)
 def log_activation_function(kernel: str, slope: bool = True) -> ca.Function:
-    r"""``(phase, centre, width) -> (log_activation, log_activation_slope)``: the logarithm
-    :math:`l` of one basis function's activation (:func:`basis_log_activations`) and
-    :math:`\partial l / \partial \phi`; ``slope=False``: :math:`l` only, by the same
-    instructions less those of the slope (a von Mises basis's sine)."""
-    phase, centre, width = ca.SX.sym("phase"), ca.SX.sym("centre"), ca.SX.sym("width")
-    log_psi = basis_log_activations(kernel, phase, centre, width)
-    outputs = {"log_activation": log_psi}
-    if slope:
-        outputs["log_activation_slope"] = ca.jacobian(log_psi, phase)
-    return function(
-        "dmp_log_activation", {"phase": phase, "centre": centre, "width": width}, outputs
-    )
+    r"""``(phase_terms, phase_terms_slope, basis_terms) -> (log_activation,
+    log_activation_slope)``: the logarithm :math:`l` of one basis function's activation
+    (:func:`basis_log_activations`) from the terms of :func:`phase_terms_function` and
+    :func:`basis_terms_function`, and :math:`\partial l / \partial \phi`; ``slope=False``:
+    ``(phase_terms, basis_terms) -> log_activation``, by the same instructions less those of
+    the slope."""
+    n_phase = phase_terms_function(kernel).nnz_out(0)
+    n_basis = basis_terms_function(kernel).nnz_out(0)
+    terms, basis = ca.SX.sym("phase_terms", n_phase), ca.SX.sym("basis_terms", n_basis)
+    log_psi = kernel_log_activations(kernel, ca.vertsplit(terms), ca.vertsplit(basis))
+    if not slope:
+        inputs = {"phase_terms": terms, "basis_terms": basis}
+        return function("dmp_log_activation", inputs, {"log_activation": log_psi})
+    terms_slope = ca.SX.sym("phase_terms_slope", n_phase)
+    inputs = {"phase_terms": terms, "phase_terms_slope": terms_slope, "basis_terms": basis}
+    outputs = {
+        "log_activation": log_psi,
+        "log_activation_slope": ca.jtimes(log_psi, terms, terms_slope),
+    }
+    return function("dmp_log_activation", inputs, outputs)
 
 
 _NUMBA_UNARY = {

@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 import qpsolvers
 from dmpopt_robots.biped import foot_positions
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from dmpopt.control import (
@@ -195,11 +195,19 @@ def reference_qp(robot, tasks, contacts, q, v, torque_limit, eps_a=1e-6, eps_f=1
     scale = np.r_[np.ones(nv), np.full(n_f, weight)]
     hessian, gradient = hessian * np.outer(scale, scale), gradient * scale
     equality, inequality = equality * scale, inequality * scale
-    x = qpsolvers.solve_qp(
-        hessian, gradient, inequality, bound, equality, equality_target, solver="clarabel",
-        tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10,
-    )  # fmt: skip
-    assert x is not None, "Clarabel found no solution"
+    problem = qpsolvers.Problem(hessian, gradient, inequality, bound, equality, equality_target)
+    solution = qpsolvers.solve_problem(
+        problem, solver="clarabel", tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10
+    )
+    if not solution.found:  # Clarabel stops short ("almost solved") on a few states (seed
+        # 44191 of Talos): proxsuite from scratch to 1e-10, duality gap included, as the
+        # second key (tests/control/test_qp_stress.py does the same)
+        solution = qpsolvers.solve_problem(
+            problem, solver="proxqp", eps_abs=1e-10, eps_rel=0.0, check_duality_gap=True,
+            eps_duality_gap_abs=1e-10, max_iter=100_000,
+        )  # fmt: skip
+    assert solution.found, "neither Clarabel nor proxsuite found a solution"
+    x = solution.x
     return x[:nv], weight * x[nv:]
 
 
@@ -221,6 +229,7 @@ def random_targets(robot, rng, tasks, q):
 @pytest.mark.parametrize("robot_name", ["talos", "biped"])
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 2**16))
+@example(seed=44191)  # Talos: Clarabel stops short, the second key decides (reference_qp)
 def test_one_foot_tick_equals_the_reference_qp(robot_name, seed, talos, biped):
     """On random states with the left foot active and a swing task on the right, the
     controller's answer is the optimum of the QP written out in reference_qp (Clarabel), to

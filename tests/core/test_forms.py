@@ -1,6 +1,7 @@
 """DMP forms as objects (dmpopt.forms): each form's constants and state, and a new form added
 in one place (here, in the test) runs through rollouts and steppers unchanged."""
 
+import casadi as ca
 import numpy as np
 import pytest
 from problems import random_discrete, random_rhythmic
@@ -96,3 +97,47 @@ def test_von_mises_features_with_unequal_widths_are_eq_12_written_out():
     function = symbolic.feature_function(symbolic.Signature("phase", 1, 3, "von_mises"))
     got = function([phi, r], centres, widths).full().ravel()
     np.testing.assert_allclose(got, expected, rtol=1e-14)
+
+
+@pytest.mark.parametrize("kernel", forms.KERNELS)
+def test_the_phase_terms_slope_is_their_derivative_in_the_phase(kernel):
+    """kernel_phase_terms_slope, written from the terms, equals CasADi's derivative of
+    kernel_phase_terms in the phase (automatic differentiation: another derivation), and for
+    von Mises (-sin, cos) written out, to rounding (the terms are within 1 ulp of cos and sin)."""
+    phase = ca.SX.sym("phase")
+    terms = forms.kernel_phase_terms(kernel, phase)
+    slope = ca.Function(
+        "slope", [phase], [ca.vertcat(*forms.kernel_phase_terms_slope(kernel, terms))]
+    )
+    derivative = ca.Function("derivative", [phase], [ca.jacobian(ca.vertcat(*terms), phase)])
+    for value in np.linspace(-7.0, 7.0, 29):
+        got = slope(value).full().ravel()
+        np.testing.assert_allclose(got, derivative(value).full().ravel(), rtol=0, atol=4e-16)
+        if kernel == "von_mises":
+            np.testing.assert_allclose(got, [-np.sin(value), np.cos(value)], rtol=0, atol=4e-16)
+
+
+def test_energy_form_basis_direction_is_the_unit_vector_of_its_phase():
+    """The energy form gives the von Mises kernel its phase's unit vector as (x, v) / |(x, v)|:
+    (cos, sin) of atan2(v, x) (eq. (14)) within a few eps (each side within 2 ulp of a value at
+    most 1), on states of every quadrant and size; the log-activations through it equal those
+    from the phase, h (cos(theta - c) - 1), within their rounding (12 h eps, tests/core/
+    test_response.py)."""
+    form = forms.FORMS["energy"]
+    canonical = ca.SX.sym("canonical", 2)
+    direction = ca.Function(
+        "direction", [canonical], [ca.vertcat(*form.basis_direction(canonical))]
+    )
+    centres, widths = np.linspace(0, 2 * np.pi, 7, endpoint=False), np.full(7, 40.0)
+    logs = ca.Function(
+        "logs", [canonical], [form.log_activations("von_mises", canonical, centres, widths)]
+    )
+    rng = np.random.default_rng(0)
+    for state in rng.normal(size=(200, 2)) * 10.0 ** rng.uniform(-3, 3, size=(200, 1)):
+        theta = np.arctan2(state[1], state[0])
+        got = direction(state).full().ravel()
+        np.testing.assert_allclose(got, [np.cos(theta), np.sin(theta)], rtol=0, atol=8e-16)
+        expected = widths * (np.cos(theta - centres) - 1.0)
+        np.testing.assert_allclose(
+            logs(state).full().ravel(), expected, rtol=0, atol=16 * 40.0 * 2.3e-16
+        )

@@ -60,7 +60,9 @@ def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
     centres, widths, target, gains, points = _problem(form, kernel, n_points=50)
     module = response.kernels(form, kernel)
     step = symbolic.canonical_step_function(symbolic.Signature(form, 1, 1, kernel))
-    point = symbolic.phase_point_function(form)
+    point = symbolic.phase_point_function(form, kernel)
+    phase_terms = symbolic.phase_terms_function(kernel)
+    basis_terms = symbolic.basis_terms_function(kernel)
     log_activation = symbolic.log_activation_function(kernel)
     for state in points.T:
         expected = step(canonical=state, dt=0.01, canonical_target=target, gains=gains)
@@ -70,12 +72,43 @@ def test_the_translated_expressions_compute_what_casadi_computes(form, kernel):
         expected = np.concatenate([v.full().ravel() for v in point(state, target, gains)])
         got = np.array(module.phase_point(state, target, gains))
         np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * np.abs(expected).max())
+        terms, terms_slope = (v.full().ravel() for v in phase_terms(state[0]))
+        got = np.array(module.phase_terms(state[0]))
+        np.testing.assert_allclose(got, np.concatenate([terms, terms_slope]), rtol=0,
+                                   atol=100 * EPS)  # fmt: skip
+        n_terms = terms.size
+        terms, terms_slope = got[:n_terms], got[n_terms:]
         for centre, width in zip(centres[::7], widths[::7]):
-            expected = np.array([float(v) for v in log_activation(state[0], centre, width)])
-            got = np.array(module.log_activation(state[0], centre, width))
+            basis = basis_terms(centre, width).full().ravel()
+            got = np.array(module.basis_terms(centre, width))
+            np.testing.assert_allclose(got, basis, rtol=0, atol=100 * EPS * abs(basis).max())
+            arguments = [t if t.size > 1 else float(t[0]) for t in (terms, terms_slope, got)]
+            expected = np.array([float(v) for v in log_activation(*arguments)])
+            got = np.array(module.log_activation(*arguments))
             np.testing.assert_allclose(got, expected, rtol=0, atol=100 * EPS * abs(expected).max())
             # the value alone (stage points) by the same instructions less the slope's
-            assert module.log_value(state[0], centre, width) == (got[0],)
+            assert module.log_value(arguments[0], arguments[2]) == (got[0],)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-20.0, 20.0), st.floats(0.0, 2 * np.pi), st.floats(0.1, 200.0))
+def test_von_mises_log_activation_is_the_cosine_written_out(phase, centre, width):
+    """The compiled von Mises log-activation from its terms (-h/2 |u(phi) - u(c)|^2, u(a) =
+    (cos a, sin a)) is h (cos(phi - c) - 1) = -2 h sin^2(theta / 2), theta = phi - c, and its
+    slope -h sin(theta). Bounds: with cos and sin within 1 ulp (<= eps for values <= 1), each
+    of d = u(phi) - u(c)'s entries is off by at most eps plus its rounding, so |d|^2 (|d| <= 2)
+    by at most 4 sqrt(2) |d| eps + 3 eps |d|^2 <= 24 eps and the log-activation by 12 h eps; the
+    key, theta rounded once and sin within 1 ulp, by 4 eps |l| <= 8 h eps; the slope likewise
+    within 16 h eps, and the key's sin(theta) by eps (1 + |theta|)."""
+    module = response.kernels("phase", "von_mises")
+    result = module.phase_terms(phase)
+    terms, terms_slope = result[:2], result[2:]
+    basis = module.basis_terms(centre, width)
+    log, slope = module.log_activation(terms, terms_slope, basis)
+    theta = phase - centre
+    assert log <= 0.0
+    assert abs(log - (-2.0 * width * math.sin(theta / 2) ** 2)) <= 20 * width * EPS
+    assert abs(slope - (-width * math.sin(theta))) <= width * EPS * (17 + abs(theta))
 
 
 @pytest.mark.parametrize("form, kernel", CASES)
@@ -116,8 +149,8 @@ def _log_activations(kernel, phase, centres, widths):
 def _rate_terms(kernel, state, centres, widths, target, gains, form):
     """The size of the largest term of a feature's rate, a_j (|l_j'| + sum_i a_i |l_i'|) |p'|
     |C| + a_j |C'|: the rate is their sum, so it rounds within a few eps of it."""
-    phase, phase_rate, carrier, carrier_rate = (
-        v.full().ravel() for v in symbolic.phase_point_function(form)(state, target, gains)
+    phase, phase_rate, carrier, carrier_rate, _, _ = (
+        v.full().ravel() for v in symbolic.phase_point_function(form, kernel)(state, target, gains)
     )
     logs, slopes = _log_activations(kernel, phase[0], centres, widths)
     activations = np.exp(logs - logs.max())
@@ -164,7 +197,8 @@ def test_the_truncation_bounds_hold_where_the_truncation_shows(form, phase, widt
     module = response.kernels(form, kernel)
     casadi = symbolic.feature_rate_function(symbolic.Signature(form, 1, centres.size, kernel))
     expected = [v.full().ravel() for v in casadi(state, centres, widths, target, gains)]
-    point = [v.full().ravel() for v in symbolic.phase_point_function(form)(state, target, gains)]
+    point_function = symbolic.phase_point_function(form, kernel)
+    point = [v.full().ravel() for v in point_function(state, target, gains)]
     feature_bound, rate_bound = _bounds(kernel, point[0][0], centres, widths, first,
                                         point[1][0], point[2], point[3])  # fmt: skip
     got, _ = _features(module, state, target, gains, centres, widths, first, with_rate=False)
@@ -429,6 +463,42 @@ def _points(module, canonical, target, gains, n_steps, dt):
 CANDIDATES = [case for case in CASES if case[0] in DISCRETE or case[1] == "von_mises"]
 
 
+def _kept_window(logs, level, periodic):
+    """The kept bases written out: those at or above ``level``, from the first to the last
+    (lo, hi); on a circle (the rhythmic forms) the window may wrap past the last basis (hi <
+    lo): it runs from the basis after those below the level to the one before them. Von
+    Mises log-activations rise and fall once around the circle, so those below form one run
+    (checked)."""
+    above = logs >= level
+    if periodic:
+        assert np.count_nonzero(above != np.roll(above, 1)) <= 2  # one run of each
+    if periodic and above[0] and above[-1] and not above.all():
+        below = np.flatnonzero(~above)
+        return int(below[-1] + 1), int(below[0] - 1)
+    kept = np.flatnonzero(above)
+    return int(kept[0]), int(kept[-1])
+
+
+@pytest.mark.parametrize(
+    "below, expected",
+    [
+        ("-TT-TTT-", (7, 3)),  # the longest run of bases below (4 .. 6) is left out: wraps
+        ("TT---TTT", (2, 4)),  # the longest run crosses the last basis (5 .. 1)
+        ("T-------", (1, 7)),
+        ("--------", (0, 7)),  # none below: every basis
+        ("TTTTTTTT", (0, 7)),  # all below (only by rounding): every basis
+    ],
+)
+def test_circular_candidates_leave_out_the_longest_run_below_the_level(below, expected):
+    """On a circle of 8 bases, the candidates are the shortest range holding every basis not
+    proved below the level: all but the longest circular run of those below, written out
+    (zero reach: basis j is below where -roots[j]^2 < level)."""
+    module = response.kernels("phase", "von_mises")
+    roots = np.array([2.0 if mark == "T" else 0.0 for mark in below])  # -4 or 0
+    found = module.circular_candidates(roots, np.zeros(8), 0.0, -1.0)
+    assert found == expected
+
+
 @pytest.mark.parametrize("form, kernel", CANDIDATES)
 @pytest.mark.parametrize("n_steps, dt", [(1500, 0.002), (60, 0.05)])
 def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
@@ -437,31 +507,43 @@ def test_the_candidate_bases_hold_every_kept_basis(form, kernel, n_steps, dt):
     blocks: sqrt(-l) moves by at most sqrt(h) per unit of phase, as l'^2 <= 4 h |l|): at
     every sample and stage of the steps (small ones, and steps that each cross several
     bases, a block of one step each) the kept bases and the largest log-activation found
-    among them equal those from every basis's log-activation (window), checked at each point
-    in turn, and the candidates leave out some basis (the proof is not idle)."""
+    among them equal those from every basis's log-activation (window's, with the level of
+    level_of), checked at each point in turn; the candidates leave out some basis (the proof
+    is not idle), and on the circle some candidate ranges and kept windows wrap past the last
+    basis (the rhythmic windows are circular)."""
     centres, widths, target, gains, _ = _problem(form, kernel, n_basis=30)
+    n_basis, periodic = centres.size, form not in DISCRETE
     # rhythmic: the energy form's phase atan2(v, x) wraps at pi within the 3 time units
     start = np.zeros(2) if form in DISCRETE else np.array([0.3, 1.2])
     module = response.kernels(form, kernel)
-    first = response.first_level(centres.size)
+    first = response.first_level(n_basis)
     lowest, highest = np.empty(n_steps, dtype=np.int64), np.empty(n_steps, dtype=np.int64)
     module.candidates(start, dt, target, gains, centres, widths, first, lowest, highest)
-    narrower = highest - lowest + 1 < centres.size  # all but where the phase wraps
+    sizes = (highest - lowest) % n_basis + 1  # a range wraps where highest < lowest
+    narrower = sizes < n_basis  # all but where the energy form's phase jumps
     assert np.all(narrower) if form in DISCRETE else np.any(narrower)
-    logs, slopes, seen = np.empty(centres.size), np.empty(centres.size), np.full(centres.size, -1)
+    assert np.any(highest < lowest) == periodic
+    logs, slopes, seen = np.empty(n_basis), np.empty(n_basis), np.full(n_basis, -1)
+    basis = module.basis_table(centres, widths)
+    wrapped = 0
     for k, points in enumerate(_points(module, start, target, gains, n_steps, dt)):
         for s, point in enumerate(points):
-            _, lo, hi, top = module.window(point, target, gains, centres, widths, widths.max(),
-                                           first, s == 0, logs)  # fmt: skip
-            phases = module.phase_point(point, target, gains)
-            found = module.candidate_window(phases, lowest[k], highest[k], centres, widths,
+            _, terms, terms_slope, _, _, top = module.window(
+                point, target, gains, basis, widths, widths.max(), first, s == 0, logs
+            )
+            level = module.level_of(top, widths.max(), first, s == 0)
+            expected = (*_kept_window(logs.copy(), level, periodic), top)
+            found = module.candidate_window(terms, terms_slope, lowest[k], highest[k], basis,
                                             widths.max(), first, s == 0, logs, slopes, seen,
                                             0)  # fmt: skip
-            assert found == (lo, hi, top)
+            assert found == expected
+            wrapped += found[1] < found[0]
             if s == 0:  # the sample's slopes, from the evaluation that gave the logs
-                for j in range(lowest[k], highest[k] + 1):
-                    expected = module.log_activation(phases[0], centres[j], widths[j])
+                for i in range(sizes[k]):
+                    j = (lowest[k] + i) % n_basis
+                    expected = module.log_activation_at(terms, terms_slope, basis, j)
                     assert (logs[j], slopes[j]) == expected
+    assert (wrapped > 0) == periodic
 
 
 def _exact_exp(x: float) -> "decimal.Decimal":

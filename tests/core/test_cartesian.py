@@ -371,7 +371,10 @@ def test_bad_demonstrations_are_refused_by_name(demo):
     bad[3] *= 1.1
     with pytest.raises(InvalidInputError, match=r"orientations\[3\] has norm 1.1.*normalise"):
         fit_cartesian(times, positions, bad)
-    with pytest.raises(ShapeError, match=r"positions has shape \(301, 2\), expected \(301, 3\)"):
+    with pytest.raises(
+        ShapeError,
+        match=r"positions has shape \(301, 2\), expected \(301, 3\) \(301 3-D positions\)",
+    ):
         fit_cartesian(times, positions[:, :2], orientations)
     with pytest.raises(ShapeError, match=r"orientations has shape \(301, 3\)"):
         fit_cartesian(times, positions, orientations[:, 1:])
@@ -392,6 +395,61 @@ def test_bad_demonstrations_are_refused_by_name(demo):
         fit_cartesian(times, positions, turn)
     with pytest.raises(InvalidInputError, match="n_basis"):
         fit_cartesian(times, positions, orientations, n_basis=0)
+
+
+def test_each_part_is_fit_discretes_fit_of_its_path():
+    """Answer key: a turn about z by angles a_k has the rotation vectors (0, 0, a_k - a_T)
+    about the goal, written out; the position part is fit_discrete's fit of the positions and
+    the orientation part fit_discrete's fit of those vectors, with fit_discrete's defaults
+    (n_basis, gains) and the same goal scaling, start velocity and reference."""
+    times = np.linspace(0.0, 1.0, 201)
+    s = times / times[-1]
+    angles = 2.5 * (10 * s**3 - 15 * s**4 + 6 * s**5) - 0.4 * np.sin(np.pi * s)
+    turn = np.array([qexp(np.array([0.0, 0.0, a])) for a in angles])
+    positions = np.c_[np.sin(2 * s), s**2, 0.3 * s]
+    fitted = fit_cartesian(times, positions, turn)
+    position = dmpopt.fit_discrete(dmpopt.Trajectory.from_positions(times, positions))
+    log = np.c_[np.zeros((len(times), 2)), angles - angles[-1]]
+    rotation = dmpopt.fit_discrete(dmpopt.Trajectory.from_positions(times, log))
+    assert fitted.n_basis == position.n_basis
+    assert (fitted.alpha_z, fitted.alpha_v) == (position.alpha_z, position.alpha_v)
+    np.testing.assert_array_equal(fitted.position_weights, position.weights)
+    # the rotation vectors: within 1e-15 of the key (quaternion product and logarithm rounding)
+    np.testing.assert_allclose(fitted.orientation_weights, rotation.weights, rtol=1e-9, atol=1e-9)
+    assert fitted.position_scaling == position.goal_scaling
+    assert fitted.orientation_scaling == rotation.goal_scaling
+    np.testing.assert_array_equal(fitted.scaled_start_velocity, position.scaled_start_velocity)
+    np.testing.assert_allclose(
+        fitted.scaled_start_log_rate, rotation.scaled_start_velocity, rtol=1e-9, atol=1e-12
+    )
+    # other gains reach both parts and the DMP
+    gains = {"alpha_z": 30.0, "alpha_v": 12.0}
+    fitted = fit_cartesian(times, positions, turn, **gains)
+    position = dmpopt.fit_discrete(dmpopt.Trajectory.from_positions(times, positions), **gains)
+    assert (fitted.alpha_z, fitted.alpha_v) == (30.0, 12.0)
+    np.testing.assert_array_equal(fitted.position_weights, position.weights)
+
+
+def test_a_demonstration_resting_at_its_goal_fits():
+    """The last fifth of the samples hold the goal orientation (a rotation vector of zero
+    length before the last sample): the fit is finite and the plan ends at the goal."""
+    times = np.linspace(0.0, 1.0, 201)
+    s = np.minimum(times / 0.8, 1.0)
+    turn = np.array([qexp(np.array([0.2, -0.5, 1.0]) * (1 - (1 - a) ** 3)) for a in s])
+    fitted = fit_cartesian(times, np.c_[s, s, s], turn)
+    assert np.all(np.isfinite(fitted.orientation_weights))
+    plan = fitted.rollout()
+    assert np.degrees(angle_between(plan.orientations[-1:], turn[-1:]).max()) < 0.1
+
+
+def test_a_half_turn_exactly_is_accepted():
+    """Every sample at most a half turn from the goal is accepted: a turn of exactly 180
+    degrees about x (its angle pi within rounding) fits, and its plan reaches the goal."""
+    times = np.linspace(0.0, 1.0, 201)
+    s = times / times[-1]
+    turn = np.array([qexp(np.array([np.pi * (10 * a**3 - 15 * a**4 + 6 * a**5), 0, 0])) for a in s])
+    plan = fit_cartesian(times, np.zeros((len(times), 3)), turn).rollout()
+    assert np.degrees(angle_between(plan.orientations[-1:], turn[-1:]).max()) < 0.1
 
 
 @pytest.mark.parametrize("degrees", [361.0, 540.0, 900.0])

@@ -52,6 +52,8 @@ def test_centre_of_pressure_edge_is_named(talos, shift, edge):
     names = active_constraints(controller)
     cop_names = sorted(n.split(" (")[0] for n in names if n.startswith("CoP"))
     assert cop_names == [f"CoP of {foot} at its {edge} edge" for foot in sorted(talos.foot_frames)]
+    # on the edge: 0.0 mm from it (the wrenches' CoP above is within 1e-6 m of it)
+    assert all(n.endswith("edge (0.0 mm)") for n in names if n.startswith("CoP"))
     assert explain(controller).startswith("solved; at their bounds: ")
 
 
@@ -76,7 +78,62 @@ def test_relaxed_answer_says_why(talos):
     controller, _ = standing(talos, torque_limit_scale=0.001)
     controller.compute_torques(talos.reference_configuration.copy(), np.zeros(talos.nv))
     assert controller.stats.last_answer == "relaxed"
-    assert explain(controller).startswith(
+    binding = active_constraints(controller)
+    assert len(binding) >= 2
+    assert explain(controller) == (
         "relaxed: the QP with its inequality rows was not solved (DAQP_INFEASIBLE: "
-        "infeasible: no accelerations and wrenches meet every row at once)"
+        "infeasible: no accelerations and wrenches meet every row at once); the contact rows "
+        "and joint-limit bounds were relaxed, torque and cone rows kept. At their bounds: "
+        + "; ".join(binding)
     )
+
+
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_a_joint_at_its_limit_is_named_with_its_side(talos, side):
+    """The left elbow 1 mrad inside its upper (lower) position limit, moving into it at 1
+    rad/s: its acceleration bound stops it, and it is the one row named, with its side."""
+    controller, _ = standing(talos)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    joint = talos.model.joints[talos.model.getJointId("arm_left_4_joint")]
+    lower = talos.model.lowerPositionLimit[joint.idx_q]
+    upper = talos.model.upperPositionLimit[joint.idx_q]
+    q[joint.idx_q] = upper - 1e-3 if side == "upper" else lower + 1e-3
+    v[joint.idx_v] = 1.0 if side == "upper" else -1.0
+    controller.compute_torques(q, v)
+    assert active_constraints(controller) == [
+        f"joint limit of arm_left_4_joint ({side} acceleration bound)"
+    ]
+    assert explain(controller) == (
+        f"solved; at their bounds: joint limit of arm_left_4_joint ({side} acceleration bound)"
+    )
+    # it decelerates: the acceleration opposes the velocity
+    assert controller.joint_accelerations[joint.idx_v] * v[joint.idx_v] < 0
+
+
+def test_a_tick_that_needs_no_inequality_row_says_so(talos):
+    """Standing still at the reference posture, nothing binds: a direct answer, no row named."""
+    controller, _ = standing(talos)
+    controller.compute_torques(talos.reference_configuration.copy(), np.zeros(talos.nv))
+    assert controller.stats.last_answer == "direct"
+    assert active_constraints(controller) == []
+    assert explain(controller) == "direct: no inequality row was needed"
+
+
+def test_friction_cone_rows_are_named_with_their_direction(talos):
+    """On a floor of friction 0.02 with the base moving sideways at 0.3 m/s, the feet push
+    sideways as far as the friction pyramid lets them: f_y = -mu / sqrt(2) f_z (the pyramid
+    inscribed in the cone, read from the wrenches here), and exactly those rows are named,
+    "-y", with no centre-of-pressure distance."""
+    posture = PostureTask(talos, weight=0.1, stiffness=10.0)
+    com = ComTask(talos, weight=10.0, stiffness=50.0)
+    pelvis = FrameTask(talos, "base_link", weight=1.0, stiffness=50.0, components="orientation")
+    soles = [SoleContact(talos, f, friction_coefficient=0.02) for f in talos.foot_frames]
+    controller = InverseDynamicsController(talos, [posture, com, pelvis], soles, time_budget=1.0)
+    q, v = talos.reference_configuration.copy(), np.zeros(talos.nv)
+    com.set_target(pin.centerOfMass(talos.model, talos.create_data(), q))
+    v[1] = 0.3
+    controller.compute_torques(q, v)
+    wrenches = controller.contact_wrenches
+    np.testing.assert_allclose(wrenches[:, 1], -0.02 / np.sqrt(2) * wrenches[:, 2], rtol=1e-6)
+    names = [n for n in active_constraints(controller) if n.startswith("friction cone")]
+    assert names == [f"friction cone of {foot} (-y)" for foot in controller.active_contacts]

@@ -778,6 +778,13 @@ class RhythmicDMP(_DmpCommon):
         object.__setattr__(self, "setpoint", _frozen(setpoint))
         for name in ("amplitude", "alpha_r", "alpha_E", "k"):
             object.__setattr__(self, name, positive(name, getattr(self, name)))
+        smallest = min(1.0, self.k) * self.amplitude  # of |x| and |v| on the limit cycle
+        if self.form == "energy" and smallest**2 < np.finfo(float).tiny:
+            raise InvalidInputError(
+                f"amplitude = {self.amplitude:.3g} is too small for the energy form: the squared "
+                "size of its oscillator's state underflows, and its phase (atan2(v, x)) and "
+                f"energy are lost; use amplitude >= {1.5e-154 / min(1.0, self.k):.2g}"
+            )
 
     @property
     def period(self) -> float:

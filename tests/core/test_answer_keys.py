@@ -889,6 +889,25 @@ def test_online_setters_name_their_argument():
         rhythmic.replace(weights=np.full((2, 8, 2), np.nan))
 
 
+def test_an_energy_amplitude_whose_square_underflows_is_refused():
+    """x^2 + v^2 of the energy form's limit cycle (x = A cos, v = A k sin) underflows below the
+    smallest normal float, 2.2e-308, for k A < 1.5e-154: the phase's unit vector and the
+    energy are lost (the plan was NaN), so the amplitude is refused by name, on the DMP and
+    through the stepper; just above the limit the plan is finite."""
+    rhythmic, _ = rhythmic_case("energy", seed=9)
+    with pytest.raises(InvalidInputError, match=r"amplitude = 1e-300 is too small .* >= 1.5e-154"):
+        rhythmic.replace(amplitude=1e-300)
+    with pytest.raises(InvalidInputError, match="amplitude = 1e-160 is too small"):
+        rhythmic.stepper().set_amplitude(1e-160)
+    with pytest.raises(InvalidInputError, match=r">= 3e-154"):
+        rhythmic.replace(amplitude=1e-160, k=0.5)
+    plan = rhythmic.replace(amplitude=1e-150).rollout()
+    assert np.all(np.isfinite(plan.positions))
+    # the phase form has no such limit: its oscillator's radius is the amplitude itself
+    phase, _ = rhythmic_case("phase", seed=9)
+    assert np.all(np.isfinite(phase.replace(amplitude=1e-300).rollout().positions))
+
+
 def test_save_keeps_an_npz_name_and_load_refuses_a_foreign_header(tmp_path):
     """save(dmp, "a.npz") writes a.npz (not a.npz.npz), save(dmp, "b") writes b.npz; a file
     whose header names another format is refused whatever its version."""

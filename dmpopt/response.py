@@ -219,10 +219,9 @@ N_BASIS_TERMS = {n_basis_terms}
 
 @_inline
 def terms_at(phase):
-    """The phase terms and their slopes at ``phase`` (symbolic.phase_terms_function), as two
-    tuples: taken once per point for every basis."""
+    """The phase terms at ``phase`` (symbolic.phase_terms_function), as a tuple."""
     result = phase_terms(phase)
-    return {terms}, {terms_slope}
+    return {terms}
 
 
 @_inline
@@ -489,7 +488,7 @@ def block_candidates(low, high, begin, end, basis, root_widths, max_width, first
     level anywhere on the phases low .. high (:func:`candidates`)."""
     n_basis = basis.shape[0]
     middle, radius = 0.5 * (low + high), 0.5 * (high - low)
-    terms = terms_at(middle)[0]
+    terms = terms_at(middle)
     roots = np.empty(n_basis)
     top = -math.inf  # a lower bound of the largest log-activation on the block
     for j in range(n_basis):
@@ -823,7 +822,6 @@ def kernel_source(form: str, kernel: str) -> str:
     terms = {
         "n_basis_terms": str(n_basis),
         "terms": entries("result", 0, n_terms),
-        "terms_slope": entries("result", n_terms, n_terms),
         "no_terms": "(" + "math.nan, " * n_terms + ")",
         "point_terms": entries("point", 6, n_terms),  # after phase, rate, carrier and its rate
         "point_terms_slope": entries("point", 6 + n_terms, n_terms),

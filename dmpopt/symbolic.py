@@ -513,16 +513,12 @@ def phase_point_function(form_name: str, kernel: str) -> ca.Function:
 
 @lru_cache(maxsize=16)
 def phase_terms_function(kernel: str) -> ca.Function:
-    r"""``phase -> (phase_terms, phase_terms_slope)``: what the kernel's log-activations need
-    of the phase (:func:`forms.kernel_phase_terms`), taken once per phase for every basis, and
-    their derivative in the phase."""
+    r"""``phase -> phase_terms``: what the kernel's log-activations need of a phase
+    (:func:`forms.kernel_phase_terms`; at a canonical state, :func:`phase_point_function`
+    gives them with their slope)."""
     phase = ca.SX.sym("phase")
-    terms = kernel_phase_terms(kernel, phase)
-    outputs = {
-        "phase_terms": ca.vertcat(*terms),
-        "phase_terms_slope": ca.vertcat(*kernel_phase_terms_slope(kernel, terms)),
-    }
-    return function("dmp_phase_terms", {"phase": phase}, outputs)
+    terms = ca.vertcat(*kernel_phase_terms(kernel, phase))
+    return function("dmp_phase_terms", {"phase": phase}, {"phase_terms": terms})
 
 
 @lru_cache(maxsize=16)
